@@ -1,0 +1,89 @@
+"""The command line: the GUI by default, and headless subcommands.
+
+Every subcommand lives in its own module under `stereo_gui.commands` with two functions,
+`add_arguments(parser)` and `run(args) -> int`. A `StereoGuiError` raised anywhere below becomes
+one line on stderr and exit status 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+
+from stereo_gui import __version__
+from stereo_gui.core.errors import StereoGuiError
+
+# name -> (module, one-line help)
+SUBCOMMANDS: dict[str, tuple[str, str]] = {
+    "calibrate": ("stereo_gui.commands.calibrate", "calibrate a stereo rig from chessboard pairs"),
+    "measure": ("stereo_gui.commands.measure", "measure distances at pixels of a stereo pair"),
+    "disparity": ("stereo_gui.commands.disparity", "write the disparity map of a stereo pair"),
+    "bench": ("stereo_gui.commands.bench", "measure the speed of the live pipeline"),
+    "simulate": ("stereo_gui.commands.simulate", "write images from the simulated stereo rig"),
+}
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors exit with status 2 and one clear line."""
+
+    def error(self, message: str) -> None:  # noqa: D401 - argparse API
+        sys.stderr.write(f"{self.prog}: error: {message}\n")
+        raise SystemExit(2)
+
+
+def _gui_parser() -> argparse.ArgumentParser:
+    p = _Parser(
+        prog="stereo-gui",
+        description="Stereo GUI. Without a subcommand it starts the application window. "
+        f"Subcommands: {', '.join(SUBCOMMANDS)} (stereo-gui SUBCOMMAND --help).",
+    )
+    p.add_argument("--version", action="version", version=f"stereo-gui {__version__}")
+    p.add_argument(
+        "--source",
+        default=None,
+        help="auto (default: cameras if found, else the simulated rig), sim, cams:L,R, sbs:N, "
+        "a folder of recorded pairs, or a side-by-side video file",
+    )
+    p.add_argument("--calib", default=None, help="calibration file to load at start-up")
+    p.add_argument("-v", "--verbose", action="store_true", help="log more detail")
+    return p
+
+
+def _sub_parser(name: str) -> tuple[argparse.ArgumentParser, object]:
+    module_name, help_text = SUBCOMMANDS[name]
+    module = importlib.import_module(module_name)
+    p = _Parser(prog=f"stereo-gui {name}", description=help_text)
+    p.add_argument("-v", "--verbose", action="store_true", help="log more detail")
+    module.add_arguments(p)
+    return p, module
+
+
+def _setup_logging(verbose: bool) -> None:
+    logging.basicConfig(
+        level=logging.DEBUG if verbose else logging.WARNING,
+        format="%(levelname)s %(name)s: %(message)s",
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; return the process exit status."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        if argv and argv[0] in SUBCOMMANDS:
+            parser, module = _sub_parser(argv[0])
+            args = parser.parse_args(argv[1:])
+            _setup_logging(args.verbose)
+            return int(module.run(args) or 0)
+        args = _gui_parser().parse_args(argv)
+        _setup_logging(args.verbose)
+        from stereo_gui.qt.app import run_app  # Qt is imported only for the GUI
+
+        return run_app(source=args.source, calib=args.calib)
+    except StereoGuiError as exc:
+        sys.stderr.write(f"stereo-gui: error: {exc}\n")
+        return 2
+    except KeyboardInterrupt:
+        sys.stderr.write("stereo-gui: interrupted\n")
+        return 130

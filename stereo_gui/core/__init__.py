@@ -1,0 +1,1 @@
+"""Computation on numpy arrays with OpenCV: boards, calibration, matching, measurement. No Qt."""

@@ -1,0 +1,25 @@
+"""Exceptions the core raises for problems a user can fix (bad files, bad input, too little data).
+
+The command line turns any `StereoGuiError` into one line on stderr and exit status 2; the GUI
+shows its message. Programming errors are not wrapped: they stay ordinary exceptions.
+"""
+
+
+class StereoGuiError(Exception):
+    """A problem with the user's input that deserves a clear one-line message."""
+
+
+class InputError(StereoGuiError):
+    """Bad arguments or unusable input files (missing, corrupt, wrong size)."""
+
+
+class CalibrationError(StereoGuiError):
+    """Calibration could not be computed from the given data (no board, too few pairs)."""
+
+
+class CalibrationFileError(StereoGuiError):
+    """A calibration file is missing, corrupt, or holds matrices of the wrong shape."""
+
+
+class SourceError(StereoGuiError):
+    """A frame source could not be opened or stopped delivering frames."""

@@ -1,0 +1,1 @@
+"""Reading and writing user data: calibrations, sessions, spreadsheets, exports, settings. No Qt."""

@@ -1,0 +1,1 @@
+"""The Qt application: main window, tabs, widgets and the workers that run core/ off the UI thread."""

@@ -1,0 +1,1 @@
+"""Where stereo frames come from: cameras, recordings and the simulated rig. No Qt."""

@@ -1,0 +1,45 @@
+"""What every frame source yields, and the interface they share."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+
+@dataclass(frozen=True, eq=False)
+class StereoFrame:
+    """One stereo frame: both raw images (BGR uint8, HxWx3) with capture times (seconds).
+
+    `index` counts frames from the source's start; `truth` carries ground truth where the source
+    knows it (the simulated rig), else None.
+    """
+
+    left: np.ndarray
+    right: np.ndarray
+    t_left: float
+    t_right: float
+    index: int
+    truth: object | None = None
+
+    @property
+    def size(self) -> tuple[int, int]:
+        """(width, height) of the left image, px."""
+        return (int(self.left.shape[1]), int(self.left.shape[0]))
+
+
+@runtime_checkable
+class FrameSource(Protocol):
+    """A source of stereo frames. `read()` blocks until the next frame (or raises SourceError).
+
+    Sources are used from one worker thread at a time; `close()` releases devices and may be
+    called more than once.
+    """
+
+    name: str  # what the status bar shows, e.g. "Simulated rig" or "Cameras 0, 1"
+    nominal_fps: float  # the rate the source is meant to deliver, frames per second
+
+    def read(self) -> StereoFrame: ...
+
+    def close(self) -> None: ...
