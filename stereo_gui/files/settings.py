@@ -1,0 +1,222 @@
+"""Typed, versioned application settings stored as JSON in the platform's configuration folder.
+
+The folder is `$STEREO_GUI_CONFIG_DIR` when set (tests set it, so they never touch the real
+user's settings), else `platformdirs.user_config_dir("stereo-gui")`. Loading never raises: a
+corrupt file, an unknown format version, unknown keys and wrongly typed values are reported as
+warnings (and logged) and replaced by defaults, so a bad file never stops the application.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import types
+import typing
+from dataclasses import asdict, dataclass, fields, replace
+from pathlib import Path
+
+from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.errors import InputError
+from stereo_gui.files.atomic import write_text_atomic
+
+log = logging.getLogger(__name__)
+
+FORMAT_VERSION = 1
+SETTINGS_FILE = "settings.json"
+APP_NAME = "stereo-gui"
+RECENT_LIMIT = 10
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Everything the application remembers between runs. Units are in the field names."""
+
+    source: str = "auto"  # as --source takes it: auto, sim, cams:L,R, sbs:N, a folder or a video
+    resolution: tuple[int, int] = (640, 480)  # (width, height), px
+    swap_lr: bool = False
+    board_cols: int = 9  # inner corners
+    board_rows: int = 6
+    square_mm: float = 25.0
+    nominal_baseline_mm: float = 110.0
+    preset: str = "live"  # matcher preset name
+    last_calibration: str | None = None  # path of the calibration loaded at start-up
+    last_session: str | None = None  # path of the last capture session folder
+    last_export_dir: str | None = None
+    window_geometry: str = ""  # QMainWindow.saveGeometry() as base64
+    window_state: str = ""  # QMainWindow.saveState() as base64
+    recent_files: tuple[str, ...] = ()  # newest first
+    colormap: str = "ocean"
+    patch_size: int = 3  # side of the square patch averaged by a click, px (odd)
+    auto_capture: bool = False
+    measure_model: str = "triangulation"  # or the name of a fitted model ("cubic", "inverse")
+    visible_views: tuple[str, ...] = ()  # live views shown; empty means the window's default
+
+    @property
+    def board(self) -> BoardSpec:
+        return BoardSpec(self.board_cols, self.board_rows, self.square_mm)
+
+    def with_board(self, board: BoardSpec) -> Settings:
+        return replace(self, board_cols=board.cols, board_rows=board.rows, square_mm=board.square_mm)
+
+    def with_recent(self, path: str | os.PathLike, limit: int = RECENT_LIMIT) -> Settings:
+        """These settings with `path` first in the recent files (no duplicates, at most `limit`)."""
+        p = str(path)
+        recent = (p,) + tuple(r for r in self.recent_files if r != p)
+        return replace(self, recent_files=recent[:limit])
+
+    def with_updates(self, **changes) -> Settings:
+        return replace(self, **changes)
+
+
+def config_dir() -> Path:
+    """The folder that holds the settings file (not created here)."""
+    env = os.environ.get("STEREO_GUI_CONFIG_DIR")
+    if env:
+        return Path(env)
+    import platformdirs
+
+    return Path(platformdirs.user_config_dir(APP_NAME, appauthor=False))
+
+
+def settings_path() -> Path:
+    return config_dir() / SETTINGS_FILE
+
+
+# ---- validation -----------------------------------------------------------------------------
+# extra checks on values that have the right type; a failing check is reported like a bad type
+_CHECKS: dict[str, tuple[typing.Callable[[object], bool], str]] = {
+    "resolution": (lambda v: v[0] > 0 and v[1] > 0, "two positive integers"),
+    "board_cols": (lambda v: v >= 2, "an integer of at least 2"),
+    "board_rows": (lambda v: v >= 2, "an integer of at least 2"),
+    "square_mm": (lambda v: math.isfinite(v) and v > 0, "a positive number"),
+    "nominal_baseline_mm": (lambda v: math.isfinite(v) and v > 0, "a positive number"),
+    "patch_size": (lambda v: v >= 1 and v % 2 == 1, "an odd positive integer"),
+}
+
+
+def _convert(value, tp):
+    """`value` (parsed JSON) converted to type `tp`, or raise TypeError."""
+    origin = typing.get_origin(tp)
+    if origin in (typing.Union, types.UnionType):
+        args = typing.get_args(tp)
+        if value is None and type(None) in args:
+            return None
+        for a in args:
+            if a is type(None):
+                continue
+            try:
+                return _convert(value, a)
+            except TypeError:
+                pass
+        raise TypeError
+    if origin is tuple:
+        args = typing.get_args(tp)
+        if not isinstance(value, list | tuple):
+            raise TypeError
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple(_convert(v, args[0]) for v in value)
+        if len(value) != len(args):
+            raise TypeError
+        return tuple(_convert(v, a) for v, a in zip(value, args, strict=True))
+    if tp is bool:
+        if not isinstance(value, bool):
+            raise TypeError
+        return value
+    if tp is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise TypeError
+        return value
+    if tp is float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise TypeError
+        return float(value)
+    if tp is str:
+        if not isinstance(value, str):
+            raise TypeError
+        return value
+    raise TypeError
+
+
+def _describe(tp) -> str:
+    return str(tp).replace("typing.", "").replace("<class '", "").replace("'>", "")
+
+
+def settings_from_dict(data: dict) -> tuple[Settings, list[str]]:
+    """Settings built from a parsed settings file, with a warning for every value not used."""
+    warnings: list[str] = []
+    hints = typing.get_type_hints(Settings)
+    known = {f.name for f in fields(Settings)}
+    values: dict[str, object] = {}
+    for key, raw in data.items():
+        if key == "format_version":
+            continue
+        if key not in known:
+            warnings.append(f"unknown setting {key!r} ignored")
+            continue
+        try:
+            value = _convert(raw, hints[key])
+        except TypeError:
+            warnings.append(f"setting {key!r} should be {_describe(hints[key])}, "
+                            f"found {raw!r}; default used")
+            continue
+        check = _CHECKS.get(key)
+        if check and not check[0](value):
+            warnings.append(f"setting {key!r} should be {check[1]}, found {raw!r}; default used")
+            continue
+        values[key] = value
+    return Settings(**values), warnings
+
+
+def settings_to_dict(settings: Settings) -> dict:
+    data = {"format_version": FORMAT_VERSION}
+    for key, value in asdict(settings).items():
+        data[key] = list(value) if isinstance(value, tuple) else value
+    return data
+
+
+# ---- load and save --------------------------------------------------------------------------
+def load_settings(path: str | os.PathLike | None = None) -> tuple[Settings, list[str]]:
+    """Read the settings; return them with warnings about whatever had to be ignored.
+
+    Never raises for a bad file: a missing file gives the defaults silently, anything else
+    unusable gives the defaults (or the usable part) and a warning.
+    """
+    path = Path(path) if path is not None else settings_path()
+    warnings: list[str] = []
+    if not path.exists():
+        return Settings(), warnings
+    try:
+        text = path.read_text(encoding="utf-8")
+        data = json.loads(text)
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        warnings.append(f"settings file {path} could not be read ({exc}); defaults used")
+    else:
+        if not isinstance(data, dict):
+            warnings.append(f"settings file {path} does not hold a JSON object; defaults used")
+        else:
+            version = data.get("format_version")
+            if version != FORMAT_VERSION:
+                warnings.append(f"settings file {path} has format version {version!r}, "
+                                f"this version reads {FORMAT_VERSION}; defaults used")
+            else:
+                settings, more = settings_from_dict(data)
+                warnings.extend(f"{path}: {w}" for w in more)
+                for w in warnings:
+                    log.warning("%s", w)
+                return settings, warnings
+    for w in warnings:
+        log.warning("%s", w)
+    return Settings(), warnings
+
+
+def save_settings(settings: Settings, path: str | os.PathLike | None = None) -> Path:
+    """Write the settings atomically (creating the folder); raise InputError if it cannot."""
+    path = Path(path) if path is not None else settings_path()
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create settings folder {path.parent}: {exc.strerror or exc}") from exc
+    text = json.dumps(settings_to_dict(settings), indent=2, sort_keys=False) + "\n"
+    return write_text_atomic(path, text)
