@@ -1,0 +1,124 @@
+"""Slow jobs off the UI thread: a generator worker that reports progress and cancels cooperatively.
+
+A job is a generator function `job(cancel) -> Generator[Progress, None, result]`. It yields
+Progress between steps; the worker stops it at the next yield once cancel is asked for (the
+`cancel` argument, an Event-like object, is also handed down to core functions that accept a
+`cancel=` callable so a long step can stop early). Whatever the generator returns is the result.
+
+Signals reach the UI thread queued: progress(Progress), finished(result), failed(str) for an
+exception (already phrased for a person), cancelled(). Exactly one of finished / failed /
+cancelled is emitted per run, then done().
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable, Generator
+from dataclasses import dataclass
+
+from PySide6.QtCore import QThread, Signal
+
+from stereo_gui.core.errors import StereoGuiError
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Progress:
+    """How far a job is: `done` of `total` steps, and what it is doing now."""
+
+    done: int
+    total: int
+    text: str = ""
+
+    @property
+    def percent(self) -> int:
+        return int(round(100.0 * self.done / self.total)) if self.total > 0 else 0
+
+
+class JobCancelled(Exception):
+    """Raised inside a job (or by a core function's cancel check) to stop it early."""
+
+
+class CancelToken:
+    """Thread-safe cancel flag; calling it answers whether cancel was asked (for `cancel=`)."""
+
+    def __init__(self) -> None:
+        self._event = threading.Event()
+
+    def set(self) -> None:
+        self._event.set()
+
+    def is_set(self) -> bool:
+        return self._event.is_set()
+
+    def __call__(self) -> bool:
+        return self._event.is_set()
+
+    def check(self) -> None:
+        """Raise JobCancelled if cancel was asked."""
+        if self._event.is_set():
+            raise JobCancelled()
+
+
+Job = Callable[[CancelToken], Generator[Progress, None, object]]
+
+
+class JobWorker(QThread):
+    """Runs one generator job in its own thread; see the module docstring for the signals."""
+
+    progress = Signal(object)  # Progress
+    finished_ok = Signal(object)  # the job's result
+    failed = Signal(str)  # a message for a person
+    cancelled = Signal()
+    done = Signal()  # after any of the three above
+
+    def __init__(self, job: Job, name: str = "job", parent=None) -> None:
+        super().__init__(parent)
+        self._job = job
+        self._cancel = CancelToken()
+        self.job_name = name
+        self.setObjectName(f"JobWorker-{name}")
+
+    def cancel(self) -> None:
+        """Ask the job to stop at its next step (returns at once)."""
+        self._cancel.set()
+
+    @property
+    def cancel_requested(self) -> bool:
+        return self._cancel.is_set()
+
+    def stop(self, timeout_ms: int = 2000) -> bool:
+        """Cancel and wait for the thread to end; True if it ended within the timeout."""
+        self.cancel()
+        return self.wait(timeout_ms) if self.isRunning() else True
+
+    def run(self) -> None:  # runs in the worker thread
+        try:
+            gen = self._job(self._cancel)
+            result = None
+            while True:
+                if self._cancel.is_set():
+                    gen.close()
+                    raise JobCancelled()
+                try:
+                    step = next(gen)
+                except StopIteration as stop:
+                    result = stop.value
+                    break
+                if isinstance(step, Progress):
+                    self.progress.emit(step)
+            if self._cancel.is_set():
+                raise JobCancelled()
+        except JobCancelled:
+            self.cancelled.emit()
+        except StereoGuiError as exc:
+            self.failed.emit(str(exc))
+        except Exception as exc:  # a bug or an OpenCV error: the user still gets a message
+            log.exception("%s failed", self.job_name)
+            self.failed.emit(f"{self.job_name} failed: {type(exc).__name__}: {exc}")
+        else:
+            self.finished_ok.emit(result)
+        finally:
+            self.done.emit()

@@ -1,0 +1,76 @@
+"""The generator worker: progress, result, errors as signals, cooperative cancel."""
+
+from __future__ import annotations
+
+import threading
+
+from stereo_gui.core.errors import InputError
+from stereo_gui.qt.calibration_worker import JobWorker, Progress
+
+
+def _counting_job(n):
+    def job(cancel):
+        for i in range(n):
+            yield Progress(i, n, f"step {i}")
+        return "result"
+    return job
+
+
+def test_job_reports_progress_and_result(qtbot):
+    worker = JobWorker(_counting_job(5), "count")
+    seen = []
+    worker.progress.connect(seen.append)
+    with qtbot.waitSignal(worker.finished_ok, timeout=5000) as blocker:
+        worker.start()
+    assert blocker.args == ["result"]
+    qtbot.waitUntil(lambda: len(seen) == 5)
+    assert [p.done for p in seen] == [0, 1, 2, 3, 4]
+    assert seen[-1].percent == 80
+    assert worker.wait(2000)
+
+
+def test_error_becomes_failed_signal(qtbot):
+    def job(cancel):
+        yield Progress(0, 1, "reading")
+        raise InputError("folder /nowhere does not exist")
+
+    worker = JobWorker(job, "calibration")
+    with qtbot.waitSignal(worker.failed, timeout=5000) as blocker:
+        worker.start()
+    assert blocker.args == ["folder /nowhere does not exist"]
+    assert worker.wait(2000)
+
+
+def test_unexpected_error_is_named(qtbot):
+    def job(cancel):
+        yield Progress(0, 1)
+        raise ValueError("boom")
+
+    worker = JobWorker(job, "export")
+    with qtbot.waitSignal(worker.failed, timeout=5000) as blocker:
+        worker.start()
+    assert "export failed" in blocker.args[0] and "boom" in blocker.args[0]
+    assert worker.wait(2000)
+
+
+def test_cancel_stops_at_next_step(qtbot):
+    gate = threading.Event()
+    steps = []
+
+    def job(cancel):
+        for i in range(1000):
+            steps.append(i)
+            if i == 2:
+                gate.wait(5)  # hold here until the test has asked to cancel
+            yield Progress(i, 1000)
+        return "never"
+
+    worker = JobWorker(job, "slow")
+    results = []
+    worker.finished_ok.connect(results.append)
+    worker.progress.connect(lambda p: p.done == 1 and (worker.cancel(), gate.set()))
+    with qtbot.waitSignal(worker.cancelled, timeout=5000):
+        worker.start()
+    assert worker.wait(2000)
+    assert results == []
+    assert len(steps) < 10
