@@ -1,0 +1,127 @@
+"""The application context: the single owner of app-wide state, shared by every tab.
+
+Widgets get the context in their constructor, read its attributes and subscribe to its signals;
+they change state only through its methods, so every change is announced exactly once.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+from PySide6.QtCore import QObject, Signal
+
+from stereo_gui.qt.frame_worker import FrameWorker, JobRunner
+
+log = logging.getLogger(__name__)
+
+
+def _default_settings():
+    try:
+        from stereo_gui.files.settings import Settings
+    except ImportError:  # the settings module is optional only while it is being written
+        return None
+    return Settings()
+
+
+class AppContext(QObject):
+    """App-wide state: settings, calibration, measurement log, active fit, frame worker.
+
+    `settings` is a frozen `stereo_gui.files.settings.Settings`; replace it with
+    `update_settings(**changes)`. `measurements` is a list of
+    `stereo_gui.files.spreadsheet.MeasurementRecord`, oldest first.
+    """
+
+    calibrationChanged = Signal(object)  # StereoCalibration | None
+    measurementsChanged = Signal()
+    activeFitChanged = Signal(object)  # FitResult | None
+    settingsChanged = Signal(object)  # Settings
+    statusMessage = Signal(str)
+    errorOccurred = Signal(str)
+
+    def __init__(self, settings=None, parent: QObject | None = None) -> None:
+        super().__init__(parent)
+        self.settings = settings if settings is not None else _default_settings()
+        self.calibration = None
+        self.calibration_path: Path | None = None
+        self.measurements: list = []
+        self.active_fit = None
+        self.source_fell_back_to_sim = False  # True when auto found no cameras
+        self.frames = FrameWorker(self)
+        self.jobs = JobRunner("measure-jobs", self)  # occasional work off the UI thread
+        self._workers: list = []  # more workers (calibration, files) registered by tabs
+        self.frames.errorOccurred.connect(self.report_error)
+
+    # ---- state changes -----------------------------------------------------------------------
+    def set_calibration(self, calib, path: str | Path | None = None) -> None:
+        """Use `calib` (or None) from now on; `path` is the file it came from, if any."""
+        self.calibration = calib
+        self.calibration_path = Path(path) if path is not None else None
+        self.calibrationChanged.emit(calib)
+
+    def add_measurement(self, record) -> int:
+        """Append a record to the log; return its index."""
+        self.measurements.append(record)
+        self.measurementsChanged.emit()
+        return len(self.measurements) - 1
+
+    def update_measurement(self, index: int, record) -> None:
+        self.measurements[index] = record
+        self.measurementsChanged.emit()
+
+    def remove_measurement(self, index: int) -> None:
+        del self.measurements[index]
+        self.measurementsChanged.emit()
+
+    def clear_measurements(self) -> None:
+        self.measurements.clear()
+        self.measurementsChanged.emit()
+
+    def set_active_fit(self, fit) -> None:
+        """Make live readings use `fit` (a FitResult) instead of triangulation; None to undo."""
+        self.active_fit = fit
+        self.activeFitChanged.emit(fit)
+
+    def update_settings(self, **changes) -> None:
+        """Replace settings fields (unknown names raise TypeError, as dataclasses.replace does)."""
+        if self.settings is None:
+            return
+        self.settings = self.settings.with_updates(**changes)
+        self.settingsChanged.emit(self.settings)
+
+    def report_error(self, text: str) -> None:
+        """Show `text` to the user (the main window listens) and log it."""
+        log.warning("%s", text)
+        self.errorOccurred.emit(str(text))
+
+    def show_status(self, text: str) -> None:
+        self.statusMessage.emit(str(text))
+
+    # ---- workers -----------------------------------------------------------------------------
+    def register_worker(self, worker) -> None:
+        """Have `shutdown()` stop `worker` too (anything with `stop(timeout_ms=...)`)."""
+        if worker not in self._workers:
+            self._workers.append(worker)
+
+    def unregister_worker(self, worker) -> None:
+        if worker in self._workers:
+            self._workers.remove(worker)
+
+    def shutdown(self, timeout_ms: int = 2000) -> bool:
+        """Stop and join every worker (within `timeout_ms` in total); True if all ended."""
+        ok = True
+        for w in [self.frames, self.jobs, *self._workers]:
+            try:
+                ok = bool(_stop(w, timeout_ms)) and ok
+            except Exception:  # noqa: BLE001 - one broken worker must not keep others running
+                log.warning("stopping %r failed", w, exc_info=True)
+                ok = False
+        return ok
+
+
+def _stop(worker, timeout_ms: int):
+    try:
+        return worker.stop(timeout_ms=timeout_ms)
+    except TypeError:
+        result = worker.stop()
+        return True if result is None else result

@@ -1,0 +1,374 @@
+"""The frame worker: reads the current source and runs the current processor off the UI thread.
+
+Two QThreads, joined by a slot of size one (newest frame wins, as in ROS camera_calibration):
+- the reader calls `source.read()` as fast as the source delivers, so a camera never backs up;
+- the processor takes the newest frame, runs the processor function on it (all heavy OpenCV work
+  happens here) and keeps the newest `ProcessedFrame`.
+
+The UI never receives a backlog: `frameReady` is emitted at most once until `latest()` is called,
+and `latest()` returns only the newest result. Also here: `JobRunner`, one background thread for
+occasional requests (a click's measurement), results delivered by signal with the request's id.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from PySide6.QtCore import QObject, QThread, Signal
+
+from stereo_gui.sources.base import FrameSource, StereoFrame
+
+log = logging.getLogger(__name__)
+
+Processor = Callable[[StereoFrame], object]
+
+_JOIN_TIMEOUT_MS = 2000
+_FPS_SMOOTHING = 0.1  # weight of the newest interval in the running frame-rate estimate
+
+
+@dataclass(frozen=True, eq=False)
+class ProcessedFrame:
+    """One processed frame: the raw stereo frame, the processor's output (None without one).
+
+    `camera_fps` is the rate the source delivers frames, `processing_fps` the rate results are
+    produced, `processing_ms` the processor's time for this frame (milliseconds).
+    """
+
+    frame: StereoFrame
+    output: object
+    camera_fps: float
+    processing_fps: float
+    processing_ms: float = 0.0
+
+
+class _RateMeter:
+    """A smoothed events-per-second estimate from the intervals between events."""
+
+    def __init__(self) -> None:
+        self._last: float | None = None
+        self._interval_s: float | None = None
+
+    def tick(self, now: float) -> None:
+        if self._last is not None:
+            dt = max(now - self._last, 1e-6)
+            self._interval_s = dt if self._interval_s is None else (
+                (1 - _FPS_SMOOTHING) * self._interval_s + _FPS_SMOOTHING * dt)
+        self._last = now
+
+    def reset(self) -> None:
+        self._last = None
+        self._interval_s = None
+
+    @property
+    def fps(self) -> float:
+        return 0.0 if not self._interval_s else 1.0 / self._interval_s
+
+
+class _LoopThread(QThread):
+    """A QThread running a plain Python loop function until asked to stop."""
+
+    def __init__(self, loop: Callable[[], None], name: str) -> None:
+        super().__init__()
+        self._loop = loop
+        self.setObjectName(name)
+
+    def run(self) -> None:  # runs in the new thread
+        self._loop()
+
+
+class FrameWorker(QObject):
+    """Reads frames from a FrameSource and processes them off the UI thread (see module doc)."""
+
+    frameReady = Signal()  # a new ProcessedFrame is available; at most once until latest()
+    errorOccurred = Signal(str)  # a message for the user (source or processor failure)
+    sourceChanged = Signal(str)  # the name of the new source ("" when none)
+
+    def __init__(self, parent: QObject | None = None) -> None:
+        super().__init__(parent)
+        self._cond = threading.Condition()
+        # everything below is guarded by self._cond
+        self._source: FrameSource | None = None
+        self._pending_source: FrameSource | None = None
+        self._source_pending = False
+        self._processor: Processor | None = None
+        self._frame: StereoFrame | None = None  # newest frame not yet processed
+        self._latest: ProcessedFrame | None = None
+        self._notified = False
+        self._paused = False
+        self._stopping = False
+        self._camera_rate = _RateMeter()
+        self._proc_rate = _RateMeter()
+        self._last_error = ""
+        self._frames_read = 0
+        self._frames_processed = 0
+        self._reader: _LoopThread | None = None
+        self._worker: _LoopThread | None = None
+
+    # ---- control (UI thread) -----------------------------------------------------------------
+    def set_source(self, source: FrameSource | None) -> None:
+        """Use `source` from the next read on; the previous source is closed by the reader."""
+        with self._cond:
+            self._pending_source = source
+            self._source_pending = True
+            self._frame = None
+            self._latest = None
+            self._last_error = ""
+            self._camera_rate.reset()
+            self._proc_rate.reset()
+            self._cond.notify_all()
+        self.sourceChanged.emit(getattr(source, "name", "") if source is not None else "")
+        self._ensure_started()
+
+    def source(self) -> FrameSource | None:
+        """The source in use (or about to be used)."""
+        with self._cond:
+            return self._pending_source if self._source_pending else self._source
+
+    def set_processor(self, fn: Processor | None) -> None:
+        """Run `fn(frame)` on every frame from the next one on (None: frames pass unprocessed)."""
+        with self._cond:
+            self._processor = fn
+            self._last_error = ""
+
+    def processor(self) -> Processor | None:
+        with self._cond:
+            return self._processor
+
+    def latest(self) -> ProcessedFrame | None:
+        """The newest processed frame (or None); re-arms `frameReady`."""
+        with self._cond:
+            self._notified = False
+            return self._latest
+
+    def pause(self) -> None:
+        """Stop reading and processing until `resume()`; the last result stays available."""
+        with self._cond:
+            self._paused = True
+            self._cond.notify_all()
+
+    def resume(self) -> None:
+        with self._cond:
+            self._paused = False
+            self._camera_rate.reset()
+            self._proc_rate.reset()
+            self._cond.notify_all()
+
+    @property
+    def paused(self) -> bool:
+        with self._cond:
+            return self._paused
+
+    @property
+    def fps_camera(self) -> float:
+        """Frames per second delivered by the source (0 when idle)."""
+        with self._cond:
+            return self._camera_rate.fps
+
+    @property
+    def fps_processing(self) -> float:
+        """Processed frames per second (0 when idle)."""
+        with self._cond:
+            return self._proc_rate.fps
+
+    @property
+    def frames_read(self) -> int:
+        with self._cond:
+            return self._frames_read
+
+    @property
+    def frames_processed(self) -> int:
+        with self._cond:
+            return self._frames_processed
+
+    def is_running(self) -> bool:
+        return any(t is not None and t.isRunning() for t in (self._reader, self._worker))
+
+    def stop(self, timeout_ms: int = _JOIN_TIMEOUT_MS) -> bool:
+        """Ask both threads to end, join them, close the source; True if they ended in time."""
+        with self._cond:
+            self._stopping = True
+            self._cond.notify_all()
+        ok = True
+        deadline = time.monotonic() + timeout_ms / 1000.0
+        for t in (self._reader, self._worker):
+            if t is not None:
+                left_ms = max(1, int((deadline - time.monotonic()) * 1000))
+                ok = t.wait(left_ms) and ok
+        if not ok:
+            log.warning("frame worker did not stop within %d ms (a source read is blocking)",
+                        timeout_ms)
+        with self._cond:
+            sources = [s for s in (self._source, self._pending_source) if s is not None]
+            if ok:
+                self._source = None
+                self._pending_source = None
+                self._source_pending = False
+        if ok:
+            for s in sources:
+                _close_quietly(s)
+            self._reader = None
+            self._worker = None
+            with self._cond:
+                self._stopping = False
+        return ok
+
+    # ---- threads -----------------------------------------------------------------------------
+    def _ensure_started(self) -> None:
+        if self._reader is None:
+            self._reader = _LoopThread(self._read_loop, "frame-reader")
+            self._reader.start()
+        if self._worker is None:
+            self._worker = _LoopThread(self._process_loop, "frame-processor")
+            self._worker.start()
+
+    def _report(self, text: str) -> None:
+        """Emit an error once (a failing source or processor would otherwise repeat it per frame)."""
+        with self._cond:
+            if text == self._last_error:
+                return
+            self._last_error = text
+        log.warning("%s", text)
+        self.errorOccurred.emit(text)
+
+    def _read_loop(self) -> None:
+        while True:
+            with self._cond:
+                while not self._stopping and (self._paused or (
+                        self._source is None and not self._source_pending)):
+                    self._cond.wait()
+                if self._stopping:
+                    return
+                old = None
+                if self._source_pending:
+                    old, self._source = self._source, self._pending_source
+                    self._pending_source = None
+                    self._source_pending = False
+                source = self._source
+            if old is not None and old is not source:
+                _close_quietly(old)
+            if source is None:
+                continue
+            try:
+                frame = source.read()
+            except Exception as exc:  # noqa: BLE001 - any failure of a device becomes a message
+                self._report(f"{getattr(source, 'name', 'source')}: {exc}")
+                with self._cond:
+                    # stop reading a failed source; a new set_source() starts again
+                    if self._source is source:
+                        self._source = None
+                        self._camera_rate.reset()
+                _close_quietly(source)
+                continue
+            with self._cond:
+                if self._source is not source or self._source_pending:
+                    continue  # a frame of the previous source: drop it
+                self._frame = frame
+                self._frames_read += 1
+                self._camera_rate.tick(time.monotonic())
+                self._cond.notify_all()
+
+    def _process_loop(self) -> None:
+        while True:
+            with self._cond:
+                while not self._stopping and (self._paused or self._frame is None):
+                    self._cond.wait()
+                if self._stopping:
+                    return
+                frame, self._frame = self._frame, None
+                fn = self._processor
+            t0 = time.perf_counter()
+            output = None
+            if fn is not None:
+                try:
+                    output = fn(frame)
+                except Exception as exc:  # noqa: BLE001 - shown to the user, the loop goes on
+                    log.debug("processor failed", exc_info=True)
+                    self._report(f"processing failed: {exc}")
+                    continue
+            ms = (time.perf_counter() - t0) * 1000.0
+            with self._cond:
+                if self._processor is not fn:
+                    continue  # made for a processor that has since been replaced
+                self._proc_rate.tick(time.monotonic())
+                self._frames_processed += 1
+                self._latest = ProcessedFrame(frame, output, self._camera_rate.fps,
+                                              self._proc_rate.fps, ms)
+                notify = not self._notified
+                self._notified = True
+            if notify:
+                self.frameReady.emit()
+
+
+def _close_quietly(source: FrameSource) -> None:
+    try:
+        source.close()
+    except Exception:  # noqa: BLE001 - closing a broken device must not stop the app
+        log.warning("closing %s failed", getattr(source, "name", source), exc_info=True)
+
+
+class JobRunner(QObject):
+    """One background thread for occasional jobs; `finished(id, result)` / `failed(id, message)`.
+
+    Jobs run in order; `submit` returns the job's id so a caller can drop a stale answer.
+    """
+
+    finished = Signal(int, object)
+    failed = Signal(int, str)
+
+    def __init__(self, name: str = "jobs", parent: QObject | None = None) -> None:
+        super().__init__(parent)
+        self._cond = threading.Condition()
+        self._jobs: list[tuple[int, Callable[[], object]]] = []
+        self._next_id = 1
+        self._stopping = False
+        self._name = name
+        self._thread: _LoopThread | None = None
+
+    def submit(self, fn: Callable[[], object]) -> int:
+        with self._cond:
+            job_id = self._next_id
+            self._next_id += 1
+            self._jobs.append((job_id, fn))
+            self._cond.notify_all()
+        if self._thread is None:
+            self._thread = _LoopThread(self._loop, self._name)
+            self._thread.start()
+        return job_id
+
+    def is_running(self) -> bool:
+        return self._thread is not None and self._thread.isRunning()
+
+    def stop(self, timeout_ms: int = _JOIN_TIMEOUT_MS) -> bool:
+        """Drop queued jobs, let the running one finish, join the thread."""
+        with self._cond:
+            self._stopping = True
+            self._jobs.clear()
+            self._cond.notify_all()
+        ok = True
+        if self._thread is not None:
+            ok = self._thread.wait(timeout_ms)
+            if ok:
+                self._thread = None
+        with self._cond:
+            self._stopping = False
+        return ok
+
+    def _loop(self) -> None:
+        while True:
+            with self._cond:
+                while not self._stopping and not self._jobs:
+                    self._cond.wait()
+                if self._stopping:
+                    return
+                job_id, fn = self._jobs.pop(0)
+            try:
+                result = fn()
+            except Exception as exc:  # noqa: BLE001 - reported to the caller by signal
+                log.debug("job %d failed", job_id, exc_info=True)
+                self.failed.emit(job_id, str(exc) or type(exc).__name__)
+                continue
+            self.finished.emit(job_id, result)

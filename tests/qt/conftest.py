@@ -1,0 +1,75 @@
+"""Fixtures for the Qt tests: an app context whose workers are always stopped, small sources."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from stereo_gui.sources.base import StereoFrame
+
+
+class ArraySource:
+    """A frame source that repeats one stereo pair (made in the test), optionally paced.
+
+    Sources are real FrameSource implementations; this one exists because tests need a source
+    whose every pixel is known, without rendering cost.
+    """
+
+    def __init__(self, left: np.ndarray, right: np.ndarray, fps: float = 200.0, truth=None,
+                 name: str = "test pair") -> None:
+        self.left, self.right = left, right
+        self.name = name
+        self.nominal_fps = fps
+        self.truth = truth
+        self._i = 0
+        self._next = time.monotonic()
+        self.closed = threading.Event()
+
+    def read(self) -> StereoFrame:
+        if self.closed.is_set():
+            from stereo_gui.core.errors import SourceError
+
+            raise SourceError(f"{self.name} is closed")
+        now = time.monotonic()
+        if self._next > now:
+            # pacing like a camera; short, so a stop request is never held up for long
+            time.sleep(self._next - now)
+        self._next = max(now, self._next) + 1.0 / self.nominal_fps
+        self._i += 1
+        t = time.monotonic()
+        return StereoFrame(self.left, self.right, t, t, self._i, self.truth)
+
+    def close(self) -> None:
+        self.closed.set()
+
+
+@pytest.fixture
+def array_source():
+    """A factory of ArraySource: array_source(left=None, right=None, fps=200)."""
+    made = []
+
+    def make(left=None, right=None, fps=200.0, truth=None):
+        if left is None:
+            rng = np.random.default_rng(1)
+            left = rng.integers(0, 255, (48, 64, 3), dtype=np.uint8)
+        if right is None:
+            right = left.copy()
+        s = ArraySource(left, right, fps, truth)
+        made.append(s)
+        return s
+
+    yield make
+
+
+@pytest.fixture
+def ctx(qtbot):
+    """An AppContext whose workers are stopped and joined after the test (asserted)."""
+    from stereo_gui.qt.context import AppContext
+
+    c = AppContext()
+    yield c
+    assert c.shutdown(2000), "a worker did not stop within 2 s"
+    assert not c.frames.is_running()
