@@ -38,6 +38,10 @@ class AppContext(QObject):
     settingsChanged = Signal(object)  # Settings
     statusMessage = Signal(str)
     errorOccurred = Signal(str)
+    # the tab now shown: "capture", "calibration", "live" or "measurements". The shown tab owns
+    # the frame worker's processor: a tab sets `frames.set_processor(...)` when it is shown
+    # (tabs may also define `set_active(bool)`, which the main window calls).
+    currentTabChanged = Signal(str)
 
     def __init__(self, settings=None, parent: QObject | None = None) -> None:
         super().__init__(parent)
@@ -47,6 +51,7 @@ class AppContext(QObject):
         self.measurements: list = []
         self.active_fit = None
         self.source_fell_back_to_sim = False  # True when auto found no cameras
+        self.current_tab = ""
         self.frames = FrameWorker(self)
         self.jobs = JobRunner("measure-jobs", self)  # occasional work off the UI thread
         self._workers: list = []  # more workers (calibration, files) registered by tabs
@@ -88,6 +93,12 @@ class AppContext(QObject):
             return
         self.settings = self.settings.with_updates(**changes)
         self.settingsChanged.emit(self.settings)
+
+    def set_current_tab(self, name: str) -> None:
+        """Called by the main window when the user switches tabs."""
+        if name != self.current_tab:
+            self.current_tab = name
+            self.currentTabChanged.emit(name)
 
     def report_error(self, text: str) -> None:
         """Show `text` to the user (the main window listens) and log it."""
