@@ -1,0 +1,402 @@
+"""Stereo calibration from chessboard detections (Bouguet) or matched points (Hartley).
+
+The Bouguet flow is the report's: `calibrateCamera` per camera, `getOptimalNewCameraMatrix`
+(alpha 1, kept as optimal_M1/2 and shown as in the report), `stereoCalibrate` with fixed
+intrinsics, then a joint refinement of all parameters started from that solution, and
+`stereoRectify` (CALIB_ZERO_DISPARITY, alpha configurable). Pairs whose reprojection error is far
+above the median are dropped and the calibration is repeated; they are reported as rejected.
+
+Hartley's method (`stereoRectifyUncalibrated`) needs only matched points and gives row-aligned
+images but no metric scale: its results carry method="hartley", a unit baseline and a note.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.detect import Cancel, PairDetection, Progress, check_cancel
+from stereo_gui.core.errors import CalibrationError
+from stereo_gui.core.stereo_calibration import PairError, StereoCalibration
+
+log = logging.getLogger(__name__)
+
+DEFAULT_MIN_PAIRS = 5
+METHODS = ("bouguet", "hartley")
+HARTLEY_NOTE = ("Hartley's method (uncalibrated rectification): images are row-aligned but the "
+                "rig has no metric scale; baseline, depths and distances are NOT in millimetres "
+                "(the baseline is set to 1 unit).")
+
+_CRITERIA = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 100, 1e-6)
+
+
+@dataclass(frozen=True)
+class RejectedPair:
+    """A pair left out of the calibration, and why."""
+
+    name: str
+    reason: str
+
+
+@dataclass(frozen=True)
+class CalibrationReport:
+    """What went into a calibration and how good it is (pixels unless the name says mm/deg)."""
+
+    pairs_found: int  # pairs examined
+    pairs_used: int
+    used: tuple[str, ...]  # names of the pairs used
+    rejected: tuple[RejectedPair, ...]
+    rms_left: float
+    rms_right: float
+    rms_stereo: float
+    epipolar_error_px: float
+    baseline_mm: float  # for Hartley in units of the nominal baseline, not mm
+    relative_rotation_deg: float
+    method: str
+    notes: tuple[str, ...] = ()
+    rms_stereo_fixed_intrinsics: float = float("nan")  # the report's step, before joint refinement
+
+
+@dataclass(frozen=True)
+class CalibrationResult:
+    calibration: StereoCalibration
+    report: CalibrationReport
+
+
+# ---- helpers ---------------------------------------------------------------------------------
+def _progress(progress: Progress | None, step: int, total: int, text: str) -> None:
+    if progress:
+        progress(step, total, text)
+
+
+def _view_errors(obj: np.ndarray, img: np.ndarray, rvec, tvec, M, D) -> float:
+    """RMS reprojection error of one view, px."""
+    proj, _ = cv2.projectPoints(obj, rvec, tvec, M, D)
+    d = proj.reshape(-1, 2) - img.reshape(-1, 2)
+    return float(np.sqrt(np.mean(np.sum(d * d, axis=1))))
+
+
+def epipolar_error_px(left_pts: Sequence[np.ndarray], right_pts: Sequence[np.ndarray],
+                      M1, D1, R1, P1, M2, D2, R2, P2) -> float:
+    """Mean |y_left - y_right| of corresponding points after rectification, px."""
+    if not left_pts:
+        return float("nan")
+    a = np.concatenate([np.asarray(p, np.float64).reshape(-1, 1, 2) for p in left_pts])
+    b = np.concatenate([np.asarray(p, np.float64).reshape(-1, 1, 2) for p in right_pts])
+    ra = cv2.undistortPoints(a, M1, D1, R=R1, P=P1).reshape(-1, 2)
+    rb = cv2.undistortPoints(b, M2, D2, R=R2, P=P2).reshape(-1, 2)
+    return float(np.mean(np.abs(ra[:, 1] - rb[:, 1])))
+
+
+@dataclass(frozen=True, eq=False)
+class _Solve:
+    names: list[str]
+    M1: np.ndarray
+    D1: np.ndarray
+    M2: np.ndarray
+    D2: np.ndarray
+    R: np.ndarray
+    T: np.ndarray
+    E: np.ndarray
+    F: np.ndarray
+    rms_left: float
+    rms_right: float
+    rms_stereo: float
+    rms_stereo_fixed: float
+    errors: list[tuple[float, float]]  # per pair (left, right) RMS px, from the final model
+
+
+def _solve(pairs: list[PairDetection], board: BoardSpec, image_size: tuple[int, int],
+           joint: bool, progress: Progress | None, cancel: Cancel, step0: int,
+           total: int) -> _Solve:
+    obj = board.object_points_mm()
+    objs = [obj] * len(pairs)
+    L = [p.left.corners_cv for p in pairs]  # type: ignore[union-attr]
+    R_ = [p.right.corners_cv for p in pairs]  # type: ignore[union-attr]
+    _progress(progress, step0, total, "calibrating the left camera")
+    rms1, M1, D1, _, _ = cv2.calibrateCamera(objs, L, image_size, None, None, criteria=_CRITERIA)
+    check_cancel(cancel)
+    _progress(progress, step0 + 1, total, "calibrating the right camera")
+    rms2, M2, D2, _, _ = cv2.calibrateCamera(objs, R_, image_size, None, None, criteria=_CRITERIA)
+    check_cancel(cancel)
+    _progress(progress, step0 + 2, total, "calibrating the pair")
+    out = cv2.stereoCalibrateExtended(
+        objs, L, R_, M1, D1, M2, D2, image_size, None, None,
+        flags=cv2.CALIB_FIX_INTRINSIC, criteria=_CRITERIA)
+    rms_fixed = float(out[0])
+    if joint:
+        # All parameters at once from the fixed-intrinsics solution: the stereo constraint
+        # helps the intrinsics too (measured on the simulated rig, see bench_calibration.py).
+        check_cancel(cancel)
+        out = cv2.stereoCalibrateExtended(
+            objs, L, R_, out[1], out[2], out[3], out[4], image_size, out[5], out[6],
+            flags=cv2.CALIB_USE_INTRINSIC_GUESS | cv2.CALIB_USE_EXTRINSIC_GUESS,
+            criteria=_CRITERIA)
+    rms, M1, D1, M2, D2, R, T, E, F, rvecs, tvecs, _ = out
+    errors = []
+    for i in range(len(pairs)):
+        el = _view_errors(obj, L[i], rvecs[i], tvecs[i], M1, D1)
+        Rl, _ = cv2.Rodrigues(rvecs[i])
+        rv2, _ = cv2.Rodrigues(R @ Rl)
+        tv2 = R @ np.asarray(tvecs[i]).reshape(3, 1) + T.reshape(3, 1)
+        er = _view_errors(obj, R_[i], rv2, tv2, M2, D2)
+        errors.append((el, er))
+    # per-camera RMS from the final model, so they match the matrices that are saved
+    rl = float(np.sqrt(np.mean([e[0] ** 2 for e in errors])))
+    rr = float(np.sqrt(np.mean([e[1] ** 2 for e in errors])))
+    if not joint:
+        rl, rr = float(rms1), float(rms2)
+    return _Solve([p.name for p in pairs], M1, D1.reshape(1, -1), M2, D2.reshape(1, -1), R,
+                  T.reshape(3, 1), E, F, rl, rr, float(rms), rms_fixed, errors)
+
+
+def _outliers(errors: list[tuple[float, float]], factor: float, floor_px: float) -> list[int]:
+    """Indexes of pairs whose worse-camera error is far above the median of all pairs."""
+    worst = np.array([max(e) for e in errors])
+    limit = max(factor * float(np.median(worst)), floor_px)
+    return [int(i) for i in np.flatnonzero(worst > limit)]
+
+
+# ---- Bouguet --------------------------------------------------------------------------------
+def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
+                     image_size: tuple[int, int] | None = None, alpha: float = 0.0,
+                     method: str = "bouguet", progress: Progress | None = None,
+                     cancel: Cancel = None, min_pairs: int = DEFAULT_MIN_PAIRS,
+                     reject_outliers: bool = True, outlier_factor: float = 3.0,
+                     outlier_floor_px: float = 1.0, joint_refinement: bool = True
+                     ) -> CalibrationResult:
+    """Calibrate a stereo rig from chessboard detections of pairs.
+
+    `method` "bouguet" gives a metric calibration (mm); "hartley" rectifies from the same corners
+    without metric scale (see calibrate_hartley). Pairs with an error above
+    max(outlier_factor x median, outlier_floor_px) are dropped once and the solve is repeated.
+    Raises CalibrationError when no board was found or too few pairs are usable.
+    """
+    if method not in METHODS:
+        raise CalibrationError(f"unknown calibration method {method!r}; use bouguet or hartley")
+    if not 0.0 <= alpha <= 1.0 and alpha != -1.0:
+        raise CalibrationError(f"alpha must be between 0 and 1 (or -1 for OpenCV's default), not {alpha}")
+    detections = list(detections)
+    n = len(detections)
+    if n == 0:
+        raise CalibrationError("no image pairs to calibrate from")
+    min_pairs = max(1, int(min_pairs))
+    if image_size is None:
+        image_size = detections[0].image_size
+    image_size = (int(image_size[0]), int(image_size[1]))
+    rejected: list[RejectedPair] = []
+    usable: list[PairDetection] = []
+    for p in detections:
+        if tuple(p.image_size) != image_size:
+            rejected.append(RejectedPair(p.name, f"image size {p.image_size[0]}x{p.image_size[1]} "
+                                         f"differs from {image_size[0]}x{image_size[1]}"))
+        elif not p.found:
+            rejected.append(RejectedPair(p.name, p.reason))
+        else:
+            usable.append(p)
+    if not usable:
+        raise CalibrationError(f"no chessboard ({board.cols}x{board.rows} inner corners) found in "
+                               f"any of {n} pair{'s' if n != 1 else ''}")
+    if len(usable) < min_pairs:
+        raise CalibrationError(f"only {len(usable)} usable pair{'s' if len(usable) != 1 else ''} "
+                               f"(board found in both images), at least {min_pairs} are needed")
+    if method == "hartley":
+        return calibrate_hartley(usable, board, image_size, alpha=alpha, n_found=n,
+                                 rejected=rejected, progress=progress, cancel=cancel)
+
+    total = 8
+    check_cancel(cancel)
+    sol = _solve(usable, board, image_size, joint_refinement, progress, cancel, 0, total)
+    if reject_outliers and len(usable) > min_pairs:
+        bad = _outliers(sol.errors, outlier_factor, outlier_floor_px)
+        # never drop below the minimum: keep the best of the bad ones if needed
+        bad = sorted(bad, key=lambda i: -max(sol.errors[i]))[: len(usable) - min_pairs]
+        if bad:
+            med = float(np.median([max(e) for e in sol.errors]))
+            for i in sorted(bad):
+                el, er = sol.errors[i]
+                rejected.append(RejectedPair(
+                    usable[i].name, f"reprojection error {max(el, er):.2f} px is far above the "
+                                    f"median {med:.2f} px (outlier)"))
+            usable = [p for i, p in enumerate(usable) if i not in set(bad)]
+            log.info("dropped %d outlier pairs, calibrating again", len(bad))
+            sol = _solve(usable, board, image_size, joint_refinement, progress, cancel, 3, total)
+    check_cancel(cancel)
+    _progress(progress, 6, total, "rectifying")
+    R1, R2, P1, P2, Q, _, _ = cv2.stereoRectify(
+        sol.M1, sol.D1, sol.M2, sol.D2, image_size, sol.R, sol.T,
+        flags=cv2.CALIB_ZERO_DISPARITY, alpha=alpha)
+    opt1, _ = cv2.getOptimalNewCameraMatrix(sol.M1, sol.D1, image_size, 1, image_size)
+    opt2, _ = cv2.getOptimalNewCameraMatrix(sol.M2, sol.D2, image_size, 1, image_size)
+    epi = epipolar_error_px([p.left.corners for p in usable], [p.right.corners for p in usable],
+                            sol.M1, sol.D1, R1, P1, sol.M2, sol.D2, R2, P2)
+    per_pair = tuple(PairError(name, float(el), float(er))
+                     for name, (el, er) in zip(sol.names, sol.errors))
+    calib = StereoCalibration(
+        image_size=image_size, M1=sol.M1, D1=sol.D1, M2=sol.M2, D2=sol.D2, R=sol.R, T=sol.T,
+        E=sol.E, F=sol.F, R1=R1, R2=R2, P1=P1, P2=P2, Q=Q, board=board,
+        rms_left=sol.rms_left, rms_right=sol.rms_right, rms_stereo=sol.rms_stereo,
+        epipolar_error_px=epi, per_pair=per_pair, method="bouguet", alpha=float(alpha),
+        optimal_M1=opt1, optimal_M2=opt2)
+    _progress(progress, total, total, "done")
+    order = {p.name: i for i, p in enumerate(detections)}
+    report = CalibrationReport(
+        pairs_found=n, pairs_used=len(usable), used=tuple(sol.names),
+        rejected=tuple(sorted(rejected, key=lambda r: order.get(r.name, 0))),
+        rms_left=sol.rms_left, rms_right=sol.rms_right, rms_stereo=sol.rms_stereo,
+        epipolar_error_px=epi, baseline_mm=calib.baseline_mm,
+        relative_rotation_deg=calib.relative_rotation_deg, method="bouguet",
+        rms_stereo_fixed_intrinsics=sol.rms_stereo_fixed)
+    return CalibrationResult(calib, report)
+
+
+# ---- Hartley --------------------------------------------------------------------------------
+def _hartley_from_points(pts_l: np.ndarray, pts_r: np.ndarray, image_size: tuple[int, int],
+                         M1: np.ndarray, D1: np.ndarray, M2: np.ndarray, D2: np.ndarray,
+                         alpha: float) -> dict[str, np.ndarray | float]:
+    """Rectifying homographies from matched raw pixel points (N, 2); the calibration fields."""
+    # Work on undistorted pixel coordinates so the homographies act after undistortion.
+    ul = cv2.undistortPoints(pts_l.reshape(-1, 1, 2).astype(np.float64), M1, D1, P=M1).reshape(-1, 2)
+    ur = cv2.undistortPoints(pts_r.reshape(-1, 1, 2).astype(np.float64), M2, D2, P=M2).reshape(-1, 2)
+    F, mask = cv2.findFundamentalMat(ul, ur, cv2.FM_RANSAC, 1.0, 0.999)
+    if F is None or F.shape != (3, 3):
+        raise CalibrationError("could not estimate the fundamental matrix from the matched points")
+    inl = mask.reshape(-1).astype(bool)
+    ok, H1, H2 = cv2.stereoRectifyUncalibrated(ul[inl], ur[inl], F, image_size)
+    if not ok:
+        raise CalibrationError("stereoRectifyUncalibrated failed on the matched points")
+    # One rectified camera matrix for both sides; R1/R2 are then the homographies expressed in
+    # normalised coordinates, which initUndistortRectifyMap and undistortPoints accept as they are.
+    Mn = M1.copy()
+    R1 = np.linalg.inv(Mn) @ H1 @ M1
+    R2 = np.linalg.inv(Mn) @ H2 @ M2
+    f, cx, cy = float(Mn[0, 0]), float(Mn[0, 2]), float(Mn[1, 2])
+    baseline = 1.0  # nominal: there is no metric scale
+    P1 = np.hstack([Mn, np.zeros((3, 1))])
+    P2 = np.hstack([Mn, np.array([[-f * baseline], [0.0], [0.0]])])
+    Q = np.array([[1, 0, 0, -cx], [0, 1, 0, -cy], [0, 0, 0, f], [0, 0, 1.0 / baseline, 0]],
+                 np.float64)
+    E = M2.T @ F @ M1
+    Rr, t = _recover_pose(E, ul[inl], ur[inl], M1, M2)
+    return dict(F=F, E=E, R=Rr, T=t.reshape(3, 1) * baseline, R1=R1, R2=R2, P1=P1, P2=P2, Q=Q,
+                inliers=float(inl.mean()), ul=ul[inl], ur=ur[inl])
+
+
+def _recover_pose(E, ul, ur, M1, M2):
+    """Relative rotation and unit translation direction from E and undistorted pixel points."""
+    nl = cv2.undistortPoints(ul.reshape(-1, 1, 2), M1, None).reshape(-1, 2)
+    nr = cv2.undistortPoints(ur.reshape(-1, 1, 2), M2, None).reshape(-1, 2)
+    _, R, t, _ = cv2.recoverPose(E, nl, nr, np.eye(3))
+    return R, t
+
+
+def calibrate_hartley(pairs: Sequence[PairDetection], board: BoardSpec | None,
+                      image_size: tuple[int, int], alpha: float = 0.0, n_found: int | None = None,
+                      rejected: Sequence[RejectedPair] = (), progress: Progress | None = None,
+                      cancel: Cancel = None) -> CalibrationResult:
+    """Hartley rectification from the chessboard corners of usable pairs.
+
+    Each camera's intrinsics and distortion still come from calibrateCamera (they need no metric
+    scale), so the rectification also removes lens distortion; the relation between the cameras
+    comes only from the point matches through the fundamental matrix.
+    """
+    pairs = [p for p in pairs if p.found]
+    obj = board.object_points_mm() if board is not None else None
+    L = [p.left.corners_cv for p in pairs]  # type: ignore[union-attr]
+    Rt = [p.right.corners_cv for p in pairs]  # type: ignore[union-attr]
+    _progress(progress, 0, 4, "calibrating the left camera")
+    rms1, M1, D1, rv1, tv1 = cv2.calibrateCamera([obj] * len(pairs), L, image_size, None, None)
+    check_cancel(cancel)
+    _progress(progress, 1, 4, "calibrating the right camera")
+    rms2, M2, D2, rv2, tv2 = cv2.calibrateCamera([obj] * len(pairs), Rt, image_size, None, None)
+    check_cancel(cancel)
+    _progress(progress, 2, 4, "rectifying (Hartley)")
+    D1, D2 = D1.reshape(1, -1), D2.reshape(1, -1)
+    pl = np.concatenate([c.reshape(-1, 2) for c in L])
+    pr = np.concatenate([c.reshape(-1, 2) for c in Rt])
+    h = _hartley_from_points(pl, pr, image_size, M1, D1, M2, D2, alpha)
+    epi = epipolar_error_px([c for c in L], [c for c in Rt], M1, D1, h["R1"], h["P1"],
+                            M2, D2, h["R2"], h["P2"])
+    per_pair = []
+    for i, p in enumerate(pairs):
+        el = _view_errors(obj, L[i], rv1[i], tv1[i], M1, D1)
+        er = _view_errors(obj, Rt[i], rv2[i], tv2[i], M2, D2)
+        per_pair.append(PairError(p.name, el, er))
+    opt1, _ = cv2.getOptimalNewCameraMatrix(M1, D1, image_size, 1, image_size)
+    opt2, _ = cv2.getOptimalNewCameraMatrix(M2, D2, image_size, 1, image_size)
+    calib = StereoCalibration(
+        image_size=image_size, M1=M1, D1=D1, M2=M2, D2=D2, R=h["R"], T=h["T"], E=h["E"],
+        F=h["F"], R1=h["R1"], R2=h["R2"], P1=h["P1"], P2=h["P2"], Q=h["Q"], board=board,
+        rms_left=float(rms1), rms_right=float(rms2), rms_stereo=float("nan"),
+        epipolar_error_px=epi, per_pair=tuple(per_pair), method="hartley", alpha=float(alpha),
+        optimal_M1=opt1, optimal_M2=opt2)
+    _progress(progress, 4, 4, "done")
+    report = CalibrationReport(
+        pairs_found=len(pairs) + len(rejected) if n_found is None else n_found,
+        pairs_used=len(pairs), used=tuple(p.name for p in pairs), rejected=tuple(rejected),
+        rms_left=float(rms1), rms_right=float(rms2), rms_stereo=float("nan"),
+        epipolar_error_px=epi, baseline_mm=float("nan"),
+        relative_rotation_deg=calib.relative_rotation_deg, method="hartley",
+        notes=(HARTLEY_NOTE,))
+    return CalibrationResult(calib, report)
+
+
+def match_features(left: np.ndarray, right: np.ndarray, max_features: int = 4000,
+                   ratio: float = 0.75) -> tuple[np.ndarray, np.ndarray]:
+    """Matched SIFT keypoints of a scene pair (Lowe's ratio test, mutual), (N, 2) px each."""
+    from stereo_gui.core.util import to_gray
+
+    sift = cv2.SIFT_create(nfeatures=max_features)
+    kl, dl = sift.detectAndCompute(to_gray(left), None)
+    kr, dr = sift.detectAndCompute(to_gray(right), None)
+    if dl is None or dr is None or len(kl) < 8 or len(kr) < 8:
+        raise CalibrationError("too few features in the scene pair to match (need texture)")
+    matcher = cv2.BFMatcher(cv2.NORM_L2)
+    fwd = matcher.knnMatch(dl, dr, k=2)
+    back = {m.queryIdx: m.trainIdx for m in matcher.match(dr, dl)}
+    good = [m for m, n2 in (x for x in fwd if len(x) == 2)
+            if m.distance < ratio * n2.distance and back.get(m.trainIdx) == m.queryIdx]
+    if len(good) < 8:
+        raise CalibrationError(f"only {len(good)} feature matches in the scene pair, at least 8 "
+                               "are needed")
+    pl = np.float64([kl[m.queryIdx].pt for m in good])
+    pr = np.float64([kr[m.trainIdx].pt for m in good])
+    return pl, pr
+
+
+def calibrate_hartley_scene(left: np.ndarray, right: np.ndarray, name: str = "scene",
+                            focal_px: float | None = None) -> CalibrationResult:
+    """Hartley rectification of a rig without a board, from features matched in a scene pair.
+
+    Without a board there are no intrinsics: a nominal pinhole camera (focal `focal_px`, default
+    the image width; centre in the middle; no distortion) stands in, so lens distortion is not
+    removed and distances are not metric.
+    """
+    if left.shape[:2] != right.shape[:2]:
+        raise CalibrationError(f"{name}: left and right images have different sizes")
+    h, w = left.shape[:2]
+    f = float(focal_px or w)
+    M = np.array([[f, 0, (w - 1) / 2.0], [0, f, (h - 1) / 2.0], [0, 0, 1]], np.float64)
+    D = np.zeros((1, 5))
+    pl, pr = match_features(left, right)
+    res = _hartley_from_points(pl, pr, (w, h), M, D, M.copy(), D.copy(), 0.0)
+    epi = epipolar_error_px([res["ul"]], [res["ur"]], M, D, res["R1"], res["P1"], M, D,
+                            res["R2"], res["P2"])
+    calib = StereoCalibration(
+        image_size=(w, h), M1=M, D1=D, M2=M.copy(), D2=D.copy(), R=res["R"], T=res["T"],
+        E=res["E"], F=res["F"], R1=res["R1"], R2=res["R2"], P1=res["P1"], P2=res["P2"],
+        Q=res["Q"], board=None, epipolar_error_px=epi, method="hartley")
+    note2 = (f"No chessboard: a nominal camera (focal {f:g} px, no distortion) was assumed, so "
+             f"lens distortion is not corrected. {len(res['ul'])} of {len(pl)} feature matches "
+             "were inliers.")
+    report = CalibrationReport(
+        pairs_found=1, pairs_used=1, used=(name,), rejected=(), rms_left=float("nan"),
+        rms_right=float("nan"), rms_stereo=float("nan"), epipolar_error_px=epi,
+        baseline_mm=float("nan"), relative_rotation_deg=calib.relative_rotation_deg,
+        method="hartley", notes=(HARTLEY_NOTE, note2))
+    return CalibrationResult(calib, report)
