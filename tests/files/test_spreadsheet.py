@@ -1,0 +1,369 @@
+"""Spreadsheets: every sheet read back with openpyxl, the chart, appending, atomic writes, CSV."""
+
+from __future__ import annotations
+
+import math
+import zipfile
+from dataclasses import astuple
+from pathlib import Path
+
+import numpy as np
+import openpyxl
+import pytest
+
+from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.errors import InputError
+from stereo_gui.core.stereo_calibration import PairError, StereoCalibration
+from stereo_gui.files import spreadsheet as ss
+from stereo_gui.files.spreadsheet import (
+    HEADERS,
+    MeasurementRecord,
+    append_measurements,
+    read_csv,
+    read_measurements,
+    write_csv,
+    write_workbook,
+)
+
+F_PX, B_MM = 750.0, 110.0
+REL = 1e-15  # openpyxl writes 16 significant digits (Excel keeps 15)
+
+
+# ---- fits: the real regression module when present -------------------------------------------
+def _make_fits(samples):
+    """Both models fitted to `samples` [(disparity px, true mm)] by stereo_gui.core.regression.
+
+    Until that module exists, a minimal least-squares stand-in with the agreed interface.
+    """
+    try:
+        from stereo_gui.core import regression
+    except ImportError:
+        regression = None
+    if regression is not None and hasattr(regression, "fit_model"):
+        return [regression.fit_model(samples, m) for m in ("cubic", "inverse")]
+    return [_StandIn.fit(samples, "cubic"), _StandIn.fit(samples, "inverse")]
+
+
+class _StandIn:
+    """Least squares of the agreed FitResult interface; used only while the real one is missing."""
+
+    def __init__(self, model, coefficients, samples):
+        self.model, self.coefficients, self.samples = model, tuple(coefficients), tuple(samples)
+        d = np.array([s[0] for s in samples])
+        z = np.array([s[1] for s in samples])
+        self.residuals_mm = tuple(z - self.predict(d))
+        self.r2 = 1 - np.sum(np.square(self.residuals_mm)) / np.sum((z - z.mean()) ** 2)
+
+    @classmethod
+    def fit(cls, samples, model):
+        d = np.array([s[0] for s in samples])
+        z = np.array([s[1] for s in samples])
+        if model == "cubic":
+            return cls(model, np.polyfit(d, z, 3)[::-1], samples)
+        a, b = np.linalg.lstsq(np.c_[np.ones_like(z), z], d * z, rcond=None)[0]
+        return cls(model, (a, b), samples)  # z = a / (d - b)
+
+    def predict(self, d):
+        d = np.asarray(d, float)
+        c = self.coefficients
+        if self.model == "cubic":
+            return c[0] + c[1] * d + c[2] * d**2 + c[3] * d**3
+        return c[0] / (d - c[1])
+
+    def formula(self):
+        c = self.coefficients
+        if self.model == "cubic":
+            return f"Z = {c[0]:.6g} + {c[1]:.6g} d + {c[2]:.6g} d^2 + {c[3]:.6g} d^3"
+        return f"Z = {c[0]:.6g} / (d - {c[1]:.6g})"
+
+
+# ---- data ----------------------------------------------------------------------------------
+def _record(i: int, valid: bool = True, true_mm: float | None = None) -> MeasurementRecord:
+    d = 40.0 + 7.5 * i
+    z = F_PX * B_MM / d
+    if not valid:
+        return MeasurementRecord(
+            time=f"2026-11-22T10:00:{i:02d}+00:00", x_px=10.0 + i, y_px=20.0, disparity_px=math.nan,
+            X_mm=math.nan, Y_mm=math.nan, Z_mm=math.nan, range_mm=math.nan, valid=False,
+            reason="no valid pixels", valid_fraction=0.0, expected_error_mm=math.nan,
+            calibration_file="/data/calib.yaml", calibration_rms_px=0.21)
+    return MeasurementRecord(
+        time=f"2026-11-22T10:00:{i:02d}+00:00", x_px=100.5 + i, y_px=200.25, disparity_px=d,
+        X_mm=-12.5 * i, Y_mm=3.25, Z_mm=z, range_mm=math.hypot(z, 12.5 * i), valid=True,
+        reason="", valid_fraction=0.875, expected_error_mm=z * z / (F_PX * B_MM) * 0.1,
+        method="triangulation" if i % 2 else "cubic", true_mm=true_mm,
+        calibration_file="/data/calib.yaml", calibration_rms_px=0.21)
+
+
+def _records(n=6):
+    out = [_record(i, true_mm=F_PX * B_MM / (40.0 + 7.5 * i) + (-1) ** i * 3.0) for i in range(n)]
+    out.append(_record(n, valid=False))
+    return out
+
+
+def _samples(records):
+    return [(r.disparity_px, r.true_mm) for r in records if r.true_mm is not None]
+
+
+def _calibration() -> StereoCalibration:
+    c = StereoCalibration.identity((640, 480), F_PX, B_MM)
+    D1 = np.array([[-0.31, 0.12, 0.001, -0.002, 0.01]])
+    return c.with_updates(D1=D1, board=BoardSpec(9, 6, 25.0), rms_left=0.18, rms_right=0.19,
+                          rms_stereo=0.23, epipolar_error_px=0.11, created="2026-11-22T09:00:00+00:00",
+                          per_pair=(PairError("chessboard-1", 0.12, 0.14),
+                                    PairError("chessboard-2", 0.2, 0.25)))
+
+
+def _same(a: MeasurementRecord, b: MeasurementRecord) -> bool:
+    for x, y in zip(astuple(a), astuple(b), strict=True):
+        if isinstance(x, float) and isinstance(y, float) and math.isnan(x) and math.isnan(y):
+            continue
+        if isinstance(x, float) and isinstance(y, float):
+            if not math.isclose(x, y, rel_tol=REL):
+                return False
+        elif x != y:
+            return False
+    return True
+
+
+def _no_temp_files(folder: Path) -> bool:
+    return not [p for p in folder.iterdir() if p.name.startswith(".")]
+
+
+# ---- Measurements ----------------------------------------------------------------------------
+def test_measurements_sheet_holds_what_was_written(tmp_path):
+    recs = _records()
+    path = write_workbook(tmp_path / "log.xlsx", recs, _make_fits(_samples(recs)), _calibration(),
+                          calibration_file="/data/calib.yaml")
+    wb = openpyxl.load_workbook(path)
+    assert wb.sheetnames == ["Measurements", "Regression", "Calibration"]
+    ws = wb["Measurements"]
+    header = [c.value for c in ws[1]]
+    assert tuple(header) == HEADERS
+    assert "Disparity (px)" in header and "Z (mm)" in header and "True distance (mm)" in header
+    assert ws.max_row == 1 + len(recs)
+    for row, rec in zip(ws.iter_rows(min_row=2, values_only=True), recs, strict=True):
+        for value, expected in zip(row, astuple(rec), strict=True):
+            if isinstance(expected, float) and math.isnan(expected) or expected in ("", None):
+                assert value is None  # Excel has no NaN: an empty cell
+            elif isinstance(expected, float):
+                assert value == pytest.approx(expected, rel=REL)
+            else:
+                assert value == expected
+    # number formats and units
+    col = header.index("Z (mm)") + 1
+    assert ws.cell(row=2, column=col).number_format == "0.0"
+    col = header.index("Valid fraction (%)") + 1
+    assert ws.cell(row=2, column=col).number_format == "0.0%"
+    assert wb.properties.keywords == ss.WORKBOOK_KEYWORDS
+
+
+def test_read_measurements_round_trips_records(tmp_path):
+    recs = _records()
+    write_workbook(tmp_path / "log.xlsx", recs)
+    back = read_measurements(tmp_path / "log.xlsx")
+    assert len(back) == len(recs)
+    assert all(_same(a, b) for a, b in zip(back, recs, strict=True))
+    assert back[-1].valid is False and back[-1].reason == "no valid pixels"
+    assert back[0].true_mm is not None and recs[0].true_mm == back[0].true_mm
+
+
+# ---- Regression and chart --------------------------------------------------------------------
+def test_regression_sheet_and_native_chart(tmp_path):
+    recs = _records()
+    fits = _make_fits(_samples(recs))
+    write_workbook(tmp_path / "log.xlsx", recs, fits)
+    ws = openpyxl.load_workbook(tmp_path / "log.xlsx")["Regression"]
+    rows = list(ws.iter_rows(values_only=True))
+    header = rows[2]
+    assert header[:2] == ("Disparity (px)", "True distance (mm)")
+    samples = _samples(recs)
+    for i, (d, z) in enumerate(samples):
+        assert rows[3 + i][:2] == pytest.approx((d, z), rel=REL)
+    # each model: formula, R^2 and coefficients in the models table; residuals per sample
+    mcol = header.index("Model")
+    for k, fit in enumerate(fits):
+        row = rows[3 + k]
+        assert row[mcol] == fit.model
+        assert row[mcol + 1] == fit.formula()
+        assert row[mcol + 2] == pytest.approx(fit.r2)
+        coefs = [v for v in row[mcol + 5 : mcol + 5 + len(fit.coefficients)]]
+        assert coefs == pytest.approx(list(fit.coefficients))
+        rcol = header.index(f"{fit.model} residual (mm)")
+        pcol = header.index(f"{fit.model} prediction (mm)")
+        for i, (d, z) in enumerate(samples):
+            assert rows[3 + i][rcol] == pytest.approx(fit.residuals_mm[i])
+            assert rows[3 + i][pcol] == pytest.approx(float(fit.predict(np.array([d]))[0]))
+    assert 0.99 < fits[1].r2 <= 1.0
+
+    # the curve grid lives in hidden columns and holds each fit's prediction
+    gcol = header.index("Curve disparity (px)")
+    from openpyxl.utils import get_column_letter
+
+    assert ws.column_dimensions[get_column_letter(gcol + 1)].hidden
+    grid = np.array([r[gcol] for r in rows[3 : 3 + ss.CURVE_POINTS]], float)
+    assert grid.min() < min(s[0] for s in samples) and grid.max() > max(s[0] for s in samples)
+    for k, fit in enumerate(fits):
+        curve = np.array([r[gcol + 1 + k] for r in rows[3 : 3 + ss.CURVE_POINTS]], float)
+        np.testing.assert_allclose(curve, fit.predict(grid), rtol=1e-9)
+
+    # a native scatter chart: samples as markers plus one line per fit
+    from openpyxl.chart import ScatterChart
+
+    assert len(ws._charts) == 1
+    chart = ws._charts[0]
+    assert isinstance(chart, ScatterChart)
+    assert len(chart.series) == 1 + len(fits)
+    assert chart.series[0].marker.symbol == "circle"
+    assert chart.visible_cells_only is False  # the hidden curve columns are still drawn
+    # the chart's references point at the sample cells
+    assert "$A$4" in chart.series[0].xVal.numRef.f and "$B$4" in chart.series[0].yVal.numRef.f
+    with zipfile.ZipFile(tmp_path / "log.xlsx") as z:
+        xml = z.read("xl/charts/chart1.xml").decode()
+    # openpyxl reads a "none" marker back as None, so check the lines in the file itself
+    assert xml.count('<symbol val="none"') == len(fits)
+    assert xml.count('<symbol val="circle"') == 1
+    assert '<plotVisOnly val="0"' in xml and "<scatterStyle" in xml
+
+
+def test_samples_without_fits_come_from_true_distances(tmp_path):
+    recs = _records(3)
+    write_workbook(tmp_path / "log.xlsx", recs)
+    ws = openpyxl.load_workbook(tmp_path / "log.xlsx")["Regression"]
+    rows = list(ws.iter_rows(min_row=4, max_col=2, values_only=True))
+    got = [v for r in rows if r[0] is not None for v in r]
+    assert got == pytest.approx([v for s in _samples(recs) for v in s], rel=REL)
+    assert len(ws._charts) == 1 and len(ws._charts[0].series) == 1
+
+
+# ---- Calibration -----------------------------------------------------------------------------
+def test_calibration_sheet_holds_matrices_and_figures(tmp_path):
+    calib = _calibration()
+    write_workbook(tmp_path / "log.xlsx", [], calibration=calib, calibration_file="/x/calib.yaml")
+    ws = openpyxl.load_workbook(tmp_path / "log.xlsx")["Calibration"]
+    figures = {r[0]: r[1] for r in ws.iter_rows(min_row=3, max_col=2, values_only=True) if r[0]}
+    assert figures["File"] == "/x/calib.yaml"
+    assert figures["RMS stereo (px)"] == pytest.approx(0.23)
+    assert figures["RMS left (px)"] == pytest.approx(0.18)
+    assert figures["Baseline (mm)"] == pytest.approx(B_MM)
+    assert figures["Board (inner corners)"] == "9x6"
+    assert figures["Square (mm)"] == 25.0
+    assert figures["Created"] == "2026-11-22T09:00:00+00:00"
+    assert figures["chessboard-2"] == pytest.approx(0.2)
+
+    # matrices in column E, each under its name
+    col_e = [c.value for c in ws["E"]]
+    for name in ss.CALIBRATION_MATRICES:
+        expected = np.atleast_2d(getattr(calib, name))
+        r0 = col_e.index(name) + 2  # 1-based row of the first matrix row
+        got = np.array([[ws.cell(row=r0 + i, column=5 + j).value for j in range(expected.shape[1])]
+                        for i in range(expected.shape[0])], float)
+        np.testing.assert_allclose(got, expected, rtol=REL, atol=0, err_msg=name)
+
+
+# ---- appending -------------------------------------------------------------------------------
+def test_append_creates_then_keeps_every_earlier_row(tmp_path):
+    path = tmp_path / "log.xlsx"
+    recs = _records(4)
+    assert append_measurements(path, recs[:2]) == 2
+    assert append_measurements(path, recs[2:3]) == 1
+    assert append_measurements(path, recs[3:]) == len(recs) - 3
+    back = read_measurements(path)
+    assert len(back) == len(recs)
+    assert all(_same(a, b) for a, b in zip(back, recs, strict=True))
+    assert _no_temp_files(tmp_path)
+
+
+def test_append_keeps_chart_and_calibration_and_can_refresh_the_fits(tmp_path):
+    path = tmp_path / "log.xlsx"
+    recs = _records()
+    fits = _make_fits(_samples(recs))
+    write_workbook(path, recs[:3], fits, _calibration())
+    append_measurements(path, recs[3:])
+    wb = openpyxl.load_workbook(path)
+    assert wb.sheetnames == ["Measurements", "Regression", "Calibration"]
+    assert len(wb["Regression"]._charts) == 1
+    assert wb["Calibration"]["A1"].value == "Calibration"
+    assert wb["Measurements"].max_row == 1 + len(recs)
+    # new fits replace the Regression sheet, the log stays
+    append_measurements(path, [], fits=fits[:1])
+    wb = openpyxl.load_workbook(path)
+    assert wb.sheetnames == ["Measurements", "Regression", "Calibration"]
+    assert len(wb["Regression"]._charts[0].series) == 2
+    assert len(read_measurements(path)) == len(recs)
+
+
+@pytest.mark.parametrize("kind", ["text", "other_workbook", "other_columns"])
+def test_append_refuses_files_that_are_not_ours_and_leaves_them_alone(tmp_path, kind):
+    path = tmp_path / "data.xlsx"
+    if kind == "text":
+        path.write_text("not a workbook")
+    else:
+        wb = openpyxl.Workbook()
+        ws = wb.active
+        ws.title = "Measurements" if kind == "other_columns" else "Budget"
+        ws.append(["Item", "Cost"])
+        wb.save(path)
+    before = path.read_bytes()
+    with pytest.raises(InputError, match="data.xlsx"):
+        append_measurements(path, _records(1))
+    assert path.read_bytes() == before
+    assert _no_temp_files(tmp_path)
+
+
+def test_non_xlsx_name_is_refused(tmp_path):
+    with pytest.raises(InputError, match=r"\.xlsx"):
+        write_workbook(tmp_path / "log.xls", _records(1))
+
+
+# ---- interrupted writes ----------------------------------------------------------------------
+def _failing_save(exc):
+    def save(self, filename):
+        Path(filename).write_bytes(b"PK\x03\x04 half a zip file")  # partial data, then the crash
+        raise exc
+
+    return save
+
+
+@pytest.mark.parametrize("exc", [RuntimeError("crash mid-write"), OSError(28, "No space left on device")])
+@pytest.mark.parametrize("how", ["write", "append"])
+def test_interrupted_write_leaves_the_old_file_intact(tmp_path, monkeypatch, exc, how):
+    path = tmp_path / "log.xlsx"
+    write_workbook(path, _records(2), calibration=_calibration())
+    before = path.read_bytes()
+    monkeypatch.setattr(openpyxl.Workbook, "save", _failing_save(exc))
+    expected = InputError if isinstance(exc, OSError) else RuntimeError
+    with pytest.raises(expected):
+        if how == "write":
+            write_workbook(path, _records(5))
+        else:
+            append_measurements(path, _records(5))
+    assert path.read_bytes() == before
+    assert _no_temp_files(tmp_path)
+    monkeypatch.undo()
+    assert len(read_measurements(path)) == len(_records(2))
+
+
+def test_missing_folder_is_an_input_error(tmp_path):
+    with pytest.raises(InputError, match="does not exist"):
+        write_workbook(tmp_path / "nowhere" / "log.xlsx", _records(1))
+
+
+# ---- CSV -------------------------------------------------------------------------------------
+def test_csv_round_trip(tmp_path):
+    recs = _records()
+    write_csv(tmp_path / "log.csv", recs)
+    text = (tmp_path / "log.csv").read_text(encoding="utf-8")
+    assert text.splitlines()[0].startswith("Time (ISO 8601),x (px),y (px),Disparity (px)")
+    back = read_csv(tmp_path / "log.csv")
+    assert all(_same(a, b) for a, b in zip(back, recs, strict=True)) and len(back) == len(recs)
+    import csv
+
+    rows = list(csv.reader(text.splitlines()))
+    assert rows[-1][HEADERS.index("Z (mm)")] == ""  # NaN is an empty field
+
+
+def test_csv_of_something_else_is_refused(tmp_path):
+    (tmp_path / "x.csv").write_text("a,b\n1,2\n")
+    with pytest.raises(InputError, match="x.csv"):
+        read_csv(tmp_path / "x.csv")
