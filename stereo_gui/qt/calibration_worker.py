@@ -1,9 +1,11 @@
 """Slow jobs off the UI thread: a generator worker that reports progress and cancels cooperatively.
 
-A job is a generator function `job(cancel) -> Generator[Progress, None, result]`. It yields
-Progress between steps; the worker stops it at the next yield once cancel is asked for (the
-`cancel` argument, an Event-like object, is also handed down to core functions that accept a
-`cancel=` callable so a long step can stop early). Whatever the generator returns is the result.
+A job is a generator function `job(control) -> Generator[Progress, None, result]`. It yields
+Progress between steps; the worker stops it at the next yield once cancel is asked for. The
+`control` argument (a JobControl) is callable and answers "cancel asked?", so it can be handed
+down to core functions that take `cancel=`; its `report` method fits their `progress=`
+callbacks (done, total, text), so progress from inside a long core call reaches the UI too.
+Whatever the generator returns is the result.
 
 Signals reach the UI thread queued: progress(Progress), finished(result), failed(str) for an
 exception (already phrased for a person), cancelled(). Exactly one of finished / failed /
@@ -41,11 +43,20 @@ class JobCancelled(Exception):
     """Raised inside a job (or by a core function's cancel check) to stop it early."""
 
 
-class CancelToken:
-    """Thread-safe cancel flag; calling it answers whether cancel was asked (for `cancel=`)."""
+class JobControl:
+    """Thread-safe cancel flag and progress outlet handed to a job.
 
-    def __init__(self) -> None:
+    Calling it answers whether cancel was asked (for core functions' `cancel=`); `report(done,
+    total, text)` sends progress to the UI (for core functions' `progress=`).
+    """
+
+    def __init__(self, on_progress: Callable[[Progress], None] | None = None) -> None:
         self._event = threading.Event()
+        self._on_progress = on_progress
+
+    def report(self, done: int, total: int, text: str = "") -> None:
+        if self._on_progress is not None:
+            self._on_progress(Progress(int(done), int(total), str(text)))
 
     def set(self) -> None:
         self._event.set()
@@ -62,7 +73,7 @@ class CancelToken:
             raise JobCancelled()
 
 
-Job = Callable[[CancelToken], Generator[Progress, None, object]]
+Job = Callable[[JobControl], Generator[Progress, None, object]]
 
 
 class JobWorker(QThread):
@@ -77,7 +88,7 @@ class JobWorker(QThread):
     def __init__(self, job: Job, name: str = "job", parent=None) -> None:
         super().__init__(parent)
         self._job = job
-        self._cancel = CancelToken()
+        self._cancel = JobControl(self.progress.emit)
         self.job_name = name
         self.setObjectName(f"JobWorker-{name}")
 
@@ -114,7 +125,11 @@ class JobWorker(QThread):
         except JobCancelled:
             self.cancelled.emit()
         except StereoGuiError as exc:
-            self.failed.emit(str(exc))
+            # the core's own Cancelled (raised by its cancel checks) is a StereoGuiError too
+            if self._cancel.is_set():
+                self.cancelled.emit()
+            else:
+                self.failed.emit(str(exc))
         except Exception as exc:  # a bug or an OpenCV error: the user still gets a message
             log.exception("%s failed", self.job_name)
             self.failed.emit(f"{self.job_name} failed: {type(exc).__name__}: {exc}")

@@ -74,3 +74,45 @@ def test_cancel_stops_at_next_step(qtbot):
     assert worker.wait(2000)
     assert results == []
     assert len(steps) < 10
+
+
+def test_control_reports_progress_from_inside_a_step(qtbot):
+    def core_like(progress, cancel):  # a core function with progress= and cancel= callbacks
+        for i in range(3):
+            progress(i + 1, 3, f"stage {i}")
+        return 42
+
+    def job(control):
+        yield Progress(0, 3, "start")
+        return core_like(control.report, control)
+
+    worker = JobWorker(job, "core")
+    seen = []
+    worker.progress.connect(lambda p: seen.append(p.text))
+    with qtbot.waitSignal(worker.finished_ok, timeout=5000) as blocker:
+        worker.start()
+    assert blocker.args == [42]
+    qtbot.waitUntil(lambda: len(seen) == 4)
+    assert seen == ["start", "stage 0", "stage 1", "stage 2"]
+    assert worker.wait(2000)
+
+
+def test_core_cancelled_error_counts_as_cancel(qtbot):
+    from stereo_gui.core.detect import check_cancel
+
+    gate = threading.Event()
+
+    def job(control):
+        yield Progress(0, 1)
+        gate.wait(5)
+        check_cancel(control)  # raises the core's Cancelled
+        return "never"
+
+    worker = JobWorker(job, "core")
+    worker.progress.connect(lambda p: (worker.cancel(), gate.set()))
+    failures = []
+    worker.failed.connect(failures.append)
+    with qtbot.waitSignal(worker.cancelled, timeout=5000):
+        worker.start()
+    assert worker.wait(2000)
+    assert failures == []

@@ -1,0 +1,185 @@
+"""Coverage guidance for capture: where corners have been seen, and which poses are still missing.
+
+Two small maps (left and right image) count the chessboard corners of the kept pairs in a coarse
+grid, so empty corners of the image stand out; four bars show how much of the range of
+horizontal / vertical position, size and tilt the kept poses span (as ROS camera_calibration
+does), with the number of pairs against a recommended count. The widget only draws: the numbers
+come from the capture tab (which gets them from the core's coverage summary).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import Qt
+from PySide6.QtWidgets import (
+    QGridLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QProgressBar,
+    QVBoxLayout,
+    QWidget,
+)
+
+GRID_COLS = 16  # cells across the image in a corner map
+GRID_ROWS = 12
+
+
+@dataclass(frozen=True)
+class CoverageBar:
+    """One bar: `fraction` (0..1) of the wanted range covered, and a short hint for a person."""
+
+    name: str
+    fraction: float
+    hint: str = ""
+
+
+def _map_lut() -> np.ndarray:
+    """0 corners: dark red (missing); more corners: from dim to bright green."""
+    lut = np.zeros((256, 3), np.uint8)
+    lut[0] = (90, 20, 20)
+    ramp = np.linspace(0, 1, 255)
+    lut[1:, 0] = (20 + 30 * ramp).astype(np.uint8)
+    lut[1:, 1] = (90 + 165 * ramp).astype(np.uint8)
+    lut[1:, 2] = (30 + 40 * ramp).astype(np.uint8)
+    return lut
+
+
+class CornerMap(pg.GraphicsLayoutWidget):
+    """A coarse grid over one image, coloured by how many board corners fell in each cell."""
+
+    def __init__(self, title: str, parent=None) -> None:
+        super().__init__(parent)
+        self.setBackground(None)
+        self.counts = np.zeros((GRID_ROWS, GRID_COLS), np.int32)
+        self._image_size = (640, 480)
+        self.view = self.addViewBox(lockAspect=True, enableMouse=False)
+        self.view.invertY(True)
+        self.item = pg.ImageItem(axisOrder="row-major")
+        self.item.setLookupTable(_map_lut())
+        self.view.addItem(self.item)
+        self.title = title
+        self.setMinimumSize(160, 120)
+        self.setToolTip(f"{title}: where board corners have been seen in the kept pairs "
+                        "(red = none yet; move the board there)")
+        self._redraw()
+
+    def reset(self, image_size: tuple[int, int]) -> None:
+        self._image_size = (int(image_size[0]), int(image_size[1]))
+        self.counts[:] = 0
+        self._redraw()
+
+    def add_corners(self, corners_px: np.ndarray) -> None:
+        """Count corners given as an (N, 2) or (N, 1, 2) array of image pixels."""
+        pts = np.asarray(corners_px, np.float64).reshape(-1, 2)
+        w, h = self._image_size
+        cx = np.clip((pts[:, 0] / w * GRID_COLS).astype(int), 0, GRID_COLS - 1)
+        cy = np.clip((pts[:, 1] / h * GRID_ROWS).astype(int), 0, GRID_ROWS - 1)
+        np.add.at(self.counts, (cy, cx), 1)
+        self._redraw()
+
+    def covered_fraction(self) -> float:
+        """Share of grid cells with at least one corner."""
+        return float(np.count_nonzero(self.counts)) / self.counts.size
+
+    def _redraw(self) -> None:
+        c = self.counts.astype(np.float64)
+        top = c.max()
+        # cells with corners map to 1..255 (log-like so one pose does not wash out the rest)
+        img = np.where(c > 0, 1 + np.round(254 * np.sqrt(c / top)) if top > 0 else 0, 0)
+        self.item.setImage(img.astype(np.uint8), levels=(0, 255), autoLevels=False)
+        self.item.setRect(0, 0, GRID_COLS, GRID_ROWS)
+
+
+class CoverageWidget(QWidget):
+    """Maps of corner positions for both cameras and pose-coverage bars with a pair count."""
+
+    def __init__(self, parent=None) -> None:
+        super().__init__(parent)
+        outer = QVBoxLayout(self)
+        outer.setContentsMargins(0, 0, 0, 0)
+        box = QGroupBox("Coverage")
+        outer.addWidget(box)
+        layout = QVBoxLayout(box)
+
+        maps = QHBoxLayout()
+        self.left_map = CornerMap("Left camera")
+        self.right_map = CornerMap("Right camera")
+        for title, m in (("Left", self.left_map), ("Right", self.right_map)):
+            col = QVBoxLayout()
+            lab = QLabel(title)
+            lab.setAlignment(Qt.AlignmentFlag.AlignHCenter)
+            col.addWidget(lab)
+            col.addWidget(m)
+            maps.addLayout(col)
+        layout.addLayout(maps)
+
+        grid = QGridLayout()
+        self._bars: dict[str, tuple[QProgressBar, QLabel]] = {}
+        for row, name in enumerate(("X", "Y", "Size", "Tilt")):
+            grid.addWidget(QLabel(name), row, 0)
+            bar = QProgressBar()
+            bar.setRange(0, 100)
+            bar.setTextVisible(True)
+            bar.setMaximumHeight(16)
+            hint = QLabel("")
+            hint.setStyleSheet("color: gray")
+            grid.addWidget(bar, row, 1)
+            grid.addWidget(hint, row, 2)
+            self._bars[name] = (bar, hint)
+        grid.setColumnStretch(1, 1)
+        layout.addLayout(grid)
+
+        self.count_label = QLabel("0 pairs")
+        self.count_label.setWordWrap(True)
+        layout.addWidget(self.count_label)
+        self.set_bars([])
+        self.set_count(0, 20)
+
+    def reset(self, image_size: tuple[int, int]) -> None:
+        self.left_map.reset(image_size)
+        self.right_map.reset(image_size)
+
+    def add_pair(self, left_corners: np.ndarray | None, right_corners: np.ndarray | None) -> None:
+        if left_corners is not None:
+            self.left_map.add_corners(left_corners)
+        if right_corners is not None:
+            self.right_map.add_corners(right_corners)
+
+    def set_bars(self, bars: Sequence[CoverageBar]) -> None:
+        given = {b.name: b for b in bars}
+        for name, (bar, hint) in self._bars.items():
+            b = given.get(name)
+            frac = 0.0 if b is None else float(np.clip(b.fraction, 0.0, 1.0))
+            bar.setValue(int(round(100 * frac)))
+            colour = "#3a3" if frac >= 0.999 else ("#c90" if frac >= 0.5 else "#c33")
+            bar.setStyleSheet(f"QProgressBar::chunk {{ background: {colour}; }}")
+            hint.setText("" if b is None else b.hint)
+
+    def set_coverage(self, cov) -> None:
+        """Show a core `detect.Coverage` (bars, count against the recommended count)."""
+        names = {"x": "X", "y": "Y", "size": "Size", "skew": "Tilt"}
+        hints = {"x": "left-right", "y": "up-down", "size": "near-far", "skew": "tilt"}
+        bars = []
+        for a in cov.axes:
+            hint = "ok" if a.progress >= 1.0 else f"need more {hints.get(a.name, a.name)}"
+            bars.append(CoverageBar(names.get(a.name, a.name), a.progress, hint))
+        self.set_bars(bars)
+        self.set_count(cov.count, cov.recommended_count)
+        missing = cov.missing()
+        self.count_label.setToolTip("; ".join(missing) if missing else "coverage is complete")
+
+    def bar_values(self) -> dict[str, int]:
+        """Percent shown on each bar (for tests and screenshots)."""
+        return {name: bar.value() for name, (bar, _) in self._bars.items()}
+
+    def set_count(self, n_pairs: int, recommended: int) -> None:
+        if n_pairs >= recommended:
+            text = f"{n_pairs} pairs kept (recommended {recommended}): enough to calibrate"
+        else:
+            text = f"{n_pairs} pairs kept, {recommended} recommended"
+        self.count_label.setText(text)
