@@ -1,0 +1,367 @@
+"""Capture sessions: a folder of calibration image pairs plus a `session.json` manifest.
+
+Each pair is written the moment it is saved (both images, then the manifest, each atomically),
+in the report's naming `chessboard-L{n}.png` / `chessboard-R{n}.png`, so a session folder is
+also a plain folder of pairs that `stereo-gui calibrate DIR` reads. The manifest holds the board,
+the resolution, the camera identities, each pair's name, files and time, and the excluded pairs.
+
+A folder without a manifest (the report's own captures, `left{n}`/`right{n}`, ...) opens too; the
+manifest is written at its first change. Pairs whose images exist but which the manifest does not
+list (a crash between the images and the manifest) are picked up again on opening, so nothing
+saved is lost.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import logging
+import os
+import re
+import threading
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.errors import InputError, StereoGuiError
+from stereo_gui.files.atomic import write_bytes_atomic, write_text_atomic
+
+log = logging.getLogger(__name__)
+
+FORMAT_VERSION = 1
+MANIFEST = "session.json"
+LEFT_PATTERN = "chessboard-L{n}.png"
+RIGHT_PATTERN = "chessboard-R{n}.png"
+_NUMBER_RE = re.compile(r"(\d+)(?!.*\d)")  # the last run of digits in a name
+
+
+def _now() -> str:
+    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="milliseconds")
+
+
+def pair_name(number: int) -> str:
+    """The name a session gives its pair number `number`."""
+    return f"pair-{number:03d}"
+
+
+@dataclass(frozen=True)
+class PairEntry:
+    """One saved pair: its name, number, image files (absolute paths) and save time (ISO 8601)."""
+
+    name: str
+    number: int
+    left: Path
+    right: Path
+    time: str = ""
+    excluded: bool = False
+
+
+@dataclass(frozen=True)
+class CameraIds:
+    """Which devices took the images, as the system names them (free text, may be empty)."""
+
+    left: str = ""
+    right: str = ""
+
+
+def _number_of(path: Path) -> int | None:
+    m = _NUMBER_RE.search(path.stem)
+    return int(m.group(1)) if m else None
+
+
+_IMAGE_EXT = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+_SIDE_RE = re.compile(r"^(?P<pre>.*?)(?P<side>left|right|L|R)(?P<num>\d+)$", re.IGNORECASE)
+
+
+@dataclass(frozen=True)
+class _FoundPair:
+    name: str
+    left: Path
+    right: Path
+
+
+def _fallback_discover(folder: Path) -> list[_FoundPair]:
+    """Minimal pairing by name (`chessboard-L{n}`, `left{n}`, `left/` + `right/`).
+
+    Used only while stereo_gui.files.pairs is not available in this checkout.
+    """
+    sides: dict[tuple[str, int], dict[str, Path]] = {}
+
+    def add(path: Path, side: str, key: str, num: int) -> None:
+        sides.setdefault((key, num), {})[side] = path
+
+    for p in sorted(folder.iterdir()):
+        if p.is_file() and p.suffix.lower() in _IMAGE_EXT:
+            m = _SIDE_RE.match(p.stem)
+            if m:
+                add(p, m["side"][0].lower(), m["pre"], int(m["num"]))
+    for sub, side in (("left", "l"), ("right", "r")):
+        if (folder / sub).is_dir():
+            for p in sorted((folder / sub).iterdir()):
+                n = _number_of(p)
+                if p.suffix.lower() in _IMAGE_EXT and n is not None:
+                    add(p, side, "/", n)
+    return [_FoundPair(pair_name(n), d["l"], d["r"])
+            for (_, n), d in sorted(sides.items(), key=lambda kv: kv[0][1])
+            if "l" in d and "r" in d]
+
+
+def _discover(folder: Path) -> list[PairEntry]:
+    """Pairs of a folder without (or beyond) a manifest, via stereo_gui.files.pairs."""
+    try:
+        from stereo_gui.files.pairs import discover_pairs
+    except ImportError:  # not yet in this checkout
+        discover_pairs = _fallback_discover
+
+    try:
+        found = discover_pairs(folder)
+    except StereoGuiError as exc:  # an empty folder is a fine start for a session
+        log.info("no pairs discovered in %s: %s", folder, exc)
+        return []
+    entries = []
+    for k, p in enumerate(getattr(found, "pairs", found), start=1):
+        left, right = Path(p.left), Path(p.right)
+        n = _number_of(left)
+        entries.append(PairEntry(p.name, n if n is not None else k, left, right))
+    return entries
+
+
+class CaptureSession:
+    """A capture session folder. Methods that change it write through to disk at once.
+
+    Safe to call from one worker thread while the UI reads `pairs` (a lock guards changes).
+    """
+
+    def __init__(self, folder: Path, board: BoardSpec | None, resolution: tuple[int, int] | None,
+                 cameras: CameraIds, created: str, pairs: list[PairEntry],
+                 has_manifest: bool, warnings: list[str] | None = None) -> None:
+        self.folder = Path(folder)
+        self.board = board
+        self.resolution = resolution  # (width, height), px, or None when not known yet
+        self.cameras = cameras
+        self.created = created
+        self._pairs = sorted(pairs, key=lambda e: e.number)
+        self.has_manifest = has_manifest
+        self.warnings = list(warnings or [])  # what opening had to tolerate
+        self._lock = threading.RLock()
+
+    # ---- creating and opening ---------------------------------------------------------------
+    @classmethod
+    def create(cls, folder: str | os.PathLike, board: BoardSpec | None = None,
+               resolution: tuple[int, int] | None = None,
+               cameras: CameraIds | tuple[str, str] | None = None) -> CaptureSession:
+        """Start a session in `folder` (created if needed; pairs already there are kept)."""
+        folder = Path(folder)
+        if (folder / MANIFEST).exists():
+            raise InputError(f"{folder} already holds a capture session; open it instead")
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise InputError(f"cannot create session folder {folder}: {exc.strerror or exc}") from exc
+        if isinstance(cameras, tuple):
+            cameras = CameraIds(*cameras)
+        existing = _discover(folder)
+        s = cls(folder, board, tuple(resolution) if resolution else None, cameras or CameraIds(),
+                _now(), existing, has_manifest=False)
+        s._write_manifest()
+        return s
+
+    @classmethod
+    def open(cls, folder: str | os.PathLike) -> CaptureSession:
+        """Open a session folder, or a plain folder of pairs (its manifest is written on change)."""
+        folder = Path(folder)
+        if not folder.is_dir():
+            raise InputError(f"session folder {folder} does not exist")
+        manifest = folder / MANIFEST
+        warnings: list[str] = []
+        if manifest.exists():
+            try:
+                data = json.loads(manifest.read_text(encoding="utf-8"))
+                return cls._from_manifest(folder, data)
+            except (OSError, UnicodeDecodeError, ValueError, TypeError, KeyError) as exc:
+                warnings.append(f"{manifest} is unreadable ({exc}); pairs found in the folder "
+                                "are used, without its board and exclusions")
+                log.warning("%s", warnings[-1])
+        s = cls(folder, None, None, CameraIds(), "", _discover(folder), has_manifest=False,
+                warnings=warnings)
+        s.resolution = s._first_image_size()
+        return s
+
+    @classmethod
+    def _from_manifest(cls, folder: Path, data: dict) -> CaptureSession:
+        version = data.get("format_version")
+        if not isinstance(version, int) or version > FORMAT_VERSION:
+            raise ValueError(f"format version {version!r} is not one this version reads")
+        b = data.get("board")
+        board = BoardSpec(int(b["cols"]), int(b["rows"]), float(b["square_mm"])) if b else None
+        res = data.get("resolution")
+        resolution = (int(res[0]), int(res[1])) if res else None
+        cams = data.get("cameras") or {}
+        cameras = CameraIds(str(cams.get("left", "")), str(cams.get("right", "")))
+        excluded = set(data.get("excluded", []))
+        warnings: list[str] = []
+        pairs: list[PairEntry] = []
+        for p in data.get("pairs", []):
+            e = PairEntry(str(p["name"]), int(p["number"]), folder / p["left"], folder / p["right"],
+                          str(p.get("time", "")), str(p["name"]) in excluded)
+            if not (e.left.is_file() and e.right.is_file()):
+                warnings.append(f"{folder}: pair {e.name} is listed but its images are missing; "
+                                "it is left out")
+                continue
+            pairs.append(e)
+        # images saved but not listed (a crash before the manifest was rewritten) are kept
+        listed = {e.left.resolve() for e in pairs} | {e.right.resolve() for e in pairs}
+        for e in _discover(folder):
+            if e.left.resolve() in listed or e.right.resolve() in listed:
+                continue
+            if any(p.name == e.name for p in pairs):
+                e = replace(e, name=f"{e.name}-{e.number}")
+            warnings.append(f"{folder}: pair {e.left.name}/{e.right.name} was not in the "
+                            "manifest; it is added")
+            pairs.append(e)
+        for w in warnings:
+            log.warning("%s", w)
+        return cls(folder, board, resolution, cameras, str(data.get("created", "")), pairs,
+                   has_manifest=True, warnings=warnings)
+
+    # ---- reading ----------------------------------------------------------------------------
+    @property
+    def manifest_path(self) -> Path:
+        return self.folder / MANIFEST
+
+    @property
+    def pairs(self) -> tuple[PairEntry, ...]:
+        with self._lock:
+            return tuple(self._pairs)
+
+    def included_pairs(self) -> tuple[PairEntry, ...]:
+        return tuple(p for p in self.pairs if not p.excluded)
+
+    def pair(self, name: str) -> PairEntry:
+        for p in self.pairs:
+            if p.name == name:
+                return p
+        raise InputError(f"session {self.folder} has no pair named {name!r}")
+
+    def _first_image_size(self) -> tuple[int, int] | None:
+        import cv2
+
+        for p in self._pairs:
+            img = cv2.imread(str(p.left), cv2.IMREAD_UNCHANGED)
+            if img is not None:
+                return (int(img.shape[1]), int(img.shape[0]))
+        return None
+
+    # ---- changing ---------------------------------------------------------------------------
+    def add_pair(self, left: np.ndarray, right: np.ndarray, time: str | None = None) -> PairEntry:
+        """Save a pair (raw images, PNG) under the next free number and record it.
+
+        Raises InputError (and leaves the folder as it was) when the images do not fit the
+        session or cannot be written, for instance on a full disk or a vanished folder.
+        """
+        import cv2
+
+        if left is None or right is None or left.shape[:2] != right.shape[:2]:
+            raise InputError("left and right images of a pair must have the same size")
+        size = (int(left.shape[1]), int(left.shape[0]))
+        with self._lock:
+            if self.resolution is not None and size != tuple(self.resolution):
+                raise InputError(f"pair of {size[0]}x{size[1]} px does not fit session {self.folder} "
+                                 f"of {self.resolution[0]}x{self.resolution[1]} px")
+            # encode both before writing anything, so that a bad image writes nothing
+            ok_l, png_l = cv2.imencode(".png", left)
+            ok_r, png_r = cv2.imencode(".png", right)
+            if not (ok_l and ok_r):
+                raise InputError("the images of the pair could not be encoded as PNG")
+            n = max((p.number for p in self._pairs), default=0) + 1
+            while True:  # never overwrite a file, even one the session does not know about
+                lpath = self.folder / LEFT_PATTERN.format(n=n)
+                rpath = self.folder / RIGHT_PATTERN.format(n=n)
+                if not (lpath.exists() or rpath.exists()):
+                    break
+                n += 1
+            if not self.folder.is_dir():
+                raise InputError(f"session folder {self.folder} does not exist any more")
+            entry = PairEntry(pair_name(n), n, lpath, rpath, time or _now())
+            written: list[Path] = []
+            old_resolution = self.resolution
+            try:
+                write_bytes_atomic(lpath, png_l.tobytes())
+                written.append(lpath)
+                write_bytes_atomic(rpath, png_r.tobytes())
+                written.append(rpath)
+                self._pairs.append(entry)
+                self.resolution = size
+                self._write_manifest()
+            except BaseException:
+                # a half-saved pair would be worse than none: undo, keep the earlier state
+                if entry in self._pairs:
+                    self._pairs.remove(entry)
+                self.resolution = old_resolution
+                for p in written:
+                    p.unlink(missing_ok=True)
+                raise
+        log.info("saved pair %s to %s", entry.name, self.folder)
+        return entry
+
+    def delete_pair(self, name: str) -> None:
+        """Delete a pair's images and forget it."""
+        with self._lock:
+            entry = self.pair(name)
+            for p in (entry.left, entry.right):
+                try:
+                    p.unlink(missing_ok=True)
+                except OSError as exc:
+                    raise InputError(f"cannot delete {p}: {exc.strerror or exc}") from exc
+            self._pairs.remove(entry)
+            self._write_manifest()
+
+    def set_excluded(self, name: str, excluded: bool) -> PairEntry:
+        """Mark a pair as left out of (or back in) calibration; return the updated entry."""
+        with self._lock:
+            entry = self.pair(name)
+            i = self._pairs.index(entry)
+            new = replace(entry, excluded=bool(excluded))
+            self._pairs[i] = new
+            try:
+                self._write_manifest()
+            except BaseException:
+                self._pairs[i] = entry
+                raise
+            return new
+
+    def set_board(self, board: BoardSpec) -> None:
+        with self._lock:
+            old, self.board = self.board, board
+            try:
+                self._write_manifest()
+            except BaseException:
+                self.board = old
+                raise
+
+    # ---- manifest ---------------------------------------------------------------------------
+    def manifest(self) -> dict:
+        """The manifest as written to `session.json`."""
+        def rel(p: Path) -> str:
+            try:
+                return p.relative_to(self.folder).as_posix()
+            except ValueError:
+                return str(p)
+
+        b = self.board
+        return {
+            "format_version": FORMAT_VERSION,
+            "created": self.created or _now(),
+            "board": {"cols": b.cols, "rows": b.rows, "square_mm": b.square_mm} if b else None,
+            "resolution": list(self.resolution) if self.resolution else None,
+            "cameras": {"left": self.cameras.left, "right": self.cameras.right},
+            "pairs": [{"name": p.name, "number": p.number, "left": rel(p.left),
+                       "right": rel(p.right), "time": p.time} for p in self._pairs],
+            "excluded": [p.name for p in self._pairs if p.excluded],
+        }
+
+    def _write_manifest(self) -> None:
+        write_text_atomic(self.manifest_path, json.dumps(self.manifest(), indent=2) + "\n")
+        self.has_manifest = True
