@@ -17,7 +17,6 @@ import datetime as _dt
 import json
 import logging
 import os
-import re
 import threading
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -34,7 +33,6 @@ FORMAT_VERSION = 1
 MANIFEST = "session.json"
 LEFT_PATTERN = "chessboard-L{n}.png"
 RIGHT_PATTERN = "chessboard-R{n}.png"
-_NUMBER_RE = re.compile(r"(\d+)(?!.*\d)")  # the last run of digits in a name
 
 
 def _now() -> str:
@@ -42,8 +40,8 @@ def _now() -> str:
 
 
 def pair_name(number: int) -> str:
-    """The name a session gives its pair number `number`."""
-    return f"pair-{number:03d}"
+    """The name a session gives its pair number `number` (as discover_pairs names it too)."""
+    return f"chessboard-{number}"
 
 
 @dataclass(frozen=True)
@@ -66,66 +64,18 @@ class CameraIds:
     right: str = ""
 
 
-def _number_of(path: Path) -> int | None:
-    m = _NUMBER_RE.search(path.stem)
-    return int(m.group(1)) if m else None
-
-
-_IMAGE_EXT = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
-_SIDE_RE = re.compile(r"^(?P<pre>.*?)(?P<side>left|right|L|R)(?P<num>\d+)$", re.IGNORECASE)
-
-
-@dataclass(frozen=True)
-class _FoundPair:
-    name: str
-    left: Path
-    right: Path
-
-
-def _fallback_discover(folder: Path) -> list[_FoundPair]:
-    """Minimal pairing by name (`chessboard-L{n}`, `left{n}`, `left/` + `right/`).
-
-    Used only while stereo_gui.files.pairs is not available in this checkout.
-    """
-    sides: dict[tuple[str, int], dict[str, Path]] = {}
-
-    def add(path: Path, side: str, key: str, num: int) -> None:
-        sides.setdefault((key, num), {})[side] = path
-
-    for p in sorted(folder.iterdir()):
-        if p.is_file() and p.suffix.lower() in _IMAGE_EXT:
-            m = _SIDE_RE.match(p.stem)
-            if m:
-                add(p, m["side"][0].lower(), m["pre"], int(m["num"]))
-    for sub, side in (("left", "l"), ("right", "r")):
-        if (folder / sub).is_dir():
-            for p in sorted((folder / sub).iterdir()):
-                n = _number_of(p)
-                if p.suffix.lower() in _IMAGE_EXT and n is not None:
-                    add(p, side, "/", n)
-    return [_FoundPair(pair_name(n), d["l"], d["r"])
-            for (_, n), d in sorted(sides.items(), key=lambda kv: kv[0][1])
-            if "l" in d and "r" in d]
-
-
-def _discover(folder: Path) -> list[PairEntry]:
-    """Pairs of a folder without (or beyond) a manifest, via stereo_gui.files.pairs."""
-    try:
-        from stereo_gui.files.pairs import discover_pairs
-    except ImportError:  # not yet in this checkout
-        discover_pairs = _fallback_discover
+def _discover(folder: Path, warnings: list[str] | None = None) -> list[PairEntry]:
+    """Pairs found in the folder by their file names (stereo_gui.files.pairs)."""
+    from stereo_gui.files.pairs import discover_pairs
 
     try:
         found = discover_pairs(folder)
     except StereoGuiError as exc:  # an empty folder is a fine start for a session
         log.info("no pairs discovered in %s: %s", folder, exc)
         return []
-    entries = []
-    for k, p in enumerate(getattr(found, "pairs", found), start=1):
-        left, right = Path(p.left), Path(p.right)
-        n = _number_of(left)
-        entries.append(PairEntry(p.name, n if n is not None else k, left, right))
-    return entries
+    if warnings is not None and found.warning():
+        warnings.append(f"{folder}: {found.warning()}")
+    return [PairEntry(p.name, p.number, Path(p.left), Path(p.right)) for p in found.pairs]
 
 
 class CaptureSession:
@@ -184,8 +134,8 @@ class CaptureSession:
                 warnings.append(f"{manifest} is unreadable ({exc}); pairs found in the folder "
                                 "are used, without its board and exclusions")
                 log.warning("%s", warnings[-1])
-        s = cls(folder, None, None, CameraIds(), "", _discover(folder), has_manifest=False,
-                warnings=warnings)
+        pairs = _discover(folder, warnings)
+        s = cls(folder, None, None, CameraIds(), "", pairs, has_manifest=False, warnings=warnings)
         s.resolution = s._first_image_size()
         return s
 
@@ -213,7 +163,7 @@ class CaptureSession:
             pairs.append(e)
         # images saved but not listed (a crash before the manifest was rewritten) are kept
         listed = {e.left.resolve() for e in pairs} | {e.right.resolve() for e in pairs}
-        for e in _discover(folder):
+        for e in _discover(folder, warnings):
             if e.left.resolve() in listed or e.right.resolve() in listed:
                 continue
             if any(p.name == e.name for p in pairs):

@@ -203,4 +203,22 @@ def test_vanished_folder_raises_input_error(tmp_path):
 def test_unknown_pair_name(tmp_path):
     s = _new(tmp_path)
     with pytest.raises(InputError, match="no pair named"):
-        s.set_excluded("pair-999", True)
+        s.set_excluded("chessboard-999", True)
+
+
+def test_subfolder_layout_opens_and_names_match_discovery(tmp_path):
+    from stereo_gui.files.pairs import discover_pairs
+
+    folder = tmp_path / "sub"
+    for side in ("left", "right"):
+        (folder / side).mkdir(parents=True)
+        for n in (1, 2):
+            cv2.imwrite(str(folder / side / f"{n:06d}.png"), _img(n))
+    cv2.imwrite(str(folder / "left" / "000003.png"), _img(3))  # no right partner
+    s = CaptureSession.open(folder)
+    assert [p.name for p in s.pairs] == [p.name for p in discover_pairs(folder).pairs]
+    assert any("unpaired" in w for w in s.warnings)
+    # a session's own pairs get the names discovery gives their files
+    t = _new(tmp_path)
+    e = t.add_pair(_img(1), _img(2))
+    assert [p.name for p in discover_pairs(t.folder).pairs] == [e.name]
