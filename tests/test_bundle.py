@@ -1,0 +1,84 @@
+"""Smoke test of the PyInstaller bundle (packaging/): it builds, carries its files, and starts.
+
+Slow (a build takes a minute or more), so it runs only with STEREO_GUI_BUNDLE_TESTS=1:
+
+    STEREO_GUI_BUNDLE_TESTS=1 python -m pytest tests/test_bundle.py -q
+
+It uses dist/stereo-gui/ when present and builds it with packaging/build.sh otherwise
+(STEREO_GUI_BUNDLE_REBUILD=1 forces a fresh build).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from stereo_gui import __version__
+
+REPO = Path(__file__).resolve().parents[1]
+BUNDLE_DIR = REPO / "dist" / "stereo-gui"
+EXE = BUNDLE_DIR / ("stereo-gui.exe" if sys.platform == "win32" else "stereo-gui")
+
+pytestmark = [
+    pytest.mark.bundle,
+    pytest.mark.skipif(
+        os.environ.get("STEREO_GUI_BUNDLE_TESTS") != "1",
+        reason="bundle tests run only with STEREO_GUI_BUNDLE_TESTS=1",
+    ),
+]
+
+
+@pytest.fixture(scope="module")
+def bundle() -> Path:
+    """The bundle's executable, built first if it is absent (or if a rebuild is asked for)."""
+    if not EXE.is_file() or os.environ.get("STEREO_GUI_BUNDLE_REBUILD") == "1":
+        proc = subprocess.run(["bash", str(REPO / "packaging" / "build.sh")], cwd=REPO,
+                              capture_output=True, text=True, timeout=3600)
+        assert proc.returncode == 0, f"build failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
+    assert EXE.is_file(), f"no executable at {EXE}"
+    return EXE
+
+
+def _run(args: list[str], env_extra: dict[str, str], timeout: float = 180):
+    env = dict(os.environ)
+    env.update(env_extra)
+    return subprocess.run(args, capture_output=True, text=True, env=env, timeout=timeout)
+
+
+def test_version(bundle):
+    proc = _run([str(bundle), "--version"], {})
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == f"stereo-gui {__version__}"
+
+
+def test_resources_sit_where_resources_py_looks(bundle):
+    # stereo_gui/resources.py looks for `_resources` next to its own __file__, which in a
+    # one-folder bundle is _internal/stereo_gui/.
+    bundled = BUNDLE_DIR / "_internal" / "stereo_gui" / "_resources"
+    assert (bundled / "icons" / "stereo-gui-256.png").is_file()
+    wanted = {p.relative_to(REPO / "resources") for p in (REPO / "resources").rglob("*")
+              if p.is_file() and "__pycache__" not in p.parts}
+    have = {p.relative_to(bundled) for p in bundled.rglob("*") if p.is_file()}
+    assert wanted <= have, f"missing in the bundle: {sorted(map(str, wanted - have))}"
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="Linux plugin names")
+def test_qt_platform_plugins_are_bundled(bundle):
+    platforms = BUNDLE_DIR / "_internal" / "PySide6" / "Qt" / "plugins" / "platforms"
+    names = {p.name for p in platforms.iterdir()}
+    assert {"libqoffscreen.so", "libqxcb.so"} <= names, names
+
+
+def test_gui_starts_offscreen_and_quits_by_itself(bundle, tmp_path):
+    proc = _run([str(bundle)], {
+        "QT_QPA_PLATFORM": "offscreen",
+        "STEREO_GUI_QUIT_AFTER": "3",
+        "STEREO_GUI_CONFIG_DIR": str(tmp_path / "config"),
+    })
+    output = proc.stdout + proc.stderr
+    assert proc.returncode == 0, output[-3000:]
+    assert "Traceback" not in output, output[-3000:]
