@@ -1,15 +1,742 @@
-"""The Capture tab of the main window (being built; see issue 4)."""
+"""The Capture tab: take chessboard pairs for calibration (the report's Take_images_for_calibration).
+
+Both cameras live side by side with the board's corners drawn where found. When both see the
+board the pair freezes for review: Save (S) writes both raw images to the session folder,
+Cancel (C) goes live again. Automatic capture instead takes a pair by itself when the board is
+steady and its pose is new. Detection runs in the frame worker's thread (the processor made by
+`make_capture_processor`); this widget only draws what it gets.
+"""
 
 from __future__ import annotations
 
-from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
+import logging
+from collections import deque
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import QSize, Qt, Signal
+from PySide6.QtGui import QIcon, QImage, QPixmap
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QDoubleSpinBox,
+    QFileDialog,
+    QHBoxLayout,
+    QLabel,
+    QListWidget,
+    QListWidgetItem,
+    QPushButton,
+    QSpinBox,
+    QSplitter,
+    QVBoxLayout,
+    QWidget,
+)
+
+from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.detect import (
+    NEW_POSE_DISTANCE,
+    Detection,
+    PairDetection,
+    PoseDescriptor,
+    coverage,
+    detect_board,
+    detect_pair,
+    is_new_pose,
+)
+from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.core.util import to_gray
+from stereo_gui.qt.calibration_worker import JobWorker, Progress
+from stereo_gui.qt.coverage_widget import CoverageWidget
+from stereo_gui.sources.base import StereoFrame
+
+log = logging.getLogger(__name__)
+
+STEADY_FRAMES = 4  # automatic capture: the board must hold still over this many frames
+STEADY_PX = 2.0  # ... moving its corners less than this, px
+THUMB_SIZE = QSize(176, 66)  # a saved pair's thumbnail: both images side by side
+_FOUND = "#2e9e3e"
+_MISSING = "#c0392b"
 
 
+# ---- the processor (runs in the frame worker's thread) ------------------------------------------
+@dataclass(frozen=True, eq=False)
+class CaptureOutput:
+    """What the capture processor makes of a frame: RGB images for display and the detection."""
+
+    left_rgb: np.ndarray  # HxWx3 uint8, C-contiguous
+    right_rgb: np.ndarray
+    detection: PairDetection
+    board: BoardSpec
+
+    @property
+    def pose(self) -> PoseDescriptor | None:
+        if not self.detection.found:
+            return None
+        return self.detection.left.pose(self.board)  # type: ignore[union-attr]
+
+
+def _maybe_board(gray: np.ndarray, board: BoardSpec) -> bool:
+    """A fast test whether a board may be in the image (a full search without a board takes
+    a few hundred ms; this quick check a few ms), so live frames without a board stay cheap."""
+    ok, _ = cv2.findChessboardCorners(
+        gray, board.pattern_size,
+        flags=cv2.CALIB_CB_FAST_CHECK | cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
+    return bool(ok)
+
+
+def detect_live(frame: StereoFrame, board: BoardSpec) -> CaptureOutput:
+    """Detect the board in both images of a live frame (subpixel where found)."""
+    size = frame.size
+    dets: list[Detection | None] = []
+    for img in (frame.left, frame.right):
+        gray = to_gray(img)
+        dets.append(detect_board(gray, board) if _maybe_board(gray, board) else None)
+    left, right = dets
+    if left is not None and right is not None:
+        # same rule as core.detect_pair: both cameras must number the grid from the same end
+        dl = left.corners[-1] - left.corners[0]
+        dr = right.corners[-1] - right.corners[0]
+        if float(np.dot(dl, dr)) < 0:
+            right = right.reversed()
+    pair = PairDetection(f"frame {frame.index}", left, right, size)
+    return CaptureOutput(_rgb(frame.left), _rgb(frame.right), pair, board)
+
+
+def make_capture_processor(board: BoardSpec):
+    """The frame worker processor of the capture tab, for `board`."""
+    def process(frame: StereoFrame) -> CaptureOutput:
+        return detect_live(frame, board)
+    return process
+
+
+def _rgb(bgr: np.ndarray) -> np.ndarray:
+    if bgr.ndim == 2:
+        return np.ascontiguousarray(np.repeat(bgr[:, :, None], 3, axis=2))
+    return np.ascontiguousarray(bgr[:, :, 2::-1])
+
+
+# ---- image panes ---------------------------------------------------------------------------------
+class StereoPairView(pg.GraphicsLayoutWidget):
+    """Left and right images side by side, each with a title and the board's corners."""
+
+    def __init__(self, parent=None) -> None:
+        super().__init__(parent)
+        self.setBackground("#202020")
+        self.titles: list[pg.LabelItem] = []
+        self.images: list[pg.ImageItem] = []
+        self.corner_lines: list[pg.PlotCurveItem] = []
+        self.corner_dots: list[pg.ScatterPlotItem] = []
+        self.views: list[pg.ViewBox] = []
+        for col, name in enumerate(("Left", "Right")):
+            title = pg.LabelItem(name, size="11pt", color="w")
+            self.addItem(title, row=0, col=col)
+            vb = self.addViewBox(row=1, col=col, lockAspect=True, enableMouse=False)
+            vb.invertY(True)
+            img = pg.ImageItem(axisOrder="row-major")
+            vb.addItem(img)
+            line = pg.PlotCurveItem(pen=pg.mkPen("#ffd21f", width=1.5))
+            dots = pg.ScatterPlotItem(size=6, pen=pg.mkPen(None), brush=pg.mkBrush("#ff5a1f"))
+            vb.addItem(line)
+            vb.addItem(dots)
+            self.titles.append(title)
+            self.images.append(img)
+            self.corner_lines.append(line)
+            self.corner_dots.append(dots)
+            self.views.append(vb)
+        self._shape: tuple[int, int] | None = None
+
+    def show_pair(self, left_rgb: np.ndarray, right_rgb: np.ndarray) -> None:
+        for img, arr in zip(self.images, (left_rgb, right_rgb), strict=True):
+            img.setImage(arr, levels=(0, 255), autoLevels=False)
+        shape = left_rgb.shape[:2]
+        if shape != self._shape:  # refit only when the size changes, not every frame
+            self._shape = shape
+            for vb in self.views:
+                vb.setRange(xRange=(0, shape[1]), yRange=(0, shape[0]), padding=0.01)
+
+    def show_corners(self, side: int, det: Detection | None, both: bool) -> None:
+        line, dots = self.corner_lines[side], self.corner_dots[side]
+        if det is None:
+            line.setData([], [])
+            dots.setData([], [])
+            return
+        c = det.corners.reshape(-1, 2)
+        line.setData(c[:, 0], c[:, 1])
+        colour = "#2ee65a" if both else "#ffb01f"
+        line.setPen(pg.mkPen(colour, width=1.5))
+        dots.setData(c[:, 0], c[:, 1], brush=pg.mkBrush(colour))
+
+    def set_title(self, side: int, text: str, colour: str = "w") -> None:
+        self.titles[side].setText(text, color=colour)
+
+
+def _thumbnail(left_bgr: np.ndarray, right_bgr: np.ndarray) -> QIcon:
+    h = THUMB_SIZE.height()
+    w = THUMB_SIZE.width() // 2 - 2
+    parts = [cv2.resize(im, (w, h), interpolation=cv2.INTER_AREA) for im in (left_bgr, right_bgr)]
+    gap = np.full((h, 4, 3), 40, np.uint8)
+    both = np.ascontiguousarray(np.hstack([parts[0], gap, parts[1]])[:, :, ::-1])
+    qimg = QImage(both.data, both.shape[1], both.shape[0], both.strides[0],
+                  QImage.Format.Format_RGB888).copy()
+    return QIcon(QPixmap.fromImage(qimg))
+
+
+@dataclass(frozen=True, eq=False)
+class SavedPairInfo:
+    """A saved pair as the tab shows it: its detection (for coverage) and a thumbnail."""
+
+    name: str
+    detection: PairDetection | None
+    icon: QIcon | None
+
+
+def _read(path) -> np.ndarray:
+    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if img is None:
+        raise StereoGuiError(f"cannot read image {path}")
+    return img
+
+
+# ---- the tab -------------------------------------------------------------------------------------
 class CaptureTab(QWidget):
-    """The capture tab. `ctx` is the application's AppContext (the owner of app-wide state)."""
+    """Capture chessboard pairs into a session folder, with review, auto-capture and coverage."""
+
+    sessionChanged = Signal(object)  # the CaptureSession now open, or None
+    pairSaved = Signal(str)  # name of the pair just written
 
     def __init__(self, ctx, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.ctx = ctx
-        layout = QVBoxLayout(self)
-        layout.addWidget(QLabel("Capture: not built yet"))
+        self.session = None  # files.session.CaptureSession
+        self.state = "live"  # "live", "review" (frozen live pair) or "saved" (showing a saved pair)
+        self.frozen: CaptureOutput | None = None
+        self._frozen_frame: StereoFrame | None = None
+        self._active = False
+        self._last_output: CaptureOutput | None = None
+        self._last_reviewed_pose: PoseDescriptor | None = None
+        self._recent_corners: deque[np.ndarray] = deque(maxlen=STEADY_FRAMES)
+        self._saved: dict[str, SavedPairInfo] = {}
+        self._scan: JobWorker | None = None
+        self._build()
+        self._load_board_settings()
+        ctx.frames.frameReady.connect(self._on_frame_ready)
+        if hasattr(ctx, "currentTabChanged"):
+            ctx.currentTabChanged.connect(lambda name: self.set_active(name == "capture"))
+        last = getattr(ctx.settings, "last_session", None) if ctx.settings is not None else None
+        if last and Path(last).is_dir():
+            try:
+                self.open_session(last)
+            except StereoGuiError as exc:
+                log.warning("last capture session %s not reopened: %s", last, exc)
+
+    # ---- layout ------------------------------------------------------------------------------
+    def _build(self) -> None:
+        root = QHBoxLayout(self)
+        split = QSplitter(Qt.Orientation.Horizontal)
+        root.addWidget(split)
+
+        main = QWidget()
+        ml = QVBoxLayout(main)
+        ml.setContentsMargins(0, 0, 0, 0)
+
+        bar = QHBoxLayout()
+        self.new_button = QPushButton("New session…")
+        self.open_button = QPushButton("Open session…")
+        self.new_button.clicked.connect(self._choose_new_session)
+        self.open_button.clicked.connect(self._choose_open_session)
+        self.session_label = QLabel("No session: choose New session… before saving pairs")
+        self.session_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        bar.addWidget(self.new_button)
+        bar.addWidget(self.open_button)
+        bar.addWidget(self.session_label, 1)
+        ml.addLayout(bar)
+
+        board = QHBoxLayout()
+        board.addWidget(QLabel("Board inner corners:"))
+        self.cols_spin = QSpinBox()
+        self.cols_spin.setRange(2, 40)
+        self.rows_spin = QSpinBox()
+        self.rows_spin.setRange(2, 40)
+        self.square_spin = QDoubleSpinBox()
+        self.square_spin.setRange(0.5, 500.0)
+        self.square_spin.setDecimals(2)
+        self.square_spin.setSuffix(" mm")
+        board.addWidget(self.cols_spin)
+        board.addWidget(QLabel("×"))
+        board.addWidget(self.rows_spin)
+        board.addSpacing(12)
+        board.addWidget(QLabel("Square size:"))
+        board.addWidget(self.square_spin)
+        board.addSpacing(24)
+        self.auto_check = QCheckBox("Automatic capture (steady board, new pose)")
+        self.auto_check.setToolTip(
+            f"Take a pair by itself when the board holds still (corners move less than "
+            f"{STEADY_PX:g} px over {STEADY_FRAMES} frames) and its pose differs from those kept")
+        board.addWidget(self.auto_check)
+        board.addStretch(1)
+        ml.addLayout(board)
+        for w in (self.cols_spin, self.rows_spin):
+            w.valueChanged.connect(self._board_edited)
+        self.square_spin.valueChanged.connect(self._board_edited)
+        self.auto_check.toggled.connect(self._auto_toggled)
+
+        self.view = StereoPairView()
+        ml.addWidget(self.view, 1)
+
+        review = QHBoxLayout()
+        self.prompt = QLabel("")
+        self.prompt.setWordWrap(True)
+        f = self.prompt.font()
+        f.setPointSize(f.pointSize() + 2)
+        self.prompt.setFont(f)
+        self.save_button = QPushButton("Save pair (S)")
+        self.save_button.setShortcut("S")
+        self.cancel_button = QPushButton("Cancel (C)")
+        self.cancel_button.setShortcut("C")
+        self.live_button = QPushButton("Back to live")
+        self.save_button.clicked.connect(self.save_frozen)
+        self.cancel_button.clicked.connect(self.cancel_frozen)
+        self.live_button.clicked.connect(self.go_live)
+        review.addWidget(self.prompt, 1)
+        review.addWidget(self.save_button)
+        review.addWidget(self.cancel_button)
+        review.addWidget(self.live_button)
+        ml.addLayout(review)
+        split.addWidget(main)
+
+        side = QWidget()
+        sl = QVBoxLayout(side)
+        sl.setContentsMargins(0, 0, 0, 0)
+        self.coverage = CoverageWidget()
+        sl.addWidget(self.coverage)
+        self.pairs_label = QLabel("Saved pairs")
+        sl.addWidget(self.pairs_label)
+        self.pair_list = QListWidget()
+        self.pair_list.setIconSize(THUMB_SIZE)
+        self.pair_list.setUniformItemSizes(True)
+        self.pair_list.itemClicked.connect(lambda item: self.show_saved_pair(item.data(Qt.ItemDataRole.UserRole)))
+        sl.addWidget(self.pair_list, 1)
+        pb = QHBoxLayout()
+        self.delete_button = QPushButton("Delete pair")
+        self.delete_button.clicked.connect(self._delete_selected)
+        pb.addWidget(self.delete_button)
+        pb.addStretch(1)
+        sl.addLayout(pb)
+        split.addWidget(side)
+        split.setStretchFactor(0, 3)
+        split.setStretchFactor(1, 1)
+        split.setSizes([900, 330])
+        self._update_controls()
+
+    # ---- board settings ----------------------------------------------------------------------
+    def _load_board_settings(self) -> None:
+        s = self.ctx.settings
+        board = s.board if s is not None else BoardSpec()
+        for w, v in ((self.cols_spin, board.cols), (self.rows_spin, board.rows),
+                     (self.square_spin, board.square_mm)):
+            w.blockSignals(True)
+            w.setValue(v)
+            w.blockSignals(False)
+        self.auto_check.blockSignals(True)
+        self.auto_check.setChecked(bool(getattr(s, "auto_capture", False)))
+        self.auto_check.blockSignals(False)
+
+    @property
+    def board(self) -> BoardSpec:
+        return BoardSpec(self.cols_spin.value(), self.rows_spin.value(), self.square_spin.value())
+
+    def set_board(self, board: BoardSpec) -> None:
+        """Use `board` (updates the spin boxes, the settings and the live detector)."""
+        for w, v in ((self.cols_spin, board.cols), (self.rows_spin, board.rows),
+                     (self.square_spin, board.square_mm)):
+            w.blockSignals(True)
+            w.setValue(v)
+            w.blockSignals(False)
+        self._board_edited()
+
+    def _board_edited(self) -> None:
+        board = self.board
+        if self.ctx.settings is not None:
+            self.ctx.update_settings(board_cols=board.cols, board_rows=board.rows,
+                                     square_mm=board.square_mm)
+        self._recent_corners.clear()
+        if self._active:
+            self.ctx.frames.set_processor(make_capture_processor(board))
+
+    def _auto_toggled(self, on: bool) -> None:
+        if self.ctx.settings is not None:
+            self.ctx.update_settings(auto_capture=bool(on))
+        self._recent_corners.clear()
+        if on and self.state == "review":
+            self.cancel_frozen()
+        self._update_controls()
+
+    # ---- activity ----------------------------------------------------------------------------
+    def set_active(self, active: bool) -> None:
+        """Called when the tab is shown (True) or hidden: the shown tab owns the processor."""
+        if active == self._active:
+            return
+        self._active = active
+        if active:
+            self.ctx.frames.set_processor(make_capture_processor(self.board))
+
+    def _on_frame_ready(self) -> None:
+        if not self._active:
+            return
+        pf = self.ctx.frames.latest()
+        if pf is None or not isinstance(pf.output, CaptureOutput):
+            return
+        self.show_output(pf.output, pf.frame)
+
+    def show_output(self, out: CaptureOutput, frame: StereoFrame) -> None:
+        """Draw one processed live frame and act on it (freeze, or auto-capture)."""
+        if self.state != "live":
+            return  # a frozen or saved pair is on screen: live frames wait
+        self._last_output = out
+        self.view.show_pair(out.left_rgb, out.right_rgb)
+        self._draw_detection(out.detection)
+        det = out.detection
+        if not det.found:
+            self._recent_corners.clear()
+            if det.left is None or det.right is None:
+                self._last_reviewed_pose = None  # the board left a view: the next pose is new
+            self.prompt.setText(self._live_hint(det))
+            return
+        pose = out.pose
+        if self.auto_check.isChecked():
+            self._auto_capture(out, frame, pose)
+            return
+        if (self._last_reviewed_pose is not None and pose is not None
+                and pose.distance(self._last_reviewed_pose) < NEW_POSE_DISTANCE / 2):
+            self.prompt.setText("Move the board to a new pose (or out of view and back)")
+            return
+        self._freeze(out, frame)
+
+    def _live_hint(self, det: PairDetection) -> str:
+        if det.left is None and det.right is None:
+            return "Hold the chessboard so that both cameras see all of it"
+        side = "right" if det.right is None else "left"
+        return f"Only the {'left' if side == 'right' else 'right'} camera sees the board: " \
+               f"move it into the {side} camera's view"
+
+    def _draw_detection(self, det: PairDetection) -> None:
+        both = det.found
+        for i, (d, name) in enumerate(((det.left, "Left"), (det.right, "Right"))):
+            self.view.show_corners(i, d, both)
+            if d is None:
+                self.view.set_title(i, f"{name}: no board", _MISSING)
+            else:
+                self.view.set_title(i, f"{name}: board found", _FOUND)
+
+    # ---- review --------------------------------------------------------------------------------
+    def _freeze(self, out: CaptureOutput, frame: StereoFrame) -> None:
+        self.state = "review"
+        self.frozen = out
+        self._frozen_frame = frame
+        self._last_reviewed_pose = out.pose
+        self.prompt.setText("Both cameras see the board. Save this pair (S) or Cancel (C)?")
+        self._update_controls()
+
+    def save_frozen(self) -> str | None:
+        """Save the frozen pair into the session (asking for one if none is open)."""
+        if self.state != "review" or self._frozen_frame is None or self.frozen is None:
+            return None
+        if self.session is None and not self._choose_new_session():
+            return None
+        name = self._save_pair(self._frozen_frame, self.frozen.detection)
+        self.go_live()
+        return name
+
+    def cancel_frozen(self) -> None:
+        if self.state == "review":
+            self.go_live()
+
+    def go_live(self) -> None:
+        self.state = "live"
+        self.frozen = None
+        self._frozen_frame = None
+        self._recent_corners.clear()
+        self.pair_list.clearSelection()
+        self.prompt.setText("Live")
+        self._update_controls()
+
+    def _save_pair(self, frame: StereoFrame, det: PairDetection) -> str | None:
+        try:
+            pair = self.session.add_pair(frame.left, frame.right)
+        except (StereoGuiError, OSError) as exc:
+            self.ctx.report_error(f"could not save the pair: {exc}")
+            return None
+        name = getattr(pair, "name", str(pair))
+        info = SavedPairInfo(name, det, _thumbnail(frame.left, frame.right))
+        self._saved[name] = info
+        self._add_list_item(info)
+        self.coverage.add_pair(det.left.corners if det.left else None,
+                               det.right.corners if det.right else None)
+        self._update_coverage()
+        self.ctx.show_status(f"Saved pair {name} to {self.session.folder}")
+        self.pairSaved.emit(name)
+        return name
+
+    def _auto_capture(self, out: CaptureOutput, frame: StereoFrame, pose: PoseDescriptor) -> None:
+        corners = out.detection.left.corners.reshape(-1, 2)  # type: ignore[union-attr]
+        self._recent_corners.append(corners)
+        steady = len(self._recent_corners) == STEADY_FRAMES and max(
+            float(np.abs(c - corners).max()) for c in self._recent_corners) < STEADY_PX
+        kept = [i.detection.left.pose(self.board) for i in self._saved.values()
+                if i.detection is not None and i.detection.found]
+        new = is_new_pose(pose, kept)
+        if not new:
+            self.prompt.setText("Pose already captured: move or tilt the board somewhere new")
+        elif not steady:
+            self.prompt.setText("New pose: hold the board still…")
+        elif self.session is None:
+            self.prompt.setText("Automatic capture needs a session: choose New session…")
+        else:
+            self._save_pair(frame, out.detection)
+            self._recent_corners.clear()
+            self.prompt.setText("Pair taken. Move the board to the next pose")
+
+    # ---- sessions --------------------------------------------------------------------------------
+    def _choose_new_session(self) -> bool:
+        start = str(Path(self.ctx.settings.last_session).parent) if (
+            self.ctx.settings is not None and self.ctx.settings.last_session) else str(Path.home())
+        folder = QFileDialog.getExistingDirectory(self, "Folder for the new capture session", start)
+        if not folder:
+            return False
+        try:
+            self.new_session(folder)
+        except StereoGuiError as exc:
+            self.ctx.report_error(str(exc))
+            return False
+        return True
+
+    def _choose_open_session(self) -> None:
+        start = (self.ctx.settings.last_session if self.ctx.settings is not None else None) or str(Path.home())
+        folder = QFileDialog.getExistingDirectory(self, "Open a capture session folder", start)
+        if folder:
+            try:
+                self.open_session(folder)
+            except StereoGuiError as exc:
+                self.ctx.report_error(str(exc))
+
+    def _camera_names(self) -> tuple[str, str]:
+        src = self.ctx.frames.source()
+        name = getattr(src, "name", "") if src is not None else ""
+        return (f"{name} left", f"{name} right") if name else ("left", "right")
+
+    def new_session(self, folder: str | Path) -> None:
+        """Start a session in `folder` with the current board."""
+        from stereo_gui.files.session import CaptureSession
+
+        out = self._last_output
+        size = (out.detection.image_size if out is not None else
+                tuple(self.ctx.settings.resolution) if self.ctx.settings is not None else (640, 480))
+        session = CaptureSession.create(folder, self.board, size, self._camera_names())
+        self._use_session(session)
+
+    def open_session(self, folder: str | Path) -> None:
+        """Open an existing session (or a folder of pairs) to continue, review or delete."""
+        from stereo_gui.files.session import CaptureSession
+
+        self._use_session(CaptureSession.open(folder))
+
+    def _use_session(self, session) -> None:
+        if self._scan is not None:
+            self._scan.stop()
+            self._scan = None
+        self.session = session
+        board = getattr(session, "board", None)
+        if isinstance(board, BoardSpec) and board != self.board:
+            self.set_board(board)
+        if self.ctx.settings is not None:
+            self.ctx.update_settings(last_session=str(session.folder))
+        self.session_label.setText(f"Session: {session.folder}")
+        self._saved.clear()
+        self.pair_list.clear()
+        self.coverage.reset(self._image_size())
+        self._update_coverage()
+        self.sessionChanged.emit(session)
+        self._start_scan()
+        self._update_controls()
+
+    def _image_size(self) -> tuple[int, int]:
+        res = getattr(self.session, "resolution", None)
+        if res:
+            return (int(res[0]), int(res[1]))
+        if self._last_output is not None:
+            return self._last_output.detection.image_size
+        return (640, 480)
+
+    def _start_scan(self) -> None:
+        """Detect the board in the session's saved pairs (off the UI thread) for coverage."""
+        pairs = list(self.session.pairs)
+        if not pairs:
+            return
+        board = self.board
+
+        def job(cancel):
+            out = []
+            for i, p in enumerate(pairs):
+                cancel.check()
+                yield Progress(i, len(pairs), f"reading pair {p.name}")
+                try:
+                    left, right = _read(p.left), _read(p.right)
+                    det = detect_pair(p.name, left, right, board)
+                    small = [cv2.resize(im, (THUMB_SIZE.width() // 2, THUMB_SIZE.height()),
+                                        interpolation=cv2.INTER_AREA) for im in (left, right)]
+                except (StereoGuiError, ValueError, cv2.error) as exc:
+                    log.warning("pair %s: %s", p.name, exc)
+                    det, small = None, None
+                out.append((p.name, det, small))
+            return out
+
+        self.pairs_label.setText(f"Saved pairs: reading {len(pairs)}…")
+        worker = JobWorker(job, "reading the session")
+        worker.finished_ok.connect(self._scan_done)
+        worker.failed.connect(self.ctx.report_error)
+        worker.done.connect(lambda: self.ctx.unregister_worker(worker))
+        self.ctx.register_worker(worker)
+        self._scan = worker
+        worker.start()
+
+    def _scan_done(self, results) -> None:
+        if self.sender() is not self._scan:
+            return
+        self._scan = None
+        for name, det, small in results:
+            icon = _thumbnail(*small) if small is not None else None
+            info = SavedPairInfo(name, det, icon)
+            if name in self._saved:
+                continue  # saved while the scan ran
+            self._saved[name] = info
+            if det is not None:
+                self.coverage.add_pair(det.left.corners if det.left else None,
+                                       det.right.corners if det.right else None)
+        self._refill_list()
+        self._update_coverage()
+
+    def scanning(self) -> bool:
+        return self._scan is not None
+
+    def _refill_list(self) -> None:
+        self.pair_list.clear()
+        order = [p.name for p in self.session.pairs] if self.session is not None else []
+        for name in order:
+            info = self._saved.get(name) or SavedPairInfo(name, None, None)
+            self._add_list_item(info)
+        self._update_pairs_label()
+
+    def _add_list_item(self, info: SavedPairInfo) -> None:
+        excluded = False
+        if self.session is not None:
+            for p in self.session.pairs:
+                if p.name == info.name:
+                    excluded = bool(getattr(p, "excluded", False))
+        text = info.name
+        if info.detection is not None and not info.detection.found:
+            text += "  (board not found in both)"
+        if excluded:
+            text += "  (excluded)"
+        item = QListWidgetItem(text)
+        if info.icon is not None:
+            item.setIcon(info.icon)
+        item.setData(Qt.ItemDataRole.UserRole, info.name)
+        self.pair_list.addItem(item)
+        self._update_pairs_label()
+
+    def _update_pairs_label(self) -> None:
+        n = self.pair_list.count()
+        self.pairs_label.setText(f"Saved pairs ({n}): click one to review it")
+
+    def _update_coverage(self) -> None:
+        poses = [i.detection.left.pose(self.board) for i in self._saved.values()
+                 if i.detection is not None and i.detection.found]
+        self.coverage.set_coverage(coverage(poses))
+
+    def saved_names(self) -> list[str]:
+        return [self.pair_list.item(i).data(Qt.ItemDataRole.UserRole)
+                for i in range(self.pair_list.count())]
+
+    # ---- saved pairs -----------------------------------------------------------------------------
+    def show_saved_pair(self, name: str) -> None:
+        """Show a saved pair (with its corners) instead of the live view."""
+        if self.session is None:
+            return
+        pair = next((p for p in self.session.pairs if p.name == name), None)
+        if pair is None:
+            return
+        try:
+            left, right = _read(pair.left), _read(pair.right)
+        except StereoGuiError as exc:
+            self.ctx.report_error(str(exc))
+            return
+        self.state = "saved"
+        self.frozen = None
+        self._frozen_frame = None
+        self.view.show_pair(_rgb(left), _rgb(right))
+        info = self._saved.get(name)
+        det = info.detection if info is not None else None
+        if det is not None:
+            self._draw_detection(det)
+        else:
+            for i, side in enumerate(("Left", "Right")):
+                self.view.show_corners(i, None, False)
+                self.view.set_title(i, side)
+        for i, side in enumerate(("Left", "Right")):
+            self.view.titles[i].setText(f"{side} — saved pair {name}: "
+                                        + self.view.titles[i].text.split(": ", 1)[-1])
+        self.prompt.setText(f"Reviewing saved pair {name}. Delete it, or go back to live.")
+        self._select_in_list(name)
+        self._update_controls()
+
+    def _select_in_list(self, name: str) -> None:
+        for i in range(self.pair_list.count()):
+            item = self.pair_list.item(i)
+            if item.data(Qt.ItemDataRole.UserRole) == name:
+                self.pair_list.setCurrentItem(item)
+                return
+
+    def _delete_selected(self) -> None:
+        item = self.pair_list.currentItem()
+        if item is not None:
+            self.delete_pair(item.data(Qt.ItemDataRole.UserRole))
+
+    def delete_pair(self, name: str) -> None:
+        """Delete a saved pair's files from the session."""
+        if self.session is None:
+            return
+        try:
+            self.session.delete_pair(name)
+        except (StereoGuiError, OSError) as exc:
+            self.ctx.report_error(f"could not delete pair {name}: {exc}")
+            return
+        self._saved.pop(name, None)
+        self.coverage.reset(self._image_size())
+        for info in self._saved.values():
+            det = info.detection
+            if det is not None:
+                self.coverage.add_pair(det.left.corners if det.left else None,
+                                       det.right.corners if det.right else None)
+        self._refill_list()
+        self._update_coverage()
+        self.ctx.show_status(f"Deleted pair {name}")
+        if self.state == "saved":
+            self.go_live()
+
+    # ---- controls --------------------------------------------------------------------------------
+    def _update_controls(self) -> None:
+        review = self.state == "review"
+        self.save_button.setEnabled(review)
+        self.cancel_button.setEnabled(review)
+        self.live_button.setEnabled(self.state == "saved")
+        self.delete_button.setEnabled(self.session is not None and self.pair_list.count() > 0)
+        if review:
+            self.save_button.setDefault(True)
+
+    def shutdown(self) -> None:
+        if self._scan is not None:
+            self._scan.stop()
+            self._scan = None
+
