@@ -1,0 +1,128 @@
+"""The Calibration tab on a simulated calibration set: run, results, exclude + recalibrate, cancel."""
+
+from __future__ import annotations
+
+import pytest
+
+from stereo_gui.files.session import CaptureSession
+from stereo_gui.qt.calibration_tab import CalibrationTab
+from stereo_gui.qt.context import AppContext
+from stereo_gui.sources.sim import write_calibration_set
+
+N_PAIRS = 12
+
+
+@pytest.fixture(scope="module")
+def calib_set(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("calset")
+    return write_calibration_set(folder, n_pairs=N_PAIRS, seed=11)
+
+
+@pytest.fixture
+def session_folder(calib_set, tmp_path):
+    """A fresh copy, so that exclusions written by one test do not leak into another."""
+    import shutil
+
+    dst = tmp_path / "session"
+    shutil.copytree(calib_set, dst)
+    return dst
+
+
+@pytest.fixture
+def ctx(qtbot):
+    c = AppContext()
+    yield c
+    assert c.shutdown(2000)
+
+
+@pytest.fixture
+def tab(qtbot, ctx):
+    t = CalibrationTab(ctx)
+    qtbot.addWidget(t)
+    yield t
+    assert t.shutdown(2000)
+
+
+def _calibrate(tab, qtbot, timeout=120000):
+    with qtbot.waitSignal(tab.calibrationFinished, timeout=timeout) as blocker:
+        assert tab.start_calibration()
+    qtbot.waitUntil(lambda: not tab.is_running(), timeout=5000)
+    return blocker.args[0]
+
+
+def test_calibrate_session_shows_results(tab, ctx, qtbot, session_folder):
+    tab.folder_edit.setText(str(session_folder))
+    run = _calibrate(tab, qtbot)
+    rep = run.result.report
+    assert rep.pairs_found == N_PAIRS
+    assert ctx.calibration is run.result.calibration
+    for lab in (tab.rms_left_label, tab.rms_right_label, tab.rms_stereo_label, tab.epipolar_label):
+        assert lab.text().endswith("px") or " px " in lab.text(), lab.text()
+    assert float(tab.rms_stereo_label.text().split()[0]) < 1.0
+    assert "nominal 110.0 mm" in tab.baseline_label.text()
+    assert "Mrekt" in tab.matrices_text.toPlainText()
+    assert "without rectification" in tab.matrices_text.toPlainText()
+    assert tab.chart.bar_count() == rep.pairs_used
+    assert f"{rep.pairs_used} used of {N_PAIRS}" in tab.pairs_label.text()
+    assert tab.progress.value() == 100
+    # the first pair is shown rectified at once
+    assert tab.rect_view.shown == tab.chart.names[0]
+
+
+def test_click_exclude_and_recalibrate_changes_used_count(tab, qtbot, session_folder):
+    tab.folder_edit.setText(str(session_folder))
+    run = _calibrate(tab, qtbot)
+    used = run.result.report.pairs_used
+    name = tab.chart.names[2]
+    # a click in the middle of the third bar selects that pair
+    vb = tab.chart.plotItem.vb
+    tab.chart.resize(600, 300)
+    tab.chart.show()
+    qtbot.waitExposed(tab.chart)
+    from PySide6.QtCore import QPointF, Qt
+
+    pos = tab.chart.mapFromScene(vb.mapViewToScene(QPointF(2.0, 0.01)))
+    with qtbot.waitSignal(tab.chart.pairClicked, timeout=2000) as clicked:
+        qtbot.mouseClick(tab.chart.viewport(), Qt.MouseButton.LeftButton, pos=pos)
+    assert clicked.args == [name]
+    assert tab.rect_view.shown == name
+    assert tab.exclude_button.isEnabled()
+    tab.exclude_button.click()
+    assert CaptureSession.open(session_folder).pair(name).excluded
+    assert tab.exclude_button.text() == "Include pair again"
+    run2 = _calibrate(tab, qtbot)
+    assert run2.result.report.pairs_used == used - 1
+    assert name not in run2.result.report.used
+    assert tab.chart.bar_count() == used - 1
+    assert f"{name}: excluded by you" in tab.rejected_text.toPlainText()
+
+
+def test_cancel_stops_calibration(tab, ctx, qtbot, session_folder):
+    tab.folder_edit.setText(str(session_folder))
+    finished = []
+    tab.calibrationFinished.connect(finished.append)
+    tab.start_calibration()
+    assert tab.cancel_button.isEnabled()
+    with qtbot.waitSignal(tab.worker.cancelled, timeout=60000):
+        tab.cancel_button.click()
+    qtbot.waitUntil(lambda: not tab.is_running(), timeout=5000)
+    assert finished == []
+    assert ctx.calibration is None
+    assert "cancelled" in tab.progress_label.text()
+    assert tab.calibrate_button.isEnabled() and not tab.cancel_button.isEnabled()
+
+
+def test_bad_folder_reports_error(tab, ctx, qtbot, tmp_path):
+    errors = []
+    ctx.errorOccurred.connect(errors.append)
+    tab.folder_edit.setText(str(tmp_path / "nope"))
+    assert not tab.start_calibration()
+    assert errors and "does not exist" in errors[0]
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    tab.folder_edit.setText(str(empty))
+    with qtbot.waitSignal(ctx.errorOccurred, timeout=20000) as blocker:
+        assert tab.start_calibration()
+    assert "pairs" in blocker.args[0] or "no" in blocker.args[0]
+    qtbot.waitUntil(lambda: not tab.is_running(), timeout=5000)
+    assert "failed" in tab.progress_label.text()
