@@ -1,0 +1,385 @@
+"""The frame pipeline: rectify, match (SGBM), close, WLS-filter, colourise.
+
+Units: every disparity this module hands out is float32 pixels of the full-resolution rectified
+left image, NaN where invalid. OpenCV's matchers and the WLS filter work in x16 fixed point; that
+scale is divided out in exactly one place, `fixed_to_px`.
+
+When a preset matches at reduced resolution (`scale` < 1) the rectified images are shrunk with
+INTER_AREA, the disparity range is scaled with them, and the result is brought back to full
+resolution: the WLS filter does it against the full-resolution guide image, the raw and closed
+maps are enlarged (nearest neighbour) and multiplied by 1/scale.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from stereo_gui.core.errors import InputError
+from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.core.util import to_gray
+
+log = logging.getLogger(__name__)
+
+DISP_SCALE = 16  # OpenCV stereo matchers return disparity x16 (4 fractional bits)
+
+MODES: dict[str, int] = {
+    "sgbm": cv2.StereoSGBM_MODE_SGBM,
+    "3way": cv2.StereoSGBM_MODE_SGBM_3WAY,
+    "hh": cv2.StereoSGBM_MODE_HH,
+    "hh4": cv2.StereoSGBM_MODE_HH4,
+}
+
+COLORMAPS: dict[str, int] = {
+    name[len("COLORMAP_"):].lower(): getattr(cv2, name)
+    for name in dir(cv2)
+    if name.startswith("COLORMAP_")
+}
+
+COLOR_RANGES = ("minmax", "fixed")
+
+
+@dataclass(frozen=True)
+class MatcherParams:
+    """Everything that decides how a frame becomes a disparity map. Sizes in px of the matched image.
+
+    Disparity range: `min_disparity`/`num_disparities` are full-resolution pixels; when
+    `z_min_mm` is set the range is derived from the working distances instead (d = f*B/Z).
+    """
+
+    name: str = "custom"
+    description: str = ""
+    block_size: int = 3  # SGBM window (the report's window_size), odd
+    min_disparity: int = 2  # px, full resolution
+    num_disparities: int = 128  # px, full resolution, multiple of 16
+    z_min_mm: float | None = None  # nearest working distance; sets the largest disparity
+    z_max_mm: float | None = None  # farthest working distance; sets the smallest (None: infinity)
+    uniqueness_ratio: int = 10
+    speckle_window_size: int = 100
+    speckle_range: int = 32
+    disp12_max_diff: int = 5
+    p1: int | None = None  # None: 8*3*w^2 as in the report
+    p2: int | None = None  # None: 32*3*w^2
+    pre_filter_cap: int = 63
+    mode: str = "sgbm"  # sgbm | 3way | hh | hh4
+    closing_kernel: int = 3  # side of the square closing kernel, px; 0 = no closing
+    wls: bool = True
+    wls_lambda: float = 80000.0
+    wls_sigma: float = 1.8
+    bilateral: bool = False  # bilateral filter on the rectified images before matching
+    bilateral_d: int = 5
+    bilateral_sigma_color: float = 25.0
+    bilateral_sigma_space: float = 5.0
+    scale: float = 1.0  # 1.0 = full resolution; 0.5 = match on INTER_AREA-halved images
+    colormap: str = "ocean"
+    color_range: str = "minmax"  # "minmax" per frame (the report) or "fixed" distance range
+    color_z_near_mm: float = 500.0  # fixed colour range: this distance gets the top colour
+    color_z_far_mm: float = 3000.0  # ... and this one the bottom colour
+    parallel: bool = False  # run left and right matchers concurrently
+    cv_threads: int | None = None  # cv2.setNumThreads for the process (None: leave as is)
+
+    def __post_init__(self) -> None:
+        problems = []
+        if self.block_size < 1 or self.block_size % 2 == 0:
+            problems.append(f"block_size must be odd and >= 1, not {self.block_size}")
+        if self.num_disparities <= 0 or self.num_disparities % 16:
+            problems.append(f"num_disparities must be a positive multiple of 16, not {self.num_disparities}")
+        if self.mode not in MODES:
+            problems.append(f"mode must be one of {', '.join(MODES)}, not {self.mode!r}")
+        if self.colormap not in COLORMAPS:
+            problems.append(f"unknown colormap {self.colormap!r}")
+        if self.color_range not in COLOR_RANGES:
+            problems.append(f"color_range must be minmax or fixed, not {self.color_range!r}")
+        if not 0.1 <= self.scale <= 1.0:
+            problems.append(f"scale must be between 0.1 and 1.0, not {self.scale}")
+        if self.closing_kernel < 0:
+            problems.append("closing_kernel must be >= 0")
+        if self.z_min_mm is not None and self.z_min_mm <= 0:
+            problems.append("z_min_mm must be positive")
+        if self.z_max_mm is not None and (self.z_min_mm is None or self.z_max_mm <= self.z_min_mm):
+            problems.append("z_max_mm needs z_min_mm and must be larger than it")
+        if self.color_z_far_mm <= self.color_z_near_mm or self.color_z_near_mm <= 0:
+            problems.append("color_z_far_mm must be larger than color_z_near_mm > 0")
+        if problems:
+            raise InputError(f"matcher parameters of {self.name!r}: " + "; ".join(problems))
+
+    # ---- derived -------------------------------------------------------------------------
+    @property
+    def p1_value(self) -> int:
+        return int(self.p1) if self.p1 is not None else 8 * 3 * self.block_size**2
+
+    @property
+    def p2_value(self) -> int:
+        return int(self.p2) if self.p2 is not None else 32 * 3 * self.block_size**2
+
+    def disparity_range(self, calibration: StereoCalibration) -> tuple[int, int]:
+        """(min_disparity, num_disparities) in full-resolution px for this calibration."""
+        if self.z_min_mm is None:
+            return int(self.min_disparity), int(self.num_disparities)
+        fb = calibration.focal_px * calibration.rectified_baseline_mm
+        d_max = fb / self.z_min_mm
+        d_min = fb / self.z_max_mm if self.z_max_mm else 0.0
+        lo = max(0, int(math.floor(d_min)))
+        num = int(math.ceil((d_max - lo + 1) / 16.0)) * 16
+        return lo, max(16, num)
+
+    # ---- persistence ---------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict, where: str = "preset") -> MatcherParams:
+        """Build from a dict; unknown keys are logged and skipped, bad values raise InputError."""
+        if not isinstance(data, dict):
+            raise InputError(f"{where}: expected a JSON object of matcher parameters")
+        names = {f.name: f for f in dataclasses.fields(cls)}
+        kwargs = {}
+        for key, value in data.items():
+            if key not in names:
+                log.warning("%s: unknown matcher parameter %r ignored", where, key)
+                continue
+            kwargs[key] = value
+        try:
+            params = cls(**kwargs)
+            # types: numbers must be numbers (JSON may carry strings by mistake)
+            for f in dataclasses.fields(cls):
+                v = getattr(params, f.name)
+                if f.name in ("name", "description", "mode", "colormap", "color_range"):
+                    if not isinstance(v, str):
+                        raise InputError(f"{where}: {f.name} must be a string")
+                elif f.name in ("wls", "bilateral", "parallel"):
+                    if not isinstance(v, bool):
+                        raise InputError(f"{where}: {f.name} must be true or false")
+                elif v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
+                    raise InputError(f"{where}: {f.name} must be a number, not {v!r}")
+        except TypeError as exc:
+            raise InputError(f"{where}: {exc}") from exc
+        return params
+
+    def replace(self, **changes) -> MatcherParams:
+        return dataclasses.replace(self, **changes)
+
+
+@dataclass(frozen=True, eq=False)
+class PipelineResult:
+    """One processed frame. Images are full-resolution rectified (H x W); disparities float32 px.
+
+    `disparity_px` is the raw SGBM output, `closed_px` after the closing filter, `wls_px` the WLS
+    output (None without WLS), `final_px` what the preset shows. NaN marks invalid pixels;
+    `valid` is the mask of `final_px`. `disparity_range_px` = (smallest, largest) disparity the
+    matcher could report, full-resolution px.
+    """
+
+    rectified_left: np.ndarray
+    rectified_right: np.ndarray
+    disparity_px: np.ndarray
+    closed_px: np.ndarray
+    wls_px: np.ndarray | None
+    final_px: np.ndarray
+    color_bgr: np.ndarray
+    valid: np.ndarray
+    timings_ms: dict[str, float]
+    size: tuple[int, int]  # (width, height), px
+    params: MatcherParams = field(default_factory=MatcherParams)
+    disparity_range_px: tuple[float, float] = (0.0, 0.0)
+    calibration: StereoCalibration | None = None
+
+
+def fixed_to_px(disp16: np.ndarray, min_disparity: float, factor: float = 1.0) -> np.ndarray:
+    """The one place where OpenCV's x16 fixed point becomes float pixels.
+
+    Values below `min_disparity` (in the map's own pixels; OpenCV marks invalid pixels with
+    (minDisparity-1)*16) become NaN. `factor` converts to full-resolution px (1/scale).
+    """
+    out = disp16.astype(np.float32)
+    out *= np.float32(factor / DISP_SCALE)
+    out[disp16 < min_disparity * DISP_SCALE] = np.nan
+    return out
+
+
+def colorize(disparity_px: np.ndarray, params: MatcherParams,
+             calibration: StereoCalibration | None) -> np.ndarray:
+    """Colour view of a disparity map (BGR uint8); invalid pixels black; near is bright."""
+    valid = np.isfinite(disparity_px)
+    if params.color_range == "fixed" and calibration is not None:
+        fb = calibration.focal_px * calibration.rectified_baseline_mm
+        lo, hi = fb / params.color_z_far_mm, fb / params.color_z_near_mm
+    elif valid.any():
+        lo, hi = cv2.minMaxLoc(disparity_px, mask=valid.astype(np.uint8))[:2]
+    else:
+        lo, hi = 0.0, 1.0
+    span = max(hi - lo, 1e-6)
+    norm = np.nan_to_num(disparity_px, nan=lo)
+    u8 = cv2.convertScaleAbs(norm, alpha=255.0 / span, beta=-lo * 255.0 / span)
+    color = cv2.applyColorMap(u8, COLORMAPS[params.colormap])
+    color[~valid] = 0
+    return color
+
+
+class StereoPipeline:
+    """Turns raw stereo frames into `PipelineResult`s for one calibration and preset.
+
+    Not for concurrent use by several threads; `set_params` may be called from any thread and
+    takes effect with the next frame.
+    """
+
+    def __init__(self, calibration: StereoCalibration, params: MatcherParams | None = None):
+        self.calibration = calibration
+        self._lock = threading.Lock()
+        self._pending: MatcherParams | None = None
+        self._params = params or MatcherParams()
+        self._maps = None if calibration.method == "identity" else calibration.rectify_maps()
+        self._executor: ThreadPoolExecutor | None = None
+        self._build()
+
+    # ---- configuration -------------------------------------------------------------------
+    @property
+    def params(self) -> MatcherParams:
+        return self._params
+
+    def set_params(self, params: MatcherParams) -> None:
+        """Use `params` from the next frame on."""
+        with self._lock:
+            self._pending = params
+
+    def close(self) -> None:
+        if self._executor is not None:
+            self._executor.shutdown(wait=True)
+            self._executor = None
+
+    def __enter__(self) -> StereoPipeline:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _build(self) -> None:
+        p = self._params
+        if p.cv_threads is not None:
+            cv2.setNumThreads(int(p.cv_threads))
+        lo, num = p.disparity_range(self.calibration)
+        s = p.scale
+        # matched-image range: enough 16-steps to cover the scaled full-resolution range
+        self._min_s = int(math.floor(lo * s))
+        hi_s = (lo + num) * s
+        self._num_s = max(16, int(math.ceil((hi_s - self._min_s) / 16.0)) * 16)
+        self._range_full = (self._min_s / s, (self._min_s + self._num_s - 1) / s)
+        self._left = cv2.StereoSGBM_create(
+            minDisparity=self._min_s, numDisparities=self._num_s, blockSize=p.block_size,
+            P1=p.p1_value, P2=p.p2_value, disp12MaxDiff=p.disp12_max_diff,
+            preFilterCap=p.pre_filter_cap, uniquenessRatio=p.uniqueness_ratio,
+            speckleWindowSize=p.speckle_window_size, speckleRange=p.speckle_range,
+            mode=MODES[p.mode])
+        self._right = cv2.ximgproc.createRightMatcher(self._left) if p.wls else None
+        self._wls = None
+        if p.wls:
+            self._wls = cv2.ximgproc.createDisparityWLSFilter(self._left)
+            self._wls.setLambda(float(p.wls_lambda))
+            self._wls.setSigmaColor(float(p.wls_sigma))
+        self._kernel = (np.ones((p.closing_kernel, p.closing_kernel), np.uint8)
+                        if p.closing_kernel > 1 else None)
+        if p.parallel and p.wls and self._executor is None:
+            self._executor = ThreadPoolExecutor(1, thread_name_prefix="right-matcher")
+
+    def _apply_pending(self) -> None:
+        with self._lock:
+            pending, self._pending = self._pending, None
+        if pending is not None and pending != self._params:
+            self._params = pending
+            self._build()
+
+    # ---- processing ----------------------------------------------------------------------
+    def rectify(self, left_bgr: np.ndarray, right_bgr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Both raw images remapped into the rectified frame (identity calibrations: unchanged)."""
+        w, h = self.calibration.image_size
+        for name, img in (("left", left_bgr), ("right", right_bgr)):
+            if img is None or img.ndim not in (2, 3):
+                raise InputError(f"the {name} image is not an image")
+            if (img.shape[1], img.shape[0]) != (w, h):
+                raise InputError(
+                    f"the {name} image is {img.shape[1]}x{img.shape[0]} but the calibration is for "
+                    f"{w}x{h}")
+        if self._maps is None:
+            return left_bgr, right_bgr
+        m = self._maps
+        rl = cv2.remap(left_bgr, m.left_x, m.left_y, cv2.INTER_LINEAR)
+        rr = cv2.remap(right_bgr, m.right_x, m.right_y, cv2.INTER_LINEAR)
+        return rl, rr
+
+    def process(self, left_bgr: np.ndarray, right_bgr: np.ndarray) -> PipelineResult:
+        """Run every stage on one raw stereo pair."""
+        self._apply_pending()
+        p = self._params
+        t = {}
+        t0 = time.perf_counter()
+
+        def lap(name: str) -> None:
+            nonlocal t0
+            now = time.perf_counter()
+            t[name] = (now - t0) * 1000.0
+            t0 = now
+
+        start = t0
+        rl, rr = self.rectify(left_bgr, right_bgr)
+        gl, gr = to_gray(rl), to_gray(rr)
+        lap("rectify")
+        if p.bilateral:
+            gl = cv2.bilateralFilter(gl, p.bilateral_d, p.bilateral_sigma_color, p.bilateral_sigma_space)
+            gr = cv2.bilateralFilter(gr, p.bilateral_d, p.bilateral_sigma_color, p.bilateral_sigma_space)
+            lap("bilateral")
+        h, w = gl.shape[:2]
+        if p.scale < 1.0:
+            size_s = (max(1, round(w * p.scale)), max(1, round(h * p.scale)))
+            ml = cv2.resize(gl, size_s, interpolation=cv2.INTER_AREA)
+            mr = cv2.resize(gr, size_s, interpolation=cv2.INTER_AREA)
+            lap("resize")
+        else:
+            ml, mr = gl, gr
+        if self._right is not None and self._executor is not None:
+            fut = self._executor.submit(self._right.compute, mr, ml)
+            d16 = self._left.compute(ml, mr)
+            d16_right = fut.result()
+        else:
+            d16 = self._left.compute(ml, mr)
+            d16_right = self._right.compute(mr, ml) if self._right is not None else None
+        lap("match")
+        closed16 = (cv2.morphologyEx(d16, cv2.MORPH_CLOSE, self._kernel)
+                    if self._kernel is not None else d16)
+        lap("closing")
+        factor = 1.0 / p.scale
+        raw = fixed_to_px(d16, self._min_s, factor)
+        closed = fixed_to_px(closed16, self._min_s, factor) if closed16 is not d16 else raw
+        if p.scale < 1.0:
+            raw = cv2.resize(raw, (w, h), interpolation=cv2.INTER_NEAREST)
+            closed = (cv2.resize(closed, (w, h), interpolation=cv2.INTER_NEAREST)
+                      if closed16 is not d16 else raw)
+        lap("convert")
+        wls_px = None
+        if self._wls is not None:
+            # the report filters the unclosed left disparity; a low-resolution map is enlarged by
+            # the filter itself (values scaled) against the full-resolution guide
+            f16 = self._wls.filter(d16, gl, None, d16_right)
+            wls_px = fixed_to_px(f16, self._min_s * factor)
+            x, y, rw, rh = self._wls.getROI()
+            outside = np.ones((h, w), bool)
+            outside[int(y * factor):int((y + rh) * factor), int(x * factor):int((x + rw) * factor)] = False
+            wls_px[outside] = np.nan
+            lap("wls")
+        final = wls_px if wls_px is not None else closed
+        valid = np.isfinite(final)
+        color = colorize(final, p, self.calibration)
+        lap("colormap")
+        t["total"] = (time.perf_counter() - start) * 1000.0
+        return PipelineResult(
+            rectified_left=rl, rectified_right=rr, disparity_px=raw, closed_px=closed,
+            wls_px=wls_px, final_px=final, color_bgr=color, valid=valid, timings_ms=t,
+            size=(w, h), params=p, disparity_range_px=self._range_full,
+            calibration=self.calibration)

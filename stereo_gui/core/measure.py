@@ -1,0 +1,388 @@
+"""Distances at clicked pixels: patch statistics, subpixel refinement, triangulation through Q.
+
+A click is a pixel (x, y) of the full-resolution rectified left image. Point mode takes the median
+of the valid disparities in a square patch; object mode takes the region the WLS view shows as
+one surface and reads the most frequent disparity in it (the report's first proposal). When the
+rectified images are at hand the disparity is then refined to a fraction of a pixel by a 1-D
+Lucas-Kanade alignment of the patch (SGBM's own subpixel estimate is biased towards whole pixels,
+"pixel locking", which at 3 m is worth several centimetres). A reduced-resolution preset's
+estimate is first replaced by a full-resolution re-match of a strip around the clicked row.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from stereo_gui.core.errors import InputError
+from stereo_gui.core.matching import DISP_SCALE, PipelineResult, fixed_to_px
+from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.core.util import to_gray
+
+# SGBM reports disparity in steps of 1/16 px: no estimate is better than that without refinement
+QUANTUM_PX = 1.0 / DISP_SCALE
+MAD_TO_SIGMA = 1.4826  # median absolute deviation -> standard deviation for normal noise
+
+REASONS = ("no valid pixels", "too near", "too far", "outside the image", "out of disparity range")
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """A distance reading at rectified pixel (x, y). Lengths in mm in the left rectified frame.
+
+    `reason` says why `valid` is False. `spread_px` is the robust standard deviation of the
+    disparities used; `expected_error_mm` = Z^2 / (f*B) * dd with dd the disparity's standard
+    error (the refinement's when it ran, else the patch spread, at least 1/16 px).
+    `method` is "triangulation" or the name of the fitted model used.
+    """
+
+    x: float
+    y: float
+    valid: bool
+    reason: str | None = None
+    disparity_px: float = float("nan")
+    X_mm: float = float("nan")
+    Y_mm: float = float("nan")
+    Z_mm: float = float("nan")
+    range_mm: float = float("nan")
+    valid_fraction: float = 0.0
+    spread_px: float = float("nan")
+    expected_error_mm: float = float("nan")
+    method: str = "triangulation"
+    mode: str = "point"
+    refined: bool = False
+    raw_disparity_px: float = float("nan")  # the matcher's estimate before refinement
+
+    def to_json_dict(self) -> dict:
+        """The fields of the `measure --json` contract (NaN -> None)."""
+        def num(v):
+            return None if v is None or not math.isfinite(v) else float(v)
+
+        return {
+            "x": self.x, "y": self.y, "valid": self.valid, "reason": self.reason,
+            "disparity_px": num(self.disparity_px), "X_mm": num(self.X_mm), "Y_mm": num(self.Y_mm),
+            "Z_mm": num(self.Z_mm), "range_mm": num(self.range_mm),
+            "valid_fraction": float(self.valid_fraction),
+            "expected_error_mm": num(self.expected_error_mm),
+        }
+
+
+def triangulate(calibration: StereoCalibration, x: float, y: float, d: float) -> tuple[float, float, float] | None:
+    """(X, Y, Z) mm through Q for rectified pixel (x, y) with disparity d px; None at/behind infinity."""
+    X, Y, Z, W = np.asarray(calibration.Q, np.float64) @ np.array([x, y, d, 1.0])
+    if W <= 0 or not np.isfinite(W):
+        return None
+    return float(X / W), float(Y / W), float(Z / W)
+
+
+def robust_spread(values: np.ndarray) -> float:
+    """Robust standard deviation (scaled median absolute deviation), px."""
+    if values.size < 2:
+        return 0.0
+    return float(MAD_TO_SIGMA * np.median(np.abs(values - np.median(values))))
+
+
+# ---- subpixel refinement -------------------------------------------------------------------
+@dataclass(frozen=True)
+class Refinement:
+    disparity_px: float
+    stderr_px: float
+    converged: bool
+
+
+def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, d0: float,
+                     half: int, max_shift_px: float | None = None, iterations: int = 20) -> Refinement:
+    """1-D Lucas-Kanade alignment of the left window centred on (x, y) with the right image.
+
+    Model: L(u, v) = a * R(u - d, v) + b over the window (a, b absorb gain and offset differences
+    between the cameras), solved by Gauss-Newton for d starting at d0, with bicubic resampling of
+    the right image. Returns the disparity and its standard error from the fit's residuals.
+    `max_shift_px` (default: half the window) bounds how far it may move from d0.
+    """
+    h, w = left_gray.shape[:2]
+    if max_shift_px is None:
+        max_shift_px = float(half)
+    y0, y1 = max(0, y - half), min(h, y + half + 1)
+    x0, x1 = max(0, x - half), min(w, x + half + 1)
+    L = left_gray[y0:y1, x0:x1].astype(np.float32)
+    if L.size < 9:
+        return Refinement(d0, float("inf"), False)
+    # right-image strip that can hold every shifted window, with a margin for the cubic kernel
+    margin = int(math.ceil(max_shift_px)) + 3
+    rx0 = int(math.floor(x0 - d0 - margin))
+    rx1 = int(math.ceil(x1 - d0 + margin))
+    if rx0 < 0 or rx1 > w:
+        return Refinement(d0, float("inf"), False)
+    R = right_gray[y0:y1, rx0:rx1].astype(np.float32)
+    us = np.arange(x0, x1, dtype=np.float32)
+    vs = np.arange(0, y1 - y0, dtype=np.float32)
+    d = float(d0)
+    stderr = float("inf")
+    converged = False
+    ones = np.ones(L.size, np.float64)
+    Lf = L.reshape(-1).astype(np.float64)
+    for _ in range(iterations):
+        cols = us - d - rx0
+        map_x = np.empty((L.shape[0], L.shape[1] + 2), np.float32)
+        map_x[:, 1:-1] = cols[None, :]
+        map_x[:, 0] = cols[0] - 1
+        map_x[:, -1] = cols[-1] + 1
+        map_y = np.repeat(vs[:, None], map_x.shape[1], axis=1).astype(np.float32)
+        Rw = cv2.remap(R, map_x, map_y, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)
+        G = (Rw[:, 2:] - Rw[:, :-2]) * 0.5  # d/du of R(u - d)
+        Rc = Rw[:, 1:-1]
+        A = np.column_stack([Rc.reshape(-1), ones, G.reshape(-1)]).astype(np.float64)
+        sol, *_ = np.linalg.lstsq(A, Lf, rcond=None)
+        a, _b, c = sol
+        if abs(a) < 1e-6:
+            return Refinement(d0, float("inf"), False)
+        # L = a R(u - d) + b + c G  with  R(u - d - delta) ~ R(u - d) - delta G  ->  delta = -c / a
+        delta = -c / a
+        d += delta
+        if abs(d - d0) > max_shift_px:
+            return Refinement(d0, float("inf"), False)
+        resid = Lf - A @ sol
+        dof = max(1, L.size - 3)
+        s2 = float(resid @ resid) / dof
+        try:
+            cov = s2 * np.linalg.inv(A.T @ A)
+            stderr = float(math.sqrt(max(cov[2, 2], 0.0)) / abs(a))
+        except np.linalg.LinAlgError:
+            return Refinement(d0, float("inf"), False)
+        if abs(delta) < 1e-3:
+            converged = True
+            break
+    return Refinement(d, stderr, converged)
+
+
+def rematch_strip(result: PipelineResult, y: int, half: int) -> np.ndarray | None:
+    """Full-resolution SGBM of a band of rows around y; float px (NaN invalid), band-sized.
+
+    Returns the band's disparity (rows y-half .. y+half clipped), or None without a result.
+    """
+    import cv2 as _cv2
+
+    p = result.params
+    gl, gr = to_gray(result.rectified_left), to_gray(result.rectified_right)
+    h = gl.shape[0]
+    # rows beyond the patch give SGBM's vertical paths and the block window something to work on
+    pad = half + 2 * p.block_size + 8
+    y0, y1 = max(0, y - pad), min(h, y + pad + 1)
+    lo, hi = result.disparity_range_px
+    lo_i = int(math.floor(lo))
+    num = int(math.ceil((hi - lo_i + 1) / 16.0)) * 16
+    m = _cv2.StereoSGBM_create(
+        minDisparity=lo_i, numDisparities=num, blockSize=p.block_size, P1=p.p1_value,
+        P2=p.p2_value, disp12MaxDiff=p.disp12_max_diff, preFilterCap=p.pre_filter_cap,
+        uniquenessRatio=p.uniqueness_ratio, speckleWindowSize=p.speckle_window_size,
+        speckleRange=p.speckle_range, mode=_cv2.StereoSGBM_MODE_SGBM_3WAY)
+    d16 = m.compute(gl[y0:y1], gr[y0:y1])
+    band = fixed_to_px(d16, lo_i)
+    r0 = max(0, y - half) - y0
+    r1 = min(h, y + half + 1) - y0
+    return band[r0:r1]
+
+
+def best_match_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int,
+                         half: int) -> tuple[float, float, np.ndarray] | None:
+    """Scan every disparity the image allows (0 .. x) for the window at (x, y) by normalised
+    cross-correlation; return (best disparity px, its score, scores indexed by disparity).
+
+    This is independent of the matcher's range, so it tells whether the surface lies beyond it.
+    """
+    h, w = left_gray.shape[:2]
+    if y - half < 0 or y + half >= h or x - half < 0 or x + half >= w:
+        return None
+    tpl = left_gray[y - half:y + half + 1, x - half:x + half + 1]
+    if float(tpl.std()) == 0.0:
+        return None
+    band = right_gray[y - half:y + half + 1, 0:x + half + 1]
+    scores = cv2.matchTemplate(band, tpl, cv2.TM_CCOEFF_NORMED)[0]  # index = x - half - d
+    by_d = scores[::-1]  # index = disparity
+    k = int(np.nanargmax(by_d))
+    return float(k), float(by_d[k]), by_d
+
+
+# ---- object mode ---------------------------------------------------------------------------
+def surface_region(view_px: np.ndarray, x: int, y: int, window: int) -> np.ndarray | None:
+    """Mask of the connected region around (x, y) that `view_px` (e.g. the WLS map) shows as one
+    surface: a flood fill whose neighbour-to-neighbour tolerance comes from the map's own local
+    smoothness (median step + 3 robust standard deviations of the steps near the click)."""
+    h, w = view_px.shape
+    if not np.isfinite(view_px[y, x]):
+        return None
+    y0, y1 = max(0, y - window), min(h, y + window + 1)
+    x0, x1 = max(0, x - window), min(w, x + window + 1)
+    local = view_px[y0:y1, x0:x1]
+    steps = np.concatenate([np.abs(np.diff(local, axis=1)).ravel(), np.abs(np.diff(local, axis=0)).ravel()])
+    steps = steps[np.isfinite(steps)]
+    if steps.size:
+        med = float(np.median(steps))
+        tol = med + 3.0 * MAD_TO_SIGMA * float(np.median(np.abs(steps - med)))
+    else:
+        tol = 0.0
+    tol = max(tol, QUANTUM_PX)
+    img = np.nan_to_num(view_px, nan=-1e6).astype(np.float32)
+    mask = np.zeros((h + 2, w + 2), np.uint8)
+    cv2.floodFill(img, mask, (int(x), int(y)), 0, loDiff=tol, upDiff=tol,
+                  flags=4 | cv2.FLOODFILL_MASK_ONLY | (1 << 8))
+    return mask[1:-1, 1:-1].astype(bool)
+
+
+def histogram_mode(values: np.ndarray) -> float:
+    """Most frequent value with subpixel refinement: a parabola through the peak bin and its
+    neighbours. Bin width by the Freedman-Diaconis rule, but not below the 1/16 px quantum."""
+    values = values[np.isfinite(values)]
+    if values.size == 0:
+        return float("nan")
+    q25, q75 = np.percentile(values, [25, 75])
+    width = max(2.0 * (q75 - q25) / values.size ** (1.0 / 3.0), QUANTUM_PX)
+    lo, hi = float(values.min()), float(values.max())
+    nbins = max(1, int(math.ceil((hi - lo) / width)) + 1)
+    counts, edges = np.histogram(values, bins=nbins, range=(lo - width / 2, lo - width / 2 + nbins * width))
+    k = int(np.argmax(counts))
+    centre = 0.5 * (edges[k] + edges[k + 1])
+    if 0 < k < nbins - 1:
+        c0, c1, c2 = counts[k - 1], counts[k], counts[k + 1]
+        den = c0 - 2 * c1 + c2
+        if den < 0:
+            centre += 0.5 * (c0 - c2) / den * width
+    return float(centre)
+
+
+def _why_nothing(result: PipelineResult | None, x: int, y: int, half: int) -> str:
+    """Reason for a patch without valid pixels: the surface beyond the range, or no match."""
+    if result is None:
+        return "no valid pixels"
+    scan = best_match_disparity(to_gray(result.rectified_left), to_gray(result.rectified_right),
+                                x, y, max(half, 5))
+    if scan is not None:
+        d_lo, d_hi = result.disparity_range_px
+        step = 1.0 / result.params.scale
+        if scan[0] > d_hi + step:
+            return "too near"
+        if scan[0] < d_lo - step:
+            return "too far"
+    return "no valid pixels"
+
+
+# ---- the measurement -----------------------------------------------------------------------
+def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch: int = 9,
+                  mode: str = "point", calibration: StereoCalibration | None = None,
+                  fit=None, refine: bool = True, rematch: bool = True) -> Measurement:
+    """Measure the distance at rectified pixel (x, y).
+
+    `source` is a PipelineResult (then refinement and the full-resolution re-match are possible)
+    or a float disparity map in px with NaN invalid (then `calibration` is required). `fit` is a
+    regression.FitResult used instead of triangulation for Z.
+    """
+    if patch < 1:
+        raise InputError(f"the patch size must be at least 1 px, not {patch}")
+    if mode not in ("point", "object"):
+        raise InputError(f"mode must be point or object, not {mode!r}")
+    result = source if isinstance(source, PipelineResult) else None
+    if result is not None:
+        disp = result.disparity_px
+        calibration = calibration or result.calibration
+        d_lo, d_hi = result.disparity_range_px
+    else:
+        disp = np.asarray(source, np.float32)
+        d_lo, d_hi = -math.inf, math.inf
+    if calibration is None:
+        raise InputError("a measurement on a bare disparity map needs the calibration")
+    h, w = disp.shape[:2]
+    xi, yi = int(round(x)), int(round(y))
+    if not (0 <= x <= w - 1 and 0 <= y <= h - 1):
+        return Measurement(x, y, False, "outside the image", mode=mode)
+    half = patch // 2
+    y0, y1 = max(0, yi - half), min(h, yi + half + 1)
+    x0, x1 = max(0, xi - half), min(w, xi + half + 1)
+
+    scaled = result is not None and result.params.scale < 1.0
+    if mode == "point":
+        window = disp[y0:y1, x0:x1]
+        if scaled and rematch:
+            band = rematch_strip(result, yi, half)
+            if band is not None:
+                window = band[:, x0:x1]
+        values = window[np.isfinite(window)]
+        valid_fraction = values.size / window.size
+        if values.size == 0:
+            return Measurement(x, y, False, _why_nothing(result, xi, yi, half), valid_fraction=0.0,
+                               mode=mode)
+        d = float(np.median(values))
+    else:
+        view = result.final_px if result is not None else disp
+        region = surface_region(view, xi, yi, window=max(4 * patch, 16))
+        if region is None or not region.any():
+            return Measurement(x, y, False, "no valid pixels", valid_fraction=0.0, mode=mode)
+        values = disp[region]
+        values = values[np.isfinite(values)]
+        valid_fraction = values.size / int(region.sum())
+        if values.size == 0:
+            return Measurement(x, y, False, "no valid pixels", valid_fraction=0.0, mode=mode)
+        d = histogram_mode(values)
+    spread = robust_spread(values)
+    raw_d = d
+    dd = max(spread, QUANTUM_PX)
+
+    refined = False
+    if result is not None:
+        gl, gr = to_gray(result.rectified_left), to_gray(result.rectified_right)
+    if refine and result is not None and mode == "point":
+        ref = refine_disparity(gl, gr, xi, yi, d, max(half, 3))
+        if ref.converged and math.isfinite(ref.stderr_px):
+            d, refined = ref.disparity_px, True
+            dd = max(ref.stderr_px, 1e-3)
+
+    # the matcher cannot report disparities outside its range: a surface nearer than the range
+    # allows gives a wrong match somewhere inside it. An exhaustive correlation scan of the
+    # window, unlimited by the range, shows where the surface really is.
+    step = 1.0 if result is None else 1.0 / result.params.scale
+    beyond = None
+    if result is not None and mode == "point":
+        scan = best_match_disparity(gl, gr, xi, yi, max(half, 5))
+        if scan is not None:
+            d_best, score_best, by_d = scan
+            k = int(round(d))
+            at_estimate = float(np.nanmax(by_d[max(0, k - 1):k + 2])) if 0 <= k < by_d.size else -1.0
+            if score_best > at_estimate and not (d_lo - step <= d_best <= d_hi + step):
+                beyond = "too near" if d_best > d_hi else "too far"
+            elif score_best > at_estimate and abs(d_best - d) > step + 1.0:
+                # the window correlates better elsewhere: the patch's disparities are a wrong
+                # match (e.g. a surface the right camera cannot see), not a usable reading
+                beyond = "no valid pixels"
+    if beyond is not None:
+        return Measurement(x, y, False, beyond, disparity_px=d, valid_fraction=valid_fraction,
+                           spread_px=spread, mode=mode, raw_disparity_px=raw_d)
+    if raw_d >= d_hi - step:
+        return Measurement(x, y, False, "too near", disparity_px=d, valid_fraction=valid_fraction,
+                           spread_px=spread, mode=mode, raw_disparity_px=raw_d)
+    if d_lo > 0 and raw_d <= d_lo + step:
+        return Measurement(x, y, False, "too far", disparity_px=d, valid_fraction=valid_fraction,
+                           spread_px=spread, mode=mode, raw_disparity_px=raw_d)
+    xyz = triangulate(calibration, x, y, d)
+    if xyz is None:
+        return Measurement(x, y, False, "too far", disparity_px=d, valid_fraction=valid_fraction,
+                           spread_px=spread, mode=mode, raw_disparity_px=raw_d)
+    X, Y, Z = xyz
+    method = "triangulation"
+    if fit is not None:
+        lo_s, hi_s = fit.disparity_span
+        if not lo_s <= d <= hi_s:
+            return Measurement(x, y, False, "out of disparity range", disparity_px=d,
+                               valid_fraction=valid_fraction, spread_px=spread, mode=mode,
+                               method=fit.model, raw_disparity_px=raw_d)
+        z_fit = float(fit.predict(d))
+        k = z_fit / Z
+        X, Y, Z = X * k, Y * k, z_fit
+        method = fit.model
+    fb = calibration.focal_px * calibration.rectified_baseline_mm
+    expected = Z * Z / fb * dd if fb > 0 else float("nan")
+    rng = math.sqrt(X * X + Y * Y + Z * Z)
+    return Measurement(x, y, True, None, disparity_px=d, X_mm=X, Y_mm=Y, Z_mm=Z, range_mm=rng,
+                       valid_fraction=valid_fraction, spread_px=spread, expected_error_mm=expected,
+                       method=method, mode=mode, refined=refined, raw_disparity_px=raw_d)

@@ -1,0 +1,222 @@
+"""Distance-from-disparity regressions: the report's cubic, done properly, and the physical model.
+
+Samples are (disparity px, true distance mm). Two models:
+- "cubic": Z = a3 x^3 + a2 x^2 + a1 x + a0 with x the disparity normalised as the report showed
+  its disparity map: x = (d - min_disp) / num_disp, min_disp = 2 and num_disp = 128 (its Code 7,
+  `((disp/16) - min_disp) / num_disp`). The report's own coefficients gave centimetres; ours give
+  millimetres (`report_cubic()` converts its formula for comparison).
+- "inverse": Z = a / (d - d0), the triangulation law Z = f*B / d with a disparity offset d0 that
+  absorbs a principal-point or rectification offset; a is f*B in px*mm.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from stereo_gui.core.errors import InputError
+
+FORMAT_VERSION = 1
+REPORT_MIN_DISP = 2.0
+REPORT_NUM_DISP = 128.0
+MODELS = ("cubic", "inverse")
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """A fitted model. Distances in mm, disparities in px of the full-resolution rectified image."""
+
+    model: str  # "cubic" | "inverse"
+    coefficients: tuple[float, ...]  # cubic: (a3, a2, a1, a0); inverse: (a, d0)
+    r2: float
+    residuals_mm: tuple[float, ...]  # true - predicted, per sample, in sample order
+    samples: tuple[tuple[float, float], ...]  # (disparity_px, true_mm)
+    # cubic only: x = (d - norm_offset_px) / norm_span_px
+    norm_offset_px: float = REPORT_MIN_DISP
+    norm_span_px: float = REPORT_NUM_DISP
+    note: str = field(default="", compare=False)
+
+    def predict(self, disparity_px):
+        """Distance in mm for a disparity in px (float or ndarray); NaN where the model has none."""
+        d = np.asarray(disparity_px, np.float64)
+        if self.model == "cubic":
+            x = (d - self.norm_offset_px) / self.norm_span_px
+            z = np.polyval(np.asarray(self.coefficients, np.float64), x)
+        else:
+            a, d0 = self.coefficients
+            with np.errstate(divide="ignore", invalid="ignore"):
+                z = np.where(d > d0, a / (d - d0), np.nan)
+        return float(z) if np.ndim(z) == 0 else z
+
+    def formula(self) -> str:
+        c = self.coefficients
+        if self.model == "cubic":
+            return (f"Z = {c[0]:.6g} x^3 + {c[1]:+.6g} x^2 + {c[2]:+.6g} x + {c[3]:+.6g} mm, "
+                    f"x = (d - {self.norm_offset_px:g}) / {self.norm_span_px:g}").replace("+ -", "- ").replace("+ +", "+ ")
+        return f"Z = {c[0]:.6g} / (d - {c[1]:.4g}) mm"
+
+    @property
+    def disparity_span(self) -> tuple[float, float]:
+        """(smallest, largest) sample disparity, px: the range where the fit is supported."""
+        if not self.samples:
+            return (-math.inf, math.inf)
+        ds = [s[0] for s in self.samples]
+        return (min(ds), max(ds))
+
+    @property
+    def rms_mm(self) -> float:
+        r = np.asarray(self.residuals_mm, np.float64)
+        return float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
+
+
+def _samples(samples, need: int, model: str) -> tuple[np.ndarray, np.ndarray, tuple]:
+    try:
+        arr = np.asarray([(float(d), float(z)) for d, z in samples], np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"samples must be (disparity px, distance mm) pairs: {exc}") from exc
+    if arr.ndim != 2 or len(arr) < need:
+        raise InputError(f"the {model} fit needs at least {need} samples, got {len(arr)}")
+    if not np.all(np.isfinite(arr)):
+        raise InputError("samples must be finite numbers")
+    if np.any(arr[:, 1] <= 0):
+        raise InputError("true distances must be positive (mm)")
+    if len(np.unique(arr[:, 0])) < need:
+        raise InputError(f"the {model} fit needs at least {need} different disparities")
+    return arr[:, 0], arr[:, 1], tuple((float(d), float(z)) for d, z in arr)
+
+
+def _r2(z: np.ndarray, pred: np.ndarray) -> tuple[float, tuple[float, ...]]:
+    res = z - pred
+    ss_tot = float(np.sum((z - z.mean()) ** 2))
+    r2 = 1.0 - float(np.sum(res**2)) / ss_tot if ss_tot > 0 else float("nan")
+    return r2, tuple(float(r) for r in res)
+
+
+def fit_cubic(samples, norm_offset_px: float = REPORT_MIN_DISP,
+              norm_span_px: float = REPORT_NUM_DISP) -> FitResult:
+    """Least-squares cubic in the normalised disparity (as the report's Excel fit)."""
+    d, z, s = _samples(samples, 4, "cubic")
+    x = (d - norm_offset_px) / norm_span_px
+    coef = np.polyfit(x, z, 3)
+    r2, res = _r2(z, np.polyval(coef, x))
+    return FitResult("cubic", tuple(float(c) for c in coef), r2, res, s, float(norm_offset_px),
+                     float(norm_span_px))
+
+
+def fit_inverse(samples, iterations: int = 50) -> FitResult:
+    """Z = a / (d - d0) minimising the distance residuals (mm).
+
+    Start: 1/Z is linear in d (1/Z = d/a - d0/a); then Gauss-Newton on the mm residuals, because
+    the linearised fit over-weights far samples.
+    """
+    d, z, s = _samples(samples, 2, "inverse")
+    slope, icpt = np.polyfit(d, 1.0 / z, 1)
+    if slope <= 0:
+        raise InputError("the inverse fit needs distances that shrink as disparity grows")
+    a, d0 = 1.0 / slope, -icpt / slope
+    for _ in range(iterations):
+        den = d - d0
+        if np.any(den <= 0):
+            break
+        pred = a / den
+        J = np.column_stack([1.0 / den, a / den**2])
+        step, *_ = np.linalg.lstsq(J, z - pred, rcond=None)
+        if not np.all(np.isfinite(step)):
+            break
+        a, d0 = a + step[0], d0 + step[1]
+        if abs(step[0]) <= 1e-12 * abs(a) and abs(step[1]) <= 1e-12:
+            break
+    pred = np.where(d > d0, a / (d - d0), np.nan)
+    if not np.all(np.isfinite(pred)):
+        raise InputError("the inverse fit failed: a sample lies at or below the fitted offset d0")
+    r2, res = _r2(z, pred)
+    return FitResult("inverse", (float(a), float(d0)), r2, res, s)
+
+
+def fit(model: str, samples) -> FitResult:
+    if model == "cubic":
+        return fit_cubic(samples)
+    if model == "inverse":
+        return fit_inverse(samples)
+    raise InputError(f"unknown model {model!r}; use cubic or inverse")
+
+
+def report_cubic() -> FitResult:
+    """The report's hand-fitted cubic (-593.97 x^3 + 1506.8 x^2 - 1373.1 x + 522.06 cm), in mm."""
+    coef = tuple(10.0 * c for c in (-593.97, 1506.8, -1373.1, 522.06))
+    return FitResult("cubic", coef, float("nan"), (), (), note="the student report's formula")
+
+
+# ---- files ---------------------------------------------------------------------------------
+def fit_to_dict(f: FitResult) -> dict:
+    doc = {"format_version": FORMAT_VERSION, "model": f.model,
+           "coefficients": list(f.coefficients), "r2": f.r2 if math.isfinite(f.r2) else None,
+           "residuals_mm": list(f.residuals_mm), "samples": [list(s) for s in f.samples],
+           "formula": f.formula()}
+    if f.model == "cubic":
+        doc["normalisation"] = {"offset_px": f.norm_offset_px, "span_px": f.norm_span_px}
+    return doc
+
+
+def save_fit(f: FitResult, path) -> Path:
+    """Write the fit as JSON, atomically (temporary file in the same folder, then rename)."""
+    import os
+    import tempfile
+
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise InputError(f"cannot write {path}: folder {folder} does not exist")
+    text = json.dumps(fit_to_dict(f), indent=2) + "\n"
+    # core/ sits below files/ in the layers, so it cannot use files.atomic; same technique
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+        try:
+            with os.fdopen(fd, "w", encoding="utf-8") as fh:
+                fh.write(text)
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+    except OSError as exc:
+        raise InputError(f"cannot write {path}: {exc.strerror or exc}") from exc
+    return path
+
+
+def load_fit(path) -> FitResult:
+    """Read a fit saved by save_fit; any problem raises InputError naming the file."""
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise InputError(f"cannot read fit {path}: {exc.strerror or exc}") from exc
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"fit file {path} is not valid JSON: {exc}") from exc
+    try:
+        if not isinstance(doc, dict):
+            raise ValueError("not a JSON object")
+        version = doc.get("format_version", FORMAT_VERSION)
+        if not isinstance(version, int) or version > FORMAT_VERSION:
+            raise ValueError(f"format version {version!r} is newer than this program reads")
+        model = doc["model"]
+        if model not in MODELS:
+            raise ValueError(f"unknown model {model!r}")
+        coef = tuple(float(c) for c in doc["coefficients"])
+        if len(coef) != (4 if model == "cubic" else 2) or not all(map(math.isfinite, coef)):
+            raise ValueError("wrong number of coefficients or values that are not finite")
+        r2 = doc.get("r2")
+        r2 = float("nan") if r2 is None else float(r2)
+        samples = tuple((float(a), float(b)) for a, b in doc.get("samples", []))
+        residuals = tuple(float(r) for r in doc.get("residuals_mm", []))
+        norm = doc.get("normalisation") or {}
+        return FitResult(model, coef, r2, residuals, samples,
+                         float(norm.get("offset_px", REPORT_MIN_DISP)),
+                         float(norm.get("span_px", REPORT_NUM_DISP)))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(f"fit file {path} is not usable: {exc}") from exc

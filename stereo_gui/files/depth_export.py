@@ -1,0 +1,124 @@
+"""Exports of one frame's depth: disparity as 16-bit PNG (OpenCV's x16 fixed point) and float32
+.npy, depth in millimetres as 16-bit PNG, and a coloured point cloud as binary PLY.
+
+Input disparities are float32 px of the rectified left image with NaN where invalid (what
+`PipelineResult.final_px` holds). Every write is atomic.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from stereo_gui.core.errors import InputError
+from stereo_gui.core.matching import DISP_SCALE
+from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.files.atomic import atomic_path
+
+UINT16_MAX = np.iinfo(np.uint16).max
+
+
+def _check(disparity_px: np.ndarray) -> np.ndarray:
+    d = np.asarray(disparity_px)
+    if d.ndim != 2 or not np.issubdtype(d.dtype, np.floating):
+        raise InputError("a disparity map must be a 2-D float array (px, NaN invalid)")
+    return d.astype(np.float32, copy=False)
+
+
+def disparity_to_png16(disparity_px: np.ndarray) -> np.ndarray:
+    """uint16 disparity x16 (OpenCV's fixed point); 0 = invalid or not representable."""
+    d = _check(disparity_px)
+    fixed = np.rint(np.nan_to_num(d, nan=0.0) * DISP_SCALE)
+    ok = np.isfinite(d) & (fixed > 0) & (fixed <= UINT16_MAX)
+    return np.where(ok, fixed, 0).astype(np.uint16)
+
+
+def points_mm(disparity_px: np.ndarray, calibration: StereoCalibration) -> np.ndarray:
+    """(H, W, 3) float32 X, Y, Z in mm (left rectified frame) through Q; NaN where invalid."""
+    d = _check(disparity_px)
+    if (d.shape[1], d.shape[0]) != tuple(calibration.image_size):
+        raise InputError(f"the disparity map is {d.shape[1]}x{d.shape[0]} but the calibration is "
+                         f"for {calibration.width}x{calibration.height}")
+    xyz = cv2.reprojectImageTo3D(np.nan_to_num(d, nan=0.0), np.asarray(calibration.Q, np.float64))
+    bad = ~np.isfinite(d) | ~np.all(np.isfinite(xyz), axis=2) | (xyz[..., 2] <= 0)
+    xyz[bad] = np.nan
+    return xyz
+
+
+def depth_mm(disparity_px: np.ndarray, calibration: StereoCalibration) -> np.ndarray:
+    """(H, W) float32 depth Z in mm; NaN where invalid."""
+    return points_mm(disparity_px, calibration)[..., 2]
+
+
+def depth_to_png16(depth: np.ndarray) -> np.ndarray:
+    """uint16 depth in whole mm; 0 = invalid or beyond 65.535 m."""
+    mm = np.rint(np.nan_to_num(depth, nan=0.0))
+    ok = np.isfinite(depth) & (mm > 0) & (mm <= UINT16_MAX)
+    return np.where(ok, mm, 0).astype(np.uint16)
+
+
+def _imwrite(path, image: np.ndarray) -> Path:
+    if Path(path).suffix.lower() != ".png":
+        raise InputError(f"{path}: a 16-bit image must be written as .png")
+    with atomic_path(path) as tmp:
+        if not cv2.imwrite(str(tmp), image):
+            raise InputError(f"cannot write {path}")
+    return Path(path)
+
+
+def write_disparity_png16(path, disparity_px: np.ndarray) -> Path:
+    return _imwrite(path, disparity_to_png16(disparity_px))
+
+
+def write_disparity_npy(path, disparity_px: np.ndarray) -> Path:
+    d = _check(disparity_px)
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        np.save(fh, d.astype(np.float32))
+    return Path(path)
+
+
+def write_depth_png16(path, disparity_px: np.ndarray, calibration: StereoCalibration) -> Path:
+    return _imwrite(path, depth_to_png16(depth_mm(disparity_px, calibration)))
+
+
+def write_ply(path, disparity_px: np.ndarray, color_bgr: np.ndarray,
+              calibration: StereoCalibration) -> int:
+    """Binary little-endian PLY of the valid points: x y z (float32 mm), red green blue (uchar).
+
+    `color_bgr` is an image of the same size (e.g. the rectified left image). Returns the number
+    of points written.
+    """
+    xyz = points_mm(disparity_px, calibration)
+    color = np.asarray(color_bgr)
+    if color.shape[:2] != xyz.shape[:2]:
+        raise InputError("the colour image and the disparity map differ in size")
+    if color.ndim == 2:
+        color = np.repeat(color[..., None], 3, axis=2)
+    valid = np.all(np.isfinite(xyz), axis=2)
+    n = int(valid.sum())
+    vertex = np.empty(n, dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"),
+                                ("red", "u1"), ("green", "u1"), ("blue", "u1")])
+    pts = xyz[valid]
+    bgr = color[valid][:, :3].astype(np.uint8)
+    vertex["x"], vertex["y"], vertex["z"] = pts[:, 0], pts[:, 1], pts[:, 2]
+    vertex["red"], vertex["green"], vertex["blue"] = bgr[:, 2], bgr[:, 1], bgr[:, 0]
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        "comment stereo-gui point cloud, millimetres, left rectified camera frame\n"
+        f"element vertex {n}\n"
+        "property float x\nproperty float y\nproperty float z\n"
+        "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+        "end_header\n"
+    ).encode("ascii")
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        fh.write(header)
+        fh.write(vertex.tobytes())
+    return n
+
+
+__all__ = [
+    "disparity_to_png16", "points_mm", "depth_mm", "depth_to_png16", "write_disparity_png16",
+    "write_disparity_npy", "write_depth_png16", "write_ply",
+]

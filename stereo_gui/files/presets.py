@@ -1,0 +1,103 @@
+"""Matcher presets: the built-in ones shipped in resources/presets/*.json, and the user's own,
+saved as JSON in the settings folder's `presets/` sub-folder.
+
+File format: {"format_version": 1, "name": ..., "description": ..., "params": {MatcherParams}}.
+A built-in name cannot be overwritten by a user preset.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import re
+from pathlib import Path
+
+from stereo_gui.core.errors import InputError
+from stereo_gui.core.matching import MatcherParams
+from stereo_gui.files.atomic import write_text_atomic
+from stereo_gui.resources import resource_path
+
+log = logging.getLogger(__name__)
+
+FORMAT_VERSION = 1
+BUILTIN = ("seed", "live", "quality")
+DEFAULT_PRESET = "live"
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9 _.-]{0,63}$")
+
+
+def user_preset_dir() -> Path:
+    """Folder of the user's presets (not created here)."""
+    base = os.environ.get("STEREO_GUI_CONFIG_DIR")
+    if base:
+        return Path(base) / "presets"
+    import platformdirs
+
+    return Path(platformdirs.user_config_dir("stereo-gui")) / "presets"
+
+
+def _read(path: Path) -> MatcherParams:
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise InputError(f"cannot read preset {path}: {exc.strerror or exc}") from exc
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"preset {path} is not valid JSON: {exc}") from exc
+    if not isinstance(data, dict) or not isinstance(data.get("params"), dict):
+        raise InputError(f"preset {path} has no \"params\" object")
+    version = data.get("format_version", FORMAT_VERSION)
+    if not isinstance(version, int) or version > FORMAT_VERSION:
+        raise InputError(f"preset {path} has format version {version!r}; this program reads "
+                         f"up to {FORMAT_VERSION}")
+    params = dict(data["params"])
+    params["name"] = str(data.get("name", path.stem))
+    params["description"] = str(data.get("description", ""))
+    return MatcherParams.from_dict(params, where=f"preset {path}")
+
+
+def list_presets() -> list[str]:
+    """Built-in names first, then the user's presets, alphabetically."""
+    names = list(BUILTIN)
+    folder = user_preset_dir()
+    if folder.is_dir():
+        names += sorted(p.stem for p in folder.glob("*.json") if p.stem not in BUILTIN)
+    return names
+
+
+def load_preset(name: str) -> MatcherParams:
+    """A preset by name (built-in or user), or from a path ending in .json."""
+    if name.endswith(".json") and (os.sep in name or "/" in name or Path(name).is_file()):
+        return _read(Path(name))
+    if name in BUILTIN:
+        return _read(resource_path("presets", f"{name}.json"))
+    path = user_preset_dir() / f"{name}.json"
+    if path.is_file():
+        return _read(path)
+    raise InputError(f"unknown preset {name!r}; known presets: {', '.join(list_presets())}")
+
+
+def save_user_preset(params: MatcherParams, name: str | None = None) -> Path:
+    """Save `params` as the user's preset `name` (default: params.name); returns the file."""
+    name = name or params.name
+    if not _NAME.match(name or ""):
+        raise InputError(f"a preset name must be letters, digits, space, _ . - (not {name!r})")
+    if name in BUILTIN:
+        raise InputError(f"{name!r} is a built-in preset; save under another name")
+    folder = user_preset_dir()
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create the presets folder {folder}: {exc.strerror or exc}") from exc
+    d = params.replace(name=name).to_dict()
+    doc = {"format_version": FORMAT_VERSION, "name": name, "description": d.pop("description"),
+           "params": {k: v for k, v in d.items() if k != "name"}}
+    return write_text_atomic(folder / f"{name}.json", json.dumps(doc, indent=2) + "\n")
+
+
+def delete_user_preset(name: str) -> None:
+    if name in BUILTIN:
+        raise InputError(f"{name!r} is a built-in preset and cannot be deleted")
+    path = user_preset_dir() / f"{name}.json"
+    if not path.is_file():
+        raise InputError(f"no user preset named {name!r}")
+    path.unlink()
