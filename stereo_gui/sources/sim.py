@@ -39,6 +39,8 @@ TRUTH_FORMAT_VERSION = 1
 _BLACK = 28.0
 _WHITE = 225.0
 _BOARD_BACKGROUND = 118.0  # plain grey behind the board when no scene is shown
+_TEXELS_PER_SQUARE = 96
+_NOISE_PAD = 64  # the noise bank is this much larger than an image (random crops)  # board texture resolution: 0.26 mm texels for 25 mm squares
 
 
 # ---------------------------------------------------------------------------------------------
@@ -252,7 +254,7 @@ class Scene:
             _fronto("wall", 0.0, 0.0, 3000.0, 2.0 * (0.75 * 3000 + 250), 2.0 * (0.6 * 3000 + 200), 11),
             _fronto("box-0.8m", -260.0, 60.0, 800.0, 260.0, 300.0, 12),
             _fronto("panel-1.3m", 240.0, -120.0, 1300.0, 420.0, 360.0, 13, yaw_deg=20.0),
-            _fronto("board-2m", 30.0, 250.0, 2000.0, 600.0, 380.0, 14),
+            _fronto("poster-2m", 30.0, 250.0, 2000.0, 600.0, 380.0, 14),
         ), name="demo")
 
     def depth_along_ray(self, origin, direction) -> float | None:
@@ -307,10 +309,9 @@ def undistort_normalized(u: np.ndarray, v: np.ndarray, M: np.ndarray, D: np.ndar
 
 @dataclass(frozen=True, eq=False)
 class RayMap:
-    """Normalised rays (x, y, 1) of every supersample of a camera: x, y float32 (H*s, W*s)."""
+    """Normalised rays (x, y, 1) of every supersample of a camera: xy float32 (H*s, W*s, 2)."""
 
-    x: np.ndarray
-    y: np.ndarray
+    xy: np.ndarray
     supersample: int
     max_error_px: float  # round-trip error of the inversion, checked with cv2.projectPoints
 
@@ -327,17 +328,16 @@ def _ray_map_cached(M_bytes: bytes, D_bytes: bytes, w: int, h: int, s: int) -> R
     # the round trip is checked below with cv2.projectPoints
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-14)
     und = cv2.undistortPoints(np.stack([uu, vv], -1).reshape(-1, 1, 2), M, D, criteria=crit)
-    x = und[:, 0, 0].reshape(uu.shape)
-    y = und[:, 0, 1].reshape(uu.shape)
-    # check the inversion on a subset with OpenCV's own projection
+    xy = und.reshape(h * s, w * s, 2)
     sel = (slice(None, None, max(1, h * s // 37)), slice(None, None, max(1, w * s // 53)))
-    pts = np.stack([x[sel].ravel(), y[sel].ravel(), np.ones(x[sel].size)], axis=1)
+    sub = xy[sel].reshape(-1, 2)
+    pts = np.concatenate([sub, np.ones((len(sub), 1))], 1)
     proj, _ = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), M, D)
     err = np.hypot(proj[:, 0, 0] - uu[sel].ravel(), proj[:, 0, 1] - vv[sel].ravel())
     max_err = float(err.max())
     if max_err > 1e-3:
         raise RuntimeError(f"distortion inversion failed: round trip error {max_err:.2e} px")
-    return RayMap(x.astype(np.float32), y.astype(np.float32), s, max_err)
+    return RayMap(np.ascontiguousarray(xy, dtype=np.float32), s, max_err)
 
 
 def ray_map(cam: CameraTruth, image_size: tuple[int, int], supersample: int) -> RayMap:
@@ -368,9 +368,31 @@ def _texture(seed: int, width_mm: float, height_mm: float) -> tuple[np.ndarray, 
         acc += amp * layer[:th, :tw]
         total += amp * amp
     acc *= 46.0 / math.sqrt(total)
-    acc += 125.0
-    tex = np.clip(acc, 10, 245).astype(np.uint8)
+    acc += 125.0 + rng.uniform(-30.0, 30.0, 3).astype(np.float32)  # a tint per object
+    tex = np.empty((th, tw, 4), np.uint8)
+    tex[..., :3] = np.clip(acc, 10, 245)
+    tex[..., 3] = 255  # alpha: outside the texture remap gives 0, which masks the object
     return tex, texel
+
+
+@functools.lru_cache(maxsize=8)
+def _board_texture(cols: int, rows: int, square_mm: float) -> tuple[np.ndarray, float]:
+    """The printed board (BGRA uint8) over its outline, and its texel size in mm.
+
+    Squares are exact in texels (TEXELS_PER_SQUARE each), the black corner square at (-1, -1)
+    as OpenCV expects, a white border of one square around them.
+    """
+    n = _TEXELS_PER_SQUARE
+    qa = (np.arange((cols + 3) * n) + 0.5) / n - 2.0  # texel centres in squares from corner 0
+    qb = (np.arange((rows + 3) * n) + 0.5) / n - 2.0
+    ia, ib = np.floor(qa).astype(int), np.floor(qb).astype(int)
+    in_a = (ia >= -1) & (ia < cols)
+    in_b = (ib >= -1) & (ib < rows)
+    black = in_b[:, None] & in_a[None, :] & (((ib[:, None] + ia[None, :]) & 1) == 0)
+    tex = np.empty((len(qb), len(qa), 4), np.uint8)
+    tex[..., :3] = np.where(black, np.uint8(_BLACK), np.uint8(_WHITE))[..., None]
+    tex[..., 3] = 255
+    return tex, square_mm / n
 
 
 # ---------------------------------------------------------------------------------------------
@@ -411,7 +433,8 @@ class SimRig:
                               c.right.M.copy(), c.right.D.copy(), R, T, c.board)
         self._rays = (ray_map(c.left, c.image_size, c.supersample),
                       ray_map(c.right, c.image_size, c.supersample))
-        self._scene_cache: dict[int, tuple] = {}
+        self._scene_cache: dict[tuple, tuple] = {}
+        self._noise: dict[int, np.ndarray] = {}
         self._lock = threading.Lock()
 
     # ---- geometry -------------------------------------------------------------------------
@@ -464,27 +487,43 @@ class SimRig:
         return True
 
     def random_board_pose(self, rng: np.random.Generator, max_tries: int = 2000) -> BoardPose:
-        """One random board pose fully visible in both images (0.4-1.2 m, tilts up to 40 deg)."""
+        """One random board pose fully visible in both images (0.4-1.2 m, tilts up to 40 deg).
+
+        Depth and tilt are drawn first; the position is then drawn uniformly over the room the
+        board leaves in both images, so that poses reach the image edges (needed to see the
+        distortion) as often as the centre.
+        """
         b = self.config.board
         w, h = self.config.image_size
+        margin = 10.0
         centre_board = np.array([(b.cols - 1) * b.square_mm / 2, (b.rows - 1) * b.square_mm / 2, 0])
-        M1, D1 = self.truth.M1, self.truth.D1
+        a0, b0, a1, b1 = self.board_outline_mm()
+        outline = np.array([[a0, b0, 0], [a1, b0, 0], [a1, b1, 0], [a0, b1, 0]], np.float64)
+        f = float(self.truth.M1[0, 0])
         for _ in range(max_tries):
             z = rng.uniform(400.0, 1200.0)
-            u_px, v_px = rng.uniform(0.08 * w, 0.92 * w), rng.uniform(0.1 * h, 0.9 * h)
-            x, y = undistort_normalized(np.array([u_px]), np.array([v_px]), M1, D1)
-            c = np.array([x[0] * z, y[0] * z, z])
             tilt_x = math.radians(rng.uniform(-40, 40))
             tilt_y = math.radians(rng.uniform(-40, 40))
-            spin = math.radians(rng.uniform(-20, 20))
             if math.hypot(tilt_x, tilt_y) > math.radians(45):
                 continue
-            Rx = cv2.Rodrigues(np.array([tilt_x, 0.0, 0.0]))[0]
-            Ry = cv2.Rodrigues(np.array([0.0, tilt_y, 0.0]))[0]
-            Rz = cv2.Rodrigues(np.array([0.0, 0.0, spin]))[0]
-            R = Ry @ Rx @ Rz
-            pose = BoardPose(R, c - R @ centre_board)
-            if self._board_visible(pose):
+            spin = math.radians(rng.uniform(-20, 20))
+            R = (cv2.Rodrigues(np.array([0.0, tilt_y, 0.0]))[0]
+                 @ cv2.Rodrigues(np.array([tilt_x, 0.0, 0.0]))[0]
+                 @ cv2.Rodrigues(np.array([0.0, 0.0, spin]))[0])
+            t0 = np.array([0.0, 0.0, z]) - R @ centre_board
+            pts = outline @ R.T + t0
+            if np.any(pts[:, 2] < 150.0):
+                continue
+            lo, hi = np.array([-np.inf, -np.inf]), np.array([np.inf, np.inf])
+            for cam in (0, 1):
+                uv = self.project(pts, cam)
+                lo = np.maximum(lo, [margin - uv[:, 0].min(), margin - uv[:, 1].min()])
+                hi = np.minimum(hi, [w - 1 - margin - uv[:, 0].max(), h - 1 - margin - uv[:, 1].max()])
+            if np.any(hi <= lo):
+                continue
+            shift_px = rng.uniform(lo, hi)
+            pose = BoardPose(R, t0 + np.array([shift_px[0] * z / f, shift_px[1] * z / f, 0.0]))
+            if self._board_visible(pose, margin_px=margin - 2.0):
                 return pose
         raise RuntimeError("could not find a board pose visible in both cameras")
 
@@ -528,130 +567,123 @@ class SimRig:
             return None
         return (x0, y0, x1, y1)
 
-    def _plane_coords(self, cam: int, pl: _Plane, box):
-        """For the rays in `box`: plane coordinates a, b (mm), depth Z (mm), float32."""
-        rays = self._rays[cam]
-        x0, y0, x1, y1 = box
-        x = rays.x[y0:y1, x0:x1]
-        y = rays.y[y0:y1, x0:x1]
-        n = [float(v) for v in np.cross(pl.u, pl.v)]
-        u = [float(v) for v in pl.u]
-        v = [float(v) for v in pl.v]
-        npo = float(np.dot(n, pl.origin))
-        # the ray t*(x, y, 1) meets the plane where t = n.o / n.r; t is the depth Z
-        with np.errstate(divide="ignore", invalid="ignore"):
-            z = n[0] * x
-            z += n[1] * y
-            z += n[2]
-            np.divide(npo, z, out=z)
-        # a = u.(t r - o), b = v.(t r - o)
-        a = u[0] * x
-        a += u[1] * y
-        a += u[2]
-        a *= z
-        a -= float(np.dot(u, pl.origin))
-        b = v[0] * x
-        b += v[1] * y
-        b += v[2]
-        b *= z
-        b -= float(np.dot(v, pl.origin))
-        return a, b, z
+    def _draw_plane(self, cam: int, plane_left: _Plane, tex: np.ndarray, texel: float,
+                    img: np.ndarray, zbuf: np.ndarray | None, box0: tuple[int, int] = (0, 0)
+                    ) -> None:
+        """Draw a textured rectangle into the supersampled `img` (which starts at supersample
+        (x, y) = box0 of the full grid), with a depth test against `zbuf` when given.
 
-    def _draw_object(self, cam: int, obj: SceneObject, img: np.ndarray, zbuf: np.ndarray) -> None:
-        pl_left = _Plane(obj.corner_origin, obj.u, obj.v, obj.width_mm, obj.height_mm)
-        box = self._bbox(cam, pl_left)
+        The texture spans the rectangle (texel centres at (i + 0.5) * texel mm); it must have an
+        alpha channel (remap's zero border marks rays that miss the rectangle).
+        """
+        box = self._bbox(cam, plane_left)
         if box is None:
             return
-        pl = self._plane_in_camera(cam, pl_left.origin, obj.u, obj.v, obj.width_mm, obj.height_mm)
-        a, b, z = self._plane_coords(cam, pl, box)
-        x0, y0, x1, y1 = box
-        zb = zbuf[y0:y1, x0:x1]
-        mask = (z > 0) & (z < zb) & (a >= 0) & (a <= obj.width_mm) & (b >= 0) & (b <= obj.height_mm)
-        if not mask.any():
+        ox, oy = box0
+        hh, ww = img.shape[:2]
+        x0, y0 = max(box[0], ox), max(box[1], oy)
+        x1, y1 = min(box[2], ox + ww), min(box[3], oy + hh)
+        if x1 <= x0 or y1 <= y0:
             return
-        tex, texel = _texture(int(obj.seed), float(obj.width_mm), float(obj.height_mm))
-        mx = a * (1.0 / texel)
-        my = b * (1.0 / texel)
-        mx[~mask] = -10
-        my[~mask] = -10
-        sampled = cv2.remap(tex, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        region = img[y0:y1, x0:x1]
-        region[mask] = sampled[mask]
-        zb[mask] = z[mask]
+        pl = self._plane_in_camera(cam, plane_left.origin, plane_left.u, plane_left.v,
+                                   plane_left.width, plane_left.height)
+        n = np.cross(pl.u, pl.v)
+        npo = float(n @ pl.origin)
+        if abs(npo) < 1e-9:
+            return  # the plane passes through the camera centre: seen edge-on
+        # a ray t*(x, y, 1) meets the plane at depth t = n.o / n.r, where (a, b) =
+        # (u.(t r - o), v.(t r - o)): a homography of (x, y, 1); fold in mm -> texel centres
+        Ha = npo * pl.u - float(pl.u @ pl.origin) * n
+        Hb = npo * pl.v - float(pl.v @ pl.origin) * n
+        H = np.stack([Ha / texel - 0.5 * n, Hb / texel - 0.5 * n, n])
+        xy = np.ascontiguousarray(self._rays[cam].xy[y0:y1, x0:x1])
+        tmap = cv2.perspectiveTransform(xy, H)
+        sampled = cv2.remap(tex, tmap, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                            borderValue=(0, 0, 0, 0))
+        mask = cv2.compare(sampled[..., 3], 127, cv2.CMP_GT)
+        Hz = np.array([[0.0, 0.0, npo], [0.0, 0.0, 0.0], n])  # (x, y, 1) -> (depth, 0)
+        z = cv2.perspectiveTransform(xy, Hz)[..., 0]
+        cv2.bitwise_and(mask, cv2.compare(z, 0.0, cv2.CMP_GT), dst=mask)
+        if zbuf is not None:
+            zb = zbuf[y0 - oy:y1 - oy, x0 - ox:x1 - ox]
+            cv2.bitwise_and(mask, cv2.compare(z, zb, cv2.CMP_LT), dst=mask)
+            cv2.copyTo(z, mask, zb)
+        cv2.copyTo(np.ascontiguousarray(sampled[..., :3]), mask, img[y0 - oy:y1 - oy, x0 - ox:x1 - ox])
 
-    def _draw_board(self, cam: int, pose: BoardPose, img: np.ndarray, zbuf: np.ndarray) -> None:
+    def _object_plane(self, obj: SceneObject) -> _Plane:
+        return _Plane(obj.corner_origin, obj.u, obj.v, obj.width_mm, obj.height_mm)
+
+    def _board_plane(self, pose: BoardPose) -> _Plane:
         a0, b0, a1, b1 = self.board_outline_mm()
         origin = pose.t + pose.R @ np.array([a0, b0, 0.0])
-        u, v = pose.R[:, 0], pose.R[:, 1]
-        pl_left = _Plane(origin, u, v, a1 - a0, b1 - b0)
-        box = self._bbox(cam, pl_left)
-        if box is None:
-            return
-        pl = self._plane_in_camera(cam, origin, u, v, a1 - a0, b1 - b0)
-        a, b, z = self._plane_coords(cam, pl, box)
-        x0, y0, x1, y1 = box
-        zb = zbuf[y0:y1, x0:x1]
-        mask = (z > 0) & (z < zb) & (a >= 0) & (a <= a1 - a0) & (b >= 0) & (b <= b1 - b0)
-        if not mask.any():
-            return
-        # analytic squares: board coordinates relative to corner 0, in squares
-        inv_s = 1.0 / self.config.board.square_mm
-        qa = (a + a0) * inv_s
-        qb = (b + b0) * inv_s
-        cols, rows = self.config.board.cols, self.config.board.rows
-        in_squares = (qa >= -1) & (qa < cols) & (qb >= -1) & (qb < rows)
-        parity = (np.floor(qa).astype(np.int32) + np.floor(qb).astype(np.int32)) & 1
-        black = in_squares & (parity == 0)  # square (-1, -1), the outer corner, is black
-        value = np.where(black, np.uint8(_BLACK), np.uint8(_WHITE))
-        region = img[y0:y1, x0:x1]
-        region[mask] = value[mask][:, None]
-        zb[mask] = z[mask]
+        return _Plane(origin, pose.R[:, 0], pose.R[:, 1], a1 - a0, b1 - b0)
 
-    def _background(self, cam: int, scene: Scene | None) -> tuple[np.ndarray, np.ndarray]:
-        """Supersampled image (uint8 BGR) and depth buffer of the static scene for one camera."""
+    def _background(self, cam: int, scene: Scene | None):
+        """Supersampled image (uint8 BGR), depth buffer and averaged image of the static scene
+        for one camera (cached: the scene does not move)."""
         key = (cam, id(scene))
         with self._lock:
             hit = self._scene_cache.get(key)
             if hit is not None and hit[0] is scene:
-                return hit[1], hit[2]
+                return hit[1:]
         s = self.config.supersample
         w, h = self.config.image_size
         img = np.full((h * s, w * s, 3), _BOARD_BACKGROUND, np.uint8)
         zbuf = np.full((h * s, w * s), np.inf, np.float32)
         if scene is not None:
             for obj in scene.objects:
-                self._draw_object(cam, obj, img, zbuf)
+                tex, texel = _texture(int(obj.seed), float(obj.width_mm), float(obj.height_mm))
+                self._draw_plane(cam, self._object_plane(obj), tex, texel, img, zbuf)
+        small = img if s == 1 else cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA)
         with self._lock:
             if len(self._scene_cache) > 8:
                 self._scene_cache.clear()
-            self._scene_cache[key] = (scene, img, zbuf)
-        return img, zbuf
+            self._scene_cache[key] = (scene, img, zbuf, small)
+        return img, zbuf, small
 
-    def _finish(self, sup: np.ndarray, gain: float, rng: np.random.Generator) -> np.ndarray:
-        """Average the supersamples, apply gain and sensor noise, clip to uint8."""
-        w, h = self.config.image_size
+    def _noise_bank(self, cam: int) -> np.ndarray:
+        """Gaussian sensor noise around 128 (uint8), larger than an image; frames use random
+        crops of it, which is much cheaper than drawing fresh noise for every pixel."""
+        bank = self._noise.get(cam)
+        if bank is None:
+            w, h = self.config.image_size
+            rng = np.random.default_rng(self.seed * 31 + cam + 99)
+            noise = rng.standard_normal((h + _NOISE_PAD, w + _NOISE_PAD, 3)) * self.config.noise_sigma
+            bank = np.clip(np.rint(noise + 128.0), 0, 255).astype(np.uint8)
+            self._noise[cam] = bank
+        return bank
+
+    def _render_camera(self, cam: int, pose: BoardPose | None, scene: Scene | None,
+                       rng: np.random.Generator) -> np.ndarray:
         s = self.config.supersample
-        img = sup if s == 1 else cv2.resize(sup, (w, h), interpolation=cv2.INTER_AREA)
-        out = img.astype(np.float32)
-        if gain != 1.0:
-            out *= np.float32(gain)
+        w, h = self.config.image_size
+        bg, zb, small = self._background(cam, scene)
+        out = small.copy()
+        if pose is not None:
+            plane = self._board_plane(pose)
+            box = self._bbox(cam, plane)
+            if box is not None:
+                # work only on the board's box, aligned to whole pixels
+                x0, y0 = box[0] // s * s, box[1] // s * s
+                x1, y1 = min(w * s, -(-box[2] // s) * s), min(h * s, -(-box[3] // s) * s)
+                crop = bg[y0:y1, x0:x1].copy()
+                zcrop = zb[y0:y1, x0:x1].copy() if scene is not None else None
+                tex, texel = _board_texture(*self.config.board.pattern_size,
+                                            float(self.config.board.square_mm))
+                self._draw_plane(cam, plane, tex, texel, crop, zcrop, box0=(x0, y0))
+                part = crop if s == 1 else cv2.resize(crop, ((x1 - x0) // s, (y1 - y0) // s),
+                                                      interpolation=cv2.INTER_AREA)
+                out[y0 // s:y1 // s, x0 // s:x1 // s] = part
+        gain = 1.0 if cam == 0 else float(self.config.gain_right)
         if self.config.noise_sigma > 0:
-            out += rng.standard_normal(out.shape, dtype=np.float32) * np.float32(self.config.noise_sigma)
-        np.clip(out, 0, 255, out=out)
-        return (out + np.float32(0.5)).astype(np.uint8)
+            dx, dy = (int(v) for v in rng.integers(0, _NOISE_PAD + 1, 2))
+            noise = self._noise_bank(cam)[dy:dy + h, dx:dx + w]
+            return cv2.addWeighted(out, gain, noise, 1.0, -128.0, dtype=cv2.CV_8U)
+        return cv2.convertScaleAbs(out, alpha=gain)
 
     def _render(self, pose: BoardPose | None, scene: Scene | None, rng) -> tuple[np.ndarray, np.ndarray]:
         rng = rng if rng is not None else np.random.default_rng()
-        out = []
-        for cam in (0, 1):
-            bg, zb = self._background(cam, scene)
-            if pose is None:
-                sup = bg
-            else:
-                sup, zbuf = bg.copy(), zb.copy()
-                self._draw_board(cam, pose, sup, zbuf)
-            out.append(self._finish(sup, 1.0 if cam == 0 else self.config.gain_right, rng))
-        return out[0], out[1]
+        return self._render_camera(0, pose, scene, rng), self._render_camera(1, pose, scene, rng)
 
     def render_board_pair(self, pose: BoardPose, rng=None, scene: Scene | None = None
                           ) -> tuple[np.ndarray, np.ndarray]:

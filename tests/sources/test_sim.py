@@ -1,0 +1,332 @@
+"""The simulated rig: its rendering goes through OpenCV's camera model, its truth is consistent."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.errors import InputError, SourceError
+from stereo_gui.sources.base import FrameSource
+from stereo_gui.sources.sim import (
+    BoardPose, CameraTruth, RigConfig, RigTruth, Scene, SimFrameTruth, SimRig, SimSource,
+    undistort_normalized, write_calibration_set,
+)
+
+
+@pytest.fixture(scope="module")
+def rig() -> SimRig:
+    return SimRig(seed=3)
+
+
+def _detect(img: np.ndarray, board: BoardSpec) -> np.ndarray | None:
+    gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    ok, corners = cv2.findChessboardCorners(gray, board.pattern_size)
+    if not ok:
+        return None
+    crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 50, 1e-4)
+    return cv2.cornerSubPix(gray, corners, (5, 5), (-1, -1), crit).reshape(-1, 2)
+
+
+def _match_order(found: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """OpenCV may report the corners in reverse order; compare in the order that fits."""
+    fwd = np.sqrt(np.mean(np.sum((found - truth) ** 2, 1)))
+    rev = np.sqrt(np.mean(np.sum((found[::-1] - truth) ** 2, 1)))
+    return found if fwd <= rev else found[::-1]
+
+
+def test_default_rig_is_webcam_like(rig):
+    t = rig.truth
+    assert t.image_size == (640, 480)
+    assert t.baseline_mm == pytest.approx(110.0)
+    assert t.T[0, 0] < -109.0  # the right camera sits to the right: T_right_left points left
+    assert 0.5 <= t.relative_rotation_deg <= 1.5
+    for M, D in ((t.M1, t.D1), (t.M2, t.D2)):
+        assert 700 < M[0, 0] < 800 and 700 < M[1, 1] < 800
+        assert M[0, 2] != 320 and abs(M[0, 2] - 320) < 15 and abs(M[1, 2] - 240) < 15
+        assert -0.3 <= D[0, 0] <= -0.1 and D.shape == (1, 5)
+    assert not np.allclose(t.M1, t.M2)
+
+
+def test_ray_map_inverts_the_distortion_model(rig):
+    """Projecting the stored rays with cv2.projectPoints gives back their sample positions."""
+    for cam, (M, D) in enumerate(((rig.truth.M1, rig.truth.D1), (rig.truth.M2, rig.truth.D2))):
+        rays = rig._rays[cam]
+        s = rays.supersample
+        rng = np.random.default_rng(cam)
+        iy = rng.integers(0, rays.xy.shape[0], 300)
+        ix = rng.integers(0, rays.xy.shape[1], 300)
+        # include the far corners, where distortion is strongest
+        iy = np.r_[iy, 0, 0, rays.xy.shape[0] - 1, rays.xy.shape[0] - 1]
+        ix = np.r_[ix, 0, rays.xy.shape[1] - 1, 0, rays.xy.shape[1] - 1]
+        xy = rays.xy[iy, ix].astype(np.float64)
+        pts = np.concatenate([xy, np.ones((len(xy), 1))], 1)
+        proj, _ = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), M, D)
+        expected = np.stack([(ix + 0.5) / s - 0.5, (iy + 0.5) / s - 0.5], 1)
+        # float32 storage of the rays limits the round trip to about 1e-4 px
+        assert np.abs(proj.reshape(-1, 2) - expected).max() < 1e-3
+
+
+def test_newton_undistortion_matches_projectpoints():
+    cam = CameraTruth.make(750, 748, 321, 238, k1=-0.3, k2=0.09, p1=1e-3, p2=-1e-3, k3=-0.02)
+    rng = np.random.default_rng(0)
+    u, v = rng.uniform(0, 639, 500), rng.uniform(0, 479, 500)
+    x, y = undistort_normalized(u, v, cam.M, cam.D)
+    proj, _ = cv2.projectPoints(np.stack([x, y, np.ones_like(x)], 1), np.zeros(3), np.zeros(3),
+                                cam.M, cam.D)
+    assert np.abs(proj.reshape(-1, 2) - np.stack([u, v], 1)).max() < 1e-6
+
+
+def test_board_poses_are_varied_and_fully_visible(rig):
+    poses = rig.board_poses(12)
+    assert len(poses) == 12
+    w, h = rig.config.image_size
+    centres = []
+    for pose in poses:
+        corners = pose.corners_left_mm(rig.config.board)
+        assert 300 < corners[:, 2].mean() < 1300
+        for cam in (0, 1):
+            uv = rig.project(corners, cam)
+            assert uv[:, 0].min() > 10 and uv[:, 1].min() > 10
+            assert uv[:, 0].max() < w - 10 and uv[:, 1].max() < h - 10
+        centres.append(rig.project(corners, 0).mean(0))
+        np.testing.assert_allclose(pose.R @ pose.R.T, np.eye(3), atol=1e-9)
+    centres = np.array(centres)
+    # positions spread over the image, and tilts vary
+    assert np.ptp(centres[:, 0]) > 0.4 * w and np.ptp(centres[:, 1]) > 0.3 * h
+    tilts = [np.degrees(np.arccos(abs(p.R[2, 2]))) for p in poses]
+    assert max(tilts) > 15
+    # deterministic for a seed
+    again = SimRig(seed=3).board_poses(12)
+    np.testing.assert_allclose(again[5].t, poses[5].t)
+
+
+def test_rendered_corners_agree_with_projectpoints(rig):
+    """The rendering goes through the same distortion model OpenCV calibrates (< 0.1 px RMS)."""
+    board = rig.config.board
+    rng = np.random.default_rng(1)
+    errors = []
+    for pose in rig.board_poses(5):
+        left, right = rig.render_board_pair(pose, rng)
+        assert left.shape == (480, 640, 3) and left.dtype == np.uint8
+        for cam, img in ((0, left), (1, right)):
+            found = _detect(img, board)
+            assert found is not None, "the rendered board was not detected"
+            truth = rig.project(pose.corners_left_mm(board), cam)
+            found = _match_order(found, truth)
+            errors.append(np.sum((found - truth) ** 2, 1))
+    rms = float(np.sqrt(np.mean(np.concatenate(errors))))
+    assert rms < 0.1, rms
+
+
+@pytest.mark.slow
+def test_calibration_on_rendered_pairs_recovers_the_rig():
+    """A quick calibration sanity check; the real accuracy tests belong to core calibration."""
+    rig = SimRig(seed=11)
+    board = rig.config.board
+    obj, img_l, img_r = [], [], []
+    for left, right in rig.calibration_set(14):
+        cl, cr = _detect(left, board), _detect(right, board)
+        if cl is None or cr is None:
+            continue
+        if np.linalg.norm(cl[0] - cl[-1]) > 0 and np.dot(cl[-1] - cl[0], cr[-1] - cr[0]) < 0:
+            cr = cr[::-1]  # same corner order in both images
+        obj.append(board.object_points_mm())
+        img_l.append(cl.astype(np.float32))
+        img_r.append(cr.astype(np.float32))
+    assert len(obj) >= 12
+    size = rig.config.image_size
+    _, M1, D1, _, _ = cv2.calibrateCamera(obj, img_l, size, None, None)
+    _, M2, D2, _, _ = cv2.calibrateCamera(obj, img_r, size, None, None)
+    rms, M1, D1, M2, D2, R, T, _, _ = cv2.stereoCalibrate(
+        obj, img_l, img_r, M1, D1, M2, D2, size, flags=cv2.CALIB_FIX_INTRINSIC)
+    assert rms < 0.3
+    assert M1[0, 0] == pytest.approx(rig.truth.M1[0, 0], rel=0.01)
+    assert M2[0, 0] == pytest.approx(rig.truth.M2[0, 0], rel=0.01)
+    assert np.linalg.norm(T) == pytest.approx(110.0, rel=0.01)
+
+
+def test_truth_json_round_trip(rig):
+    data = json.loads(json.dumps(rig.truth.to_json()))
+    back = RigTruth.from_json(data)
+    for name in ("M1", "D1", "M2", "D2", "R", "T"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(rig.truth, name))
+    assert back.board == rig.truth.board and back.image_size == rig.truth.image_size
+    assert data["baseline_mm"] == pytest.approx(110.0)
+    with pytest.raises(InputError):
+        RigTruth.from_json({"M1": [[1]]})
+
+
+def test_true_calibration_rectifies(rig):
+    calib = rig.true_calibration()
+    assert calib.method == "bouguet"
+    assert calib.rectified_baseline_mm == pytest.approx(110.0, rel=1e-6)
+    # a 3D point lands on the same rectified row in both images, at disparity f*B/Z
+    X = np.array([[150.0, -80.0, 1400.0]])
+    rows = []
+    for cam, (M, D, Rr, P) in enumerate(((calib.M1, calib.D1, calib.R1, calib.P1),
+                                         (calib.M2, calib.D2, calib.R2, calib.P2))):
+        raw = rig.project(X, cam).reshape(-1, 1, 2)
+        rows.append(cv2.undistortPoints(raw, M, D, R=Rr, P=P,
+                                        criteria=(3, 50, 1e-12)).reshape(2))
+    assert rows[0][1] == pytest.approx(rows[1][1], abs=1e-4)
+    z_rect = (calib.R1 @ X[0])[2]
+    assert rows[0][0] - rows[1][0] == pytest.approx(calib.focal_px * 110.0 / z_rect, rel=1e-4)
+    # E and F agree with the geometry: x_r^T F x_l = 0
+    xl = np.append(rig.project(X, 0)[0], 1.0)
+    xr = np.append(rig.project(X, 1)[0], 1.0)
+    # F relates undistorted pixels: undistort first
+    ul = cv2.undistortPoints(xl[:2].reshape(1, 1, 2), calib.M1, calib.D1, P=calib.M1).reshape(2)
+    ur = cv2.undistortPoints(xr[:2].reshape(1, 1, 2), calib.M2, calib.D2, P=calib.M2).reshape(2)
+    assert abs(np.append(ur, 1) @ calib.F @ np.append(ul, 1)) < 1e-3
+
+
+def test_scene_depth_along_ray():
+    wall = Scene.wall(1000)
+    assert wall.depth_along_ray([0, 0, 0], [0, 0, 1]) == pytest.approx(1000.0)
+    d = np.array([0.3, 0.1, 1.0])
+    assert wall.depth_along_ray([0, 0, 0], d) == pytest.approx(1000.0 * np.linalg.norm(d))
+    assert wall.depth_along_ray([0, 0, 0], [0, 0, -1]) is None
+    assert wall.depth_along_ray([0, 0, 0], [1, 0, 0.01]) is None  # misses the edge of the wall
+    demo = Scene.demo()
+    box = demo.objects[1]
+    assert demo.depth_along_ray([0, 0, 0], box.center) == pytest.approx(np.linalg.norm(box.center))
+    assert demo.depth_along_ray([0, 0, 0], [0.0, -0.3, 1.0]) > 2900  # the background wall
+
+
+def test_true_point_rectified_is_on_the_scene(rig):
+    calib = rig.true_calibration()
+    wall = Scene.wall(1500)
+    for x, y in ((320, 240), (30, 20), (600, 450)):
+        p = rig.true_point_rectified(calib, wall, x, y)
+        assert p is not None
+        p_left = calib.R1.T @ p
+        assert p_left[2] == pytest.approx(1500.0)
+        # projects back to the same rectified pixel
+        q = calib.P1[:, :3] @ p
+        assert q[:2] / q[2] == pytest.approx([x, y], abs=1e-6)
+    assert rig.true_point_rectified(calib, Scene(()), 320, 240) is None
+
+
+def test_scene_stereo_is_consistent_with_truth(rig):
+    """Block matching on the rectified rendering finds the disparity the truth predicts."""
+    calib = rig.true_calibration()
+    maps = calib.rectify_maps()
+    for dist in (800.0, 2500.0):
+        left, right = rig.render_scene(Scene.wall(dist), np.random.default_rng(2))
+        assert cv2.cvtColor(left, cv2.COLOR_BGR2GRAY).std() > 15  # textured, not flat
+        rl = cv2.remap(left, maps.left_x, maps.left_y, cv2.INTER_LINEAR)
+        rr = cv2.remap(right, maps.right_x, maps.right_y, cv2.INTER_LINEAR)
+        sgbm = cv2.StereoSGBM.create(minDisparity=0, numDisparities=128, blockSize=5,
+                                     P1=8 * 3 * 25, P2=32 * 3 * 25, uniquenessRatio=10)
+        disp = sgbm.compute(cv2.cvtColor(rl, cv2.COLOR_BGR2GRAY),
+                            cv2.cvtColor(rr, cv2.COLOR_BGR2GRAY)).astype(np.float32) / 16
+        y, x = 240, 360
+        patch = disp[y - 10:y + 10, x - 10:x + 10]
+        assert (patch > 0).mean() > 0.9
+        z = rig.true_point_rectified(calib, Scene.wall(dist), x, y)[2]
+        expected = calib.focal_px * calib.rectified_baseline_mm / z
+        assert np.median(patch) == pytest.approx(expected, abs=0.5)
+
+
+def test_gain_noise_and_determinism(rig):
+    pose = rig.board_poses(1)[0]
+    a_left, a_right = rig.render_board_pair(pose, np.random.default_rng(5))
+    b_left, _ = rig.render_board_pair(pose, np.random.default_rng(5))
+    c_left, _ = rig.render_board_pair(pose, np.random.default_rng(6))
+    np.testing.assert_array_equal(a_left, b_left)
+    diff = a_left.astype(float) - c_left.astype(float)
+    assert 1.5 < diff.std() / np.sqrt(2) < 2.5  # sensor noise of about 2 grey levels
+    # the right camera is darker by its gain (compare the plain background)
+    assert a_right[:30, :30].mean() / a_left[:30, :30].mean() == pytest.approx(0.93, abs=0.02)
+    quiet = SimRig(RigConfig(noise_sigma=0.0, supersample=2))
+    l1, _ = quiet.render_board_pair(pose, np.random.default_rng(1))
+    l2, _ = quiet.render_board_pair(pose, np.random.default_rng(2))
+    np.testing.assert_array_equal(l1, l2)
+
+
+def test_board_in_front_of_a_scene_is_depth_tested():
+    rig = SimRig(RigConfig(noise_sigma=0.0, supersample=1))
+    pose = rig.board_poses(1)[0]
+    corner_px = rig.project(pose.corners_left_mm(rig.config.board)[:1], 0)[0]
+    # a wall in front of the board hides it; a wall behind it does not
+    near = Scene.wall(float(pose.t[2]) * 0.5)
+    far = Scene.wall(float(pose.t[2]) * 3.0)
+    hidden, _ = rig.render_board_pair(pose, scene=near)
+    shown, _ = rig.render_board_pair(pose, scene=far)
+    only_wall, _ = rig.render_scene(near)
+    np.testing.assert_array_equal(hidden, only_wall)
+    assert _detect(shown, rig.config.board) is not None
+    assert corner_px is not None
+
+
+def test_write_calibration_set(tmp_path):
+    (tmp_path / "set").mkdir()
+    out = write_calibration_set(tmp_path / "set", n_pairs=2, seed=4)
+    names = sorted(p.name for p in out.iterdir())
+    assert names == ["chessboard-L1.png", "chessboard-L2.png", "chessboard-R1.png",
+                     "chessboard-R2.png", "truth.json"]
+    data = json.loads((out / "truth.json").read_text())
+    assert data["seed"] == 4 and data["board"] == {"cols": 9, "rows": 6, "square_mm": 25.0}
+    truth = RigTruth.from_json(data)
+    assert truth.baseline_mm == pytest.approx(110.0)
+    img = cv2.imread(str(out / "chessboard-L1.png"))
+    assert img.shape == (480, 640, 3)
+    # the written image is the rig's rendering of the recorded pose
+    pose = BoardPose(np.array(data["pairs"][0]["R_left_board"]), np.array(data["pairs"][0]["t_left_board_mm"]))
+    found = _detect(img, truth.board)
+    truth_px = SimRig(seed=4).project(pose.corners_left_mm(truth.board), 0)
+    assert np.abs(_match_order(found, truth_px) - truth_px).max() < 0.5
+
+
+def test_sim_source_frames():
+    src = SimSource(SimRig(RigConfig(supersample=2)), mode="mixed", paced=False, seed=1)
+    assert isinstance(src, FrameSource)
+    assert src.name == "Simulated rig" and src.nominal_fps == 30.0
+    frames = [src.read() for _ in range(4)]
+    assert [f.index for f in frames] == [0, 1, 2, 3]
+    f = frames[-1]
+    assert f.left.shape == (480, 640, 3) and f.right.shape == (480, 640, 3)
+    assert isinstance(f.truth, SimFrameTruth) and f.truth.pose is not None
+    assert f.truth.scene is not None and f.truth.truth.baseline_mm == pytest.approx(110.0)
+    # the board moves smoothly: consecutive poses differ by little
+    step = np.linalg.norm(frames[2].truth.pose.t - frames[1].truth.pose.t)
+    assert 0 < step < 60
+    src.close()
+    src.close()
+    with pytest.raises(SourceError):
+        src.read()
+
+
+def test_sim_source_modes_and_bad_arguments():
+    rig = SimRig(RigConfig(supersample=1))
+    scene_only = SimSource(rig, mode="scene", paced=False).read()
+    assert scene_only.truth.pose is None and scene_only.truth.scene is not None
+    board_only = SimSource(rig, mode="board", paced=False).read()
+    assert board_only.truth.scene is None and board_only.truth.pose is not None
+    with pytest.raises(InputError):
+        SimSource(rig, mode="cinema")
+    with pytest.raises(InputError):
+        SimSource(rig, fps=0)
+
+
+def test_sim_source_paces_frames(monkeypatch):
+    """paced=True waits for the next frame time (a fake clock: tests never sleep)."""
+    import stereo_gui.sources.sim as sim
+
+    clock = {"t": 100.0}
+    slept = []
+    monkeypatch.setattr(sim.time, "monotonic", lambda: clock["t"])
+
+    def fake_sleep(dt):
+        slept.append(dt)
+        clock["t"] += dt
+
+    monkeypatch.setattr(sim.time, "sleep", fake_sleep)
+    src = SimSource(SimRig(RigConfig(supersample=1)), mode="scene", fps=10.0, paced=True)
+    times = [src.read().t_left for _ in range(3)]
+    assert times == pytest.approx([100.0, 100.1, 100.2])
+    assert sum(slept) == pytest.approx(0.2)
