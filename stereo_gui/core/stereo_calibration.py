@@ -70,6 +70,9 @@ class StereoCalibration:
     optimal_M1: np.ndarray | None = None  # getOptimalNewCameraMatrix(alpha=1), shown as in the report
     optimal_M2: np.ndarray | None = None
     created: str = field(default_factory=lambda: _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"))
+    # (width, height) the calibration was made at when it was scaled to image_size by scaled_to();
+    # the RMS figures and per-pair errors stay in pixels of that original size
+    scaled_from: tuple[int, int] | None = None
 
     # ---- derived figures -------------------------------------------------------------------
     @property
@@ -116,6 +119,60 @@ class StereoCalibration:
 
     def with_updates(self, **changes) -> StereoCalibration:
         return replace(self, **changes)
+
+    def scaled_to(self, new_size: tuple[int, int]) -> StereoCalibration:
+        """This calibration for images resized to `new_size` (width, height) px.
+
+        Only a uniform scale is meaningful (the same lenses seen through a resized sensor), so
+        the aspect ratio must stay the same; otherwise CalibrationError says why. Pixel
+        coordinates follow OpenCV's convention (pixel centres at integers): c' = (c + 0.5) s - 0.5.
+        R, T, D, R1, R2 and E do not change; M, P, Q and F do.
+        """
+        from stereo_gui.core.errors import CalibrationError
+
+        w, h = self.width, self.height
+        nw, nh = int(new_size[0]), int(new_size[1])
+        if nw <= 0 or nh <= 0:
+            raise CalibrationError(f"cannot scale a calibration to {nw}x{nh}")
+        if (nw, nh) == (w, h):
+            return self
+        if w * nh != nw * h:
+            raise CalibrationError(
+                f"the calibration was made at {w}x{h} and cannot be used at {nw}x{nh}: the aspect "
+                f"ratios differ ({w / h:.4f} vs {nw / nh:.4f}), so the cameras were cropped, not "
+                f"scaled; calibrate again at {nw}x{nh}")
+        s = nw / w
+        o = 0.5 * (s - 1.0)  # c' = s c + o
+
+        def cam(M: np.ndarray | None) -> np.ndarray | None:
+            if M is None:
+                return None
+            M = np.array(M, np.float64)
+            M[0, 0] *= s
+            M[1, 1] *= s
+            M[0, 1] *= s
+            M[0, 2] = M[0, 2] * s + o
+            M[1, 2] = M[1, 2] * s + o
+            return M
+
+        def proj(P: np.ndarray) -> np.ndarray:
+            P = np.array(P, np.float64)
+            P[:2, :] *= s  # rows x and y of a projection: focal, centre and the Tx*f term
+            P[:2, :] += o * P[2:3, :]
+            return P
+
+        Q = np.array(self.Q, np.float64)
+        Q[0, 3] = Q[0, 3] * s - o  # -cx
+        Q[1, 3] = Q[1, 3] * s - o  # -cy
+        Q[2, 3] *= s  # f
+        Q[3, 3] *= s  # (cx1 - cx2) / Tx: disparities scale with s
+        S_inv = np.linalg.inv(np.array([[s, 0, o], [0, s, o], [0, 0, 1.0]]))
+        F = S_inv.T @ np.asarray(self.F, np.float64) @ S_inv
+        original = self.scaled_from or (w, h)
+        return replace(self, image_size=(nw, nh), M1=cam(self.M1), M2=cam(self.M2),
+                       P1=proj(self.P1), P2=proj(self.P2), Q=Q, F=F,
+                       optimal_M1=cam(self.optimal_M1), optimal_M2=cam(self.optimal_M2),
+                       scaled_from=None if original == (nw, nh) else original)
 
     @staticmethod
     def identity(image_size: tuple[int, int], focal_px: float, baseline_mm: float,

@@ -1,0 +1,357 @@
+"""Calibration files: OpenCV FileStorage YAML (our format) and ROS camera_info YAML (export/import).
+
+Our file uses the names of OpenCV's stereo sample (M1 D1 M2 D2 R T E F R1 R2 P1 P2 Q) so that C++
+tools read it with cv2::FileStorage, plus image size, board, quality figures, per-pair errors,
+method, alpha, creation time and `format_version`. T and the P2/Q translation terms are in mm.
+
+ROS camera_info files (left.yaml, right.yaml) follow ROS's layout ({rows, cols, data} matrices,
+distortion_model plumb_bob) and ROS's unit for the projection's translation term: METRES.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import logging
+import math
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.errors import CalibrationFileError, InputError
+from stereo_gui.core.stereo_calibration import (
+    MATRIX_SHAPES,
+    PairError,
+    StereoCalibration,
+    check_matrices,
+)
+from stereo_gui.files.atomic import atomic_path, write_text_atomic
+
+log = logging.getLogger(__name__)
+
+FORMAT_VERSION = 1
+MATRIX_NAMES = ("M1", "D1", "M2", "D2", "R", "T", "E", "F", "R1", "R2", "P1", "P2", "Q")
+
+
+# ---- OpenCV FileStorage YAML -------------------------------------------------------------------
+def save_calibration(calib: StereoCalibration, path: str | Path) -> Path:
+    """Write `calib` to `path` as FileStorage YAML, atomically; return the path."""
+    path = Path(path)
+    with atomic_path(path, suffix=".yaml") as tmp:
+        fs = cv2.FileStorage(str(tmp), cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_FORMAT_YAML)
+        if not fs.isOpened():
+            raise InputError(f"cannot write {path}")
+        try:
+            fs.write("format_version", FORMAT_VERSION)
+            fs.write("created", calib.created)
+            fs.write("method", calib.method)
+            fs.write("alpha", float(calib.alpha))
+            fs.write("image_width", int(calib.width))
+            fs.write("image_height", int(calib.height))
+            if calib.scaled_from is not None:
+                fs.write("scaled_from_width", int(calib.scaled_from[0]))
+                fs.write("scaled_from_height", int(calib.scaled_from[1]))
+            for name in MATRIX_NAMES:
+                fs.write(name, np.asarray(getattr(calib, name), np.float64))
+            for name in ("optimal_M1", "optimal_M2"):
+                m = getattr(calib, name)
+                if m is not None:
+                    fs.write(name, np.asarray(m, np.float64))
+            if calib.board is not None:
+                fs.write("board_cols", int(calib.board.cols))
+                fs.write("board_rows", int(calib.board.rows))
+                fs.write("square_mm", float(calib.board.square_mm))
+            fs.write("rms_left", float(calib.rms_left))
+            fs.write("rms_right", float(calib.rms_right))
+            fs.write("rms_stereo", float(calib.rms_stereo))
+            fs.write("epipolar_error_px", float(calib.epipolar_error_px))
+            fs.write("baseline_mm", float(calib.baseline_mm))  # for people reading the file
+            fs.startWriteStruct("per_pair", cv2.FileNode_SEQ)
+            for pe in calib.per_pair:
+                fs.startWriteStruct("", cv2.FileNode_MAP)
+                fs.write("name", str(pe.name))
+                fs.write("error_left", float(pe.error_left))
+                fs.write("error_right", float(pe.error_right))
+                fs.endWriteStruct()
+            fs.endWriteStruct()
+        finally:
+            fs.release()
+    return path
+
+
+def _open(path: Path) -> cv2.FileStorage:
+    if not path.exists():
+        raise CalibrationFileError(f"calibration file {path} does not exist")
+    if not path.is_file():
+        raise CalibrationFileError(f"calibration file {path} is not a file")
+    try:
+        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    except (cv2.error, SystemError) as exc:
+        first = str(exc).strip().splitlines()[-1] if str(exc).strip() else ""
+        raise CalibrationFileError(f"{path} is not an OpenCV FileStorage file ({first})") from None
+    if not fs.isOpened():
+        raise CalibrationFileError(f"{path} is not an OpenCV FileStorage file")
+    return fs
+
+
+def _real(fs, name: str, where: str, default: float | None = None) -> float:
+    node = fs.getNode(name)
+    if node.empty() or node.isNone():
+        if default is not None:
+            return default
+        raise CalibrationFileError(f"{where}: {name} is missing")
+    if not (node.isReal() or node.isInt()):
+        raise CalibrationFileError(f"{where}: {name} should be a number")
+    return float(node.real())
+
+
+def _int(fs, name: str, where: str) -> int:
+    node = fs.getNode(name)
+    if node.empty() or node.isNone():
+        raise CalibrationFileError(f"{where}: {name} is missing")
+    if not node.isInt():
+        raise CalibrationFileError(f"{where}: {name} should be a whole number")
+    return int(node.real())
+
+
+def _string(fs, name: str, default: str) -> str:
+    node = fs.getNode(name)
+    return node.string() if node.isString() else default
+
+
+def _mat(fs, name: str, where: str) -> np.ndarray | None:
+    node = fs.getNode(name)
+    if node.empty() or node.isNone():
+        return None
+    m = node.mat()
+    if m is None:
+        raise CalibrationFileError(f"{where}: {name} is not a matrix")
+    return np.asarray(m, np.float64)
+
+
+def load_calibration(path: str | Path) -> StereoCalibration:
+    """Read a calibration written by save_calibration; raise CalibrationFileError saying exactly
+    what is wrong (missing file, not FileStorage, unsupported version, bad or missing matrix)."""
+    path = Path(path)
+    where = str(path)
+    fs = _open(path)
+    try:
+        vnode = fs.getNode("format_version")
+        if vnode.empty() or vnode.isNone():
+            raise CalibrationFileError(f"{where}: not a stereo-gui calibration file (format_version "
+                                       "is missing)")
+        if not vnode.isInt() or int(vnode.real()) != FORMAT_VERSION:
+            shown = vnode.string() if vnode.isString() else f"{vnode.real():g}"
+            raise CalibrationFileError(f"{where}: unsupported format_version {shown} (this version "
+                                       f"reads {FORMAT_VERSION})")
+        w = _int(fs, "image_width", where)
+        h = _int(fs, "image_height", where)
+        if w <= 0 or h <= 0:
+            raise CalibrationFileError(f"{where}: image size {w}x{h} is not valid")
+        mats = {name: _mat(fs, name, where) for name in MATRIX_NAMES}
+        check_matrices(mats, where)
+        opt = {}
+        for name in ("optimal_M1", "optimal_M2"):
+            m = _mat(fs, name, where)
+            if m is not None:
+                if m.shape != (3, 3) or not np.all(np.isfinite(m)):
+                    raise CalibrationFileError(f"{where}: matrix {name} should be a finite 3x3")
+            opt[name] = m
+        board = None
+        if not fs.getNode("board_cols").empty():
+            try:
+                board = BoardSpec(_int(fs, "board_cols", where), _int(fs, "board_rows", where),
+                                  _real(fs, "square_mm", where))
+            except InputError as exc:
+                raise CalibrationFileError(f"{where}: {exc}") from None
+        per_pair = []
+        pp = fs.getNode("per_pair")
+        if not pp.empty() and not pp.isNone():
+            if not pp.isSeq():
+                raise CalibrationFileError(f"{where}: per_pair should be a sequence")
+            for i in range(pp.size()):
+                item = pp.at(i)
+                name = item.getNode("name")
+                el, er = item.getNode("error_left"), item.getNode("error_right")
+                if not item.isMap() or el.empty() or er.empty():
+                    raise CalibrationFileError(f"{where}: per_pair entry {i + 1} is incomplete")
+                nm = name.string() if name.isString() else (f"{name.real():g}" if not name.empty() else str(i + 1))
+                per_pair.append(PairError(nm, float(el.real()), float(er.real())))
+        method = _string(fs, "method", "bouguet")
+        if method not in ("bouguet", "hartley", "identity"):
+            raise CalibrationFileError(f"{where}: unknown method {method!r}")
+        sfw, sfh = fs.getNode("scaled_from_width"), fs.getNode("scaled_from_height")
+        scaled_from = None
+        if not sfw.empty() and not sfh.empty():
+            scaled_from = (int(sfw.real()), int(sfh.real()))
+        nan = float("nan")
+        return StereoCalibration(
+            image_size=(w, h),
+            M1=mats["M1"], D1=mats["D1"].reshape(1, -1), M2=mats["M2"], D2=mats["D2"].reshape(1, -1),
+            R=mats["R"], T=mats["T"], E=mats["E"], F=mats["F"], R1=mats["R1"], R2=mats["R2"],
+            P1=mats["P1"], P2=mats["P2"], Q=mats["Q"], board=board,
+            rms_left=_real(fs, "rms_left", where, nan), rms_right=_real(fs, "rms_right", where, nan),
+            rms_stereo=_real(fs, "rms_stereo", where, nan),
+            epipolar_error_px=_real(fs, "epipolar_error_px", where, nan),
+            per_pair=tuple(per_pair), method=method, alpha=_real(fs, "alpha", where, 0.0),
+            optimal_M1=opt["optimal_M1"], optimal_M2=opt["optimal_M2"],
+            created=_string(fs, "created", ""), scaled_from=scaled_from)
+    finally:
+        fs.release()
+
+
+def load_calibration_for_size(path: str | Path, image_size: tuple[int, int]) -> StereoCalibration:
+    """Load a calibration and scale it to `image_size` (same aspect ratio only; else
+    CalibrationError explains why it cannot be used)."""
+    return load_calibration(path).scaled_to(image_size)
+
+
+# ---- ROS camera_info ---------------------------------------------------------------------------
+def _num(x: float) -> str:
+    """A float as YAML text that reads back to the same double."""
+    x = float(x)
+    if math.isfinite(x):
+        return repr(x)
+    raise CalibrationFileError(f"cannot export a non-finite value ({x}) to ROS camera_info")
+
+
+def _ros_matrix(name: str, m: np.ndarray) -> str:
+    m = np.atleast_2d(np.asarray(m, np.float64))
+    rows, cols = m.shape
+    data = ", ".join(_num(v) for v in m.reshape(-1))
+    return f"{name}:\n  rows: {rows}\n  cols: {cols}\n  data: [{data}]\n"
+
+
+def ros_camera_info_text(calib: StereoCalibration, side: str, camera_name: str | None = None) -> str:
+    """The ROS camera_info YAML of one camera ('left' or 'right'); the projection matrix's
+    translation term is in metres, as ROS expects."""
+    if side not in ("left", "right"):
+        raise ValueError(side)
+    M, D, R, P = ((calib.M1, calib.D1, calib.R1, calib.P1) if side == "left"
+                  else (calib.M2, calib.D2, calib.R2, calib.P2))
+    D = np.asarray(D, np.float64).reshape(-1)
+    model = "plumb_bob" if D.size <= 5 else "rational_polynomial"
+    if D.size < 5:
+        D = np.concatenate([D, np.zeros(5 - D.size)])
+    P = np.array(P, np.float64)
+    P[:, 3] /= 1000.0  # mm -> m
+    name = camera_name or side
+    return (f"image_width: {calib.width}\nimage_height: {calib.height}\ncamera_name: {name}\n"
+            + _ros_matrix("camera_matrix", M)
+            + f"distortion_model: {model}\n"
+            + _ros_matrix("distortion_coefficients", D.reshape(1, -1))
+            + _ros_matrix("rectification_matrix", R)
+            + _ros_matrix("projection_matrix", P))
+
+
+def export_ros(calib: StereoCalibration, folder: str | Path, prefix: str = "") -> tuple[Path, Path]:
+    """Write `left.yaml` and `right.yaml` (ROS camera_info) into `folder`; return both paths."""
+    if not calib.metric:
+        log.warning("exporting a Hartley calibration to ROS: its baseline is not metric")
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError(f"cannot write ROS files: folder {folder} does not exist")
+    out = []
+    for side in ("left", "right"):
+        p = folder / f"{prefix}{side}.yaml"
+        write_text_atomic(p, ros_camera_info_text(calib, side))
+        out.append(p)
+    return out[0], out[1]
+
+
+def _ros_read(path: Path) -> dict:
+    where = str(path)
+    if not path.exists():
+        raise CalibrationFileError(f"ROS camera_info file {path} does not exist")
+    try:
+        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_FORMAT_YAML)
+    except (cv2.error, SystemError):
+        raise CalibrationFileError(f"{path} is not a readable YAML file") from None
+    try:
+        if not fs.isOpened():
+            raise CalibrationFileError(f"{path} is not a readable YAML file")
+        out: dict = {}
+        for key in ("image_width", "image_height"):
+            n = fs.getNode(key)
+            if n.empty() or not n.isInt():
+                raise CalibrationFileError(f"{where}: {key} is missing or not a whole number")
+            out[key] = int(n.real())
+        out["distortion_model"] = _string(fs, "distortion_model", "plumb_bob")
+        if out["distortion_model"] not in ("plumb_bob", "rational_polynomial"):
+            raise CalibrationFileError(f"{where}: distortion model {out['distortion_model']!r} is "
+                                       "not supported (plumb_bob or rational_polynomial)")
+        shapes = {"camera_matrix": (3, 3), "distortion_coefficients": None,
+                  "rectification_matrix": (3, 3), "projection_matrix": (3, 4)}
+        for key, shape in shapes.items():
+            n = fs.getNode(key)
+            if n.empty() or not n.isMap():
+                raise CalibrationFileError(f"{where}: {key} is missing")
+            rows, cols, data = n.getNode("rows"), n.getNode("cols"), n.getNode("data")
+            if rows.empty() or cols.empty() or data.empty() or not data.isSeq():
+                raise CalibrationFileError(f"{where}: {key} needs rows, cols and data")
+            r, c = int(rows.real()), int(cols.real())
+            vals = np.array([data.at(i).real() for i in range(data.size())], np.float64)
+            if vals.size != r * c:
+                raise CalibrationFileError(f"{where}: {key} has {vals.size} values, rows x cols "
+                                           f"is {r}x{c}")
+            m = vals.reshape(r, c)
+            if shape is not None and m.shape != shape:
+                raise CalibrationFileError(f"{where}: {key} should be {shape[0]}x{shape[1]}, "
+                                           f"found {r}x{c}")
+            if not np.all(np.isfinite(m)):
+                raise CalibrationFileError(f"{where}: {key} holds values that are not finite")
+            out[key] = m
+        return out
+    finally:
+        fs.release()
+
+
+def import_ros(left_path: str | Path, right_path: str | Path) -> StereoCalibration:
+    """Rebuild a StereoCalibration from a pair of ROS camera_info files.
+
+    R and T come from the rectification and projection matrices: both rectified cameras share
+    orientation, so R_right_left = R2^T R1 and T_right_left = R2^T t, where t = (P2[0,3]/fx,
+    P2[1,3]/fy, 0) in metres (converted to mm).
+    """
+    lp, rp = Path(left_path), Path(right_path)
+    left, right = _ros_read(lp), _ros_read(rp)
+    size = (left["image_width"], left["image_height"])
+    if size != (right["image_width"], right["image_height"]):
+        raise CalibrationFileError(f"{lp} is {size[0]}x{size[1]} but {rp} is "
+                                   f"{right['image_width']}x{right['image_height']}")
+    M1, M2 = left["camera_matrix"], right["camera_matrix"]
+    D1 = left["distortion_coefficients"].reshape(1, -1)
+    D2 = right["distortion_coefficients"].reshape(1, -1)
+    R1, R2 = left["rectification_matrix"], right["rectification_matrix"]
+    P1 = left["projection_matrix"].copy()
+    P2 = right["projection_matrix"].copy()
+    P1[:, 3] *= 1000.0  # m -> mm
+    P2[:, 3] *= 1000.0
+    t_rect = np.array([[P2[0, 3] / P2[0, 0]], [P2[1, 3] / P2[1, 1]], [0.0]])
+    if not np.any(t_rect):
+        raise CalibrationFileError(f"{rp}: projection_matrix has no baseline term (P[0,3] and "
+                                   "P[1,3] are zero), so it is not the right camera of a stereo pair")
+    R = R2.T @ R1
+    T = R2.T @ t_rect
+    tx = np.array([[0, -T[2, 0], T[1, 0]], [T[2, 0], 0, -T[0, 0]], [-T[1, 0], T[0, 0], 0]])
+    E = tx @ R
+    F = np.linalg.inv(M2).T @ E @ np.linalg.inv(M1)
+    F = F / F[2, 2] if abs(F[2, 2]) > 1e-12 else F
+    Q = q_from_projections(P1, P2)
+    calib = StereoCalibration(image_size=size, M1=M1, D1=D1, M2=M2, D2=D2, R=R, T=T, E=E, F=F,
+                              R1=R1, R2=R2, P1=P1, P2=P2, Q=Q, method="bouguet",
+                              created=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"))
+    check_matrices({k: getattr(calib, k) for k in MATRIX_SHAPES} | {"D1": D1, "D2": D2},
+                   f"{lp} + {rp}")
+    return calib
+
+
+def q_from_projections(P1: np.ndarray, P2: np.ndarray) -> np.ndarray:
+    """The disparity-to-depth matrix of a horizontal rectified pair, as cv2.stereoRectify builds
+    it (T in the units of P2's translation term)."""
+    f, cx, cy = P1[0, 0], P1[0, 2], P1[1, 2]
+    tx = P2[0, 3] / P2[0, 0]
+    cx2 = P2[0, 2]
+    return np.array([[1, 0, 0, -cx], [0, 1, 0, -cy], [0, 0, 0, f],
+                     [0, 0, -1.0 / tx, (cx - cx2) / tx]], np.float64)
