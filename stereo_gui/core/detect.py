@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.board import BoardSpec
-from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.core.errors import InputError, StereoGuiError
 from stereo_gui.core.util import to_gray
 
 log = logging.getLogger(__name__)
@@ -162,7 +162,10 @@ def detect_pair(name: str, left: np.ndarray, right: np.ndarray, board: BoardSpec
                 method: str = "classic", left_file: str = "", right_file: str = "") -> PairDetection:
     """Detect the board in both images of a pair (images must have the same size)."""
     if left.shape[:2] != right.shape[:2]:
-        raise ValueError(f"pair {name}: left {left.shape[:2]} and right {right.shape[:2]} differ")
+        raise InputError(
+            f"images of different sizes: {left_file or name + ' left'} is "
+            f"{left.shape[1]}x{left.shape[0]} but {right_file or name + ' right'} is "
+            f"{right.shape[1]}x{right.shape[0]}")
     dl = detect_board(left, board, method)
     dr = detect_board(right, board, method)
     if dl is not None and dr is not None:

@@ -1,0 +1,181 @@
+"""`stereo-gui calibrate DIR --board 9x6 --square-mm 25 -o calib.yaml [--json]`.
+
+Finds the image pairs of DIR, detects the chessboard in both images of each pair (on all cores),
+calibrates the rig, writes the calibration file and prints a summary (or one JSON object).
+Progress goes to stderr so that stdout stays clean for --json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+from stereo_gui.core.board import parse_board
+from stereo_gui.core.calibrate import (
+    DEFAULT_MIN_PAIRS,
+    CalibrationResult,
+    calibrate_stereo,
+)
+from stereo_gui.core.detect import METHODS as DETECTORS
+from stereo_gui.core.detect import PairInput, detect_pairs
+from stereo_gui.core.errors import InputError
+from stereo_gui.files.calibration_file import export_ros, save_calibration
+from stereo_gui.files.pairs import check_same_size, discover_pairs, load_image
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("folder", metavar="DIR", help="folder of chessboard pairs (chessboard-L1/-R1, "
+                   "left1/right1, or left/ and right/ subfolders)")
+    p.add_argument("--board", default="9x6", help="inner corners COLSxROWS (default 9x6)")
+    p.add_argument("--square-mm", type=float, default=25.0,
+                   help="side of one chessboard square in millimetres (default 25)")
+    p.add_argument("-o", "--output", required=True, metavar="FILE",
+                   help="calibration file to write (OpenCV FileStorage YAML)")
+    p.add_argument("--alpha", type=float, default=0.0,
+                   help="rectification scaling: 0 keeps only valid pixels, 1 keeps all (default 0)")
+    p.add_argument("--method", choices=("bouguet", "hartley"), default="bouguet",
+                   help="bouguet (metric, default) or hartley (uncalibrated, no metric scale)")
+    p.add_argument("--min-pairs", type=int, default=DEFAULT_MIN_PAIRS,
+                   help=f"fewest usable pairs to accept (default {DEFAULT_MIN_PAIRS})")
+    p.add_argument("--keep-outliers", action="store_true",
+                   help="do not drop pairs whose error is far above the median")
+    p.add_argument("--detector", choices=DETECTORS, default="classic",
+                   help="chessboard detector (default classic: findChessboardCorners + cornerSubPix)")
+    p.add_argument("--ros-dir", metavar="DIR", default=None,
+                   help="also write ROS camera_info files left.yaml and right.yaml into DIR")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of a summary")
+
+
+class _StderrProgress:
+    """Progress on stderr: one updating line on a terminal, a few lines otherwise."""
+
+    def __init__(self) -> None:
+        self.tty = sys.stderr.isatty()
+        self._last = -1
+
+    def __call__(self, done: int, total: int, text: str) -> None:
+        if self.tty:
+            sys.stderr.write(f"\r{text}: {done}/{total}   ")
+            if done >= total:
+                sys.stderr.write("\n")
+        else:
+            decile = (10 * done) // max(total, 1)
+            if decile != self._last or done == total:
+                self._last = decile
+                sys.stderr.write(f"{text}: {done}/{total}\n")
+        sys.stderr.flush()
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if x is not None and math.isfinite(x) else None
+
+
+def _camera(M, D) -> dict:
+    d = [float(v) for v in D.reshape(-1)[:5]]
+    d += [0.0] * (5 - len(d))
+    return {"fx": float(M[0, 0]), "fy": float(M[1, 1]), "cx": float(M[0, 2]),
+            "cy": float(M[1, 2]), "dist": d}
+
+
+def result_json(result: CalibrationResult, output: Path | None = None) -> dict:
+    """The --json object: issue 2's fields, plus a few more."""
+    c, r = result.calibration, result.report
+    out = {
+        "pairs_found": r.pairs_found,
+        "pairs_used": r.pairs_used,
+        "pairs_rejected": [{"name": x.name, "reason": x.reason} for x in r.rejected],
+        "image_size": [c.width, c.height],
+        "rms_left": _finite(r.rms_left),
+        "rms_right": _finite(r.rms_right),
+        "rms_stereo": _finite(r.rms_stereo),
+        "epipolar_error_px": _finite(r.epipolar_error_px),
+        "baseline_mm": _finite(r.baseline_mm),
+        "left": _camera(c.M1, c.D1),
+        "right": _camera(c.M2, c.D2),
+        "per_pair": [{"name": p.name, "error_left": p.error_left, "error_right": p.error_right}
+                     for p in c.per_pair],
+        "relative_rotation_deg": _finite(r.relative_rotation_deg),
+        "rectified_focal_px": float(c.focal_px),
+        "method": c.method,
+        "alpha": c.alpha,
+        "notes": list(r.notes),
+    }
+    if output is not None:
+        out["output"] = str(output)
+    return out
+
+
+def summary_text(result: CalibrationResult, output: Path, seconds: float) -> str:
+    c, r = result.calibration, result.report
+    lines = [f"calibrated from {r.pairs_used} of {r.pairs_found} pairs in {seconds:.1f} s "
+             f"({c.width}x{c.height}, board {c.board.label() if c.board else '-'}, {c.method})"]
+    for x in r.rejected:
+        lines.append(f"  rejected {x.name}: {x.reason}")
+    for side, M, D in (("left ", c.M1, c.D1), ("right", c.M2, c.D2)):
+        d = " ".join(f"{v:+.4f}" for v in D.reshape(-1)[:5])
+        lines.append(f"{side}: fx {M[0, 0]:.2f}  fy {M[1, 1]:.2f}  cx {M[0, 2]:.2f}  "
+                     f"cy {M[1, 2]:.2f} px   dist {d}")
+    if c.optimal_M1 is not None and c.optimal_M2 is not None:
+        for side, M in (("left ", c.optimal_M1), ("right", c.optimal_M2)):
+            lines.append(f"optimal new camera matrix {side} (alpha 1): fx {M[0, 0]:.2f}  "
+                         f"fy {M[1, 1]:.2f}  cx {M[0, 2]:.2f}  cy {M[1, 2]:.2f} px")
+    lines.append(f"RMS reprojection error: left {r.rms_left:.3f} px, right {r.rms_right:.3f} px, "
+                 f"stereo {r.rms_stereo:.3f} px")
+    lines.append(f"epipolar error after rectification: {r.epipolar_error_px:.3f} px")
+    if c.metric:
+        lines.append(f"baseline {r.baseline_mm:.2f} mm, relative rotation "
+                     f"{r.relative_rotation_deg:.3f} deg, rectified focal {c.focal_px:.1f} px")
+    else:
+        lines.append(f"relative rotation {r.relative_rotation_deg:.3f} deg; baseline unknown")
+    worst = sorted(c.per_pair, key=lambda p: -max(p.error_left, p.error_right))[:3]
+    if worst:
+        lines.append("worst pairs: " + ", ".join(
+            f"{p.name} ({p.error_left:.2f}/{p.error_right:.2f} px)" for p in worst))
+    for note in r.notes:
+        lines.append(f"NOTE: {note}")
+    lines.append(f"wrote {output}")
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    t0 = time.perf_counter()
+    board = parse_board(args.board, args.square_mm)
+    if not math.isfinite(args.alpha) or not (0.0 <= args.alpha <= 1.0 or args.alpha == -1.0):
+        raise InputError(f"--alpha must be between 0 and 1, not {args.alpha:g}")
+    if args.min_pairs < 1:
+        raise InputError(f"--min-pairs must be at least 1, not {args.min_pairs}")
+    output = Path(args.output)
+    if not output.parent.is_dir() and str(output.parent):
+        raise InputError(f"cannot write {output}: folder {output.parent} does not exist")
+    ros_dir = Path(args.ros_dir) if args.ros_dir else None
+    if ros_dir is not None and not ros_dir.is_dir():
+        raise InputError(f"--ros-dir {ros_dir} is not an existing folder")
+
+    found = discover_pairs(args.folder)
+    if found.unpaired:
+        sys.stderr.write(f"stereo-gui: warning: {found.warning()}\n")
+    items = [PairInput(p.name, (lambda f=p.left: load_image(f)), (lambda f=p.right: load_image(f)),
+                       p.left.name, p.right.name) for p in found.pairs]
+    progress = _StderrProgress()
+    detections = detect_pairs(items, board, method=args.detector,
+                              progress=lambda d, t, _: progress(d, t, "detecting chessboards"))
+    size = check_same_size([(f"{d.left_file}", d.image_size) for d in detections])
+    result = calibrate_stereo(detections, board, size, alpha=args.alpha, method=args.method,
+                              progress=lambda d, t, text: progress(d, t, "calibrating"),
+                              min_pairs=args.min_pairs, reject_outliers=not args.keep_outliers)
+    save_calibration(result.calibration, output)
+    if ros_dir is not None:
+        export_ros(result.calibration, ros_dir)
+    seconds = time.perf_counter() - t0
+    if args.json:
+        sys.stdout.write(json.dumps(result_json(result, output), indent=2) + "\n")
+    else:
+        sys.stdout.write(summary_text(result, output, seconds) + "\n")
+        if ros_dir is not None:
+            sys.stdout.write(f"wrote {ros_dir / 'left.yaml'} and {ros_dir / 'right.yaml'} "
+                             "(ROS camera_info, baseline in metres)\n")
+    return 0
