@@ -1,15 +1,553 @@
-"""The Measurements tab of the main window (being built; see issue 4)."""
+"""The Measurements tab: the log of readings, the regression the report did in Excel, exports.
+
+The log is `ctx.measurements` (MeasurementRecord). Entering the true distance of a reading (the
+editable column) makes it a regression sample (disparity px, true distance mm); both models are
+fitted again at once: the report's cubic and Z = a / (d - d0). The plot shows samples, both
+curves and the residuals with R^2. The model chosen for live readings goes to
+`ctx.set_active_fit`. Exports: the log and regression to .xlsx (in a worker) and CSV.
+"""
 
 from __future__ import annotations
 
-from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
+import datetime as _dt
+import logging
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import QAbstractTableModel, QModelIndex, Qt, Signal
+from PySide6.QtGui import QBrush, QColor
+from PySide6.QtWidgets import (
+    QAbstractItemView,
+    QComboBox,
+    QFileDialog,
+    QGroupBox,
+    QHBoxLayout,
+    QHeaderView,
+    QLabel,
+    QPushButton,
+    QSplitter,
+    QTableView,
+    QVBoxLayout,
+    QWidget,
+)
+
+from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.qt.calibration_worker import JobWorker, Progress
+
+log = logging.getLogger(__name__)
+
+MODELS = ("cubic", "inverse")
+_COLOURS = {"cubic": "#d35400", "inverse": "#2471a3"}
+_MODEL_TEXT = {"triangulation": "Triangulation (calibration)",
+               "cubic": "Cubic fit (the report's model)",
+               "inverse": "Inverse fit Z = a / (d − d0)"}
+
+
+def _num(v, digits: int = 1) -> str:
+    if v is None:
+        return ""
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return str(v)
+    return f"{f:.{digits}f}" if math.isfinite(f) else "—"
+
+
+def _short_time(iso: str) -> str:
+    try:
+        t = _dt.datetime.fromisoformat(iso)
+    except (TypeError, ValueError):
+        return iso
+    return t.astimezone().strftime("%H:%M:%S") if t.tzinfo else t.strftime("%H:%M:%S")
+
+
+# (header, how to show a record, tooltip)
+COLUMNS = (
+    ("Time", lambda r: _short_time(r.time), "time of the reading"),
+    ("x, y (px)", lambda r: f"{_num(r.x_px, 0)}, {_num(r.y_px, 0)}", "pixel of the rectified left image"),
+    ("Disparity (px)", lambda r: _num(r.disparity_px, 3), "median disparity of the patch"),
+    ("X (mm)", lambda r: _num(r.X_mm), "left rectified camera frame"),
+    ("Y (mm)", lambda r: _num(r.Y_mm), "left rectified camera frame"),
+    ("Z (mm)", lambda r: _num(r.Z_mm), "depth along the optical axis"),
+    ("Range (mm)", lambda r: _num(r.range_mm), "distance from the left camera"),
+    ("Valid", lambda r: "yes" if r.valid else f"no: {r.reason}" if r.reason else "no",
+     "whether the reading is usable, and why not"),
+    ("± (mm)", lambda r: _num(r.expected_error_mm), "expected depth error for 1/4 px disparity error"),
+    ("Method", lambda r: r.method, "triangulation or the fit used"),
+    ("True distance (mm)", lambda r: _num(r.true_mm) if r.true_mm is not None else "",
+     "double-click to enter the measured true distance: it makes the reading a regression sample"),
+)
+TRUE_COL = len(COLUMNS) - 1
+
+
+class MeasurementModel(QAbstractTableModel):
+    """A table over ctx.measurements; the true-distance column is editable."""
+
+    def __init__(self, ctx, parent=None) -> None:
+        super().__init__(parent)
+        self.ctx = ctx
+        ctx.measurementsChanged.connect(self._reset)
+
+    def _reset(self) -> None:
+        self.beginResetModel()
+        self.endResetModel()
+
+    def rowCount(self, parent=QModelIndex()) -> int:  # noqa: N802 - Qt API
+        return 0 if parent.isValid() else len(self.ctx.measurements)
+
+    def columnCount(self, parent=QModelIndex()) -> int:  # noqa: N802 - Qt API
+        return 0 if parent.isValid() else len(COLUMNS)
+
+    def headerData(self, section, orientation, role=Qt.ItemDataRole.DisplayRole):  # noqa: N802
+        if orientation == Qt.Orientation.Horizontal:
+            if role == Qt.ItemDataRole.DisplayRole:
+                return COLUMNS[section][0]
+            if role == Qt.ItemDataRole.ToolTipRole:
+                return COLUMNS[section][2]
+        elif role == Qt.ItemDataRole.DisplayRole:
+            return str(section + 1)
+        return None
+
+    def data(self, index, role=Qt.ItemDataRole.DisplayRole):
+        if not index.isValid():
+            return None
+        rec = self.ctx.measurements[index.row()]
+        col = index.column()
+        if role == Qt.ItemDataRole.DisplayRole:
+            return COLUMNS[col][1](rec)
+        if role == Qt.ItemDataRole.EditRole and col == TRUE_COL:
+            return "" if rec.true_mm is None else f"{rec.true_mm:g}"
+        if role == Qt.ItemDataRole.ForegroundRole and not rec.valid:
+            return QBrush(QColor("#a93226"))
+        if role == Qt.ItemDataRole.BackgroundRole and col == TRUE_COL:
+            return QBrush(QColor("#fdf6d8"))
+        if role == Qt.ItemDataRole.TextAlignmentRole and col not in (0, 7, 9):
+            return int(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+        if role == Qt.ItemDataRole.ToolTipRole and col == 7 and not rec.valid:
+            return rec.reason
+        return None
+
+    def flags(self, index):
+        f = super().flags(index)
+        if index.isValid() and index.column() == TRUE_COL:
+            f |= Qt.ItemFlag.ItemIsEditable
+        return f
+
+    def setData(self, index, value, role=Qt.ItemDataRole.EditRole) -> bool:  # noqa: N802
+        if role != Qt.ItemDataRole.EditRole or index.column() != TRUE_COL:
+            return False
+        text = str(value).strip().replace(",", ".")
+        if text == "":
+            true_mm = None
+        else:
+            try:
+                true_mm = float(text)
+            except ValueError:
+                self.ctx.report_error(f"true distance {value!r} is not a number of millimetres")
+                return False
+            if not math.isfinite(true_mm) or true_mm <= 0:
+                self.ctx.report_error(f"true distance must be a positive number of mm, not {value}")
+                return False
+        rec = self.ctx.measurements[index.row()]
+        self.ctx.update_measurement(index.row(), replace(rec, true_mm=true_mm))
+        return True
+
+
+def samples_from(records) -> list[tuple[float, float]]:
+    """(disparity px, true distance mm) of the valid readings that have a true distance."""
+    out = []
+    for r in records:
+        if r.true_mm is not None and r.valid and math.isfinite(r.disparity_px):
+            out.append((float(r.disparity_px), float(r.true_mm)))
+    return out
+
+
+class RegressionPlot(pg.GraphicsLayoutWidget):
+    """Distance against disparity (samples and both fits) above the residuals of each fit."""
+
+    def __init__(self, parent=None) -> None:
+        super().__init__(parent)
+        self.setBackground("w")
+        self.main = self.addPlot(row=0, col=0)
+        self.main.setLabel("left", "true distance", units="mm")
+        self.main.setLabel("bottom", "disparity", units="px")
+        self.main.showGrid(x=True, y=True, alpha=0.25)
+        self.main.addLegend(offset=(-10, 10))
+        self.resid = self.addPlot(row=1, col=0)
+        self.resid.setLabel("left", "residual", units="mm")
+        self.resid.setLabel("bottom", "disparity", units="px")
+        self.resid.showGrid(x=True, y=True, alpha=0.25)
+        self.resid.setXLink(self.main)
+        self.resid.addItem(pg.InfiniteLine(angle=0, pos=0, pen=pg.mkPen("#888", style=Qt.PenStyle.DashLine)))
+        self.ci.layout.setRowStretchFactor(0, 3)
+        self.ci.layout.setRowStretchFactor(1, 2)
+        self.samples = pg.ScatterPlotItem(size=8, brush=pg.mkBrush("#222"), pen=None, name="samples")
+        self.main.addItem(self.samples)
+        self.curves = {}
+        self.resid_points = {}
+        for m in MODELS:
+            self.curves[m] = self.main.plot([], [], pen=pg.mkPen(_COLOURS[m], width=2), name=m)
+            self.resid_points[m] = pg.ScatterPlotItem(size=7, brush=pg.mkBrush(_COLOURS[m]), pen=None)
+            self.resid.addItem(self.resid_points[m])
+
+    def show(self, samples, fits: dict) -> None:  # noqa: A003 - draws, does not show the widget
+        if samples:
+            d = np.array([s[0] for s in samples])
+            z = np.array([s[1] for s in samples])
+            self.samples.setData(d, z)
+            lo, hi = float(d.min()), float(d.max())
+            pad = max(0.05 * (hi - lo), 0.5)
+            grid = np.linspace(lo - pad, hi + pad, 200)
+        else:
+            self.samples.setData([], [])
+            grid = None
+        for m in MODELS:
+            fit = fits.get(m)
+            if fit is None or grid is None:
+                self.curves[m].setData([], [])
+                self.resid_points[m].setData([], [])
+                continue
+            with np.errstate(all="ignore"):
+                y = np.asarray(fit.predict(grid), float)
+            y = np.where(np.isfinite(y), y, np.nan)
+            self.curves[m].setData(grid, y, connect="finite")
+            fd = np.array([s[0] for s in fit.samples], float)
+            self.resid_points[m].setData(fd, np.asarray(fit.residuals_mm, float))
+        if samples:
+            z = np.array([s[1] for s in samples])
+            span = max(float(z.max() - z.min()), 10.0)
+            self.main.setYRange(float(z.min()) - 0.15 * span, float(z.max()) + 0.15 * span)
+            self.main.setXRange(float(grid[0]), float(grid[-1]))
 
 
 class MeasurementsTab(QWidget):
-    """The measurements tab. `ctx` is the application's AppContext (the owner of app-wide state)."""
+    """The measurement log, the regression and the exports (see module docstring)."""
+
+    fitsChanged = Signal()
+    exportFinished = Signal(str)  # path written
 
     def __init__(self, ctx, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.ctx = ctx
-        layout = QVBoxLayout(self)
-        layout.addWidget(QLabel("Measurements: not built yet"))
+        self.fits: dict[str, object] = {}  # model name -> FitResult
+        self.fit_errors: dict[str, str] = {}
+        self._loaded_fit = None  # a fit loaded from a file (not refitted from the log)
+        self._export: JobWorker | None = None
+        self._build()
+        ctx.measurementsChanged.connect(self.refit)
+        if hasattr(ctx, "activeFitChanged"):
+            ctx.activeFitChanged.connect(self._active_fit_changed)
+        if hasattr(ctx, "currentTabChanged"):
+            ctx.currentTabChanged.connect(lambda name: self.set_active(name == "measurements"))
+        self.refit()
+
+    # ---- layout ------------------------------------------------------------------------------
+    def _build(self) -> None:
+        root = QVBoxLayout(self)
+        split = QSplitter(Qt.Orientation.Horizontal)
+        root.addWidget(split, 1)
+
+        left = QWidget()
+        ll = QVBoxLayout(left)
+        ll.setContentsMargins(0, 0, 0, 0)
+        self.count_label = QLabel("")
+        ll.addWidget(self.count_label)
+        self.model = MeasurementModel(self.ctx, self)
+        self.table = QTableView()
+        self.table.setModel(self.model)
+        self.table.setSelectionBehavior(QAbstractItemView.SelectionBehavior.SelectRows)
+        self.table.setEditTriggers(QAbstractItemView.EditTrigger.DoubleClicked
+                                   | QAbstractItemView.EditTrigger.EditKeyPressed
+                                   | QAbstractItemView.EditTrigger.AnyKeyPressed)
+        self.table.setAlternatingRowColors(True)
+        hh = self.table.horizontalHeader()
+        hh.setSectionResizeMode(QHeaderView.ResizeMode.ResizeToContents)
+        hh.setStretchLastSection(True)
+        self.table.verticalHeader().setDefaultSectionSize(22)
+        ll.addWidget(self.table, 1)
+        row = QHBoxLayout()
+        self.remove_button = QPushButton("Remove selected")
+        self.remove_button.clicked.connect(self._remove_selected)
+        self.clear_button = QPushButton("Clear log")
+        self.clear_button.clicked.connect(self.ctx.clear_measurements)
+        self.xlsx_button = QPushButton("Export .xlsx…")
+        self.xlsx_button.clicked.connect(self._choose_xlsx)
+        self.csv_button = QPushButton("Export CSV…")
+        self.csv_button.clicked.connect(self._choose_csv)
+        for b in (self.remove_button, self.clear_button):
+            row.addWidget(b)
+        row.addStretch(1)
+        row.addWidget(self.xlsx_button)
+        row.addWidget(self.csv_button)
+        ll.addLayout(row)
+        split.addWidget(left)
+
+        right = QWidget()
+        rl = QVBoxLayout(right)
+        rl.setContentsMargins(0, 0, 0, 0)
+        box = QGroupBox("Regression: true distance against disparity")
+        bl = QVBoxLayout(box)
+        self.sample_label = QLabel("")
+        self.sample_label.setWordWrap(True)
+        bl.addWidget(self.sample_label)
+        self.r2_labels: dict[str, QLabel] = {}
+        for m in MODELS:
+            lab = QLabel("")
+            lab.setWordWrap(True)
+            lab.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+            lab.setStyleSheet(f"color: {_COLOURS[m]}")
+            self.r2_labels[m] = lab
+            bl.addWidget(lab)
+        self.plot = RegressionPlot()
+        self.plot.setMinimumHeight(280)
+        bl.addWidget(self.plot, 1)
+        use = QHBoxLayout()
+        use.addWidget(QLabel("Live readings use:"))
+        self.model_combo = QComboBox()
+        for key in ("triangulation", *MODELS):
+            self.model_combo.addItem(_MODEL_TEXT[key], key)
+        self.model_combo.currentIndexChanged.connect(self._model_chosen)
+        use.addWidget(self.model_combo, 1)
+        bl.addLayout(use)
+        fits = QHBoxLayout()
+        self.save_fit_button = QPushButton("Save fit…")
+        self.save_fit_button.clicked.connect(self._choose_save_fit)
+        self.load_fit_button = QPushButton("Load fit…")
+        self.load_fit_button.clicked.connect(self._choose_load_fit)
+        fits.addStretch(1)
+        fits.addWidget(self.save_fit_button)
+        fits.addWidget(self.load_fit_button)
+        bl.addLayout(fits)
+        rl.addWidget(box, 1)
+        split.addWidget(right)
+        split.setSizes([700, 560])
+
+    def set_active(self, active: bool) -> None:
+        """This tab needs no live frames; it leaves the processor to the tabs that do."""
+
+    # ---- regression --------------------------------------------------------------------------
+    def refit(self) -> None:
+        """Fit both models to the current samples and show them."""
+        from stereo_gui.core import regression
+
+        recs = self.ctx.measurements
+        n_true = sum(1 for r in recs if r.true_mm is not None)
+        samples = samples_from(recs)
+        self.count_label.setText(
+            f"{len(recs)} readings, {n_true} with a true distance. Double-click the True distance "
+            f"cell of a reading to enter what you measured (mm).")
+        self.fits, self.fit_errors = {}, {}
+        for m, fn in (("cubic", regression.fit_cubic), ("inverse", regression.fit_inverse)):
+            try:
+                self.fits[m] = fn(samples)
+            except (StereoGuiError, ValueError, np.linalg.LinAlgError) as exc:
+                self.fit_errors[m] = str(exc)
+        if self._loaded_fit is not None and self._loaded_fit.model not in self.fits:
+            self.fits[self._loaded_fit.model] = self._loaded_fit
+        self.sample_label.setText(
+            f"{len(samples)} samples (valid readings with a true distance)." if samples else
+            "No samples yet: enter true distances in the log. The cubic needs at least 4 "
+            "samples, the inverse model 3.")
+        for m in MODELS:
+            fit = self.fits.get(m)
+            lab = self.r2_labels[m]
+            if fit is not None:
+                src = " (loaded from file)" if fit is self._loaded_fit else ""
+                lab.setText(f"<b>{m}</b>{src}: R² = {fit.r2:.5f}, residual RMS {fit.rms_mm:.1f} mm, "
+                            f"{len(fit.samples)} samples<br>"
+                            f"<span style='font-family: monospace'>{fit.formula()}</span>")
+            else:
+                lab.setText(f"<b>{m}</b>: not fitted ({self.fit_errors.get(m, 'no samples')})")
+        self.plot.show(samples, self.fits)
+        self._update_model_choices()
+        # a live reading that uses a fit follows its refit
+        key = self.model_combo.currentData()
+        if key in MODELS:
+            new = self.fits.get(key)
+            if new is not self.ctx.active_fit:
+                self.ctx.set_active_fit(new)
+        self.save_fit_button.setEnabled(bool(self.fits))
+        self.fitsChanged.emit()
+
+    def r2(self, model: str) -> float | None:
+        fit = self.fits.get(model)
+        return None if fit is None else float(fit.r2)
+
+    def _update_model_choices(self) -> None:
+        view = self.model_combo.model()
+        for i in range(self.model_combo.count()):
+            key = self.model_combo.itemData(i)
+            item = view.item(i)
+            if item is not None and key in MODELS:
+                item.setEnabled(key in self.fits)
+        key = self.model_combo.currentData()
+        if key in MODELS and key not in self.fits:
+            self.model_combo.setCurrentIndex(0)
+
+    def use_model(self, key: str) -> None:
+        """Make live readings use 'triangulation', 'cubic' or 'inverse'."""
+        i = self.model_combo.findData(key)
+        if i >= 0:
+            self.model_combo.setCurrentIndex(i)
+
+    def _model_chosen(self, _index: int) -> None:
+        key = self.model_combo.currentData()
+        fit = self.fits.get(key) if key in MODELS else None
+        if key in MODELS and fit is None:
+            self.model_combo.setCurrentIndex(0)
+            return
+        if fit is not self.ctx.active_fit:
+            self.ctx.set_active_fit(fit)
+        if self.ctx.settings is not None and self.ctx.settings.measure_model != key:
+            self.ctx.update_settings(measure_model=key)
+
+    def _active_fit_changed(self, fit) -> None:
+        key = "triangulation" if fit is None else getattr(fit, "model", "triangulation")
+        if key != self.model_combo.currentData():
+            i = self.model_combo.findData(key)
+            if i >= 0:
+                self.model_combo.blockSignals(True)
+                self.model_combo.setCurrentIndex(i)
+                self.model_combo.blockSignals(False)
+
+    # ---- log editing ---------------------------------------------------------------------------
+    def _remove_selected(self) -> None:
+        rows = sorted({i.row() for i in self.table.selectionModel().selectedRows()}, reverse=True)
+        for r in rows:
+            self.ctx.remove_measurement(r)
+
+    # ---- fits as files -------------------------------------------------------------------------
+    def _start_dir(self) -> str:
+        s = self.ctx.settings
+        return (s.last_export_dir if s is not None and s.last_export_dir else str(Path.home()))
+
+    def _remember_dir(self, path) -> None:
+        if self.ctx.settings is not None:
+            self.ctx.update_settings(last_export_dir=str(Path(path).parent))
+
+    def _choose_save_fit(self) -> None:
+        key = self.model_combo.currentData()
+        fit = self.fits.get(key) if key in MODELS else (self.fits.get("inverse") or self.fits.get("cubic"))
+        if fit is None:
+            return
+        path, _ = QFileDialog.getSaveFileName(self, f"Save the {fit.model} fit",
+                                              str(Path(self._start_dir()) / f"{fit.model}-fit.json"),
+                                              "Fit (*.json)")
+        if path:
+            self.save_fit(fit, path)
+
+    def save_fit(self, fit, path) -> bool:
+        from stereo_gui.core.regression import save_fit
+
+        try:
+            save_fit(fit, path)
+        except (StereoGuiError, OSError) as exc:
+            self.ctx.report_error(f"could not save the fit: {exc}")
+            return False
+        self._remember_dir(path)
+        self.ctx.show_status(f"Saved the {fit.model} fit to {path}")
+        return True
+
+    def _choose_load_fit(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(self, "Load a fit", self._start_dir(),
+                                              "Fit (*.json);;All files (*)")
+        if path:
+            self.load_fit(path)
+
+    def load_fit(self, path) -> bool:
+        """Load a saved fit and make live readings use it."""
+        from stereo_gui.core.regression import load_fit
+
+        try:
+            fit = load_fit(path)
+        except (StereoGuiError, OSError, ValueError) as exc:
+            self.ctx.report_error(f"could not load the fit {path}: {exc}")
+            return False
+        self._loaded_fit = fit
+        self.refit()
+        self.fits[fit.model] = fit  # the loaded one wins over a refit from the log
+        self._update_model_choices()
+        self.use_model(fit.model)
+        self.ctx.set_active_fit(fit)
+        self._remember_dir(path)
+        self.ctx.show_status(f"Loaded the {fit.model} fit from {path}; live readings use it")
+        return True
+
+    # ---- exports -------------------------------------------------------------------------------
+    def _choose_xlsx(self) -> None:
+        stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M")
+        path, _ = QFileDialog.getSaveFileName(self, "Export measurements",
+                                              str(Path(self._start_dir()) / f"measurements-{stamp}.xlsx"),
+                                              "Excel workbook (*.xlsx)")
+        if path:
+            if not path.lower().endswith(".xlsx"):
+                path += ".xlsx"
+            self.export_xlsx(path)
+
+    def export_xlsx(self, path) -> bool:
+        """Write the log, the regression and the calibration to `path` in a worker."""
+        if self._export is not None:
+            self.ctx.report_error("an export is still running")
+            return False
+        from stereo_gui.files.spreadsheet import write_workbook
+
+        records = list(self.ctx.measurements)
+        fits = [self.fits[m] for m in MODELS if m in self.fits]
+        calib, calib_path = self.ctx.calibration, self.ctx.calibration_path
+        path = Path(path)
+
+        def job(control):
+            yield Progress(0, 1, f"writing {path.name}")
+            return write_workbook(path, records, fits, calib, calib_path)
+
+        w = JobWorker(job, "export")
+        w.finished_ok.connect(lambda p: self._export_done(str(p)))
+        w.failed.connect(lambda msg: self.ctx.report_error(f"export to {path} failed: {msg}"))
+        w.done.connect(self._export_ended)
+        self.ctx.register_worker(w)
+        self._export = w
+        self.xlsx_button.setEnabled(False)
+        self.ctx.show_status(f"Exporting {len(records)} readings to {path}…")
+        w.start()
+        self._remember_dir(path)
+        return True
+
+    def _export_done(self, path: str) -> None:
+        self.ctx.show_status(f"Exported to {path}")
+        self.exportFinished.emit(path)
+
+    def _export_ended(self) -> None:
+        w, self._export = self._export, None
+        if w is not None:
+            self.ctx.unregister_worker(w)
+            w.wait(2000)
+            w.deleteLater()
+        self.xlsx_button.setEnabled(True)
+
+    def _choose_csv(self) -> None:
+        stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M")
+        path, _ = QFileDialog.getSaveFileName(self, "Export measurements as CSV",
+                                              str(Path(self._start_dir()) / f"measurements-{stamp}.csv"),
+                                              "CSV (*.csv)")
+        if path:
+            self.export_csv(path)
+
+    def export_csv(self, path) -> bool:
+        from stereo_gui.files.spreadsheet import write_csv
+
+        try:
+            write_csv(path, list(self.ctx.measurements))
+        except (StereoGuiError, OSError) as exc:
+            self.ctx.report_error(f"could not write {path}: {exc}")
+            return False
+        self._remember_dir(path)
+        self.ctx.show_status(f"Exported {len(self.ctx.measurements)} readings to {path}")
+        return True
+
+    def shutdown(self, timeout_ms: int = 2000) -> bool:
+        if self._export is not None:
+            return self._export.stop(timeout_ms)
+        return True
