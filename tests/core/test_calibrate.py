@@ -1,0 +1,186 @@
+"""Stereo calibration recovers the simulated rig's truth; real data; errors; outliers; Hartley."""
+
+from __future__ import annotations
+
+import threading
+
+import cv2
+import numpy as np
+import pytest
+
+from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.calibrate import (
+    CalibrationResult,
+    calibrate_hartley_scene,
+    calibrate_stereo,
+)
+from stereo_gui.core.detect import Cancelled, Detection, PairDetection, PairInput, detect_pairs
+from stereo_gui.core.errors import CalibrationError
+from stereo_gui.sources.sim import SimRig
+
+SEED = 2026  # never used while tuning (tuning used seeds 3, 7, 11 and 19)
+N_PAIRS = 25
+
+
+@pytest.fixture(scope="module")
+def rig_run():
+    rig = SimRig(seed=SEED)
+    pairs = rig.calibration_set(N_PAIRS)
+    dets = detect_pairs([(f"{i + 1}", l, r) for i, (l, r) in enumerate(pairs)], rig.truth.board)
+    result = calibrate_stereo(dets, rig.truth.board, rig.truth.image_size)
+    return rig.truth, dets, result
+
+
+def _pct(a, b):
+    return abs(a - b) / abs(b) * 100.0
+
+
+def test_calibration_recovers_rig_truth(rig_run):
+    truth, dets, result = rig_run
+    c, rep = result.calibration, result.report
+    assert isinstance(result, CalibrationResult)
+    assert rep.pairs_found == N_PAIRS
+    assert rep.pairs_used + len(rep.rejected) == N_PAIRS
+    assert rep.pairs_used >= 20
+    for got, want in ((c.M1, truth.M1), (c.M2, truth.M2)):
+        for (i, j) in ((0, 0), (1, 1), (0, 2), (1, 2)):  # fx, fy, cx, cy
+            assert _pct(got[i, j], want[i, j]) < 0.5, (i, j, got[i, j], want[i, j])
+    assert _pct(c.baseline_mm, truth.baseline_mm) < 0.5
+    assert rep.rms_stereo < 0.3 and c.rms_stereo == rep.rms_stereo
+    assert rep.epipolar_error_px < 0.3
+    assert rep.baseline_mm == pytest.approx(c.baseline_mm)
+    assert rep.relative_rotation_deg == pytest.approx(truth.relative_rotation_deg, abs=0.1)
+
+
+def test_calibration_fields_are_complete(rig_run):
+    truth, dets, result = rig_run
+    c = result.calibration
+    assert c.method == "bouguet" and c.metric and c.board == truth.board
+    assert c.image_size == truth.image_size
+    assert c.optimal_M1.shape == (3, 3) and c.optimal_M2.shape == (3, 3)
+    assert len(c.per_pair) == result.report.pairs_used
+    assert [p.name for p in c.per_pair] == list(result.report.used)
+    assert all(0 < p.error_left < 1 and 0 < p.error_right < 1 for p in c.per_pair)
+    # rectified: P2's baseline term matches T, CALIB_ZERO_DISPARITY gives equal principal points
+    assert c.rectified_baseline_mm == pytest.approx(c.baseline_mm, rel=1e-6)
+    assert c.P1[0, 2] == pytest.approx(c.P2[0, 2])
+    assert np.isfinite(c.Q).all()
+    assert result.report.rms_stereo_fixed_intrinsics > 0
+
+
+def test_alpha_changes_the_rectified_camera(rig_run):
+    truth, dets, result = rig_run
+    wide = calibrate_stereo(dets, truth.board, alpha=1.0, reject_outliers=False).calibration
+    assert wide.alpha == 1.0
+    assert wide.focal_px < result.calibration.focal_px  # alpha 1 keeps all pixels: zooms out
+
+
+def test_outlier_pair_is_rejected_with_reason(rig_run):
+    truth, dets, _ = rig_run
+    good = [d for d in dets if d.found][:12]
+    bad = good[3]
+    rng = np.random.default_rng(1)
+    noisy = bad.right.corners + rng.normal(0, 3.0, bad.right.corners.shape).astype(np.float32)
+    corrupted = PairDetection(bad.name, bad.left, Detection(noisy, bad.right.image_size, "classic"),
+                              bad.image_size)
+    pairs = good[:3] + [corrupted] + good[4:]
+    res = calibrate_stereo(pairs, truth.board)
+    assert [r.name for r in res.report.rejected] == [bad.name]
+    assert "outlier" in res.report.rejected[0].reason
+    assert res.report.pairs_used == 11 and res.report.rms_stereo < 0.3
+    kept = calibrate_stereo(pairs, truth.board, reject_outliers=False)
+    assert kept.report.pairs_used == 12 and kept.report.rms_stereo > 0.3
+
+
+def _empty_pair(name, size=(640, 480)):
+    return PairDetection(name, None, None, size, f"left{name}.png", f"right{name}.png")
+
+
+def test_no_board_anywhere_raises():
+    with pytest.raises(CalibrationError, match=r"no chessboard \(9x6 inner corners\) found in any of 14 pairs"):
+        calibrate_stereo([_empty_pair(str(i)) for i in range(14)], BoardSpec())
+
+
+def test_too_few_usable_pairs_raises(rig_run):
+    truth, dets, _ = rig_run
+    pairs = [d for d in dets if d.found][:3] + [_empty_pair("x")]
+    with pytest.raises(CalibrationError, match=r"only 3 usable pairs .*at least 5 are needed"):
+        calibrate_stereo(pairs, truth.board)
+    with pytest.raises(CalibrationError, match="at least 8"):
+        calibrate_stereo([d for d in dets if d.found][:7], truth.board, min_pairs=8)
+
+
+def test_bad_arguments_raise(rig_run):
+    truth, dets, _ = rig_run
+    with pytest.raises(CalibrationError, match="unknown calibration method"):
+        calibrate_stereo(dets, truth.board, method="tsai")
+    with pytest.raises(CalibrationError, match="alpha"):
+        calibrate_stereo(dets, truth.board, alpha=2.0)
+    with pytest.raises(CalibrationError, match="no image pairs"):
+        calibrate_stereo([], truth.board)
+
+
+def test_pairs_of_another_size_are_rejected(rig_run):
+    truth, dets, _ = rig_run
+    good = [d for d in dets if d.found][:8]
+    odd = PairDetection("odd", good[0].left, good[0].right, (320, 240))
+    res = calibrate_stereo(good + [odd], truth.board, truth.image_size)
+    assert [(r.name, r.reason) for r in res.report.rejected] == [
+        ("odd", "image size 320x240 differs from 640x480")]
+
+
+def test_progress_and_cancel(rig_run):
+    truth, dets, _ = rig_run
+    seen = []
+    calibrate_stereo(dets[:8], truth.board, progress=lambda d, t, s: seen.append((d, t, s)))
+    assert seen[-1][0] == seen[-1][1] and seen[0][0] == 0
+    ev = threading.Event()
+    with pytest.raises(Cancelled):
+        calibrate_stereo(dets[:8], truth.board, cancel=ev,
+                         progress=lambda d, t, s: ev.set())
+
+
+def test_hartley_from_board_corners(rig_run):
+    truth, dets, _ = rig_run
+    res = calibrate_stereo(dets, truth.board, method="hartley")
+    c = res.calibration
+    assert c.method == "hartley" and not c.metric
+    assert any("NOT in millimetres" in n for n in res.report.notes)
+    assert res.report.epipolar_error_px < 0.5
+    assert c.rectified_baseline_mm == pytest.approx(1.0)  # nominal unit baseline
+    assert np.isnan(res.report.baseline_mm)
+    c.rectify_maps()  # usable for remapping
+
+
+def test_real_webcam_data(shared_data):
+    folder = shared_data / "real-webcam-9x6-30mm"
+    if not folder.is_dir():
+        pytest.skip("real-webcam-9x6-30mm is not present")
+    board = BoardSpec(9, 6, 30.0)
+    items = [PairInput(f"{i:02d}", (lambda i=i: cv2.imread(str(folder / f"left{i:02d}.jpg"))),
+                       (lambda i=i: cv2.imread(str(folder / f"right{i:02d}.jpg"))),
+                       f"left{i:02d}.jpg", f"right{i:02d}.jpg") for i in range(1, 15)]
+    res = calibrate_stereo(detect_pairs(items, board), board)
+    rep = res.report
+    assert rep.pairs_found == 14 and rep.pairs_used == 13
+    assert [r.name for r in rep.rejected] == ["09"]
+    assert "right image (right09.jpg)" in rep.rejected[0].reason
+    assert rep.rms_stereo < 0.7 and rep.rms_left < 0.7 and rep.rms_right < 0.7
+    assert rep.epipolar_error_px < 0.5
+
+
+def test_hartley_on_a_real_scene_pair(shared_data):
+    folder = shared_data / "real-webcam-9x6-30mm" / "scene"
+    if not (folder / "left1.jpg").exists():
+        pytest.skip("scene pair is not present")
+    left, right = cv2.imread(str(folder / "left1.jpg")), cv2.imread(str(folder / "right1.jpg"))
+    res = calibrate_hartley_scene(left, right)
+    assert res.calibration.method == "hartley"
+    assert res.report.epipolar_error_px < 1.0
+    assert len(res.report.notes) == 2
+
+
+def test_hartley_scene_without_texture_raises():
+    flat = np.full((120, 160, 3), 90, np.uint8)
+    with pytest.raises(CalibrationError, match="features"):
+        calibrate_hartley_scene(flat, flat)
