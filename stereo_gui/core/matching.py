@@ -120,16 +120,26 @@ class MatcherParams:
     def p2_value(self) -> int:
         return int(self.p2) if self.p2 is not None else 32 * 3 * self.block_size**2
 
+    def disparity_limits(self, calibration: StereoCalibration) -> tuple[float, float]:
+        """(smallest, largest) disparity the preset must find, full-resolution px."""
+        if self.z_min_mm is None:
+            return float(self.min_disparity), float(self.min_disparity + self.num_disparities - 1)
+        fb = calibration.focal_px * calibration.rectified_baseline_mm
+        d_min = fb / self.z_max_mm if self.z_max_mm else 0.0
+        return d_min, fb / self.z_min_mm
+
+    def matcher_range(self, calibration: StereoCalibration, scale: float | None = None
+                      ) -> tuple[int, int]:
+        """(minDisparity, numDisparities) for SGBM on images at `scale` (default self.scale)."""
+        s = self.scale if scale is None else scale
+        d_min, d_max = self.disparity_limits(calibration)
+        lo = max(0, int(math.floor(d_min * s))) if self.z_min_mm is not None else int(math.floor(d_min * s))
+        num = int(math.ceil((d_max * s - lo + 1) / 16.0)) * 16
+        return lo, max(16, num)
+
     def disparity_range(self, calibration: StereoCalibration) -> tuple[int, int]:
         """(min_disparity, num_disparities) in full-resolution px for this calibration."""
-        if self.z_min_mm is None:
-            return int(self.min_disparity), int(self.num_disparities)
-        fb = calibration.focal_px * calibration.rectified_baseline_mm
-        d_max = fb / self.z_min_mm
-        d_min = fb / self.z_max_mm if self.z_max_mm else 0.0
-        lo = max(0, int(math.floor(d_min)))
-        num = int(math.ceil((d_max - lo + 1) / 16.0)) * 16
-        return lo, max(16, num)
+        return self.matcher_range(calibration, 1.0)
 
     # ---- persistence ---------------------------------------------------------------------
     def to_dict(self) -> dict:
@@ -147,21 +157,24 @@ class MatcherParams:
                 log.warning("%s: unknown matcher parameter %r ignored", where, key)
                 continue
             kwargs[key] = value
-        try:
-            params = cls(**kwargs)
-            # types: numbers must be numbers (JSON may carry strings by mistake)
-            for f in dataclasses.fields(cls):
-                v = getattr(params, f.name)
-                if f.name in ("name", "description", "mode", "colormap", "color_range"):
-                    if not isinstance(v, str):
-                        raise InputError(f"{where}: {f.name} must be a string")
-                elif f.name in ("wls", "bilateral", "parallel"):
-                    if not isinstance(v, bool):
-                        raise InputError(f"{where}: {f.name} must be true or false")
-                elif v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
-                    raise InputError(f"{where}: {f.name} must be a number, not {v!r}")
-        except TypeError as exc:
-            raise InputError(f"{where}: {exc}") from exc
+        for key, v in kwargs.items():
+            if key in ("name", "description", "mode", "colormap", "color_range"):
+                if not isinstance(v, str):
+                    raise InputError(f"{where}: {key} must be a string")
+            elif key in ("wls", "bilateral", "parallel"):
+                if not isinstance(v, bool):
+                    raise InputError(f"{where}: {key} must be true or false")
+            elif v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
+                raise InputError(f"{where}: {key} must be a number, not {v!r}")
+        for key in ("block_size", "min_disparity", "num_disparities", "uniqueness_ratio",
+                    "speckle_window_size", "speckle_range", "disp12_max_diff", "closing_kernel",
+                    "bilateral_d", "pre_filter_cap"):
+            v = kwargs.get(key)
+            if isinstance(v, float):
+                if not v.is_integer():
+                    raise InputError(f"{where}: {key} must be a whole number, not {v}")
+                kwargs[key] = int(v)
+        params = cls(**kwargs)
         return params
 
     def replace(self, **changes) -> MatcherParams:
@@ -265,12 +278,8 @@ class StereoPipeline:
         p = self._params
         if p.cv_threads is not None:
             cv2.setNumThreads(int(p.cv_threads))
-        lo, num = p.disparity_range(self.calibration)
         s = p.scale
-        # matched-image range: enough 16-steps to cover the scaled full-resolution range
-        self._min_s = int(math.floor(lo * s))
-        hi_s = (lo + num) * s
-        self._num_s = max(16, int(math.ceil((hi_s - self._min_s) / 16.0)) * 16)
+        self._min_s, self._num_s = p.matcher_range(self.calibration)
         self._range_full = (self._min_s / s, (self._min_s + self._num_s - 1) / s)
         self._left = cv2.StereoSGBM_create(
             minDisparity=self._min_s, numDisparities=self._num_s, blockSize=p.block_size,

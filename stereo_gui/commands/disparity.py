@@ -1,0 +1,119 @@
+"""`stereo-gui disparity`: write the disparity map of a stereo pair (colour view and exports).
+
+Also holds the small helpers the measuring commands share: loading a calibration, a pair of
+images, and a preset, each failing with one clear line (InputError / CalibrationFileError).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from stereo_gui.core.errors import InputError
+from stereo_gui.core.matching import MatcherParams, PipelineResult, StereoPipeline
+from stereo_gui.core.stereo_calibration import StereoCalibration
+
+log = logging.getLogger(__name__)
+
+
+# ---- shared helpers ------------------------------------------------------------------------
+def load_calibration(path: str) -> StereoCalibration:
+    """The calibration file at `path` (the calibration file module is imported only when used)."""
+    from stereo_gui.files.calibration_file import load_calibration as _load
+
+    return _load(path)
+
+
+def read_image(path: str, what: str) -> np.ndarray:
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"{what} image {path} does not exist")
+    img = cv2.imread(str(p), cv2.IMREAD_COLOR)
+    if img is None:
+        raise InputError(f"{what} image {path} cannot be read as an image")
+    return img
+
+
+def read_pair(left: str, right: str, calibration: StereoCalibration) -> tuple[np.ndarray, np.ndarray]:
+    """Both images, checked against the calibration's image size."""
+    w, h = calibration.image_size
+    out = []
+    for path, what in ((left, "left"), (right, "right")):
+        img = read_image(path, what)
+        if (img.shape[1], img.shape[0]) != (w, h):
+            raise InputError(f"{what} image {path} is {img.shape[1]}x{img.shape[0]} but the "
+                             f"calibration is for {w}x{h}")
+        out.append(img)
+    return out[0], out[1]
+
+
+def load_params(name: str) -> MatcherParams:
+    from stereo_gui.files.presets import load_preset
+
+    return load_preset(name)
+
+
+def run_pipeline(args) -> tuple[StereoCalibration, PipelineResult]:
+    """Calibration, images and preset from the common options, and the processed frame."""
+    calib = load_calibration(args.calib)
+    params = load_params(args.preset)
+    left, right = read_pair(args.left, args.right, calib)
+    with StereoPipeline(calib, params) as pipe:
+        return calib, pipe.process(left, right)
+
+
+def add_pair_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--calib", required=True, metavar="C", help="calibration file (YAML)")
+    parser.add_argument("left", metavar="LEFT", help="left raw camera image")
+    parser.add_argument("right", metavar="RIGHT", help="right raw camera image")
+    parser.add_argument("--preset", default="live", metavar="P",
+                        help="matcher preset: seed, live (default), quality, a user preset or a .json file")
+
+
+# ---- the command ---------------------------------------------------------------------------
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    add_pair_arguments(parser)
+    parser.add_argument("-o", "--output", required=True, metavar="OUT.png",
+                        help="colourised disparity view (what the live view shows)")
+    parser.add_argument("--npy", metavar="OUT.npy",
+                        help="the preset's final disparity as float32 px, NaN where invalid")
+    parser.add_argument("--png16", metavar="OUT.png",
+                        help="the final disparity as 16-bit PNG, x16 fixed point, 0 = invalid")
+    parser.add_argument("--depth-png", metavar="OUT.png",
+                        help="depth Z in millimetres as 16-bit PNG, 0 = invalid")
+    parser.add_argument("--ply", metavar="OUT.ply",
+                        help="coloured point cloud of the valid pixels (binary PLY, mm)")
+
+
+def run(args) -> int:
+    from stereo_gui.files import depth_export
+    from stereo_gui.files.atomic import atomic_path
+
+    if Path(args.output).suffix.lower() not in (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"):
+        raise InputError(f"{args.output}: the colour view needs an image suffix such as .png")
+    calib, result = run_pipeline(args)
+    with atomic_path(args.output) as tmp:
+        if not cv2.imwrite(str(tmp), result.color_bgr):
+            raise InputError(f"cannot write {args.output}")
+    written = [args.output]
+    if args.npy:
+        depth_export.write_disparity_npy(args.npy, result.final_px)
+        written.append(args.npy)
+    if args.png16:
+        depth_export.write_disparity_png16(args.png16, result.final_px)
+        written.append(args.png16)
+    if args.depth_png:
+        depth_export.write_depth_png16(args.depth_png, result.final_px, calib)
+        written.append(args.depth_png)
+    if args.ply:
+        n = depth_export.write_ply(args.ply, result.final_px, result.rectified_left, calib)
+        written.append(f"{args.ply} ({n} points)")
+    valid = float(result.valid.mean()) * 100.0
+    lo, hi = result.disparity_range_px
+    print(f"preset {result.params.name}: {valid:.1f}% valid, disparity range {lo:.0f}..{hi:.0f} px; "
+          f"wrote {', '.join(written)}")
+    return 0

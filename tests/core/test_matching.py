@@ -1,0 +1,158 @@
+"""The frame pipeline: parameters, fixed point, stages, reduced resolution, presets on Middlebury."""
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from stereo_gui.core.errors import InputError
+from stereo_gui.core.matching import (DISP_SCALE, MatcherParams, StereoPipeline, colorize,
+                                      fixed_to_px)
+from stereo_gui.core.stereo_calibration import StereoCalibration
+
+W, H, SHIFT = 240, 160, 12  # px; the synthetic pair is a plane at constant disparity SHIFT
+
+
+def textured_pair(shift=SHIFT, w=W, h=H, seed=3):
+    """An already rectified pair of a fronto-parallel textured plane: right(u) = left(u + shift)."""
+    rng = np.random.default_rng(seed)
+    big = cv2.GaussianBlur(rng.random((h, w + shift)).astype(np.float32), (0, 0), 1.0)
+    big = cv2.normalize(big, None, 20, 235, cv2.NORM_MINMAX).astype(np.uint8)
+    left = big[:, :w]
+    right = big[:, shift:shift + w]
+    return cv2.cvtColor(left, cv2.COLOR_GRAY2BGR), cv2.cvtColor(right, cv2.COLOR_GRAY2BGR)
+
+
+def calib(w=W, h=H, f=300.0, b=100.0):
+    return StereoCalibration.identity((w, h), f, b)
+
+
+def test_params_validate_and_round_trip():
+    with pytest.raises(InputError, match="block_size"):
+        MatcherParams(block_size=4)
+    with pytest.raises(InputError, match="num_disparities"):
+        MatcherParams(num_disparities=100)
+    with pytest.raises(InputError, match="mode"):
+        MatcherParams(mode="fast")
+    p = MatcherParams(name="x", mode="3way", scale=0.5, z_min_mm=400.0)
+    assert MatcherParams.from_dict(p.to_dict()) == p
+    assert MatcherParams.from_dict({"block_size": 5, "no_such_key": 1}).block_size == 5
+    with pytest.raises(InputError, match="must be a number"):
+        MatcherParams.from_dict({"block_size": "5"})
+    with pytest.raises(InputError, match="true or false"):
+        MatcherParams.from_dict({"wls": 1})
+
+
+def test_default_penalties_are_the_reports():
+    p = MatcherParams(block_size=3)
+    assert (p.p1_value, p.p2_value) == (8 * 3 * 9, 32 * 3 * 9)
+    assert MatcherParams(p1=10, p2=99).p2_value == 99
+
+
+def test_disparity_range_from_working_distances():
+    c = calib(f=700.0, b=110.0)  # f*B = 77000 px mm
+    lo, num = MatcherParams(z_min_mm=500.0).disparity_range(c)
+    assert lo == 0 and num % 16 == 0 and lo + num - 1 >= 154 and num - 16 < 155
+    lo, num = MatcherParams(z_min_mm=500.0, z_max_mm=2000.0).disparity_range(c)
+    assert lo == math.floor(77000 / 2000) and lo + num - 1 >= 154
+    assert MatcherParams(min_disparity=2, num_disparities=128).disparity_range(c) == (2, 128)
+
+
+def test_fixed_point_is_divided_once_and_invalid_is_nan():
+    d16 = np.array([[16 * 10 + 8, 16, 32]], np.int16)  # 10.5 px, (min-1)*16 invalid, 2 px
+    out = fixed_to_px(d16, min_disparity=2)
+    assert out[0, 0] == pytest.approx(10.5) and np.isnan(out[0, 1]) and out[0, 2] == 2.0
+    assert fixed_to_px(d16, 2, factor=2.0)[0, 0] == pytest.approx(21.0)
+    assert DISP_SCALE == 16
+
+
+@pytest.mark.parametrize("scale,mode,parallel", [(1.0, "sgbm", False), (0.5, "3way", True)])
+def test_pipeline_recovers_a_constant_disparity(scale, mode, parallel):
+    left, right = textured_pair()
+    p = MatcherParams(min_disparity=0, num_disparities=32, block_size=5, scale=scale, mode=mode,
+                      parallel=parallel, wls_lambda=8000.0)
+    with StereoPipeline(calib(), p) as pipe:
+        r = pipe.process(left, right)
+    assert r.size == (W, H)
+    for m in (r.disparity_px, r.closed_px, r.wls_px, r.final_px):
+        assert m.shape == (H, W) and m.dtype == np.float32
+    core = np.s_[20:-20, 60:-20]  # away from the left band the matcher cannot see
+    raw = r.disparity_px[core]
+    assert np.isfinite(raw).mean() > 0.9
+    assert np.nanmedian(raw) == pytest.approx(SHIFT, abs=0.25)
+    assert np.nanmedian(r.wls_px[core]) == pytest.approx(SHIFT, abs=0.25)
+    assert r.final_px is r.wls_px and np.array_equal(r.valid, np.isfinite(r.final_px))
+    assert r.color_bgr.shape == (H, W, 3) and r.color_bgr.dtype == np.uint8
+    assert not r.color_bgr[~r.valid].any()  # invalid pixels are black
+    assert {"rectify", "match", "closing", "wls", "colormap", "total"} <= set(r.timings_ms)
+    lo, hi = r.disparity_range_px
+    assert lo <= 0 and hi >= 31
+
+
+def test_parallel_matchers_give_the_same_result_as_sequential():
+    left, right = textured_pair()
+    base = MatcherParams(min_disparity=0, num_disparities=32, block_size=5)
+    a = StereoPipeline(calib(), base).process(left, right)
+    with StereoPipeline(calib(), base.replace(parallel=True)) as pipe:
+        b = pipe.process(left, right)
+    np.testing.assert_array_equal(a.disparity_px, b.disparity_px)
+    np.testing.assert_array_equal(a.wls_px, b.wls_px)
+
+
+def test_set_params_applies_to_the_next_frame_and_without_wls_final_is_closed():
+    left, right = textured_pair()
+    pipe = StereoPipeline(calib(), MatcherParams(min_disparity=0, num_disparities=32))
+    pipe.set_params(MatcherParams(min_disparity=0, num_disparities=32, wls=False, closing_kernel=0,
+                                  bilateral=True))
+    assert pipe.params.wls  # not yet
+    r = pipe.process(left, right)
+    assert not pipe.params.wls and r.wls_px is None
+    assert r.final_px is r.closed_px is r.disparity_px
+    assert "bilateral" in r.timings_ms
+
+
+def test_wrong_image_size_is_an_input_error():
+    left, right = textured_pair()
+    pipe = StereoPipeline(calib(w=W + 2), MatcherParams(min_disparity=0, num_disparities=32))
+    with pytest.raises(InputError, match="calibration is for"):
+        pipe.process(left, right)
+
+
+def test_fixed_colour_range_maps_a_distance_to_a_fixed_colour():
+    c = calib(f=700.0, b=110.0)
+    p = MatcherParams(color_range="fixed", color_z_near_mm=500.0, color_z_far_mm=3000.0)
+    d = np.full((4, 4), 77000 / 500.0, np.float32)
+    d[0, 0] = np.nan
+    near = colorize(d, p, c)
+    lut = cv2.applyColorMap(np.full((1, 1), 255, np.uint8), cv2.COLORMAP_OCEAN)[0, 0]
+    assert (near[1, 1] == lut).all() and not near[0, 0].any()
+    # min-max (the report): the same map with one farther pixel changes the colour of the rest
+    p2 = MatcherParams(color_range="minmax")
+    d[2, 2] = 100.0
+    d2 = d.copy()
+    d2[3, 3] = 10.0
+    assert not np.array_equal(colorize(d, p2, c)[2, 2], colorize(d2, p2, c)[2, 2])
+    assert np.array_equal(colorize(d, p, c)[2, 2], colorize(d2, p, c)[2, 2])
+
+
+def _bad20(result, truth):
+    known = truth > 0
+    m = result.final_px
+    ok = known & np.isfinite(m)
+    return float((np.abs(m - truth)[ok] > 2.0).mean()), float(ok.sum() / known.sum())
+
+
+@pytest.mark.parametrize("preset", ["seed", "live", "quality"])
+def test_presets_on_middlebury_teddy(shared_data, preset):
+    from stereo_gui.files.presets import load_preset
+
+    folder = shared_data / "middlebury" / "teddy"
+    left, right = cv2.imread(str(folder / "im2.png")), cv2.imread(str(folder / "im6.png"))
+    truth = cv2.imread(str(folder / "disp2.png"), cv2.IMREAD_GRAYSCALE).astype(np.float32) / 4.0
+    p = load_preset(preset)
+    if preset != "seed":  # the benchmark's range (its disparities reach about 60 px)
+        p = p.replace(z_min_mm=None, min_disparity=0, num_disparities=64)
+    r = StereoPipeline(calib(w=left.shape[1], h=left.shape[0]), p).process(left, right)
+    bad, coverage = _bad20(r, truth)
+    assert bad < 0.2 and coverage > 0.6
