@@ -1,0 +1,257 @@
+"""Calibration files: exact FileStorage round trip, precise load errors, ROS export/import, scaling."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+import yaml
+
+from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.errors import CalibrationError, CalibrationFileError
+from stereo_gui.core.stereo_calibration import PairError, StereoCalibration
+from stereo_gui.files.calibration_file import (
+    MATRIX_NAMES,
+    export_ros,
+    import_ros,
+    load_calibration,
+    load_calibration_for_size,
+    q_from_projections,
+    save_calibration,
+)
+
+SIZE = (640, 480)
+
+
+def make_calibration(alpha: float = 0.0) -> StereoCalibration:
+    """A realistic calibration built with OpenCV from made-up (awkward) values."""
+    M1 = np.array([[752.123456789, 0.0, 323.6], [0.0, 748.5, 237.21], [0.0, 0.0, 1.0]])
+    M2 = np.array([[745.3, 0.0, 316.1], [0.0, 742.8, 243.4], [0.0, 0.0, 1.0]])
+    D1 = np.array([[-0.182, 0.061, 1.1e-3, -6.0e-4, -0.012]])
+    D2 = np.array([[-0.214, 0.083, -7.5e-4, 1.25e-3, -0.021]])
+    R, _ = cv2.Rodrigues(np.array([0.0061, -0.0118, 0.0042]))
+    T = np.array([[-109.99], [0.715], [-0.935]])
+    tx = np.array([[0, -T[2, 0], T[1, 0]], [T[2, 0], 0, -T[0, 0]], [-T[1, 0], T[0, 0], 0]])
+    E = tx @ R
+    F = np.linalg.inv(M2).T @ E @ np.linalg.inv(M1)
+    R1, R2, P1, P2, Q, _, _ = cv2.stereoRectify(M1, D1, M2, D2, SIZE, R, T,
+                                                flags=cv2.CALIB_ZERO_DISPARITY, alpha=alpha)
+    opt1, _ = cv2.getOptimalNewCameraMatrix(M1, D1, SIZE, 1, SIZE)
+    return StereoCalibration(SIZE, M1, D1, M2, D2, R, T, E, F, R1, R2, P1, P2, Q,
+                             board=BoardSpec(9, 6, 24.5), rms_left=0.1 / 3, rms_right=0.2718281828,
+                             rms_stereo=0.31415926535, epipolar_error_px=0.0123456789,
+                             per_pair=(PairError("chessboard-1", 0.1, 0.2),
+                                       PairError("07", 1 / 7, 2 / 7)),
+                             alpha=alpha, optimal_M1=opt1, optimal_M2=None)
+
+
+def test_round_trip_is_exact(tmp_path):
+    c = make_calibration()
+    path = save_calibration(c, tmp_path / "calib.yaml")
+    back = load_calibration(path)
+    for name in MATRIX_NAMES:
+        a, b = getattr(c, name), getattr(back, name)
+        assert a.shape == b.shape and np.array_equal(a, b), name
+    assert np.array_equal(back.optimal_M1, c.optimal_M1) and back.optimal_M2 is None
+    assert back.image_size == c.image_size and back.board == c.board
+    for f in ("rms_left", "rms_right", "rms_stereo", "epipolar_error_px", "alpha"):
+        assert getattr(back, f) == getattr(c, f), f
+    assert back.per_pair == c.per_pair
+    assert back.method == c.method and back.created == c.created
+    assert back.scaled_from is None
+
+
+def test_nan_figures_round_trip(tmp_path):
+    c = make_calibration().with_updates(rms_stereo=float("nan"), method="hartley", per_pair=())
+    back = load_calibration(save_calibration(c, tmp_path / "h.yaml"))
+    assert math.isnan(back.rms_stereo) and back.method == "hartley" and back.per_pair == ()
+
+
+def test_file_opens_with_cv2_filestorage(tmp_path):
+    c = make_calibration()
+    path = save_calibration(c, tmp_path / "calib.yaml")
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    assert fs.isOpened()
+    assert fs.getNode("format_version").real() == 1
+    for name in MATRIX_NAMES:
+        assert np.array_equal(fs.getNode(name).mat(), getattr(c, name)), name
+    assert int(fs.getNode("image_width").real()) == 640
+    assert int(fs.getNode("image_height").real()) == 480
+    assert int(fs.getNode("board_cols").real()) == 9 and int(fs.getNode("board_rows").real()) == 6
+    assert fs.getNode("square_mm").real() == 24.5
+    assert fs.getNode("method").string() == "bouguet"
+    assert fs.getNode("created").string() == c.created
+    pp = fs.getNode("per_pair")
+    assert pp.isSeq() and pp.size() == 2
+    assert pp.at(1).getNode("name").string() == "07"
+    assert pp.at(1).getNode("error_right").real() == 2 / 7
+    fs.release()
+
+
+def test_save_is_atomic_and_leaves_no_temporary_files(tmp_path, monkeypatch):
+    target = tmp_path / "calib.yaml"
+    save_calibration(make_calibration(), target)
+    before = target.read_bytes()
+    broken = make_calibration().with_updates(per_pair=(PairError("x", "not a number", 0.0),))
+    with pytest.raises(Exception):
+        save_calibration(broken, target)
+    assert target.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["calib.yaml"]
+
+
+def _rewrite(tmp_path, **changes):
+    """Save a calibration, then rewrite some keys in a FileStorage copy of it."""
+    src = save_calibration(make_calibration(), tmp_path / "src.yaml")
+    fs = cv2.FileStorage(str(src), cv2.FILE_STORAGE_READ)
+    out = tmp_path / "bad.yaml"
+    ws = cv2.FileStorage(str(out), cv2.FILE_STORAGE_WRITE)
+    for key in fs.root().keys():
+        if key in changes:
+            if changes[key] is not None:
+                ws.write(key, changes[key])
+            continue
+        node = fs.getNode(key)
+        if node.isInt():
+            ws.write(key, int(node.real()))
+        elif node.isReal():
+            ws.write(key, node.real())
+        elif node.isString():
+            ws.write(key, node.string())
+        elif node.isMap():
+            ws.write(key, node.mat())
+    ws.release()
+    fs.release()
+    return out
+
+
+@pytest.mark.parametrize("changes, message", [
+    ({"P1": np.eye(3)}, "matrix P1 should be 3x4, found 3x3"),
+    ({"Q": None}, "matrix Q is missing"),
+    ({"M2": np.array([[np.nan, 0, 1], [0, 1, 1], [0, 0, 1]])}, "matrix M2 holds values that are not finite"),
+    ({"D1": np.zeros((1, 3))}, "distortion D1 should have 4, 5, 8, 12 or 14 coefficients, found 3"),
+    ({"format_version": 2}, "unsupported format_version 2"),
+    ({"format_version": None}, "format_version is missing"),
+    ({"image_width": None}, "image_width is missing"),
+])
+def test_load_says_exactly_what_is_wrong(tmp_path, changes, message):
+    bad = _rewrite(tmp_path, **changes)
+    with pytest.raises(CalibrationFileError, match=message):
+        load_calibration(bad)
+
+
+def test_missing_and_foreign_files(tmp_path):
+    with pytest.raises(CalibrationFileError, match="does not exist"):
+        load_calibration(tmp_path / "nope.yaml")
+    junk = tmp_path / "junk.yaml"
+    junk.write_text("hello: [1, \n")
+    with pytest.raises(CalibrationFileError, match="not an OpenCV FileStorage file"):
+        load_calibration(junk)
+    binary = tmp_path / "image.yaml"
+    binary.write_bytes(bytes(range(256)))
+    with pytest.raises(CalibrationFileError):
+        load_calibration(binary)
+
+
+def test_ros_export_parses_with_yaml_and_values_match(tmp_path):
+    c = make_calibration()
+    lp, rp = export_ros(c, tmp_path)
+    assert (lp.name, rp.name) == ("left.yaml", "right.yaml")
+    for path, M, D, R, P in ((lp, c.M1, c.D1, c.R1, c.P1), (rp, c.M2, c.D2, c.R2, c.P2)):
+        data = yaml.safe_load(path.read_text())
+        assert data["image_width"] == 640 and data["image_height"] == 480
+        assert data["distortion_model"] == "plumb_bob"
+        assert data["camera_name"] in ("left", "right")
+        cm = data["camera_matrix"]
+        assert (cm["rows"], cm["cols"]) == (3, 3) and cm["data"] == M.reshape(-1).tolist()
+        dc = data["distortion_coefficients"]
+        assert (dc["rows"], dc["cols"]) == (1, 5) and dc["data"] == D.reshape(-1).tolist()
+        assert data["rectification_matrix"]["data"] == R.reshape(-1).tolist()
+        pm = data["projection_matrix"]
+        assert (pm["rows"], pm["cols"]) == (3, 4)
+        expected = P.copy()
+        expected[:, 3] /= 1000.0  # ROS wants metres
+        assert np.allclose(np.array(pm["data"]).reshape(3, 4), expected, rtol=0, atol=1e-12)
+
+
+def test_ros_import_rebuilds_the_calibration(tmp_path):
+    c = make_calibration()
+    back = import_ros(*export_ros(c, tmp_path))
+    for name in ("M1", "D1", "M2", "D2", "R1", "R2"):
+        assert np.array_equal(getattr(back, name), getattr(c, name)), name
+    for name in ("P1", "P2", "Q"):
+        assert np.allclose(getattr(back, name), getattr(c, name), rtol=1e-12, atol=1e-9), name
+    assert np.allclose(back.R, c.R, atol=1e-12)
+    assert np.allclose(back.T, c.T, atol=1e-9)
+    F1, F2 = back.F / np.linalg.norm(back.F), c.F / np.linalg.norm(c.F)
+    assert np.allclose(F1, F2 * np.sign(F1[2, 2] * F2[2, 2]), atol=1e-9)
+    assert back.baseline_mm == pytest.approx(c.baseline_mm, rel=1e-12)
+
+
+def test_ros_import_errors(tmp_path):
+    with pytest.raises(CalibrationFileError, match="does not exist"):
+        import_ros(tmp_path / "left.yaml", tmp_path / "right.yaml")
+    lp, rp = export_ros(make_calibration(), tmp_path)
+    rp.write_text(rp.read_text().replace("rows: 3\n  cols: 4", "rows: 4\n  cols: 3"))
+    with pytest.raises(CalibrationFileError, match="projection_matrix should be 3x4, found 4x3"):
+        import_ros(lp, rp)
+    with pytest.raises(CalibrationFileError, match="no baseline term"):
+        import_ros(lp, lp)
+
+
+def test_q_from_projections_matches_opencv():
+    c = make_calibration()
+    assert np.allclose(q_from_projections(c.P1, c.P2), c.Q, atol=1e-12)
+    c1 = make_calibration(alpha=1.0)
+    assert np.allclose(q_from_projections(c1.P1, c1.P2), c1.Q, atol=1e-12)
+
+
+def _project(M, D, X):
+    p, _ = cv2.projectPoints(X.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), M, D)
+    return p.reshape(-1, 2)
+
+
+def test_scaling_to_the_same_aspect_ratio():
+    c = make_calibration()
+    s = c.scaled_to((1280, 960))
+    assert s.image_size == (1280, 960) and s.scaled_from == (640, 480)
+    X = np.array([[100.0, -50.0, 900.0], [-300.0, 200.0, 1500.0], [0.0, 0.0, 700.0]])
+    for M, D, Ms in ((c.M1, c.D1, s.M1), (c.M2, c.D2, s.M2)):
+        # a pixel at c in the small image is at (c + 0.5) * 2 - 0.5 in the large one
+        assert np.allclose(_project(Ms, D, X), (_project(M, D, X) + 0.5) * 2 - 0.5, atol=1e-9)
+    # rectified projections and Q agree: a point's disparity triangulates back to it
+    Xl = (c.R1 @ X.T).T  # the point in the left rectified frame
+    for cal in (c, s):
+        xl = (cal.P1 @ np.c_[Xl, np.ones(3)].T)
+        xr = (cal.P2 @ np.c_[Xl, np.ones(3)].T)
+        xl, xr = xl[:2] / xl[2], xr[:2] / xr[2]
+        d = xl[0] - xr[0]
+        h = cal.Q @ np.vstack([xl, d, np.ones(3)])
+        assert np.allclose((h[:3] / h[3]).T, Xl, atol=1e-6)
+    # unchanged parts, and a round trip back to the original size
+    for name in ("R", "T", "E", "R1", "R2", "D1", "D2"):
+        assert np.array_equal(getattr(s, name), getattr(c, name))
+    back = s.scaled_to((640, 480))
+    assert back.scaled_from is None
+    for name in ("M1", "M2", "P1", "P2", "Q", "optimal_M1"):
+        assert np.allclose(getattr(back, name), getattr(c, name), atol=1e-9), name
+    # the fundamental matrix still relates corresponding scaled pixels
+    x1 = _project(s.M1, s.D1 * 0, X)
+    x2 = _project(s.M2, s.D2 * 0, (c.R @ X.T + c.T).T)
+    r = [np.r_[b, 1] @ s.F @ np.r_[a, 1] for a, b in zip(x1, x2)]
+    assert np.allclose(r, 0, atol=1e-6)
+    assert c.scaled_to((640, 480)) is c
+
+
+def test_scaling_to_another_aspect_ratio_is_refused(tmp_path):
+    c = make_calibration()
+    with pytest.raises(CalibrationError, match=r"made at 640x480 and cannot be used at 1280x720: "
+                                               r"the aspect ratios differ"):
+        c.scaled_to((1280, 720))
+    path = save_calibration(c.scaled_to((320, 240)), tmp_path / "small.yaml")
+    loaded = load_calibration(path)
+    assert loaded.scaled_from == (640, 480) and loaded.image_size == (320, 240)
+    big = load_calibration_for_size(path, (1280, 960))
+    assert big.scaled_from == (640, 480)
+    assert np.allclose(big.M1, c.scaled_to((1280, 960)).M1)
