@@ -1,0 +1,369 @@
+"""Recording the live stereo stream to a folder, and reading such a folder back.
+
+A recording is a folder:
+
+    recording.json     header: format version, image size, frame rate, source name, creation
+                       time, frame count, whether it was closed cleanly, what it holds
+    frames.csv         one line per frame: index, t_left, t_right (seconds, the source's clock,
+                       written with full float precision), left, right (image files, relative)
+    left/000001.png    the raw left images (PNG: lossless), numbered from 1
+    right/000001.png   the raw right images
+    stereo.avi         optional: the pairs side by side (left | right) as a video
+
+The `left/` + `right/` layout is one that `stereo_gui.files.pairs.discover_pairs` reads, so a
+recording is also a plain folder of pairs. Images are written atomically (temporary file, then
+rename); `frames.csv` is append-only and flushed after each frame, and its line is written only
+after both images exist, so a crash loses at most the frame being written. The header is
+rewritten atomically at the start and at `close()`. The video is written under a temporary name
+and renamed at `close()`.
+
+Video codecs the opencv-contrib-python-headless wheel writes (checked): MJPG (.avi, lossy, read
+everywhere) and FFV1 (.avi, lossless). Playback prefers the PNG images when both exist.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as _dt
+import json
+import logging
+import math
+import os
+import queue
+import threading
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from stereo_gui.core.errors import InputError
+from stereo_gui.files.atomic import write_bytes_atomic, write_text_atomic
+
+log = logging.getLogger(__name__)
+
+FORMAT_VERSION = 1
+KIND = "stereo-gui recording"
+HEADER = "recording.json"
+FRAMES = "frames.csv"
+VIDEO = "stereo.avi"
+FRAME_COLUMNS = ("index", "t_left", "t_right", "left", "right")
+VIDEO_CODECS = ("MJPG", "FFV1")
+_STOP = object()
+
+
+def _now() -> str:
+    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+
+
+def frame_file(side: str, number: int) -> str:
+    """Relative path of image `number` (from 1) of `side` ("left" or "right")."""
+    return f"{side}/{number:06d}.png"
+
+
+@dataclass(frozen=True)
+class RecordedFrame:
+    """One recorded frame: its index (from 0), capture times (s) and image files (or None)."""
+
+    index: int
+    t_left: float
+    t_right: float
+    left: Path | None
+    right: Path | None
+
+
+@dataclass(frozen=True)
+class Recording:
+    """A recording folder as read back by `open_recording`."""
+
+    folder: Path
+    size: tuple[int, int]  # (width, height) of one image, px
+    fps: float  # the source's nominal rate, frames per second
+    source_name: str
+    created: str
+    frames: tuple[RecordedFrame, ...]
+    video: Path | None  # the side-by-side video, when one was written
+    complete: bool  # closed cleanly (False after a crash: the frames up to it are still there)
+    warnings: tuple[str, ...] = field(default=())
+
+    @property
+    def has_images(self) -> bool:
+        return bool(self.frames) and all(f.left is not None for f in self.frames)
+
+
+@dataclass(frozen=True, eq=False)
+class _Queued:
+    """A frame's images (copied) and times, waiting for the writer thread."""
+
+    left: np.ndarray
+    right: np.ndarray
+    t_left: float
+    t_right: float
+    index: int
+
+
+class RecordingWriter:
+    """Writes stereo frames to a new recording folder (see the module doc for the layout).
+
+    Frames are `stereo_gui.sources.base.StereoFrame`s, or anything with `left`, `right` (BGR or
+    gray uint8 images), `t_left`, `t_right` (s) and `index`.
+
+    `write()` hands the frame to a background thread (a bounded queue: when the disk cannot keep
+    up, `write()` waits rather than drop frames) so the caller's loop is not slowed by PNG
+    encoding. An error while writing is raised by the next `write()` or by `close()`.
+    Use as a context manager, or call `close()`.
+    """
+
+    def __init__(self, folder: str | os.PathLike, *, source_name: str = "", fps: float = 30.0,
+                 images: bool = True, video: str | None = None, background: bool = True,
+                 queue_size: int = 32) -> None:
+        if not images and video is None:
+            raise InputError("a recording needs images, a video, or both")
+        if video is not None and video not in VIDEO_CODECS:
+            raise InputError(f"video codec must be one of {', '.join(VIDEO_CODECS)}, not {video!r}")
+        if not (fps > 0 and math.isfinite(fps)):
+            raise InputError(f"frame rate must be positive, not {fps}")
+        self.folder = Path(folder)
+        if self.folder.exists() and (not self.folder.is_dir() or any(self.folder.iterdir())):
+            raise InputError(f"cannot record into {self.folder}: it exists and is not an empty "
+                             "folder (a recording never overwrites anything)")
+        try:
+            self.folder.mkdir(parents=True, exist_ok=True)
+            if images:
+                (self.folder / "left").mkdir()
+                (self.folder / "right").mkdir()
+        except OSError as exc:
+            raise InputError(f"cannot create recording folder {self.folder}: "
+                             f"{exc.strerror or exc}") from exc
+        self.source_name = source_name
+        self.fps = float(fps)
+        self.images = images
+        self.codec = video
+        self.created = _now()
+        self.size: tuple[int, int] | None = None
+        self._count = 0
+        self._video = None
+        self._video_tmp = self.folder / f".{VIDEO}.partial.avi"
+        self._error: BaseException | None = None
+        self._closed = False
+        self._lock = threading.Lock()
+        try:
+            self._csv_file = open(self.folder / FRAMES, "w", newline="", encoding="utf-8")
+        except OSError as exc:
+            raise InputError(f"cannot write {self.folder / FRAMES}: {exc.strerror or exc}") from exc
+        self._csv = csv.writer(self._csv_file, lineterminator="\n")
+        self._csv.writerow(FRAME_COLUMNS)
+        self._csv_file.flush()
+        self._write_header(complete=False)
+        self._queue: queue.Queue | None = None
+        self._thread: threading.Thread | None = None
+        if background:
+            self._queue = queue.Queue(maxsize=max(1, queue_size))
+            self._thread = threading.Thread(target=self._run, name="recording-writer", daemon=True)
+            self._thread.start()
+
+    # ---- public -----------------------------------------------------------------------------
+    @property
+    def frames_written(self) -> int:
+        with self._lock:
+            return self._count
+
+    def write(self, frame) -> None:
+        """Record one frame (raw images and their timestamps)."""
+        if self._closed:
+            raise InputError(f"recording {self.folder} is closed")
+        self._raise_pending()
+        if self._queue is not None:
+            # copies: the caller may reuse its buffers once write() returns
+            self._queue.put(_Queued(np.array(frame.left), np.array(frame.right),
+                                    float(frame.t_left), float(frame.t_right), int(frame.index)))
+        else:
+            self._write_now(frame)
+
+    def flush(self) -> None:
+        """Wait until every frame handed to `write()` is on disk; raise a pending error."""
+        if self._queue is not None and self._thread is not None and self._thread.is_alive():
+            self._queue.join()
+        self._raise_pending()
+
+    def close(self) -> Recording:
+        """Finish the recording (wait for queued frames), write its header; return it read back."""
+        if not self._closed:
+            self._closed = True
+            if self._thread is not None:
+                self._queue.put(_STOP)
+                self._thread.join()
+            try:
+                self._csv_file.close()
+            except OSError as exc:  # pragma: no cover - disk failures at close
+                self._error = self._error or exc
+            if self._video is not None:
+                self._video.release()
+                self._video = None
+                try:
+                    os.replace(self._video_tmp, self.folder / VIDEO)
+                except OSError as exc:
+                    self._error = self._error or exc
+            if self._error is None:
+                self._write_header(complete=True)
+        self._raise_pending()
+        return open_recording(self.folder)
+
+    def __enter__(self) -> RecordingWriter:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self.close()
+        else:  # keep what was recorded, but do not hide the original error
+            try:
+                self.close()
+            except Exception:  # noqa: BLE001
+                log.warning("closing recording %s after an error failed", self.folder, exc_info=True)
+
+    # ---- internals --------------------------------------------------------------------------
+    def _raise_pending(self) -> None:
+        err = self._error
+        if err is None:
+            return
+        if isinstance(err, InputError):
+            raise err
+        msg = err.strerror if isinstance(err, OSError) and err.strerror else str(err)
+        raise InputError(f"recording to {self.folder} failed: {msg}") from err
+
+    def _run(self) -> None:
+        while True:
+            item = self._queue.get()
+            try:
+                if item is _STOP:
+                    return
+                if self._error is None:  # after an error: drain, the caller hears of it
+                    self._write_now(item)
+            except BaseException as exc:  # noqa: BLE001 - handed to the caller's thread
+                self._error = exc
+            finally:
+                self._queue.task_done()
+
+    def _write_now(self, frame) -> None:
+        import cv2
+
+        left, right = frame.left, frame.right
+        size = (int(left.shape[1]), int(left.shape[0]))
+        if right.shape[:2] != left.shape[:2]:
+            raise InputError("left and right images of a frame differ in size")
+        if self.size is None:
+            self.size = size
+            self._write_header(complete=False)
+        elif size != self.size:
+            raise InputError(f"frame of {size[0]}x{size[1]} px in a recording of "
+                             f"{self.size[0]}x{self.size[1]} px")
+        number = self._count + 1
+        lrel = rrel = ""
+        if self.images:
+            lrel, rrel = frame_file("left", number), frame_file("right", number)
+            for rel, img in ((lrel, left), (rrel, right)):
+                ok, png = cv2.imencode(".png", img)
+                if not ok:
+                    raise InputError(f"frame {frame.index} could not be encoded as PNG")
+                write_bytes_atomic(self.folder / rel, png.tobytes())
+        if self.codec is not None:
+            self._write_video(left, right)
+        self._csv.writerow([self._count, repr(float(frame.t_left)), repr(float(frame.t_right)),
+                            lrel, rrel])
+        self._csv_file.flush()
+        with self._lock:
+            self._count += 1
+
+    def _write_video(self, left: np.ndarray, right: np.ndarray) -> None:
+        import cv2
+
+        def bgr(img):
+            return cv2.cvtColor(img, cv2.COLOR_GRAY2BGR) if img.ndim == 2 else img
+
+        sbs = np.hstack([bgr(left), bgr(right)])
+        if self._video is None:
+            h, w = sbs.shape[:2]
+            self._video = cv2.VideoWriter(str(self._video_tmp), cv2.VideoWriter_fourcc(*self.codec),
+                                          self.fps, (w, h))
+            if not self._video.isOpened():
+                self._video = None
+                raise InputError(f"cannot write a {self.codec} video in {self.folder}")
+        self._video.write(np.ascontiguousarray(sbs))
+
+    def _write_header(self, complete: bool) -> None:
+        header = {
+            "format_version": FORMAT_VERSION,
+            "kind": KIND,
+            "created": self.created,
+            "source": self.source_name,
+            "fps": self.fps,
+            "size": list(self.size) if self.size else None,
+            "frames": self._count,
+            "images": "png" if self.images else None,
+            "video": VIDEO if self.codec else None,
+            "video_codec": self.codec,
+            "complete": complete,
+        }
+        write_text_atomic(self.folder / HEADER, json.dumps(header, indent=2) + "\n")
+
+
+def is_recording(folder: str | os.PathLike) -> bool:
+    return (Path(folder) / HEADER).is_file()
+
+
+def open_recording(folder: str | os.PathLike) -> Recording:
+    """Read a recording folder's header and frame list; raise InputError if it is not one.
+
+    A recording cut short by a crash opens with what was written (`complete` False); frames whose
+    images are missing and a torn last line are left out with a warning.
+    """
+    folder = Path(folder)
+    hpath = folder / HEADER
+    if not hpath.is_file():
+        raise InputError(f"{folder} is not a recording (no {HEADER})")
+    try:
+        header = json.loads(hpath.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise InputError(f"{hpath} is unreadable: {exc}") from exc
+    if not isinstance(header, dict) or header.get("kind") != KIND:
+        raise InputError(f"{hpath} is not a stereo-gui recording header")
+    version = header.get("format_version")
+    if not isinstance(version, int) or version > FORMAT_VERSION:
+        raise InputError(f"{hpath} has format version {version!r}; this version reads "
+                         f"{FORMAT_VERSION} and older")
+    warnings: list[str] = []
+    frames: list[RecordedFrame] = []
+    fpath = folder / FRAMES
+    try:
+        with open(fpath, newline="", encoding="utf-8") as fh:
+            rows = list(csv.reader(fh))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read {fpath}: {exc}") from exc
+    if not rows or tuple(rows[0]) != FRAME_COLUMNS:
+        raise InputError(f"{fpath} does not start with the columns {', '.join(FRAME_COLUMNS)}")
+    for line, row in enumerate(rows[1:], start=2):
+        try:
+            idx, tl, tr = int(row[0]), float(row[1]), float(row[2])
+            lrel, rrel = row[3], row[4]
+        except (ValueError, IndexError):
+            warnings.append(f"{fpath}, line {line}: unreadable, left out")
+            continue
+        left = folder / lrel if lrel else None
+        right = folder / rrel if rrel else None
+        if (left is not None and not left.is_file()) or (right is not None and not right.is_file()):
+            warnings.append(f"{fpath}, line {line}: images missing, frame {idx} left out")
+            continue
+        frames.append(RecordedFrame(idx, tl, tr, left, right))
+    video = folder / header["video"] if header.get("video") else None
+    if video is not None and not video.is_file():
+        warnings.append(f"{folder}: video {video.name} is missing (recording not closed?)")
+        video = None
+    size = header.get("size") or [0, 0]
+    complete = bool(header.get("complete"))
+    if not complete:
+        warnings.append(f"{folder}: the recording was not closed cleanly; "
+                        f"{len(frames)} frame(s) were saved")
+    for w in warnings:
+        log.warning("%s", w)
+    return Recording(folder, (int(size[0]), int(size[1])), float(header.get("fps") or 30.0),
+                     str(header.get("source", "")), str(header.get("created", "")),
+                     tuple(frames), video, complete, tuple(warnings))
