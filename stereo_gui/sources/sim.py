@@ -769,15 +769,31 @@ def _imwrite_atomic(path: Path, image: np.ndarray) -> None:
     _write_atomic(path, write)
 
 
+def calibration_set_names(n_pairs: int, scene: bool) -> list[str]:
+    """The file names write_calibration_set writes for these arguments."""
+    names = [f"chessboard-{side}{n}.png" for n in range(1, n_pairs + 1) for side in "LR"]
+    if scene:
+        names += [f"scene-{side}{k}.png" for k in range(1, len(SCENE_WALL_DISTANCES_MM) + 2)
+                  for side in "LR"]
+    return names + ["truth.json"]
+
+
 def write_calibration_set(out_dir, n_pairs: int = 20, seed: int = 0, scene: bool = False,
-                          config: RigConfig | None = None, progress=None) -> Path:
+                          config: RigConfig | None = None, progress=None, write_image=None,
+                          write_text=None) -> Path:
     """Write a calibration set in the report's naming plus truth.json; return the folder.
 
     chessboard-L{n}.png / chessboard-R{n}.png for n = 1..n_pairs; with `scene`, also
-    scene-L{k}.png / scene-R{k}.png for walls at SCENE_WALL_DISTANCES_MM and the demo scene.
-    `progress(done, total)` is called after each pair if given.
+    scene-L{k}.png / scene-R{k}.png for walls at SCENE_WALL_DISTANCES_MM and the demo scene,
+    with their true distances in truth.json. `progress(done, total)` is called after each pair.
+    `write_image(path, image)` and `write_text(path, text)` replace the built-in atomic writers.
     """
     out = Path(out_dir)
+    if n_pairs < 0:
+        raise InputError(f"number of pairs must not be negative, not {n_pairs}")
+    write_image = write_image or _imwrite_atomic
+    write_text = write_text or (lambda path, text: _write_atomic(
+        path, lambda tmp: tmp.write_text(text, encoding="utf-8")))
     rig = SimRig(config, seed=seed)
     poses = rig.board_poses(n_pairs)
     rng = np.random.default_rng(seed * 104729 + 5)
@@ -787,8 +803,8 @@ def write_calibration_set(out_dir, n_pairs: int = 20, seed: int = 0, scene: bool
     for n, pose in enumerate(poses, start=1):
         left, right = rig.render_board_pair(pose, rng)
         lname, rname = f"chessboard-L{n}.png", f"chessboard-R{n}.png"
-        _imwrite_atomic(out / lname, left)
-        _imwrite_atomic(out / rname, right)
+        write_image(out / lname, left)
+        write_image(out / rname, right)
         pairs.append({"n": n, "left": lname, "right": rname, **pose.to_json()})
         if progress:
             progress(n, total)
@@ -796,8 +812,8 @@ def write_calibration_set(out_dir, n_pairs: int = 20, seed: int = 0, scene: bool
     for k, sc in enumerate(scenes, start=1):
         left, right = rig.render_scene(sc, rng)
         lname, rname = f"scene-L{k}.png", f"scene-R{k}.png"
-        _imwrite_atomic(out / lname, left)
-        _imwrite_atomic(out / rname, right)
+        write_image(out / lname, left)
+        write_image(out / rname, right)
         entry = {"name": sc.name, "left": lname, "right": rname}
         if len(sc.objects) == 1:
             entry["distance_mm"] = float(sc.objects[0].center[2])
@@ -812,8 +828,7 @@ def write_calibration_set(out_dir, n_pairs: int = 20, seed: int = 0, scene: bool
                  "pairs": pairs})
     if scene:
         data["scenes"] = scene_entries
-    text = json.dumps(data, indent=2) + "\n"
-    _write_atomic(out / "truth.json", lambda tmp: tmp.write_text(text, encoding="utf-8"))
+    write_text(out / "truth.json", json.dumps(data, indent=2) + "\n")
     return out
 
 

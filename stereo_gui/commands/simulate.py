@@ -1,0 +1,94 @@
+"""`stereo-gui simulate OUT_DIR [--pairs N] [--scene] [--seed S]`: write images of the simulated
+rig (a calibration set in the report's naming, optional scene pairs) with its truth.json."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from stereo_gui.core.errors import InputError
+from stereo_gui.files.atomic import atomic_path, write_text_atomic
+from stereo_gui.sources.sim import SimRig, calibration_set_names, write_calibration_set
+
+# files of an earlier simulated set: replaced or removed with --overwrite
+_OWN_NAMES = re.compile(r"^(chessboard-[LR]\d+|scene-[LR]\d+)\.png$|^truth\.json$")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("out_dir", metavar="OUT_DIR", help="folder to write (created if missing)")
+    parser.add_argument("--pairs", type=int, default=20, metavar="N",
+                        help="number of chessboard pairs (default 20)")
+    parser.add_argument("--scene", action="store_true",
+                        help="also write scene pairs: walls at 0.5, 1, 1.5, 2, 3 m and the demo scene")
+    parser.add_argument("--seed", type=int, default=0, metavar="S",
+                        help="random seed of the board poses and noise (default 0)")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace a simulated set already in OUT_DIR")
+
+
+def _write_png(path: Path, image: np.ndarray) -> None:
+    with atomic_path(path) as tmp:  # the temporary name keeps .png: OpenCV picks the format by it
+        if not cv2.imwrite(str(tmp), image):
+            raise InputError(f"cannot write {path}: OpenCV could not encode the image")
+
+
+def _prepare(out: Path, overwrite: bool) -> list[Path]:
+    """Check OUT_DIR (create it); return earlier simulated files that --overwrite will remove."""
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out} is a file, not a folder: give a folder to write the images into")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create folder {out}: {exc.strerror or exc}") from exc
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise InputError(f"cannot write into folder {out}: permission denied")
+    earlier = sorted(p for p in out.iterdir() if _OWN_NAMES.match(p.name))
+    if earlier and not overwrite:
+        raise InputError(f"{out} already holds a simulated set ({earlier[0].name}, ...): "
+                         "choose an empty folder or add --overwrite")
+    return earlier
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.pairs < 1:
+        raise InputError(f"--pairs must be at least 1, not {args.pairs}")
+    if args.pairs > 10000:
+        raise InputError(f"--pairs {args.pairs} is more than anyone needs; give at most 10000")
+    out = Path(args.out_dir)
+    earlier = _prepare(out, args.overwrite)
+    interactive = sys.stderr.isatty()
+
+    def progress(done: int, total_: int) -> None:
+        if interactive:
+            sys.stderr.write(f"\rrendering {done}/{total_}")
+            sys.stderr.flush()
+
+    write_calibration_set(out, n_pairs=args.pairs, seed=args.seed, scene=args.scene,
+                          progress=progress, write_image=_write_png,
+                          write_text=write_text_atomic)
+    if interactive:
+        sys.stderr.write("\n")
+    # a smaller set over an earlier larger one would leave pairs that truth.json does not describe
+    keep = set(calibration_set_names(args.pairs, args.scene))
+    stale = [p for p in earlier if p.name not in keep]
+    for p in stale:
+        p.unlink(missing_ok=True)
+
+    truth = SimRig(seed=args.seed).truth
+    print(f"wrote {args.pairs} chessboard pairs (chessboard-L1.png/chessboard-R1.png .. "
+          f"chessboard-L{args.pairs}.png/chessboard-R{args.pairs}.png) to {out}")
+    if args.scene:
+        print("wrote 6 scene pairs (scene-L1.png/scene-R1.png .. scene-L6.png/scene-R6.png): "
+              "walls at 500, 1000, 1500, 2000, 3000 mm and the demo scene")
+    if stale:
+        print(f"removed {len(stale)} files of an earlier simulated set")
+    print(f"wrote {out / 'truth.json'}: board {truth.board.label()}, image {truth.image_size[0]}x"
+          f"{truth.image_size[1]}, fx {truth.M1[0, 0]:.1f}/{truth.M2[0, 0]:.1f} px, baseline "
+          f"{truth.baseline_mm:.1f} mm, seed {args.seed}")
+    return 0
