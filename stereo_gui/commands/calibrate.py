@@ -48,26 +48,41 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ros-dir", metavar="DIR", default=None,
                    help="also write ROS camera_info files left.yaml and right.yaml into DIR")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of a summary")
+    p.add_argument("--progress", action="store_true",
+                   help="report progress on stderr even when it is not a terminal (one line per "
+                        "step); on a terminal progress is always shown")
 
 
 class _StderrProgress:
-    """Progress on stderr: one updating line on a terminal, a few lines otherwise."""
+    """Progress on stderr: one updating line on a terminal (erased when done, so an error
+    message stands alone); a line per tenth of each step otherwise, only when asked for, so that
+    scripts see exactly one line on stderr when something is wrong."""
 
-    def __init__(self) -> None:
+    def __init__(self, force_lines: bool = False) -> None:
         self.tty = sys.stderr.isatty()
-        self._last = -1
+        self.enabled = self.tty or force_lines
+        self._last: tuple[str, int] | None = None
+        self._width = 0
 
     def __call__(self, done: int, total: int, text: str) -> None:
+        if not self.enabled:
+            return
+        line = f"{text}: {done}/{total}"
         if self.tty:
-            sys.stderr.write(f"\r{text}: {done}/{total}   ")
-            if done >= total:
-                sys.stderr.write("\n")
+            sys.stderr.write("\r" + line.ljust(self._width))
+            self._width = max(self._width, len(line))
         else:
-            decile = (10 * done) // max(total, 1)
-            if decile != self._last or done == total:
-                self._last = decile
-                sys.stderr.write(f"{text}: {done}/{total}\n")
+            key = (text, (10 * done) // max(total, 1))
+            if key != self._last or done == total:
+                self._last = key
+                sys.stderr.write(line + "\n")
         sys.stderr.flush()
+
+    def clear(self) -> None:
+        if self.enabled and self.tty and self._width:
+            sys.stderr.write("\r" + " " * self._width + "\r")
+            sys.stderr.flush()
+            self._width = 0
 
 
 def _finite(x: float) -> float | None:
@@ -160,13 +175,16 @@ def run(args: argparse.Namespace) -> int:
         sys.stderr.write(f"stereo-gui: warning: {found.warning()}\n")
     items = [PairInput(p.name, (lambda f=p.left: load_image(f)), (lambda f=p.right: load_image(f)),
                        p.left.name, p.right.name) for p in found.pairs]
-    progress = _StderrProgress()
-    detections = detect_pairs(items, board, method=args.detector,
-                              progress=lambda d, t, _: progress(d, t, "detecting chessboards"))
-    size = check_same_size([(f"{d.left_file}", d.image_size) for d in detections])
-    result = calibrate_stereo(detections, board, size, alpha=args.alpha, method=args.method,
-                              progress=lambda d, t, text: progress(d, t, "calibrating"),
-                              min_pairs=args.min_pairs, reject_outliers=not args.keep_outliers)
+    progress = _StderrProgress(force_lines=args.progress)
+    try:
+        detections = detect_pairs(items, board, method=args.detector,
+                                  progress=lambda d, t, _: progress(d, t, "detecting chessboards"))
+        size = check_same_size([(d.left_file, d.image_size) for d in detections])
+        result = calibrate_stereo(detections, board, size, alpha=args.alpha, method=args.method,
+                                  progress=lambda d, t, text: progress(d, t, "calibrating"),
+                                  min_pairs=args.min_pairs, reject_outliers=not args.keep_outliers)
+    finally:
+        progress.clear()
     save_calibration(result.calibration, output)
     if ros_dir is not None:
         export_ros(result.calibration, ros_dir)

@@ -151,7 +151,7 @@ def discover_pairs(folder: str | Path) -> PairDiscovery:
     pairs.sort(key=lambda p: (p.number, p.name))
     disc = PairDiscovery(folder, layout, tuple(pairs), tuple(unpaired))
     if disc.unpaired:
-        log.warning("%s", disc.warning())
+        log.info("%s", disc.warning())  # callers show it to the user
     return disc
 
 

@@ -1,0 +1,204 @@
+"""`stereo-gui calibrate`: JSON and summary output on rig data, and every bad input exits 2."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from stereo_gui.cli import main
+from stereo_gui.files.calibration_file import load_calibration
+from stereo_gui.sources.sim import write_calibration_set
+
+N_PAIRS = 10
+
+ISSUE_FIELDS = {"pairs_found", "pairs_used", "pairs_rejected", "image_size", "rms_left",
+                "rms_right", "rms_stereo", "epipolar_error_px", "baseline_mm", "left", "right",
+                "per_pair"}
+
+
+@pytest.fixture(scope="module")
+def rig_dir(tmp_path_factory) -> Path:
+    return write_calibration_set(tmp_path_factory.mktemp("rig"), n_pairs=N_PAIRS, seed=31)
+
+
+def _run(argv, capsys):
+    code = main(["calibrate", *map(str, argv)])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_json_output(rig_dir, tmp_path, capsys):
+    out_file = tmp_path / "calib.yaml"
+    code, out, err = _run([rig_dir, "--board", "9x6", "--square-mm", "25", "-o", out_file,
+                           "--json"], capsys)
+    assert code == 0, err
+    data = json.loads(out)  # stdout is exactly one JSON object
+    assert ISSUE_FIELDS <= set(data)
+    assert data["pairs_found"] == N_PAIRS
+    assert data["pairs_used"] + len(data["pairs_rejected"]) == N_PAIRS
+    assert all(set(r) == {"name", "reason"} for r in data["pairs_rejected"])
+    assert data["image_size"] == [640, 480]
+    for side in ("left", "right"):
+        cam = data[side]
+        assert set(cam) == {"fx", "fy", "cx", "cy", "dist"} and len(cam["dist"]) == 5
+        assert 700 < cam["fx"] < 800
+    assert data["baseline_mm"] == pytest.approx(110.0, rel=0.01)
+    assert data["rms_stereo"] < 0.3 and data["epipolar_error_px"] < 0.3
+    assert len(data["per_pair"]) == data["pairs_used"]
+    assert set(data["per_pair"][0]) == {"name", "error_left", "error_right"}
+    assert data["per_pair"][0]["name"] == "chessboard-1"
+    calib = load_calibration(out_file)
+    assert calib.M1[0, 0] == data["left"]["fx"]
+    assert calib.baseline_mm == pytest.approx(data["baseline_mm"])
+
+
+def test_summary_progress_and_ros_export(rig_dir, tmp_path, capsys):
+    ros = tmp_path / "ros"
+    ros.mkdir()
+    code, out, err = _run([rig_dir, "--square-mm", "25", "-o", tmp_path / "c.yaml", "--alpha",
+                           "0.5", "--ros-dir", ros, "--progress"], capsys)
+    assert code == 0, err
+    assert f"calibrated from {N_PAIRS} of {N_PAIRS} pairs" in out
+    assert "RMS reprojection error" in out and "epipolar error" in out and "baseline" in out
+    assert "optimal new camera matrix" in out
+    assert "detecting chessboards: 10/10" in err and "calibrating" in err
+    assert (ros / "left.yaml").exists() and (ros / "right.yaml").exists()
+    assert load_calibration(tmp_path / "c.yaml").alpha == 0.5
+
+
+def test_hartley_method_says_it_is_not_metric(rig_dir, tmp_path, capsys):
+    code, out, err = _run([rig_dir, "-o", tmp_path / "h.yaml", "--method", "hartley", "--json"],
+                          capsys)
+    assert code == 0, err
+    data = json.loads(out)
+    assert data["method"] == "hartley" and data["baseline_mm"] is None
+    assert any("NOT in millimetres" in n for n in data["notes"])
+
+
+def _assert_one_error_line(code, out, err, *fragments):
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("stereo-gui: error:")
+    for f in fragments:
+        assert f in lines[0], lines[0]
+    assert "Traceback" not in err and out == ""
+
+
+def _img(path: Path, size=(64, 48), value=None):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(abs(hash(path.name)) % 2**32)
+    img = rng.integers(0, 255, (size[1], size[0], 3), dtype=np.uint8) if value is None else \
+        np.full((size[1], size[0], 3), value, np.uint8)
+    assert cv2.imwrite(str(path), img)
+    return path
+
+
+def test_missing_folder(tmp_path, capsys):
+    _assert_one_error_line(*_run([tmp_path / "nope", "-o", tmp_path / "c.yaml"], capsys),
+                           "does not exist", "nope")
+
+
+def test_empty_folder(tmp_path, capsys):
+    d = tmp_path / "empty"
+    d.mkdir()
+    _assert_one_error_line(*_run([d, "-o", tmp_path / "c.yaml"], capsys), "no images")
+
+
+def test_unpaired_files_only(tmp_path, capsys):
+    _img(tmp_path / "in" / "left1.png")
+    _img(tmp_path / "in" / "right2.png")
+    _assert_one_error_line(*_run([tmp_path / "in", "-o", tmp_path / "c.yaml"], capsys),
+                           "no image pairs", "left1.png (no right image 1)",
+                           "right2.png (no left image 2)")
+
+
+def test_images_of_different_sizes_in_a_pair(tmp_path, capsys):
+    _img(tmp_path / "in" / "left1.png", (64, 48))
+    _img(tmp_path / "in" / "right1.png", (32, 24))
+    _assert_one_error_line(*_run([tmp_path / "in", "-o", tmp_path / "c.yaml"], capsys),
+                           "different sizes", "left1.png is 64x48", "right1.png is 32x24")
+
+
+def test_pairs_of_different_sizes(tmp_path, capsys):
+    for n in (1, 2, 3):
+        _img(tmp_path / "in" / f"left{n}.png", (64, 48))
+        _img(tmp_path / "in" / f"right{n}.png", (64, 48))
+    _img(tmp_path / "in" / "left4.png", (32, 24))
+    _img(tmp_path / "in" / "right4.png", (32, 24))
+    _assert_one_error_line(*_run([tmp_path / "in", "-o", tmp_path / "c.yaml"], capsys),
+                           "different sizes", "left4.png is 32x24 but the others are 64x48")
+
+
+def test_corrupt_image_is_named(tmp_path, capsys):
+    _img(tmp_path / "in" / "left1.png")
+    _img(tmp_path / "in" / "right1.png")
+    _img(tmp_path / "in" / "left2.png")
+    (tmp_path / "in" / "right2.png").write_bytes(b"\x89PNG\r\n\x1a\n truncated")
+    _assert_one_error_line(*_run([tmp_path / "in", "-o", tmp_path / "c.yaml"], capsys),
+                           "right2.png", "corrupt")
+
+
+def test_no_board_found_anywhere(tmp_path, capsys):
+    for n in (1, 2, 3):
+        _img(tmp_path / "in" / f"left{n}.png")
+        _img(tmp_path / "in" / f"right{n}.png")
+    _assert_one_error_line(*_run([tmp_path / "in", "-o", tmp_path / "c.yaml"], capsys),
+                           "no chessboard (9x6 inner corners) found in any of 3 pairs")
+    assert not (tmp_path / "c.yaml").exists()
+
+
+def test_fewer_usable_pairs_than_the_minimum(rig_dir, tmp_path, capsys):
+    d = tmp_path / "few"
+    d.mkdir()
+    for n in (1, 2, 3):
+        for side in "LR":
+            shutil.copy(rig_dir / f"chessboard-{side}{n}.png", d)
+    _assert_one_error_line(*_run([d, "-o", tmp_path / "c.yaml"], capsys),
+                           "only 3 usable pairs", "at least 5 are needed")
+    _assert_one_error_line(*_run([rig_dir, "-o", tmp_path / "c.yaml", "--min-pairs", "50"], capsys),
+                           f"only {N_PAIRS} usable pairs", "at least 50 are needed")
+
+
+def test_board_size_that_does_not_parse(rig_dir, tmp_path, capsys):
+    _assert_one_error_line(*_run([rig_dir, "--board", "nine-by-six", "-o", tmp_path / "c.yaml"],
+                                 capsys), "board size 'nine-by-six' does not parse")
+
+
+def test_other_bad_options(rig_dir, tmp_path, capsys):
+    _assert_one_error_line(*_run([rig_dir, "-o", tmp_path / "no" / "c.yaml"], capsys),
+                           "does not exist")
+    _assert_one_error_line(*_run([rig_dir, "-o", tmp_path / "c.yaml", "--alpha", "3"], capsys),
+                           "--alpha")
+    _assert_one_error_line(*_run([rig_dir, "-o", tmp_path / "c.yaml", "--square-mm", "-2"],
+                                 capsys), "square size")
+
+
+def test_subprocess_exit_status_and_no_traceback(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "stereo_gui", "calibrate", str(tmp_path / "nope"),
+                           "-o", str(tmp_path / "c.yaml")], capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [
+        f"stereo-gui: error: folder {tmp_path / 'nope'} does not exist"]
+    assert proc.stdout == ""
+
+
+def test_real_webcam_folder(shared_data, tmp_path, capsys):
+    folder = shared_data / "real-webcam-9x6-30mm"
+    if not folder.is_dir():
+        pytest.skip("real-webcam-9x6-30mm is not present")
+    code, out, err = _run([folder, "--square-mm", "30", "-o", tmp_path / "c.yaml", "--json"],
+                          capsys)
+    assert code == 0, err
+    data = json.loads(out)
+    assert data["pairs_found"] == 14 and data["pairs_used"] == 13
+    assert data["pairs_rejected"][0]["name"] == "09"
+    assert "right09.jpg" in data["pairs_rejected"][0]["reason"]
+    assert data["rms_stereo"] < 0.7
