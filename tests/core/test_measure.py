@@ -1,0 +1,193 @@
+"""Distances at clicked pixels: the simulated rig's walls, reasons for invalid readings, object
+mode, refinement, fits."""
+
+import math
+
+import numpy as np
+import pytest
+
+from stereo_gui.core.errors import InputError
+from stereo_gui.core.matching import MatcherParams, StereoPipeline
+from stereo_gui.core.measure import (histogram_mode, measure_point, refine_disparity,
+                                     triangulate)
+from stereo_gui.core.regression import fit_inverse
+from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.files.presets import load_preset
+from stereo_gui.sources.sim import Scene, SimRig
+
+DISTANCES_MM = (500.0, 1000.0, 1500.0, 2000.0, 3000.0)
+POINTS = ((320, 240), (200, 150), (450, 330), (560, 420))  # spread over the rectified image
+TOLERANCE = {"quality": 0.005, "live": 0.01}
+
+
+@pytest.fixture(scope="module")
+def rig():
+    return SimRig(seed=7)
+
+
+@pytest.fixture(scope="module")
+def walls(rig):
+    """Rendered wall pairs per distance (rendering is the slow part; done once)."""
+    return {z: (Scene.wall(z, seed=int(z)), rig.render_scene(Scene.wall(z, seed=int(z)),
+                                                             np.random.default_rng(int(z))))
+            for z in DISTANCES_MM}
+
+
+def _errors(rig, calib, walls, preset, truth_calib=None):
+    params = load_preset(preset)
+    rows = []
+    with StereoPipeline(calib, params) as pipe:
+        for z, (scene, (left, right)) in walls.items():
+            result = pipe.process(left, right)
+            for x, y in POINTS:
+                m = measure_point(result, x, y)
+                assert m.valid, (preset, z, x, y, m.reason)
+                true = rig.true_point_rectified(truth_calib or calib, scene, x, y)
+                rows.append((z, x, y, (m.Z_mm - true[2]) / true[2], m))
+    return rows
+
+
+@pytest.mark.parametrize("preset", ["live", "quality"])
+def test_walls_measured_within_tolerance_with_the_true_calibration(rig, walls, preset):
+    rows = _errors(rig, rig.true_calibration(alpha=0.0), walls, preset)
+    worst = max(abs(r[3]) for r in rows)
+    assert worst <= TOLERANCE[preset], [(z, x, y, f"{100 * e:.2f}%") for z, x, y, e, _ in rows]
+    # the reported uncertainty is in the right order of magnitude (not zero, not absurd)
+    for z, _, _, e, m in rows:
+        assert 0 < m.expected_error_mm < 0.05 * z
+
+
+def test_walls_measured_with_a_calibration_computed_from_board_images(rig, walls):
+    from stereo_gui.core.calibrate import calibrate_stereo
+    from stereo_gui.core.detect import detect_pairs
+
+    pairs = rig.calibration_set(20)
+    dets = detect_pairs([(str(i), l, r) for i, (l, r) in enumerate(pairs)], rig.truth.board)
+    calib = calibrate_stereo(dets, rig.truth.board, rig.truth.image_size).calibration
+    # truth in the calibrated rectified frame: the rig's ray through the same rectified pixel
+    rows = _errors(rig, calib, walls, "live")
+    worst = max(abs(r[3]) for r in rows)
+    assert worst <= TOLERANCE["live"], [(z, x, y, f"{100 * e:.2f}%") for z, x, y, e, _ in rows]
+
+
+def test_refinement_beats_the_matchers_subpixel_estimate_at_3m(rig, walls):
+    calib = rig.true_calibration()
+    scene, (left, right) = walls[3000.0]
+    result = StereoPipeline(calib, load_preset("quality")).process(left, right)
+    raw, refined = [], []
+    for x, y in POINTS:
+        true_z = rig.true_point_rectified(calib, scene, x, y)[2]
+        true_d = calib.focal_px * calib.rectified_baseline_mm / true_z
+        m = measure_point(result, x, y)
+        assert m.refined
+        raw.append(abs(m.raw_disparity_px - true_d))
+        refined.append(abs(m.disparity_px - true_d))
+    assert np.mean(refined) < np.mean(raw)
+    assert max(refined) < 0.14  # 0.5 % of the disparity at 3 m
+
+
+def test_surface_nearer_than_the_range_is_too_near_never_a_number(rig):
+    calib = rig.true_calibration()
+    scene = Scene.wall(350.0)  # live's range ends at 0.45 m
+    left, right = rig.render_scene(scene, np.random.default_rng(1))
+    result = StereoPipeline(calib, load_preset("live")).process(left, right)
+    readings = [measure_point(result, x, y) for x, y in POINTS]
+    assert all(not m.valid for m in readings), readings
+    assert sum(m.reason == "too near" for m in readings) >= len(POINTS) - 1
+    assert all(m.reason in ("too near", "no valid pixels") for m in readings)
+
+
+def test_surface_farther_than_a_limited_range_is_too_far(rig, walls):
+    calib = rig.true_calibration()
+    scene, (left, right) = walls[3000.0]
+    p = load_preset("live").replace(z_min_mm=450.0, z_max_mm=1500.0)
+    result = StereoPipeline(calib, p).process(left, right)
+    m = measure_point(result, 320, 240)
+    assert not m.valid and m.reason == "too far"
+
+
+def test_outside_the_image_and_no_valid_pixels():
+    c = StereoCalibration.identity((64, 48), 500.0, 100.0)
+    disp = np.full((48, 64), np.nan, np.float32)
+    assert measure_point(disp, 70, 10, calibration=c).reason == "outside the image"
+    assert measure_point(disp, -1, 10, calibration=c).reason == "outside the image"
+    assert measure_point(disp, 10, 10, calibration=c).reason == "no valid pixels"
+    with pytest.raises(InputError):
+        measure_point(disp, 10, 10)  # a bare map needs the calibration
+
+
+def test_bare_map_triangulates_through_q_with_median_and_spread():
+    f, b = 500.0, 100.0
+    c = StereoCalibration.identity((64, 48), f, b)
+    disp = np.full((48, 64), 25.0, np.float32)
+    disp[20, 30] = 80.0  # an outlier the median ignores
+    disp[21, 31] = np.nan
+    m = measure_point(disp, 30, 20, calibration=c, patch=5)
+    assert m.valid and m.method == "triangulation"
+    assert m.Z_mm == pytest.approx(f * b / 25.0)
+    assert m.valid_fraction == pytest.approx(24 / 25)
+    X, Y, Z = triangulate(c, 30, 20, 25.0)
+    assert (m.X_mm, m.Y_mm) == pytest.approx((X, Y))
+    assert m.range_mm == pytest.approx(math.sqrt(X * X + Y * Y + Z * Z))
+    # uncertainty: Z^2/(fB) * dd with dd at least the 1/16 px quantum
+    assert m.expected_error_mm == pytest.approx(Z * Z / (f * b) / 16.0)
+
+
+def test_a_fit_replaces_triangulation_inside_its_span_only():
+    f, b = 500.0, 100.0
+    c = StereoCalibration.identity((64, 48), f, b)
+    fit = fit_inverse([(d, 1.01 * f * b / d) for d in (10.0, 20.0, 30.0, 40.0)])
+    disp = np.full((48, 64), 25.0, np.float32)
+    m = measure_point(disp, 30, 20, calibration=c, fit=fit)
+    assert m.valid and m.method == "inverse"
+    assert m.Z_mm == pytest.approx(1.01 * f * b / 25.0, rel=1e-6)
+    far = measure_point(np.full((48, 64), 5.0, np.float32), 30, 20, calibration=c, fit=fit)
+    assert not far.valid and far.reason == "out of disparity range"
+
+
+def test_object_mode_reads_the_surface_around_the_click(rig):
+    calib = rig.true_calibration()
+    scene = Scene.demo()
+    left, right = rig.render_scene(scene, np.random.default_rng(2))
+    result = StereoPipeline(calib, load_preset("live")).process(left, right)
+    # a pixel on the board at 2 m (the truth tells which object a ray hits), right of the band
+    # at the left edge that the matcher cannot see
+    hits = [(x, y) for y in range(120, 460, 20) for x in range(240, 600, 20)
+            if abs(rig.true_point_rectified(calib, scene, x, y)[2] - 2000.0) < 1.0]
+    assert hits
+    x, y = hits[len(hits) // 2]
+    m = measure_point(result, x, y, mode="object")
+    assert m.valid and m.mode == "object"
+    assert m.Z_mm == pytest.approx(2000.0, rel=0.02)
+
+
+def test_histogram_mode_finds_the_peak_between_bins():
+    rng = np.random.default_rng(0)
+    values = np.concatenate([rng.normal(40.3, 0.2, 2000), rng.uniform(10, 60, 300)])
+    assert histogram_mode(values) == pytest.approx(40.3, abs=0.1)
+
+
+def test_refine_disparity_finds_a_subpixel_shift():
+    rng = np.random.default_rng(5)
+    import cv2
+
+    big = cv2.GaussianBlur(rng.random((60, 400)).astype(np.float32) * 255, (0, 0), 2.0)
+    true_d = 20.37
+    xs = np.arange(300, dtype=np.float32)
+    left = big[:, 50:350]
+    # right(u) = left(u + d): sample the wide image at u + 50 + d
+    mx = np.tile(xs + 50 + true_d, (60, 1)).astype(np.float32)
+    my = np.repeat(np.arange(60, dtype=np.float32)[:, None], 300, axis=1)
+    right = cv2.remap(big, mx, my, cv2.INTER_CUBIC)
+    r = refine_disparity(left, right, 150, 30, 20.0, 5)
+    assert r.converged and r.disparity_px == pytest.approx(true_d, abs=0.03)
+
+
+def test_bad_arguments():
+    disp = np.zeros((10, 10), np.float32)
+    c = StereoCalibration.identity((10, 10), 500.0, 100.0)
+    with pytest.raises(InputError):
+        measure_point(disp, 5, 5, calibration=c, patch=0)
+    with pytest.raises(InputError):
+        measure_point(disp, 5, 5, calibration=c, mode="blob")
+    assert MatcherParams().name == "custom"
