@@ -1,0 +1,109 @@
+"""Distance-from-disparity fits: the report's cubic, the inverse model, R^2, residuals, files."""
+
+import json
+
+import numpy as np
+import pytest
+
+from stereo_gui.core.errors import InputError
+from stereo_gui.core.regression import (FitResult, fit, fit_cubic, fit_inverse, load_fit,
+                                        report_cubic, save_fit)
+
+A, D0 = 82500.0, 0.3  # px mm, px
+
+
+def inverse_samples(noise_mm=0.0, seed=0):
+    rng = np.random.default_rng(seed)
+    ds = np.array([20.0, 27.5, 41.0, 55.0, 82.0, 110.0, 160.0])
+    zs = A / (ds - D0) + rng.normal(0, noise_mm, ds.size)
+    return list(zip(ds.tolist(), zs.tolist()))
+
+
+def test_inverse_fit_recovers_the_model():
+    f = fit_inverse(inverse_samples())
+    assert f.model == "inverse"
+    assert f.coefficients == pytest.approx((A, D0), rel=1e-6, abs=1e-6)
+    assert f.r2 == pytest.approx(1.0)
+    assert max(abs(r) for r in f.residuals_mm) < 1e-6
+    assert f.predict(82.0) == pytest.approx(A / (82.0 - D0))
+    assert f.formula().startswith("Z = 82500 / (d - 0.3")
+    assert np.isnan(f.predict(0.1))  # at or below d0 there is no distance
+
+
+def test_noisy_fits_report_residuals_in_sample_order():
+    samples = inverse_samples(noise_mm=3.0, seed=1)
+    for f in (fit_inverse(samples), fit_cubic(samples)):
+        assert len(f.residuals_mm) == len(samples) and f.samples == tuple(samples)
+        pred = f.predict(np.array([d for d, _ in samples]))
+        np.testing.assert_allclose(f.residuals_mm, [z for _, z in samples] - pred, atol=1e-6)
+        assert 0.9 < f.r2 <= 1.0
+
+
+def test_cubic_fit_uses_the_reports_normalisation():
+    coef = (-5939.7, 15068.0, -13731.0, 5220.6)  # the report's cubic, in mm
+    ds = np.linspace(30, 120, 8)
+    x = (ds - 2.0) / 128.0
+    samples = list(zip(ds, np.polyval(coef, x)))
+    f = fit_cubic(samples)
+    assert f.coefficients == pytest.approx(coef, rel=1e-6)
+    assert f.r2 == pytest.approx(1.0)
+    assert "x = (d - 2) / 128" in f.formula()
+
+
+def test_report_cubic_in_millimetres():
+    # d = 66 px -> x = 0.5 -> -593.97/8 + 1506.8/4 - 1373.1/2 + 522.06 = 137.96 cm
+    assert report_cubic().predict(66.0) == pytest.approx(1379.6, abs=0.1)
+
+
+def test_too_few_or_bad_samples():
+    with pytest.raises(InputError, match="at least 4"):
+        fit_cubic([(10, 1000), (20, 500), (30, 333)])
+    with pytest.raises(InputError, match="at least 2"):
+        fit_inverse([(10, 1000)])
+    with pytest.raises(InputError, match="positive"):
+        fit_inverse([(10, 1000), (20, -5)])
+    with pytest.raises(InputError, match="shrink"):
+        fit_inverse([(10, 500), (20, 1000)])
+    with pytest.raises(InputError, match="unknown model"):
+        fit("quartic", inverse_samples())
+
+
+def test_save_and_load_round_trip(tmp_path):
+    for f in (fit_inverse(inverse_samples(1.0)), fit_cubic(inverse_samples(1.0))):
+        path = save_fit(f, tmp_path / f"{f.model}.json")
+        g = load_fit(path)
+        assert isinstance(g, FitResult)
+        assert (g.model, g.coefficients, g.samples) == (f.model, f.coefficients, f.samples)
+        assert g.r2 == pytest.approx(f.r2) and g.residuals_mm == pytest.approx(f.residuals_mm)
+        assert g.predict(50.0) == pytest.approx(f.predict(50.0))
+        assert json.loads(path.read_text())["formula"] == f.formula()
+    assert not list(tmp_path.glob(".*"))  # no temporary files left
+
+
+def test_load_errors_name_the_file(tmp_path):
+    bad = tmp_path / "bad.json"
+    bad.write_text("{not json")
+    with pytest.raises(InputError, match="bad.json"):
+        load_fit(bad)
+    bad.write_text(json.dumps({"model": "inverse", "coefficients": [1.0]}))
+    with pytest.raises(InputError, match="coefficients"):
+        load_fit(bad)
+    with pytest.raises(InputError, match="missing.json"):
+        load_fit(tmp_path / "missing.json")
+    with pytest.raises(InputError, match="does not exist"):
+        save_fit(fit_inverse(inverse_samples()), tmp_path / "no" / "x.json")
+
+
+def test_failed_save_keeps_the_old_file(tmp_path, monkeypatch):
+    path = save_fit(fit_inverse(inverse_samples()), tmp_path / "fit.json")
+    before = path.read_text()
+    import os
+
+    def boom(*a, **k):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(os, "replace", boom)
+    with pytest.raises(InputError, match="No space"):
+        save_fit(fit_cubic(inverse_samples()), path)
+    assert path.read_text() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["fit.json"]
