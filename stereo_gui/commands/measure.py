@@ -30,8 +30,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="point: median of the patch; object: most frequent disparity of the "
                         "surface around the point")
     parser.add_argument("--json", action="store_true", help="print the results as JSON")
-    # further outputs (e.g. a spreadsheet, --xlsx) add their options here and a branch in
-    # write_outputs()
+    parser.add_argument("--xlsx", metavar="FILE",
+                        help="append the measurements to this workbook (.xlsx; created if missing, "
+                        "earlier rows kept)")
+    # further outputs add their options here and a branch in write_outputs()
 
 
 def measure_all(args) -> tuple[object, list[Measurement]]:
@@ -64,6 +66,16 @@ def format_line(m: Measurement) -> str:
 
 def write_outputs(args, calib, measurements: list[Measurement]) -> None:
     """Print the results (text or JSON); further output files hook in here."""
+    if args.xlsx:  # first: a refused workbook then fails the command before anything is printed
+        from pathlib import Path
+
+        from stereo_gui.files.spreadsheet import MeasurementRecord, append_measurements
+
+        calib_file = str(Path(args.calib).resolve())
+        records = [MeasurementRecord.from_measurement(m, calibration_file=calib_file,
+                                                      calibration_rms_px=calib.rms_stereo)
+                   for m in measurements]
+        append_measurements(args.xlsx, records, calibration=calib, calibration_file=calib_file)
     if args.json:
         print(json.dumps({"points": [m.to_json_dict() for m in measurements]}, indent=2))
     else:

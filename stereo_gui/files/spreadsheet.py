@@ -17,6 +17,7 @@ disk mid-write leaves the earlier file intact.
 from __future__ import annotations
 
 import csv
+import datetime as _dt
 import io
 import logging
 import math
@@ -70,6 +71,22 @@ class MeasurementRecord:
     true_mm: float | None = None  # true distance entered by the technician
     calibration_file: str = ""
     calibration_rms_px: float = float("nan")
+
+    @classmethod
+    def from_measurement(cls, m, *, time: str | None = None, true_mm: float | None = None,
+                         calibration_file: str | os.PathLike = "",
+                         calibration_rms_px: float = float("nan")) -> MeasurementRecord:
+        """The log entry of a `stereo_gui.core.measure.Measurement` (time defaults to now)."""
+        if time is None:
+            time = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="milliseconds")
+        return cls(time=time, x_px=float(m.x), y_px=float(m.y),
+                   disparity_px=float(m.disparity_px), X_mm=float(m.X_mm), Y_mm=float(m.Y_mm),
+                   Z_mm=float(m.Z_mm), range_mm=float(m.range_mm), valid=bool(m.valid),
+                   reason=m.reason or "", valid_fraction=float(m.valid_fraction),
+                   expected_error_mm=float(m.expected_error_mm), method=str(m.method),
+                   true_mm=None if true_mm is None else float(true_mm),
+                   calibration_file=str(calibration_file),
+                   calibration_rms_px=float(calibration_rms_px))
 
 
 # (record field, header with unit, Excel number format, column width)

@@ -29,52 +29,12 @@ F_PX, B_MM = 750.0, 110.0
 REL = 1e-15  # openpyxl writes 16 significant digits (Excel keeps 15)
 
 
-# ---- fits: the real regression module when present -------------------------------------------
+# ---- fits ------------------------------------------------------------------------------------
 def _make_fits(samples):
-    """Both models fitted to `samples` [(disparity px, true mm)] by stereo_gui.core.regression.
+    """Both models fitted to `samples` [(disparity px, true mm)] by the application's regression."""
+    from stereo_gui.core import regression
 
-    Until that module exists, a minimal least-squares stand-in with the agreed interface.
-    """
-    try:
-        from stereo_gui.core import regression
-    except ImportError:
-        regression = None
-    if regression is not None and hasattr(regression, "fit_model"):
-        return [regression.fit_model(samples, m) for m in ("cubic", "inverse")]
-    return [_StandIn.fit(samples, "cubic"), _StandIn.fit(samples, "inverse")]
-
-
-class _StandIn:
-    """Least squares of the agreed FitResult interface; used only while the real one is missing."""
-
-    def __init__(self, model, coefficients, samples):
-        self.model, self.coefficients, self.samples = model, tuple(coefficients), tuple(samples)
-        d = np.array([s[0] for s in samples])
-        z = np.array([s[1] for s in samples])
-        self.residuals_mm = tuple(z - self.predict(d))
-        self.r2 = 1 - np.sum(np.square(self.residuals_mm)) / np.sum((z - z.mean()) ** 2)
-
-    @classmethod
-    def fit(cls, samples, model):
-        d = np.array([s[0] for s in samples])
-        z = np.array([s[1] for s in samples])
-        if model == "cubic":
-            return cls(model, np.polyfit(d, z, 3)[::-1], samples)
-        a, b = np.linalg.lstsq(np.c_[np.ones_like(z), z], d * z, rcond=None)[0]
-        return cls(model, (a, b), samples)  # z = a / (d - b)
-
-    def predict(self, d):
-        d = np.asarray(d, float)
-        c = self.coefficients
-        if self.model == "cubic":
-            return c[0] + c[1] * d + c[2] * d**2 + c[3] * d**3
-        return c[0] / (d - c[1])
-
-    def formula(self):
-        c = self.coefficients
-        if self.model == "cubic":
-            return f"Z = {c[0]:.6g} + {c[1]:.6g} d + {c[2]:.6g} d^2 + {c[3]:.6g} d^3"
-        return f"Z = {c[0]:.6g} / (d - {c[1]:.6g})"
+    return [regression.fit(m, samples) for m in regression.MODELS]
 
 
 # ---- data ----------------------------------------------------------------------------------
