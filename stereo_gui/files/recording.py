@@ -218,7 +218,8 @@ class RecordingWriter:
             try:
                 self.close()
             except Exception:  # noqa: BLE001
-                log.warning("closing recording %s after an error failed", self.folder, exc_info=True)
+                log.warning("closing recording %s after an error failed", self.folder,
+                            exc_info=True)
 
     # ---- internals --------------------------------------------------------------------------
     def _raise_pending(self) -> None:

@@ -109,7 +109,8 @@ class CaptureSession:
         try:
             folder.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
-            raise InputError(f"cannot create session folder {folder}: {exc.strerror or exc}") from exc
+            raise InputError(
+                f"cannot create session folder {folder}: {exc.strerror or exc}") from exc
         if isinstance(cameras, tuple):
             cameras = CameraIds(*cameras)
         existing = _discover(folder)
@@ -218,7 +219,8 @@ class CaptureSession:
         size = (int(left.shape[1]), int(left.shape[0]))
         with self._lock:
             if self.resolution is not None and size != tuple(self.resolution):
-                raise InputError(f"pair of {size[0]}x{size[1]} px does not fit session {self.folder} "
+                raise InputError(f"pair of {size[0]}x{size[1]} px does not fit session "
+                                 f"{self.folder} "
                                  f"of {self.resolution[0]}x{self.resolution[1]} px")
             # encode both before writing anything, so that a bad image writes nothing
             ok_l, png_l = cv2.imencode(".png", left)

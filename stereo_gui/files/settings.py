@@ -58,7 +58,8 @@ class Settings:
         return BoardSpec(self.board_cols, self.board_rows, self.square_mm)
 
     def with_board(self, board: BoardSpec) -> Settings:
-        return replace(self, board_cols=board.cols, board_rows=board.rows, square_mm=board.square_mm)
+        return replace(self, board_cols=board.cols, board_rows=board.rows,
+                       square_mm=board.square_mm)
 
     def with_recent(self, path: str | os.PathLike, limit: int = RECENT_LIMIT) -> Settings:
         """These settings with `path` first in the recent files (no duplicates, at most `limit`)."""
@@ -217,6 +218,7 @@ def save_settings(settings: Settings, path: str | os.PathLike | None = None) -> 
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise InputError(f"cannot create settings folder {path.parent}: {exc.strerror or exc}") from exc
+        raise InputError(
+            f"cannot create settings folder {path.parent}: {exc.strerror or exc}") from exc
     text = json.dumps(settings_to_dict(settings), indent=2, sort_keys=False) + "\n"
     return write_text_atomic(path, text)

@@ -134,14 +134,15 @@ def _record_from_row(values: Sequence[Any], where: str) -> MeasurementRecord:
         if name in ("time", "reason", "method", "calibration_file"):
             kw[name] = "" if v is None else str(v)
         elif name == "valid":
-            kw[name] = bool(v) if not isinstance(v, str) else v.strip().lower() in ("true", "1", "yes")
-        elif name == "true_mm":
-            kw[name] = None if v in (None, "") else float(v)
+            text = str(v).strip().lower()
+            kw[name] = bool(v) if not isinstance(v, str) else text in ("true", "1", "yes")
         else:
             try:
-                kw[name] = float("nan") if v in (None, "") else float(v)
+                number = None if v in (None, "") else float(v)
             except (TypeError, ValueError) as exc:
                 raise InputError(f"{where}: column {header!r} holds {v!r}, not a number") from exc
+            # an empty cell is "not entered" for the true distance, NaN for measured numbers
+            kw[name] = number if name == "true_mm" or number is not None else float("nan")
     return MeasurementRecord(**kw)
 
 
@@ -176,7 +177,7 @@ def _append_measurement_rows(ws, records: Iterable[MeasurementRecord]) -> int:
 
 
 def _predict(fit, d: np.ndarray) -> np.ndarray:
-    """The fit evaluated on disparities `d` (px), mm; element by element if it takes scalars only."""
+    """The fit evaluated on disparities `d` (px), mm (element by element if it takes scalars)."""
     try:
         out = np.asarray(fit.predict(d), dtype=float)
         if out.shape == d.shape:
@@ -374,7 +375,8 @@ def _write_calibration_sheet(ws, calib: StereoCalibration | None, calib_file: st
         ws.cell(row=r, column=col0 + 1, value=note)
         for i in range(m.shape[0]):
             for j in range(m.shape[1]):
-                ws.cell(row=r + 1 + i, column=col0 + j, value=_cell(m[i, j])).number_format = "0.000000"
+                c = ws.cell(row=r + 1 + i, column=col0 + j, value=_cell(m[i, j]))
+                c.number_format = "0.000000"
         r += m.shape[0] + 2
     for j in range(5):
         ws.column_dimensions[get_column_letter(col0 + j)].width = 14

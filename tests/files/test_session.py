@@ -49,7 +49,8 @@ def test_pairs_are_written_at_once_and_read_back_exactly(tmp_path):
     np.testing.assert_array_equal(cv2.imread(str(e1.right)), _img(2))
     data = json.loads(s.manifest_path.read_text())
     assert data["pairs"] == [{"name": e1.name, "number": 1, "left": "chessboard-L1.png",
-                              "right": "chessboard-R1.png", "time": "2026-11-22T10:00:00.000+00:00"}]
+                              "right": "chessboard-R1.png",
+                              "time": "2026-11-22T10:00:00.000+00:00"}]
     e2 = s.add_pair(_img(3), _img(4))
     assert e2.number == 2 and e2.time
     assert _files(tmp_path / "s") == ["chessboard-L1.png", "chessboard-L2.png", "chessboard-R1.png",

@@ -69,7 +69,8 @@ def _calibration() -> StereoCalibration:
     c = StereoCalibration.identity((640, 480), F_PX, B_MM)
     D1 = np.array([[-0.31, 0.12, 0.001, -0.002, 0.01]])
     return c.with_updates(D1=D1, board=BoardSpec(9, 6, 25.0), rms_left=0.18, rms_right=0.19,
-                          rms_stereo=0.23, epipolar_error_px=0.11, created="2026-11-22T09:00:00+00:00",
+                          rms_stereo=0.23, epipolar_error_px=0.11,
+                          created="2026-11-22T09:00:00+00:00",
                           per_pair=(PairError("chessboard-1", 0.12, 0.14),
                                     PairError("chessboard-2", 0.2, 0.25)))
 
@@ -285,7 +286,8 @@ def _failing_save(exc):
     return save
 
 
-@pytest.mark.parametrize("exc", [RuntimeError("crash mid-write"), OSError(28, "No space left on device")])
+@pytest.mark.parametrize("exc", [RuntimeError("crash mid-write"),
+                                 OSError(28, "No space left on device")])
 @pytest.mark.parametrize("how", ["write", "append"])
 def test_interrupted_write_leaves_the_old_file_intact(tmp_path, monkeypatch, exc, how):
     path = tmp_path / "log.xlsx"
@@ -327,3 +329,12 @@ def test_csv_of_something_else_is_refused(tmp_path):
     (tmp_path / "x.csv").write_text("a,b\n1,2\n")
     with pytest.raises(InputError, match="x.csv"):
         read_csv(tmp_path / "x.csv")
+
+
+def test_a_hand_edited_cell_that_is_not_a_number_is_named(tmp_path):
+    path = write_workbook(tmp_path / "log.xlsx", _records(1))
+    wb = openpyxl.load_workbook(path)
+    wb["Measurements"].cell(row=2, column=HEADERS.index("Z (mm)") + 1, value="about a metre")
+    wb.save(path)
+    with pytest.raises(InputError, match=r"row 2: column 'Z \(mm\)'"):
+        read_measurements(path)
