@@ -352,6 +352,11 @@ class StereoPipeline:
             lap("resize")
         else:
             ml, mr = gl, gr
+        mw = ml.shape[1]
+        if mw - (self._min_s + self._num_s) <= p.block_size // 2:
+            raise InputError(
+                f"the images ({w}x{h}, matched at {mw} px wide) are too narrow for disparities up to "
+                f"{self._range_full[1]:.0f} px; narrow the disparity range or the working distances")
         if self._right is not None and self._executor is not None:
             fut = self._executor.submit(self._right.compute, mr, ml)
             d16 = self._left.compute(ml, mr)

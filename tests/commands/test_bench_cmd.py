@@ -1,0 +1,62 @@
+"""`stereo-gui bench`: numbers for every preset asked plus live and seed (no timing assertions)."""
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from stereo_gui.cli import main
+from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.files.calibration_file import save_calibration
+
+
+@pytest.fixture()
+def files(tmp_path):
+    rng = np.random.default_rng(1)
+    img = cv2.GaussianBlur(rng.integers(0, 255, (96, 320, 3), np.uint8), (3, 3), 0)
+    cv2.imwrite(str(tmp_path / "l.png"), img)
+    cv2.imwrite(str(tmp_path / "r.png"), np.roll(img, -6, axis=1))
+    save_calibration(StereoCalibration.identity((320, 96), 200.0, 100.0), tmp_path / "c.yaml")
+    return tmp_path
+
+
+def test_bench_on_a_pair_reports_each_preset_and_the_ratio(files, capsys):
+    assert main(["bench", "--calib", str(files / "c.yaml"), str(files / "l.png"),
+                 str(files / "r.png"), "--frames", "2", "--preset", "quality", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert set(doc["presets"]) == {"quality", "live", "seed"}
+    for r in doc["presets"].values():
+        assert r["fps"] > 0 and r["stages_ms"]["total"] > 0
+        assert {"rectify", "match", "colormap"} <= set(r["stages_ms"])
+        assert r["rss_end_mb"] > 0
+    assert doc["live_over_seed"] == pytest.approx(
+        doc["presets"]["live"]["fps"] / doc["presets"]["seed"]["fps"])
+    assert doc["size"] == [320, 96] and doc["frames"] == 2
+
+
+def test_bench_on_the_simulated_rig_prints_a_table(capsys):
+    assert main(["bench", "--frames", "1", "--preset", "live"]) == 0
+    out = capsys.readouterr().out
+    assert "simulated rig" in out and "live" in out and "seed" in out and "as fast as seed" in out
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--calib", "c.yaml"], "together with LEFT and RIGHT"),
+    (["--frames", "0"], "--frames"),
+    (["--preset", "nope"], "unknown preset"),
+])
+def test_bench_bad_input(files, capsys, args, message):
+    args = [a if a != "c.yaml" else str(files / a) for a in args]
+    assert main(["bench", *args]) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1
+
+
+def test_images_too_narrow_for_the_range_are_an_input_error(files, capsys):
+    small = cv2.imread(str(files / "l.png"))[:, :120]
+    cv2.imwrite(str(files / "s.png"), small)
+    save_calibration(StereoCalibration.identity((120, 96), 200.0, 100.0), files / "s.yaml")
+    assert main(["bench", "--calib", str(files / "s.yaml"), str(files / "s.png"),
+                 str(files / "s.png"), "--frames", "1", "--preset", "seed"]) == 2
+    assert "too narrow" in capsys.readouterr().err
