@@ -92,6 +92,29 @@ class RigConfig:
     board: BoardSpec = field(default_factory=BoardSpec)
     supersample: int = 3  # samples per pixel along each axis (anti-aliasing)
 
+    @staticmethod
+    def for_size(size: tuple[int, int]) -> RigConfig:
+        """The default rig at another resolution: the same horizontal field of view (camera
+        matrices scaled by width/640, principal points kept at the same place relative to the
+        centre); fewer supersamples above 640x480 to keep rendering fast."""
+        w, h = int(size[0]), int(size[1])
+        base = RigConfig()
+        if (w, h) == base.image_size:
+            return base
+        if w < 64 or h < 48:
+            raise InputError(f"the simulated rig needs at least 64x48 pixels, not {w}x{h}")
+        k = w / base.image_size[0]
+
+        def scaled(cam: CameraTruth) -> CameraTruth:
+            M = cam.M.copy()
+            M[:2, :2] *= k
+            M[0, 2] = (M[0, 2] - (base.image_size[0] - 1) / 2) * k + (w - 1) / 2
+            M[1, 2] = (M[1, 2] - (base.image_size[1] - 1) / 2) * k + (h - 1) / 2
+            return CameraTruth(M, cam.D.copy())
+
+        return RigConfig(image_size=(w, h), left=scaled(base.left), right=scaled(base.right),
+                         supersample=3 if w * h <= 640 * 480 else 2)
+
 
 @dataclass(frozen=True, eq=False)
 class RigTruth:
@@ -316,24 +339,51 @@ class RayMap:
     max_error_px: float  # round-trip error of the inversion, checked with cv2.projectPoints
 
 
+def _upsample_cubic(arr: np.ndarray, offs: np.ndarray, axis: int, pad: int) -> np.ndarray:
+    """Sample `arr` (padded by `pad` on both ends of `axis`) at i + offs[k] for every inner
+    index i, interleaved (output index i*len(offs) + k); 4-point Lagrange interpolation."""
+    a = np.moveaxis(arr, axis, 0)
+    n = a.shape[0] - 2 * pad
+    out = np.empty((n, len(offs)) + a.shape[1:], np.float64)
+    for k, o in enumerate(offs):
+        base = int(math.floor(o))
+        t = o - base
+        weights = (-t * (t - 1) * (t - 2) / 6, (t + 1) * (t - 1) * (t - 2) / 2,
+                   -(t + 1) * t * (t - 2) / 2, (t + 1) * t * (t - 1) / 6)
+        acc = np.zeros((n,) + a.shape[1:], np.float64)
+        for j, wj in zip(range(-1, 3), weights):
+            start = pad + base + j
+            acc += wj * a[start:start + n]
+        out[:, k] = acc
+    out = out.reshape((n * len(offs),) + a.shape[1:])
+    return np.moveaxis(out, 0, axis)
+
+
 @functools.lru_cache(maxsize=8)
 def _ray_map_cached(M_bytes: bytes, D_bytes: bytes, w: int, h: int, s: int) -> RayMap:
     M = np.frombuffer(M_bytes, np.float64).reshape(3, 3)
     D = np.frombuffer(D_bytes, np.float64).reshape(1, 5)
+    # Exact inversion (OpenCV's iterative undistortion, tight criteria) on the pixel grid with a
+    # margin of 2 px, then cubic Lagrange interpolation (float64) to the supersample positions:
+    # the inverse is so smooth at a 1 px spacing that interpolation adds far less than 1e-4 px,
+    # and it is ~10x faster than inverting every supersample. The round trip is checked below
+    # with cv2.projectPoints.
+    pad = 2
+    gu, gv = np.meshgrid(np.arange(-pad, w + pad, dtype=np.float64),
+                         np.arange(-pad, h + pad, dtype=np.float64))
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-14)
+    grid = cv2.undistortPoints(np.stack([gu, gv], -1).reshape(-1, 1, 2), M, D, criteria=crit)
+    grid = grid.reshape(gu.shape[0], gu.shape[1], 2)
     offs = (np.arange(s) + 0.5) / s - 0.5  # sample positions inside a pixel (centre = integer)
+    xy = _upsample_cubic(_upsample_cubic(grid, offs, axis=1, pad=pad), offs, axis=0, pad=pad)
     us = (np.arange(w)[:, None] + offs[None, :]).reshape(-1)
     vs = (np.arange(h)[:, None] + offs[None, :]).reshape(-1)
-    uu, vv = np.meshgrid(us, vs)
-    # OpenCV's iterative undistortion with tight criteria (C++, much faster than numpy Newton);
-    # the round trip is checked below with cv2.projectPoints
-    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-14)
-    und = cv2.undistortPoints(np.stack([uu, vv], -1).reshape(-1, 1, 2), M, D, criteria=crit)
-    xy = und.reshape(h * s, w * s, 2)
     sel = (slice(None, None, max(1, h * s // 37)), slice(None, None, max(1, w * s // 53)))
+    uu, vv = np.meshgrid(us[sel[1]], vs[sel[0]])
     sub = xy[sel].reshape(-1, 2)
     pts = np.concatenate([sub, np.ones((len(sub), 1))], 1)
     proj, _ = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), M, D)
-    err = np.hypot(proj[:, 0, 0] - uu[sel].ravel(), proj[:, 0, 1] - vv[sel].ravel())
+    err = np.hypot(proj[:, 0, 0] - uu.ravel(), proj[:, 0, 1] - vv.ravel())
     max_err = float(err.max())
     if max_err > 1e-3:
         raise RuntimeError(f"distortion inversion failed: round trip error {max_err:.2e} px")

@@ -1,0 +1,305 @@
+"""Real frame sources: two USB cameras, one side-by-side stereo camera, a side-by-side video file.
+
+All use cv2.VideoCapture. Devices fail in the field (unplugged, claimed by another program, a USB
+bus without bandwidth for two streams); every such failure becomes a SourceError whose message
+names the device and says what to try.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from stereo_gui.core.errors import SourceError
+from stereo_gui.sources.base import StereoFrame
+
+log = logging.getLogger(__name__)
+
+SYSFS_VIDEO = Path("/sys/class/video4linux")
+# consecutive failed grabs before a camera counts as gone (a single dropped frame is normal)
+MAX_FAILED_GRABS = 5
+
+
+class EndOfSource(SourceError):
+    """A finite source (a video file without looping) has no more frames."""
+
+
+@dataclass(frozen=True)
+class CameraInfo:
+    """A video device: OpenCV index, the name the system gives it, and its device path if any."""
+
+    index: int
+    name: str
+    path: str | None = None
+
+    def label(self) -> str:
+        return f"{self.index}: {self.name}"
+
+
+def _list_sysfs(root: Path) -> list[CameraInfo]:
+    cams = []
+    for dev in root.glob("video*"):
+        suffix = dev.name[len("video"):]
+        if not suffix.isdigit():
+            continue
+        # webcams often expose a second node for metadata; its "index" attribute is not 0
+        try:
+            if int((dev / "index").read_text().strip() or 0) != 0:
+                continue
+        except (OSError, ValueError):
+            pass
+        try:
+            name = (dev / "name").read_text(errors="replace").strip() or f"Camera {suffix}"
+        except OSError:
+            name = f"Camera {suffix}"
+        cams.append(CameraInfo(int(suffix), name, f"/dev/{dev.name}"))
+    return sorted(cams, key=lambda c: c.index)
+
+
+def _probe(max_index: int) -> list[CameraInfo]:
+    cams = []
+    for i in range(max_index):
+        cap = cv2.VideoCapture(i)
+        try:
+            if cap.isOpened():
+                cams.append(CameraInfo(i, f"Camera {i}", None))
+        finally:
+            cap.release()
+    return cams
+
+
+def list_cameras(max_probe: int = 4, sysfs_root: Path | None = None) -> list[CameraInfo]:
+    """The video devices present, by OpenCV index; never raises (an empty list when none).
+
+    On Linux the names come from sysfs (no device is opened); elsewhere the first `max_probe`
+    indices are tried with cv2.VideoCapture.
+    """
+    try:
+        root = SYSFS_VIDEO if sysfs_root is None else Path(sysfs_root)
+        if sysfs_root is not None or sys.platform.startswith("linux"):
+            return _list_sysfs(root) if root.is_dir() else []
+        return _probe(max_probe)
+    except Exception as exc:  # noqa: BLE001 - listing devices must never stop the application
+        log.warning("listing cameras failed: %s", exc)
+        return []
+
+
+def _as_bgr(img: np.ndarray) -> np.ndarray:
+    if img.ndim == 2:
+        return cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
+    if img.shape[2] == 4:
+        return cv2.cvtColor(img, cv2.COLOR_BGRA2BGR)
+    return img
+
+
+def _open_camera(index: int, size: tuple[int, int], role: str):
+    """Open camera `index` at `size` (width, height) px or raise SourceError."""
+    cap = cv2.VideoCapture(int(index))
+    if cap is None or not cap.isOpened():
+        if cap is not None:
+            cap.release()
+        raise SourceError(f"cannot open {role} camera {index}: no such device, or another "
+                          "program is using it")
+    # MJPG lets two cameras share one USB bus at 640x480 and 30 fps (raw YUYV often cannot)
+    cap.set(cv2.CAP_PROP_FOURCC, cv2.VideoWriter.fourcc(*"MJPG"))
+    cap.set(cv2.CAP_PROP_FRAME_WIDTH, int(size[0]))
+    cap.set(cv2.CAP_PROP_FRAME_HEIGHT, int(size[1]))
+    cap.set(cv2.CAP_PROP_BUFFERSIZE, 1)  # keep the newest frame, not a backlog
+    return cap
+
+
+def _fps(cap, default: float = 30.0) -> float:
+    try:
+        fps = float(cap.get(cv2.CAP_PROP_FPS))
+    except Exception:  # noqa: BLE001 - some backends do not report it
+        return default
+    return fps if 1.0 <= fps <= 240.0 else default
+
+
+class TwoCameraSource:
+    """Two cameras, left and right. Both are grabbed first and then decoded, so that the two
+    exposures are as close in time as the devices allow."""
+
+    def __init__(self, left_index: int, right_index: int, size: tuple[int, int] = (640, 480),
+                 swap: bool = False):
+        if left_index == right_index:
+            raise SourceError(f"left and right camera are the same device ({left_index}): "
+                              "choose two different cameras")
+        if swap:
+            left_index, right_index = right_index, left_index
+        self.left_index, self.right_index = int(left_index), int(right_index)
+        self.size = (int(size[0]), int(size[1]))
+        self.name = f"Cameras {self.left_index}, {self.right_index}"
+        self._caps: list = []
+        self._index = 0
+        self._closed = False
+        try:
+            self._caps.append(_open_camera(self.left_index, self.size, "left"))
+            self._caps.append(_open_camera(self.right_index, self.size, "right"))
+        except BaseException:
+            self.close()
+            raise
+        self.nominal_fps = min(_fps(c) for c in self._caps)
+
+    def _grab_both(self) -> tuple[float, float]:
+        failures = 0
+        while True:
+            ok_l = self._caps[0].grab()
+            t_l = time.monotonic()
+            ok_r = self._caps[1].grab()
+            t_r = time.monotonic()
+            if ok_l and ok_r:
+                return t_l, t_r
+            failures += 1
+            if failures >= MAX_FAILED_GRABS:
+                which = [f"{role} camera {i}" for role, i, ok in
+                         (("left", self.left_index, ok_l), ("right", self.right_index, ok_r))
+                         if not ok]
+                raise SourceError(f"{' and '.join(which)} stopped delivering frames "
+                                  "(unplugged, or the USB bus is overloaded?)")
+
+    def read(self) -> StereoFrame:
+        if self._closed:
+            raise SourceError(f"{self.name}: the source was closed")
+        t_l, t_r = self._grab_both()
+        ok_l, left = self._caps[0].retrieve()
+        ok_r, right = self._caps[1].retrieve()
+        if not ok_l or left is None or not ok_r or right is None:
+            bad = self.left_index if not ok_l or left is None else self.right_index
+            raise SourceError(f"camera {bad} delivered a frame that could not be decoded")
+        left, right = _as_bgr(left), _as_bgr(right)
+        if left.shape != right.shape:
+            raise SourceError(
+                f"the cameras deliver different image sizes ({left.shape[1]}x{left.shape[0]} and "
+                f"{right.shape[1]}x{right.shape[0]}): choose a resolution both support")
+        frame = StereoFrame(left, right, t_l, t_r, self._index)
+        self._index += 1
+        return frame
+
+    def close(self) -> None:
+        self._closed = True
+        for cap in self._caps:
+            try:
+                cap.release()
+            except Exception:  # noqa: BLE001 - releasing a vanished device may fail; nothing to do
+                pass
+        self._caps = []
+
+
+def split_side_by_side(frame: np.ndarray, swap: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Split a side-by-side frame into (left, right) contiguous halves (a last odd column is
+    dropped); with `swap` the left half is the right image."""
+    if frame.ndim < 2 or frame.shape[1] < 2:
+        raise SourceError(f"a side-by-side frame must be at least 2 pixels wide, got shape {frame.shape}")
+    half = frame.shape[1] // 2
+    a = np.ascontiguousarray(frame[:, :half])
+    b = np.ascontiguousarray(frame[:, half:2 * half])
+    return (b, a) if swap else (a, b)
+
+
+class SideBySideSource:
+    """One stereo camera that delivers both images side by side in one frame."""
+
+    def __init__(self, index: int, size: tuple[int, int] = (1280, 480), swap: bool = False):
+        self.index = int(index)
+        self.size = (int(size[0]), int(size[1]))  # the whole frame, both halves
+        self.swap = bool(swap)
+        self.name = f"Side-by-side camera {self.index}"
+        self._cap = _open_camera(self.index, self.size, "side-by-side")
+        self.nominal_fps = _fps(self._cap)
+        self._index = 0
+        self._closed = False
+
+    def read(self) -> StereoFrame:
+        if self._closed:
+            raise SourceError(f"{self.name}: the source was closed")
+        for _ in range(MAX_FAILED_GRABS):
+            ok, frame = self._cap.read()
+            if ok and frame is not None:
+                break
+        else:
+            raise SourceError(f"camera {self.index} stopped delivering frames (unplugged?)")
+        t = time.monotonic()
+        left, right = split_side_by_side(_as_bgr(frame), self.swap)
+        out = StereoFrame(left, right, t, t, self._index)
+        self._index += 1
+        return out
+
+    def close(self) -> None:
+        self._closed = True
+        if self._cap is not None:
+            self._cap.release()
+
+
+class VideoFileSource:
+    """A side-by-side stereo video file, played at its own frame rate (paced) or as fast as
+    frames are read; with `loop` it starts again at the end, else read() raises EndOfSource.
+
+    Timestamps are the video's own (seconds from its start, plus one duration per loop).
+    """
+
+    def __init__(self, path, loop: bool = True, swap: bool = False, paced: bool = True):
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise SourceError(f"video file {self.path} does not exist")
+        self._cap = cv2.VideoCapture(str(self.path))
+        if not self._cap.isOpened():
+            self._cap.release()
+            raise SourceError(f"cannot open video file {self.path}: not a video OpenCV can read")
+        self.loop = bool(loop)
+        self.swap = bool(swap)
+        self.paced = bool(paced)
+        self.nominal_fps = _fps(self._cap)
+        self.name = f"Video {self.path.name}"
+        self._index = 0
+        self._loops = 0
+        self._frame_in_loop = 0
+        self._frames_per_loop = 0
+        self._next_t: float | None = None
+        self._closed = False
+
+    def _next_frame(self) -> np.ndarray:
+        ok, frame = self._cap.read()
+        if ok and frame is not None:
+            return frame
+        if self._frame_in_loop == 0:
+            raise SourceError(f"video file {self.path} holds no readable frames")
+        if not self.loop:
+            raise EndOfSource(f"end of video file {self.path.name}")
+        self._cap.set(cv2.CAP_PROP_POS_FRAMES, 0)
+        self._loops += 1
+        self._frames_per_loop = max(self._frames_per_loop, self._frame_in_loop)
+        self._frame_in_loop = 0
+        ok, frame = self._cap.read()
+        if not ok or frame is None:
+            raise SourceError(f"video file {self.path} cannot be rewound")
+        return frame
+
+    def read(self) -> StereoFrame:
+        if self._closed:
+            raise SourceError(f"{self.name}: the source was closed")
+        if self.paced:
+            now = time.monotonic()
+            if self._next_t is None:
+                self._next_t = now
+            elif now < self._next_t:
+                time.sleep(self._next_t - now)
+            self._next_t = max(self._next_t + 1.0 / self.nominal_fps, time.monotonic() - 0.5)
+        frame = self._next_frame()
+        t = (self._loops * self._frames_per_loop + self._frame_in_loop) / self.nominal_fps
+        self._frame_in_loop += 1
+        left, right = split_side_by_side(_as_bgr(frame), self.swap)
+        out = StereoFrame(left, right, t, t, self._index)
+        self._index += 1
+        return out
+
+    def close(self) -> None:
+        self._closed = True
+        if self._cap is not None:
+            self._cap.release()

@@ -1,0 +1,153 @@
+"""Open a frame source from its command-line spec: auto | sim | cams:L,R | sbs:N | DIR | VIDEO."""
+
+from __future__ import annotations
+
+import logging
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+from stereo_gui.core.errors import InputError, SourceError
+from stereo_gui.sources.base import FrameSource, StereoFrame
+
+log = logging.getLogger(__name__)
+
+SPEC_HELP = ("auto, sim, cams:L,R (two camera indices), sbs:N (one side-by-side camera), "
+             "a folder of recorded pairs, or a side-by-side video file")
+
+_CAMS = re.compile(r"^cams:\s*(\d+)\s*,\s*(\d+)\s*$")
+_SBS = re.compile(r"^sbs:\s*(\d+)\s*$")
+_SIM = re.compile(r"^sim(?::(mixed|board|scene))?$")
+
+
+@dataclass(frozen=True)
+class OpenedSource:
+    """An opened source; `fell_back_to_sim` when automatic selection found no usable cameras
+    (the window then shows a banner), `message` says why or what was chosen."""
+
+    source: FrameSource
+    fell_back_to_sim: bool = False
+    message: str = ""
+
+
+@dataclass(frozen=True)
+class SourceSpec:
+    """A parsed spec: kind is auto, sim, cams, sbs, folder or video."""
+
+    kind: str
+    indices: tuple[int, ...] = ()
+    path: Path | None = None
+    mode: str = "mixed"  # for sim
+
+
+def parse_source_spec(spec: str | None) -> SourceSpec:
+    """Parse a source spec without opening anything; raise InputError if it is not one."""
+    text = (spec or "auto").strip()
+    low = text.lower()
+    if low in ("", "auto"):
+        return SourceSpec("auto")
+    m = _SIM.match(low)
+    if m:
+        return SourceSpec("sim", mode=m.group(1) or "mixed")
+    if low.startswith("cams:"):
+        m = _CAMS.match(low)
+        if not m:
+            raise InputError(f"source {text!r}: give two camera indices as cams:L,R, for example cams:0,1")
+        left, right = int(m.group(1)), int(m.group(2))
+        if left == right:
+            raise InputError(f"source {text!r}: left and right must be two different cameras")
+        return SourceSpec("cams", indices=(left, right))
+    if low.startswith("sbs:"):
+        m = _SBS.match(low)
+        if not m:
+            raise InputError(f"source {text!r}: give one camera index as sbs:N, for example sbs:0")
+        return SourceSpec("sbs", indices=(int(m.group(1)),))
+    path = Path(text).expanduser()
+    if path.is_dir():
+        return SourceSpec("folder", path=path)
+    if path.is_file():
+        return SourceSpec("video", path=path)
+    raise InputError(f"source {text!r} is neither an existing folder or video file nor one of: "
+                     f"{SPEC_HELP}")
+
+
+class _SwappedSource:
+    """Wraps a source so that its left and right images trade places (other attributes, e.g.
+    a playback source's pause/step, pass through)."""
+
+    def __init__(self, inner: FrameSource):
+        self._inner = inner
+        self.name = f"{inner.name} (swapped)"
+        self.nominal_fps = inner.nominal_fps
+
+    def read(self) -> StereoFrame:
+        f = self._inner.read()
+        return StereoFrame(f.right, f.left, f.t_right, f.t_left, f.index, f.truth)
+
+    def close(self) -> None:
+        self._inner.close()
+
+    def __getattr__(self, name):
+        return getattr(self._inner, name)
+
+
+def _sim(mode: str, size: tuple[int, int], swap: bool) -> FrameSource:
+    from stereo_gui.sources.sim import RigConfig, SimRig, SimSource
+
+    source = SimSource(SimRig(RigConfig.for_size(size)), mode=mode)
+    return _SwappedSource(source) if swap else source
+
+
+def _auto(size: tuple[int, int], swap: bool) -> OpenedSource:
+    from stereo_gui.sources.cameras import TwoCameraSource, list_cameras
+
+    cams = list_cameras()
+    if len(cams) >= 2:
+        try:
+            src = TwoCameraSource(cams[0].index, cams[1].index, size=size, swap=swap)
+            return OpenedSource(src, False, f"using cameras {cams[0].label()} and {cams[1].label()}")
+        except SourceError as exc:
+            why = f"two cameras were found but could not be opened ({exc})"
+    elif len(cams) == 1:
+        why = f"only one camera was found ({cams[0].label()})"
+    else:
+        why = "no cameras were found"
+    log.info("automatic source: %s; using the simulated rig", why)
+    return OpenedSource(_sim("mixed", size, swap), True, f"{why}; showing the simulated rig")
+
+
+def open_source(spec: str | None, size: tuple[int, int] = (640, 480), swap: bool = False
+                ) -> OpenedSource:
+    """Open the source a spec names (see SPEC_HELP); `size` is one image's (width, height) px.
+
+    Bad specs raise InputError; devices or files that cannot be opened raise SourceError.
+    Only "auto" falls back to the simulated rig (and says so in the result).
+    """
+    size = (int(size[0]), int(size[1]))
+    if size[0] <= 0 or size[1] <= 0:
+        raise InputError(f"image size must be positive, not {size[0]}x{size[1]}")
+    s = parse_source_spec(spec)
+    if s.kind == "auto":
+        return _auto(size, swap)
+    if s.kind == "sim":
+        return OpenedSource(_sim(s.mode, size, swap), False, "simulated rig")
+    if s.kind == "cams":
+        from stereo_gui.sources.cameras import TwoCameraSource
+
+        src = TwoCameraSource(s.indices[0], s.indices[1], size=size, swap=swap)
+        return OpenedSource(src, False, src.name)
+    if s.kind == "sbs":
+        from stereo_gui.sources.cameras import SideBySideSource
+
+        src = SideBySideSource(s.indices[0], size=(2 * size[0], size[1]), swap=swap)
+        return OpenedSource(src, False, src.name)
+    if s.kind == "folder":
+        from stereo_gui.sources.playback import PlaybackSource  # owned elsewhere; import at use
+
+        src = PlaybackSource(s.path)
+        src = _SwappedSource(src) if swap else src
+        return OpenedSource(src, False, src.name)
+    from stereo_gui.sources.cameras import VideoFileSource
+
+    src = VideoFileSource(s.path, loop=True, swap=swap)
+    return OpenedSource(src, False, src.name)

@@ -1,0 +1,259 @@
+"""Camera sources without cameras: a fake cv2.VideoCapture, a fake sysfs, a video written here."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+import stereo_gui.sources.cameras as cameras
+from stereo_gui.core.errors import SourceError
+from stereo_gui.sources.base import FrameSource
+from stereo_gui.sources.cameras import (
+    CameraInfo, EndOfSource, SideBySideSource, TwoCameraSource, VideoFileSource, list_cameras,
+    split_side_by_side,
+)
+
+
+class FakeCapture:
+    """Stands in for cv2.VideoCapture(index): devices and their behaviour live in `devices`."""
+
+    devices: dict = {}
+    log: list = []
+
+    def __init__(self, index, *args):
+        self.index = index
+        self.dev = FakeCapture.devices.get(index)
+        self.props = {}
+        self.grabs = 0
+        self.released = False
+
+    def isOpened(self):
+        return self.dev is not None
+
+    def set(self, prop, value):
+        self.props[prop] = value
+        return True
+
+    def get(self, prop):
+        return 25.0 if prop == cv2.CAP_PROP_FPS else 0.0
+
+    def grab(self):
+        FakeCapture.log.append(("grab", self.index))
+        self.grabs += 1
+        dead_after = self.dev.get("dead_after")
+        if dead_after is not None and self.grabs > dead_after:
+            return False
+        return self.grabs not in self.dev.get("drop", ())
+
+    def retrieve(self):
+        FakeCapture.log.append(("retrieve", self.index))
+        w, h = self.dev.get("size", (64, 48))
+        shape = (h, w) if self.dev.get("gray") else (h, w, 3)
+        return True, np.full(shape, self.dev["value"] + self.grabs, np.uint8)
+
+    def read(self):
+        return (self.grab() and self.retrieve()) or (False, None)
+
+    def release(self):
+        FakeCapture.log.append(("release", self.index))
+        self.released = True
+
+
+@pytest.fixture
+def fake_cams(monkeypatch):
+    FakeCapture.devices = {0: {"value": 10}, 1: {"value": 100}}
+    FakeCapture.log = []
+    monkeypatch.setattr(cameras.cv2, "VideoCapture", FakeCapture)
+    return FakeCapture
+
+
+def test_two_cameras_grab_both_then_retrieve(fake_cams):
+    src = TwoCameraSource(0, 1, size=(64, 48))
+    assert isinstance(src, FrameSource)
+    assert src.name == "Cameras 0, 1" and src.nominal_fps == 25.0
+    fake_cams.log.clear()
+    f0 = src.read()
+    assert fake_cams.log == [("grab", 0), ("grab", 1), ("retrieve", 0), ("retrieve", 1)]
+    f1 = src.read()
+    assert (f0.index, f1.index) == (0, 1)
+    assert f0.left[0, 0, 0] == 11 and f0.right[0, 0, 0] == 101
+    assert f0.t_left <= f0.t_right <= f1.t_left <= f1.t_right
+    # the requested size (and MJPG) was asked of both devices
+    cap = src._caps[0]
+    assert cap.props[cv2.CAP_PROP_FRAME_WIDTH] == 64 and cap.props[cv2.CAP_PROP_FRAME_HEIGHT] == 48
+    src.close()
+    src.close()
+    assert all(c == ("release", i) for c, i in zip(fake_cams.log[-2:], (0, 1)))
+    with pytest.raises(SourceError):
+        src.read()
+
+
+def test_swap_exchanges_the_cameras(fake_cams):
+    src = TwoCameraSource(0, 1, swap=True)
+    f = src.read()
+    assert f.left[0, 0, 0] == 101 and f.right[0, 0, 0] == 11
+    assert src.name == "Cameras 1, 0"
+
+
+def test_a_dropped_frame_is_retried(fake_cams):
+    fake_cams.devices[1]["drop"] = (1,)
+    f = TwoCameraSource(0, 1).read()
+    assert f.right[0, 0, 0] == 102  # the second grab
+
+
+def test_camera_that_disappears_raises(fake_cams):
+    fake_cams.devices[1]["dead_after"] = 2
+    src = TwoCameraSource(0, 1)
+    src.read()
+    src.read()
+    with pytest.raises(SourceError, match="right camera 1 stopped delivering frames"):
+        src.read()
+
+
+def test_cannot_open_raises_and_releases_the_other(fake_cams):
+    with pytest.raises(SourceError, match="cannot open right camera 7"):
+        TwoCameraSource(0, 7)
+    assert ("release", 0) in fake_cams.log
+    with pytest.raises(SourceError, match="same device"):
+        TwoCameraSource(1, 1)
+
+
+def test_gray_frames_become_bgr_and_sizes_must_match(fake_cams):
+    fake_cams.devices[0]["gray"] = True
+    f = TwoCameraSource(0, 1).read()
+    assert f.left.shape == (48, 64, 3)
+    fake_cams.devices[1]["size"] = (32, 24)
+    with pytest.raises(SourceError, match="different image sizes"):
+        TwoCameraSource(0, 1).read()
+
+
+def test_nonexistent_real_device_raises_source_error():
+    """The real cv2.VideoCapture: an index with no device fails at once with a clear message."""
+    with pytest.raises(SourceError, match="cannot open left camera 97"):
+        TwoCameraSource(97, 98)
+    with pytest.raises(SourceError, match="cannot open side-by-side camera 96"):
+        SideBySideSource(96)
+
+
+def test_split_side_by_side():
+    frame = np.zeros((4, 9, 3), np.uint8)
+    frame[:, :4] = 1
+    frame[:, 4:8] = 2
+    frame[:, 8] = 99  # an odd last column is dropped
+    left, right = split_side_by_side(frame)
+    assert left.shape == right.shape == (4, 4, 3)
+    assert (left == 1).all() and (right == 2).all()
+    assert left.flags.c_contiguous and right.flags.c_contiguous
+    left, right = split_side_by_side(frame, swap=True)
+    assert (left == 2).all() and (right == 1).all()
+    with pytest.raises(SourceError):
+        split_side_by_side(np.zeros((4, 1, 3), np.uint8))
+
+
+def test_side_by_side_camera(fake_cams):
+    fake_cams.devices[3] = {"value": 50, "size": (128, 48)}
+    src = SideBySideSource(3, size=(128, 48))
+    f = src.read()
+    assert f.left.shape == f.right.shape == (48, 64, 3)
+    assert src.name == "Side-by-side camera 3" and f.t_left == f.t_right
+    fake_cams.devices[3]["dead_after"] = 1
+    with pytest.raises(SourceError, match="stopped delivering"):
+        src.read()
+    src.close()
+
+
+def _write_sbs_video(path, n=5, size=(64, 24)):
+    w, h = size
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter.fourcc(*"MJPG"), 20.0, (w, h))
+    assert writer.isOpened(), "MJPG .avi writing should work in the headless wheel"
+    for i in range(n):
+        frame = np.zeros((h, w, 3), np.uint8)
+        frame[:, : w // 2] = 20 + 40 * i  # left half brightness encodes the frame number
+        frame[:, w // 2:] = 230 - 40 * i
+        writer.write(frame)
+    writer.release()
+
+
+def test_video_file_source_loops(tmp_path):
+    path = tmp_path / "sbs.avi"
+    _write_sbs_video(path)
+    src = VideoFileSource(path, loop=True, paced=False)
+    assert src.nominal_fps == pytest.approx(20.0) and src.name == "Video sbs.avi"
+    frames = [src.read() for _ in range(7)]
+    assert frames[0].left.shape == (24, 32, 3)
+    lefts = [round(float(f.left.mean())) for f in frames]
+    rights = [round(float(f.right.mean())) for f in frames]
+    assert lefts[:5] == pytest.approx([20, 60, 100, 140, 180], abs=3)
+    assert rights[:5] == pytest.approx([230, 190, 150, 110, 70], abs=3)
+    assert lefts[5:] == pytest.approx(lefts[:2], abs=1)  # looped to the start
+    times = [f.t_left for f in frames]
+    assert times == pytest.approx([i / 20.0 for i in range(7)])
+    assert [f.index for f in frames] == list(range(7))
+    src.close()
+
+
+def test_video_file_source_end_and_swap(tmp_path):
+    path = tmp_path / "sbs.avi"
+    _write_sbs_video(path, n=2)
+    src = VideoFileSource(path, loop=False, swap=True, paced=False)
+    f = src.read()
+    assert f.left.mean() > 200 and f.right.mean() < 40
+    src.read()
+    with pytest.raises(EndOfSource):
+        src.read()
+
+
+def test_video_file_errors(tmp_path):
+    with pytest.raises(SourceError, match="does not exist"):
+        VideoFileSource(tmp_path / "missing.avi")
+    bad = tmp_path / "notes.avi"
+    bad.write_text("not a video")
+    with pytest.raises(SourceError, match="cannot open video file"):
+        VideoFileSource(bad)
+
+
+def test_video_file_source_paces(tmp_path, monkeypatch):
+    path = tmp_path / "sbs.avi"
+    _write_sbs_video(path, n=3)
+    clock = {"t": 5.0}
+    monkeypatch.setattr(cameras.time, "monotonic", lambda: clock["t"])
+    monkeypatch.setattr(cameras.time, "sleep", lambda dt: clock.__setitem__("t", clock["t"] + dt))
+    src = VideoFileSource(path, paced=True)
+    for _ in range(3):
+        src.read()
+    assert clock["t"] == pytest.approx(5.0 + 2 / 20.0)
+
+
+def test_list_cameras_from_sysfs(tmp_path):
+    for n, name, index in ((0, "HD Webcam C270", 0), (1, "HD Webcam C270", 1),
+                           (2, "USB2.0 Camera", 0), (10, "", 0)):
+        d = tmp_path / f"video{n}"
+        d.mkdir()
+        (d / "name").write_text(name + "\n")
+        (d / "index").write_text(f"{index}\n")
+    (tmp_path / "vbi0").mkdir()
+    cams = list_cameras(sysfs_root=tmp_path)
+    assert cams == [CameraInfo(0, "HD Webcam C270", "/dev/video0"),
+                    CameraInfo(2, "USB2.0 Camera", "/dev/video2"),
+                    CameraInfo(10, "Camera 10", "/dev/video10")]
+    assert cams[1].label() == "2: USB2.0 Camera"
+    assert list_cameras(sysfs_root=tmp_path / "absent") == []
+
+
+def test_list_cameras_never_raises(monkeypatch):
+    assert isinstance(list_cameras(), list)  # whatever this machine has
+
+    def broken(root):
+        raise PermissionError("denied")
+
+    monkeypatch.setattr(cameras, "_list_sysfs", broken)
+    monkeypatch.setattr(cameras.sys, "platform", "linux")
+    monkeypatch.setattr(cameras, "SYSFS_VIDEO", cameras.Path("/"))
+    assert list_cameras() == []
+
+
+def test_probe_lists_openable_indices(fake_cams):
+    fake_cams.devices = {1: {"value": 0}, 2: {"value": 0}}
+    assert [c.index for c in cameras._probe(4)] == [1, 2]
+    assert all(("release", i) in fake_cams.log for i in range(4))

@@ -1,0 +1,146 @@
+"""Source specs: parsing, dispatch, and the automatic fallback to the simulated rig."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+import stereo_gui.sources.cameras as cameras
+from stereo_gui.core.errors import InputError, SourceError
+from stereo_gui.sources.cameras import CameraInfo, TwoCameraSource, VideoFileSource
+from stereo_gui.sources.open import OpenedSource, open_source, parse_source_spec
+from stereo_gui.sources.sim import SimSource
+
+
+@pytest.mark.parametrize("spec, kind, indices", [
+    (None, "auto", ()), ("auto", "auto", ()), ("", "auto", ()), ("sim", "sim", ()),
+    ("cams:0,1", "cams", (0, 1)), ("cams: 2 , 0", "cams", (2, 0)), ("sbs:3", "sbs", (3,)),
+])
+def test_parse_specs(spec, kind, indices):
+    s = parse_source_spec(spec)
+    assert (s.kind, s.indices) == (kind, indices)
+
+
+def test_parse_sim_modes_and_paths(tmp_path):
+    assert parse_source_spec("sim:board").mode == "board"
+    assert parse_source_spec(str(tmp_path)).kind == "folder"
+    video = tmp_path / "v.avi"
+    video.write_bytes(b"x")
+    assert parse_source_spec(str(video)).kind == "video"
+
+
+@pytest.mark.parametrize("spec, words", [
+    ("cams:0", "cams:L,R"), ("cams:a,b", "cams:L,R"), ("cams:1,1", "different"),
+    ("sbs:", "sbs:N"), ("sbs:1,2", "sbs:N"), ("/no/such/folder", "neither an existing folder"),
+    ("camera", "neither an existing folder"),
+])
+def test_bad_specs_say_what_is_expected(spec, words):
+    with pytest.raises(InputError, match=words) as exc:
+        parse_source_spec(spec)
+    assert "\n" not in str(exc.value)
+    with pytest.raises(InputError):
+        open_source(spec)
+
+
+def test_sim_source(tmp_path):
+    opened = open_source("sim:scene")
+    assert isinstance(opened, OpenedSource) and not opened.fell_back_to_sim
+    assert isinstance(opened.source, SimSource) and opened.source.mode == "scene"
+    a = opened.source.read()
+    swapped = open_source("sim:scene", swap=True).source
+    b = swapped.read()
+    np.testing.assert_array_equal(a.left, b.right)
+    np.testing.assert_array_equal(a.right, b.left)
+    assert "swapped" in swapped.name and swapped.mode == "scene"  # attributes pass through
+    small = open_source("sim:scene", size=(320, 240)).source.read()
+    assert small.left.shape == (240, 320, 3)
+    with pytest.raises(InputError):
+        open_source("sim", size=(0, 480))
+
+
+def test_auto_falls_back_to_sim_without_cameras(monkeypatch):
+    monkeypatch.setattr(cameras, "list_cameras", lambda: [])
+    opened = open_source("auto")
+    assert opened.fell_back_to_sim and isinstance(opened.source, SimSource)
+    assert "no cameras were found" in opened.message
+    monkeypatch.setattr(cameras, "list_cameras", lambda: [CameraInfo(0, "Webcam", "/dev/video0")])
+    opened = open_source(None)
+    assert opened.fell_back_to_sim and "only one camera" in opened.message and "Webcam" in opened.message
+
+
+class _Cap:
+    """A minimal fake cv2.VideoCapture: indices in `present` open and deliver grey frames."""
+
+    present: set = set()
+
+    def __init__(self, index, *args):
+        self.index = index
+
+    def isOpened(self):
+        return self.index in _Cap.present
+
+    def set(self, *args):
+        return True
+
+    def get(self, prop):
+        return 30.0
+
+    def grab(self):
+        return True
+
+    def retrieve(self):
+        return True, np.full((48, 64, 3), self.index, np.uint8)
+
+    def read(self):
+        return self.retrieve()
+
+    def release(self):
+        pass
+
+
+def test_auto_uses_two_cameras_or_says_why_not(monkeypatch):
+    monkeypatch.setattr(cameras.cv2, "VideoCapture", _Cap)
+    listed = [CameraInfo(2, "Left cam", "/dev/video2"), CameraInfo(4, "Right cam", "/dev/video4")]
+    monkeypatch.setattr(cameras, "list_cameras", lambda: listed)
+    _Cap.present = {2, 4}
+    opened = open_source("auto", swap=True)
+    assert not opened.fell_back_to_sim and isinstance(opened.source, TwoCameraSource)
+    assert "Left cam" in opened.message
+    f = opened.source.read()
+    assert (f.left[0, 0, 0], f.right[0, 0, 0]) == (4, 2)
+    # listed but not openable (another program holds one): the simulated rig, and why
+    _Cap.present = {2}
+    opened = open_source("auto")
+    assert opened.fell_back_to_sim and "could not be opened" in opened.message
+    assert "camera 4" in opened.message
+
+
+def test_explicit_cameras_do_not_fall_back(monkeypatch):
+    monkeypatch.setattr(cameras.cv2, "VideoCapture", _Cap)
+    _Cap.present = {0, 1}
+    src = open_source("cams:1,0").source
+    assert src.read().left[0, 0, 0] == 1
+    sbs = open_source("sbs:0", size=(32, 48)).source
+    assert sbs.read().left.shape == (48, 32, 3)
+    _Cap.present = set()
+    with pytest.raises(SourceError, match="cannot open left camera 0"):
+        open_source("cams:0,1")
+
+
+def test_video_and_folder_specs(tmp_path):
+    video = tmp_path / "sbs.avi"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter.fourcc(*"MJPG"), 10.0, (64, 24))
+    for _ in range(2):
+        writer.write(np.zeros((24, 64, 3), np.uint8))
+    writer.release()
+    src = open_source(str(video)).source
+    assert isinstance(src, VideoFileSource) and src.read().left.shape == (24, 32, 3)
+    src.close()
+    playback = pytest.importorskip("stereo_gui.sources.playback")
+    for n in (1, 2):
+        for side in "LR":
+            cv2.imwrite(str(tmp_path / f"chessboard-{side}{n}.png"), np.full((24, 32, 3), n, np.uint8))
+    opened = open_source(str(tmp_path))
+    assert isinstance(opened.source, playback.PlaybackSource) and not opened.fell_back_to_sim
+    opened.source.close()
