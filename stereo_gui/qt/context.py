@@ -48,6 +48,7 @@ class AppContext(QObject):
         self.settings = settings if settings is not None else _default_settings()
         self.calibration = None
         self.calibration_path: Path | None = None
+        self.calibration_note = ""
         self.measurements: list = []
         self.active_fit = None
         self.source_fell_back_to_sim = False  # True when auto found no cameras
@@ -58,10 +59,15 @@ class AppContext(QObject):
         self.frames.errorOccurred.connect(self.report_error)
 
     # ---- state changes -----------------------------------------------------------------------
-    def set_calibration(self, calib, path: str | Path | None = None) -> None:
-        """Use `calib` (or None) from now on; `path` is the file it came from, if any."""
+    def set_calibration(self, calib, path: str | Path | None = None, note: str = "") -> None:
+        """Use `calib` (or None) from now on; `path` is the file it came from, if any.
+
+        `note` says where an unsaved calibration came from (e.g. "simulated rig's true
+        calibration"); the status bar shows it instead of a file name.
+        """
         self.calibration = calib
         self.calibration_path = Path(path) if path is not None else None
+        self.calibration_note = note
         self.calibrationChanged.emit(calib)
 
     def add_measurement(self, record) -> int:

@@ -313,7 +313,9 @@ def _close_quietly(source: FrameSource) -> None:
 class JobRunner(QObject):
     """One background thread for occasional jobs; `finished(id, result)` / `failed(id, message)`.
 
-    Jobs run in order; `submit` returns the job's id so a caller can drop a stale answer.
+    Jobs run in order; `submit` returns the job's id so a caller can drop a stale answer. The
+    thread is a daemon Python thread (not a QThread): a job that cannot be interrupted (opening
+    a device) and outlives `stop()` is abandoned at exit instead of aborting Qt.
     """
 
     finished = Signal(int, object)
@@ -325,8 +327,9 @@ class JobRunner(QObject):
         self._jobs: list[tuple[int, Callable[[], object]]] = []
         self._next_id = 1
         self._stopping = False
+        self._busy = False
         self._name = name
-        self._thread: _LoopThread | None = None
+        self._thread: threading.Thread | None = None
 
     def submit(self, fn: Callable[[], object]) -> int:
         with self._cond:
@@ -334,28 +337,43 @@ class JobRunner(QObject):
             self._next_id += 1
             self._jobs.append((job_id, fn))
             self._cond.notify_all()
-        if self._thread is None:
-            self._thread = _LoopThread(self._loop, self._name)
-            self._thread.start()
+            if self._thread is None or not self._thread.is_alive():
+                self._stopping = False
+                self._thread = threading.Thread(target=self._loop, name=self._name, daemon=True)
+                self._thread.start()
         return job_id
 
     def is_running(self) -> bool:
-        return self._thread is not None and self._thread.isRunning()
+        return self._thread is not None and self._thread.is_alive()
+
+    def is_busy(self) -> bool:
+        """True while a job is queued or running."""
+        with self._cond:
+            return self._busy or bool(self._jobs)
 
     def stop(self, timeout_ms: int = _JOIN_TIMEOUT_MS) -> bool:
-        """Drop queued jobs, let the running one finish, join the thread."""
+        """Drop queued jobs, let the running one finish, join the thread; False if it did not."""
         with self._cond:
             self._stopping = True
             self._jobs.clear()
             self._cond.notify_all()
-        ok = True
-        if self._thread is not None:
-            ok = self._thread.wait(timeout_ms)
-            if ok:
-                self._thread = None
+            thread = self._thread
+        if thread is None:
+            return True
+        thread.join(timeout_ms / 1000.0)
+        if thread.is_alive():
+            log.warning("%s: a job is still running; it is abandoned", self._name)
+            return False
         with self._cond:
-            self._stopping = False
-        return ok
+            if self._thread is thread:
+                self._thread = None
+        return True
+
+    def _emit(self, signal, *args) -> None:
+        try:
+            signal.emit(*args)
+        except RuntimeError:  # the receiver side was deleted while the job ran (at exit)
+            log.debug("%s: result dropped, object deleted", self._name)
 
     def _loop(self) -> None:
         while True:
@@ -365,10 +383,28 @@ class JobRunner(QObject):
                 if self._stopping:
                     return
                 job_id, fn = self._jobs.pop(0)
+                self._busy = True
             try:
                 result = fn()
             except Exception as exc:  # noqa: BLE001 - reported to the caller by signal
                 log.debug("job %d failed", job_id, exc_info=True)
-                self.failed.emit(job_id, str(exc) or type(exc).__name__)
+                with self._cond:
+                    self._busy = False
+                    stopping = self._stopping
+                if not stopping:
+                    self._emit(self.failed, job_id, str(exc) or type(exc).__name__)
                 continue
-            self.finished.emit(job_id, result)
+            with self._cond:
+                self._busy = False
+                stopping = self._stopping
+            if not stopping:
+                self._emit(self.finished, job_id, result)
+            else:
+                _dispose(result)
+
+
+def _dispose(result) -> None:
+    """Release what a job produced after nobody wants it (an opened source)."""
+    source = getattr(result, "source", result)
+    if hasattr(source, "close") and hasattr(source, "read"):
+        _close_quietly(source)

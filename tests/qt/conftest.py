@@ -73,3 +73,21 @@ def ctx(qtbot):
     yield c
     assert c.shutdown(2000), "a worker did not stop within 2 s"
     assert not c.frames.is_running()
+
+
+@pytest.fixture(scope="session")
+def sim_rig():
+    """One simulated rig for the whole session (building its ray maps takes seconds)."""
+    from stereo_gui.sources.sim import SimRig
+
+    return SimRig(seed=0)
+
+
+@pytest.fixture(scope="session")
+def wall_pair(sim_rig):
+    """(scene, left, right) of a textured wall at 1.5 m rendered by the simulated rig."""
+    from stereo_gui.sources.sim import Scene
+
+    scene = Scene.wall(1500.0)
+    left, right = sim_rig.render_scene(scene, np.random.default_rng(3))
+    return scene, left, right

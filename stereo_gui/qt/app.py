@@ -1,0 +1,138 @@
+"""The application shell: QApplication, settings, start-up calibration and source, auto-quit.
+
+`STEREO_GUI_QUIT_AFTER=SECONDS` in the environment makes the application close its window and
+exit with status 0 after that many seconds (smoke tests of installed or bundled builds).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import sys
+from pathlib import Path
+
+from stereo_gui.core.errors import InputError, StereoGuiError
+
+log = logging.getLogger(__name__)
+
+QUIT_AFTER_ENV = "STEREO_GUI_QUIT_AFTER"
+
+
+def quit_after_seconds() -> float | None:
+    """The auto-quit delay from the environment, seconds (None when unset); InputError if bad."""
+    raw = os.environ.get(QUIT_AFTER_ENV, "").strip()
+    if not raw:
+        return None
+    try:
+        value = float(raw)
+    except ValueError:
+        raise InputError(f"{QUIT_AFTER_ENV} must be a number of seconds, not {raw!r}") from None
+    if not value >= 0:
+        raise InputError(f"{QUIT_AFTER_ENV} must be zero or more seconds, not {raw!r}")
+    return value
+
+
+def check_source_spec(spec: str) -> None:
+    """Raise InputError for a --source value that cannot name any source."""
+    if spec in ("auto", "sim"):
+        return
+    for prefix, count in (("cams:", 2), ("sbs:", 1)):
+        if spec.startswith(prefix):
+            parts = spec[len(prefix):].split(",")
+            if len(parts) != count or not all(p.strip().isdigit() for p in parts):
+                raise InputError(f"--source {spec}: expected {prefix}" +
+                                 ("L,R with two camera indices" if count == 2 else "N, a camera index"))
+            return
+    if not Path(spec).exists():
+        raise InputError(f"--source {spec}: no such folder or video file")
+
+
+def configure_pyqtgraph() -> None:
+    """Row-major images (numpy's own order) and no antialiasing cost on live images."""
+    import pyqtgraph as pg
+
+    pg.setConfigOptions(imageAxisOrder="row-major", antialias=False,
+                        background="#202020", foreground="#dddddd")
+
+
+def _install_excepthook(ctx) -> None:
+    """An unexpected exception in a slot becomes a message in the window, not a lost traceback."""
+    previous = sys.excepthook
+
+    def hook(exc_type, exc, tb):
+        if issubclass(exc_type, KeyboardInterrupt):
+            previous(exc_type, exc, tb)
+            return
+        log.error("unexpected error", exc_info=(exc_type, exc, tb))
+        try:
+            ctx.report_error(f"Unexpected error: {exc_type.__name__}: {exc}")
+        except RuntimeError:  # the context is already deleted at exit
+            pass
+
+    sys.excepthook = hook
+
+
+def build_window(source: str | None = None, calib: str | None = None):
+    """Create the context and main window, load the calibration and open the source.
+
+    Explicit arguments that cannot be used raise StereoGuiError (the command line turns that into
+    one line and exit 2); a remembered calibration or source that fails is reported in the window.
+    Returns (ctx, window). A QApplication must exist.
+    """
+    from stereo_gui.files.settings import load_settings
+    from stereo_gui.qt.context import AppContext
+    from stereo_gui.qt.main_window import MainWindow
+    from stereo_gui.qt.source_dialog import SourceChoice
+
+    configure_pyqtgraph()
+    settings, warnings = load_settings()
+    ctx = AppContext(settings)
+    calib_obj, calib_path, calib_error = None, None, ""
+    if calib:
+        from stereo_gui.files.calibration_file import load_calibration
+
+        calib_obj, calib_path = load_calibration(calib), calib  # raises for a bad --calib
+    elif settings.last_calibration:
+        from stereo_gui.files.calibration_file import load_calibration
+
+        try:
+            calib_obj, calib_path = load_calibration(settings.last_calibration), \
+                settings.last_calibration
+        except (StereoGuiError, OSError) as exc:
+            calib_error = f"The last calibration could not be loaded: {exc}"
+
+    size = tuple(settings.resolution)
+    if source:
+        check_source_spec(source)  # a bad --source is a user mistake: exit 2 before the window
+    spec = source or settings.source or "auto"
+
+    window = MainWindow(ctx)
+    _install_excepthook(ctx)
+    if calib_obj is not None:
+        ctx.set_calibration(calib_obj, Path(calib_path).resolve())
+        ctx.settings = ctx.settings.with_updates(last_calibration=str(Path(calib_path).resolve()))
+    # opening takes seconds (devices, the simulated rig's ray maps): done off the UI thread
+    window.open_source(SourceChoice(spec, size, settings.swap_lr), fallback_to_auto=not source)
+    problems = [w for w in warnings] + ([calib_error] if calib_error else [])
+    if problems:
+        window.show_error("; ".join(problems))
+    return ctx, window
+
+
+def run_app(source: str | None = None, calib: str | None = None) -> int:
+    """Run the GUI until its window closes; return the exit status."""
+    from PySide6.QtCore import QTimer
+    from PySide6.QtWidgets import QApplication
+
+    quit_after = quit_after_seconds()
+    app = QApplication.instance() or QApplication(sys.argv[:1])
+    app.setApplicationName("Stereo GUI")
+    app.setOrganizationName("stereo-gui")
+    ctx, window = build_window(source, calib)
+    window.show()
+    if quit_after is not None:
+        log.info("quitting after %.1f s (%s)", quit_after, QUIT_AFTER_ENV)
+        QTimer.singleShot(int(quit_after * 1000), window.close)
+    status = app.exec()
+    ctx.shutdown(2000)  # the window normally did this already; make sure nothing outlives exec
+    return int(status)

@@ -1,0 +1,253 @@
+"""Image panels for live views: fast display, pointer mapping, markers, a distance colour bar.
+
+Images are row-major, C-contiguous uint8 (H x W gray or H x W x 3 RGB) drawn with fixed levels
+and auto-range off, as pyqtgraph is fastest that way. Pointer positions are reported in image
+pixel coordinates: (0, 0) is the centre of the top-left pixel, so (x, y) indexes `image[y, x]`
+after rounding — the convention of OpenCV and of `core.measure`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import QPointF, QRectF, Qt, Signal
+from PySide6.QtGui import QBrush, QColor, QFont, QPen, QTransform
+from PySide6.QtWidgets import QGraphicsItem, QGraphicsRectItem, QGraphicsSimpleTextItem
+
+pg.setConfigOptions(imageAxisOrder="row-major")
+
+# round distances for colour-bar ticks, mm
+_NICE_MM = (100, 150, 200, 250, 300, 400, 500, 600, 700, 800, 1000, 1250, 1500, 1750, 2000, 2500,
+            3000, 3500, 4000, 5000, 6000, 7500, 10000, 15000, 20000, 30000, 50000)
+
+
+class StereoImageItem(pg.ImageItem):
+    """An ImageItem that reports hover and double-click positions in image pixel coordinates."""
+
+    hovered = Signal(float, float)  # x, y px; NaN, NaN when the pointer leaves
+    doubleClicked = Signal(float, float)  # x, y px
+
+    def __init__(self) -> None:
+        super().__init__(axisOrder="row-major")
+        self.setAcceptHoverEvents(True)
+
+    @staticmethod
+    def to_pixel(pos: QPointF) -> tuple[float, float]:
+        """Item coordinates (pixel corners at integers) -> pixel-centre coordinates."""
+        return pos.x() - 0.5, pos.y() - 0.5
+
+    def hoverEvent(self, ev) -> None:  # noqa: N802 - pyqtgraph API
+        if ev.isExit():
+            self.hovered.emit(math.nan, math.nan)
+            return
+        x, y = self.to_pixel(ev.pos())
+        self.hovered.emit(x, y)
+
+    def mouseClickEvent(self, ev) -> None:  # noqa: N802 - pyqtgraph API
+        if ev.button() == Qt.MouseButton.LeftButton and ev.double():
+            ev.accept()
+            x, y = self.to_pixel(ev.pos())
+            self.doubleClicked.emit(x, y)
+            return
+        super().mouseClickEvent(ev)
+
+    def set_array(self, image: np.ndarray) -> None:
+        """Show a uint8 image with fixed levels (0..255)."""
+        self.setImage(image, autoLevels=False, levels=(0, 255), autoDownsample=False)
+
+
+def _label_item(text: str, color: str, x: float, y: float) -> QGraphicsRectItem:
+    """A text label with a dark box, constant size on screen, anchored above-right of (x, y).
+
+    Plain Qt items: pyqtgraph's TextItem re-computes its transform on every paint through a
+    signal, which crashes PySide6 6.12 (a reference-count error, "bool_dealloc").
+    """
+    label = QGraphicsSimpleTextItem(text)
+    font = QFont()
+    font.setPointSize(10)
+    font.setBold(True)
+    label.setFont(font)
+    label.setBrush(QBrush(QColor("white")))
+    r = label.boundingRect()
+    box = QGraphicsRectItem(QRectF(0, 0, r.width() + 8, r.height() + 4))
+    box.setBrush(QBrush(QColor(0, 0, 0, 180)))
+    box.setPen(QPen(QColor(color), 1.5))
+    label.setParentItem(box)
+    label.setPos(4, 2)
+    box.setFlag(QGraphicsItem.GraphicsItemFlag.ItemIgnoresTransformations, True)
+    box.setPos(x, y)
+    box.setTransform(QTransform.fromTranslate(8, -(r.height() + 4) - 6))
+    return box
+
+
+class _Marker:
+    """A point with a label (and, for a ruler, a line to its partner) in one view."""
+
+    def __init__(self, view: pg.ViewBox, x: float, y: float, text: str, color: str,
+                 line_to: tuple[float, float] | None = None) -> None:
+        self.view = view
+        self.items = []
+        if line_to is not None:
+            line = pg.PlotCurveItem([line_to[0] + 0.5, x + 0.5], [line_to[1] + 0.5, y + 0.5],
+                                    pen=pg.mkPen(color, width=2, style=Qt.PenStyle.DashLine))
+            self.items.append(line)
+        dot = pg.ScatterPlotItem([x + 0.5], [y + 0.5], size=11, symbol="o",
+                                 pen=pg.mkPen("k", width=1.5), brush=pg.mkBrush(color))
+        self.items.append(dot)
+        if text:
+            self.items.append(_label_item(text, color, x + 0.5, y + 0.5))
+        for it in self.items:
+            it.setZValue(10)
+            view.addItem(it)
+
+    def remove(self) -> None:
+        for it in self.items:
+            self.view.removeItem(it)
+        self.items.clear()
+
+
+def colormap_lut(colormap_id: int) -> np.ndarray:
+    """256 x 3 RGB uint8 lookup table of an OpenCV colour map (index = 8-bit level)."""
+    import cv2
+
+    ramp = np.arange(256, dtype=np.uint8).reshape(256, 1)
+    bgr = cv2.applyColorMap(ramp, colormap_id).reshape(256, 3)
+    return np.ascontiguousarray(bgr[:, ::-1])
+
+
+def distance_ticks(d_lo_px: float, d_hi_px: float, fb_mm_px: float, max_ticks: int = 7
+                   ) -> list[tuple[float, str]]:
+    """Tick positions (0..255 colour level) labelled with distance for a colour bar.
+
+    The colour level of disparity d is 255 * (d - d_lo) / (d_hi - d_lo); distance Z = f*B/d.
+    Labels are round distances in m (or mm below 1 m when the whole range is below 1 m).
+    """
+    if not (fb_mm_px > 0 and d_hi_px > d_lo_px and d_hi_px > 0):
+        return []
+    z_near = fb_mm_px / d_hi_px
+    z_far = fb_mm_px / d_lo_px if d_lo_px > 0 else math.inf
+    use_m = z_far >= 1000.0
+    span = d_hi_px - d_lo_px
+    ticks: list[tuple[float, str]] = []
+    for z in _NICE_MM:
+        if not (z_near <= z <= z_far):
+            continue
+        level = 255.0 * (fb_mm_px / z - d_lo_px) / span
+        if ticks and abs(level - ticks[-1][0]) < 255.0 / (max_ticks + 1):
+            continue
+        label = f"{z / 1000:g} m" if use_m else f"{z:g} mm"
+        ticks.append((level, label))
+    # the near end, labelled with its exact value, anchors the scale
+    near_label = f"{z_near / 1000:.2f} m" if use_m else f"{z_near:.0f} mm"
+    if not ticks or abs(255.0 - ticks[-1][0]) > 255.0 / (max_ticks + 1):
+        ticks.append((255.0, near_label))
+    if math.isinf(z_far) and (not ticks or ticks[0][0] > 255.0 / (max_ticks + 1)):
+        ticks.insert(0, (0.0, "∞"))
+    return ticks
+
+
+class DistanceColorBar(pg.PlotItem):
+    """A vertical colour bar whose axis is labelled in distance (near at the top)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.setMouseEnabled(False, False)
+        self.setMenuEnabled(False)
+        self.hideButtons()
+        self.hideAxis("bottom")
+        self.hideAxis("left")
+        self.showAxis("right")
+        self.getAxis("right").setLabel("distance")
+        self.getAxis("right").setWidth(58)
+        self.setFixedWidth(90)
+        self._img = pg.ImageItem(axisOrder="row-major")
+        self.addItem(self._img)
+        self._lut_id: int | None = None
+        self.setXRange(0, 1, padding=0)
+        self.setYRange(0, 256, padding=0)
+        self.getViewBox().invertY(False)
+
+    def set_scale(self, colormap_id: int, d_lo_px: float, d_hi_px: float, fb_mm_px: float) -> None:
+        """Show the colour map for disparities d_lo..d_hi (px) with distance ticks."""
+        if colormap_id != self._lut_id:
+            lut = colormap_lut(colormap_id)
+            self._img.setImage(lut.reshape(256, 1, 3), autoLevels=False, levels=(0, 255))
+            self._img.setRect(0, 0, 1, 256)
+            self._lut_id = colormap_id
+        ticks = distance_ticks(d_lo_px, d_hi_px, fb_mm_px)
+        self.getAxis("right").setTicks([[(t + 0.5, s) for t, s in ticks], []])
+
+
+class ImagePanel(pg.GraphicsLayoutWidget):
+    """One titled live view: an image with markers, optionally with a distance colour bar."""
+
+    hovered = Signal(str, float, float)  # view key, x, y px (NaN when left)
+    doubleClicked = Signal(str, float, float)  # view key, x, y px
+
+    def __init__(self, key: str, title: str, color_bar: bool = False, parent=None) -> None:
+        super().__init__(parent)
+        self.key = key
+        self.setMinimumSize(200, 160)
+        self.ci.setContentsMargins(2, 2, 2, 2)
+        self.title = self.addLabel(title, row=0, col=0, colspan=2, size="10pt")
+        self.view: pg.ViewBox = self.addViewBox(row=1, col=0, lockAspect=True, invertY=True,
+                                                enableMenu=False)
+        self.view.setDefaultPadding(0.0)
+        self.view.disableAutoRange()
+        self.item = StereoImageItem()
+        self.view.addItem(self.item)
+        self.color_bar: DistanceColorBar | None = None
+        if color_bar:
+            self.color_bar = DistanceColorBar()
+            self.addItem(self.color_bar, row=1, col=1)
+        self._shape: tuple[int, int] | None = None
+        self._markers: list[_Marker] = []
+        self.item.hovered.connect(lambda x, y: self.hovered.emit(self.key, x, y))
+        self.item.doubleClicked.connect(lambda x, y: self.doubleClicked.emit(self.key, x, y))
+
+    def set_title(self, text: str) -> None:
+        self.title.setText(text)
+
+    def set_image(self, image: np.ndarray) -> None:
+        """Show a uint8 image; the view fits it the first time and when its size changes."""
+        self.item.set_array(image)
+        shape = image.shape[:2]
+        if shape != self._shape:
+            self._shape = shape
+            self.fit()
+
+    def fit(self) -> None:
+        if self._shape is not None:
+            h, w = self._shape
+            self.view.setRange(xRange=(0, w), yRange=(0, h), padding=0)
+
+    def image_size(self) -> tuple[int, int] | None:
+        """(width, height) px of the image shown, None before the first image."""
+        return None if self._shape is None else (self._shape[1], self._shape[0])
+
+    def add_marker(self, x: float, y: float, text: str, color: str = "#ffeb3b",
+                   line_to: tuple[float, float] | None = None) -> None:
+        self._markers.append(_Marker(self.view, x, y, text, color, line_to))
+
+    def clear_markers(self) -> None:
+        for m in self._markers:
+            m.remove()
+        self._markers.clear()
+
+    def marker_count(self) -> int:
+        return len(self._markers)
+
+    def scene_pos_of_pixel(self, x: float, y: float) -> QPointF:
+        """Scene position of image pixel (x, y) (for tests and tooltips)."""
+        self.view.updateMatrix()  # the view applies a new range lazily, at the next paint
+        return self.item.mapToScene(QPointF(x + 0.5, y + 0.5))
+
+    def widget_pos_of_pixel(self, x: float, y: float):
+        """Widget (viewport) position of image pixel (x, y), a QPoint."""
+        return self.mapFromScene(self.scene_pos_of_pixel(x, y))
+
+
+def marker_color(valid: bool) -> str:
+    return "#ffeb3b" if valid else "#ff5252"

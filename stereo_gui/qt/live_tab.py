@@ -1,0 +1,592 @@
+"""The Live tab: rectified pair, disparity views, the WLS colour view, parameters, click-to-measure.
+
+Work is split by thread:
+- the frame worker runs `LiveProcessor` on every frame: the pipeline (rectify, SGBM, closing,
+  WLS, colour map) and the conversion of each view into a displayable uint8 image;
+- a double-click becomes a `measure_point` job on the context's job thread, run on the result
+  that was on screen when the user clicked;
+- the UI thread only hands arrays to pyqtgraph, reads one pixel for the hover readout, and draws
+  markers.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import logging
+import math
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+from PySide6.QtCore import Qt, Signal
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QFileDialog,
+    QGridLayout,
+    QHBoxLayout,
+    QLabel,
+    QPushButton,
+    QScrollArea,
+    QSplitter,
+    QStackedWidget,
+    QVBoxLayout,
+    QWidget,
+)
+
+from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.core.matching import COLORMAPS, MatcherParams, PipelineResult, StereoPipeline
+from stereo_gui.qt.image_view import ImagePanel, marker_color
+from stereo_gui.qt.params_panel import ParamsPanel, load_preset
+from stereo_gui.sources.base import StereoFrame
+
+log = logging.getLogger(__name__)
+
+# view key -> title; all views are in rectified-left pixel coordinates except "right"
+VIEWS: dict[str, str] = {
+    "left": "Rectified left",
+    "right": "Rectified right",
+    "raw": "Raw disparity (SGBM)",
+    "closed": "Disparity after closing filter",
+    "wls": "WLS filtered, colour = distance",
+}
+DEFAULT_VIEWS = ("left", "raw", "closed", "wls")
+MEASURABLE = ("left", "raw", "closed", "wls")  # views sharing the left image's pixel frame
+TRUE_CALIBRATION_NOTE = "simulated rig's TRUE calibration"
+
+
+def format_distance(mm: float) -> str:
+    """A distance for a label: metres with mm resolution from 1 m on, else millimetres."""
+    if not math.isfinite(mm):
+        return "–"
+    return f"{mm / 1000:.3f} m" if abs(mm) >= 1000 else f"{mm:.1f} mm"
+
+
+# ---- worker-thread side -----------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class LiveOutput:
+    """What the processor hands to the UI: the pipeline result and each view as uint8 (RGB or
+    gray), plus the disparity (px) mapped to colour levels 0 and 255 of the colour view."""
+
+    result: PipelineResult
+    images: dict[str, np.ndarray]
+    color_range_px: tuple[float, float]
+
+
+def _gray_disparity(disp_px: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """Disparity (px, NaN invalid) as gray uint8: near bright, invalid black."""
+    span = max(hi - lo, 1e-6)
+    img = cv2.convertScaleAbs(np.nan_to_num(disp_px, nan=lo), alpha=255.0 / span,
+                              beta=-lo * 255.0 / span)
+    img[~np.isfinite(disp_px)] = 0
+    return img
+
+
+def color_range_px(result: PipelineResult) -> tuple[float, float]:
+    """The disparities (px) that the colour view maps to levels 0 and 255 (as core.matching)."""
+    p, calib = result.params, result.calibration
+    if p.color_range == "fixed" and calib is not None:
+        fb = calib.focal_px * calib.rectified_baseline_mm
+        return fb / p.color_z_far_mm, fb / p.color_z_near_mm
+    if result.valid.any():
+        lo, hi = cv2.minMaxLoc(result.final_px, mask=result.valid.astype(np.uint8))[:2]
+        return float(lo), float(hi)
+    return 0.0, 1.0
+
+
+class LiveProcessor:
+    """The frame worker's processor for the Live tab (called in the worker thread only).
+
+    The pipeline is built on the first frame, in the worker thread (building rectification maps
+    takes a while); `set_params` may be called from any thread and applies to the next frame.
+    """
+
+    def __init__(self, calibration, params: MatcherParams) -> None:
+        self.calibration = calibration
+        self._lock = threading.Lock()
+        self._params = params
+        self._pipeline: StereoPipeline | None = None
+
+    def set_params(self, params: MatcherParams) -> None:
+        with self._lock:
+            self._params = params
+            if self._pipeline is not None:
+                self._pipeline.set_params(params)
+
+    def __call__(self, frame: StereoFrame) -> LiveOutput:
+        with self._lock:
+            if self._pipeline is None:
+                self._pipeline = StereoPipeline(self.calibration, self._params)
+            pipeline = self._pipeline
+        r = pipeline.process(frame.left, frame.right)
+        lo, hi = r.disparity_range_px
+        images = {
+            "left": cv2.cvtColor(r.rectified_left, cv2.COLOR_BGR2RGB),
+            "right": cv2.cvtColor(r.rectified_right, cv2.COLOR_BGR2RGB),
+            "raw": _gray_disparity(r.disparity_px, lo, hi),
+            "closed": _gray_disparity(r.closed_px, lo, hi),
+            "wls": cv2.cvtColor(r.color_bgr, cv2.COLOR_BGR2RGB),
+        }
+        return LiveOutput(r, images, color_range_px(r))
+
+    def close(self) -> None:
+        with self._lock:
+            if self._pipeline is not None:
+                self._pipeline.close()
+
+
+# ---- the tab ----------------------------------------------------------------------------------
+class _NoCalibrationPage(QWidget):
+    """Shown instead of the views while there is no calibration."""
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        title = QLabel("<h2>No calibration loaded</h2>")
+        text = QLabel("The live depth view needs a calibration of the stereo camera. "
+                      "Calibrate it from chessboard pairs, or load a calibration file.")
+        text.setWordWrap(True)
+        self.calibrate = QPushButton("Calibrate…")
+        self.load = QPushButton("Load a calibration file…")
+        self.use_true = QPushButton("Use the simulated rig's true calibration")
+        self.use_true.setToolTip("Only for the simulated rig: the calibration it was built with. "
+                                 "It is labelled as such in the status bar.")
+        col = QVBoxLayout(self)
+        col.addStretch(1)
+        for w in (title, text):
+            w.setAlignment(Qt.AlignmentFlag.AlignCenter)
+            col.addWidget(w)
+        row = QHBoxLayout()
+        row.addStretch(1)
+        for b in (self.calibrate, self.load, self.use_true):
+            row.addWidget(b)
+        row.addStretch(1)
+        col.addLayout(row)
+        col.addStretch(2)
+
+
+class LiveTab(QWidget):
+    """The Live tab. `ctx` is the AppContext."""
+
+    calibrateRequested = Signal()
+    loadCalibrationRequested = Signal()
+    measured = Signal(object)  # Measurement, after its marker was drawn
+    frameShown = Signal()  # a new frame was drawn (for tests and benchmarks)
+
+    def __init__(self, ctx, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.ctx = ctx
+        self._active = False
+        self._processor: LiveProcessor | None = None
+        self._output: LiveOutput | None = None
+        self._hover: tuple[str, float, float] | None = None
+        self._pending: dict[int, tuple[str, bool]] = {}  # job id -> (view key, ruler click)
+        self._ruler_a = None  # first Measurement of a ruler pair
+        self._bar_state = None
+        self.frames_shown = 0
+
+        # params
+        self.params_panel = ParamsPanel(self._initial_params())
+        self.params_panel.paramsChanged.connect(self._params_changed)
+        scroll = QScrollArea()
+        scroll.setWidget(self.params_panel)
+        scroll.setWidgetResizable(True)
+        scroll.setMinimumWidth(330)
+
+        # views
+        self.panels: dict[str, ImagePanel] = {}
+        self.view_checks: dict[str, QCheckBox] = {}
+        shown = tuple(v for v in (getattr(ctx.settings, "visible_views", ()) or DEFAULT_VIEWS)
+                      if v in VIEWS) or DEFAULT_VIEWS
+        for key, title in VIEWS.items():
+            panel = ImagePanel(key, title, color_bar=(key == "wls"))
+            panel.hovered.connect(self._hovered)
+            panel.doubleClicked.connect(self._double_clicked)
+            self.panels[key] = panel
+            check = QCheckBox(title.split(",")[0])
+            check.setChecked(key in shown)
+            check.toggled.connect(self._layout_views)
+            self.view_checks[key] = check
+        first = self.panels["left"].view
+        for key, panel in self.panels.items():
+            if key not in ("left", "right"):
+                panel.view.setXLink(first)
+                panel.view.setYLink(first)
+        self._grid_host = QWidget()
+        self._grid = QGridLayout(self._grid_host)
+        self._grid.setContentsMargins(0, 0, 0, 0)
+        self._grid.setSpacing(4)
+
+        # toolbar
+        self.pause_button = QPushButton("Pause")
+        self.pause_button.setCheckable(True)
+        self.pause_button.toggled.connect(self.set_paused)
+        self.snapshot_button = QPushButton("Snapshot…")
+        self.snapshot_button.setToolTip("Save the views shown as PNG files")
+        self.snapshot_button.clicked.connect(self._snapshot_clicked)
+        self.ruler_button = QPushButton("Ruler")
+        self.ruler_button.setCheckable(True)
+        self.ruler_button.setToolTip("Double-click two points to measure the 3D distance between them")
+        self.ruler_button.toggled.connect(self._ruler_toggled)
+        self.clear_button = QPushButton("Clear markers")
+        self.clear_button.clicked.connect(self.clear_markers)
+        tools = QHBoxLayout()
+        tools.addWidget(QLabel("Show:"))
+        for c in self.view_checks.values():
+            tools.addWidget(c)
+        tools.addStretch(1)
+        for b in (self.ruler_button, self.clear_button, self.pause_button, self.snapshot_button):
+            tools.addWidget(b)
+
+        self.readout = QLabel("Double-click a view to measure the distance there.")
+        self.readout.setTextFormat(Qt.TextFormat.PlainText)
+        self.readout.setStyleSheet("font-family: monospace; padding: 2px 4px;")
+        self.calib_note = QLabel()
+        self.calib_note.setStyleSheet("background: #ffd54f; color: #3e2700; padding: 2px 6px;")
+        self.calib_note.hide()
+
+        views_page = QWidget()
+        vcol = QVBoxLayout(views_page)
+        vcol.setContentsMargins(4, 4, 4, 4)
+        vcol.addLayout(tools)
+        vcol.addWidget(self.calib_note)
+        vcol.addWidget(self._grid_host, 1)
+        vcol.addWidget(self.readout)
+
+        self.no_calib = _NoCalibrationPage()
+        self.no_calib.calibrate.clicked.connect(self.calibrateRequested)
+        self.no_calib.load.clicked.connect(self.loadCalibrationRequested)
+        self.no_calib.use_true.clicked.connect(self.use_true_calibration)
+        self.stack = QStackedWidget()
+        self.stack.addWidget(self.no_calib)
+        self.stack.addWidget(views_page)
+
+        splitter = QSplitter()
+        splitter.addWidget(self.stack)
+        splitter.addWidget(scroll)
+        splitter.setStretchFactor(0, 1)
+        splitter.setSizes([1000, 340])
+        outer = QVBoxLayout(self)
+        outer.setContentsMargins(0, 0, 0, 0)
+        outer.addWidget(splitter)
+
+        self._layout_views()
+        ctx.calibrationChanged.connect(self._calibration_changed)
+        ctx.frames.frameReady.connect(self._frame_ready)
+        ctx.frames.sourceChanged.connect(lambda _name: self._update_no_calib_page())
+        ctx.jobs.finished.connect(self._job_finished)
+        ctx.jobs.failed.connect(self._job_failed)
+        self._calibration_changed(ctx.calibration)
+
+    # ---- set-up ------------------------------------------------------------------------------
+    def _initial_params(self) -> MatcherParams:
+        name = getattr(self.ctx.settings, "preset", "live") or "live"
+        for candidate in (name, "live", "seed"):
+            try:
+                return load_preset(candidate).replace(name=candidate)
+            except StereoGuiError as exc:
+                log.warning("preset %s: %s", candidate, exc)
+        return MatcherParams(name="seed")
+
+    def _layout_views(self, *_args) -> None:
+        for panel in self.panels.values():
+            self._grid.removeWidget(panel)
+            panel.hide()
+        keys = [k for k in VIEWS if self.view_checks[k].isChecked()]
+        cols = 1 if len(keys) == 1 else 2
+        for i, key in enumerate(keys):
+            self._grid.addWidget(self.panels[key], i // cols, i % cols)
+            self.panels[key].show()
+        self.ctx.update_settings(visible_views=tuple(keys)) if self.ctx.settings else None
+
+    def visible_views(self) -> list[str]:
+        return [k for k in VIEWS if self.view_checks[k].isChecked()]
+
+    def set_visible_views(self, keys) -> None:
+        for k, c in self.view_checks.items():
+            c.blockSignals(True)
+            c.setChecked(k in keys)
+            c.blockSignals(False)
+        self._layout_views()
+
+    # ---- activation, calibration, parameters -------------------------------------------------
+    def set_active(self, active: bool) -> None:
+        """Called by the main window: the shown tab owns the frame worker's processor."""
+        self._active = active
+        if active:
+            self._install_processor()
+            self._frame_ready()
+        elif self.pause_button.isChecked():
+            self.pause_button.setChecked(False)  # other tabs need frames
+
+    def _install_processor(self) -> None:
+        if self._active:
+            self.ctx.frames.set_processor(self._processor)
+
+    def _calibration_changed(self, calib) -> None:
+        self._processor = (LiveProcessor(calib, self.params_panel.params())
+                           if calib is not None else None)
+        self._output = None
+        self.clear_markers()
+        self._install_processor()
+        note = getattr(self.ctx, "calibration_note", "")
+        self.calib_note.setVisible(calib is not None and note == TRUE_CALIBRATION_NOTE)
+        self.calib_note.setText("Using the simulated rig's TRUE calibration (the one it was "
+                                "built with), not one you calibrated.")
+        self.stack.setCurrentIndex(0 if calib is None else 1)
+        self._update_no_calib_page()
+
+    def _update_no_calib_page(self) -> None:
+        self.no_calib.use_true.setVisible(self._sim_rig() is not None)
+
+    def _sim_rig(self):
+        rig = getattr(self.ctx.frames.source(), "rig", None)
+        return rig if hasattr(rig, "true_calibration") else None
+
+    def use_true_calibration(self) -> bool:
+        """On the simulated rig: use the calibration it was built with (clearly labelled)."""
+        rig = self._sim_rig()
+        if rig is None:
+            self.ctx.report_error("The true calibration exists only for the simulated rig.")
+            return False
+        self.ctx.set_calibration(rig.true_calibration(), None, note=TRUE_CALIBRATION_NOTE)
+        return True
+
+    def _params_changed(self, params: MatcherParams) -> None:
+        if self._processor is not None:
+            self._processor.set_params(params)
+        if self.ctx.settings is not None and not params.name.endswith("(edited)"):
+            self.ctx.update_settings(preset=params.name)
+
+    # ---- drawing -----------------------------------------------------------------------------
+    def _frame_ready(self) -> None:
+        if not self._active or self.pause_button.isChecked():
+            return
+        pf = self.ctx.frames.latest()
+        if pf is None or not isinstance(pf.output, LiveOutput):
+            return
+        self.show_output(pf.output)
+
+    def show_output(self, out: LiveOutput) -> None:
+        """Draw one processed frame (UI thread: array hand-over only)."""
+        self._output = out
+        for key in self.visible_views():
+            self.panels[key].set_image(out.images[key])
+        if "wls" in self.visible_views():
+            self._update_color_bar(out)
+        wls = out.result.wls_px is not None
+        self.panels["wls"].set_title(VIEWS["wls"] if wls else
+                                     "Closed disparity (no WLS), colour = distance")
+        if self._hover is not None:
+            self._show_readout(*self._hover)
+        self.frames_shown += 1
+        self.frameShown.emit()
+
+    def _update_color_bar(self, out: LiveOutput) -> None:
+        calib = out.result.calibration
+        if calib is None or self.panels["wls"].color_bar is None:
+            return
+        lo, hi = out.color_range_px
+        state = (out.result.params.colormap, round(lo * 2), round(hi * 2))
+        if state == self._bar_state:
+            return  # ticks change only when the range moves by half a pixel
+        self._bar_state = state
+        fb = calib.focal_px * calib.rectified_baseline_mm
+        self.panels["wls"].color_bar.set_scale(COLORMAPS[out.result.params.colormap], lo, hi, fb)
+
+    # ---- hover readout -----------------------------------------------------------------------
+    def _disparity_of_view(self, key: str) -> np.ndarray | None:
+        if self._output is None:
+            return None
+        r = self._output.result
+        return {"raw": r.disparity_px, "closed": r.closed_px}.get(key, r.final_px)
+
+    def _hovered(self, key: str, x: float, y: float) -> None:
+        self._hover = None if math.isnan(x) else (key, x, y)
+        if self._hover is None:
+            self.readout.setText("Double-click a view to measure the distance there.")
+        else:
+            self._show_readout(key, x, y)
+
+    def _show_readout(self, key: str, x: float, y: float) -> None:
+        self.readout.setText(self.readout_text(key, x, y))
+
+    def readout_text(self, key: str, x: float, y: float) -> str:
+        """What the readout line says for the pointer at (x, y) px of view `key`."""
+        disp = self._disparity_of_view(key)
+        if disp is None:
+            return "no frame yet"
+        h, w = disp.shape[:2]
+        xi, yi = int(round(x)), int(round(y))
+        if not (0 <= xi < w and 0 <= yi < h):
+            return f"x {xi}  y {yi}: outside the image"
+        if key == "right":
+            return f"x {xi}  y {yi} (right image: measure on the left or a disparity view)"
+        d = float(disp[yi, xi])
+        where = f"x {xi:4d}  y {yi:4d}   "
+        if not math.isfinite(d):
+            return where + "invalid: no match here (occluded, textureless or filtered out)"
+        from stereo_gui.core.measure import triangulate
+
+        lo, hi = self._output.result.disparity_range_px
+        txt = where + f"disparity {d:7.2f} px   "
+        if d >= hi - 1.0:
+            return txt + "invalid: too near for the disparity range"
+        xyz = triangulate(self._output.result.calibration, x, y, d)
+        if xyz is None:
+            return txt + "invalid: too far"
+        z = xyz[2]
+        return txt + f"distance (Z) {format_distance(z)}   valid"
+
+    # ---- measuring ---------------------------------------------------------------------------
+    def _double_clicked(self, key: str, x: float, y: float) -> None:
+        if key not in MEASURABLE:
+            self.ctx.show_status("Measure on the left image or a disparity view: the right "
+                                 "image has other pixel coordinates.")
+            return
+        self.measure_at(x, y, key)
+
+    def measure_at(self, x: float, y: float, key: str = "wls") -> int | None:
+        """Measure at rectified-left pixel (x, y) on the frame now shown; returns the job id."""
+        out = self._output
+        if out is None:
+            self.ctx.report_error("No frame to measure on yet.")
+            return None
+        from stereo_gui.core.measure import measure_point
+
+        patch = int(getattr(self.ctx.settings, "patch_size", 9) or 9)
+        fit = self.ctx.active_fit
+        result = out.result
+        job = self.ctx.jobs.submit(lambda: measure_point(result, x, y, patch=patch, fit=fit))
+        self._pending[job] = (key, self.ruler_button.isChecked())
+        return job
+
+    def _job_finished(self, job_id: int, m) -> None:
+        if self._snapshot_done(job_id, m):
+            return
+        if job_id not in self._pending:
+            return  # another tab's job
+        _key, ruler = self._pending.pop(job_id)
+        color = marker_color(m.valid)
+        label = format_distance(m.Z_mm) if m.valid else f"✕ {m.reason or 'invalid'}"
+        line_to = None
+        if ruler:
+            if self._ruler_a is None or not self._ruler_a.valid:
+                self._ruler_a = m
+                label = "A: " + label
+            else:
+                a = self._ruler_a
+                self._ruler_a = None
+                if m.valid:
+                    dist = math.dist((a.X_mm, a.Y_mm, a.Z_mm), (m.X_mm, m.Y_mm, m.Z_mm))
+                    label = f"B: {label}   A–B {format_distance(dist)}"
+                    line_to = (a.x, a.y)
+                    color = "#40c4ff"
+                    self.last_ruler_mm = dist
+        for key in MEASURABLE:
+            self.panels[key].add_marker(m.x, m.y, label, color, line_to)
+        self.ctx.add_measurement(self._record(m))
+        self.ctx.show_status(self._status_text(m))
+        self.measured.emit(m)
+
+    def _job_failed(self, job_id: int, message: str) -> None:
+        if self._pending.pop(job_id, None) is not None:
+            self.ctx.report_error(f"Measurement failed: {message}")
+        elif job_id in getattr(self, "_snapshots", set()):
+            self._snapshots.discard(job_id)
+            self.ctx.report_error(f"Snapshot not saved: {message}")
+
+    def _status_text(self, m) -> str:
+        if not m.valid:
+            return f"({m.x:.0f}, {m.y:.0f}): no distance: {m.reason}"
+        return (f"({m.x:.0f}, {m.y:.0f}): Z {format_distance(m.Z_mm)}, range "
+                f"{format_distance(m.range_mm)} ± {format_distance(m.expected_error_mm)}, "
+                f"disparity {m.disparity_px:.2f} px, {m.valid_fraction:.0%} valid ({m.method})")
+
+    def _record(self, m):
+        from stereo_gui.files.spreadsheet import MeasurementRecord
+
+        calib = self.ctx.calibration
+        path = self.ctx.calibration_path
+        return MeasurementRecord(
+            time=_dt.datetime.now().astimezone().isoformat(timespec="seconds"),
+            x_px=float(m.x), y_px=float(m.y), disparity_px=float(m.disparity_px),
+            X_mm=float(m.X_mm), Y_mm=float(m.Y_mm), Z_mm=float(m.Z_mm),
+            range_mm=float(m.range_mm), valid=bool(m.valid), reason=m.reason or "",
+            valid_fraction=float(m.valid_fraction), expected_error_mm=float(m.expected_error_mm),
+            method=m.method,
+            calibration_file=str(path) if path else (getattr(self.ctx, "calibration_note", "")
+                                                     or ""),
+            calibration_rms_px=float(getattr(calib, "rms_stereo", float("nan"))),
+        )
+
+    def _ruler_toggled(self, on: bool) -> None:
+        self._ruler_a = None
+        if on:
+            self.ctx.show_status("Ruler: double-click the first point, then the second.")
+
+    def clear_markers(self) -> None:
+        self._ruler_a = None
+        for p in self.panels.values():
+            p.clear_markers()
+
+    # ---- pause and snapshot ------------------------------------------------------------------
+    def set_paused(self, paused: bool) -> None:
+        if self.pause_button.isChecked() != paused:
+            self.pause_button.setChecked(paused)  # re-enters through toggled
+            return
+        self.pause_button.setText("Resume" if paused else "Pause")
+        if paused:
+            self.ctx.frames.pause()
+        else:
+            self.ctx.frames.resume()
+
+    def _snapshot_clicked(self) -> None:
+        start = getattr(self.ctx.settings, "last_export_dir", None) or str(Path.home())
+        folder = QFileDialog.getExistingDirectory(self, "Save snapshot into", start)
+        if folder:
+            self.snapshot(folder)
+            self.ctx.update_settings(last_export_dir=folder)
+
+    def snapshot(self, folder: str | Path) -> int | None:
+        """Save the views shown as PNG files in `folder` (atomically, off the UI thread).
+
+        Files are named snapshot-<time>-<view>.png. Returns the job id.
+        """
+        out = self._output
+        if out is None:
+            self.ctx.report_error("No frame to save yet.")
+            return None
+        folder = Path(folder)
+        stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S-%f")[:-3]
+        images = {k: out.images[k] for k in self.visible_views()}
+
+        def write() -> list[Path]:
+            from stereo_gui.files.atomic import write_bytes_atomic
+
+            written = []
+            for key, img in images.items():
+                bgr = img if img.ndim == 2 else cv2.cvtColor(img, cv2.COLOR_RGB2BGR)
+                ok, buf = cv2.imencode(".png", bgr)
+                if not ok:
+                    raise StereoGuiError(f"could not encode the {key} view as PNG")
+                written.append(write_bytes_atomic(folder / f"snapshot-{stamp}-{key}.png",
+                                                  buf.tobytes()))
+            return written
+
+        job = self.ctx.jobs.submit(write)
+        self._snapshots = getattr(self, "_snapshots", set()) | {job}
+        return job
+
+    def _snapshot_done(self, job_id: int, paths) -> bool:
+        if job_id in getattr(self, "_snapshots", set()):
+            self._snapshots.discard(job_id)
+            self.ctx.show_status(f"Snapshot saved: {len(paths)} files in {Path(paths[0]).parent}"
+                                 if paths else "Snapshot: no views shown")
+            return True
+        return False
+
+    def shutdown(self) -> None:
+        """Called by the main window on close."""
+        if self._processor is not None and self.ctx.frames.processor() is self._processor:
+            self.ctx.frames.set_processor(None)

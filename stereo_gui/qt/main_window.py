@@ -1,0 +1,405 @@
+"""The main window: four tabs, the source chooser, the status bar, file menu, and clean shutdown.
+
+The window owns no state of its own: it shows the AppContext's and forwards the user's choices
+to it. It is the one place where errors reported anywhere (`ctx.errorOccurred`) become a message
+the user sees (a red bar above the tabs, also written to the status bar).
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+from PySide6.QtCore import QByteArray, Qt, QTimer, Signal
+from PySide6.QtGui import QAction, QCloseEvent, QKeySequence
+from PySide6.QtWidgets import (
+    QApplication,
+    QFileDialog,
+    QHBoxLayout,
+    QLabel,
+    QMainWindow,
+    QMessageBox,
+    QTabWidget,
+    QToolButton,
+    QVBoxLayout,
+    QWidget,
+)
+
+from stereo_gui import __version__
+from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.qt.context import AppContext
+from stereo_gui.qt.frame_worker import JobRunner
+from stereo_gui.qt.source_dialog import SourceChoice, SourceDialog, describe_spec
+
+log = logging.getLogger(__name__)
+
+TAB_NAMES = ("capture", "calibration", "live", "measurements")
+CALIB_FILTER = "Calibration files (*.yaml *.yml *.xml *.json);;All files (*)"
+SIM_BANNER = ("No cameras were found: running on the SIMULATED stereo rig. "
+              "Distances are of the rendered scene, not of the real world.")
+
+
+def _close_source(source) -> None:
+    try:
+        source.close()
+    except Exception:  # noqa: BLE001 - a broken device must not stop the window
+        log.warning("closing an unused source failed", exc_info=True)
+
+
+def _format_rms(value) -> str:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        return "?"
+    return "?" if v != v else f"{v:.3f} px"
+
+
+class _MessageBar(QWidget):
+    """A coloured bar with a message and a close button (the banner and the error bar)."""
+
+    def __init__(self, style: str, closable: bool, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.setAutoFillBackground(True)
+        self.setStyleSheet(style)
+        self.label = QLabel()
+        self.label.setWordWrap(True)
+        self.label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        row = QHBoxLayout(self)
+        row.setContentsMargins(10, 4, 6, 4)
+        row.addWidget(self.label, 1)
+        if closable:
+            close = QToolButton()
+            close.setText("✕")
+            close.setToolTip("Dismiss")
+            close.setAutoRaise(True)
+            close.clicked.connect(self.hide)
+            row.addWidget(close)
+        self.hide()
+
+    def show_text(self, text: str) -> None:
+        self.label.setText(text)
+        self.show()
+
+
+class MainWindow(QMainWindow):
+    """The application window. `ctx` is the AppContext it shows."""
+
+    sourceOpened = Signal(str)  # the source spec now in use
+
+    def __init__(self, ctx: AppContext, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.ctx = ctx
+        self.source_choice = self._choice_from_settings()
+        self._closing = False
+        self._opening: tuple[SourceChoice, bool] = (self.source_choice, False)
+        self._opening_id = 0
+        self._opener = JobRunner("source-opener", self)
+        self._opener.finished.connect(self._source_opened)
+        self._opener.failed.connect(self._source_failed)
+        ctx.register_worker(self._opener)
+        self.setWindowTitle("Stereo GUI")
+        self.resize(1280, 860)
+
+        self.banner = _MessageBar(
+            "background: #ffd54f; color: #3e2700; font-weight: bold;", closable=False)
+        self.error_bar = _MessageBar("background: #c62828; color: white;", closable=True)
+
+        self.tabs = QTabWidget()
+        self.tabs.setDocumentMode(True)
+        self.capture_tab = self._make_tab("stereo_gui.qt.capture_tab", "CaptureTab")
+        self.calibration_tab = self._make_tab("stereo_gui.qt.calibration_tab", "CalibrationTab")
+        from stereo_gui.qt.live_tab import LiveTab
+
+        self.live_tab = LiveTab(ctx)
+        self.measurements_tab = self._make_tab("stereo_gui.qt.measurements_tab", "MeasurementsTab")
+        for name, tab in zip(TAB_NAMES, (self.capture_tab, self.calibration_tab, self.live_tab,
+                                         self.measurements_tab), strict=True):
+            self.tabs.addTab(tab, name.capitalize())
+        self.tabs.currentChanged.connect(self._tab_changed)
+        self.live_tab.calibrateRequested.connect(lambda: self.show_tab("calibration"))
+        self.live_tab.loadCalibrationRequested.connect(self.open_calibration)
+
+        central = QWidget()
+        col = QVBoxLayout(central)
+        col.setContentsMargins(0, 0, 0, 0)
+        col.setSpacing(0)
+        col.addWidget(self.banner)
+        col.addWidget(self.error_bar)
+        col.addWidget(self.tabs, 1)
+        self.setCentralWidget(central)
+
+        self._build_menus()
+        self._build_status_bar()
+
+        ctx.errorOccurred.connect(self.show_error)
+        ctx.statusMessage.connect(lambda text: self.statusBar().showMessage(text, 8000))
+        ctx.calibrationChanged.connect(self._update_calibration_label)
+        ctx.frames.sourceChanged.connect(self._update_source_label)
+        self._update_calibration_label()
+        self._fps_timer = QTimer(self)
+        self._fps_timer.setInterval(500)
+        self._fps_timer.timeout.connect(self._update_fps)
+        self._fps_timer.start()
+        self._restore_geometry()
+        self.show_tab("live")
+        self._tab_changed(self.tabs.currentIndex())
+
+    # ---- construction ------------------------------------------------------------------------
+    def _make_tab(self, module: str, cls: str) -> QWidget:
+        """Build a tab of the other GUI modules; a tab that fails to build shows why instead."""
+        import importlib
+
+        try:
+            return getattr(importlib.import_module(module), cls)(self.ctx)
+        except Exception as exc:  # noqa: BLE001 - one broken tab must not stop the application
+            log.exception("building %s failed", cls)
+            label = QLabel(f"This tab could not be built: {exc}")
+            label.setAlignment(Qt.AlignmentFlag.AlignCenter)
+            return label
+
+    def _build_menus(self) -> None:
+        file_menu = self.menuBar().addMenu("&File")
+        self.act_source = QAction("Choose &source…", self)
+        self.act_source.triggered.connect(self.choose_source)
+        self.act_open = QAction("&Open calibration…", self)
+        self.act_open.setShortcut(QKeySequence.StandardKey.Open)
+        self.act_open.triggered.connect(lambda: self.open_calibration())
+        self.act_save = QAction("&Save calibration as…", self)
+        self.act_save.setShortcut(QKeySequence.StandardKey.SaveAs)
+        self.act_save.triggered.connect(lambda: self.save_calibration())
+        quit_act = QAction("&Quit", self)
+        quit_act.setShortcut(QKeySequence.StandardKey.Quit)
+        quit_act.triggered.connect(self.close)
+        for a in (self.act_source, None, self.act_open, self.act_save, None, quit_act):
+            if a is None:
+                file_menu.addSeparator()
+            else:
+                file_menu.addAction(a)
+        help_menu = self.menuBar().addMenu("&Help")
+        about = QAction("&About Stereo GUI", self)
+        about.triggered.connect(self.show_about)
+        help_menu.addAction(about)
+
+    def _build_status_bar(self) -> None:
+        sb = self.statusBar()
+        self.source_label = QLabel("Source: none")
+        self.camera_fps_label = QLabel("Camera: – fps")
+        self.processing_fps_label = QLabel("Processing: – fps")
+        self.calibration_label = QLabel("No calibration")
+        for w in (self.source_label, self.camera_fps_label, self.processing_fps_label,
+                  self.calibration_label):
+            w.setContentsMargins(6, 0, 6, 0)
+            sb.addPermanentWidget(w)
+
+    def _choice_from_settings(self) -> SourceChoice:
+        s = self.ctx.settings
+        if s is None:
+            return SourceChoice()
+        return SourceChoice(s.source or "auto", tuple(s.resolution), bool(s.swap_lr))
+
+    # ---- tabs --------------------------------------------------------------------------------
+    def show_tab(self, name: str) -> None:
+        self.tabs.setCurrentIndex(TAB_NAMES.index(name))
+
+    def current_tab_name(self) -> str:
+        i = self.tabs.currentIndex()
+        return TAB_NAMES[i] if 0 <= i < len(TAB_NAMES) else ""
+
+    def _tab_changed(self, index: int) -> None:
+        for i in range(self.tabs.count()):
+            w = self.tabs.widget(i)
+            if hasattr(w, "set_active") and i != index:
+                w.set_active(False)
+        w = self.tabs.widget(index)
+        if hasattr(w, "set_active"):
+            w.set_active(True)
+        self.ctx.set_current_tab(self.current_tab_name())
+
+    # ---- source ------------------------------------------------------------------------------
+    def choose_source(self) -> None:
+        dlg = SourceDialog(self.source_choice, parent=self)
+        if dlg.exec():
+            self.open_source(dlg.choice())
+
+    def open_source(self, choice: SourceChoice, fallback_to_auto: bool = False) -> int:
+        """Open the chosen source off the UI thread (opening a device or building the simulated
+        rig takes seconds), then hand it to the frame worker; failures become a message.
+
+        With `fallback_to_auto`, a source that fails is replaced by automatic selection (used
+        for the remembered source at start-up). Returns the request id.
+        """
+        from stereo_gui.sources.open import open_source
+
+        spec, size, swap = choice.spec, tuple(choice.size), bool(choice.swap)
+        self.source_label.setText(f"Source: opening {describe_spec(spec)}…")
+        self.statusBar().showMessage(f"Opening {describe_spec(spec)}…")
+        self._opening = (choice, fallback_to_auto)
+        self._opening_id = self._opener.submit(lambda: open_source(spec, size=size, swap=swap))
+        return self._opening_id
+
+    def is_opening_source(self) -> bool:
+        return self._opener.is_busy()
+
+    def _source_opened(self, job_id: int, opened) -> None:
+        if job_id != self._opening_id or self._closing:
+            _close_source(opened.source)  # a newer request or the window closed meanwhile
+            return
+        self.statusBar().clearMessage()
+        self.use_source(opened.source, self._opening[0], opened.fell_back_to_sim, opened.message)
+
+    def _source_failed(self, job_id: int, message: str) -> None:
+        if job_id != self._opening_id or self._closing:
+            return
+        choice, fallback = self._opening
+        self.ctx.report_error(f"Cannot open the source {describe_spec(choice.spec)}: {message}")
+        self._update_source_label(getattr(self.ctx.frames.source(), "name", ""))
+        if fallback and choice.spec != "auto":
+            self.open_source(SourceChoice("auto", choice.size, choice.swap))
+
+    def use_source(self, source, choice: SourceChoice, fell_back_to_sim: bool = False,
+                   message: str = "") -> None:
+        """Use an already opened source (remembered in the settings)."""
+        self.source_choice = choice
+        self.ctx.source_fell_back_to_sim = bool(fell_back_to_sim)
+        if fell_back_to_sim:
+            self.banner.show_text(SIM_BANNER + (f" ({message})" if message else ""))
+        else:
+            self.banner.hide()
+            if message:
+                self.statusBar().showMessage(message, 8000)
+        self.ctx.update_settings(source=choice.spec, resolution=tuple(choice.size),
+                                 swap_lr=bool(choice.swap))
+        self.ctx.frames.set_source(source)
+        self.sourceOpened.emit(choice.spec)
+
+    def _update_source_label(self, name: str) -> None:
+        self.source_label.setText(f"Source: {name or 'none'}")
+
+    def _update_fps(self) -> None:
+        f = self.ctx.frames
+        if f.paused:
+            self.camera_fps_label.setText("Camera: paused")
+            self.processing_fps_label.setText("Processing: paused")
+            return
+        self.camera_fps_label.setText(f"Camera: {f.fps_camera:.1f} fps")
+        self.processing_fps_label.setText(f"Processing: {f.fps_processing:.1f} fps")
+
+    # ---- calibration files -------------------------------------------------------------------
+    def _update_calibration_label(self, *_args) -> None:
+        c = self.ctx.calibration
+        if c is None:
+            self.calibration_label.setText("No calibration")
+            self.calibration_label.setToolTip("")
+            return
+        path = self.ctx.calibration_path
+        name = path.name if path is not None else (self.ctx.calibration_note or "not saved")
+        self.calibration_label.setText(f"Calibration: {name}, RMS {_format_rms(c.rms_stereo)}")
+        self.calibration_label.setToolTip(str(path) if path else "")
+
+    def _start_dir(self) -> str:
+        s = self.ctx.settings
+        if self.ctx.calibration_path is not None:
+            return str(self.ctx.calibration_path.parent)
+        if s is not None and s.last_calibration:
+            return str(Path(s.last_calibration).parent)
+        return str(Path.home())
+
+    def open_calibration(self, path: str | None = None) -> bool:
+        """Load a calibration file (asks for one without `path`); True when loaded."""
+        if not path:
+            path, _ = QFileDialog.getOpenFileName(self, "Open calibration", self._start_dir(),
+                                                  CALIB_FILTER)
+            if not path:
+                return False
+        from stereo_gui.files.calibration_file import load_calibration
+
+        try:
+            calib = load_calibration(path)
+        except (StereoGuiError, OSError) as exc:
+            self.ctx.report_error(f"Cannot load calibration {path}: {exc}")
+            return False
+        self.ctx.set_calibration(calib, path)
+        self._remember_calibration(path)
+        self.statusBar().showMessage(f"Loaded calibration {path}", 8000)
+        return True
+
+    def save_calibration(self, path: str | None = None) -> bool:
+        """Save the current calibration (asks where without `path`); True when written."""
+        calib = self.ctx.calibration
+        if calib is None:
+            self.ctx.report_error("There is no calibration to save: calibrate or open one first.")
+            return False
+        if not path:
+            start = str(Path(self._start_dir()) / "calibration.yaml")
+            path, _ = QFileDialog.getSaveFileName(self, "Save calibration", start, CALIB_FILTER)
+            if not path:
+                return False
+        from stereo_gui.files.calibration_file import save_calibration
+
+        try:
+            save_calibration(calib, path)
+        except (StereoGuiError, OSError) as exc:
+            self.ctx.report_error(f"Cannot save calibration {path}: {exc}")
+            return False
+        self.ctx.set_calibration(calib, path)
+        self._remember_calibration(path)
+        self.statusBar().showMessage(f"Saved calibration {path}", 8000)
+        return True
+
+    def _remember_calibration(self, path) -> None:
+        s = self.ctx.settings
+        if s is not None:
+            self.ctx.settings = s.with_recent(str(path)).with_updates(
+                last_calibration=str(Path(path).resolve()))
+
+    # ---- messages ----------------------------------------------------------------------------
+    def show_error(self, text: str) -> None:
+        self.error_bar.show_text(text)
+        self.statusBar().showMessage(text, 10000)
+
+    def show_about(self) -> None:
+        QMessageBox.about(
+            self, "About Stereo GUI",
+            f"<b>Stereo GUI {__version__}</b><p>Calibrate a two-webcam stereo camera and read "
+            "distances off a live depth view.</p>")
+
+    # ---- geometry and shutdown ---------------------------------------------------------------
+    def _restore_geometry(self) -> None:
+        s = self.ctx.settings
+        if s is None:
+            return
+        if s.window_geometry:
+            self.restoreGeometry(QByteArray.fromBase64(s.window_geometry.encode("ascii")))
+        if s.window_state:
+            self.restoreState(QByteArray.fromBase64(s.window_state.encode("ascii")))
+
+    def save_settings(self) -> None:
+        """Store geometry (and whatever the tabs changed) in the settings file."""
+        if self.ctx.settings is None:
+            return
+        geometry = bytes(self.saveGeometry().toBase64()).decode("ascii")
+        state = bytes(self.saveState().toBase64()).decode("ascii")
+        self.ctx.settings = self.ctx.settings.with_updates(window_geometry=geometry,
+                                                           window_state=state)
+        from stereo_gui.files.settings import save_settings
+
+        try:
+            save_settings(self.ctx.settings)
+        except (StereoGuiError, OSError) as exc:
+            log.warning("settings not saved: %s", exc)
+
+    def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802 - Qt API
+        if not self._closing:
+            self._closing = True
+            self._fps_timer.stop()
+            for i in range(self.tabs.count()):
+                w = self.tabs.widget(i)
+                if hasattr(w, "shutdown"):
+                    try:
+                        w.shutdown()
+                    except Exception:  # noqa: BLE001 - a tab's failure must not block closing
+                        log.warning("shutting down a tab failed", exc_info=True)
+            self.save_settings()
+            if not self.ctx.shutdown(2000):
+                log.warning("some workers did not stop within 2 s")
+        super().closeEvent(event)

@@ -1,0 +1,211 @@
+"""The source chooser: automatic, simulated rig, two cameras, one side-by-side camera, a recording.
+
+The dialog edits a `SourceChoice`; its `spec` is the same string `--source` takes
+(auto, sim, cams:L,R, sbs:N, a folder or a video), so the command line and the settings agree.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+from PySide6.QtWidgets import (
+    QButtonGroup,
+    QCheckBox,
+    QComboBox,
+    QDialog,
+    QDialogButtonBox,
+    QFileDialog,
+    QGridLayout,
+    QHBoxLayout,
+    QLabel,
+    QLineEdit,
+    QPushButton,
+    QRadioButton,
+    QVBoxLayout,
+    QWidget,
+)
+
+log = logging.getLogger(__name__)
+
+RESOLUTIONS: tuple[tuple[int, int], ...] = ((640, 480), (320, 240), (800, 600), (1280, 720),
+                                             (1280, 960), (1920, 1080))
+
+
+@dataclass(frozen=True)
+class SourceChoice:
+    """What the user chose: a source spec (as --source takes it), size (w, h) px, swap L/R."""
+
+    spec: str = "auto"
+    size: tuple[int, int] = (640, 480)
+    swap: bool = False
+
+
+def describe_spec(spec: str) -> str:
+    """A short human description of a source spec, for menus and the status bar."""
+    if spec in ("", "auto"):
+        return "Automatic"
+    if spec == "sim":
+        return "Simulated rig"
+    if spec.startswith("cams:"):
+        return f"Cameras {spec[5:]}"
+    if spec.startswith("sbs:"):
+        return f"Side-by-side camera {spec[4:]}"
+    return f"Recording {spec}"
+
+
+def _list_cameras() -> list:
+    """[CameraInfo(index, name, path)] or [] when the cameras module is not available."""
+    try:
+        from stereo_gui.sources.cameras import list_cameras
+    except ImportError:
+        log.warning("camera listing is not available")
+        return []
+    try:
+        return list(list_cameras())
+    except Exception as exc:  # noqa: BLE001 - listing devices must never stop the dialog
+        log.warning("listing cameras failed: %s", exc)
+        return []
+
+
+class SourceDialog(QDialog):
+    """Choose where frames come from. `choice()` is the result after `exec()` accepted."""
+
+    def __init__(self, current: SourceChoice, cameras: list | None = None,
+                 parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.setWindowTitle("Choose the frame source")
+        self._cameras = _list_cameras() if cameras is None else list(cameras)
+
+        self.auto = QRadioButton("Automatic: two cameras if found, otherwise the simulated rig")
+        self.sim = QRadioButton("Simulated stereo rig (no cameras needed)")
+        self.cams = QRadioButton("Two cameras")
+        self.sbs = QRadioButton("One side-by-side stereo camera (frame split in half)")
+        self.folder = QRadioButton("Recorded folder of pairs (or side-by-side video)")
+        self._group = QButtonGroup(self)
+        for b in (self.auto, self.sim, self.cams, self.sbs, self.folder):
+            self._group.addButton(b)
+
+        self.left_cam = self._camera_combo()
+        self.right_cam = self._camera_combo()
+        self.sbs_cam = self._camera_combo()
+        if self.right_cam.count() > 1:
+            self.right_cam.setCurrentIndex(1)
+        self.path_edit = QLineEdit()
+        self.path_edit.setPlaceholderText("folder of image pairs or a video file")
+        browse = QPushButton("Browse…")
+        browse.clicked.connect(self._browse)
+
+        self.resolution = QComboBox()
+        for w, h in RESOLUTIONS:
+            self.resolution.addItem(f"{w} x {h}", (w, h))
+        self.swap = QCheckBox("Swap left and right")
+
+        grid = QGridLayout()
+        grid.addWidget(self.auto, 0, 0, 1, 3)
+        grid.addWidget(self.sim, 1, 0, 1, 3)
+        grid.addWidget(self.cams, 2, 0, 1, 3)
+        grid.addWidget(QLabel("    Left:"), 3, 0)
+        grid.addWidget(self.left_cam, 3, 1, 1, 2)
+        grid.addWidget(QLabel("    Right:"), 4, 0)
+        grid.addWidget(self.right_cam, 4, 1, 1, 2)
+        grid.addWidget(self.sbs, 5, 0, 1, 3)
+        grid.addWidget(QLabel("    Camera:"), 6, 0)
+        grid.addWidget(self.sbs_cam, 6, 1, 1, 2)
+        grid.addWidget(self.folder, 7, 0, 1, 3)
+        grid.addWidget(self.path_edit, 8, 1)
+        grid.addWidget(browse, 8, 2)
+        if not self._cameras:
+            note = QLabel("No cameras were found on this computer.")
+            note.setStyleSheet("color: #a05000")
+            grid.addWidget(note, 9, 0, 1, 3)
+
+        opts = QHBoxLayout()
+        opts.addWidget(QLabel("Resolution:"))
+        opts.addWidget(self.resolution)
+        opts.addSpacing(20)
+        opts.addWidget(self.swap)
+        opts.addStretch(1)
+
+        buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok
+                                   | QDialogButtonBox.StandardButton.Cancel)
+        buttons.accepted.connect(self.accept)
+        buttons.rejected.connect(self.reject)
+
+        layout = QVBoxLayout(self)
+        layout.addLayout(grid)
+        layout.addLayout(opts)
+        layout.addWidget(buttons)
+        self._group.buttonToggled.connect(self._update_enabled)
+        self.set_choice(current)
+
+    def _camera_combo(self) -> QComboBox:
+        combo = QComboBox()
+        for cam in self._cameras:
+            name = getattr(cam, "name", "") or "camera"
+            combo.addItem(f"{cam.index}: {name}", int(cam.index))
+        if not self._cameras:
+            for i in range(4):  # still let the user try an index the system did not list
+                combo.addItem(f"{i}: (not listed)", i)
+        return combo
+
+    def _browse(self) -> None:
+        path = QFileDialog.getExistingDirectory(self, "Recorded folder of pairs")
+        if path:
+            self.path_edit.setText(path)
+            self.folder.setChecked(True)
+
+    def _update_enabled(self, *_args) -> None:
+        self.left_cam.setEnabled(self.cams.isChecked())
+        self.right_cam.setEnabled(self.cams.isChecked())
+        self.sbs_cam.setEnabled(self.sbs.isChecked())
+        self.path_edit.setEnabled(self.folder.isChecked())
+
+    @staticmethod
+    def _select(combo: QComboBox, index: int) -> None:
+        i = combo.findData(index)
+        if i < 0:
+            combo.addItem(f"{index}: (not listed)", index)
+            i = combo.count() - 1
+        combo.setCurrentIndex(i)
+
+    def set_choice(self, choice: SourceChoice) -> None:
+        spec = choice.spec or "auto"
+        try:
+            if spec == "auto":
+                self.auto.setChecked(True)
+            elif spec == "sim":
+                self.sim.setChecked(True)
+            elif spec.startswith("cams:"):
+                left, right = (int(v) for v in spec[5:].split(","))
+                self.cams.setChecked(True)
+                self._select(self.left_cam, left)
+                self._select(self.right_cam, right)
+            elif spec.startswith("sbs:"):
+                self.sbs.setChecked(True)
+                self._select(self.sbs_cam, int(spec[4:]))
+            else:
+                self.folder.setChecked(True)
+                self.path_edit.setText(spec)
+        except ValueError:
+            self.auto.setChecked(True)
+        i = self.resolution.findData(tuple(choice.size))
+        if i < 0:
+            self.resolution.addItem(f"{choice.size[0]} x {choice.size[1]}", tuple(choice.size))
+            i = self.resolution.count() - 1
+        self.resolution.setCurrentIndex(i)
+        self.swap.setChecked(choice.swap)
+        self._update_enabled()
+
+    def choice(self) -> SourceChoice:
+        if self.sim.isChecked():
+            spec = "sim"
+        elif self.cams.isChecked():
+            spec = f"cams:{self.left_cam.currentData()},{self.right_cam.currentData()}"
+        elif self.sbs.isChecked():
+            spec = f"sbs:{self.sbs_cam.currentData()}"
+        elif self.folder.isChecked() and self.path_edit.text().strip():
+            spec = self.path_edit.text().strip()
+        else:
+            spec = "auto"
+        return SourceChoice(spec, tuple(self.resolution.currentData()), self.swap.isChecked())
