@@ -242,7 +242,7 @@ class RectifiedPairView(pg.GraphicsLayoutWidget):
                            f"row in both{note}")
         self.shown = name
 
-    def clear(self) -> None:
+    def clear_pair(self) -> None:
         self.image.clear()
         self.lines.setData([], [])
         self.title.setText("Rectification check: select a pair")
@@ -550,7 +550,7 @@ class CalibrationTab(QWidget):
         if calib is None:
             self.matrices_text.setPlainText("")
             self.chart.set_errors([], [], [])
-            self.rect_view.clear()
+            self.rect_view.clear_pair()
             self.rejected_text.setPlainText("")
             self._update_buttons()
             return
@@ -566,7 +566,7 @@ class CalibrationTab(QWidget):
         if names and self.run is not None:
             self.select_pair(self.chart.selected if self.chart.selected in names else names[0])
         else:
-            self.rect_view.clear()
+            self.rect_view.clear_pair()
         self._update_buttons()
 
     def _show_figures(self) -> None:
@@ -631,7 +631,7 @@ class CalibrationTab(QWidget):
         self._update_buttons()
         files = self._pair_files(name)
         if c is None or files is None:
-            self.rect_view.clear()
+            self.rect_view.clear_pair()
             self.rect_view.title.setText(f"Pair {name}: images not available (calibrate from "
                                          f"the session to see them)")
             return
@@ -641,7 +641,7 @@ class CalibrationTab(QWidget):
             self.ctx.report_error(str(exc))
             return
         if (left.shape[1], left.shape[0]) != tuple(c.image_size):
-            self.rect_view.clear()
+            self.rect_view.clear_pair()
             return
         maps = self._rectify_maps(c)
         lr = cv2.remap(left, maps.left_x, maps.left_y, cv2.INTER_LINEAR)

@@ -193,7 +193,7 @@ class RegressionPlot(pg.GraphicsLayoutWidget):
             self.resid_points[m] = pg.ScatterPlotItem(size=7, brush=pg.mkBrush(_COLOURS[m]), pen=None)
             self.resid.addItem(self.resid_points[m])
 
-    def show(self, samples, fits: dict) -> None:  # noqa: A003 - draws, does not show the widget
+    def draw(self, samples, fits: dict) -> None:
         if samples:
             d = np.array([s[0] for s in samples])
             z = np.array([s[1] for s in samples])
@@ -361,7 +361,7 @@ class MeasurementsTab(QWidget):
                             f"<span style='font-family: monospace'>{fit.formula()}</span>")
             else:
                 lab.setText(f"<b>{m}</b>: not fitted ({self.fit_errors.get(m, 'no samples')})")
-        self.plot.show(samples, self.fits)
+        self.plot.draw(samples, self.fits)
         self._update_model_choices()
         # a live reading that uses a fit follows its refit
         key = self.model_combo.currentData()

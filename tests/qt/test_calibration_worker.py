@@ -68,7 +68,12 @@ def test_cancel_stops_at_next_step(qtbot):
     worker = JobWorker(job, "slow")
     results = []
     worker.finished_ok.connect(results.append)
-    worker.progress.connect(lambda p: p.done == 1 and (worker.cancel(), gate.set()))
+    def on_progress(p):
+        if p.done == 1:
+            worker.cancel()
+            gate.set()
+
+    worker.progress.connect(on_progress)
     with qtbot.waitSignal(worker.cancelled, timeout=5000):
         worker.start()
     assert worker.wait(2000)
@@ -88,7 +93,10 @@ def test_control_reports_progress_from_inside_a_step(qtbot):
 
     worker = JobWorker(job, "core")
     seen = []
-    worker.progress.connect(lambda p: seen.append(p.text))
+    def on_progress(p):
+        seen.append(p.text)
+
+    worker.progress.connect(on_progress)
     with qtbot.waitSignal(worker.finished_ok, timeout=5000) as blocker:
         worker.start()
     assert blocker.args == [42]
@@ -109,7 +117,11 @@ def test_core_cancelled_error_counts_as_cancel(qtbot):
         return "never"
 
     worker = JobWorker(job, "core")
-    worker.progress.connect(lambda p: (worker.cancel(), gate.set()))
+    def on_progress(p):
+        worker.cancel()
+        gate.set()
+
+    worker.progress.connect(on_progress)
     failures = []
     worker.failed.connect(failures.append)
     with qtbot.waitSignal(worker.cancelled, timeout=5000):
