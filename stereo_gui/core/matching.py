@@ -221,20 +221,21 @@ def fixed_to_px(disp16: np.ndarray, min_disparity: float, factor: float = 1.0) -
 def colorize(disparity_px: np.ndarray, params: MatcherParams,
              calibration: StereoCalibration | None) -> np.ndarray:
     """Colour view of a disparity map (BGR uint8); invalid pixels black; near is bright."""
-    valid = np.isfinite(disparity_px)
+    valid = cv2.compare(disparity_px, disparity_px, cv2.CMP_EQ)  # 255 where not NaN
     if params.color_range == "fixed" and calibration is not None:
         fb = calibration.focal_px * calibration.rectified_baseline_mm
         lo, hi = fb / params.color_z_far_mm, fb / params.color_z_near_mm
-    elif valid.any():
-        lo, hi = cv2.minMaxLoc(disparity_px, mask=valid.astype(np.uint8))[:2]
+    elif cv2.countNonZero(valid):
+        lo, hi = cv2.minMaxLoc(disparity_px, mask=valid)[:2]
     else:
         lo, hi = 0.0, 1.0
     span = max(hi - lo, 1e-6)
-    norm = np.nan_to_num(disparity_px, nan=lo)
-    u8 = cv2.convertScaleAbs(norm, alpha=255.0 / span, beta=-lo * 255.0 / span)
+    # NaN saturates to 0 here; those pixels are blacked out below anyway
+    # (clipped at lo first: convertScaleAbs takes absolute values)
+    u8 = cv2.convertScaleAbs(cv2.max(disparity_px, float(lo)), alpha=255.0 / span,
+                             beta=-lo * 255.0 / span)
     color = cv2.applyColorMap(u8, COLORMAPS[params.colormap])
-    color[~valid] = 0
-    return color
+    return cv2.bitwise_and(color, color, mask=valid)
 
 
 class StereoPipeline:
@@ -295,8 +296,11 @@ class StereoPipeline:
             self._wls.setSigmaColor(float(p.wls_sigma))
         self._kernel = (np.ones((p.closing_kernel, p.closing_kernel), np.uint8)
                         if p.closing_kernel > 1 else None)
-        if p.parallel and p.wls and self._executor is None:
-            self._executor = ThreadPoolExecutor(1, thread_name_prefix="right-matcher")
+        if p.parallel and self._executor is None:
+            self._executor = ThreadPoolExecutor(1, thread_name_prefix="stereo-right")
+        elif not p.parallel and self._executor is not None:
+            self._executor.shutdown(wait=True)
+            self._executor = None
 
     def _apply_pending(self) -> None:
         with self._lock:
@@ -319,6 +323,10 @@ class StereoPipeline:
         if self._maps is None:
             return left_bgr, right_bgr
         m = self._maps
+        if self._executor is not None:
+            fut = self._executor.submit(cv2.remap, right_bgr, m.right_x, m.right_y, cv2.INTER_LINEAR)
+            rl = cv2.remap(left_bgr, m.left_x, m.left_y, cv2.INTER_LINEAR)
+            return rl, fut.result()
         rl = cv2.remap(left_bgr, m.left_x, m.left_y, cv2.INTER_LINEAR)
         rr = cv2.remap(right_bgr, m.right_x, m.right_y, cv2.INTER_LINEAR)
         return rl, rr

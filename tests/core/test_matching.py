@@ -127,6 +127,9 @@ def test_fixed_colour_range_maps_a_distance_to_a_fixed_colour():
     near = colorize(d, p, c)
     lut = cv2.applyColorMap(np.full((1, 1), 255, np.uint8), cv2.COLORMAP_OCEAN)[0, 0]
     assert (near[1, 1] == lut).all() and not near[0, 0].any()
+    beyond = colorize(np.full((2, 2), 77000 / 6000.0, np.float32), p, c)  # farther than far
+    bottom = cv2.applyColorMap(np.zeros((1, 1), np.uint8), cv2.COLORMAP_OCEAN)[0, 0]
+    assert (beyond[0, 0] == bottom).all()
     # min-max (the report): the same map with one farther pixel changes the colour of the rest
     p2 = MatcherParams(color_range="minmax")
     d[2, 2] = 100.0
@@ -156,3 +159,17 @@ def test_presets_on_middlebury_teddy(shared_data, preset):
     r = StereoPipeline(calib(w=left.shape[1], h=left.shape[0]), p).process(left, right)
     bad, coverage = _bad20(r, truth)
     assert bad < 0.2 and coverage > 0.6
+
+
+def test_switching_parallel_off_stops_the_helper_thread():
+    import threading
+
+    left, right = textured_pair()
+    base = MatcherParams(min_disparity=0, num_disparities=32)
+    pipe = StereoPipeline(calib(), base.replace(parallel=True))
+    pipe.process(left, right)
+    assert any(t.name.startswith("stereo-right") for t in threading.enumerate())
+    pipe.set_params(base)
+    pipe.process(left, right)
+    assert not any(t.name.startswith("stereo-right") for t in threading.enumerate())
+    pipe.close()
