@@ -33,18 +33,10 @@ def quit_after_seconds() -> float | None:
 
 
 def check_source_spec(spec: str) -> None:
-    """Raise InputError for a --source value that cannot name any source."""
-    if spec in ("auto", "sim"):
-        return
-    for prefix, count in (("cams:", 2), ("sbs:", 1)):
-        if spec.startswith(prefix):
-            parts = spec[len(prefix):].split(",")
-            if len(parts) != count or not all(p.strip().isdigit() for p in parts):
-                raise InputError(f"--source {spec}: expected {prefix}" +
-                                 ("L,R with two camera indices" if count == 2 else "N, a camera index"))
-            return
-    if not Path(spec).exists():
-        raise InputError(f"--source {spec}: no such folder or video file")
+    """Raise InputError for a --source value that names no source (nothing is opened)."""
+    from stereo_gui.sources.open import parse_source_spec
+
+    parse_source_spec(spec)
 
 
 def configure_pyqtgraph() -> None:

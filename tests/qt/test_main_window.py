@@ -1,0 +1,135 @@
+"""The main window: tabs, banner, status bar, calibration files, errors, clean shutdown."""
+
+from __future__ import annotations
+
+import gc
+
+import pytest
+from PySide6.QtWidgets import QApplication
+
+from stereo_gui.qt.main_window import TAB_NAMES, MainWindow
+from stereo_gui.qt.source_dialog import SourceChoice, SourceDialog
+
+
+@pytest.fixture
+def window(qtbot, ctx):
+    w = MainWindow(ctx)
+    qtbot.addWidget(w)
+    w.show()
+    return w
+
+
+def _sim_source(sim_rig):
+    from stereo_gui.sources.sim import SimSource
+
+    return SimSource(rig=sim_rig, mode="scene", fps=30)
+
+
+def test_four_tabs_and_the_simulated_rig_banner(qtbot, ctx, window, sim_rig):
+    assert [window.tabs.tabText(i).lower() for i in range(window.tabs.count())] == list(TAB_NAMES)
+    assert not window.banner.isVisibleTo(window)
+    window.use_source(_sim_source(sim_rig), SourceChoice("auto"), fell_back_to_sim=True,
+                      message="no cameras were found")
+    assert window.banner.isVisibleTo(window)
+    assert "SIMULATED" in window.banner.label.text()
+    assert window.source_label.text() == "Source: Simulated rig"
+    assert ctx.settings.source == "auto"
+    for name in TAB_NAMES:
+        window.show_tab(name)
+        assert ctx.current_tab == name
+
+
+def test_status_bar_shows_frame_rates(qtbot, ctx, window, sim_rig):
+    ctx.set_calibration(sim_rig.true_calibration(), None, note="simulated rig's TRUE calibration")
+    window.show_tab("live")
+    window.use_source(_sim_source(sim_rig), SourceChoice("sim"))
+    qtbot.waitUntil(lambda: window.live_tab.frames_shown >= 3, timeout=60000)
+    qtbot.waitUntil(lambda: "Processing: 0.0" not in window.processing_fps_label.text()
+                    and "–" not in window.processing_fps_label.text(), timeout=10000)
+    assert window.camera_fps_label.text().endswith("fps")
+    assert "TRUE calibration" in window.calibration_label.text()
+
+
+def test_open_source_runs_off_the_ui_thread(qtbot, ctx, window):
+    with qtbot.waitSignal(window.sourceOpened, timeout=120000) as sig:
+        window.open_source(SourceChoice("sim"))
+    assert sig.args == ["sim"]
+    assert not window.banner.isVisibleTo(window)
+
+
+def test_a_failing_source_is_reported(qtbot, ctx, window, tmp_path):
+    with qtbot.waitSignal(ctx.errorOccurred, timeout=30000) as sig:
+        window.open_source(SourceChoice(str(tmp_path / "missing")))
+    assert "missing" in sig.args[0]
+    assert window.error_bar.isVisibleTo(window)
+
+
+def test_errors_become_a_visible_message(qtbot, ctx, window):
+    ctx.report_error("the left camera was unplugged")
+    assert window.error_bar.isVisibleTo(window)
+    assert window.error_bar.label.text() == "the left camera was unplugged"
+    assert "unplugged" in window.statusBar().currentMessage()
+
+
+def test_save_and_open_calibration(qtbot, ctx, window, sim_rig, tmp_path):
+    assert not window.save_calibration(str(tmp_path / "none.yaml"))  # nothing to save yet
+    ctx.set_calibration(sim_rig.true_calibration())
+    path = tmp_path / "rig.yaml"
+    assert window.save_calibration(str(path)) and path.is_file()
+    ctx.set_calibration(None)
+    assert window.calibration_label.text() == "No calibration"
+    assert window.open_calibration(str(path))
+    assert ctx.calibration is not None and ctx.calibration_path.name == "rig.yaml"
+    assert "rig.yaml" in window.calibration_label.text() and "RMS" in window.calibration_label.text()
+    assert ctx.settings.last_calibration == str(path.resolve())
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("%YAML:1.0\nfoo: 1\n")
+    assert not window.open_calibration(str(bad))
+    assert "bad.yaml" in window.error_bar.label.text()
+
+
+def test_closing_while_live_ends_quickly_without_thread_warnings(qtbot, ctx, sim_rig, qtlog):
+    w = MainWindow(ctx)
+    w.show()
+    ctx.set_calibration(sim_rig.true_calibration())
+    w.show_tab("live")
+    w.use_source(_sim_source(sim_rig), SourceChoice("sim"))
+    qtbot.waitUntil(lambda: w.live_tab.frames_shown >= 1, timeout=60000)
+    assert ctx.frames.is_running()
+    w.close()  # stops and joins every worker (each join is bounded by 2 s)
+    assert not ctx.frames.is_running() and not ctx.jobs.is_running()
+    w.deleteLater()
+    del w
+    QApplication.processEvents()
+    gc.collect()
+    QApplication.processEvents()
+    messages = [r.message for r in qtlog.records]
+    assert not any("QThread" in m and "Destroyed" in m for m in messages), messages
+
+
+def test_settings_are_saved_on_close(qtbot, ctx, sim_rig):
+    from stereo_gui.files.settings import load_settings
+
+    w = MainWindow(ctx)
+    qtbot.addWidget(w)
+    w.use_source(_sim_source(sim_rig), SourceChoice("sim", (640, 480), True))
+    w.close()
+    saved, warnings = load_settings()
+    assert not warnings
+    assert saved.source == "sim" and saved.swap_lr and saved.window_geometry
+
+
+def test_source_dialog_round_trip(qtbot):
+    from stereo_gui.sources.cameras import CameraInfo
+
+    cams = [CameraInfo(0, "HD Webcam", "/dev/video0"), CameraInfo(2, "USB Camera", "/dev/video2")]
+    dlg = SourceDialog(SourceChoice("cams:2,0", (320, 240), True), cameras=cams)
+    qtbot.addWidget(dlg)
+    assert "HD Webcam" in dlg.left_cam.itemText(0)
+    assert dlg.choice() == SourceChoice("cams:2,0", (320, 240), True)
+    dlg.sbs.setChecked(True)
+    assert dlg.choice().spec == "sbs:0"
+    dlg.sim.setChecked(True)
+    assert dlg.choice().spec == "sim"
+    dlg.set_choice(SourceChoice("/data/rec1"))
+    assert dlg.choice().spec == "/data/rec1"
