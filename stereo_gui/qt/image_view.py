@@ -18,9 +18,12 @@ from PySide6.QtWidgets import QGraphicsItem, QGraphicsRectItem, QGraphicsSimpleT
 
 pg.setConfigOptions(imageAxisOrder="row-major")
 
-# round distances for colour-bar ticks, mm
-_NICE_MM = (100, 150, 200, 250, 300, 400, 500, 600, 700, 800, 1000, 1250, 1500, 1750, 2000, 2500,
-            3000, 3500, 4000, 5000, 6000, 7500, 10000, 15000, 20000, 30000, 50000)
+# round distances for colour-bar ticks, mm, in order of preference (rounder first)
+_NICE_MM_TIERS = (
+    (100, 200, 500, 1000, 2000, 3000, 5000, 10000, 20000, 50000),
+    (150, 250, 300, 400, 600, 700, 800, 1500, 2500, 4000, 7500, 15000, 30000),
+    (1250, 1750, 3500, 6000),
+)
 
 
 class StereoImageItem(pg.ImageItem):
@@ -130,22 +133,35 @@ def distance_ticks(d_lo_px: float, d_hi_px: float, fb_mm_px: float, max_ticks: i
     z_far = fb_mm_px / d_lo_px if d_lo_px > 0 else math.inf
     use_m = z_far >= 1000.0
     span = d_hi_px - d_lo_px
+    min_gap = 255.0 / (max_ticks + 1)
+
+    def fmt(z: float, exact: bool = False) -> str:
+        if use_m:
+            return f"{z / 1000:.2f} m" if exact else f"{z / 1000:g} m"
+        return f"{z:.0f} mm" if exact else f"{z:g} mm"
+
     ticks: list[tuple[float, str]] = []
-    for z in _NICE_MM:
-        if not (z_near <= z <= z_far):
-            continue
-        level = 255.0 * (fb_mm_px / z - d_lo_px) / span
-        if ticks and abs(level - ticks[-1][0]) < 255.0 / (max_ticks + 1):
-            continue
-        label = f"{z / 1000:g} m" if use_m else f"{z:g} mm"
-        ticks.append((level, label))
-    # the near end, labelled with its exact value, anchors the scale
-    near_label = f"{z_near / 1000:.2f} m" if use_m else f"{z_near:.0f} mm"
-    if not ticks or abs(255.0 - ticks[-1][0]) > 255.0 / (max_ticks + 1):
-        ticks.append((255.0, near_label))
-    if math.isinf(z_far) and (not ticks or ticks[0][0] > 255.0 / (max_ticks + 1)):
-        ticks.insert(0, (0.0, "∞"))
-    return ticks
+
+    def free(level: float) -> bool:
+        return all(abs(level - t) >= min_gap for t, _ in ticks)
+
+    def end_label(z: float) -> str:
+        for tier in _NICE_MM_TIERS:
+            for nice in tier:
+                if abs(z - nice) <= 0.01 * nice:
+                    return fmt(nice)
+        return fmt(z, exact=True)
+
+    # the ends first: the whole range is always readable
+    ticks.append((0.0, "∞" if math.isinf(z_far) else end_label(z_far)))
+    ticks.append((255.0, end_label(z_near)))
+    for tier in _NICE_MM_TIERS:
+        for z in tier:
+            if z_near <= z <= z_far:
+                level = 255.0 * (fb_mm_px / z - d_lo_px) / span
+                if free(level):
+                    ticks.append((level, fmt(z)))
+    return sorted(ticks)
 
 
 class DistanceColorBar(pg.PlotItem):
