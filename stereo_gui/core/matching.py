@@ -242,7 +242,8 @@ class StereoPipeline:
     """Turns raw stereo frames into `PipelineResult`s for one calibration and preset.
 
     Not for concurrent use by several threads; `set_params` may be called from any thread and
-    takes effect with the next frame.
+    takes effect with the next frame. A `parallel` preset owns one helper thread: call `close()`
+    (or use the pipeline as a context manager) when done.
     """
 
     def __init__(self, calibration: StereoCalibration, params: MatcherParams | None = None):
@@ -268,6 +269,11 @@ class StereoPipeline:
         if self._executor is not None:
             self._executor.shutdown(wait=True)
             self._executor = None
+
+    def __del__(self) -> None:
+        ex = getattr(self, "_executor", None)
+        if ex is not None:
+            ex.shutdown(wait=False)
 
     def __enter__(self) -> StereoPipeline:
         return self

@@ -166,10 +166,12 @@ def test_switching_parallel_off_stops_the_helper_thread():
 
     left, right = textured_pair()
     base = MatcherParams(min_disparity=0, num_disparities=32)
+    before = set(threading.enumerate())
     pipe = StereoPipeline(calib(), base.replace(parallel=True))
     pipe.process(left, right)
-    assert any(t.name.startswith("stereo-right") for t in threading.enumerate())
+    helpers = [t for t in set(threading.enumerate()) - before if t.name.startswith("stereo-right")]
+    assert helpers
     pipe.set_params(base)
     pipe.process(left, right)
-    assert not any(t.name.startswith("stereo-right") for t in threading.enumerate())
+    assert not any(t.is_alive() for t in helpers)
     pipe.close()

@@ -191,3 +191,20 @@ def test_bad_arguments():
     with pytest.raises(InputError):
         measure_point(disp, 5, 5, calibration=c, mode="blob")
     assert MatcherParams().name == "custom"
+
+
+def test_reduced_resolution_preset_rematches_a_full_resolution_strip(rig, walls):
+    from stereo_gui.core.measure import rematch_strip
+
+    calib = rig.true_calibration()
+    scene, (left, right) = walls[2000.0]
+    with StereoPipeline(calib, load_preset("live")) as pipe:
+        result = pipe.process(left, right)
+    band = rematch_strip(result, 240, 4)
+    assert band.shape == (9, 640)
+    true_d = calib.focal_px * calib.rectified_baseline_mm / rig.true_point_rectified(
+        calib, scene, 320, 240)[2]
+    assert np.nanmedian(band[:, 316:325]) == pytest.approx(true_d, abs=0.5)
+    # full resolution: steps of 1/16 px, where the half-resolution map has steps of 1/8 px
+    frac = np.unique(np.round((band[np.isfinite(band)] * 16) % 2))
+    assert 1.0 in frac
