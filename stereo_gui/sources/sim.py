@@ -40,6 +40,8 @@ _BLACK = 28.0
 _WHITE = 225.0
 _BOARD_BACKGROUND = 118.0  # plain grey behind the board when no scene is shown
 _TEXELS_PER_SQUARE = 96
+# multi-scale noise octaves of object textures: (size in texels, amplitude)
+OCTAVES = ((1, 0.55), (2, 0.8), (4, 1.0), (8, 0.9), (16, 0.8), (48, 0.9), (160, 0.7))
 _NOISE_PAD = 64  # the noise bank is this much larger than an image (random crops)  # board texture resolution: 0.26 mm texels for 25 mm squares
 
 
@@ -410,7 +412,7 @@ def _texture(seed: int, width_mm: float, height_mm: float) -> tuple[np.ndarray, 
     rng = np.random.default_rng(seed)
     acc = np.zeros((th, tw, 3), np.float32)
     total = 0.0
-    for k, amp in ((1, 0.55), (2, 0.8), (4, 1.0), (8, 0.9), (16, 0.8), (48, 0.9), (160, 0.7)):
+    for k, amp in OCTAVES:
         sw, sh = max(2, tw // k), max(2, th // k)
         small = rng.standard_normal((sh, sw, 3)).astype(np.float32)
         small[..., 1:] = 0.6 * small[..., :1] + 0.4 * small[..., 1:]  # partly grey, partly colour
