@@ -150,8 +150,8 @@ class ErrorBarChart(pg.PlotWidget):
 
     def __init__(self, parent=None) -> None:
         super().__init__(parent)
-        self.setBackground("w")
         self.setLabel("left", "reprojection error", units="px")
+        self.getAxis("left").enableAutoSIPrefix(False)  # not "mpx"
         self.setLabel("bottom", "pair")
         self.setMouseEnabled(x=False, y=False)
         self.hideButtons()
@@ -368,7 +368,7 @@ class CalibrationTab(QWidget):
         ll.addWidget(figures)
         self.rejected_text = QPlainTextEdit()
         self.rejected_text.setReadOnly(True)
-        self.rejected_text.setMaximumHeight(90)
+        self.rejected_text.setMaximumHeight(70)
         self.rejected_text.setPlaceholderText("No pair rejected")
         ll.addWidget(QLabel("Rejected or excluded pairs:"))
         ll.addWidget(self.rejected_text)
@@ -598,7 +598,9 @@ class CalibrationTab(QWidget):
                                     f"corners after rectification")
         if c.metric:
             b = c.baseline_mm
-            diff = b - nominal
+            diff = b - nominal + 0.0  # + 0.0: no "-0.00"
+            if abs(diff) < 0.005:
+                diff = 0.0
             self.baseline_label.setText(
                 f"{b:.2f} mm (nominal {nominal:.1f} mm, difference {diff:+.2f} mm, "
                 f"{100 * diff / nominal:+.2f} %)")

@@ -118,21 +118,25 @@ def _rgb(bgr: np.ndarray) -> np.ndarray:
 
 
 # ---- image panes ---------------------------------------------------------------------------------
-class StereoPairView(pg.GraphicsLayoutWidget):
-    """Left and right images side by side, each with a title and the board's corners."""
+class StereoPairView(QWidget):
+    """Left and right images side by side (equal size), each with a title and the board's corners."""
 
     def __init__(self, parent=None) -> None:
         super().__init__(parent)
-        self.setBackground("#202020")
+        row = QHBoxLayout(self)
+        row.setContentsMargins(0, 0, 0, 0)
+        row.setSpacing(2)
         self.titles: list[pg.LabelItem] = []
         self.images: list[pg.ImageItem] = []
         self.corner_lines: list[pg.PlotCurveItem] = []
         self.corner_dots: list[pg.ScatterPlotItem] = []
         self.views: list[pg.ViewBox] = []
-        for col, name in enumerate(("Left", "Right")):
+        for name in ("Left", "Right"):
+            glw = pg.GraphicsLayoutWidget()
+            glw.setBackground("#202020")
             title = pg.LabelItem(name, size="11pt", color="w")
-            self.addItem(title, row=0, col=col)
-            vb = self.addViewBox(row=1, col=col, lockAspect=True, enableMouse=False)
+            glw.addItem(title, row=0, col=0)
+            vb = glw.addViewBox(row=1, col=0, lockAspect=True, enableMouse=False)
             vb.invertY(True)
             img = pg.ImageItem(axisOrder="row-major")
             vb.addItem(img)
@@ -140,6 +144,7 @@ class StereoPairView(pg.GraphicsLayoutWidget):
             dots = pg.ScatterPlotItem(size=6, pen=pg.mkPen(None), brush=pg.mkBrush("#ff5a1f"))
             vb.addItem(line)
             vb.addItem(dots)
+            row.addWidget(glw, 1)
             self.titles.append(title)
             self.images.append(img)
             self.corner_lines.append(line)
@@ -362,8 +367,8 @@ class CaptureTab(QWidget):
             self.ctx.update_settings(board_cols=board.cols, board_rows=board.rows,
                                      square_mm=board.square_mm)
         self._recent_corners.clear()
-        if self._active:
-            self.ctx.frames.set_processor(make_capture_processor(board))
+        if self.state == "live":
+            self._set_processing(True)
 
     def _auto_toggled(self, on: bool) -> None:
         if self.ctx.settings is not None:
@@ -380,7 +385,12 @@ class CaptureTab(QWidget):
             return
         self._active = active
         if active:
-            self.ctx.frames.set_processor(make_capture_processor(self.board))
+            self._set_processing(self.state == "live")
+
+    def _set_processing(self, on: bool) -> None:
+        """Detect in live frames only while live frames are shown (saves CPU while reviewing)."""
+        if self._active:
+            self.ctx.frames.set_processor(make_capture_processor(self.board) if on else None)
 
     def _on_frame_ready(self) -> None:
         if not self._active:
@@ -437,6 +447,7 @@ class CaptureTab(QWidget):
         self._frozen_frame = frame
         self._last_reviewed_pose = out.pose
         self.prompt.setText("Both cameras see the board. Save this pair (S) or Cancel (C)?")
+        self._set_processing(False)  # nothing to detect while a pair is under review
         self._update_controls()
 
     def save_frozen(self) -> str | None:
@@ -454,6 +465,8 @@ class CaptureTab(QWidget):
             self.go_live()
 
     def go_live(self) -> None:
+        if self.state != "live":
+            self._set_processing(True)
         self.state = "live"
         self.frozen = None
         self._frozen_frame = None
@@ -673,6 +686,7 @@ class CaptureTab(QWidget):
             self.ctx.report_error(str(exc))
             return
         self.state = "saved"
+        self._set_processing(False)
         self.frozen = None
         self._frozen_frame = None
         self.view.show_pair(_rgb(left), _rgb(right))
@@ -728,6 +742,9 @@ class CaptureTab(QWidget):
     # ---- controls --------------------------------------------------------------------------------
     def _update_controls(self) -> None:
         review = self.state == "review"
+        self.prompt.setStyleSheet(
+            "background: #fff3b0; border: 1px solid #d4a017; padding: 4px; font-weight: bold"
+            if review else "padding: 4px")
         self.save_button.setEnabled(review)
         self.cancel_button.setEnabled(review)
         self.live_button.setEnabled(self.state == "saved")

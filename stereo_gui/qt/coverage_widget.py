@@ -63,7 +63,8 @@ class CornerMap(pg.GraphicsLayoutWidget):
         self.item.setLookupTable(_map_lut())
         self.view.addItem(self.item)
         self.title = title
-        self.setMinimumSize(160, 120)
+        self.setMinimumSize(140, 105)
+        self.setMaximumHeight(125)  # a glance, not a picture: leave the height to the pair list
         self.setToolTip(f"{title}: where board corners have been seen in the kept pairs "
                         "(red = none yet; move the board there)")
         self._redraw()

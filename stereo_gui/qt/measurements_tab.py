@@ -40,7 +40,8 @@ from stereo_gui.qt.calibration_worker import JobWorker, Progress
 log = logging.getLogger(__name__)
 
 MODELS = ("cubic", "inverse")
-_COLOURS = {"cubic": "#d35400", "inverse": "#2471a3"}
+_COLOURS = {"cubic": "#f39c12", "inverse": "#5dade2"}  # curves, on the plots' dark background
+_LABEL_COLOURS = {"cubic": "#b9570b", "inverse": "#1f6fa8"}  # the same hues, darker, for text
 _MODEL_TEXT = {"triangulation": "Triangulation (calibration)",
                "cubic": "Cubic fit (the report's model)",
                "inverse": "Inverse fit Z = a / (d − d0)"}
@@ -64,23 +65,25 @@ def _short_time(iso: str) -> str:
     return t.astimezone().strftime("%H:%M:%S") if t.tzinfo else t.strftime("%H:%M:%S")
 
 
-# (header, how to show a record, tooltip)
+# (header, how to show a record, tooltip); the true distance sits next to what it is compared with
 COLUMNS = (
     ("Time", lambda r: _short_time(r.time), "time of the reading"),
     ("x, y (px)", lambda r: f"{_num(r.x_px, 0)}, {_num(r.y_px, 0)}", "pixel of the rectified left image"),
     ("Disparity (px)", lambda r: _num(r.disparity_px, 3), "median disparity of the patch"),
-    ("X (mm)", lambda r: _num(r.X_mm), "left rectified camera frame"),
-    ("Y (mm)", lambda r: _num(r.Y_mm), "left rectified camera frame"),
-    ("Z (mm)", lambda r: _num(r.Z_mm), "depth along the optical axis"),
-    ("Range (mm)", lambda r: _num(r.range_mm), "distance from the left camera"),
-    ("Valid", lambda r: "yes" if r.valid else f"no: {r.reason}" if r.reason else "no",
-     "whether the reading is usable, and why not"),
-    ("± (mm)", lambda r: _num(r.expected_error_mm), "expected depth error for 1/4 px disparity error"),
-    ("Method", lambda r: r.method, "triangulation or the fit used"),
     ("True distance (mm)", lambda r: _num(r.true_mm) if r.true_mm is not None else "",
      "double-click to enter the measured true distance: it makes the reading a regression sample"),
+    ("Z (mm)", lambda r: _num(r.Z_mm), "depth along the optical axis"),
+    ("Range (mm)", lambda r: _num(r.range_mm), "distance from the left camera"),
+    ("± (mm)", lambda r: _num(r.expected_error_mm), "expected depth error for 1/4 px disparity error"),
+    ("Valid", lambda r: "yes" if r.valid else f"no: {r.reason}" if r.reason else "no",
+     "whether the reading is usable, and why not"),
+    ("X (mm)", lambda r: _num(r.X_mm), "left rectified camera frame"),
+    ("Y (mm)", lambda r: _num(r.Y_mm), "left rectified camera frame"),
+    ("Method", lambda r: r.method, "triangulation or the fit used"),
 )
-TRUE_COL = len(COLUMNS) - 1
+TRUE_COL = 3
+VALID_COL = 7
+_LEFT_ALIGNED = (0, VALID_COL, len(COLUMNS) - 1)
 
 
 class MeasurementModel(QAbstractTableModel):
@@ -124,9 +127,9 @@ class MeasurementModel(QAbstractTableModel):
             return QBrush(QColor("#a93226"))
         if role == Qt.ItemDataRole.BackgroundRole and col == TRUE_COL:
             return QBrush(QColor("#fdf6d8"))
-        if role == Qt.ItemDataRole.TextAlignmentRole and col not in (0, 7, 9):
+        if role == Qt.ItemDataRole.TextAlignmentRole and col not in _LEFT_ALIGNED:
             return int(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
-        if role == Qt.ItemDataRole.ToolTipRole and col == 7 and not rec.valid:
+        if role == Qt.ItemDataRole.ToolTipRole and col == VALID_COL and not rec.valid:
             return rec.reason
         return None
 
@@ -170,21 +173,25 @@ class RegressionPlot(pg.GraphicsLayoutWidget):
 
     def __init__(self, parent=None) -> None:
         super().__init__(parent)
-        self.setBackground("w")
         self.main = self.addPlot(row=0, col=0)
         self.main.setLabel("left", "true distance", units="mm")
         self.main.setLabel("bottom", "disparity", units="px")
         self.main.showGrid(x=True, y=True, alpha=0.25)
+        for plot in (self.main,):
+            for ax in ("left", "bottom"):
+                plot.getAxis(ax).enableAutoSIPrefix(False)  # "kmm" helps nobody
         self.main.addLegend(offset=(-10, 10))
         self.resid = self.addPlot(row=1, col=0)
         self.resid.setLabel("left", "residual", units="mm")
         self.resid.setLabel("bottom", "disparity", units="px")
         self.resid.showGrid(x=True, y=True, alpha=0.25)
         self.resid.setXLink(self.main)
+        for ax in ("left", "bottom"):
+            self.resid.getAxis(ax).enableAutoSIPrefix(False)
         self.resid.addItem(pg.InfiniteLine(angle=0, pos=0, pen=pg.mkPen("#888", style=Qt.PenStyle.DashLine)))
         self.ci.layout.setRowStretchFactor(0, 3)
         self.ci.layout.setRowStretchFactor(1, 2)
-        self.samples = pg.ScatterPlotItem(size=8, brush=pg.mkBrush("#222"), pen=None, name="samples")
+        self.samples = pg.ScatterPlotItem(size=8, brush=pg.mkBrush("#f4f4f4"), pen=None, name="samples")
         self.main.addItem(self.samples)
         self.curves = {}
         self.resid_points = {}
@@ -298,7 +305,7 @@ class MeasurementsTab(QWidget):
             lab = QLabel("")
             lab.setWordWrap(True)
             lab.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
-            lab.setStyleSheet(f"color: {_COLOURS[m]}")
+            lab.setStyleSheet(f"color: {_LABEL_COLOURS[m]}")
             self.r2_labels[m] = lab
             bl.addWidget(lab)
         self.plot = RegressionPlot()
@@ -326,7 +333,9 @@ class MeasurementsTab(QWidget):
         split.setSizes([700, 560])
 
     def set_active(self, active: bool) -> None:
-        """This tab needs no live frames; it leaves the processor to the tabs that do."""
+        """This tab shows no live frames: while it is shown, frames are not processed."""
+        if active:
+            self.ctx.frames.set_processor(None)
 
     # ---- regression --------------------------------------------------------------------------
     def refit(self) -> None:

@@ -59,7 +59,7 @@ def test_log_table_shows_readings(tab, ctx):
     model = tab.table.model()
     assert model.rowCount() == 2
     assert model.index(0, 2).data() == "41.250"
-    assert model.index(0, 6).data() == f"{F_PX * B_MM / 41.25:.1f}"
+    assert model.index(0, 5).data() == f"{F_PX * B_MM / 41.25:.1f}"  # range
     assert model.index(1, 7).data().startswith("no: no valid pixels")
     assert "2 readings, 0 with a true distance" in tab.count_label.text()
 
