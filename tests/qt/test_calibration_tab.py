@@ -126,3 +126,42 @@ def test_bad_folder_reports_error(tab, ctx, qtbot, tmp_path):
     assert "pairs" in blocker.args[0] or "no" in blocker.args[0]
     qtbot.waitUntil(lambda: not tab.is_running(), timeout=5000)
     assert "failed" in tab.progress_label.text()
+
+
+def test_save_and_load_calibration_file(tab, ctx, qtbot, session_folder, tmp_path):
+    tab.folder_edit.setText(str(session_folder))
+    run = _calibrate(tab, qtbot)
+    assert "NOT SAVED" in tab.source_label.text()
+    path = tmp_path / "calib.yaml"
+    assert tab.save_calibration(path) and path.exists()
+    assert ctx.calibration_path == path and "calib.yaml" in tab.source_label.text()
+    ctx.set_calibration(None)
+    assert tab.rms_stereo_label.text() == "—" and tab.chart.bar_count() == 0
+    assert tab.load_calibration(path)
+    assert ctx.calibration.rms_stereo == pytest.approx(run.result.calibration.rms_stereo)
+    assert tab.chart.bar_count() == len(run.result.calibration.per_pair)
+    errors = []
+    ctx.errorOccurred.connect(errors.append)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("not a calibration")
+    assert not tab.load_calibration(bad)
+    assert errors and "bad.yaml" in errors[0]
+
+
+def test_hartley_states_its_limits(tab, qtbot, session_folder):
+    tab.folder_edit.setText(str(session_folder))
+    tab.method_combo.setCurrentIndex(tab.method_combo.findData("hartley"))
+    run = _calibrate(tab, qtbot)
+    assert run.result.calibration.method == "hartley"
+    assert "no metric scale" in tab.baseline_label.text()
+    assert "NOT in millimetres" in tab.note_label.text()
+    assert "no metric scale" in tab.rect_view.title.text
+
+
+def test_shutdown_while_calibrating_joins_the_worker(tab, ctx, qtbot, session_folder):
+    tab.folder_edit.setText(str(session_folder))
+    assert tab.start_calibration()
+    worker = tab.worker
+    assert ctx.shutdown(2000)  # what closing the window does: cancel and join every worker
+    assert not worker.isRunning()
+    qtbot.waitUntil(lambda: not tab.is_running(), timeout=5000)
