@@ -2,8 +2,8 @@
 
 A click is a pixel (x, y) of the full-resolution rectified left image. Point mode takes the median
 of the valid disparities in a square patch; object mode takes the region the WLS view shows as
-one surface and reads the most frequent disparity in it (the report's first proposal). When the
-rectified images are at hand the disparity is then refined to a fraction of a pixel by a 1-D
+one surface and reads the most frequent disparity in it (the report's first proposal). In point
+mode, when the rectified images are at hand, the disparity is then refined to a fraction of a pixel by a 1-D
 Lucas-Kanade alignment of the patch (SGBM's own subpixel estimate is biased towards whole pixels,
 "pixel locking", which at 3 m is worth several centimetres). A reduced-resolution preset's
 estimate is first replaced by a full-resolution re-match of a strip around the clicked row.
@@ -163,8 +163,6 @@ def rematch_strip(result: PipelineResult, y: int, half: int) -> np.ndarray | Non
 
     Returns the band's disparity (rows y-half .. y+half clipped), or None without a result.
     """
-    import cv2 as _cv2
-
     p = result.params
     gl, gr = to_gray(result.rectified_left), to_gray(result.rectified_right)
     h = gl.shape[0]
@@ -174,11 +172,11 @@ def rematch_strip(result: PipelineResult, y: int, half: int) -> np.ndarray | Non
     lo, hi = result.disparity_range_px
     lo_i = int(math.floor(lo))
     num = int(math.ceil((hi - lo_i + 1) / 16.0)) * 16
-    m = _cv2.StereoSGBM_create(
+    m = cv2.StereoSGBM_create(
         minDisparity=lo_i, numDisparities=num, blockSize=p.block_size, P1=p.p1_value,
         P2=p.p2_value, disp12MaxDiff=p.disp12_max_diff, preFilterCap=p.pre_filter_cap,
         uniquenessRatio=p.uniqueness_ratio, speckleWindowSize=p.speckle_window_size,
-        speckleRange=p.speckle_range, mode=_cv2.StereoSGBM_MODE_SGBM_3WAY)
+        speckleRange=p.speckle_range, mode=cv2.StereoSGBM_MODE_SGBM_3WAY)
     d16 = m.compute(gl[y0:y1], gr[y0:y1])
     band = fixed_to_px(d16, lo_i)
     r0 = max(0, y - half) - y0
