@@ -13,6 +13,8 @@ occasional requests (a click's measurement), results delivered by signal with th
 from __future__ import annotations
 
 import logging
+import os
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -68,6 +70,25 @@ class _RateMeter:
         return 0.0 if not self._interval_s else 1.0 / self._interval_s
 
 
+WORKER_NICE = 10  # Linux niceness of frame threads: under CPU load the UI thread wins
+
+
+def _lower_thread_priority() -> None:
+    """Make the calling thread yield to the UI thread when CPUs are busy.
+
+    On Linux niceness is per thread (and inherited by threads it starts, e.g. OpenCV's pool),
+    while Qt's thread priorities do nothing under the default scheduler; elsewhere Qt's
+    LowPriority (set at start) applies.
+    """
+    if hasattr(os, "setpriority") and sys.platform.startswith("linux"):
+        try:
+            tid = threading.get_native_id()
+            current = os.getpriority(os.PRIO_PROCESS, tid)
+            os.setpriority(os.PRIO_PROCESS, tid, max(current, WORKER_NICE))
+        except OSError as exc:
+            log.debug("could not lower the frame thread's priority: %s", exc)
+
+
 class _LoopThread(QThread):
     """A QThread running a plain Python loop function until asked to stop."""
 
@@ -76,7 +97,11 @@ class _LoopThread(QThread):
         self._loop = loop
         self.setObjectName(name)
 
+    def start_low(self) -> None:
+        self.start(QThread.Priority.LowPriority)
+
     def run(self) -> None:  # runs in the new thread
+        _lower_thread_priority()
         self._loop()
 
 
@@ -220,10 +245,10 @@ class FrameWorker(QObject):
     def _ensure_started(self) -> None:
         if self._reader is None:
             self._reader = _LoopThread(self._read_loop, "frame-reader")
-            self._reader.start()
+            self._reader.start_low()
         if self._worker is None:
             self._worker = _LoopThread(self._process_loop, "frame-processor")
-            self._worker.start()
+            self._worker.start_low()
 
     def _report(self, text: str) -> None:
         """Emit an error once (a failing source or processor would otherwise repeat it per frame)."""
