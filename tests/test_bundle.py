@@ -82,3 +82,23 @@ def test_gui_starts_offscreen_and_quits_by_itself(bundle, tmp_path):
     output = proc.stdout + proc.stderr
     assert proc.returncode == 0, output[-3000:]
     assert "Traceback" not in output, output[-3000:]
+
+
+def test_live_pipeline_runs_in_the_bundle(bundle, tmp_path):
+    # `bench` on the simulated rig runs the whole live pipeline: rectify, SGBM, and the WLS filter
+    # of cv2.ximgproc (OpenCV contrib); presets come from the bundled resources.
+    import json
+
+    proc = _run([str(bundle), "bench", "--frames", "2", "--preset", "live", "--json"],
+                {"STEREO_GUI_CONFIG_DIR": str(tmp_path / "config")})
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    stages = json.loads(proc.stdout)["presets"]["live"]["stages_ms"]
+    assert stages["wls"] > 0
+
+
+def test_bad_input_is_one_line_without_traceback(bundle, tmp_path):
+    proc = _run([str(bundle), "bench", "--frames", "2", "--preset", "no-such-preset"],
+                {"STEREO_GUI_CONFIG_DIR": str(tmp_path / "config")})
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr
+    assert proc.stderr.strip().splitlines()[-1].startswith("stereo-gui: error:")
