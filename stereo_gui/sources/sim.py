@@ -41,6 +41,7 @@ _WHITE = 225.0
 _BOARD_BACKGROUND = 118.0  # plain grey behind the board when no scene is shown
 _TEXELS_PER_SQUARE = 96
 # multi-scale noise octaves of object textures: (size in texels, amplitude)
+_TEXTURE_MAX_PX = 1536.0  # longest side of an object texture, texels
 OCTAVES = ((1, 0.55), (2, 0.8), (4, 1.0), (8, 0.9), (16, 0.8), (48, 0.9), (160, 0.7))
 _NOISE_PAD = 64  # the noise bank is this much larger than an image (random crops)  # board texture resolution: 0.26 mm texels for 25 mm squares
 
@@ -341,48 +342,50 @@ class RayMap:
     max_error_px: float  # round-trip error of the inversion, checked with cv2.projectPoints
 
 
-def _upsample_cubic(arr: np.ndarray, offs: np.ndarray, axis: int, pad: int) -> np.ndarray:
-    """Sample `arr` (padded by `pad` on both ends of `axis`) at i + offs[k] for every inner
-    index i, interleaved (output index i*len(offs) + k); 4-point Lagrange interpolation."""
-    a = np.moveaxis(arr, axis, 0)
-    n = a.shape[0] - 2 * pad
-    out = np.empty((n, len(offs)) + a.shape[1:], np.float64)
-    for k, o in enumerate(offs):
-        base = int(math.floor(o))
-        t = o - base
-        weights = (-t * (t - 1) * (t - 2) / 6, (t + 1) * (t - 1) * (t - 2) / 2,
-                   -(t + 1) * t * (t - 2) / 2, (t + 1) * t * (t - 1) / 6)
-        acc = np.zeros((n,) + a.shape[1:], np.float64)
-        for j, wj in zip(range(-1, 3), weights):
-            start = pad + base + j
-            acc += wj * a[start:start + n]
-        out[:, k] = acc
-    out = out.reshape((n * len(offs),) + a.shape[1:])
+def _interp_cubic(a: np.ndarray, pos: np.ndarray, axis: int) -> np.ndarray:
+    """Sample `a` along `axis` at fractional indices `pos` (1-D) by 4-point Lagrange
+    interpolation; the caller keeps pos within [1, n - 3)."""
+    base = np.floor(pos).astype(np.intp)
+    t = (pos - base).astype(a.dtype)
+    weights = (-t * (t - 1) * (t - 2) / 6, (t + 1) * (t - 1) * (t - 2) / 2,
+               -(t + 1) * t * (t - 2) / 2, (t + 1) * t * (t - 1) / 6)
+    src = np.moveaxis(a, axis, 0)
+    shape = (-1,) + (1,) * (src.ndim - 1)
+    out = weights[0].reshape(shape) * src[base - 1]
+    for j in (1, 2, 3):
+        out += weights[j].reshape(shape) * src[base + j - 1]
     return np.moveaxis(out, 0, axis)
+
+
+# ray maps: the exact inverse is computed on a grid this many pixels apart, then interpolated
+_RAY_GRID_PX = 4
 
 
 @functools.lru_cache(maxsize=8)
 def _ray_map_cached(M_bytes: bytes, D_bytes: bytes, w: int, h: int, s: int) -> RayMap:
     M = np.frombuffer(M_bytes, np.float64).reshape(3, 3)
     D = np.frombuffer(D_bytes, np.float64).reshape(1, 5)
-    # Exact inversion (OpenCV's iterative undistortion, tight criteria) on the pixel grid with a
-    # margin of 2 px, then cubic Lagrange interpolation (float64) to the supersample positions:
-    # the inverse is so smooth at a 1 px spacing that interpolation adds far less than 1e-4 px,
-    # and it is ~10x faster than inverting every supersample. The round trip is checked below
-    # with cv2.projectPoints.
-    pad = 2
-    gu, gv = np.meshgrid(np.arange(-pad, w + pad, dtype=np.float64),
-                         np.arange(-pad, h + pad, dtype=np.float64))
+    # Exact inversion (OpenCV's iterative undistortion, tight criteria) on a grid every
+    # _RAY_GRID_PX pixels with a margin, then cubic Lagrange interpolation to the supersample
+    # positions: the inverse is so smooth at that spacing that interpolation adds < 1e-4 px
+    # (the round trip is checked below with cv2.projectPoints), and it is much faster than
+    # inverting every supersample.
+    g = _RAY_GRID_PX
+    margin = 2 * g
+    gx = np.arange(-margin, w + margin + 1, g, dtype=np.float64)
+    gy = np.arange(-margin, h + margin + 1, g, dtype=np.float64)
+    gu, gv = np.meshgrid(gx, gy)
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-14)
     grid = cv2.undistortPoints(np.stack([gu, gv], -1).reshape(-1, 1, 2), M, D, criteria=crit)
-    grid = grid.reshape(gu.shape[0], gu.shape[1], 2)
+    grid = grid.reshape(len(gy), len(gx), 2)
     offs = (np.arange(s) + 0.5) / s - 0.5  # sample positions inside a pixel (centre = integer)
-    xy = _upsample_cubic(_upsample_cubic(grid, offs, axis=1, pad=pad), offs, axis=0, pad=pad)
     us = (np.arange(w)[:, None] + offs[None, :]).reshape(-1)
     vs = (np.arange(h)[:, None] + offs[None, :]).reshape(-1)
+    rows = _interp_cubic(grid, (us + margin) / g, axis=1)  # float64: (len(gy), W*s, 2)
+    xy = _interp_cubic(rows.astype(np.float32), (vs + margin) / g, axis=0)
     sel = (slice(None, None, max(1, h * s // 37)), slice(None, None, max(1, w * s // 53)))
     uu, vv = np.meshgrid(us[sel[1]], vs[sel[0]])
-    sub = xy[sel].reshape(-1, 2)
+    sub = xy[sel].reshape(-1, 2).astype(np.float64)
     pts = np.concatenate([sub, np.ones((len(sub), 1))], 1)
     proj, _ = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), M, D)
     err = np.hypot(proj[:, 0, 0] - uu.ravel(), proj[:, 0, 1] - vv.ravel())
@@ -406,7 +409,7 @@ def _texture(seed: int, width_mm: float, height_mm: float) -> tuple[np.ndarray, 
     Multi-scale noise (octaves of smoothly upsampled random images) so that there is detail for
     the matcher at every distance: the texel follows the object's size, walls grow with distance.
     """
-    texel = max(max(width_mm, height_mm) / 2048.0, 0.35)
+    texel = max(max(width_mm, height_mm) / _TEXTURE_MAX_PX, 0.35)
     tw = max(8, int(math.ceil(width_mm / texel)) + 2)
     th = max(8, int(math.ceil(height_mm / texel)) + 2)
     rng = np.random.default_rng(seed)
@@ -414,7 +417,7 @@ def _texture(seed: int, width_mm: float, height_mm: float) -> tuple[np.ndarray, 
     total = 0.0
     for k, amp in OCTAVES:
         sw, sh = max(2, tw // k), max(2, th // k)
-        small = rng.standard_normal((sh, sw, 3)).astype(np.float32)
+        small = rng.standard_normal((sh, sw, 3), dtype=np.float32)
         small[..., 1:] = 0.6 * small[..., :1] + 0.4 * small[..., 1:]  # partly grey, partly colour
         layer = small if k == 1 else cv2.resize(small, (tw, th), interpolation=cv2.INTER_CUBIC)
         acc += amp * layer[:th, :tw]
