@@ -140,3 +140,25 @@ def test_live_through_frame_worker_freezes_on_board(tab, ctx, qtbot, tmp_path):
     with qtbot.waitSignal(tab.pairSaved, timeout=5000):
         tab.save_frozen()
     assert len(CaptureSession.open(tmp_path / "live").pairs) == 1
+
+
+def test_keys_s_and_c_save_and_cancel(tab, tmp_path, qtbot):
+    from PySide6.QtCore import Qt
+
+    tab.new_session(tmp_path / "keys")
+    tab.show()
+    with qtbot.waitActive(tab):
+        tab.activateWindow()
+    tab.view.setFocus()
+    frames = _board_frames()
+    out, frame = frames[0]
+    tab.show_output(out, frame)
+    assert tab.state == "review"
+    qtbot.keyClick(tab, Qt.Key.Key_C)
+    qtbot.waitUntil(lambda: tab.state == "live", timeout=3000)  # a shortcut animates the click
+    tab._last_reviewed_pose = None  # as if the board had left the view in between
+    tab.show_output(out, frame)
+    assert tab.state == "review"
+    with qtbot.waitSignal(tab.pairSaved, timeout=5000):
+        qtbot.keyClick(tab, Qt.Key.Key_S)
+    assert len(CaptureSession.open(tmp_path / "keys").pairs) == 1
