@@ -31,8 +31,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--calib", metavar="C", help="calibration file (with LEFT RIGHT)")
     parser.add_argument("left", nargs="?", metavar="LEFT", help="left raw image")
     parser.add_argument("right", nargs="?", metavar="RIGHT", help="right raw image")
-    parser.add_argument("--frames", type=int, default=60, metavar="N",
-                        help="frames per preset (default 60)")
+    parser.add_argument("--frames", type=int, default=30, metavar="N",
+                        help="frames per preset (default 30)")
     parser.add_argument("--preset", action="append", metavar="P",
                         help="preset to time (repeatable; default live, seed, quality)")
     parser.add_argument("--json", action="store_true", help="print the results as JSON")

@@ -46,6 +46,12 @@ COLORMAPS: dict[str, int] = {
 
 COLOR_RANGES = ("minmax", "fixed")
 
+# the report's / OpenCV's names for some parameters, accepted when reading presets
+_ALIASES = {"window_size": "block_size", "minDisparity": "min_disparity",
+            "numDisparities": "num_disparities", "uniquenessRatio": "uniqueness_ratio",
+            "speckleWindowSize": "speckle_window_size", "speckleRange": "speckle_range",
+            "disp12MaxDiff": "disp12_max_diff", "P1": "p1", "P2": "p2", "lmbda": "wls_lambda"}
+
 
 @dataclass(frozen=True)
 class MatcherParams:
@@ -153,6 +159,7 @@ class MatcherParams:
         names = {f.name: f for f in dataclasses.fields(cls)}
         kwargs = {}
         for key, value in data.items():
+            key = _ALIASES.get(key, key)
             if key not in names:
                 log.warning("%s: unknown matcher parameter %r ignored", where, key)
                 continue

@@ -38,6 +38,10 @@ def test_params_validate_and_round_trip():
     p = MatcherParams(name="x", mode="3way", scale=0.5, z_min_mm=400.0)
     assert MatcherParams.from_dict(p.to_dict()) == p
     assert MatcherParams.from_dict({"block_size": 5, "no_such_key": 1}).block_size == 5
+    # the report's own names are understood
+    report = MatcherParams.from_dict({"window_size": 3, "minDisparity": 2, "numDisparities": 128,
+                                      "lmbda": 80000})
+    assert (report.block_size, report.min_disparity, report.wls_lambda) == (3, 2, 80000)
     with pytest.raises(InputError, match="must be a number"):
         MatcherParams.from_dict({"block_size": "5"})
     with pytest.raises(InputError, match="true or false"):
