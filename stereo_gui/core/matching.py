@@ -403,10 +403,15 @@ class StereoPipeline:
             # the filter itself (values scaled) against the full-resolution guide
             f16 = self._wls.filter(d16, gl, None, d16_right)
             wls_px = fixed_to_px(f16, self._min_s * factor)
+            # outside the filter's region of interest (the band at the left edge that the
+            # matcher cannot see, in matched-image px) the output is not a measurement
             x, y, rw, rh = self._wls.getROI()
-            outside = np.ones((h, w), bool)
-            outside[int(y * factor):int((y + rh) * factor), int(x * factor):int((x + rw) * factor)] = False
-            wls_px[outside] = np.nan
+            x0, x1 = int(x * factor), int((x + rw) * factor)
+            y0, y1 = int(y * factor), int((y + rh) * factor)
+            wls_px[:y0] = np.nan
+            wls_px[y1:] = np.nan
+            wls_px[:, :x0] = np.nan
+            wls_px[:, x1:] = np.nan
             lap("wls")
         final = wls_px if wls_px is not None else closed
         valid = np.isfinite(final)
