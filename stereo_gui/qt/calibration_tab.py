@@ -29,6 +29,8 @@ from PySide6.QtWidgets import (
     QHBoxLayout,
     QLabel,
     QLineEdit,
+    QListWidget,
+    QListWidgetItem,
     QPlainTextEdit,
     QProgressBar,
     QPushButton,
@@ -262,6 +264,7 @@ class CalibrationTab(QWidget):
         self.calibration: StereoCalibration | None = None
         self._maps: RectifyMaps | None = None
         self._maps_for: StereoCalibration | None = None
+        self.selected_pair: str | None = None
         self._build()
         s = ctx.settings
         if s is not None:
@@ -366,12 +369,13 @@ class CalibrationTab(QWidget):
         self.note_label.setStyleSheet("color: #b03a2e; font-weight: bold")
         form.addRow(self.note_label)
         ll.addWidget(figures)
-        self.rejected_text = QPlainTextEdit()
-        self.rejected_text.setReadOnly(True)
-        self.rejected_text.setMaximumHeight(70)
-        self.rejected_text.setPlaceholderText("No pair rejected")
+        self.rejected_list = QListWidget()
+        self.rejected_list.setMaximumHeight(80)
+        self.rejected_list.setToolTip("Click a pair to look at it (and include an excluded one again)")
+        self.rejected_list.itemClicked.connect(
+            lambda item: self.select_pair(item.data(Qt.ItemDataRole.UserRole)))
         ll.addWidget(QLabel("Rejected or excluded pairs:"))
-        ll.addWidget(self.rejected_text)
+        ll.addWidget(self.rejected_list)
         self.matrices_text = QPlainTextEdit()
         self.matrices_text.setReadOnly(True)
         self.matrices_text.setFont(_MONO)
@@ -551,20 +555,32 @@ class CalibrationTab(QWidget):
             self.matrices_text.setPlainText("")
             self.chart.set_errors([], [], [])
             self.rect_view.clear_pair()
-            self.rejected_text.setPlainText("")
+            self.rejected_list.clear()
             self._update_buttons()
             return
         self.matrices_text.setPlainText(matrices_text(calib))
         names = [p.name for p in calib.per_pair]
         self.chart.set_errors(names, [p.error_left for p in calib.per_pair],
                               [p.error_right for p in calib.per_pair])
-        lines = []
+        self.rejected_list.clear()
         if self.run is not None:
-            lines += [f"{r.name}: {r.reason}" for r in self.run.result.report.rejected]
-            lines += [f"{n}: excluded by you" for n in self.run.excluded]
-        self.rejected_text.setPlainText("\n".join(lines))
+            entries = [(r.name, f"{r.name}: {r.reason}") for r in self.run.result.report.rejected]
+            entries += [(n, f"{n}: excluded by you") for n in self.run.excluded]
+            for name, text in entries:
+                item = QListWidgetItem(text)
+                item.setData(Qt.ItemDataRole.UserRole, name)
+                item.setToolTip(text)
+                self.rejected_list.addItem(item)
+        if self.rejected_list.count() == 0:
+            item = QListWidgetItem("none")
+            item.setFlags(Qt.ItemFlag.NoItemFlags)
+            self.rejected_list.addItem(item)
         if names and self.run is not None:
-            self.select_pair(self.chart.selected if self.chart.selected in names else names[0])
+            keep = self.selected_pair
+            if keep is not None and (keep in names or keep in self.run.excluded):
+                self.select_pair(keep)  # an excluded pair stays in view, to include it again
+            else:
+                self.select_pair(names[0])
         else:
             self.rect_view.clear_pair()
         self._update_buttons()
@@ -623,6 +639,7 @@ class CalibrationTab(QWidget):
     # ---- pairs: select, rectification check, exclude --------------------------------------------
     def select_pair(self, name: str) -> None:
         """Show pair `name` rectified (when its files are known) and offer to exclude it."""
+        self.selected_pair = name
         self.chart.select(name)
         c = self.calibration
         err = next((p for p in (c.per_pair if c else ()) if p.name == name), None)
@@ -660,7 +677,17 @@ class CalibrationTab(QWidget):
     def _pair_files(self, name: str) -> tuple[str, str] | None:
         if self.run is not None and name in self.run.files:
             return self.run.files[name]
+        if self.run is not None:  # an excluded pair: not in the run, but in the session
+            try:
+                p = self._session().pair(name)
+            except (StereoGuiError, OSError):
+                return None
+            return (str(p.left), str(p.right))
         return None
+
+    def rejected_lines(self) -> list[str]:
+        """The texts of the rejected/excluded list (for tests and screenshots)."""
+        return [self.rejected_list.item(i).text() for i in range(self.rejected_list.count())]
 
     def _session(self):
         from stereo_gui.files.session import CaptureSession
@@ -676,7 +703,7 @@ class CalibrationTab(QWidget):
         return any(p.name == name and getattr(p, "excluded", False) for p in s.pairs)
 
     def _toggle_exclude_selected(self) -> None:
-        name = self.chart.selected
+        name = self.selected_pair
         if name is None:
             return
         self.set_excluded(name, not self._is_excluded(name))
@@ -744,7 +771,7 @@ class CalibrationTab(QWidget):
         self.cancel_button.setEnabled(running)
         self.save_button.setEnabled(self.calibration is not None and not running)
         self.load_button.setEnabled(not running)
-        sel = self.chart.selected
+        sel = self.selected_pair
         self.exclude_button.setEnabled(not running and sel is not None and self.run is not None)
         if sel is not None and self.run is not None:
             self.exclude_button.setText("Include pair again" if self._is_excluded(sel)

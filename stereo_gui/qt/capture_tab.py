@@ -386,6 +386,24 @@ class CaptureTab(QWidget):
         self._active = active
         if active:
             self._set_processing(self.state == "live")
+            self._reload_session()
+
+    def _reload_session(self) -> None:
+        """Read the session again (the Calibration tab may have excluded pairs meanwhile)."""
+        if self.session is None or self._scan is not None:
+            return
+        from stereo_gui.files.session import CaptureSession
+
+        try:
+            self.session = CaptureSession.open(self.session.folder)
+        except StereoGuiError as exc:
+            self.ctx.report_error(str(exc))
+            return
+        current = self.pair_list.currentItem()
+        name = current.data(Qt.ItemDataRole.UserRole) if current is not None else None
+        self._refill_list()
+        if name is not None:
+            self._select_in_list(name)
 
     def _set_processing(self, on: bool) -> None:
         """Detect in live frames only while live frames are shown (saves CPU while reviewing)."""

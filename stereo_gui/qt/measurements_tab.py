@@ -74,7 +74,7 @@ COLUMNS = (
      "double-click to enter the measured true distance: it makes the reading a regression sample"),
     ("Z (mm)", lambda r: _num(r.Z_mm), "depth along the optical axis"),
     ("Range (mm)", lambda r: _num(r.range_mm), "distance from the left camera"),
-    ("± (mm)", lambda r: _num(r.expected_error_mm), "expected depth error for 1/4 px disparity error"),
+    ("± (mm)", lambda r: _num(r.expected_error_mm), "expected depth error: Z² / (f·B) × the disparity uncertainty of the patch"),
     ("Valid", lambda r: "yes" if r.valid else f"no: {r.reason}" if r.reason else "no",
      "whether the reading is usable, and why not"),
     ("X (mm)", lambda r: _num(r.X_mm), "left rectified camera frame"),

@@ -94,7 +94,16 @@ def test_click_exclude_and_recalibrate_changes_used_count(tab, qtbot, session_fo
     assert run2.result.report.pairs_used == used - 1
     assert name not in run2.result.report.used
     assert tab.chart.bar_count() == used - 1
-    assert f"{name}: excluded by you" in tab.rejected_text.toPlainText()
+    assert f"{name}: excluded by you" in tab.rejected_lines()
+    # the excluded pair stays selectable from the list, and can be included again
+    item = tab.rejected_list.findItems(f"{name}: excluded by you", Qt.MatchFlag.MatchExactly)[0]
+    tab.rejected_list.itemClicked.emit(item)
+    assert tab.selected_pair == name and tab.rect_view.shown == name
+    assert tab.exclude_button.text() == "Include pair again"
+    tab.exclude_button.click()
+    assert not CaptureSession.open(session_folder).pair(name).excluded
+    run3 = _calibrate(tab, qtbot)
+    assert run3.result.report.pairs_used == used
 
 
 def test_cancel_stops_calibration(tab, ctx, qtbot, session_folder):

@@ -162,3 +162,15 @@ def test_keys_s_and_c_save_and_cancel(tab, tmp_path, qtbot):
     with qtbot.waitSignal(tab.pairSaved, timeout=5000):
         qtbot.keyClick(tab, Qt.Key.Key_S)
     assert len(CaptureSession.open(tmp_path / "keys").pairs) == 1
+
+
+def test_list_follows_exclusions_made_elsewhere(tab, tmp_path, qtbot):
+    (tmp_path / "ex").mkdir()
+    folder = write_calibration_set(tmp_path / "ex", n_pairs=3, seed=4)
+    tab.open_session(folder)
+    qtbot.waitUntil(lambda: not tab.scanning(), timeout=20000)
+    name = tab.saved_names()[1]
+    CaptureSession.open(folder).set_excluded(name, True)  # as the Calibration tab does
+    tab.set_active(True)
+    assert "(excluded)" in tab.pair_list.item(1).text()
+    assert "(excluded)" not in tab.pair_list.item(0).text()
