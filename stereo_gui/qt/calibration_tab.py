@@ -95,8 +95,9 @@ def calibration_job(folder: Path, board: BoardSpec, alpha: float, method: str):
         n = len(inputs)
         total = n + 10
         yield Progress(0, total, f"finding the board in {n} pairs")
-        dets = detect_pairs(inputs, board, progress=lambda d, t, s: control.report(d, total, f"finding the board: {s}"),
-                            cancel=control)
+        dets = detect_pairs(
+            inputs, board, cancel=control,
+            progress=lambda d, t, s: control.report(d, total, f"finding the board: {s}"))
         yield Progress(n, total, "calibrating")
         result = calibrate_stereo(
             dets, board, alpha=alpha, method=method, cancel=control,
@@ -104,7 +105,8 @@ def calibration_job(folder: Path, board: BoardSpec, alpha: float, method: str):
         control.check()
         yield Progress(n + 9, total, "computing rectification maps")
         maps = result.calibration.rectify_maps()
-        return CalibrationRun(result, {d.name: d for d in dets}, files, maps, Path(folder), excluded)
+        return CalibrationRun(result, {d.name: d for d in dets}, files, maps, Path(folder),
+                              excluded)
 
     return job
 
@@ -203,7 +205,8 @@ class ErrorBarChart(pg.PlotWidget):
             return
         p = self.plotItem.vb.mapSceneToView(ev.scenePos())
         i = int(round(p.x()))
-        if 0 <= i < len(self.names) and self.plotItem.vb.sceneBoundingRect().contains(ev.scenePos()):
+        inside = self.plotItem.vb.sceneBoundingRect().contains(ev.scenePos())
+        if inside and 0 <= i < len(self.names):
             self.select(self.names[i])
             self.pairClicked.emit(self.names[i])
 
@@ -371,7 +374,8 @@ class CalibrationTab(QWidget):
         ll.addWidget(figures)
         self.rejected_list = QListWidget()
         self.rejected_list.setMaximumHeight(80)
-        self.rejected_list.setToolTip("Click a pair to look at it (and include an excluded one again)")
+        self.rejected_list.setToolTip(
+            "Click a pair to look at it (and include an excluded one again)")
         self.rejected_list.itemClicked.connect(
             lambda item: self.select_pair(item.data(Qt.ItemDataRole.UserRole)))
         ll.addWidget(QLabel("Rejected or excluded pairs:"))
@@ -507,9 +511,11 @@ class CalibrationTab(QWidget):
         self._maps_for = run.result.calibration
         self.progress.setValue(100)
         rep = run.result.report
+        quality = (f"stereo RMS {_px(rep.rms_stereo)}" if rep.method != "hartley" else
+                   f"epipolar error {_px(rep.epipolar_error_px)}, Hartley: no metric scale")
         self.progress_label.setText(
-            f"Done: {rep.pairs_used} of {rep.pairs_found} pairs used, stereo RMS "
-            f"{_px(rep.rms_stereo)}. Not saved yet: use Save calibration… to keep it.")
+            f"Done: {rep.pairs_used} of {rep.pairs_found} pairs used, {quality}. "
+            f"Not saved yet: use Save calibration… to keep it.")
         # the new calibration is in use at once (live view, measurements)
         self.ctx.set_calibration(run.result.calibration, None)
         self.ctx.show_status(f"Calibrated from {rep.pairs_used} pairs in {run.folder}")
@@ -745,7 +751,8 @@ class CalibrationTab(QWidget):
         return True
 
     def _choose_load(self) -> None:
-        start = str(self.ctx.calibration_path.parent) if self.ctx.calibration_path else str(Path.home())
+        cp = self.ctx.calibration_path
+        start = str(cp.parent) if cp else str(Path.home())
         path, _ = QFileDialog.getOpenFileName(self, "Load calibration", start,
                                               "OpenCV YAML (*.yaml *.yml);;All files (*)")
         if path:

@@ -1,4 +1,5 @@
-"""The Capture tab: take chessboard pairs for calibration (the report's Take_images_for_calibration).
+"""The Capture tab: take chessboard pairs for calibration (the report's
+Take_images_for_calibration, with buttons).
 
 Both cameras live side by side with the board's corners drawn where found. When both see the
 board the pair freezes for review: Save (S) writes both raw images to the session folder,
@@ -119,7 +120,7 @@ def _rgb(bgr: np.ndarray) -> np.ndarray:
 
 # ---- image panes ---------------------------------------------------------------------------------
 class StereoPairView(QWidget):
-    """Left and right images side by side (equal size), each with a title and the board's corners."""
+    """Left and right images side by side (equal size), each with a title and the corners."""
 
     def __init__(self, parent=None) -> None:
         super().__init__(parent)
@@ -321,7 +322,8 @@ class CaptureTab(QWidget):
         self.pair_list = QListWidget()
         self.pair_list.setIconSize(THUMB_SIZE)
         self.pair_list.setUniformItemSizes(True)
-        self.pair_list.itemClicked.connect(lambda item: self.show_saved_pair(item.data(Qt.ItemDataRole.UserRole)))
+        self.pair_list.itemClicked.connect(
+            lambda item: self.show_saved_pair(item.data(Qt.ItemDataRole.UserRole)))
         sl.addWidget(self.pair_list, 1)
         pb = QHBoxLayout()
         self.delete_button = QPushButton("Delete pair")
@@ -464,7 +466,10 @@ class CaptureTab(QWidget):
         self.frozen = out
         self._frozen_frame = frame
         self._last_reviewed_pose = out.pose
-        self.prompt.setText("Both cameras see the board. Save this pair (S) or Cancel (C)?")
+        text = "Both cameras see the board. Save this pair (S) or Cancel (C)?"
+        if self.session is None:
+            text += "  (Save asks for a session folder first.)"
+        self.prompt.setText(text)
         self._set_processing(False)  # nothing to detect while a pair is under review
         self._update_controls()
 
@@ -544,7 +549,8 @@ class CaptureTab(QWidget):
         return True
 
     def _choose_open_session(self) -> None:
-        start = (self.ctx.settings.last_session if self.ctx.settings is not None else None) or str(Path.home())
+        s = self.ctx.settings
+        start = (s.last_session if s is not None else None) or str(Path.home())
         folder = QFileDialog.getExistingDirectory(self, "Open a capture session folder", start)
         if folder:
             try:
@@ -562,8 +568,9 @@ class CaptureTab(QWidget):
         from stereo_gui.files.session import CaptureSession
 
         out = self._last_output
+        s = self.ctx.settings
         size = (out.detection.image_size if out is not None else
-                tuple(self.ctx.settings.resolution) if self.ctx.settings is not None else (640, 480))
+                tuple(s.resolution) if s is not None else (640, 480))
         session = CaptureSession.create(folder, self.board, size, self._camera_names())
         self._use_session(session)
 

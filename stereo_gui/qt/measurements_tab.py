@@ -68,13 +68,15 @@ def _short_time(iso: str) -> str:
 # (header, how to show a record, tooltip); the true distance sits next to what it is compared with
 COLUMNS = (
     ("Time", lambda r: _short_time(r.time), "time of the reading"),
-    ("x, y (px)", lambda r: f"{_num(r.x_px, 0)}, {_num(r.y_px, 0)}", "pixel of the rectified left image"),
+    ("x, y (px)", lambda r: f"{_num(r.x_px, 0)}, {_num(r.y_px, 0)}",
+     "pixel of the rectified left image"),
     ("Disparity (px)", lambda r: _num(r.disparity_px, 3), "median disparity of the patch"),
     ("True distance (mm)", lambda r: _num(r.true_mm) if r.true_mm is not None else "",
      "double-click to enter the measured true distance: it makes the reading a regression sample"),
     ("Z (mm)", lambda r: _num(r.Z_mm), "depth along the optical axis"),
     ("Range (mm)", lambda r: _num(r.range_mm), "distance from the left camera"),
-    ("± (mm)", lambda r: _num(r.expected_error_mm), "expected depth error: Z² / (f·B) × the disparity uncertainty of the patch"),
+    ("± (mm)", lambda r: _num(r.expected_error_mm),
+     "expected depth error: Z² / (f·B) × the disparity uncertainty of the patch"),
     ("Valid", lambda r: "yes" if r.valid else f"no: {r.reason}" if r.reason else "no",
      "whether the reading is usable, and why not"),
     ("X (mm)", lambda r: _num(r.X_mm), "left rectified camera frame"),
@@ -188,16 +190,19 @@ class RegressionPlot(pg.GraphicsLayoutWidget):
         self.resid.setXLink(self.main)
         for ax in ("left", "bottom"):
             self.resid.getAxis(ax).enableAutoSIPrefix(False)
-        self.resid.addItem(pg.InfiniteLine(angle=0, pos=0, pen=pg.mkPen("#888", style=Qt.PenStyle.DashLine)))
+        zero = pg.InfiniteLine(angle=0, pos=0, pen=pg.mkPen("#888", style=Qt.PenStyle.DashLine))
+        self.resid.addItem(zero)
         self.ci.layout.setRowStretchFactor(0, 3)
         self.ci.layout.setRowStretchFactor(1, 2)
-        self.samples = pg.ScatterPlotItem(size=8, brush=pg.mkBrush("#f4f4f4"), pen=None, name="samples")
+        self.samples = pg.ScatterPlotItem(size=8, brush=pg.mkBrush("#f4f4f4"), pen=None,
+                                          name="samples")
         self.main.addItem(self.samples)
         self.curves = {}
         self.resid_points = {}
         for m in MODELS:
             self.curves[m] = self.main.plot([], [], pen=pg.mkPen(_COLOURS[m], width=2), name=m)
-            self.resid_points[m] = pg.ScatterPlotItem(size=7, brush=pg.mkBrush(_COLOURS[m]), pen=None)
+            self.resid_points[m] = pg.ScatterPlotItem(size=7, brush=pg.mkBrush(_COLOURS[m]),
+                                                      pen=None)
             self.resid.addItem(self.resid_points[m])
 
     def draw(self, samples, fits: dict) -> None:
@@ -365,7 +370,8 @@ class MeasurementsTab(QWidget):
             lab = self.r2_labels[m]
             if fit is not None:
                 src = " (loaded from file)" if fit is self._loaded_fit else ""
-                lab.setText(f"<b>{m}</b>{src}: R² = {fit.r2:.5f}, residual RMS {fit.rms_mm:.1f} mm, "
+                lab.setText(f"<b>{m}</b>{src}: R² = {fit.r2:.5f}, "
+                            f"residual RMS {fit.rms_mm:.1f} mm, "
                             f"{len(fit.samples)} samples<br>"
                             f"<span style='font-family: monospace'>{fit.formula()}</span>")
             else:
@@ -439,11 +445,13 @@ class MeasurementsTab(QWidget):
 
     def _choose_save_fit(self) -> None:
         key = self.model_combo.currentData()
-        fit = self.fits.get(key) if key in MODELS else (self.fits.get("inverse") or self.fits.get("cubic"))
+        fit = self.fits.get(key) if key in MODELS else (
+            self.fits.get("inverse") or self.fits.get("cubic"))
         if fit is None:
             return
         path, _ = QFileDialog.getSaveFileName(self, f"Save the {fit.model} fit",
-                                              str(Path(self._start_dir()) / f"{fit.model}-fit.json"),
+                                              str(Path(self._start_dir())
+                                                  / f"{fit.model}-fit.json"),
                                               "Fit (*.json)")
         if path:
             self.save_fit(fit, path)
@@ -489,7 +497,8 @@ class MeasurementsTab(QWidget):
     def _choose_xlsx(self) -> None:
         stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M")
         path, _ = QFileDialog.getSaveFileName(self, "Export measurements",
-                                              str(Path(self._start_dir()) / f"measurements-{stamp}.xlsx"),
+                                              str(Path(self._start_dir())
+                                                  / f"measurements-{stamp}.xlsx"),
                                               "Excel workbook (*.xlsx)")
         if path:
             if not path.lower().endswith(".xlsx"):
@@ -539,7 +548,8 @@ class MeasurementsTab(QWidget):
     def _choose_csv(self) -> None:
         stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M")
         path, _ = QFileDialog.getSaveFileName(self, "Export measurements as CSV",
-                                              str(Path(self._start_dir()) / f"measurements-{stamp}.csv"),
+                                              str(Path(self._start_dir())
+                                                  / f"measurements-{stamp}.csv"),
                                               "CSV (*.csv)")
         if path:
             self.export_csv(path)

@@ -1,4 +1,4 @@
-"""The Calibration tab on a simulated calibration set: run, results, exclude + recalibrate, cancel."""
+"""The Calibration tab on a simulated calibration set: results, exclude + recalibrate, cancel."""
 
 from __future__ import annotations
 

@@ -127,7 +127,8 @@ def test_board_settings_are_persisted(tab, ctx):
     tab.cols_spin.setValue(7)
     tab.rows_spin.setValue(5)
     tab.square_spin.setValue(30.0)
-    assert (ctx.settings.board_cols, ctx.settings.board_rows, ctx.settings.square_mm) == (7, 5, 30.0)
+    s = ctx.settings
+    assert (s.board_cols, s.board_rows, s.square_mm) == (7, 5, 30.0)
     assert tab.board == BoardSpec(7, 5, 30.0)
 
 
