@@ -1,0 +1,209 @@
+"""Take the screenshots of docs/guide.md from the real application under Xvfb.
+
+    xvfb-run -a -s "-screen 0 1600x1000x24" python packaging/guide_screenshots.py [OUT_DIR]
+
+It starts the application window exactly as `stereo-gui` does (build_window on the automatic
+source, which is the simulated rig on a machine without cameras), drives it through the guide's
+steps with the same methods its buttons call, and grabs the X screen (QScreen.grabWindow), so
+the pictures are what a technician sees. Settings go to a temporary folder; OUT_DIR defaults to
+docs/. It is a documentation tool, not a test: it waits for real frames with a deadline and
+says which step did not happen.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+WINDOW_SIZE = (1440, 920)
+
+
+def main(argv: list[str]) -> int:
+    out_dir = Path(argv[1]) if len(argv) > 1 else ROOT / "docs"
+    out_dir.mkdir(parents=True, exist_ok=True)
+    # a short, readable folder: its path shows in the screenshots
+    work = Path(tempfile.gettempdir()) / "stereo-guide"
+    shutil.rmtree(work, ignore_errors=True)
+    work.mkdir()
+    os.environ["STEREO_GUI_CONFIG_DIR"] = str(work / "config")
+    os.environ.setdefault("QT_QPA_PLATFORM", "xcb")
+
+    from PySide6.QtCore import QPoint
+    from PySide6.QtWidgets import QApplication
+
+    from stereo_gui.qt.app import build_window
+
+    app = QApplication.instance() or QApplication(["stereo-gui"])
+    app.setApplicationName("Stereo GUI")
+    ctx, window = build_window(None, None)
+    window.resize(*WINDOW_SIZE)
+    window.move(0, 0)
+    window.show()
+
+    def pump(seconds: float) -> None:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            app.processEvents()
+            time.sleep(0.02)
+
+    def wait_for(what: str, cond, timeout: float = 60.0) -> bool:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            app.processEvents()
+            if cond():
+                return True
+            time.sleep(0.02)
+        print(f"guide_screenshots: gave up waiting for {what}", file=sys.stderr)
+        return False
+
+    def shot(name: str, widget=None) -> Path:
+        """Grab the screen area of `widget` (the main window by default) as docs/guide-NAME.png."""
+        pump(0.4)
+        w = widget or window
+        top_left = w.mapToGlobal(QPoint(0, 0)) if widget is not None else w.frameGeometry().topLeft()
+        size = w.size() if widget is not None else w.frameGeometry().size()
+        pixmap = app.primaryScreen().grabWindow(0, top_left.x(), top_left.y(),
+                                                size.width(), size.height())
+        path = out_dir / f"guide-{name}.png"
+        pixmap.save(str(path), "PNG")
+        print(path)
+        return path
+
+    # 1. start-up: automatic source (the simulated rig here), no calibration yet
+    wait_for("the first frames", lambda: ctx.frames.source() is not None and
+             ctx.frames.fps_camera > 0)
+    pump(2.0)
+    shot("start")
+
+    # 2. the source chooser, with "Two cameras" picked to show the camera lists
+    from stereo_gui.qt.source_dialog import SourceDialog
+
+    dlg = SourceDialog(window.source_choice, parent=window)
+    dlg.cams.setChecked(True)
+    dlg.show()
+    dlg.move(200, 150)
+    pump(0.5)
+    shot("source", dlg)
+    dlg.reject()
+
+    # 3. capture: a new session, the first pair frozen for review, a few pairs saved
+    capture = window.capture_tab
+    window.show_tab("capture")
+    session = work / "session"
+    capture.new_session(session)
+    saved = 0
+    deadline = time.monotonic() + 150
+    while saved < 4 and time.monotonic() < deadline:
+        if not wait_for("a frozen pair", lambda: capture.state == "review",
+                        deadline - time.monotonic()):
+            break
+        if saved == 1:
+            shot("capture-review")
+        if capture.save_frozen():
+            saved += 1
+    pump(1.0)
+    shot("capture-saved")
+
+    # 4. coverage of a full set: a 20-pair set written by `stereo-gui simulate`
+    from stereo_gui.commands import simulate
+
+    full = work / "sim-set"
+    import argparse
+
+    p = argparse.ArgumentParser()
+    simulate.add_arguments(p)
+    simulate.run(p.parse_args([str(full), "--pairs", "20"]))
+    capture.open_session(full)
+    wait_for("the session scan", lambda: not capture.scanning())
+    pump(1.0)
+    shot("capture-coverage")
+
+    # 5. calibration of that set, the per-pair error chart and the rectification check
+    calib_tab = window.calibration_tab
+    window.show_tab("calibration")
+    calib_tab.folder_edit.setText(str(full))
+    calib_tab.start_calibration()
+    wait_for("the calibration", lambda: not calib_tab.is_running(), 300)
+    pump(1.0)
+    window.save_calibration(str(work / "calibration.yaml"))
+    pump(0.5)
+    shot("calibration")
+    shot("rectification", calib_tab.rect_view)
+
+    # 6. live views with two distance markers and a ruler measurement
+    live = window.live_tab
+    window.show_tab("live")
+    first = live.frames_shown
+    wait_for("live frames", lambda: live.frames_shown > first + 10)
+    live.set_paused(True)
+    live.pause_button.setChecked(True)
+    pump(0.5)
+    points = _pick_points(live._output.result.valid, live._output.result.final_px)
+    for x, y in points["single"]:
+        live.measure_at(x, y)
+        pump(1.0)
+    live.ruler_button.setChecked(True)
+    for x, y in points["ruler"]:
+        live.measure_at(x, y)
+        pump(1.0)
+    live.ruler_button.setChecked(False)
+    x, y = points["single"][0]
+    live._hovered("wls", x + 3, y + 3)  # what the readout line shows with the pointer there
+    pump(1.0)
+    shot("live")
+    shot("parameters", live.params_panel.parentWidget().parentWidget())
+
+    # 7. the measurements tab (its log and regression), as far as it exists
+    window.show_tab("measurements")
+    pump(1.5)
+    shot("measurements")
+
+    # 8. Help > About
+    from stereo_gui.qt.about import show_about
+
+    about = show_about(window)
+    about.move(300, 200)
+    pump(0.5)
+    shot("about", about)
+    about.close()
+
+    window.close()
+    pump(0.5)
+    return 0
+
+
+def _pick_points(valid, disp_px) -> dict[str, list[tuple[float, float]]]:
+    """Pixels to click for the pictures: two valid points at different distances, one point
+    with no match (to show how an invalid reading looks), and a ruler pair on valid pixels."""
+    import numpy as np
+
+    h, w = valid.shape
+    good = []
+    for y in range(int(0.15 * h), int(0.9 * h), 12):
+        for x in range(int(0.2 * w), int(0.95 * w), 12):
+            if valid[y - 6:y + 7, x - 6:x + 7].all():
+                good.append((x, y, float(disp_px[y, x])))
+    bad = [(x, y) for y in range(20, h - 20, 16) for x in range(20, w - 20, 16)
+           if not valid[y - 6:y + 7, x - 6:x + 7].any()]
+    if len(good) < 4:
+        raise SystemExit("guide_screenshots: too few valid pixels in the live frame")
+    good.sort(key=lambda p: p[2])
+    far, near = good[len(good) // 5], good[-len(good) // 5]
+    single = [(float(near[0]), float(near[1])), (float(far[0]), float(far[1]))]
+    if bad:
+        single.append(tuple(float(v) for v in bad[len(bad) // 2]))
+    # the ruler: two points well inside the image, apart, away from the single markers
+    inner = [p for p in good if 0.3 * w < p[0] < 0.75 * w
+             and min(abs(p[1] - q[1]) for q in (far, near)) > 30] or good
+    a = inner[0]
+    b = max(inner, key=lambda p: abs(p[0] - a[0]) + abs(p[2] - a[2]))
+    return {"single": single, "ruler": [(float(a[0]), float(a[1])), (float(b[0]), float(b[1]))]}
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))
