@@ -382,7 +382,9 @@ class MeasurementsTab(QWidget):
         key = self.model_combo.currentData()
         if key in MODELS:
             new = self.fits.get(key)
-            if new is not self.ctx.active_fit:
+            if new is not None and new == self.ctx.active_fit:
+                self.fits[key] = self.ctx.active_fit  # same samples, same fit: no new announcement
+            elif new is not self.ctx.active_fit:
                 self.ctx.set_active_fit(new)
         self.save_fit_button.setEnabled(bool(self.fits))
         self.fitsChanged.emit()

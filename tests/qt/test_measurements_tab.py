@@ -146,3 +146,13 @@ def test_save_and_load_fit(tab, ctx, tmp_path):
     assert ctx.active_fit.coefficients == pytest.approx(fit.coefficients)
     assert tab.model_combo.currentData() == "cubic"
     assert "loaded from file" in tab.r2_labels["cubic"].text()
+
+
+def test_new_reading_without_truth_keeps_the_active_fit(tab, ctx):
+    _log_with_truth(ctx, tab)
+    tab.use_model("cubic")
+    fit = ctx.active_fit
+    changes = []
+    ctx.activeFitChanged.connect(changes.append)
+    ctx.add_measurement(_record(33.0))  # a live click: no true distance, the samples are the same
+    assert ctx.active_fit is fit and changes == []
