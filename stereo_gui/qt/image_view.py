@@ -61,7 +61,8 @@ class StereoImageItem(pg.ImageItem):
         self.setImage(image, autoLevels=False, levels=(0, 255), autoDownsample=False)
 
 
-def _label_item(text: str, color: str, x: float, y: float) -> QGraphicsRectItem:
+def _label_item(text: str, color: str, x: float, y: float, left: bool = False,
+                centred: bool = False) -> QGraphicsRectItem:
     """A text label with a dark box, constant size on screen, anchored above-right of (x, y).
 
     Plain Qt items: pyqtgraph's TextItem re-computes its transform on every paint through a
@@ -81,7 +82,12 @@ def _label_item(text: str, color: str, x: float, y: float) -> QGraphicsRectItem:
     label.setPos(4, 2)
     box.setFlag(QGraphicsItem.GraphicsItemFlag.ItemIgnoresTransformations, True)
     box.setPos(x, y)
-    box.setTransform(QTransform.fromTranslate(8, -(r.height() + 4) - 6))
+    w, h = r.width() + 8, r.height() + 4
+    if centred:  # below the point (the middle of a ruler line), clear of its end labels
+        dx, dy = -w / 2, 6
+    else:
+        dx, dy = (-w - 8 if left else 8), -h - 6
+    box.setTransform(QTransform.fromTranslate(dx, dy))
     return box
 
 
@@ -89,18 +95,22 @@ class _Marker:
     """A point with a label (and, for a ruler, a line to its partner) in one view."""
 
     def __init__(self, view: pg.ViewBox, x: float, y: float, text: str, color: str,
-                 line_to: tuple[float, float] | None = None) -> None:
+                 line_to: tuple[float, float] | None = None, line_text: str = "",
+                 label_left: bool = False) -> None:
         self.view = view
         self.items = []
         if line_to is not None:
             line = pg.PlotCurveItem([line_to[0] + 0.5, x + 0.5], [line_to[1] + 0.5, y + 0.5],
                                     pen=pg.mkPen(color, width=2, style=Qt.PenStyle.DashLine))
             self.items.append(line)
+            if line_text:
+                mx, my = (line_to[0] + x) / 2 + 0.5, (line_to[1] + y) / 2 + 0.5
+                self.items.append(_label_item(line_text, color, mx, my, centred=True))
         dot = pg.ScatterPlotItem([x + 0.5], [y + 0.5], size=11, symbol="o",
                                  pen=pg.mkPen("k", width=1.5), brush=pg.mkBrush(color))
         self.items.append(dot)
         if text:
-            self.items.append(_label_item(text, color, x + 0.5, y + 0.5))
+            self.items.append(_label_item(text, color, x + 0.5, y + 0.5, left=label_left))
         for it in self.items:
             it.setZValue(10)
             view.addItem(it)
@@ -244,8 +254,14 @@ class ImagePanel(pg.GraphicsLayoutWidget):
         return None if self._shape is None else (self._shape[1], self._shape[0])
 
     def add_marker(self, x: float, y: float, text: str, color: str = "#ffeb3b",
-                   line_to: tuple[float, float] | None = None) -> None:
-        self._markers.append(_Marker(self.view, x, y, text, color, line_to))
+                   line_to: tuple[float, float] | None = None, line_text: str = "") -> None:
+        """A point with a label at image pixel (x, y); with `line_to`, a dashed line from that
+        pixel labelled `line_text` at its middle (the ruler). Labels near the right edge are
+        drawn to the left of their point so they stay inside the view."""
+        size = self.image_size()
+        label_left = size is not None and x > 0.7 * size[0]
+        self._markers.append(_Marker(self.view, x, y, text, color, line_to, line_text,
+                                     label_left))
 
     def clear_markers(self) -> None:
         for m in self._markers:

@@ -47,10 +47,13 @@ log = logging.getLogger(__name__)
 VIEWS: dict[str, str] = {
     "left": "Rectified left",
     "right": "Rectified right",
-    "raw": "Raw disparity (SGBM)",
-    "closed": "Disparity after closing filter",
-    "wls": "WLS filtered, colour = distance",
+    "raw": "Raw disparity (SGBM), bright = near, dark red = no match",
+    "closed": "After the closing filter, dark red = no match",
+    "wls": "WLS filtered, colour = distance, dark red = no match",
 }
+# invalid pixels get a colour of their own: black means "far" in the OCEAN map and gray views
+NO_MATCH_RGB = (110, 20, 20)
+SHORT_NAMES = {"left": "Left", "right": "Right", "raw": "Raw", "closed": "Closed", "wls": "WLS"}
 DEFAULT_VIEWS = ("left", "raw", "closed", "wls")
 MEASURABLE = ("left", "raw", "closed", "wls")  # views sharing the left image's pixel frame
 TRUE_CALIBRATION_NOTE = "simulated rig's TRUE calibration"
@@ -75,12 +78,13 @@ class LiveOutput:
 
 
 def _gray_disparity(disp_px: np.ndarray, lo: float, hi: float) -> np.ndarray:
-    """Disparity (px, NaN invalid) as gray uint8: near bright, invalid black."""
+    """Disparity (px, NaN invalid) as RGB uint8: gray, near bright; invalid NO_MATCH_RGB."""
     span = max(hi - lo, 1e-6)
-    img = cv2.convertScaleAbs(np.nan_to_num(disp_px, nan=lo), alpha=255.0 / span,
-                              beta=-lo * 255.0 / span)
-    img[~np.isfinite(disp_px)] = 0
-    return img
+    invalid = np.isnan(disp_px)
+    gray = cv2.convertScaleAbs(disp_px, alpha=255.0 / span, beta=-lo * 255.0 / span)
+    rgb = cv2.cvtColor(gray, cv2.COLOR_GRAY2RGB)
+    rgb[invalid] = NO_MATCH_RGB
+    return rgb
 
 
 def color_range_px(result: PipelineResult) -> tuple[float, float]:
@@ -128,6 +132,7 @@ class LiveProcessor:
             "closed": _gray_disparity(r.closed_px, lo, hi),
             "wls": cv2.cvtColor(r.color_bgr, cv2.COLOR_BGR2RGB),
         }
+        images["wls"][~r.valid] = NO_MATCH_RGB
         return LiveOutput(r, images, color_range_px(r))
 
     def close(self) -> None:
@@ -191,7 +196,9 @@ class LiveTab(QWidget):
         scroll = QScrollArea()
         scroll.setWidget(self.params_panel)
         scroll.setWidgetResizable(True)
-        scroll.setMinimumWidth(330)
+        scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+        scroll.setMinimumWidth(self.params_panel.sizeHint().width()
+                               + scroll.verticalScrollBar().sizeHint().width() + 4)
 
         # views
         self.panels: dict[str, ImagePanel] = {}
@@ -203,7 +210,8 @@ class LiveTab(QWidget):
             panel.hovered.connect(self._hovered)
             panel.doubleClicked.connect(self._double_clicked)
             self.panels[key] = panel
-            check = QCheckBox(title.split(",")[0])
+            check = QCheckBox(SHORT_NAMES[key])
+            check.setToolTip(title)
             check.setChecked(key in shown)
             check.toggled.connect(self._layout_views)
             self.view_checks[key] = check
@@ -228,7 +236,8 @@ class LiveTab(QWidget):
         self.ruler_button.setCheckable(True)
         self.ruler_button.setToolTip("Double-click two points to measure the 3D distance between them")
         self.ruler_button.toggled.connect(self._ruler_toggled)
-        self.clear_button = QPushButton("Clear markers")
+        self.clear_button = QPushButton("Clear")
+        self.clear_button.setToolTip("Remove all distance markers")
         self.clear_button.clicked.connect(self.clear_markers)
         tools = QHBoxLayout()
         tools.addWidget(QLabel("Show:"))
@@ -265,7 +274,8 @@ class LiveTab(QWidget):
         splitter.addWidget(self.stack)
         splitter.addWidget(scroll)
         splitter.setStretchFactor(0, 1)
-        splitter.setSizes([1000, 340])
+        splitter.setSizes([1000, scroll.minimumWidth()])
+        splitter.setCollapsible(0, False)
         outer = QVBoxLayout(self)
         outer.setContentsMargins(0, 0, 0, 0)
         outer.addWidget(splitter)
@@ -376,7 +386,8 @@ class LiveTab(QWidget):
             self._update_color_bar(out)
         wls = out.result.wls_px is not None
         self.panels["wls"].set_title(VIEWS["wls"] if wls else
-                                     "Closed disparity (no WLS), colour = distance")
+                                     "Closed disparity (no WLS), colour = distance, "
+                                     "dark red = no match")
         if self._hover is not None:
             self._show_readout(*self._hover)
         self.frames_shown += 1
@@ -469,7 +480,7 @@ class LiveTab(QWidget):
         _key, ruler = self._pending.pop(job_id)
         color = marker_color(m.valid)
         label = format_distance(m.Z_mm) if m.valid else f"✕ {m.reason or 'invalid'}"
-        line_to = None
+        line_to, line_text = None, ""
         if ruler:
             if self._ruler_a is None or not self._ruler_a.valid:
                 self._ruler_a = m
@@ -479,12 +490,13 @@ class LiveTab(QWidget):
                 self._ruler_a = None
                 if m.valid:
                     dist = math.dist((a.X_mm, a.Y_mm, a.Z_mm), (m.X_mm, m.Y_mm, m.Z_mm))
-                    label = f"B: {label}   A–B {format_distance(dist)}"
+                    label = f"B: {label}"
+                    line_text = f"A–B {format_distance(dist)}"
                     line_to = (a.x, a.y)
                     color = "#40c4ff"
                     self.last_ruler_mm = dist
         for key in MEASURABLE:
-            self.panels[key].add_marker(m.x, m.y, label, color, line_to)
+            self.panels[key].add_marker(m.x, m.y, label, color, line_to, line_text)
         self.ctx.add_measurement(self._record(m))
         self.ctx.show_status(self._status_text(m))
         self.measured.emit(m)

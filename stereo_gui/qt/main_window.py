@@ -35,8 +35,9 @@ log = logging.getLogger(__name__)
 
 TAB_NAMES = ("capture", "calibration", "live", "measurements")
 CALIB_FILTER = "Calibration files (*.yaml *.yml *.xml *.json);;All files (*)"
-SIM_BANNER = ("No cameras were found: running on the SIMULATED stereo rig. "
-              "Distances are of the rendered scene, not of the real world.")
+SIM_BANNER = ("Running on the SIMULATED stereo rig: {why}. Distances are of the rendered scene, "
+              "not of the real world. Choose a source in File > Choose source… once cameras "
+              "are connected.")
 
 
 def _close_source(source) -> None:
@@ -262,7 +263,8 @@ class MainWindow(QMainWindow):
         self.source_choice = choice
         self.ctx.source_fell_back_to_sim = bool(fell_back_to_sim)
         if fell_back_to_sim:
-            self.banner.show_text(SIM_BANNER + (f" ({message})" if message else ""))
+            why = (message or "no cameras were found").split(";")[0].strip()
+            self.banner.show_text(SIM_BANNER.format(why=why))
         else:
             self.banner.hide()
             if message:

@@ -124,7 +124,8 @@ class ParamsPanel(QWidget):
         # presets
         self.preset = QComboBox()
         self.preset.setToolTip("seed: the report's parameters; live: fast; quality: most accurate")
-        self.save_preset = QPushButton("Save as preset…")
+        self.save_preset = QPushButton("Save as…")
+        self.save_preset.setToolTip("save these parameters as a preset of your own")
         self.save_preset.clicked.connect(self._save_as)
         prow = QHBoxLayout()
         prow.addWidget(QLabel("Preset:"))
@@ -138,7 +139,9 @@ class ParamsPanel(QWidget):
         self.block_size.setToolTip("SGBM blockSize, odd (the report: window_size = 3)")
         self.min_disparity = SliderSpin(0, 64)
         self.num_disparities = SliderSpin(16, 256, 16)
-        self.range_from_z = QCheckBox("disparity range from working distances (d = f·B/Z)")
+        self.range_from_z = QCheckBox("range from working distances")
+        self.range_from_z.setToolTip("derive min_disp and num_disp from the nearest and farthest "
+                                     "distance through d = f·B/Z")
         self.z_min = QDoubleSpinBox()
         self.z_min.setRange(50, 50000)
         self.z_min.setDecimals(0)
@@ -155,7 +158,8 @@ class ParamsPanel(QWidget):
         self.speckle_range = SliderSpin(0, 64)
         self.disp12 = SliderSpin(-1, 50)
         self.pre_filter_cap = SliderSpin(1, 63)
-        self.p_auto = QCheckBox("P1 = 8·3·w², P2 = 32·3·w² (as the report)")
+        self.p_auto = QCheckBox("P1 = 8·3·w², P2 = 32·3·w²")
+        self.p_auto.setToolTip("the report's smoothness penalties, from window_size w")
         self.p1 = QSpinBox()
         self.p1.setRange(0, 100000)
         self.p2 = QSpinBox()
@@ -166,6 +170,7 @@ class ParamsPanel(QWidget):
         for s in (1.0, 0.75, 0.5, 0.25):
             self.scale.addItem(f"{s:g}" + ("  (full)" if s == 1.0 else ""), s)
         self.parallel = QCheckBox("left and right matchers in parallel")
+        self.parallel.setToolTip("uses two CPU cores for one frame")
         sgbm = QFormLayout()
         sgbm.addRow("window_size", self.block_size)
         sgbm.addRow("min_disp (px)", self.min_disparity)
@@ -196,7 +201,8 @@ class ParamsPanel(QWidget):
         closing_box.setLayout(closing)
 
         # WLS and colour
-        self.wls = QCheckBox("WLS filter (right matcher + createDisparityWLSFilter)")
+        self.wls = QCheckBox("WLS filter")
+        self.wls.setToolTip("right matcher + cv2.ximgproc.createDisparityWLSFilter, as the report")
         self.wls_lambda = QDoubleSpinBox()
         self.wls_lambda.setRange(0, 1e6)
         self.wls_lambda.setDecimals(0)
@@ -206,7 +212,9 @@ class ParamsPanel(QWidget):
         self.wls_sigma.setSingleStep(0.1)
         self.colormap = QComboBox()
         self.colormap.addItems(sorted(COLORMAPS))
-        self.color_fixed = QCheckBox("fixed distance range (colours keep their meaning)")
+        self.color_fixed = QCheckBox("fixed colour range")
+        self.color_fixed.setToolTip("a colour always means the same distance (the report "
+                                    "normalised every frame, so colours drifted)")
         self.z_near = QDoubleSpinBox()
         self.z_near.setRange(50, 50000)
         self.z_near.setSuffix(" mm")
