@@ -446,8 +446,14 @@ class LiveTab(QWidget):
         xyz = triangulate(self._output.result.calibration, x, y, d)
         if xyz is None:
             return txt + "invalid: too far"
-        z = xyz[2]
-        return txt + f"distance (Z) {format_distance(z)}   valid"
+        z, how = xyz[2], ""
+        fit = self.ctx.active_fit
+        if fit is not None:
+            lo_s, hi_s = fit.disparity_span
+            if not lo_s <= d <= hi_s:
+                return txt + f"invalid: outside the {fit.model} fit's disparity range"
+            z, how = float(fit.predict(d)), f" ({fit.model} fit)"
+        return txt + f"distance (Z) {format_distance(z)}{how}   valid"
 
     # ---- measuring ---------------------------------------------------------------------------
     def _double_clicked(self, key: str, x: float, y: float) -> None:

@@ -189,3 +189,22 @@ def test_format_distance():
     assert format_distance(1503.2) == "1.503 m"
     assert format_distance(850.04) == "850.0 mm"
     assert format_distance(math.nan) == "–"
+
+
+def test_readings_use_the_active_fit(qtbot, ctx, live, sim_rig, wall_pair, array_source):
+    from stereo_gui.core.regression import fit_inverse
+
+    _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
+    calib = ctx.calibration
+    fb = calib.focal_px * calib.rectified_baseline_mm
+    # a deliberately wrong model (every distance 10 % longer) shows that readings follow it
+    d = np.array([20.0, 40.0, 60.0, 80.0, 100.0])
+    fit = fit_inverse(list(zip(d, 1.1 * fb / d)))
+    ctx.set_active_fit(fit)
+    with qtbot.waitSignal(live.measured, timeout=30000) as sig:
+        live.measure_at(320.0, 240.0)
+    m = sig.args[0]
+    assert m.valid and m.method == fit.model
+    assert m.Z_mm == pytest.approx(1.1 * 1500.0, rel=0.02)
+    assert ctx.measurements[-1].method == fit.model
+    assert "fit" in live.readout_text("wls", 320, 240)
