@@ -18,6 +18,7 @@ from stereo_gui.core.board import parse_board
 from stereo_gui.core.calibrate import (
     DEFAULT_MIN_PAIRS,
     CalibrationResult,
+    calibrate_hartley_features,
     calibrate_stereo,
 )
 from stereo_gui.core.detect import METHODS as DETECTORS
@@ -138,8 +139,11 @@ def summary_text(result: CalibrationResult, output: Path, seconds: float) -> str
         for side, M in (("left ", c.optimal_M1), ("right", c.optimal_M2)):
             lines.append(f"optimal new camera matrix {side} (alpha 1): fx {M[0, 0]:.2f}  "
                          f"fy {M[1, 1]:.2f}  cx {M[0, 2]:.2f}  cy {M[1, 2]:.2f} px")
-    lines.append(f"RMS reprojection error: left {r.rms_left:.3f} px, right {r.rms_right:.3f} px, "
-                 f"stereo {r.rms_stereo:.3f} px")
+    def px(x: float) -> str:
+        return f"{x:.3f} px" if math.isfinite(x) else "n/a"
+
+    lines.append(f"RMS reprojection error: left {px(r.rms_left)}, right {px(r.rms_right)}, "
+                 f"stereo {px(r.rms_stereo)}")
     lines.append(f"epipolar error after rectification: {r.epipolar_error_px:.3f} px")
     if c.metric:
         lines.append(f"baseline {r.baseline_mm:.2f} mm, relative rotation "
@@ -180,9 +184,18 @@ def run(args: argparse.Namespace) -> int:
         detections = detect_pairs(items, board, method=args.detector,
                                   progress=lambda d, t, _: progress(d, t, "detecting chessboards"))
         size = check_same_size([(d.left_file, d.image_size) for d in detections])
-        result = calibrate_stereo(detections, board, size, alpha=args.alpha, method=args.method,
-                                  progress=lambda d, t, text: progress(d, t, "calibrating"),
-                                  min_pairs=args.min_pairs, reject_outliers=not args.keep_outliers)
+        if args.method == "hartley" and not any(d.found for d in detections):
+            # no board anywhere: Hartley can still work from features matched in the scene
+            sys.stderr.write("stereo-gui: warning: no chessboard found; rectifying from "
+                             "matched scene features (Hartley, no metric scale, no undistortion)\n")
+            result = calibrate_hartley_features(
+                [(p.name, load_image(p.left), load_image(p.right)) for p in found.pairs],
+                progress=lambda d, t, text: progress(d, t, "matching features"))
+        else:
+            result = calibrate_stereo(
+                detections, board, size, alpha=args.alpha, method=args.method,
+                progress=lambda d, t, text: progress(d, t, "calibrating"),
+                min_pairs=args.min_pairs, reject_outliers=not args.keep_outliers)
     finally:
         progress.clear()
     save_calibration(result.calibration, output)

@@ -369,21 +369,43 @@ def match_features(left: np.ndarray, right: np.ndarray, max_features: int = 4000
     return pl, pr
 
 
-def calibrate_hartley_scene(left: np.ndarray, right: np.ndarray, name: str = "scene",
-                            focal_px: float | None = None) -> CalibrationResult:
-    """Hartley rectification of a rig without a board, from features matched in a scene pair.
+def calibrate_hartley_features(pairs: Sequence[tuple[str, np.ndarray, np.ndarray]],
+                               focal_px: float | None = None, progress: Progress | None = None,
+                               cancel: Cancel = None) -> CalibrationResult:
+    """Hartley rectification of a rig without a board, from features matched in scene pairs.
 
+    `pairs` holds (name, left, right) images of one size; the matches of all pairs are pooled.
     Without a board there are no intrinsics: a nominal pinhole camera (focal `focal_px`, default
     the image width; centre in the middle; no distortion) stands in, so lens distortion is not
     removed and distances are not metric.
     """
-    if left.shape[:2] != right.shape[:2]:
-        raise CalibrationError(f"{name}: left and right images have different sizes")
-    h, w = left.shape[:2]
+    pairs = list(pairs)
+    if not pairs:
+        raise CalibrationError("no image pairs to match features in")
+    h, w = pairs[0][1].shape[:2]
+    pl_all, pr_all, used, rejected = [], [], [], []
+    for k, (name, left, right) in enumerate(pairs):
+        check_cancel(cancel)
+        _progress(progress, k, len(pairs) + 1, f"matching features ({name})")
+        if left.shape[:2] != (h, w) or right.shape[:2] != (h, w):
+            raise CalibrationError(f"{name}: images differ in size from the first pair ({w}x{h})")
+        try:
+            pl, pr = match_features(left, right)
+        except CalibrationError as exc:
+            rejected.append(RejectedPair(name, str(exc)))
+            continue
+        pl_all.append(pl)
+        pr_all.append(pr)
+        used.append(name)
+    if not used:
+        if len(pairs) == 1:
+            raise CalibrationError(f"{pairs[0][0]}: {rejected[0].reason}")
+        raise CalibrationError(f"too few feature matches in any of {len(pairs)} pairs "
+                               "(the scene needs texture)")
     f = float(focal_px or w)
     M = np.array([[f, 0, (w - 1) / 2.0], [0, f, (h - 1) / 2.0], [0, 0, 1]], np.float64)
     D = np.zeros((1, 5))
-    pl, pr = match_features(left, right)
+    pl, pr = np.concatenate(pl_all), np.concatenate(pr_all)
     res = _hartley_from_points(pl, pr, (w, h), M, D, M.copy(), D.copy(), 0.0)
     epi = epipolar_error_px([res["ul"]], [res["ur"]], M, D, res["R1"], res["P1"], M, D,
                             res["R2"], res["P2"])
@@ -393,10 +415,20 @@ def calibrate_hartley_scene(left: np.ndarray, right: np.ndarray, name: str = "sc
         Q=res["Q"], board=None, epipolar_error_px=epi, method="hartley")
     note2 = (f"No chessboard: a nominal camera (focal {f:g} px, no distortion) was assumed, so "
              f"lens distortion is not corrected. {len(res['ul'])} of {len(pl)} feature matches "
-             "were inliers.")
+             "were inliers; the epipolar error is measured on them.")
+    _progress(progress, len(pairs) + 1, len(pairs) + 1, "done")
     report = CalibrationReport(
-        pairs_found=1, pairs_used=1, used=(name,), rejected=(), rms_left=float("nan"),
-        rms_right=float("nan"), rms_stereo=float("nan"), epipolar_error_px=epi,
-        baseline_mm=float("nan"), relative_rotation_deg=calib.relative_rotation_deg,
-        method="hartley", notes=(HARTLEY_NOTE, note2))
+        pairs_found=len(pairs), pairs_used=len(used), used=tuple(used), rejected=tuple(rejected),
+        rms_left=float("nan"), rms_right=float("nan"), rms_stereo=float("nan"),
+        epipolar_error_px=epi, baseline_mm=float("nan"),
+        relative_rotation_deg=calib.relative_rotation_deg, method="hartley",
+        notes=(HARTLEY_NOTE, note2))
     return CalibrationResult(calib, report)
+
+
+def calibrate_hartley_scene(left: np.ndarray, right: np.ndarray, name: str = "scene",
+                            focal_px: float | None = None) -> CalibrationResult:
+    """Hartley rectification from one scene pair (see calibrate_hartley_features)."""
+    if left.shape[:2] != right.shape[:2]:
+        raise CalibrationError(f"{name}: left and right images have different sizes")
+    return calibrate_hartley_features([(name, left, right)], focal_px)

@@ -202,3 +202,22 @@ def test_real_webcam_folder(shared_data, tmp_path, capsys):
     assert data["pairs_rejected"][0]["name"] == "09"
     assert "right09.jpg" in data["pairs_rejected"][0]["reason"]
     assert data["rms_stereo"] < 0.7
+
+
+def test_hartley_without_a_board_uses_scene_features(tmp_path, capsys):
+    from stereo_gui.sources.sim import Scene, SimRig
+
+    left, right = SimRig(seed=4).render_scene(Scene.demo())
+    d = tmp_path / "scene"
+    d.mkdir()
+    cv2.imwrite(str(d / "left1.png"), left)
+    cv2.imwrite(str(d / "right1.png"), right)
+    code, out, err = _run([d, "-o", tmp_path / "h.yaml", "--method", "hartley"], capsys)
+    assert code == 0, err
+    assert "no chessboard found; rectifying from matched scene features" in err
+    assert "NOT in millimetres" in out and "RMS reprojection error: left n/a" in out
+    calib = load_calibration(tmp_path / "h.yaml")
+    assert calib.method == "hartley" and calib.board is None
+    assert calib.epipolar_error_px < 1.0
+    # the same folder with the default (metric) method has no board to work with
+    _assert_one_error_line(*_run([d, "-o", tmp_path / "b.yaml"], capsys), "no chessboard")
