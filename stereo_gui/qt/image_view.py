@@ -57,8 +57,15 @@ class StereoImageItem(pg.ImageItem):
         super().mouseClickEvent(ev)
 
     def set_array(self, image: np.ndarray) -> None:
-        """Show a uint8 image with fixed levels (0..255)."""
-        self.setImage(image, autoLevels=False, levels=(0, 255), autoDownsample=False)
+        """Show a uint8 image as it is (0 black, 255 white): no levels, no lookup table.
+
+        Without levels pyqtgraph hands uint8 data straight to a QImage; with levels, even
+        (0, 255), it rescales RGB images pixel by pixel on the UI thread (tens of ms).
+        """
+        if image.dtype != np.uint8:
+            raise TypeError(f"live images must be uint8, not {image.dtype}")
+        self.levels = None
+        self.setImage(np.ascontiguousarray(image), autoLevels=False, autoDownsample=False)
 
 
 def _label_item(text: str, color: str, x: float, y: float, left: bool = False,
@@ -199,7 +206,7 @@ class DistanceColorBar(pg.PlotItem):
         """Show the colour map for disparities d_lo..d_hi (px) with distance ticks."""
         if colormap_id != self._lut_id:
             lut = colormap_lut(colormap_id)
-            self._img.setImage(lut.reshape(256, 1, 3), autoLevels=False, levels=(0, 255))
+            self._img.setImage(lut.reshape(256, 1, 3), autoLevels=False)
             self._img.setRect(0, 0, 1, 256)
             self._lut_id = colormap_id
         ticks = distance_ticks(d_lo_px, d_hi_px, fb_mm_px)

@@ -43,10 +43,14 @@ def test_hover_reports_pixel_and_exit(qtbot, panel):
     assert abs(x - 20) <= 0.5 and abs(y - 30) <= 0.5
 
 
-def test_images_keep_fixed_levels_and_fit_once(panel):
+def test_images_are_shown_as_they_are_and_fit_once(panel):
     img = np.full((48, 64, 3), 7, np.uint8)
     panel.set_image(img)
-    assert tuple(panel.item.levels) == (0, 255)
+    assert panel.item.levels is None  # no auto-levels, no per-pixel rescaling
+    panel.item.render()
+    assert panel.item.qimage.pixelColor(3, 3).red() == 7
+    with pytest.raises(TypeError):
+        panel.set_image(img.astype(np.float32))
     panel.view.setRange(xRange=(0, 10), yRange=(0, 10), padding=0)
     panel.set_image(img)  # same size: the user's zoom stays
     assert panel.view.viewRange()[0][1] == pytest.approx(10, abs=2)
