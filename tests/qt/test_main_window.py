@@ -133,3 +133,26 @@ def test_source_dialog_round_trip(qtbot):
     assert dlg.choice().spec == "sim"
     dlg.set_choice(SourceChoice("/data/rec1"))
     assert dlg.choice().spec == "/data/rec1"
+
+
+def test_closing_while_calibrating_ends_without_thread_warnings(qtbot, ctx, tmp_path, qtlog):
+    from stereo_gui.sources.sim import write_calibration_set
+
+    (tmp_path / "pairs").mkdir()
+    pairs = write_calibration_set(tmp_path / "pairs", n_pairs=6, seed=1)
+    w = MainWindow(ctx)
+    w.show()
+    w.show_tab("calibration")
+    w.calibration_tab.folder_edit.setText(str(pairs))
+    assert w.calibration_tab.start_calibration()
+    worker = w.calibration_tab.worker
+    assert worker.isRunning()
+    w.close()  # cancels the calibration and joins its thread
+    assert not worker.isRunning()
+    w.deleteLater()
+    del w
+    QApplication.processEvents()
+    gc.collect()
+    QApplication.processEvents()
+    messages = [r.message for r in qtlog.records]
+    assert not any("QThread" in m and "Destroyed" in m for m in messages), messages
