@@ -3,7 +3,10 @@
 The Bouguet flow is the report's: `calibrateCamera` per camera, `getOptimalNewCameraMatrix`
 (alpha 1, kept as optimal_M1/2 and shown as in the report), `stereoCalibrate` with fixed
 intrinsics, then a joint refinement of all parameters started from that solution, and
-`stereoRectify` (CALIB_ZERO_DISPARITY, alpha configurable). Pairs whose reprojection error is far
+`stereoRectify` (CALIB_ZERO_DISPARITY, alpha configurable). The joint step is measured to help
+(scripts/bench_calibration.py, 50 rig pairs): relative rotation error 0.042 -> 0.008 deg, worst
+principal point error 0.23 % -> 0.03 %; on tuning seeds with 25 pairs the worst intrinsic error
+fell from 0.59 % to 0.36 %. Pairs whose reprojection error is far
 above the median are dropped and the calibration is repeated; they are reported as rejected.
 
 Hartley's method (`stereoRectifyUncalibrated`) needs only matched points and gives row-aligned

@@ -1,11 +1,12 @@
 """Chessboard detection in single images, stereo pairs and many pairs at once, plus pose coverage.
 
 Detection defaults to OpenCV's classic detector (`findChessboardCorners`) followed by
-`cornerSubPix`. `findChessboardCornersSB` is offered as `method="sb"`; measured on the real webcam
-set it finds the board in only 7 of 14 pairs and on a partly hidden board (right09.jpg) it returns
-a grid shifted by one row, while the classic detector refuses that image. On the simulated rig the
-two give the same calibration accuracy within noise (see scripts/bench_calibration.py), so the
-robust one is the default.
+`cornerSubPix`; `findChessboardCornersSB` is offered as `method="sb"`. Measured
+(scripts/bench_calibration.py): on 50 simulated-rig pairs the classic detector gives a stereo
+RMS of 0.053 px against 0.108 px for SB (EXHAUSTIVE|ACCURACY), and takes 0.44 s against 12.8 s;
+on the real webcam set SB finds the board in both images of only 7 of 14 pairs (classic: 13), and
+on a partly hidden board (right09.jpg) it returns a grid shifted by one row where the classic
+detector rightly finds nothing.
 
 Coverage guidance follows ROS camera_calibration: each detection is reduced to a pose descriptor
 (x, y, size, skew, each normalised to 0..1), and the spread of the kept descriptors along each
