@@ -370,9 +370,12 @@ class LiveTab(QWidget):
 
     # ---- drawing -----------------------------------------------------------------------------
     def _frame_ready(self) -> None:
-        if not self._active or self.pause_button.isChecked():
+        if not self._active:
             return
+        # latest() re-arms frameReady: call it even when paused, or the view never updates again
         pf = self.ctx.frames.latest()
+        if self.pause_button.isChecked():
+            return
         if pf is None or not isinstance(pf.output, LiveOutput):
             return
         self.show_output(pf.output)
