@@ -91,14 +91,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args) -> int:
     from stereo_gui.files import depth_export
-    from stereo_gui.files.atomic import atomic_path
+    from stereo_gui.files.atomic import write_image_atomic
 
     if Path(args.output).suffix.lower() not in (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"):
         raise InputError(f"{args.output}: the colour view needs an image suffix such as .png")
     calib, result = run_pipeline(args)
-    with atomic_path(args.output) as tmp:
-        if not cv2.imwrite(str(tmp), result.color_bgr):
-            raise InputError(f"cannot write {args.output}")
+    write_image_atomic(args.output, result.color_bgr)
     written = [args.output]
     if args.npy:
         depth_export.write_disparity_npy(args.npy, result.final_px)

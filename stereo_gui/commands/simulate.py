@@ -9,15 +9,13 @@ import re
 import sys
 from pathlib import Path
 
-import cv2
-import numpy as np
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.files.atomic import atomic_path, write_text_atomic
-from stereo_gui.sources.sim import SimRig, calibration_set_names, write_calibration_set
+from stereo_gui.sources.sim import (SCENE_FOLDER, SimRig, calibration_set_names,
+                                    write_calibration_set)
 
 # files of an earlier simulated set: replaced or removed with --overwrite
-_OWN_NAMES = re.compile(r"^(chessboard-[LR]\d+|scene-[LR]\d+)\.png$|^truth\.json$")
+_OWN_NAMES = re.compile(r"^(chessboard-[LR]\d+|scenes/scene-[LR]\d+)\.png$|^truth\.json$")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -32,12 +30,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="replace a simulated set already in OUT_DIR")
 
 
-def _write_png(path: Path, image: np.ndarray) -> None:
-    with atomic_path(path) as tmp:  # the temporary name keeps .png: OpenCV picks the format by it
-        if not cv2.imwrite(str(tmp), image):
-            raise InputError(f"cannot write {path}: OpenCV could not encode the image")
-
-
 def _prepare(out: Path, overwrite: bool) -> list[Path]:
     """Check OUT_DIR (create it); return earlier simulated files that --overwrite will remove."""
     if out.exists() and not out.is_dir():
@@ -48,7 +40,9 @@ def _prepare(out: Path, overwrite: bool) -> list[Path]:
         raise InputError(f"cannot create folder {out}: {exc.strerror or exc}") from exc
     if not os.access(out, os.W_OK | os.X_OK):
         raise InputError(f"cannot write into folder {out}: permission denied")
-    earlier = sorted(p for p in out.iterdir() if _OWN_NAMES.match(p.name))
+    scenes = out / SCENE_FOLDER
+    candidates = list(out.iterdir()) + (list(scenes.iterdir()) if scenes.is_dir() else [])
+    earlier = sorted(p for p in candidates if _OWN_NAMES.match(p.relative_to(out).as_posix()))
     if earlier and not overwrite:
         raise InputError(f"{out} already holds a simulated set ({earlier[0].name}, ...): "
                          "choose an empty folder or add --overwrite")
@@ -70,13 +64,12 @@ def run(args: argparse.Namespace) -> int:
             sys.stderr.flush()
 
     write_calibration_set(out, n_pairs=args.pairs, seed=args.seed, scene=args.scene,
-                          progress=progress, write_image=_write_png,
-                          write_text=write_text_atomic)
+                          progress=progress)
     if interactive:
         sys.stderr.write("\n")
     # a smaller set over an earlier larger one would leave pairs that truth.json does not describe
     keep = set(calibration_set_names(args.pairs, args.scene))
-    stale = [p for p in earlier if p.name not in keep]
+    stale = [p for p in earlier if p.relative_to(out).as_posix() not in keep]
     for p in stale:
         p.unlink(missing_ok=True)
 
@@ -84,7 +77,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"wrote {args.pairs} chessboard pairs (chessboard-L1.png/chessboard-R1.png .. "
           f"chessboard-L{args.pairs}.png/chessboard-R{args.pairs}.png) to {out}")
     if args.scene:
-        print("wrote 6 scene pairs (scene-L1.png/scene-R1.png .. scene-L6.png/scene-R6.png): "
+        print(f"wrote 6 scene pairs to {out / SCENE_FOLDER} (scene-L1.png/scene-R1.png .. "
+              "scene-L6.png/scene-R6.png): "
               "walls at 500, 1000, 1500, 2000, 3000 mm and the demo scene")
     if stale:
         print(f"removed {len(stale)} files of an earlier simulated set")

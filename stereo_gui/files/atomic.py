@@ -55,3 +55,14 @@ def write_bytes_atomic(target: str | os.PathLike, data: bytes) -> Path:
 
 def write_text_atomic(target: str | os.PathLike, text: str) -> Path:
     return write_atomic(target, lambda p: p.write_text(text, encoding="utf-8"))
+
+
+def write_image_atomic(target: str | os.PathLike, image) -> Path:
+    """Encode `image` (a numpy array) in the format its suffix names and write it atomically."""
+    import cv2
+
+    target = Path(target)
+    ok, buf = cv2.imencode(target.suffix or ".png", image)
+    if not ok:
+        raise InputError(f"cannot write {target}: OpenCV could not encode the image as {target.suffix}")
+    return write_bytes_atomic(target, buf.tobytes())

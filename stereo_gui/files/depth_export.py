@@ -15,7 +15,7 @@ import numpy as np
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import DISP_SCALE
 from stereo_gui.core.stereo_calibration import StereoCalibration
-from stereo_gui.files.atomic import atomic_path
+from stereo_gui.files.atomic import atomic_path, write_image_atomic
 
 UINT16_MAX = np.iinfo(np.uint16).max
 
@@ -62,10 +62,7 @@ def depth_to_png16(depth: np.ndarray) -> np.ndarray:
 def _imwrite(path, image: np.ndarray) -> Path:
     if Path(path).suffix.lower() != ".png":
         raise InputError(f"{path}: a 16-bit image must be written as .png")
-    with atomic_path(path) as tmp:
-        if not cv2.imwrite(str(tmp), image):
-            raise InputError(f"cannot write {path}")
-    return Path(path)
+    return write_image_atomic(path, image)
 
 
 def write_disparity_png16(path, disparity_px: np.ndarray) -> Path:

@@ -16,8 +16,6 @@ import functools
 import json
 import logging
 import math
-import os
-import tempfile
 import threading
 import time
 from dataclasses import dataclass, field
@@ -29,6 +27,7 @@ import numpy as np
 from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.files.atomic import write_image_atomic, write_text_atomic
 from stereo_gui.sources.base import StereoFrame
 
 log = logging.getLogger(__name__)
@@ -791,64 +790,31 @@ class SimRig:
 # calibration sets on disk
 # ---------------------------------------------------------------------------------------------
 SCENE_WALL_DISTANCES_MM = (500.0, 1000.0, 1500.0, 2000.0, 3000.0)
-
-
-def _write_atomic(path: Path, write) -> None:
-    """Call write(tmp_path) on a temporary file next to `path`, then rename it over `path`.
-
-    (sources/ sits below files/ in the layers, so it cannot use files.atomic; same technique.)
-    """
-    path = Path(path)
-    if not path.parent.is_dir():
-        raise InputError(f"cannot write {path}: folder {path.parent} does not exist")
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
-        os.close(fd)
-    except OSError as exc:
-        raise InputError(f"cannot write {path}: {exc.strerror or exc}") from exc
-    tmp_path = Path(tmp)
-    try:
-        write(tmp_path)
-        os.replace(tmp_path, path)
-    except OSError as exc:
-        raise InputError(f"cannot write {path}: {exc.strerror or exc}") from exc
-    finally:
-        tmp_path.unlink(missing_ok=True)
-
-
-def _imwrite_atomic(path: Path, image: np.ndarray) -> None:
-    def write(tmp: Path) -> None:
-        if not cv2.imwrite(str(tmp), image):
-            raise InputError(f"cannot write {path}: OpenCV could not encode the image")
-
-    _write_atomic(path, write)
+# scene pairs go into a subfolder so that calibrating OUT_DIR does not take them for board pairs
+SCENE_FOLDER = "scenes"
 
 
 def calibration_set_names(n_pairs: int, scene: bool) -> list[str]:
     """The file names write_calibration_set writes for these arguments."""
     names = [f"chessboard-{side}{n}.png" for n in range(1, n_pairs + 1) for side in "LR"]
     if scene:
-        names += [f"scene-{side}{k}.png" for k in range(1, len(SCENE_WALL_DISTANCES_MM) + 2)
-                  for side in "LR"]
+        names += [f"{SCENE_FOLDER}/scene-{side}{k}.png"
+                  for k in range(1, len(SCENE_WALL_DISTANCES_MM) + 2) for side in "LR"]
     return names + ["truth.json"]
 
 
 def write_calibration_set(out_dir, n_pairs: int = 20, seed: int = 0, scene: bool = False,
-                          config: RigConfig | None = None, progress=None, write_image=None,
-                          write_text=None) -> Path:
+                          config: RigConfig | None = None, progress=None) -> Path:
     """Write a calibration set in the report's naming plus truth.json; return the folder.
 
     chessboard-L{n}.png / chessboard-R{n}.png for n = 1..n_pairs; with `scene`, also
-    scene-L{k}.png / scene-R{k}.png for walls at SCENE_WALL_DISTANCES_MM and the demo scene,
-    with their true distances in truth.json. `progress(done, total)` is called after each pair.
-    `write_image(path, image)` and `write_text(path, text)` replace the built-in atomic writers.
+    scenes/scene-L{k}.png / scenes/scene-R{k}.png for walls at SCENE_WALL_DISTANCES_MM and the
+    demo scene, with their true distances in truth.json (paths relative to the folder).
+    `progress(done, total)` is called after each pair. Every file is written atomically.
     """
     out = Path(out_dir)
     if n_pairs < 0:
         raise InputError(f"number of pairs must not be negative, not {n_pairs}")
-    write_image = write_image or _imwrite_atomic
-    write_text = write_text or (lambda path, text: _write_atomic(
-        path, lambda tmp: tmp.write_text(text, encoding="utf-8")))
     rig = SimRig(config, seed=seed)
     poses = rig.board_poses(n_pairs)
     rng = np.random.default_rng(seed * 104729 + 5)
@@ -858,17 +824,18 @@ def write_calibration_set(out_dir, n_pairs: int = 20, seed: int = 0, scene: bool
     for n, pose in enumerate(poses, start=1):
         left, right = rig.render_board_pair(pose, rng)
         lname, rname = f"chessboard-L{n}.png", f"chessboard-R{n}.png"
-        write_image(out / lname, left)
-        write_image(out / rname, right)
+        write_image_atomic(out / lname, left)
+        write_image_atomic(out / rname, right)
         pairs.append({"n": n, "left": lname, "right": rname, **pose.to_json()})
         if progress:
             progress(n, total)
     scene_entries = []
     for k, sc in enumerate(scenes, start=1):
         left, right = rig.render_scene(sc, rng)
-        lname, rname = f"scene-L{k}.png", f"scene-R{k}.png"
-        write_image(out / lname, left)
-        write_image(out / rname, right)
+        lname, rname = f"{SCENE_FOLDER}/scene-L{k}.png", f"{SCENE_FOLDER}/scene-R{k}.png"
+        (out / SCENE_FOLDER).mkdir(exist_ok=True)
+        write_image_atomic(out / lname, left)
+        write_image_atomic(out / rname, right)
         entry = {"name": sc.name, "left": lname, "right": rname}
         if len(sc.objects) == 1:
             entry["distance_mm"] = float(sc.objects[0].center[2])
@@ -883,7 +850,7 @@ def write_calibration_set(out_dir, n_pairs: int = 20, seed: int = 0, scene: bool
                  "pairs": pairs})
     if scene:
         data["scenes"] = scene_entries
-    write_text(out / "truth.json", json.dumps(data, indent=2) + "\n")
+    write_text_atomic(out / "truth.json", json.dumps(data, indent=2) + "\n")
     return out
 
 

@@ -53,6 +53,10 @@ def test_simulate_scene(tmp_path, capsys):
     assert scenes[5]["name"] == "demo" and len(scenes[5]["objects"]) == 4
     for s in scenes:
         assert (out / s["left"]).is_file() and (out / s["right"]).is_file()
+    # the scene pairs sit apart, so calibrating OUT_DIR sees only the board pairs
+    from stereo_gui.files.pairs import discover_pairs
+
+    assert [p.name for p in discover_pairs(out).pairs] == ["chessboard-1"]
 
 
 def test_overwrite_replaces_and_removes_stale_pairs(tmp_path, capsys):
@@ -108,10 +112,16 @@ def test_out_dir_unwritable_reported(tmp_path, capsys, monkeypatch):
     assert "cannot write into folder" in err and len(err.strip().splitlines()) == 1
 
 
-def test_failed_image_write_leaves_no_partial_file(tmp_path, capsys, monkeypatch):
-    import stereo_gui.commands.simulate as simulate
+def test_full_disk_leaves_no_partial_file(tmp_path, capsys, monkeypatch):
+    import errno
 
-    monkeypatch.setattr(simulate.cv2, "imwrite", lambda path, img: False)
+    import stereo_gui.files.atomic as atomic
+
+    def disk_full(fd):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(atomic.os, "fsync", disk_full)
     assert main(["simulate", str(tmp_path / "w"), "--pairs", "1"]) == 2
-    assert "cannot write" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "cannot write" in err and "No space left" in err and len(err.strip().splitlines()) == 1
     assert list((tmp_path / "w").iterdir()) == []
