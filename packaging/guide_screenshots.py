@@ -12,6 +12,7 @@ says which step did not happen.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import sys
@@ -143,6 +144,7 @@ def main(argv: list[str]) -> int:
     live.set_paused(True)
     live.pause_button.setChecked(True)
     pump(0.5)
+    w, h = ctx.calibration.image_size
     points = _pick_points(live._output.result.valid, live._output.result.final_px)
     for x, y in points["single"]:
         live.measure_at(x, y)
@@ -156,12 +158,48 @@ def main(argv: list[str]) -> int:
     live._hovered("wls", x + 3, y + 3)  # what the readout line shows with the pointer there
     pump(1.0)
     shot("live")
-    shot("parameters", live.params_panel.parentWidget().parentWidget())
+    # the whole parameter panel (taller than the screen: rendered by Qt rather than grabbed)
+    panel = live.params_panel.grab()
+    panel.save(str(out_dir / "guide-parameters.png"), "PNG")
+    print(out_dir / "guide-parameters.png")
 
-    # 7. the measurements tab (its log and regression), as far as it exists
+    # 7. regression: a flat target at known distances (the simulated walls, played back as
+    #    recorded folders), two readings on each, the true distance typed into the log
+    from stereo_gui.qt.measurements_tab import TRUE_COL
+    from stereo_gui.qt.source_dialog import SourceChoice
+
+    walls = work / "walls"
+    simulate.run(p.parse_args([str(walls), "--pairs", "1", "--scene"]))
+    scenes = json.loads((walls / "truth.json").read_text())["scenes"]
+    live.pause_button.setChecked(False)
+    live.clear_markers()
+    table = window.measurements_tab
+    table_start = len(ctx.measurements)
+    for scene in scenes:
+        if not scene["name"].startswith("wall-"):
+            continue
+        folder = work / scene["name"]
+        folder.mkdir()
+        shutil.copy(walls / scene["left"], folder / "left1.png")
+        shutil.copy(walls / scene["right"], folder / "right1.png")
+        window.open_source(SourceChoice(str(folder), (640, 480), False))
+        wait_for(f"the {scene['name']} source", lambda: not window.is_opening_source())
+        shown = live.frames_shown
+        wait_for(f"frames of {scene['name']}", lambda: live.frames_shown > shown + 3)
+        for fx, fy in ((0.5, 0.5), (0.62, 0.38)):
+            n = len(ctx.measurements)
+            live.measure_at(fx * w, fy * h)
+            wait_for("a reading", lambda: len(ctx.measurements) > n, 20)
+            index = table.model.index(len(ctx.measurements) - 1, TRUE_COL)
+            table.model.setData(index, f"{scene['distance_mm']:g}")
     window.show_tab("measurements")
+    table.use_model("inverse")
     pump(1.5)
     shot("measurements")
+    for path in (work / "measurements.xlsx", work / "measurements.csv"):
+        ok = table.export_xlsx(path) if path.suffix == ".xlsx" else table.export_csv(path)
+        wait_for(f"the export {path.name}", lambda: path.exists(), 30)
+        print(f"exported {path} ({ok}, {len(ctx.measurements) - table_start} new readings)")
 
     # 8. Help > About
     from stereo_gui.qt.about import show_about
