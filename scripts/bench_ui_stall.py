@@ -40,11 +40,12 @@ def main(argv: list[str] | None = None) -> int:
     from stereo_gui.qt.context import AppContext
     from stereo_gui.qt.main_window import MainWindow
     from stereo_gui.qt.source_dialog import SourceChoice
-    from stereo_gui.sources.sim import SimSource
+    from stereo_gui.sources.open import open_source
 
     app = QApplication.instance() or QApplication(sys.argv[:1])
     configure_pyqtgraph()
-    source = SimSource(mode=args.mode, fps=30.0)  # building the rig takes seconds: before timing
+    # the simulated rig as the application opens it; building it takes seconds: before timing
+    source = open_source(f"sim:{args.mode}").source
     ctx = AppContext()
     window = MainWindow(ctx)
     window.resize(1400, 900)
