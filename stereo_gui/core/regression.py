@@ -57,7 +57,10 @@ class FitResult:
         if self.model == "cubic":
             return (f"Z = {c[0]:.6g} x^3 + {c[1]:+.6g} x^2 + {c[2]:+.6g} x + {c[3]:+.6g} mm, "
                     f"x = (d - {self.norm_offset_px:g}) / {self.norm_span_px:g}").replace("+ -", "- ").replace("+ +", "+ ")
-        return f"Z = {c[0]:.6g} / (d - {c[1]:.4g}) mm"
+        d0 = float(c[1])
+        # "d - -0.2254" reads badly: a negative offset is written as an addition
+        sign = "+" if d0 < 0 else "-"
+        return f"Z = {c[0]:.6g} / (d {sign} {abs(d0):.4g}) mm"
 
     @property
     def disparity_span(self) -> tuple[float, float]:

@@ -30,6 +30,14 @@ def test_inverse_fit_recovers_the_model():
     assert np.isnan(f.predict(0.1))  # at or below d0 there is no distance
 
 
+def test_inverse_formula_writes_a_negative_offset_as_an_addition():
+    f = FitResult("inverse", (82893.2, -0.2254), 1.0, (), ())
+    assert f.formula() == "Z = 82893.2 / (d + 0.2254) mm"
+    assert "- -" not in f.formula()
+    assert FitResult("inverse", (82893.2, 0.2254), 1.0, (), ()).formula() == \
+        "Z = 82893.2 / (d - 0.2254) mm"
+
+
 def test_noisy_fits_report_residuals_in_sample_order():
     samples = inverse_samples(noise_mm=3.0, seed=1)
     for f in (fit_inverse(samples), fit_cubic(samples)):
