@@ -44,6 +44,7 @@ class Settings:
     last_calibration: str | None = None  # path of the calibration loaded at start-up
     last_session: str | None = None  # path of the last capture session folder
     last_export_dir: str | None = None
+    recordings_dir: str | None = None  # where new recordings go (None: ~/stereo-gui-recordings)
     window_geometry: str = ""  # QMainWindow.saveGeometry() as base64
     window_state: str = ""  # QMainWindow.saveState() as base64
     recent_files: tuple[str, ...] = ()  # newest first

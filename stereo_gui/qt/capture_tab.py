@@ -288,6 +288,11 @@ class CaptureTab(QWidget):
         self.square_spin.valueChanged.connect(self._board_edited)
         self.auto_check.toggled.connect(self._auto_toggled)
 
+        from stereo_gui.qt.playback_bar import PlaybackBar
+
+        self.playback = PlaybackBar(self.ctx)  # shown only for a recorded source
+        self.playback.used.connect(self._playback_used)
+        ml.addWidget(self.playback)
         self.view = StereoPairView()
         ml.addWidget(self.view, 1)
 
@@ -336,6 +341,11 @@ class CaptureTab(QWidget):
         split.setStretchFactor(1, 1)
         split.setSizes([900, 330])
         self._update_controls()
+
+    def _playback_used(self) -> None:
+        """Moving through a recording shows live frames again (leaves a frozen pair)."""
+        if self.state != "live":
+            self.go_live()
 
     # ---- board settings ----------------------------------------------------------------------
     def _load_board_settings(self) -> None:

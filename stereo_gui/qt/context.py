@@ -12,6 +12,7 @@ from pathlib import Path
 from PySide6.QtCore import QObject, Signal
 
 from stereo_gui.qt.frame_worker import FrameWorker, JobRunner
+from stereo_gui.qt.recorder import Recorder
 
 log = logging.getLogger(__name__)
 
@@ -55,6 +56,7 @@ class AppContext(QObject):
         self.current_tab = ""
         self.frames = FrameWorker(self)
         self.jobs = JobRunner("measure-jobs", self)  # occasional work off the UI thread
+        self.recorder = Recorder(self.frames, self)  # records the raw frames the worker reads
         self._workers: list = []  # more workers (calibration, files) registered by tabs
         self.frames.errorOccurred.connect(self.report_error)
 
@@ -127,7 +129,7 @@ class AppContext(QObject):
     def shutdown(self, timeout_ms: int = 2000) -> bool:
         """Stop and join every worker (within `timeout_ms` in total); True if all ended."""
         ok = True
-        for w in [self.frames, self.jobs, *self._workers]:
+        for w in [self.recorder, self.frames, self.jobs, *self._workers]:
             try:
                 ok = bool(_stop(w, timeout_ms)) and ok
             except Exception:  # noqa: BLE001 - one broken worker must not keep others running

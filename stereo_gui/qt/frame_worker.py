@@ -120,6 +120,7 @@ class FrameWorker(QObject):
         self._pending_source: FrameSource | None = None
         self._source_pending = False
         self._processor: Processor | None = None
+        self._tap: Callable[[StereoFrame], None] | None = None
         self._frame: StereoFrame | None = None  # newest frame not yet processed
         self._latest: ProcessedFrame | None = None
         self._notified = False
@@ -162,6 +163,20 @@ class FrameWorker(QObject):
     def processor(self) -> Processor | None:
         with self._cond:
             return self._processor
+
+    def set_frame_tap(self, fn: Callable[[StereoFrame], None] | None) -> None:
+        """Call `fn(frame)` in the reader thread with every raw frame read from the source
+        (recording: the frame is handed over where it arrives, never copied on the UI thread).
+
+        `fn` runs after the frame was passed on to processing, so a slow `fn` delays reading,
+        never the view. If it raises, the tap is removed and the error reported.
+        """
+        with self._cond:
+            self._tap = fn
+
+    def frame_tap(self) -> Callable[[StereoFrame], None] | None:
+        with self._cond:
+            return self._tap
 
     def latest(self) -> ProcessedFrame | None:
         """The newest processed frame (or None); re-arms `frameReady`."""
@@ -295,6 +310,16 @@ class FrameWorker(QObject):
                 self._frames_read += 1
                 self._camera_rate.tick(time.monotonic())
                 self._cond.notify_all()
+                tap = self._tap
+            if tap is not None:
+                try:
+                    tap(frame)
+                except Exception as exc:  # noqa: BLE001 - a failing tap must not stop reading
+                    log.debug("frame tap failed", exc_info=True)
+                    with self._cond:
+                        if self._tap is tap:
+                            self._tap = None
+                    self._report(f"recording the frames failed: {exc}")
 
     def _process_loop(self) -> None:
         while True:

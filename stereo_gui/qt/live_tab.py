@@ -20,17 +20,19 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from PySide6.QtCore import Qt, Signal
+from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtWidgets import (
     QCheckBox,
     QFileDialog,
     QGridLayout,
     QHBoxLayout,
     QLabel,
+    QMenu,
     QPushButton,
     QScrollArea,
     QSplitter,
     QStackedWidget,
+    QToolButton,
     QVBoxLayout,
     QWidget,
 )
@@ -39,6 +41,13 @@ from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.matching import COLORMAPS, MatcherParams, PipelineResult, StereoPipeline
 from stereo_gui.qt.image_view import ImagePanel, marker_color
 from stereo_gui.qt.params_panel import ParamsPanel, load_preset
+from stereo_gui.qt.playback_bar import PlaybackBar
+from stereo_gui.qt.recorder import (
+    describe_result,
+    format_elapsed,
+    new_recording_folder,
+    recordings_dir,
+)
 from stereo_gui.sources.base import StereoFrame
 
 log = logging.getLogger(__name__)
@@ -57,6 +66,21 @@ SHORT_NAMES = {"left": "Left", "right": "Right", "raw": "Raw", "closed": "Closed
 DEFAULT_VIEWS = ("left", "raw", "closed", "wls")
 MEASURABLE = ("left", "raw", "closed", "wls")  # views sharing the left image's pixel frame
 TRUE_CALIBRATION_NOTE = "simulated rig's TRUE calibration"
+RECORD_TEXT = "● Record"
+# depth exports of the frame shown: key -> (menu text, file suffix, what the file holds)
+EXPORTS: dict[str, tuple[str, str, str]] = {
+    "disparity_png": ("Disparity, 16-bit PNG (x16)…", "-disparity-x16.png",
+                      "disparity as 16-bit PNG (OpenCV's x16 fixed point, 0 = invalid)"),
+    "disparity_npy": ("Disparity, float32 .npy…", "-disparity.npy",
+                      "disparity in px as float32 .npy (NaN = invalid)"),
+    "depth_png": ("Depth in mm, 16-bit PNG…", "-depth-mm.png",
+                  "depth in mm as 16-bit PNG (0 = invalid)"),
+    "ply": ("Point cloud, coloured PLY…", "-cloud.ply", "coloured point cloud (binary PLY, mm)"),
+}
+
+
+def _stamp() -> str:
+    return _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
 
 
 def format_distance(mm: float) -> str:
@@ -75,6 +99,7 @@ class LiveOutput:
     result: PipelineResult
     images: dict[str, np.ndarray]
     color_range_px: tuple[float, float]
+    scale_note: str = ""  # says so when the calibration was scaled to the source's frame size
 
 
 def _gray_disparity(disp_px: np.ndarray, lo: float, hi: float) -> np.ndarray:
@@ -104,6 +129,9 @@ class LiveProcessor:
 
     The pipeline is built on the first frame, in the worker thread (building rectification maps
     takes a while); `set_params` may be called from any thread and applies to the next frame.
+    Frames of another size than the calibration's use `StereoCalibration.scaled_to` (same aspect
+    ratio: `LiveOutput.scale_note` says so); another aspect ratio raises CalibrationError with
+    the reason, for every frame, so it is never silently wrong.
     """
 
     def __init__(self, calibration, params: MatcherParams) -> None:
@@ -111,6 +139,8 @@ class LiveProcessor:
         self._lock = threading.Lock()
         self._params = params
         self._pipeline: StereoPipeline | None = None
+        self._size: tuple[int, int] | None = None  # frame size the pipeline was built for
+        self._note = ""
 
     def set_params(self, params: MatcherParams) -> None:
         with self._lock:
@@ -119,10 +149,22 @@ class LiveProcessor:
                 self._pipeline.set_params(params)
 
     def __call__(self, frame: StereoFrame) -> LiveOutput:
+        size = (int(frame.left.shape[1]), int(frame.left.shape[0]))
         with self._lock:
-            if self._pipeline is None:
-                self._pipeline = StereoPipeline(self.calibration, self._params)
-            pipeline = self._pipeline
+            if self._pipeline is None or self._size != size:
+                if self._pipeline is not None:
+                    self._pipeline.close()
+                    self._pipeline = None
+                calib = self.calibration.scaled_to(size)  # CalibrationError: another aspect
+                self._pipeline = StereoPipeline(calib, self._params)
+                self._size = size
+                c = self.calibration
+                self._note = ("" if calib is c else
+                              f"Calibration made at {c.width}x{c.height} px, scaled to the "
+                              f"source's {size[0]}x{size[1]} px (same aspect ratio)")
+                if self._note:
+                    log.info("%s", self._note)
+            pipeline, note = self._pipeline, self._note
         r = pipeline.process(frame.left, frame.right)
         lo, hi = r.disparity_range_px
         images = {
@@ -133,7 +175,7 @@ class LiveProcessor:
             "wls": cv2.cvtColor(r.color_bgr, cv2.COLOR_BGR2RGB),
         }
         images["wls"][~r.valid] = NO_MATCH_RGB
-        return LiveOutput(r, images, color_range_px(r))
+        return LiveOutput(r, images, color_range_px(r), note)
 
     def close(self) -> None:
         with self._lock:
@@ -188,6 +230,10 @@ class LiveTab(QWidget):
         self._pending: dict[int, tuple[str, bool]] = {}  # job id -> (view key, ruler click)
         self._ruler_a = None  # first Measurement of a ruler pair
         self._bar_state = None
+        self._scale_note = ""
+        self._exports: dict[int, str] = {}  # job id -> what is being exported
+        self.shown_frame: StereoFrame | None = None  # the raw frame of the result shown
+        self.last_export: list[Path] = []  # files written by the last finished export
         self.frames_shown = 0
 
         # params
@@ -239,13 +285,44 @@ class LiveTab(QWidget):
         self.clear_button = QPushButton("Clear")
         self.clear_button.setToolTip("Remove all distance markers")
         self.clear_button.clicked.connect(self.clear_markers)
+        self.export_button = QToolButton()
+        self.export_button.setText("Export frame")
+        self.export_button.setToolTip("Write the depth of the frame shown for other tools")
+        self.export_button.setPopupMode(QToolButton.ToolButtonPopupMode.InstantPopup)
+        export_menu = QMenu(self.export_button)
+        for key, (text, _suffix, _what) in EXPORTS.items():
+            export_menu.addAction(text, lambda k=key: self._export_clicked(k))
+        export_menu.addSeparator()
+        export_menu.addAction("All four into a folder…", self._export_all_clicked)
+        self.export_button.setMenu(export_menu)
+        self.record_button = QToolButton()
+        self.record_button.setText(RECORD_TEXT)
+        self.record_button.setCheckable(True)
+        self.record_button.setPopupMode(QToolButton.ToolButtonPopupMode.MenuButtonPopup)
+        self.record_button.clicked.connect(self._record_clicked)
+        record_menu = QMenu(self.record_button)
+        record_menu.addAction("Record into a folder…", self._record_into_clicked)
+        record_menu.addAction("Change the recordings folder…", self._choose_recordings_dir)
+        self.record_button.setMenu(record_menu)
+        self._update_record_tooltip()
+        self._record_timer = QTimer(self)
+        self._record_timer.setInterval(250)
+        self._record_timer.timeout.connect(self._update_record_button)
+        ctx.recorder.started.connect(self._recording_started)
+        ctx.recorder.stopped.connect(self._recording_stopped)
         tools = QHBoxLayout()
         tools.addWidget(QLabel("Show:"))
         for c in self.view_checks.values():
             tools.addWidget(c)
         tools.addStretch(1)
-        for b in (self.ruler_button, self.clear_button, self.pause_button, self.snapshot_button):
+        for b in (self.ruler_button, self.clear_button, self.pause_button, self.snapshot_button,
+                  self.export_button, self.record_button):
             tools.addWidget(b)
+        for b in (self.export_button, self.record_button):  # as tall as the push buttons
+            b.setSizePolicy(b.sizePolicy().horizontalPolicy(),
+                            self.pause_button.sizePolicy().verticalPolicy())
+        self.playback = PlaybackBar(ctx)
+        self.playback.used.connect(lambda: self.set_paused(False))
 
         self.readout = QLabel("Double-click a view to measure the distance there.")
         self.readout.setTextFormat(Qt.TextFormat.PlainText)
@@ -253,12 +330,17 @@ class LiveTab(QWidget):
         self.calib_note = QLabel()
         self.calib_note.setStyleSheet("background: #ffd54f; color: #3e2700; padding: 2px 6px;")
         self.calib_note.hide()
+        self.scale_label = QLabel()
+        self.scale_label.setStyleSheet("background: #b3e5fc; color: #01304a; padding: 2px 6px;")
+        self.scale_label.hide()
 
         views_page = QWidget()
         vcol = QVBoxLayout(views_page)
         vcol.setContentsMargins(4, 4, 4, 4)
         vcol.addLayout(tools)
+        vcol.addWidget(self.playback)
         vcol.addWidget(self.calib_note)
+        vcol.addWidget(self.scale_label)
         vcol.addWidget(self._grid_host, 1)
         vcol.addWidget(self.readout)
 
@@ -378,6 +460,7 @@ class LiveTab(QWidget):
             return
         if pf is None or not isinstance(pf.output, LiveOutput):
             return
+        self.shown_frame = pf.frame
         self.show_output(pf.output)
 
     def show_output(self, out: LiveOutput) -> None:
@@ -393,6 +476,12 @@ class LiveTab(QWidget):
                                      "dark red = no match")
         if self._hover is not None:
             self._show_readout(*self._hover)
+        if out.scale_note != self._scale_note:
+            self._scale_note = out.scale_note
+            self.scale_label.setText(out.scale_note)
+            self.scale_label.setVisible(bool(out.scale_note))
+            if out.scale_note:
+                self.ctx.show_status(out.scale_note)
         self.frames_shown += 1
         self.frameShown.emit()
 
@@ -482,7 +571,7 @@ class LiveTab(QWidget):
         return job
 
     def _job_finished(self, job_id: int, m) -> None:
-        if self._snapshot_done(job_id, m):
+        if self._snapshot_done(job_id, m) or self._export_done(job_id, m):
             return
         if job_id not in self._pending:
             return  # another tab's job
@@ -513,6 +602,9 @@ class LiveTab(QWidget):
     def _job_failed(self, job_id: int, message: str) -> None:
         if self._pending.pop(job_id, None) is not None:
             self.ctx.report_error(f"Measurement failed: {message}")
+        elif job_id in self._exports:
+            what = self._exports.pop(job_id)
+            self.ctx.report_error(f"Export of the {what} failed: {message}")
         elif job_id in getattr(self, "_snapshots", set()):
             self._snapshots.discard(job_id)
             self.ctx.report_error(f"Snapshot not saved: {message}")
@@ -606,6 +698,176 @@ class LiveTab(QWidget):
                                  if paths else "Snapshot: no views shown")
             return True
         return False
+
+    # ---- depth exports of the frame shown ----------------------------------------------------
+    def _export_start_dir(self) -> str:
+        return getattr(self.ctx.settings, "last_export_dir", None) or str(Path.home())
+
+    def _export_clicked(self, kind: str) -> None:
+        if self._output is None:
+            self.ctx.report_error("No frame to export yet.")
+            return
+        text, suffix, _what = EXPORTS[kind]
+        start = str(Path(self._export_start_dir()) / f"frame-{_stamp()}{suffix}")
+        ext = Path(suffix).suffix
+        path, _ = QFileDialog.getSaveFileName(self, text.rstrip("…"), start,
+                                              f"{ext[1:].upper()} files (*{ext})")
+        if path:
+            if not path.lower().endswith(ext):
+                path += ext
+            self.export_frame(path, kinds=(kind,))
+            self.ctx.update_settings(last_export_dir=str(Path(path).parent))
+
+    def _export_all_clicked(self) -> None:
+        if self._output is None:
+            self.ctx.report_error("No frame to export yet.")
+            return
+        folder = QFileDialog.getExistingDirectory(self, "Export the frame's depth into",
+                                                  self._export_start_dir())
+        if folder:
+            self.export_frame(folder)
+            self.ctx.update_settings(last_export_dir=folder)
+
+    def export_frame(self, target: str | Path, kinds=tuple(EXPORTS)) -> int | None:
+        """Write the shown frame's depth off the UI thread; returns the job id.
+
+        With one kind, `target` is the file; with several, a folder that receives
+        frame-<time><suffix> for each (see EXPORTS). Every file is written atomically.
+        """
+        out = self._output
+        if out is None:
+            self.ctx.report_error("No frame to export yet.")
+            return None
+        kinds = tuple(kinds)
+        target = Path(target)
+        if len(kinds) == 1:
+            paths = {kinds[0]: target}
+        else:
+            stamp = _stamp()
+            paths = {k: target / f"frame-{stamp}{EXPORTS[k][1]}" for k in kinds}
+        result = out.result
+        disparity = result.final_px
+        calib = result.calibration  # the one the frame was rectified with (scaled if it was)
+
+        def write() -> list[tuple[str, Path, str]]:
+            from stereo_gui.files import depth_export as dx
+
+            done = []
+            for kind, path in paths.items():
+                if kind == "disparity_png":
+                    dx.write_disparity_png16(path, disparity)
+                    note = ""
+                elif kind == "disparity_npy":
+                    dx.write_disparity_npy(path, disparity)
+                    note = ""
+                elif kind == "depth_png":
+                    dx.write_depth_png16(path, disparity, calib)
+                    note = ""
+                else:
+                    n = dx.write_ply(path, disparity, result.rectified_left, calib)
+                    note = f"{n} points"
+                done.append((kind, Path(path), note))
+            return done
+
+        job = self.ctx.jobs.submit(write)
+        self._exports[job] = ("frame's depth" if len(kinds) > 1 else EXPORTS[kinds[0]][2])
+        return job
+
+    def _export_done(self, job_id: int, done) -> bool:
+        if job_id not in self._exports:
+            return False
+        del self._exports[job_id]
+        self.last_export = [p for _k, p, _n in done]
+        if len(done) == 1:
+            kind, path, note = done[0]
+            extra = f", {note}" if note else ""
+            self.ctx.show_status(f"Exported the {EXPORTS[kind][2]} to {path}{extra}")
+        else:
+            self.ctx.show_status(f"Exported the frame's depth: {len(done)} files in "
+                                 f"{done[0][1].parent} (disparity PNG and .npy, depth PNG, PLY)")
+        return True
+
+    # ---- recording -----------------------------------------------------------------------------
+    def _update_record_tooltip(self) -> None:
+        base = recordings_dir(self.ctx.settings)
+        self.record_button.setToolTip(
+            f"Record the raw stereo frames with their timestamps into a new folder in {base}; "
+            "the arrow offers another folder")
+
+    def _record_clicked(self, checked: bool) -> None:
+        if checked:
+            self.start_recording()
+        else:
+            self.ctx.recorder.stop_recording()
+        self._sync_record_button()
+
+    def _record_into_clicked(self) -> None:
+        if self.ctx.recorder.is_recording:
+            return
+        folder = QFileDialog.getExistingDirectory(
+            self, "Record into (an empty or new folder)", str(recordings_dir(self.ctx.settings)))
+        if folder:
+            self.start_recording(folder)
+
+    def _choose_recordings_dir(self) -> None:
+        folder = QFileDialog.getExistingDirectory(self, "Folder for new recordings",
+                                                  str(recordings_dir(self.ctx.settings)))
+        if folder:
+            self.ctx.update_settings(recordings_dir=folder)
+            self._update_record_tooltip()
+
+    def start_recording(self, folder: str | Path | None = None) -> Path | None:
+        """Record the source's raw frames into `folder` (new or empty), or into a new folder in
+        the recordings folder; returns the folder, or None (with a message) if it cannot."""
+        src = self.ctx.frames.source()
+        if src is None:
+            self.ctx.report_error("Nothing to record: no source is open.")
+            self._sync_record_button()
+            return None
+        if folder is None:
+            folder = new_recording_folder(recordings_dir(self.ctx.settings))
+        try:
+            path = self.ctx.recorder.start(folder, source_name=getattr(src, "name", ""),
+                                           fps=float(getattr(src, "nominal_fps", 30.0) or 30.0))
+        except StereoGuiError as exc:
+            self.ctx.report_error(f"Cannot start recording: {exc}")
+            self._sync_record_button()
+            return None
+        return path
+
+    def stop_recording(self) -> int | None:
+        return self.ctx.recorder.stop_recording()
+
+    def _sync_record_button(self) -> None:
+        rec = self.ctx.recorder
+        self.record_button.blockSignals(True)
+        self.record_button.setChecked(rec.is_recording)
+        self.record_button.blockSignals(False)
+        self._update_record_button()
+
+    def _update_record_button(self) -> None:
+        rec = self.ctx.recorder
+        if rec.is_recording:
+            self.record_button.setText(f"■ Stop  {format_elapsed(rec.elapsed_s)} · "
+                                       f"{rec.frames_written} frames")
+        else:
+            self.record_button.setText(RECORD_TEXT)
+
+    def _recording_started(self, folder: str) -> None:
+        self._record_timer.start()
+        self._sync_record_button()
+        self.record_button.setToolTip(f"Recording into {folder}: click to stop")
+        self.ctx.show_status(f"Recording into {folder}")
+
+    def _recording_stopped(self, result) -> None:
+        self._record_timer.stop()
+        self._sync_record_button()
+        self._update_record_tooltip()
+        text = describe_result(result)
+        if result.error:
+            self.ctx.report_error(text)
+        else:
+            self.ctx.show_status(text)
 
     def shutdown(self) -> None:
         """Called by the main window on close."""

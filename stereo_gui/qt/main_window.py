@@ -55,6 +55,15 @@ def _format_rms(value) -> str:
     return "?" if v != v else f"{v:.3f} px"
 
 
+def _order_left_right(files) -> tuple[str, str]:
+    """(left, right) of two chosen files: by "left"/"right" in the names, else in name order."""
+    a, b = sorted(files, key=lambda f: Path(f).name)
+    na, nb = Path(a).name.lower(), Path(b).name.lower()
+    if "right" in na and "right" not in nb or "left" in nb and "left" not in na:
+        return b, a
+    return a, b
+
+
 class _MessageBar(QWidget):
     """A coloured bar with a message and a close button (the banner and the error bar)."""
 
@@ -136,6 +145,8 @@ class MainWindow(QMainWindow):
         ctx.statusMessage.connect(lambda text: self.statusBar().showMessage(text, 8000))
         ctx.calibrationChanged.connect(self._update_calibration_label)
         ctx.frames.sourceChanged.connect(self._update_source_label)
+        ctx.recorder.started.connect(lambda _f: self._update_recording_label())
+        ctx.recorder.stopped.connect(lambda _r: self._update_recording_label())
         self._update_calibration_label()
         self._fps_timer = QTimer(self)
         self._fps_timer.setInterval(500)
@@ -168,10 +179,18 @@ class MainWindow(QMainWindow):
         self.act_save = QAction("&Save calibration as…", self)
         self.act_save.setShortcut(QKeySequence.StandardKey.SaveAs)
         self.act_save.triggered.connect(lambda: self.save_calibration())
+        self.act_export_ros = QAction("&Export ROS camera_info…", self)
+        self.act_export_ros.setToolTip("Write left.yaml and right.yaml (ROS camera_info) into "
+                                       "a folder")
+        self.act_export_ros.triggered.connect(lambda: self.export_ros())
+        self.act_import_ros = QAction("&Import ROS camera_info…", self)
+        self.act_import_ros.setToolTip("Use a calibration from a ROS left.yaml + right.yaml pair")
+        self.act_import_ros.triggered.connect(lambda: self.import_ros())
         quit_act = QAction("&Quit", self)
         quit_act.setShortcut(QKeySequence.StandardKey.Quit)
         quit_act.triggered.connect(self.close)
-        for a in (self.act_source, None, self.act_open, self.act_save, None, quit_act):
+        for a in (self.act_source, None, self.act_open, self.act_save, None, self.act_import_ros,
+                  self.act_export_ros, None, quit_act):
             if a is None:
                 file_menu.addSeparator()
             else:
@@ -187,10 +206,13 @@ class MainWindow(QMainWindow):
         self.camera_fps_label = QLabel("Camera: – fps")
         self.processing_fps_label = QLabel("Processing: – fps")
         self.calibration_label = QLabel("No calibration")
-        for w in (self.source_label, self.camera_fps_label, self.processing_fps_label,
-                  self.calibration_label):
+        self.recording_label = QLabel()
+        self.recording_label.setStyleSheet("color: #ff5252; font-weight: bold;")
+        for w in (self.recording_label, self.source_label, self.camera_fps_label,
+                  self.processing_fps_label, self.calibration_label):
             w.setContentsMargins(6, 0, 6, 0)
             sb.addPermanentWidget(w)
+        self.recording_label.hide()
 
     def _choice_from_settings(self) -> SourceChoice:
         s = self.ctx.settings
@@ -277,7 +299,18 @@ class MainWindow(QMainWindow):
     def _update_source_label(self, name: str) -> None:
         self.source_label.setText(f"Source: {name or 'none'}")
 
+    def _update_recording_label(self) -> None:
+        rec = self.ctx.recorder
+        if rec.is_recording:
+            from stereo_gui.qt.recorder import format_elapsed
+
+            self.recording_label.setText(f"● REC {format_elapsed(rec.elapsed_s)}, "
+                                         f"{rec.frames_written} frames")
+            self.recording_label.setToolTip(str(rec.folder))
+        self.recording_label.setVisible(rec.is_recording)
+
     def _update_fps(self) -> None:
+        self._update_recording_label()
         f = self.ctx.frames
         if f.paused:
             self.camera_fps_label.setText("Camera: paused")
@@ -346,6 +379,58 @@ class MainWindow(QMainWindow):
         self.ctx.set_calibration(calib, path)
         self._remember_calibration(path)
         self.statusBar().showMessage(f"Saved calibration {path}", 8000)
+        return True
+
+    def export_ros(self, folder: str | None = None) -> tuple[Path, Path] | None:
+        """Write the calibration as ROS camera_info left.yaml and right.yaml into `folder`
+        (asks for it without); returns both paths, or None (with a message)."""
+        calib = self.ctx.calibration
+        if calib is None:
+            self.ctx.report_error("There is no calibration to export: calibrate or open one first.")
+            return None
+        if not folder:
+            folder = QFileDialog.getExistingDirectory(
+                self, "Export ROS camera_info (left.yaml, right.yaml) into", self._start_dir())
+            if not folder:
+                return None
+        from stereo_gui.files.calibration_file import export_ros
+
+        try:
+            paths = export_ros(calib, folder)
+        except (StereoGuiError, OSError) as exc:
+            self.ctx.report_error(f"Cannot export ROS camera_info into {folder}: {exc}")
+            return None
+        extra = "" if calib.metric else " (Hartley calibration: the baseline is not metric)"
+        self.statusBar().showMessage(f"Exported ROS camera_info {paths[0].name} and "
+                                     f"{paths[1].name} into {folder}{extra}", 8000)
+        return paths
+
+    def import_ros(self, left: str | None = None, right: str | None = None) -> bool:
+        """Use the calibration of a ROS camera_info pair (asks for the two files without them);
+        True when loaded. Chosen together, the file whose name says "right" is the right one."""
+        if not left or not right:
+            files, _ = QFileDialog.getOpenFileNames(
+                self, "Import ROS camera_info: choose the left and the right file",
+                self._start_dir(), "ROS camera_info (*.yaml *.yml);;All files (*)")
+            if not files:
+                return False
+            if len(files) != 2:
+                self.ctx.report_error(f"Choose exactly two ROS camera_info files (left and right), "
+                                      f"not {len(files)}.")
+                return False
+            left, right = _order_left_right(files)
+        from stereo_gui.files.calibration_file import import_ros
+
+        try:
+            calib = import_ros(left, right)
+        except (StereoGuiError, OSError) as exc:
+            self.ctx.report_error(f"Cannot import ROS camera_info {left} + {right}: {exc}")
+            return False
+        note = f"ROS {Path(left).name} + {Path(right).name}"
+        self.ctx.set_calibration(calib, None, note=note)
+        self.statusBar().showMessage(
+            f"Imported ROS camera_info {left} + {right}: baseline {calib.baseline_mm:.1f} mm, "
+            f"{calib.width}x{calib.height} px (save it with File > Save calibration as…)", 10000)
         return True
 
     def _remember_calibration(self, path) -> None:

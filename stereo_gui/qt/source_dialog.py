@@ -81,7 +81,8 @@ class SourceDialog(QDialog):
         self.sim = QRadioButton("Simulated stereo rig (no cameras needed)")
         self.cams = QRadioButton("Two cameras")
         self.sbs = QRadioButton("One side-by-side stereo camera (frame split in half)")
-        self.folder = QRadioButton("Recorded folder of pairs (or side-by-side video)")
+        self.folder = QRadioButton("A recording, a folder of pairs, or a side-by-side video "
+                                   "(with play, pause, step and loop)")
         self._group = QButtonGroup(self)
         for b in (self.auto, self.sim, self.cams, self.sbs, self.folder):
             self._group.addButton(b)
@@ -92,9 +93,13 @@ class SourceDialog(QDialog):
         if self.right_cam.count() > 1:
             self.right_cam.setCurrentIndex(1)
         self.path_edit = QLineEdit()
-        self.path_edit.setPlaceholderText("folder of image pairs or a video file")
-        browse = QPushButton("Browse…")
+        self.path_edit.setPlaceholderText("recording or folder of image pairs, or a video file")
+        browse = QPushButton("Folder…")
+        browse.setToolTip("A recording made with Record, or any folder of left/right image pairs")
         browse.clicked.connect(self._browse)
+        browse_video = QPushButton("Video…")
+        browse_video.setToolTip("A side-by-side stereo video (left half | right half)")
+        browse_video.clicked.connect(self._browse_video)
 
         self.resolution = QComboBox()
         for w, h in RESOLUTIONS:
@@ -102,23 +107,24 @@ class SourceDialog(QDialog):
         self.swap = QCheckBox("Swap left and right")
 
         grid = QGridLayout()
-        grid.addWidget(self.auto, 0, 0, 1, 3)
-        grid.addWidget(self.sim, 1, 0, 1, 3)
-        grid.addWidget(self.cams, 2, 0, 1, 3)
+        grid.addWidget(self.auto, 0, 0, 1, 4)
+        grid.addWidget(self.sim, 1, 0, 1, 4)
+        grid.addWidget(self.cams, 2, 0, 1, 4)
         grid.addWidget(QLabel("    Left:"), 3, 0)
-        grid.addWidget(self.left_cam, 3, 1, 1, 2)
+        grid.addWidget(self.left_cam, 3, 1, 1, 3)
         grid.addWidget(QLabel("    Right:"), 4, 0)
-        grid.addWidget(self.right_cam, 4, 1, 1, 2)
-        grid.addWidget(self.sbs, 5, 0, 1, 3)
+        grid.addWidget(self.right_cam, 4, 1, 1, 3)
+        grid.addWidget(self.sbs, 5, 0, 1, 4)
         grid.addWidget(QLabel("    Camera:"), 6, 0)
-        grid.addWidget(self.sbs_cam, 6, 1, 1, 2)
-        grid.addWidget(self.folder, 7, 0, 1, 3)
+        grid.addWidget(self.sbs_cam, 6, 1, 1, 3)
+        grid.addWidget(self.folder, 7, 0, 1, 4)
         grid.addWidget(self.path_edit, 8, 1)
         grid.addWidget(browse, 8, 2)
+        grid.addWidget(browse_video, 8, 3)
         if not self._cameras:
             note = QLabel("No cameras were found on this computer.")
             note.setStyleSheet("color: #a05000")
-            grid.addWidget(note, 9, 0, 1, 3)
+            grid.addWidget(note, 9, 0, 1, 4)
 
         opts = QHBoxLayout()
         opts.addWidget(QLabel("Resolution:"))
@@ -150,7 +156,15 @@ class SourceDialog(QDialog):
         return combo
 
     def _browse(self) -> None:
-        path = QFileDialog.getExistingDirectory(self, "Recorded folder of pairs")
+        path = QFileDialog.getExistingDirectory(self, "A recording or a folder of pairs")
+        if path:
+            self.path_edit.setText(path)
+            self.folder.setChecked(True)
+
+    def _browse_video(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(
+            self, "A side-by-side stereo video", "",
+            "Videos (*.avi *.mp4 *.mkv *.mov *.m4v *.webm);;All files (*)")
         if path:
             self.path_edit.setText(path)
             self.folder.setChecked(True)

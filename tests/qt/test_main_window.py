@@ -156,3 +156,40 @@ def test_closing_while_calibrating_ends_without_thread_warnings(qtbot, ctx, tmp_
     QApplication.processEvents()
     messages = [r.message for r in qtlog.records]
     assert not any("QThread" in m and "Destroyed" in m for m in messages), messages
+
+
+def test_export_and_import_ros_camera_info(qtbot, ctx, window, sim_rig, tmp_path):
+    import numpy as np
+    import yaml
+
+    errors = []
+    ctx.errorOccurred.connect(errors.append)
+    assert window.export_ros(str(tmp_path)) is None and "no calibration" in errors[-1]
+    calib = sim_rig.true_calibration()
+    ctx.set_calibration(calib)
+    left, right = window.export_ros(str(tmp_path))
+    assert (left.name, right.name) == ("left.yaml", "right.yaml")
+    doc = yaml.safe_load(right.read_text())
+    assert (doc["image_width"], doc["image_height"]) == calib.image_size
+    P2 = np.array(doc["projection_matrix"]["data"]).reshape(3, 4)
+    assert P2[0, 3] == pytest.approx(calib.P2[0, 3] / 1000.0)  # ROS: metres
+    assert "left.yaml" in window.statusBar().currentMessage()
+
+    ctx.set_calibration(None)
+    assert window.import_ros(str(left), str(right))
+    back = ctx.calibration
+    assert back is not None and back.image_size == calib.image_size
+    np.testing.assert_allclose(back.M1, calib.M1)
+    np.testing.assert_allclose(back.P2, calib.P2, atol=1e-9)
+    assert back.rectified_baseline_mm == pytest.approx(calib.rectified_baseline_mm)
+    assert "ROS left.yaml + right.yaml" in window.calibration_label.text()
+    assert not window.import_ros(str(right), str(tmp_path / "none.yaml"))
+    assert "none.yaml" in errors[-1]
+
+
+def test_ros_files_are_told_apart_by_name():
+    from stereo_gui.qt.main_window import _order_left_right
+
+    assert _order_left_right(["/a/cam_right.yaml", "/a/cam_left.yaml"]) == \
+        ("/a/cam_left.yaml", "/a/cam_right.yaml")
+    assert _order_left_right(["/a/b.yaml", "/a/a.yaml"]) == ("/a/a.yaml", "/a/b.yaml")

@@ -8,7 +8,7 @@ import pytest
 
 import stereo_gui.sources.cameras as cameras
 from stereo_gui.core.errors import InputError, SourceError
-from stereo_gui.sources.cameras import CameraInfo, TwoCameraSource, VideoFileSource
+from stereo_gui.sources.cameras import CameraInfo, TwoCameraSource
 from stereo_gui.sources.open import OpenedSource, open_source, parse_source_spec
 from stereo_gui.sources.sim import SimSource
 
@@ -134,10 +134,12 @@ def test_video_and_folder_specs(tmp_path):
     for _ in range(2):
         writer.write(np.zeros((24, 64, 3), np.uint8))
     writer.release()
-    src = open_source(str(video)).source
-    assert isinstance(src, VideoFileSource) and src.read().left.shape == (24, 32, 3)
+    from stereo_gui.sources import playback
+
+    src = open_source(str(video)).source  # played back with pause, step and loop
+    assert isinstance(src, playback.PlaybackSource) and src.read().left.shape == (24, 32, 3)
+    assert src.frame_count == 2
     src.close()
-    playback = pytest.importorskip("stereo_gui.sources.playback")
     for n in (1, 2):
         for side in "LR":
             cv2.imwrite(str(tmp_path / f"chessboard-{side}{n}.png"), np.full((24, 32, 3), n, np.uint8))
