@@ -286,7 +286,9 @@ class LiveTab(QWidget):
         self.clear_button.setToolTip("Remove all distance markers")
         self.clear_button.clicked.connect(self.clear_markers)
         self.export_button = QToolButton()
-        self.export_button.setText("Export frame")
+        self.export_button.setText("Export frame ▾")
+        # the arrow is in the text: the style's own indicator overlaps it
+        self.export_button.setStyleSheet("QToolButton::menu-indicator { image: none; }")
         self.export_button.setToolTip("Write the depth of the frame shown for other tools")
         self.export_button.setPopupMode(QToolButton.ToolButtonPopupMode.InstantPopup)
         export_menu = QMenu(self.export_button)
@@ -299,6 +301,11 @@ class LiveTab(QWidget):
         self.record_button.setText(RECORD_TEXT)
         self.record_button.setCheckable(True)
         self.record_button.setPopupMode(QToolButton.ToolButtonPopupMode.MenuButtonPopup)
+        self.record_button.setStyleSheet(
+            "QToolButton:checked { background: #c62828; color: white; font-weight: bold; }")
+        # wide enough for the running time and count, so the toolbar does not jump
+        self.record_button.setMinimumWidth(self.record_button.fontMetrics().horizontalAdvance(
+            "■ Stop  00:00 · 00000 frames") + 36)
         self.record_button.clicked.connect(self._record_clicked)
         record_menu = QMenu(self.record_button)
         record_menu.addAction("Record into a folder…", self._record_into_clicked)
