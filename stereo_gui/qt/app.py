@@ -125,6 +125,15 @@ def run_app(source: str | None = None, calib: str | None = None) -> int:
     if quit_after is not None:
         log.info("quitting after %.1f s (%s)", quit_after, QUIT_AFTER_ENV)
         QTimer.singleShot(int(quit_after * 1000), window.close)
-    status = app.exec()
-    ctx.shutdown(2000)  # the window normally did this already; make sure nothing outlives exec
-    return int(status)
+    status = int(app.exec())
+    # the window normally stopped every worker already; make sure nothing outlives exec
+    if not ctx.shutdown(2000):
+        # a thread is stuck in a device or OpenCV call that cannot be interrupted; letting the
+        # interpreter tear down around it can abort the process, so leave at once (settings
+        # were saved when the window closed)
+        log.warning("a worker is still busy at exit; leaving without waiting for it")
+        logging.shutdown()
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(status)
+    return status

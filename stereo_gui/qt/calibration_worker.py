@@ -19,7 +19,7 @@ import threading
 from collections.abc import Callable, Generator
 from dataclasses import dataclass
 
-from PySide6.QtCore import QThread, Signal
+from PySide6.QtCore import QObject, Signal
 
 from stereo_gui.core.errors import StereoGuiError
 
@@ -76,8 +76,13 @@ class JobControl:
 Job = Callable[[JobControl], Generator[Progress, None, object]]
 
 
-class JobWorker(QThread):
-    """Runs one generator job in its own thread; see the module docstring for the signals."""
+class JobWorker(QObject):
+    """Runs one generator job in its own thread; see the module docstring for the signals.
+
+    The thread is a daemon Python thread, not a QThread: one OpenCV call of a job cannot be
+    interrupted, and a QThread destroyed while still running aborts the whole process when the
+    window closes; a daemon thread left behind simply ends with it.
+    """
 
     progress = Signal(object)  # Progress
     finished_ok = Signal(object)  # the job's result
@@ -91,6 +96,23 @@ class JobWorker(QThread):
         self._cancel = JobControl(self.progress.emit)
         self.job_name = name
         self.setObjectName(f"JobWorker-{name}")
+        self._thread: threading.Thread | None = None
+
+    def start(self) -> None:
+        """Run the job in a new thread (once)."""
+        if self._thread is not None:
+            raise RuntimeError(f"{self.job_name} was already started")
+        self._thread = threading.Thread(target=self.run, name=f"job-{self.job_name}", daemon=True)
+        self._thread.start()
+
+    def isRunning(self) -> bool:  # noqa: N802 - the name QThread used, kept for callers
+        return self._thread is not None and self._thread.is_alive()
+
+    def wait(self, timeout_ms: int) -> bool:
+        """Join the thread for at most `timeout_ms`; True if it has ended (or never started)."""
+        if self._thread is not None:
+            self._thread.join(max(0, timeout_ms) / 1000.0)
+        return not self.isRunning()
 
     def cancel(self) -> None:
         """Ask the job to stop at its next step (returns at once)."""
@@ -103,7 +125,7 @@ class JobWorker(QThread):
     def stop(self, timeout_ms: int = 2000) -> bool:
         """Cancel and wait for the thread to end; True if it ended within the timeout."""
         self.cancel()
-        return self.wait(timeout_ms) if self.isRunning() else True
+        return self.wait(timeout_ms)
 
     def run(self) -> None:  # runs in the worker thread
         try:

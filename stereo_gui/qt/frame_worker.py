@@ -1,6 +1,6 @@
 """The frame worker: reads the current source and runs the current processor off the UI thread.
 
-Two QThreads, joined by a slot of size one (newest frame wins, as in ROS camera_calibration):
+Two daemon threads, joined by a slot of size one (newest frame wins, as in ROS camera_calibration):
 - the reader calls `source.read()` as fast as the source delivers, so a camera never backs up;
 - the processor takes the newest frame, runs the processor function on it (all heavy OpenCV work
   happens here) and keeps the newest `ProcessedFrame`.
@@ -20,7 +20,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from PySide6.QtCore import QObject, QThread, Signal
+from PySide6.QtCore import QObject, Signal
 
 from stereo_gui.sources.base import FrameSource, StereoFrame
 
@@ -77,8 +77,8 @@ def _lower_thread_priority() -> None:
     """Make the calling thread yield to the UI thread when CPUs are busy.
 
     On Linux niceness is per thread (and inherited by threads it starts, e.g. OpenCV's pool),
-    while Qt's thread priorities do nothing under the default scheduler; elsewhere Qt's
-    LowPriority (set at start) applies.
+    while thread priorities do nothing under the default scheduler. Elsewhere the threads run
+    at normal priority.
     """
     if hasattr(os, "setpriority") and sys.platform.startswith("linux"):
         try:
@@ -89,16 +89,18 @@ def _lower_thread_priority() -> None:
             log.debug("could not lower the frame thread's priority: %s", exc)
 
 
-class _LoopThread(QThread):
-    """A QThread running a plain Python loop function until asked to stop."""
+class _LoopThread(threading.Thread):
+    """A daemon thread running a plain Python loop function until asked to stop.
+
+    Not a QThread on purpose: a source read can block for longer than the 2 s the window waits
+    at closing (a camera being opened, the rig building its textures on a loaded machine). A
+    QThread destroyed while running aborts the process; a daemon thread is simply left behind
+    and ends with it.
+    """
 
     def __init__(self, loop: Callable[[], None], name: str) -> None:
-        super().__init__()
+        super().__init__(name=name, daemon=True)
         self._loop = loop
-        self.setObjectName(name)
-
-    def start_low(self) -> None:
-        self.start(QThread.Priority.LowPriority)
 
     def run(self) -> None:  # runs in the new thread
         _lower_thread_priority()
@@ -225,7 +227,7 @@ class FrameWorker(QObject):
             return self._frames_processed
 
     def is_running(self) -> bool:
-        return any(t is not None and t.isRunning() for t in (self._reader, self._worker))
+        return any(t is not None and t.is_alive() for t in (self._reader, self._worker))
 
     def stop(self, timeout_ms: int = _JOIN_TIMEOUT_MS) -> bool:
         """Ask both threads to end, join them, close the source; True if they ended in time."""
@@ -236,8 +238,8 @@ class FrameWorker(QObject):
         deadline = time.monotonic() + timeout_ms / 1000.0
         for t in (self._reader, self._worker):
             if t is not None:
-                left_ms = max(1, int((deadline - time.monotonic()) * 1000))
-                ok = t.wait(left_ms) and ok
+                t.join(max(0.001, deadline - time.monotonic()))
+                ok = not t.is_alive() and ok
         if not ok:
             log.warning("frame worker did not stop within %d ms (a source read is blocking)",
                         timeout_ms)
@@ -260,10 +262,10 @@ class FrameWorker(QObject):
     def _ensure_started(self) -> None:
         if self._reader is None:
             self._reader = _LoopThread(self._read_loop, "frame-reader")
-            self._reader.start_low()
+            self._reader.start()
         if self._worker is None:
             self._worker = _LoopThread(self._process_loop, "frame-processor")
-            self._worker.start_low()
+            self._worker.start()
 
     def _report(self, text: str) -> None:
         """Emit an error once (a failing source or processor would otherwise repeat it per frame)."""

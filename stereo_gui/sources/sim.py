@@ -895,6 +895,10 @@ class SimSource:
         self._index = 0
         self._next_t: float | None = None
         self._closed = False
+        if self.scene is not None:
+            # the first render makes the scene's textures (most of a second); do it here, in
+            # whatever thread opens the source, so that read() always takes frame time
+            self.rig._render(None, self.scene, np.random.default_rng(0))
 
     def _pose(self, i: int) -> BoardPose:
         k = i % self._frames_per_move

@@ -46,7 +46,7 @@ def tab(qtbot, ctx):
 def _calibrate(tab, qtbot, timeout=120000):
     with qtbot.waitSignal(tab.calibrationFinished, timeout=timeout) as blocker:
         assert tab.start_calibration()
-    qtbot.waitUntil(lambda: not tab.is_running(), timeout=5000)
+    qtbot.waitUntil(lambda: not tab.is_running(), timeout=30000)
     return blocker.args[0]
 
 
@@ -114,7 +114,7 @@ def test_cancel_stops_calibration(tab, ctx, qtbot, session_folder):
     assert tab.cancel_button.isEnabled()
     with qtbot.waitSignal(tab.worker.cancelled, timeout=60000):
         tab.cancel_button.click()
-    qtbot.waitUntil(lambda: not tab.is_running(), timeout=5000)
+    qtbot.waitUntil(lambda: not tab.is_running(), timeout=30000)
     assert finished == []
     assert ctx.calibration is None
     assert "cancelled" in tab.progress_label.text()
@@ -133,7 +133,7 @@ def test_bad_folder_reports_error(tab, ctx, qtbot, tmp_path):
     with qtbot.waitSignal(ctx.errorOccurred, timeout=20000) as blocker:
         assert tab.start_calibration()
     assert "pairs" in blocker.args[0] or "no" in blocker.args[0]
-    qtbot.waitUntil(lambda: not tab.is_running(), timeout=5000)
+    qtbot.waitUntil(lambda: not tab.is_running(), timeout=30000)
     assert "failed" in tab.progress_label.text()
 
 
@@ -173,4 +173,4 @@ def test_shutdown_while_calibrating_joins_the_worker(tab, ctx, qtbot, session_fo
     worker = tab.worker
     assert ctx.shutdown(2000)  # what closing the window does: cancel and join every worker
     assert not worker.isRunning()
-    qtbot.waitUntil(lambda: not tab.is_running(), timeout=5000)
+    qtbot.waitUntil(lambda: not tab.is_running(), timeout=30000)

@@ -20,7 +20,7 @@ def test_job_reports_progress_and_result(qtbot):
     worker = JobWorker(_counting_job(5), "count")
     seen = []
     worker.progress.connect(seen.append)
-    with qtbot.waitSignal(worker.finished_ok, timeout=5000) as blocker:
+    with qtbot.waitSignal(worker.finished_ok, timeout=30000) as blocker:
         worker.start()
     assert blocker.args == ["result"]
     qtbot.waitUntil(lambda: len(seen) == 5)
@@ -35,7 +35,7 @@ def test_error_becomes_failed_signal(qtbot):
         raise InputError("folder /nowhere does not exist")
 
     worker = JobWorker(job, "calibration")
-    with qtbot.waitSignal(worker.failed, timeout=5000) as blocker:
+    with qtbot.waitSignal(worker.failed, timeout=30000) as blocker:
         worker.start()
     assert blocker.args == ["folder /nowhere does not exist"]
     assert worker.wait(2000)
@@ -47,7 +47,7 @@ def test_unexpected_error_is_named(qtbot):
         raise ValueError("boom")
 
     worker = JobWorker(job, "export")
-    with qtbot.waitSignal(worker.failed, timeout=5000) as blocker:
+    with qtbot.waitSignal(worker.failed, timeout=30000) as blocker:
         worker.start()
     assert "export failed" in blocker.args[0] and "boom" in blocker.args[0]
     assert worker.wait(2000)
@@ -74,7 +74,7 @@ def test_cancel_stops_at_next_step(qtbot):
             gate.set()
 
     worker.progress.connect(on_progress)
-    with qtbot.waitSignal(worker.cancelled, timeout=5000):
+    with qtbot.waitSignal(worker.cancelled, timeout=30000):
         worker.start()
     assert worker.wait(2000)
     assert results == []
@@ -97,7 +97,7 @@ def test_control_reports_progress_from_inside_a_step(qtbot):
         seen.append(p.text)
 
     worker.progress.connect(on_progress)
-    with qtbot.waitSignal(worker.finished_ok, timeout=5000) as blocker:
+    with qtbot.waitSignal(worker.finished_ok, timeout=30000) as blocker:
         worker.start()
     assert blocker.args == [42]
     qtbot.waitUntil(lambda: len(seen) == 4)
@@ -124,7 +124,7 @@ def test_core_cancelled_error_counts_as_cancel(qtbot):
     worker.progress.connect(on_progress)
     failures = []
     worker.failed.connect(failures.append)
-    with qtbot.waitSignal(worker.cancelled, timeout=5000):
+    with qtbot.waitSignal(worker.cancelled, timeout=30000):
         worker.start()
     assert worker.wait(2000)
     assert failures == []

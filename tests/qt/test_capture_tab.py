@@ -54,7 +54,7 @@ def test_both_sides_found_freezes_and_save_writes_both_images(tab, tmp_path, qtb
     assert tab.state == "review"
     assert tab.save_button.isEnabled() and tab.cancel_button.isEnabled()
     assert "board found" in tab.view.titles[0].text and "board found" in tab.view.titles[1].text
-    with qtbot.waitSignal(tab.pairSaved, timeout=5000) as blocker:
+    with qtbot.waitSignal(tab.pairSaved, timeout=30000) as blocker:
         tab.save_button.click()
     name = blocker.args[0]
     assert tab.state == "live"
@@ -138,7 +138,7 @@ def test_live_through_frame_worker_freezes_on_board(tab, ctx, qtbot, tmp_path):
     tab.set_active(True)
     qtbot.waitUntil(lambda: tab.state == "review", timeout=30000)
     assert tab.frozen is not None and tab.frozen.detection.found
-    with qtbot.waitSignal(tab.pairSaved, timeout=5000):
+    with qtbot.waitSignal(tab.pairSaved, timeout=30000):
         tab.save_frozen()
     assert len(CaptureSession.open(tmp_path / "live").pairs) == 1
 
@@ -160,7 +160,7 @@ def test_keys_s_and_c_save_and_cancel(tab, tmp_path, qtbot):
     tab._last_reviewed_pose = None  # as if the board had left the view in between
     tab.show_output(out, frame)
     assert tab.state == "review"
-    with qtbot.waitSignal(tab.pairSaved, timeout=5000):
+    with qtbot.waitSignal(tab.pairSaved, timeout=30000):
         qtbot.keyClick(tab, Qt.Key.Key_S)
     assert len(CaptureSession.open(tmp_path / "keys").pairs) == 1
 

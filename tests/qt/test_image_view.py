@@ -24,7 +24,7 @@ def panel(qtbot):
 def test_double_click_reports_image_pixel(qtbot, panel):
     pos = panel.widget_pos_of_pixel(40, 10)
     left = Qt.MouseButton.LeftButton
-    with qtbot.waitSignal(panel.doubleClicked, timeout=5000) as sig:
+    with qtbot.waitSignal(panel.doubleClicked, timeout=30000) as sig:
         qtbot.mousePress(panel.viewport(), left, pos=pos)
         qtbot.mouseRelease(panel.viewport(), left, pos=pos)
         qtbot.mouseDClick(panel.viewport(), left, pos=pos)
@@ -38,7 +38,7 @@ def test_hover_reports_pixel_and_exit(qtbot, panel):
     got = []
     panel.hovered.connect(lambda k, x, y: got.append((x, y)))
     qtbot.mouseMove(panel.viewport(), panel.widget_pos_of_pixel(20, 30))
-    qtbot.waitUntil(lambda: bool(got), timeout=5000)
+    qtbot.waitUntil(lambda: bool(got), timeout=30000)
     x, y = got[-1]
     assert abs(x - 20) <= 0.5 and abs(y - 30) <= 0.5
 

@@ -114,7 +114,7 @@ def test_export_xlsx_and_csv_hold_logged_values(tab, ctx, qtbot, tmp_path):
     path = tmp_path / "log.xlsx"
     with qtbot.waitSignal(tab.exportFinished, timeout=30000):
         assert tab.export_xlsx(path)
-    qtbot.waitUntil(lambda: tab.xlsx_button.isEnabled(), timeout=5000)
+    qtbot.waitUntil(lambda: tab.xlsx_button.isEnabled(), timeout=30000)
     wb = load_workbook(path)
     ws = wb["Measurements"]
     rows = list(ws.iter_rows(min_row=2, values_only=True))
