@@ -3,7 +3,8 @@
 
 Walks through the real workflow: the Capture tab live on the simulated rig, a calibration of
 simulated chessboard pairs in the Calibration tab, the Live tab on that calibration with a few
-distances measured by double-click and a ruler, and the Measurements tab with that log.
+distances measured by double-click and a ruler, the Measurements tab with that log, and a short
+recording of the live stream played back in the Live tab (paused, stepped, measured).
 
     python scripts/screenshots.py [--out docs]
 
@@ -151,7 +152,30 @@ def main(argv: list[str] | None = None) -> int:
         _pump(app, 1.5)
         _capture(app, window, out / "screenshot-measurements.png")
 
+        # Playback: a few seconds of the scene recorded with Record, then played back as the
+        # source, paused and stepped, a distance measured on the recorded frame
+        window.show_tab("live")
+        live.clear_markers()
         live.set_paused(False)
+        if live.start_recording(work / "recording") is None:
+            raise SystemExit("screenshots: recording did not start")
+        _wait(app, lambda: ctx.recorder.frames_written >= 45, 120, "recorded frames")
+        live.stop_recording()
+        _wait(app, lambda: not ctx.recorder.is_recording and not ctx.recorder.is_closing, 60,
+              "the recording to close")
+        window.open_source(SourceChoice(str(work / "recording")))
+        _wait(app, lambda: live.playback.source() is not None, 60, "the recording as source")
+        shown = live.frames_shown
+        _wait(app, lambda: live.frames_shown >= shown + 3, 120, "played frames")
+        live.playback.toggle_play()
+        live.playback.step(-3)
+        _pump(app, 1.5)
+        n = len(ctx.measurements)
+        live.measure_at(420, 215)
+        _wait(app, lambda: len(ctx.measurements) > n, 60, "a measurement on the recording")
+        live._hovered("wls", 420.0, 215.0)
+        _pump(app, 1.0)
+        _capture(app, window, out / "screenshot-playback.png")
     finally:
         window.close()  # stops and joins the workers whatever happened
         shutil.rmtree(work, ignore_errors=True)

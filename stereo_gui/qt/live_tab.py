@@ -303,9 +303,10 @@ class LiveTab(QWidget):
         self.record_button.setPopupMode(QToolButton.ToolButtonPopupMode.MenuButtonPopup)
         self.record_button.setStyleSheet(
             "QToolButton:checked { background: #c62828; color: white; font-weight: bold; }")
-        # wide enough for the running time and count, so the toolbar does not jump
+        # wide enough for the running time, so the toolbar does not jump (the frame count is in
+        # the status bar and the tooltip)
         self.record_button.setMinimumWidth(self.record_button.fontMetrics().horizontalAdvance(
-            "■ Stop  00:00 · 00000 frames") + 36)
+            "■ Stop 00:00") + 40)
         self.record_button.clicked.connect(self._record_clicked)
         record_menu = QMenu(self.record_button)
         record_menu.addAction("Record into a folder…", self._record_into_clicked)
@@ -855,15 +856,15 @@ class LiveTab(QWidget):
     def _update_record_button(self) -> None:
         rec = self.ctx.recorder
         if rec.is_recording:
-            self.record_button.setText(f"■ Stop  {format_elapsed(rec.elapsed_s)} · "
-                                       f"{rec.frames_written} frames")
+            self.record_button.setText(f"■ Stop {format_elapsed(rec.elapsed_s)}")
+            self.record_button.setToolTip(f"Recording into {rec.folder}: {rec.frames_written} "
+                                          "frames written; click to stop")
         else:
             self.record_button.setText(RECORD_TEXT)
 
     def _recording_started(self, folder: str) -> None:
         self._record_timer.start()
         self._sync_record_button()
-        self.record_button.setToolTip(f"Recording into {folder}: click to stop")
         self.ctx.show_status(f"Recording into {folder}")
 
     def _recording_stopped(self, result) -> None:

@@ -51,7 +51,8 @@ def test_record_button_writes_raw_frames_with_timestamps(qtbot, ctx, live, array
     assert live.record_button.isChecked() and ctx.recorder.is_recording
     qtbot.waitUntil(lambda: ctx.recorder.frames_written >= 4, timeout=20000)
     live._update_record_button()
-    assert "Stop" in live.record_button.text() and "frames" in live.record_button.text()
+    assert live.record_button.text().startswith("■ Stop 0:")  # the time; the count:
+    assert "frames written" in live.record_button.toolTip()
     with qtbot.waitSignal(ctx.recorder.stopped, timeout=20000) as sig:
         live.record_button.click()  # off: the writer closes on its own thread
     result = sig.args[0]
