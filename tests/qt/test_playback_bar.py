@@ -110,3 +110,26 @@ def test_playback_bar_of_a_side_by_side_video(qtbot, ctx, tmp_path):
     assert bar.source() is not None and bar.slider.maximum() == 3
     bar.toggle_play()
     assert bar.step(1) >= 1 and bar.source().paused
+
+
+def test_source_dir_on_the_command_line_plays_the_recording_with_controls(qtbot, tmp_path):
+    """`stereo-gui --source DIR` with a recording: the playback bar is there (build_window is
+    what run_app calls)."""
+    from stereo_gui.files.recording import RecordingWriter
+    from stereo_gui.qt.app import build_window
+    from stereo_gui.sources.base import StereoFrame
+
+    rng = np.random.default_rng(2)
+    with RecordingWriter(tmp_path / "rec", fps=10) as w:
+        for k in range(3):
+            img = rng.integers(0, 255, (24, 32, 3), dtype=np.uint8)
+            w.write(StereoFrame(img, img, 0.1 * k, 0.1 * k, k))
+    ctx, window = build_window(source=str(tmp_path / "rec"))
+    qtbot.addWidget(window)
+    try:
+        qtbot.waitUntil(lambda: window.live_tab.playback.source() is not None, timeout=30000)
+        bar = window.live_tab.playback
+        assert bar.slider.maximum() == 2 and bar.label.text().endswith("of 3")
+        assert ctx.settings.source == str(tmp_path / "rec")
+    finally:
+        window.close()

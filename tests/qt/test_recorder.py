@@ -130,3 +130,14 @@ def test_new_recording_folder_names(tmp_path):
     first.mkdir()
     assert new_recording_folder(tmp_path, now).name == "rec-20260504-030201-2"
     assert format_elapsed(75.4) == "1:15" and format_elapsed(3725) == "1:02:05"
+
+
+def test_closing_the_application_while_recording_keeps_a_complete_recording(
+        qtbot, ctx, array_source, tmp_path):
+    ctx.frames.set_source(array_source())
+    ctx.recorder.start(tmp_path / "rec", source_name="test pair", fps=200)
+    qtbot.waitUntil(lambda: ctx.recorder.frames_written >= 2, timeout=20000)
+    assert ctx.shutdown(2000)  # what the window does when it closes
+    rec = open_recording(tmp_path / "rec")
+    assert rec.complete and len(rec.frames) >= 2 and rec.source_name == "test pair"
+    assert not ctx.recorder.is_recording
