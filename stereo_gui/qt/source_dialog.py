@@ -51,7 +51,7 @@ def describe_spec(spec: str) -> str:
         return f"Cameras {spec[5:]}"
     if spec.startswith("sbs:"):
         return f"Side-by-side camera {spec[4:]}"
-    return f"Recording {spec}"
+    return f"Playback of {spec}"
 
 
 def _list_cameras() -> list:

@@ -149,7 +149,7 @@ class PlaybackSource:
                     times = times[: self._store.count]
                 else:
                     raise SourceError(f"recording {self.path} holds neither images nor a video")
-                self.name = f"Recording {self.path.name}"
+                self.name = f"Playback of {self.path.name}"
             else:
                 from stereo_gui.files.pairs import discover_pairs
 

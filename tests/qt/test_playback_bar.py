@@ -75,7 +75,7 @@ def test_record_play_back_step_and_measure_the_same_distance(qtbot, ctx, window,
     m_play = sig.args[0]
     assert m_play.valid
     assert m_play.Z_mm == m_live.Z_mm and m_play.disparity_px == m_live.disparity_px
-    assert "Recording" in window.source_label.text()
+    assert "Playback of" in window.source_label.text()
 
     # loop off holds the last frame; stepping back works from there
     live.set_paused(False)

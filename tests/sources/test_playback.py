@@ -46,7 +46,7 @@ def test_plays_back_the_same_images_and_timestamps_then_loops(recorded):
     folder, frames = recorded
     src = PlaybackSource(folder, paced=False)
     assert isinstance(src, FrameSource)
-    assert src.frame_count == 5 and src.nominal_fps == 30.0 and src.name == "Recording rec"
+    assert src.frame_count == 5 and src.nominal_fps == 30.0 and src.name == "Playback of rec"
     got = [src.read() for _ in range(7)]
     for k, g in enumerate(got):
         assert g.index == k % 5
