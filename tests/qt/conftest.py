@@ -75,6 +75,47 @@ def ctx(qtbot):
     assert not c.frames.is_running()
 
 
+@pytest.fixture
+def make_tab(qtbot, ctx):
+    """make_tab(TabClass): a tab on `ctx`, shut down after the test (its threads joined)."""
+    made = []
+
+    def make(cls):
+        tab = cls(ctx)
+        qtbot.addWidget(tab)
+        made.append(tab)
+        return tab
+
+    yield make
+    for tab in made:
+        # CaptureTab.shutdown returns None (it stops without waiting), the others a join result
+        assert tab.shutdown() is not False, f"{type(tab).__name__} did not stop within 2 s"
+
+
+@pytest.fixture
+def live(qtbot, ctx):
+    """The Live tab, shown at 1000x700 and active (its processor installed)."""
+    from stereo_gui.qt.live_tab import LiveTab
+
+    tab = LiveTab(ctx)
+    qtbot.addWidget(tab)
+    tab.resize(1000, 700)
+    tab.show()
+    tab.set_active(True)
+    return tab
+
+
+@pytest.fixture
+def window(qtbot, ctx):
+    """The main window on `ctx`, shown."""
+    from stereo_gui.qt.main_window import MainWindow
+
+    w = MainWindow(ctx)
+    qtbot.addWidget(w)
+    w.show()
+    return w
+
+
 @pytest.fixture(scope="session")
 def sim_rig():
     """One simulated rig for the whole session (building its ray maps takes seconds)."""

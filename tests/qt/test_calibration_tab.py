@@ -6,7 +6,6 @@ import pytest
 
 from stereo_gui.files.session import CaptureSession
 from stereo_gui.qt.calibration_tab import CalibrationTab
-from stereo_gui.qt.context import AppContext
 from stereo_gui.sources.sim import write_calibration_set
 
 N_PAIRS = 12
@@ -29,18 +28,8 @@ def session_folder(calib_set, tmp_path):
 
 
 @pytest.fixture
-def ctx(qtbot):
-    c = AppContext()
-    yield c
-    assert c.shutdown(2000)
-
-
-@pytest.fixture
-def tab(qtbot, ctx):
-    t = CalibrationTab(ctx)
-    qtbot.addWidget(t)
-    yield t
-    assert t.shutdown(2000)
+def tab(make_tab):
+    return make_tab(CalibrationTab)
 
 
 def _calibrate(tab, qtbot, timeout=120000):

@@ -9,23 +9,12 @@ import pytest
 from stereo_gui.core.board import BoardSpec
 from stereo_gui.files.session import CaptureSession
 from stereo_gui.qt.capture_tab import CaptureTab, make_capture_processor
-from stereo_gui.qt.context import AppContext
 from stereo_gui.sources.sim import SimSource, write_calibration_set
 
 
 @pytest.fixture
-def ctx(qtbot):
-    c = AppContext()
-    yield c
-    assert c.shutdown(2000)
-
-
-@pytest.fixture
-def tab(qtbot, ctx):
-    t = CaptureTab(ctx)
-    qtbot.addWidget(t)
-    yield t
-    t.shutdown()
+def tab(make_tab):
+    return make_tab(CaptureTab)
 
 
 def _board_frames(n=40, seed=0):

@@ -6,17 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stereo_gui.qt.live_tab import TRUE_CALIBRATION_NOTE, LiveTab
-
-
-@pytest.fixture
-def live(qtbot, ctx):
-    tab = LiveTab(ctx)
-    qtbot.addWidget(tab)
-    tab.resize(1000, 700)
-    tab.show()
-    tab.set_active(True)
-    return tab
+from stereo_gui.qt.live_tab import TRUE_CALIBRATION_NOTE
 
 
 def _show_wall(qtbot, ctx, live, calib, wall_pair, array_source):

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from PySide6.QtCore import Qt
 
-from stereo_gui.qt.live_tab import TRUE_CALIBRATION_NOTE, LiveOutput, LiveTab
+from stereo_gui.qt.live_tab import TRUE_CALIBRATION_NOTE, LiveOutput
 
 
 def double_click(qtbot, widget, pos):
@@ -20,16 +20,6 @@ def double_click(qtbot, widget, pos):
     qtbot.mouseRelease(widget, left, pos=pos)
     qtbot.mouseDClick(widget, left, pos=pos)
     qtbot.mouseRelease(widget, left, pos=pos)
-
-
-@pytest.fixture
-def live(qtbot, ctx):
-    tab = LiveTab(ctx)
-    qtbot.addWidget(tab)
-    tab.resize(1000, 700)
-    tab.show()
-    tab.set_active(True)
-    return tab
 
 
 def _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source):

@@ -11,12 +11,14 @@ from stereo_gui.qt.main_window import TAB_NAMES, MainWindow
 from stereo_gui.qt.source_dialog import SourceChoice, SourceDialog
 
 
-@pytest.fixture
-def window(qtbot, ctx):
-    w = MainWindow(ctx)
-    qtbot.addWidget(w)
-    w.show()
-    return w
+def _assert_no_thread_destroyed_warning(qtlog):
+    """Let a deleted window's C++ and Python objects go, then check Qt did not warn that a
+    QThread was destroyed while still running."""
+    QApplication.processEvents()
+    gc.collect()
+    QApplication.processEvents()
+    messages = [r.message for r in qtlog.records]
+    assert not any("QThread" in m and "Destroyed" in m for m in messages), messages
 
 
 def _sim_source(sim_rig):
@@ -100,11 +102,7 @@ def test_closing_while_live_ends_quickly_without_thread_warnings(qtbot, ctx, sim
     assert not ctx.frames.is_running() and not ctx.jobs.is_running()
     w.deleteLater()
     del w
-    QApplication.processEvents()
-    gc.collect()
-    QApplication.processEvents()
-    messages = [r.message for r in qtlog.records]
-    assert not any("QThread" in m and "Destroyed" in m for m in messages), messages
+    _assert_no_thread_destroyed_warning(qtlog)
 
 
 def test_settings_are_saved_on_close(qtbot, ctx, sim_rig):
@@ -151,11 +149,7 @@ def test_closing_while_calibrating_ends_without_thread_warnings(qtbot, ctx, tmp_
     assert not worker.isRunning()
     w.deleteLater()
     del w
-    QApplication.processEvents()
-    gc.collect()
-    QApplication.processEvents()
-    messages = [r.message for r in qtlog.records]
-    assert not any("QThread" in m and "Destroyed" in m for m in messages), messages
+    _assert_no_thread_destroyed_warning(qtlog)
 
 
 def test_export_and_import_ros_camera_info(qtbot, ctx, window, sim_rig, tmp_path):

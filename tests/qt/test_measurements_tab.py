@@ -8,7 +8,6 @@ import pytest
 from openpyxl import load_workbook
 
 from stereo_gui.files.spreadsheet import MeasurementRecord, read_csv
-from stereo_gui.qt.context import AppContext
 from stereo_gui.qt.measurements_tab import TRUE_COL, MeasurementsTab
 
 F_PX, B_MM = 750.0, 110.0
@@ -24,18 +23,8 @@ def _record(d: float, valid: bool = True) -> MeasurementRecord:
 
 
 @pytest.fixture
-def ctx(qtbot):
-    c = AppContext()
-    yield c
-    assert c.shutdown(2000)
-
-
-@pytest.fixture
-def tab(qtbot, ctx):
-    t = MeasurementsTab(ctx)
-    qtbot.addWidget(t)
-    yield t
-    assert t.shutdown(2000)
+def tab(make_tab):
+    return make_tab(MeasurementsTab)
 
 
 DISPARITIES = [20.0, 30.0, 41.0, 55.0, 70.0, 90.0]

@@ -4,19 +4,8 @@ the frame that was measured live, measure the same point: the same distance."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
-from stereo_gui.qt.main_window import MainWindow
 from stereo_gui.qt.source_dialog import SourceChoice
-
-
-@pytest.fixture
-def window(qtbot, ctx):
-    w = MainWindow(ctx)
-    qtbot.addWidget(w)
-    w.resize(1280, 860)
-    w.show()
-    return w
 
 
 def test_record_play_back_step_and_measure_the_same_distance(qtbot, ctx, window, sim_rig,
@@ -24,6 +13,7 @@ def test_record_play_back_step_and_measure_the_same_distance(qtbot, ctx, window,
     from stereo_gui.files.recording import open_recording
     from stereo_gui.sources.sim import SimSource
 
+    window.resize(1280, 860)
     live = window.live_tab
     ctx.set_calibration(sim_rig.true_calibration(), None, note="simulated rig's TRUE calibration")
     window.show_tab("live")

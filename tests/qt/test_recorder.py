@@ -8,19 +8,9 @@ import errno
 import threading
 
 import numpy as np
-import pytest
 
 from stereo_gui.files.recording import open_recording
-from stereo_gui.qt.live_tab import RECORD_TEXT, LiveTab
-
-
-@pytest.fixture
-def live(qtbot, ctx):
-    tab = LiveTab(ctx)
-    qtbot.addWidget(tab)
-    tab.show()
-    tab.set_active(True)
-    return tab
+from stereo_gui.qt.live_tab import RECORD_TEXT
 
 
 def _pair():
