@@ -163,6 +163,21 @@ def main(argv: list[str]) -> int:
     panel.save(str(out_dir / "guide-parameters.png"), "PNG")
     print(out_dir / "guide-parameters.png")
 
+    # 6b. export the frame shown (all four depth files), then record two seconds of the stream
+    exports = work / "frame-export"
+    exports.mkdir()
+    live.export_frame(exports)
+    wait_for("the frame export", lambda: len(list(exports.iterdir())) >= 4, 60)
+    print("exported", sorted(p.name for p in exports.iterdir()))
+    live.pause_button.setChecked(False)
+    recording = work / "recording"
+    live.start_recording(recording)
+    pump(2.5)
+    ctx.recorder.stop_recording()
+    wait_for("the recording to close", lambda: not ctx.recorder.is_recording, 30)
+    pump(1.0)
+    print("recorded", recording, len(list(recording.glob("*"))), "files")
+
     # 7. regression: a flat target at known distances (the simulated walls, played back as
     #    recorded folders), two readings on each, the true distance typed into the log
     from stereo_gui.qt.measurements_tab import TRUE_COL
@@ -192,6 +207,15 @@ def main(argv: list[str]) -> int:
             wait_for("a reading", lambda: len(ctx.measurements) > n, 20)
             index = table.model.index(len(ctx.measurements) - 1, TRUE_COL)
             table.model.setData(index, f"{scene['distance_mm']:g}")
+    # the recording made above, played back as a source: the playback bar appears
+    window.show_tab("live")
+    live.clear_markers()
+    window.open_source(SourceChoice(str(recording), (640, 480), False))
+    wait_for("the recording as source", lambda: not window.is_opening_source())
+    shown = live.frames_shown
+    wait_for("frames of the recording", lambda: live.frames_shown > shown + 20)
+    pump(0.5)
+    shot("playback")
     window.show_tab("measurements")
     table.use_model("inverse")
     pump(1.5)
@@ -200,15 +224,6 @@ def main(argv: list[str]) -> int:
         ok = table.export_xlsx(path) if path.suffix == ".xlsx" else table.export_csv(path)
         wait_for(f"the export {path.name}", lambda: path.exists(), 30)
         print(f"exported {path} ({ok}, {len(ctx.measurements) - table_start} new readings)")
-
-    # 8. Help > About
-    from stereo_gui.qt.about import show_about
-
-    about = show_about(window)
-    about.move(300, 200)
-    pump(0.5)
-    shot("about", about)
-    about.close()
 
     window.close()
     pump(0.5)
