@@ -102,3 +102,25 @@ def test_bad_input_is_one_line_without_traceback(bundle, tmp_path):
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     assert proc.stderr.strip().splitlines()[-1].startswith("stereo-gui: error:")
+
+
+def test_simulate_calibrate_measure_in_the_bundle(bundle, tmp_path):
+    # the technician's headless chain, run by the bundled executable: a wall 1 m away measures 1 m
+    import json
+
+    env = {"STEREO_GUI_CONFIG_DIR": str(tmp_path / "config")}
+    sim = tmp_path / "sim"
+    proc = _run([str(bundle), "simulate", str(sim), "--pairs", "8", "--scene"], env)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    calib = tmp_path / "calib.yaml"
+    proc = _run([str(bundle), "calibrate", str(sim), "-o", str(calib), "--json"], env)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert json.loads(proc.stdout)["pairs_used"] == 8
+    wall = next(s for s in json.loads((sim / "truth.json").read_text())["scenes"]
+                if s.get("distance_mm") == 1000.0 and s["name"].startswith("wall"))
+    proc = _run([str(bundle), "measure", "--calib", str(calib), str(sim / wall["left"]),
+                 str(sim / wall["right"]), "--at", "320,240", "--json"], env)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    point = json.loads(proc.stdout)["points"][0]
+    assert point["valid"]
+    assert abs(point["Z_mm"] - 1000.0) < 10.0
