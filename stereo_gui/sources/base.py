@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
@@ -43,3 +44,23 @@ class FrameSource(Protocol):
     def read(self) -> StereoFrame: ...
 
     def close(self) -> None: ...
+
+
+class FramePacer:
+    """Spaces reads 1/fps seconds apart like a camera's frame clock, for sources that could
+    deliver faster (a file, the simulated rig). After a stall it catches up for at most half a
+    second's worth of frames instead of bursting through the whole backlog."""
+
+    MAX_LAG_S = 0.5
+
+    def __init__(self) -> None:
+        self._next_t: float | None = None  # when the next frame is due, time.monotonic() s
+
+    def wait(self, fps: float) -> None:
+        """Sleep until the next frame is due at `fps` frames per second."""
+        now = time.monotonic()
+        if self._next_t is None:
+            self._next_t = now
+        elif now < self._next_t:
+            time.sleep(self._next_t - now)
+        self._next_t = max(self._next_t + 1.0 / fps, time.monotonic() - self.MAX_LAG_S)

@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.errors import SourceError
-from stereo_gui.sources.base import StereoFrame
+from stereo_gui.sources.base import FramePacer, StereoFrame
 
 log = logging.getLogger(__name__)
 
@@ -203,7 +203,28 @@ def split_side_by_side(frame: np.ndarray, swap: bool = False) -> tuple[np.ndarra
     return (b, a) if swap else (a, b)
 
 
-class SideBySideSource:
+class _SideBySideCapture:
+    """What the sources reading side-by-side frames from one cv2.VideoCapture share."""
+
+    _cap: cv2.VideoCapture | None
+    _index: int
+    _closed: bool
+    swap: bool
+
+    def _stereo_frame(self, frame: np.ndarray, t: float) -> StereoFrame:
+        """The next StereoFrame from one side-by-side frame captured at `t` seconds."""
+        left, right = split_side_by_side(_as_bgr(frame), self.swap)
+        out = StereoFrame(left, right, t, t, self._index)
+        self._index += 1
+        return out
+
+    def close(self) -> None:
+        self._closed = True
+        if self._cap is not None:
+            self._cap.release()
+
+
+class SideBySideSource(_SideBySideCapture):
     """One stereo camera that delivers both images side by side in one frame."""
 
     def __init__(self, index: int, size: tuple[int, int] = (1280, 480), swap: bool = False):
@@ -225,19 +246,10 @@ class SideBySideSource:
                 break
         else:
             raise SourceError(f"camera {self.index} stopped delivering frames (unplugged?)")
-        t = time.monotonic()
-        left, right = split_side_by_side(_as_bgr(frame), self.swap)
-        out = StereoFrame(left, right, t, t, self._index)
-        self._index += 1
-        return out
-
-    def close(self) -> None:
-        self._closed = True
-        if self._cap is not None:
-            self._cap.release()
+        return self._stereo_frame(frame, time.monotonic())
 
 
-class VideoFileSource:
+class VideoFileSource(_SideBySideCapture):
     """A side-by-side stereo video file, played at its own frame rate (paced) or as fast as
     frames are read; with `loop` it starts again at the end, else read() raises EndOfSource.
 
@@ -261,7 +273,7 @@ class VideoFileSource:
         self._loops = 0
         self._frame_in_loop = 0
         self._frames_per_loop = 0
-        self._next_t: float | None = None
+        self._pacer = FramePacer()
         self._closed = False
 
     def _next_frame(self) -> np.ndarray:
@@ -285,21 +297,8 @@ class VideoFileSource:
         if self._closed:
             raise SourceError(f"{self.name}: the source was closed")
         if self.paced:
-            now = time.monotonic()
-            if self._next_t is None:
-                self._next_t = now
-            elif now < self._next_t:
-                time.sleep(self._next_t - now)
-            self._next_t = max(self._next_t + 1.0 / self.nominal_fps, time.monotonic() - 0.5)
+            self._pacer.wait(self.nominal_fps)
         frame = self._next_frame()
         t = (self._loops * self._frames_per_loop + self._frame_in_loop) / self.nominal_fps
         self._frame_in_loop += 1
-        left, right = split_side_by_side(_as_bgr(frame), self.swap)
-        out = StereoFrame(left, right, t, t, self._index)
-        self._index += 1
-        return out
-
-    def close(self) -> None:
-        self._closed = True
-        if self._cap is not None:
-            self._cap.release()
+        return self._stereo_frame(frame, t)

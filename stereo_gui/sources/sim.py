@@ -28,7 +28,7 @@ from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.atomic import write_image_atomic, write_text_atomic
-from stereo_gui.sources.base import StereoFrame
+from stereo_gui.sources.base import FramePacer, StereoFrame
 
 log = logging.getLogger(__name__)
 
@@ -893,7 +893,7 @@ class SimSource:
         self._from: BoardPose | None = None
         self._to: BoardPose | None = None
         self._index = 0
-        self._next_t: float | None = None
+        self._pacer = FramePacer()
         self._closed = False
         if self.scene is not None:
             # the first render makes the scene's textures (most of a second); do it here, in
@@ -915,12 +915,7 @@ class SimSource:
         if self._closed:
             raise SourceError("the simulated rig was closed")
         if self.paced:
-            now = time.monotonic()
-            if self._next_t is None:
-                self._next_t = now
-            elif now < self._next_t:
-                time.sleep(self._next_t - now)
-            self._next_t = max(self._next_t + 1.0 / self.nominal_fps, time.monotonic() - 0.5)
+            self._pacer.wait(self.nominal_fps)
         pose = None if self.mode == "scene" else self._pose(self._index)
         t = time.monotonic()
         left, right = self.rig._render(pose, self.scene, self._rng)
