@@ -739,16 +739,7 @@ class CalibrationTab(QWidget):
             self.save_calibration(path)
 
     def save_calibration(self, path: str | Path) -> bool:
-        from stereo_gui.files.calibration_file import save_calibration
-
-        try:
-            save_calibration(self.calibration, path)
-        except (StereoGuiError, OSError) as exc:
-            self.ctx.report_error(f"could not save the calibration: {exc}")
-            return False
-        self.ctx.set_calibration(self.calibration, path)
-        self.ctx.show_status(f"Calibration saved to {path}")
-        return True
+        return self.ctx.save_calibration_file(self.calibration, path)
 
     def _choose_load(self) -> None:
         cp = self.ctx.calibration_path
@@ -759,17 +750,7 @@ class CalibrationTab(QWidget):
             self.load_calibration(path)
 
     def load_calibration(self, path: str | Path) -> bool:
-        from stereo_gui.files.calibration_file import load_calibration
-
-        try:
-            calib = load_calibration(path)
-        except (StereoGuiError, OSError) as exc:
-            self.ctx.report_error(str(exc))
-            return False
-        self.run = None
-        self.ctx.set_calibration(calib, path)
-        self.ctx.show_status(f"Calibration loaded from {path}")
-        return True
+        return self.ctx.open_calibration_file(path)
 
     def _update_buttons(self) -> None:
         running = self.worker is not None

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from PySide6.QtCore import QObject, Signal
 
+from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.qt.frame_worker import FrameWorker, JobRunner
 from stereo_gui.qt.recorder import Recorder
 
@@ -71,6 +72,41 @@ class AppContext(QObject):
         self.calibration_path = Path(path) if path is not None else None
         self.calibration_note = note
         self.calibrationChanged.emit(calib)
+
+    def open_calibration_file(self, path: str | Path) -> bool:
+        """Load the calibration file `path`, use it and remember it for the next start; False
+        (after reporting why) when it cannot be read."""
+        from stereo_gui.files.calibration_file import load_calibration
+
+        try:
+            calib = load_calibration(path)
+        except (StereoGuiError, OSError) as exc:
+            self.report_error(f"Cannot load calibration {path}: {exc}")
+            return False
+        self._use_calibration_file(calib, path)
+        self.show_status(f"Loaded calibration {path}")
+        return True
+
+    def save_calibration_file(self, calib, path: str | Path) -> bool:
+        """Write `calib` to `path`, use it from there and remember it for the next start; False
+        (after reporting why) when it cannot be written."""
+        from stereo_gui.files.calibration_file import save_calibration
+
+        try:
+            save_calibration(calib, path)
+        except (StereoGuiError, OSError) as exc:
+            self.report_error(f"Cannot save calibration {path}: {exc}")
+            return False
+        self._use_calibration_file(calib, path)
+        self.show_status(f"Saved calibration {path}")
+        return True
+
+    def _use_calibration_file(self, calib, path: str | Path) -> None:
+        self.set_calibration(calib, path)
+        if self.settings is not None:
+            self.settings = self.settings.with_recent(str(path)).with_updates(
+                last_calibration=str(Path(path).resolve()))
+            self.settingsChanged.emit(self.settings)
 
     def add_measurement(self, record) -> int:
         """Append a record to the log; return its index."""

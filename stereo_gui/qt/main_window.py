@@ -13,7 +13,6 @@ from pathlib import Path
 from PySide6.QtCore import QByteArray, Qt, QTimer, Signal
 from PySide6.QtGui import QAction, QCloseEvent, QKeySequence
 from PySide6.QtWidgets import (
-    QApplication,
     QFileDialog,
     QHBoxLayout,
     QLabel,
@@ -346,17 +345,7 @@ class MainWindow(QMainWindow):
                                                   CALIB_FILTER)
             if not path:
                 return False
-        from stereo_gui.files.calibration_file import load_calibration
-
-        try:
-            calib = load_calibration(path)
-        except (StereoGuiError, OSError) as exc:
-            self.ctx.report_error(f"Cannot load calibration {path}: {exc}")
-            return False
-        self.ctx.set_calibration(calib, path)
-        self._remember_calibration(path)
-        self.statusBar().showMessage(f"Loaded calibration {path}", 8000)
-        return True
+        return self.ctx.open_calibration_file(path)
 
     def save_calibration(self, path: str | None = None) -> bool:
         """Save the current calibration (asks where without `path`); True when written."""
@@ -369,17 +358,7 @@ class MainWindow(QMainWindow):
             path, _ = QFileDialog.getSaveFileName(self, "Save calibration", start, CALIB_FILTER)
             if not path:
                 return False
-        from stereo_gui.files.calibration_file import save_calibration
-
-        try:
-            save_calibration(calib, path)
-        except (StereoGuiError, OSError) as exc:
-            self.ctx.report_error(f"Cannot save calibration {path}: {exc}")
-            return False
-        self.ctx.set_calibration(calib, path)
-        self._remember_calibration(path)
-        self.statusBar().showMessage(f"Saved calibration {path}", 8000)
-        return True
+        return self.ctx.save_calibration_file(calib, path)
 
     def export_ros(self, folder: str | None = None) -> tuple[Path, Path] | None:
         """Write the calibration as ROS camera_info left.yaml and right.yaml into `folder`
@@ -433,11 +412,6 @@ class MainWindow(QMainWindow):
             f"{calib.width}x{calib.height} px (save it with File > Save calibration as…)", 10000)
         return True
 
-    def _remember_calibration(self, path) -> None:
-        s = self.ctx.settings
-        if s is not None:
-            self.ctx.settings = s.with_recent(str(path)).with_updates(
-                last_calibration=str(Path(path).resolve()))
 
     # ---- messages ----------------------------------------------------------------------------
     def show_error(self, text: str) -> None:

@@ -133,6 +133,8 @@ def test_save_and_load_calibration_file(tab, ctx, qtbot, session_folder, tmp_pat
     path = tmp_path / "calib.yaml"
     assert tab.save_calibration(path) and path.exists()
     assert ctx.calibration_path == path and "calib.yaml" in tab.source_label.text()
+    # the file saved here is the one loaded at the next start, as from the File menu
+    assert ctx.settings.last_calibration == str(path.resolve())
     ctx.set_calibration(None)
     assert tab.rms_stereo_label.text() == "—" and tab.chart.bar_count() == 0
     assert tab.load_calibration(path)
