@@ -101,7 +101,7 @@ COLUMNS: tuple[tuple[str, str, str, int], ...] = (
     ("range_mm", "Range (mm)", "0.0", 11),
     ("valid", "Valid", "General", 7),
     ("reason", "Reason", "@", 18),
-    ("valid_fraction", "Valid fraction (%)", "0.0%", 11),
+    ("valid_fraction", "Valid fraction", "0.0%", 11),  # 0..1; Excel shows it as a percentage
     ("expected_error_mm", "Expected error (mm)", "0.0", 11),
     ("method", "Method", "@", 14),
     ("true_mm", "True distance (mm)", "0.0", 13),

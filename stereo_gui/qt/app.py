@@ -120,6 +120,10 @@ def run_app(source: str | None = None, calib: str | None = None) -> int:
     app = QApplication.instance() or QApplication(sys.argv[:1])
     app.setApplicationName("Stereo GUI")
     app.setOrganizationName("stereo-gui")
+    app.setDesktopFileName("stereo-gui")  # matches resources/stereo-gui.desktop
+    from stereo_gui.qt.about import application_icon
+
+    app.setWindowIcon(application_icon())
     ctx, window = build_window(source, calib)
     window.show()
     if quit_after is not None:

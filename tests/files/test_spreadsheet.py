@@ -114,7 +114,7 @@ def test_measurements_sheet_holds_what_was_written(tmp_path):
     # number formats and units
     col = header.index("Z (mm)") + 1
     assert ws.cell(row=2, column=col).number_format == "0.0"
-    col = header.index("Valid fraction (%)") + 1
+    col = header.index("Valid fraction") + 1
     assert ws.cell(row=2, column=col).number_format == "0.0%"
     assert wb.properties.keywords == ss.WORKBOOK_KEYWORDS
 
