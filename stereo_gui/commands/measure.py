@@ -42,7 +42,7 @@ def measure_all(args) -> tuple[object, list[Measurement]]:
         raise InputError(f"--patch must be at least 1, not {args.patch}")
     fit = None
     if args.model:
-        from stereo_gui.core.regression import load_fit
+        from stereo_gui.files.fit_file import load_fit
 
         fit = load_fit(args.model)
     calib, result = run_pipeline(args)

@@ -11,10 +11,8 @@ Samples are (disparity px, true distance mm). Two models:
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -154,7 +152,7 @@ def report_cubic() -> FitResult:
     return FitResult("cubic", coef, float("nan"), (), (), note="the student report's formula")
 
 
-# ---- files ---------------------------------------------------------------------------------
+# ---- to and from JSON documents (files.fit_file reads and writes the files) ----------------------
 def fit_to_dict(f: FitResult) -> dict:
     doc = {"format_version": FORMAT_VERSION, "model": f.model,
            "coefficients": list(f.coefficients), "r2": f.r2 if math.isfinite(f.r2) else None,
@@ -165,42 +163,8 @@ def fit_to_dict(f: FitResult) -> dict:
     return doc
 
 
-def save_fit(f: FitResult, path) -> Path:
-    """Write the fit as JSON, atomically (temporary file in the same folder, then rename)."""
-    import os
-    import tempfile
-
-    path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise InputError(f"cannot write {path}: folder {folder} does not exist")
-    text = json.dumps(fit_to_dict(f), indent=2) + "\n"
-    # core/ sits below files/ in the layers, so it cannot use files.atomic; same technique
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8") as fh:
-                fh.write(text)
-                fh.flush()
-                os.fsync(fh.fileno())
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-    except OSError as exc:
-        raise InputError(f"cannot write {path}: {exc.strerror or exc}") from exc
-    return path
-
-
-def load_fit(path) -> FitResult:
-    """Read a fit saved by save_fit; any problem raises InputError naming the file."""
-    path = Path(path)
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise InputError(f"cannot read fit {path}: {exc.strerror or exc}") from exc
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(f"fit file {path} is not valid JSON: {exc}") from exc
+def fit_from_dict(doc, where: str) -> FitResult:
+    """The fit `doc` describes (as made by fit_to_dict); InputError naming `where` if unusable."""
     try:
         if not isinstance(doc, dict):
             raise ValueError("not a JSON object")
@@ -222,4 +186,4 @@ def load_fit(path) -> FitResult:
                          float(norm.get("offset_px", REPORT_MIN_DISP)),
                          float(norm.get("span_px", REPORT_NUM_DISP)))
     except (KeyError, TypeError, ValueError) as exc:
-        raise InputError(f"fit file {path} is not usable: {exc}") from exc
+        raise InputError(f"{where} is not usable: {exc}") from exc

@@ -16,6 +16,7 @@ from pathlib import Path
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import MatcherParams
 from stereo_gui.files.atomic import write_text_atomic
+from stereo_gui.files.json_file import read_json_object
 from stereo_gui.resources import resource_path
 
 log = logging.getLogger(__name__)
@@ -37,13 +38,8 @@ def user_preset_dir() -> Path:
 
 
 def _read(path: Path) -> MatcherParams:
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise InputError(f"cannot read preset {path}: {exc.strerror or exc}") from exc
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(f"preset {path} is not valid JSON: {exc}") from exc
-    if not isinstance(data, dict) or not isinstance(data.get("params"), dict):
+    data = read_json_object(path, "preset")
+    if not isinstance(data.get("params"), dict):
         raise InputError(f"preset {path} has no \"params\" object")
     version = data.get("format_version", FORMAT_VERSION)
     if not isinstance(version, int) or version > FORMAT_VERSION:

@@ -38,6 +38,7 @@ import numpy as np
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.files.atomic import write_bytes_atomic, write_text_atomic
+from stereo_gui.files.json_file import read_json_object
 
 log = logging.getLogger(__name__)
 
@@ -321,11 +322,8 @@ def open_recording(folder: str | os.PathLike) -> Recording:
     hpath = folder / HEADER
     if not hpath.is_file():
         raise InputError(f"{folder} is not a recording (no {HEADER})")
-    try:
-        header = json.loads(hpath.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise InputError(f"{hpath} is unreadable: {exc}") from exc
-    if not isinstance(header, dict) or header.get("kind") != KIND:
+    header = read_json_object(hpath, "recording header")
+    if header.get("kind") != KIND:
         raise InputError(f"{hpath} is not a stereo-gui recording header")
     version = header.get("format_version")
     if not isinstance(version, int) or version > FORMAT_VERSION:

@@ -459,7 +459,7 @@ class MeasurementsTab(QWidget):
             self.save_fit(fit, path)
 
     def save_fit(self, fit, path) -> bool:
-        from stereo_gui.core.regression import save_fit
+        from stereo_gui.files.fit_file import save_fit
 
         try:
             save_fit(fit, path)
@@ -478,7 +478,7 @@ class MeasurementsTab(QWidget):
 
     def load_fit(self, path) -> bool:
         """Load a saved fit and make live readings use it."""
-        from stereo_gui.core.regression import load_fit
+        from stereo_gui.files.fit_file import load_fit
 
         try:
             fit = load_fit(path)

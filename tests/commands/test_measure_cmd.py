@@ -48,7 +48,8 @@ def test_measure_json(pair, capsys):
 
 
 def test_measure_text_with_preset_patch_mode_and_model(pair, capsys, tmp_path):
-    from stereo_gui.core.regression import fit_inverse, save_fit
+    from stereo_gui.core.regression import fit_inverse
+    from stereo_gui.files.fit_file import save_fit
 
     d, rig, scene, calib = pair
     fb = calib.focal_px * calib.rectified_baseline_mm

@@ -1,4 +1,4 @@
-"""Distance-from-disparity fits: the report's cubic, the inverse model, R^2, residuals, files."""
+"""Distance-from-disparity fits: the report's cubic, the inverse model, R^2, residuals."""
 
 import json
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.regression import (FitResult, fit, fit_cubic, fit_inverse, load_fit,
-                                        report_cubic, save_fit)
+from stereo_gui.core.regression import (FitResult, fit, fit_cubic, fit_from_dict, fit_inverse,
+                                        fit_to_dict, report_cubic)
 
 A, D0 = 82500.0, 0.3  # px mm, px
 
@@ -76,42 +76,14 @@ def test_too_few_or_bad_samples():
         fit("quartic", inverse_samples())
 
 
-def test_save_and_load_round_trip(tmp_path):
+def test_dict_round_trip_and_errors_name_the_place():
     for f in (fit_inverse(inverse_samples(1.0)), fit_cubic(inverse_samples(1.0))):
-        path = save_fit(f, tmp_path / f"{f.model}.json")
-        g = load_fit(path)
+        g = fit_from_dict(json.loads(json.dumps(fit_to_dict(f))), where="x")
         assert isinstance(g, FitResult)
         assert (g.model, g.coefficients, g.samples) == (f.model, f.coefficients, f.samples)
         assert g.r2 == pytest.approx(f.r2) and g.residuals_mm == pytest.approx(f.residuals_mm)
         assert g.predict(50.0) == pytest.approx(f.predict(50.0))
-        assert json.loads(path.read_text())["formula"] == f.formula()
-    assert not list(tmp_path.glob(".*"))  # no temporary files left
-
-
-def test_load_errors_name_the_file(tmp_path):
-    bad = tmp_path / "bad.json"
-    bad.write_text("{not json")
-    with pytest.raises(InputError, match="bad.json"):
-        load_fit(bad)
-    bad.write_text(json.dumps({"model": "inverse", "coefficients": [1.0]}))
-    with pytest.raises(InputError, match="coefficients"):
-        load_fit(bad)
-    with pytest.raises(InputError, match="missing.json"):
-        load_fit(tmp_path / "missing.json")
-    with pytest.raises(InputError, match="does not exist"):
-        save_fit(fit_inverse(inverse_samples()), tmp_path / "no" / "x.json")
-
-
-def test_failed_save_keeps_the_old_file(tmp_path, monkeypatch):
-    path = save_fit(fit_inverse(inverse_samples()), tmp_path / "fit.json")
-    before = path.read_text()
-    import os
-
-    def boom(*a, **k):
-        raise OSError(28, "No space left on device")
-
-    monkeypatch.setattr(os, "replace", boom)
-    with pytest.raises(InputError, match="No space"):
-        save_fit(fit_cubic(inverse_samples()), path)
-    assert path.read_text() == before
-    assert [p.name for p in tmp_path.iterdir()] == ["fit.json"]
+    with pytest.raises(InputError, match="fit file a.json is not usable: .*coefficients"):
+        fit_from_dict({"model": "inverse", "coefficients": [1.0]}, where="fit file a.json")
+    with pytest.raises(InputError, match="newer"):
+        fit_from_dict({**fit_to_dict(fit_inverse(inverse_samples())), "format_version": 99}, "x")

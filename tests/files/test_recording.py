@@ -157,3 +157,6 @@ def test_open_recording_refuses_other_folders(tmp_path):
     (tmp_path / "recording.json").write_text('{"kind": "something else"}')
     with pytest.raises(InputError, match="not a stereo-gui recording"):
         open_recording(tmp_path)
+    (tmp_path / "recording.json").write_text("[1, 2]")
+    with pytest.raises(InputError, match="recording.json does not hold a JSON object"):
+        open_recording(tmp_path)

@@ -1,0 +1,21 @@
+"""Saved distance fits (core.regression.FitResult) as JSON files."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+from stereo_gui.core.regression import FitResult, fit_from_dict, fit_to_dict
+from stereo_gui.files.atomic import write_text_atomic
+from stereo_gui.files.json_file import read_json_object
+
+
+def save_fit(fit: FitResult, path: str | os.PathLike) -> Path:
+    """Write the fit as JSON (atomically); returns the path."""
+    return write_text_atomic(path, json.dumps(fit_to_dict(fit), indent=2) + "\n")
+
+
+def load_fit(path: str | os.PathLike) -> FitResult:
+    """Read a fit saved by save_fit; any problem raises InputError naming the file."""
+    return fit_from_dict(read_json_object(path, "fit file"), where=f"fit file {path}")
