@@ -8,7 +8,7 @@ from pathlib import Path
 
 from stereo_gui.core.regression import FitResult, fit_from_dict, fit_to_dict
 from stereo_gui.files.atomic import write_text_atomic
-from stereo_gui.files.json_file import read_json_object
+from stereo_gui.files.readers import read_json_object
 
 
 def save_fit(fit: FitResult, path: str | os.PathLike) -> Path:

@@ -16,7 +16,7 @@ from pathlib import Path
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import MatcherParams
 from stereo_gui.files.atomic import write_text_atomic
-from stereo_gui.files.json_file import read_json_object
+from stereo_gui.files.readers import read_json_object
 from stereo_gui.resources import resource_path
 
 log = logging.getLogger(__name__)

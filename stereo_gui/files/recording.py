@@ -38,7 +38,7 @@ import numpy as np
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.files.atomic import write_bytes_atomic, write_text_atomic
-from stereo_gui.files.json_file import read_json_object
+from stereo_gui.files.readers import read_csv_rows, read_json_object
 
 log = logging.getLogger(__name__)
 
@@ -332,14 +332,8 @@ def open_recording(folder: str | os.PathLike) -> Recording:
     warnings: list[str] = []
     frames: list[RecordedFrame] = []
     fpath = folder / FRAMES
-    try:
-        with open(fpath, newline="", encoding="utf-8") as fh:
-            rows = list(csv.reader(fh))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read {fpath}: {exc}") from exc
-    if not rows or tuple(rows[0]) != FRAME_COLUMNS:
-        raise InputError(f"{fpath} does not start with the columns {', '.join(FRAME_COLUMNS)}")
-    for line, row in enumerate(rows[1:], start=2):
+    rows = read_csv_rows(fpath, FRAME_COLUMNS, "a recording's frame list")
+    for line, row in enumerate(rows, start=2):
         try:
             idx, tl, tr = int(row[0]), float(row[1]), float(row[2])
             lrel, rrel = row[3], row[4]

@@ -32,6 +32,7 @@ import numpy as np
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.files.atomic import atomic_path, write_text_atomic
+from stereo_gui.files.readers import read_csv_rows
 
 if TYPE_CHECKING:  # only for annotations: the regression module is imported where used
     from stereo_gui.core.stereo_calibration import StereoCalibration
@@ -526,12 +527,5 @@ def write_csv(path: str | os.PathLike, records: Iterable[MeasurementRecord]) -> 
 
 def read_csv(path: str | os.PathLike) -> list[MeasurementRecord]:
     """Read a CSV file written by `write_csv`."""
-    path = Path(path)
-    try:
-        with open(path, newline="", encoding="utf-8") as fh:
-            rows = list(csv.reader(fh))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read {path}: {exc}") from exc
-    if not rows or tuple(rows[0]) != HEADERS:
-        raise InputError(f"{path} is not a measurement CSV of stereo-gui (unexpected header)")
-    return [_record_from_row(r, f"{path}, line {i}") for i, r in enumerate(rows[1:], start=2) if r]
+    rows = read_csv_rows(path, HEADERS, "a measurement CSV of stereo-gui")
+    return [_record_from_row(r, f"{path}, line {i}") for i, r in enumerate(rows, start=2) if r]
