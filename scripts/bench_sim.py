@@ -14,6 +14,7 @@ import time
 import cv2
 import numpy as np
 
+from stereo_gui.core.detect import detect_board
 from stereo_gui.sources.sim import RigConfig, Scene, SimRig, SimSource
 
 
@@ -26,12 +27,8 @@ def _ms(fn, n: int) -> float:
 
 
 def _detect(img, board):
-    gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
-    ok, c = cv2.findChessboardCorners(gray, board.pattern_size)
-    if not ok:
-        return None
-    crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 50, 1e-4)
-    return cv2.cornerSubPix(gray, c, (5, 5), (-1, -1), crit).reshape(-1, 2)
+    found = detect_board(img, board)  # the application's detector
+    return None if found is None else found.corners
 
 
 def main() -> None:

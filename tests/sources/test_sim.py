@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.detect import detect_board
 from stereo_gui.core.errors import InputError, SourceError
 from stereo_gui.sources.base import FrameSource
 from stereo_gui.sources.sim import (
@@ -23,12 +24,9 @@ def rig() -> SimRig:
 
 
 def _detect(img: np.ndarray, board: BoardSpec) -> np.ndarray | None:
-    gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
-    ok, corners = cv2.findChessboardCorners(gray, board.pattern_size)
-    if not ok:
-        return None
-    crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 50, 1e-4)
-    return cv2.cornerSubPix(gray, corners, (5, 5), (-1, -1), crit).reshape(-1, 2)
+    """(N, 2) corners found by the application's own detector, or None."""
+    found = detect_board(img, board)
+    return None if found is None else found.corners
 
 
 def _match_order(found: np.ndarray, truth: np.ndarray) -> np.ndarray:
