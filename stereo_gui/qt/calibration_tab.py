@@ -45,6 +45,7 @@ from stereo_gui.core.detect import PairDetection, PairInput, detect_pairs
 from stereo_gui.core.errors import InputError, StereoGuiError
 from stereo_gui.core.stereo_calibration import RectifyMaps, StereoCalibration
 from stereo_gui.qt.calibration_worker import JobControl, JobWorker, Progress
+from stereo_gui.qt.widgets import pane, wrapping_label
 
 log = logging.getLogger(__name__)
 
@@ -344,21 +345,17 @@ class CalibrationTab(QWidget):
         root.addWidget(split, 1)
 
         # left: figures and matrices
-        left = QWidget()
-        ll = QVBoxLayout(left)
-        ll.setContentsMargins(0, 0, 0, 0)
+        left, ll = pane()
         figures = QGroupBox("Result")
         form = QFormLayout(figures)
-        self.source_label = QLabel("")
-        self.source_label.setWordWrap(True)
+        self.source_label = wrapping_label()
         self.rms_left_label = QLabel()
         self.rms_right_label = QLabel()
         self.rms_stereo_label = QLabel()
         self.epipolar_label = QLabel()
         self.baseline_label = QLabel()
         self.rotation_label = QLabel()
-        self.pairs_label = QLabel()
-        self.pairs_label.setWordWrap(True)
+        self.pairs_label = wrapping_label()
         form.addRow("Calibration:", self.source_label)
         form.addRow("RMS left camera:", self.rms_left_label)
         form.addRow("RMS right camera:", self.rms_right_label)
@@ -367,8 +364,7 @@ class CalibrationTab(QWidget):
         form.addRow("Baseline:", self.baseline_label)
         form.addRow("Rotation between cameras:", self.rotation_label)
         form.addRow("Pairs:", self.pairs_label)
-        self.note_label = QLabel("")
-        self.note_label.setWordWrap(True)
+        self.note_label = wrapping_label()
         self.note_label.setStyleSheet("color: #b03a2e; font-weight: bold")
         form.addRow(self.note_label)
         ll.addWidget(figures)
@@ -399,9 +395,7 @@ class CalibrationTab(QWidget):
 
         # right: chart and rectification check
         right = QSplitter(Qt.Orientation.Vertical)
-        chart_box = QWidget()
-        cl = QVBoxLayout(chart_box)
-        cl.setContentsMargins(0, 0, 0, 0)
+        chart_box, cl = pane()
         self.chart = ErrorBarChart()
         self.chart.pairClicked.connect(self.select_pair)
         cl.addWidget(self.chart, 1)

@@ -31,7 +31,6 @@ from PySide6.QtWidgets import (
     QPushButton,
     QSpinBox,
     QSplitter,
-    QVBoxLayout,
     QWidget,
 )
 
@@ -50,6 +49,7 @@ from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.util import to_gray
 from stereo_gui.qt.calibration_worker import JobWorker, Progress
 from stereo_gui.qt.coverage_widget import CoverageWidget
+from stereo_gui.qt.widgets import pane, wrapping_label
 from stereo_gui.sources.base import StereoFrame
 
 log = logging.getLogger(__name__)
@@ -243,9 +243,7 @@ class CaptureTab(QWidget):
         split = QSplitter(Qt.Orientation.Horizontal)
         root.addWidget(split)
 
-        main = QWidget()
-        ml = QVBoxLayout(main)
-        ml.setContentsMargins(0, 0, 0, 0)
+        main, ml = pane()
 
         bar = QHBoxLayout()
         self.new_button = QPushButton("New session…")
@@ -297,8 +295,7 @@ class CaptureTab(QWidget):
         ml.addWidget(self.view, 1)
 
         review = QHBoxLayout()
-        self.prompt = QLabel("")
-        self.prompt.setWordWrap(True)
+        self.prompt = wrapping_label()
         f = self.prompt.font()
         f.setPointSize(f.pointSize() + 2)
         self.prompt.setFont(f)
@@ -317,9 +314,7 @@ class CaptureTab(QWidget):
         ml.addLayout(review)
         split.addWidget(main)
 
-        side = QWidget()
-        sl = QVBoxLayout(side)
-        sl.setContentsMargins(0, 0, 0, 0)
+        side, sl = pane()
         self.coverage = CoverageWidget()
         sl.addWidget(self.coverage)
         self.pairs_label = QLabel("Saved pairs")

@@ -20,7 +20,6 @@ from PySide6.QtWidgets import (
     QMessageBox,
     QTabWidget,
     QToolButton,
-    QVBoxLayout,
     QWidget,
 )
 
@@ -29,6 +28,7 @@ from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.qt.context import AppContext
 from stereo_gui.qt.frame_worker import JobRunner
 from stereo_gui.qt.source_dialog import SourceChoice, SourceDialog, describe_spec
+from stereo_gui.qt.widgets import pane
 
 log = logging.getLogger(__name__)
 
@@ -128,9 +128,7 @@ class MainWindow(QMainWindow):
         self.live_tab.calibrateRequested.connect(lambda: self.show_tab("calibration"))
         self.live_tab.loadCalibrationRequested.connect(self.open_calibration)
 
-        central = QWidget()
-        col = QVBoxLayout(central)
-        col.setContentsMargins(0, 0, 0, 0)
+        central, col = pane()
         col.setSpacing(0)
         col.addWidget(self.banner)
         col.addWidget(self.error_bar)

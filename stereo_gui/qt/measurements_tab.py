@@ -36,6 +36,7 @@ from PySide6.QtWidgets import (
 
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.qt.calibration_worker import JobWorker, Progress
+from stereo_gui.qt.widgets import pane, wrapping_label
 
 log = logging.getLogger(__name__)
 
@@ -262,9 +263,7 @@ class MeasurementsTab(QWidget):
         split = QSplitter(Qt.Orientation.Horizontal)
         root.addWidget(split, 1)
 
-        left = QWidget()
-        ll = QVBoxLayout(left)
-        ll.setContentsMargins(0, 0, 0, 0)
+        left, ll = pane()
         self.count_label = QLabel("")
         ll.addWidget(self.count_label)
         self.model = MeasurementModel(self.ctx, self)
@@ -297,18 +296,14 @@ class MeasurementsTab(QWidget):
         ll.addLayout(row)
         split.addWidget(left)
 
-        right = QWidget()
-        rl = QVBoxLayout(right)
-        rl.setContentsMargins(0, 0, 0, 0)
+        right, rl = pane()
         box = QGroupBox("Regression: true distance against disparity")
         bl = QVBoxLayout(box)
-        self.sample_label = QLabel("")
-        self.sample_label.setWordWrap(True)
+        self.sample_label = wrapping_label()
         bl.addWidget(self.sample_label)
         self.r2_labels: dict[str, QLabel] = {}
         for m in MODELS:
-            lab = QLabel("")
-            lab.setWordWrap(True)
+            lab = wrapping_label()
             lab.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
             lab.setStyleSheet(f"color: {_LABEL_COLOURS[m]}")
             self.r2_labels[m] = lab
