@@ -25,8 +25,12 @@ from PySide6.QtWidgets import (
 
 from stereo_gui import __version__
 from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.qt.calibration_tab import CalibrationTab
+from stereo_gui.qt.capture_tab import CaptureTab
 from stereo_gui.qt.context import AppContext
 from stereo_gui.qt.frame_worker import JobRunner
+from stereo_gui.qt.live_tab import LiveTab
+from stereo_gui.qt.measurements_tab import MeasurementsTab
 from stereo_gui.qt.source_dialog import SourceChoice, SourceDialog, describe_spec
 from stereo_gui.qt.widgets import pane
 
@@ -115,12 +119,10 @@ class MainWindow(QMainWindow):
 
         self.tabs = QTabWidget()
         self.tabs.setDocumentMode(True)
-        self.capture_tab = self._make_tab("stereo_gui.qt.capture_tab", "CaptureTab")
-        self.calibration_tab = self._make_tab("stereo_gui.qt.calibration_tab", "CalibrationTab")
-        from stereo_gui.qt.live_tab import LiveTab
-
+        self.capture_tab = CaptureTab(ctx)
+        self.calibration_tab = CalibrationTab(ctx)
         self.live_tab = LiveTab(ctx)
-        self.measurements_tab = self._make_tab("stereo_gui.qt.measurements_tab", "MeasurementsTab")
+        self.measurements_tab = MeasurementsTab(ctx)
         for name, tab in zip(TAB_NAMES, (self.capture_tab, self.calibration_tab, self.live_tab,
                                          self.measurements_tab), strict=True):
             self.tabs.addTab(tab, name.capitalize())
@@ -154,18 +156,6 @@ class MainWindow(QMainWindow):
         self._tab_changed(self.tabs.currentIndex())
 
     # ---- construction ------------------------------------------------------------------------
-    def _make_tab(self, module: str, cls: str) -> QWidget:
-        """Build a tab of the other GUI modules; a tab that fails to build shows why instead."""
-        import importlib
-
-        try:
-            return getattr(importlib.import_module(module), cls)(self.ctx)
-        except Exception as exc:  # noqa: BLE001 - one broken tab must not stop the application
-            log.exception("building %s failed", cls)
-            label = QLabel(f"This tab could not be built: {exc}")
-            label.setAlignment(Qt.AlignmentFlag.AlignCenter)
-            return label
-
     def _build_menus(self) -> None:
         file_menu = self.menuBar().addMenu("&File")
         self.act_source = QAction("Choose &source…", self)
