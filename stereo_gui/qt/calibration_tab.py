@@ -271,15 +271,12 @@ class CalibrationTab(QWidget):
         self.selected_pair: str | None = None
         self._build()
         s = ctx.settings
-        if s is not None:
-            self.baseline_spin.setValue(float(s.nominal_baseline_mm))
-            if s.last_session:
-                self.folder_edit.setText(str(s.last_session))
+        self.baseline_spin.setValue(float(s.nominal_baseline_mm))
+        if s.last_session:
+            self.folder_edit.setText(str(s.last_session))
         ctx.calibrationChanged.connect(self._calibration_changed)
-        if hasattr(ctx, "settingsChanged"):
-            ctx.settingsChanged.connect(self._settings_changed)
-        if hasattr(ctx, "currentTabChanged"):
-            ctx.currentTabChanged.connect(lambda name: self.set_active(name == "calibration"))
+        ctx.settingsChanged.connect(self._settings_changed)
+        ctx.currentTabChanged.connect(lambda name: self.set_active(name == "calibration"))
         if ctx.calibration is not None:
             self._calibration_changed(ctx.calibration)
         else:
@@ -421,12 +418,12 @@ class CalibrationTab(QWidget):
     # ---- settings ------------------------------------------------------------------------------
     def _settings_changed(self, s) -> None:
         # follow the capture tab's session unless a calibration is running
-        if s is not None and s.last_session and self.worker is None \
+        if s.last_session and self.worker is None \
                 and self.folder_edit.text() != str(s.last_session):
             self.folder_edit.setText(str(s.last_session))
 
     def _baseline_edited(self, v: float) -> None:
-        if self.ctx.settings is not None and float(self.ctx.settings.nominal_baseline_mm) != v:
+        if float(self.ctx.settings.nominal_baseline_mm) != v:
             self.ctx.update_settings(nominal_baseline_mm=float(v))
         self._show_figures()
 
@@ -443,8 +440,7 @@ class CalibrationTab(QWidget):
 
     @property
     def board(self) -> BoardSpec:
-        s = self.ctx.settings
-        return s.board if s is not None else BoardSpec()
+        return self.ctx.settings.board
 
     # ---- calibration run -----------------------------------------------------------------------
     def start_calibration(self) -> bool:

@@ -228,9 +228,8 @@ class CaptureTab(QWidget):
         self._build()
         self._load_board_settings()
         ctx.frames.frameReady.connect(self._on_frame_ready)
-        if hasattr(ctx, "currentTabChanged"):
-            ctx.currentTabChanged.connect(lambda name: self.set_active(name == "capture"))
-        last = getattr(ctx.settings, "last_session", None) if ctx.settings is not None else None
+        ctx.currentTabChanged.connect(lambda name: self.set_active(name == "capture"))
+        last = ctx.settings.last_session
         if last and Path(last).is_dir():
             try:
                 self.open_session(last)
@@ -344,15 +343,14 @@ class CaptureTab(QWidget):
 
     # ---- board settings ----------------------------------------------------------------------
     def _load_board_settings(self) -> None:
-        s = self.ctx.settings
-        board = s.board if s is not None else BoardSpec()
+        board = self.ctx.settings.board
         for w, v in ((self.cols_spin, board.cols), (self.rows_spin, board.rows),
                      (self.square_spin, board.square_mm)):
             w.blockSignals(True)
             w.setValue(v)
             w.blockSignals(False)
         self.auto_check.blockSignals(True)
-        self.auto_check.setChecked(bool(getattr(s, "auto_capture", False)))
+        self.auto_check.setChecked(bool(self.ctx.settings.auto_capture))
         self.auto_check.blockSignals(False)
 
     @property
@@ -370,16 +368,14 @@ class CaptureTab(QWidget):
 
     def _board_edited(self) -> None:
         board = self.board
-        if self.ctx.settings is not None:
-            self.ctx.update_settings(board_cols=board.cols, board_rows=board.rows,
-                                     square_mm=board.square_mm)
+        self.ctx.update_settings(board_cols=board.cols, board_rows=board.rows,
+                                 square_mm=board.square_mm)
         self._recent_corners.clear()
         if self.state == "live":
             self._set_processing(True)
 
     def _auto_toggled(self, on: bool) -> None:
-        if self.ctx.settings is not None:
-            self.ctx.update_settings(auto_capture=bool(on))
+        self.ctx.update_settings(auto_capture=bool(on))
         self._recent_corners.clear()
         if on and self.state == "review":
             self.cancel_frozen()
@@ -541,8 +537,8 @@ class CaptureTab(QWidget):
 
     # ---- sessions --------------------------------------------------------------------------------
     def _choose_new_session(self) -> bool:
-        start = str(Path(self.ctx.settings.last_session).parent) if (
-            self.ctx.settings is not None and self.ctx.settings.last_session) else str(Path.home())
+        last = self.ctx.settings.last_session
+        start = str(Path(last).parent) if last else str(Path.home())
         folder = QFileDialog.getExistingDirectory(self, "Folder for the new capture session", start)
         if not folder:
             return False
@@ -554,8 +550,7 @@ class CaptureTab(QWidget):
         return True
 
     def _choose_open_session(self) -> None:
-        s = self.ctx.settings
-        start = (s.last_session if s is not None else None) or str(Path.home())
+        start = self.ctx.settings.last_session or str(Path.home())
         folder = QFileDialog.getExistingDirectory(self, "Open a capture session folder", start)
         if folder:
             try:
@@ -573,9 +568,8 @@ class CaptureTab(QWidget):
         from stereo_gui.files.session import CaptureSession
 
         out = self._last_output
-        s = self.ctx.settings
         size = (out.detection.image_size if out is not None else
-                tuple(s.resolution) if s is not None else (640, 480))
+                tuple(self.ctx.settings.resolution))
         session = CaptureSession.create(folder, self.board, size, self._camera_names())
         self._use_session(session)
 
@@ -593,8 +587,7 @@ class CaptureTab(QWidget):
         board = getattr(session, "board", None)
         if isinstance(board, BoardSpec) and board != self.board:
             self.set_board(board)
-        if self.ctx.settings is not None:
-            self.ctx.update_settings(last_session=str(session.folder))
+        self.ctx.update_settings(last_session=str(session.folder))
         self.session_label.setText(f"Session: {session.folder}")
         self._saved.clear()
         self.pair_list.clear()

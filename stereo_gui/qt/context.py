@@ -12,18 +12,11 @@ from pathlib import Path
 from PySide6.QtCore import QObject, Signal
 
 from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.files.settings import Settings
 from stereo_gui.qt.frame_worker import FrameWorker, JobRunner
 from stereo_gui.qt.recorder import Recorder
 
 log = logging.getLogger(__name__)
-
-
-def _default_settings():
-    try:
-        from stereo_gui.files.settings import Settings
-    except ImportError:  # the settings module is optional only while it is being written
-        return None
-    return Settings()
 
 
 class AppContext(QObject):
@@ -47,7 +40,7 @@ class AppContext(QObject):
 
     def __init__(self, settings=None, parent: QObject | None = None) -> None:
         super().__init__(parent)
-        self.settings = settings if settings is not None else _default_settings()
+        self.settings = settings if settings is not None else Settings()
         self.calibration = None
         self.calibration_path: Path | None = None
         self.calibration_note = ""
@@ -103,10 +96,9 @@ class AppContext(QObject):
 
     def _use_calibration_file(self, calib, path: str | Path) -> None:
         self.set_calibration(calib, path)
-        if self.settings is not None:
-            self.settings = self.settings.with_recent(str(path)).with_updates(
-                last_calibration=str(Path(path).resolve()))
-            self.settingsChanged.emit(self.settings)
+        self.settings = self.settings.with_recent(str(path)).with_updates(
+            last_calibration=str(Path(path).resolve()))
+        self.settingsChanged.emit(self.settings)
 
     def add_measurement(self, record) -> int:
         """Append a record to the log; return its index."""
@@ -133,8 +125,6 @@ class AppContext(QObject):
 
     def update_settings(self, **changes) -> None:
         """Replace settings fields (unknown names raise TypeError, as dataclasses.replace does)."""
-        if self.settings is None:
-            return
         self.settings = self.settings.with_updates(**changes)
         self.settingsChanged.emit(self.settings)
 

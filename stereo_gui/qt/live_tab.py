@@ -249,7 +249,7 @@ class LiveTab(QWidget):
         # views
         self.panels: dict[str, ImagePanel] = {}
         self.view_checks: dict[str, QCheckBox] = {}
-        shown = tuple(v for v in (getattr(ctx.settings, "visible_views", ()) or DEFAULT_VIEWS)
+        shown = tuple(v for v in (ctx.settings.visible_views or DEFAULT_VIEWS)
                       if v in VIEWS) or DEFAULT_VIEWS
         for key, title in VIEWS.items():
             panel = ImagePanel(key, title, color_bar=(key == "wls"))
@@ -380,7 +380,7 @@ class LiveTab(QWidget):
 
     # ---- set-up ------------------------------------------------------------------------------
     def _initial_params(self) -> MatcherParams:
-        name = getattr(self.ctx.settings, "preset", "live") or "live"
+        name = self.ctx.settings.preset or "live"
         for candidate in (name, "live", "seed"):
             try:
                 return load_preset(candidate).replace(name=candidate)
@@ -429,7 +429,7 @@ class LiveTab(QWidget):
         self._output = None
         self.clear_markers()
         self._install_processor()
-        note = getattr(self.ctx, "calibration_note", "")
+        note = self.ctx.calibration_note
         self.calib_note.setVisible(calib is not None and note == TRUE_CALIBRATION_NOTE)
         self.calib_note.setText("Using the simulated rig's TRUE calibration (the one it was "
                                 "built with), not one you calibrated.")
@@ -455,7 +455,7 @@ class LiveTab(QWidget):
     def _params_changed(self, params: MatcherParams) -> None:
         if self._processor is not None:
             self._processor.set_params(params)
-        if self.ctx.settings is not None and not params.name.endswith("(edited)"):
+        if not params.name.endswith("(edited)"):
             self.ctx.update_settings(preset=params.name)
 
     # ---- drawing -----------------------------------------------------------------------------
@@ -571,7 +571,7 @@ class LiveTab(QWidget):
             return None
         from stereo_gui.core.measure import measure_point
 
-        patch = int(getattr(self.ctx.settings, "patch_size", 9) or 9)
+        patch = int(self.ctx.settings.patch_size)
         fit = self.ctx.active_fit
         result = out.result
         job = self.ctx.jobs.submit(lambda: measure_point(result, x, y, patch=patch, fit=fit))
@@ -636,8 +636,7 @@ class LiveTab(QWidget):
             range_mm=float(m.range_mm), valid=bool(m.valid), reason=m.reason or "",
             valid_fraction=float(m.valid_fraction), expected_error_mm=float(m.expected_error_mm),
             method=m.method,
-            calibration_file=str(path) if path else (getattr(self.ctx, "calibration_note", "")
-                                                     or ""),
+            calibration_file=str(path) if path else self.ctx.calibration_note,
             calibration_rms_px=float(getattr(calib, "rms_stereo", float("nan"))),
         )
 
@@ -663,7 +662,7 @@ class LiveTab(QWidget):
             self.ctx.frames.resume()
 
     def _snapshot_clicked(self) -> None:
-        start = getattr(self.ctx.settings, "last_export_dir", None) or str(Path.home())
+        start = self.ctx.settings.last_export_dir or str(Path.home())
         folder = QFileDialog.getExistingDirectory(self, "Save snapshot into", start)
         if folder:
             self.snapshot(folder)
@@ -709,7 +708,7 @@ class LiveTab(QWidget):
 
     # ---- depth exports of the frame shown ----------------------------------------------------
     def _export_start_dir(self) -> str:
-        return getattr(self.ctx.settings, "last_export_dir", None) or str(Path.home())
+        return self.ctx.settings.last_export_dir or str(Path.home())
 
     def _export_clicked(self, kind: str) -> None:
         if self._output is None:

@@ -203,8 +203,6 @@ class MainWindow(QMainWindow):
 
     def _choice_from_settings(self) -> SourceChoice:
         s = self.ctx.settings
-        if s is None:
-            return SourceChoice()
         return SourceChoice(s.source or "auto", tuple(s.resolution), bool(s.swap_lr))
 
     # ---- tabs --------------------------------------------------------------------------------
@@ -322,7 +320,7 @@ class MainWindow(QMainWindow):
         s = self.ctx.settings
         if self.ctx.calibration_path is not None:
             return str(self.ctx.calibration_path.parent)
-        if s is not None and s.last_calibration:
+        if s.last_calibration:
             return str(Path(s.last_calibration).parent)
         return str(Path.home())
 
@@ -415,8 +413,6 @@ class MainWindow(QMainWindow):
     # ---- geometry and shutdown ---------------------------------------------------------------
     def _restore_geometry(self) -> None:
         s = self.ctx.settings
-        if s is None:
-            return
         if s.window_geometry:
             self.restoreGeometry(QByteArray.fromBase64(s.window_geometry.encode("ascii")))
         if s.window_state:
@@ -424,8 +420,6 @@ class MainWindow(QMainWindow):
 
     def save_settings(self) -> None:
         """Store geometry (and whatever the tabs changed) in the settings file."""
-        if self.ctx.settings is None:
-            return
         geometry = bytes(self.saveGeometry().toBase64()).decode("ascii")
         state = bytes(self.saveState().toBase64()).decode("ascii")
         self.ctx.settings = self.ctx.settings.with_updates(window_geometry=geometry,

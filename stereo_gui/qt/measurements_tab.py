@@ -251,10 +251,8 @@ class MeasurementsTab(QWidget):
         self._export: JobWorker | None = None
         self._build()
         ctx.measurementsChanged.connect(self.refit)
-        if hasattr(ctx, "activeFitChanged"):
-            ctx.activeFitChanged.connect(self._active_fit_changed)
-        if hasattr(ctx, "currentTabChanged"):
-            ctx.currentTabChanged.connect(lambda name: self.set_active(name == "measurements"))
+        ctx.activeFitChanged.connect(self._active_fit_changed)
+        ctx.currentTabChanged.connect(lambda name: self.set_active(name == "measurements"))
         self.refit()
 
     # ---- layout ------------------------------------------------------------------------------
@@ -413,7 +411,7 @@ class MeasurementsTab(QWidget):
             return
         if fit is not self.ctx.active_fit:
             self.ctx.set_active_fit(fit)
-        if self.ctx.settings is not None and self.ctx.settings.measure_model != key:
+        if self.ctx.settings.measure_model != key:
             self.ctx.update_settings(measure_model=key)
 
     def _active_fit_changed(self, fit) -> None:
@@ -433,12 +431,10 @@ class MeasurementsTab(QWidget):
 
     # ---- fits as files -------------------------------------------------------------------------
     def _start_dir(self) -> str:
-        s = self.ctx.settings
-        return (s.last_export_dir if s is not None and s.last_export_dir else str(Path.home()))
+        return self.ctx.settings.last_export_dir or str(Path.home())
 
     def _remember_dir(self, path) -> None:
-        if self.ctx.settings is not None:
-            self.ctx.update_settings(last_export_dir=str(Path(path).parent))
+        self.ctx.update_settings(last_export_dir=str(Path(path).parent))
 
     def _choose_save_fit(self) -> None:
         key = self.model_combo.currentData()
