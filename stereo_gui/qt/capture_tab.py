@@ -44,6 +44,7 @@ from stereo_gui.core.detect import (
     detect_board,
     detect_pair,
     is_new_pose,
+    pair_pose,
 )
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.util import to_gray
@@ -73,9 +74,7 @@ class CaptureOutput:
 
     @property
     def pose(self) -> PoseDescriptor | None:
-        if not self.detection.found:
-            return None
-        return self.detection.left.pose(self.board)  # type: ignore[union-attr]
+        return pair_pose(self.detection, self.board)
 
 
 def _maybe_board(gray: np.ndarray, board: BoardSpec) -> bool:
@@ -521,9 +520,7 @@ class CaptureTab(QWidget):
         self._recent_corners.append(corners)
         steady = len(self._recent_corners) == STEADY_FRAMES and max(
             float(np.abs(c - corners).max()) for c in self._recent_corners) < STEADY_PX
-        kept = [i.detection.left.pose(self.board) for i in self._saved.values()
-                if i.detection is not None and i.detection.found]
-        new = is_new_pose(pose, kept)
+        new = is_new_pose(pose, self._saved_poses())
         if not new:
             self.prompt.setText("Pose already captured: move or tilt the board somewhere new")
         elif not steady:
@@ -686,10 +683,13 @@ class CaptureTab(QWidget):
         n = self.pair_list.count()
         self.pairs_label.setText(f"Saved pairs ({n}): click one to review it")
 
+    def _saved_poses(self) -> list[PoseDescriptor]:
+        """Pose descriptors of the saved pairs in which both cameras saw the board."""
+        return [pair_pose(i.detection, self.board) for i in self._saved.values()
+                if i.detection is not None and i.detection.found]
+
     def _update_coverage(self) -> None:
-        poses = [i.detection.left.pose(self.board) for i in self._saved.values()
-                 if i.detection is not None and i.detection.found]
-        self.coverage.set_coverage(coverage(poses))
+        self.coverage.set_coverage(coverage(self._saved_poses()))
 
     def saved_names(self) -> list[str]:
         return [self.pair_list.item(i).data(Qt.ItemDataRole.UserRole)
