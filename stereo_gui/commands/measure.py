@@ -7,7 +7,7 @@ import json
 
 from stereo_gui.commands.disparity import add_pair_arguments, run_pipeline
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.measure import Measurement, measure_point
+from stereo_gui.core.measure import PATCH_PX, Measurement, measure_point
 
 
 def _point(text: str) -> tuple[float, float]:
@@ -22,8 +22,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_pair_arguments(parser)
     parser.add_argument("--at", action="append", type=_point, required=True, metavar="X,Y",
                         help="pixel of the rectified left image (repeat for more points)")
-    parser.add_argument("--patch", type=int, default=9, metavar="N",
-                        help="side of the square patch around each point, px (default 9)")
+    parser.add_argument("--patch", type=int, default=PATCH_PX, metavar="N",
+                        help=f"side of the square patch around each point, px (default {PATCH_PX})")
     parser.add_argument("--model", metavar="FIT",
                         help="a regression fit (JSON) to use instead of triangulation")
     parser.add_argument("--mode", choices=("point", "object"), default="point",

@@ -24,6 +24,7 @@ from stereo_gui.core.util import to_gray
 
 # SGBM reports disparity in steps of 1/16 px: no estimate is better than that without refinement
 QUANTUM_PX = 1.0 / DISP_SCALE
+PATCH_PX = 9  # default side of the square patch a measurement looks at, px (odd)
 MAD_TO_SIGMA = 1.4826  # median absolute deviation -> standard deviation for normal noise
 
 REASONS = ("no valid pixels", "too near", "too far", "outside the image", "out of disparity range")
@@ -268,7 +269,7 @@ def _why_nothing(result: PipelineResult | None, x: int, y: int, half: int) -> st
 
 
 # ---- the measurement -----------------------------------------------------------------------
-def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch: int = 9,
+def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch: int = PATCH_PX,
                   mode: str = "point", calibration: StereoCalibration | None = None,
                   fit=None, refine: bool = True, rematch: bool = True) -> Measurement:
     """Measure the distance at rectified pixel (x, y).

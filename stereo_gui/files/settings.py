@@ -19,6 +19,7 @@ from pathlib import Path
 
 from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.errors import InputError
+from stereo_gui.core.measure import PATCH_PX
 from stereo_gui.files.atomic import write_text_atomic
 
 log = logging.getLogger(__name__)
@@ -49,7 +50,7 @@ class Settings:
     window_state: str = ""  # QMainWindow.saveState() as base64
     recent_files: tuple[str, ...] = ()  # newest first
     colormap: str = "ocean"
-    patch_size: int = 3  # side of the square patch averaged by a click, px (odd)
+    patch_size: int = PATCH_PX  # side of the square patch a click measures, px (odd)
     auto_capture: bool = False
     measure_model: str = "triangulation"  # or the name of a fitted model ("cubic", "inverse")
     visible_views: tuple[str, ...] = ()  # live views shown; empty means the window's default

@@ -93,7 +93,7 @@ def test_unknown_keys_and_bad_values_are_skipped_one_by_one():
     assert s.preset == "seed"
     assert s.square_mm == 30.0 and isinstance(s.square_mm, float)
     assert s.swap_lr is False and s.resolution == (640, 480) and s.board_cols == 9
-    assert s.patch_size == 3 and s.recent_files == () and s.auto_capture is False
+    assert s.patch_size == 9 and s.recent_files == () and s.auto_capture is False
     joined = "\n".join(warnings)
     for key in ("swap_lr", "resolution", "board_cols", "patch_size", "recent_files", "colour",
                 "auto_capture"):
