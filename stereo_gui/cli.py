@@ -34,10 +34,14 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _gui_parser() -> argparse.ArgumentParser:
+    width = max(map(len, SUBCOMMANDS))
     p = _Parser(
         prog="stereo-gui",
-        description="Stereo GUI. Without a subcommand it starts the application window. "
-        f"Subcommands: {', '.join(SUBCOMMANDS)} (stereo-gui SUBCOMMAND --help).",
+        description="Stereo GUI: calibrate a two-webcam stereo camera and read distances off a\n"
+        "live depth view. Without a subcommand it starts the application window.",
+        epilog="subcommands (stereo-gui SUBCOMMAND --help for their options):\n"
+        + "\n".join(f"  {name:<{width}}  {text}" for name, (_, text) in SUBCOMMANDS.items()),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--version", action="version", version=f"stereo-gui {__version__}")
     p.add_argument(
@@ -46,7 +50,8 @@ def _gui_parser() -> argparse.ArgumentParser:
         help="auto (default: cameras if found, else the simulated rig), sim, cams:L,R, sbs:N, "
         "a folder of recorded pairs, or a side-by-side video file",
     )
-    p.add_argument("--calib", default=None, help="calibration file to load at start-up")
+    p.add_argument("--calib", default=None, metavar="FILE",
+                   help="calibration file to load at start-up")
     p.add_argument("-v", "--verbose", action="store_true", help="log more detail")
     return p
 

@@ -3,16 +3,26 @@
 import subprocess
 import sys
 
+import pytest
+
 from stereo_gui import __version__
-from stereo_gui.cli import main
+from stereo_gui.cli import SUBCOMMANDS, main
 
 
 def test_version(capsys):
-    try:
+    with pytest.raises(SystemExit) as exc:
         main(["--version"])
-    except SystemExit as exc:
-        assert exc.code == 0
+    assert exc.value.code == 0
     assert __version__ in capsys.readouterr().out
+
+
+def test_help_lists_every_subcommand_with_what_it_does(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["--help"])
+    assert exc.value.code == 0
+    out = capsys.readouterr().out
+    for name, (_module, text) in SUBCOMMANDS.items():
+        assert f"  {name}" in out and text in out
 
 
 def test_unknown_option_exits_2_with_one_line():

@@ -29,7 +29,8 @@ def rss_mb() -> float:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--calib", metavar="C", help="calibration file (with LEFT RIGHT)")
-    parser.add_argument("left", nargs="?", metavar="LEFT", help="left raw image")
+    parser.add_argument("left", nargs="?", metavar="LEFT",
+                        help="left raw image (without LEFT RIGHT: the simulated rig)")
     parser.add_argument("right", nargs="?", metavar="RIGHT", help="right raw image")
     parser.add_argument("--frames", type=int, default=30, metavar="N",
                         help="frames per preset (default 30)")
