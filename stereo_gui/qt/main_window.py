@@ -17,13 +17,11 @@ from PySide6.QtWidgets import (
     QHBoxLayout,
     QLabel,
     QMainWindow,
-    QMessageBox,
     QTabWidget,
     QToolButton,
     QWidget,
 )
 
-from stereo_gui import __version__
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.qt.calibration_tab import CalibrationTab
 from stereo_gui.qt.capture_tab import CaptureTab
@@ -405,10 +403,9 @@ class MainWindow(QMainWindow):
         self.statusBar().showMessage(text, 10000)
 
     def show_about(self) -> None:
-        QMessageBox.about(
-            self, "About Stereo GUI",
-            f"<b>Stereo GUI {__version__}</b><p>Calibrate a two-webcam stereo camera and read "
-            "distances off a live depth view.</p>")
+        from stereo_gui.qt.about import show_about
+
+        show_about(self)
 
     # ---- geometry and shutdown ---------------------------------------------------------------
     def _restore_geometry(self) -> None:

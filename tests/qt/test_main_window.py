@@ -187,3 +187,13 @@ def test_ros_files_are_told_apart_by_name():
     assert _order_left_right(["/a/cam_right.yaml", "/a/cam_left.yaml"]) == \
         ("/a/cam_left.yaml", "/a/cam_right.yaml")
     assert _order_left_right(["/a/b.yaml", "/a/a.yaml"]) == ("/a/a.yaml", "/a/b.yaml")
+
+
+def test_help_about_opens_the_about_dialog(window, qtbot):
+    from stereo_gui.qt.about import AboutDialog
+
+    window.show_about()
+    qtbot.waitUntil(lambda: any(isinstance(w, AboutDialog) and w.isVisible()
+                                for w in window.findChildren(AboutDialog)), timeout=30000)
+    dialog = window.findChildren(AboutDialog)[0]
+    dialog.close()
