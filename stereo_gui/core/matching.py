@@ -211,6 +211,7 @@ class PipelineResult:
     params: MatcherParams = field(default_factory=MatcherParams)
     disparity_range_px: tuple[float, float] = (0.0, 0.0)
     calibration: StereoCalibration | None = None
+    color_scale: ColorScale | None = None  # how color_bgr was made from final_px
 
 
 def fixed_to_px(disp16: np.ndarray, min_disparity: float, factor: float = 1.0) -> np.ndarray:
@@ -225,24 +226,55 @@ def fixed_to_px(disp16: np.ndarray, min_disparity: float, factor: float = 1.0) -
     return out
 
 
-def colorize(disparity_px: np.ndarray, params: MatcherParams,
-             calibration: StereoCalibration | None) -> np.ndarray:
-    """Colour view of a disparity map (BGR uint8); invalid pixels black; near is bright."""
-    valid = cv2.compare(disparity_px, disparity_px, cv2.CMP_EQ)  # 255 where not NaN
+@dataclass(frozen=True)
+class ColorScale:
+    """How the colour view turns disparity into colour levels 0..255 (255: near, top of the map).
+
+    kind "distance": linear in distance from `far` (level 0) to `near` (level 255), both in mm,
+    so that a colour always means the same distance, and the middle of the map is the middle
+    of the working range (not crowded at the far end as a disparity ramp would be).
+    kind "disparity": linear in disparity from `far` to `near`, both in px (the report's
+    per-frame min-max normalisation). `fb_mm_px` = f*B converts between the two.
+    """
+
+    kind: str
+    far: float
+    near: float
+    fb_mm_px: float
+
+    def level(self, disparity_px: np.ndarray) -> np.ndarray:
+        """Colour level (float, not clipped; NaN where the disparity is NaN)."""
+        d = np.asarray(disparity_px, np.float32)
+        if self.kind == "distance":
+            with np.errstate(divide="ignore", invalid="ignore"):
+                z = np.float32(self.fb_mm_px) / d
+            return (np.float32(self.far) - z) * np.float32(255.0 / (self.far - self.near))
+        return (d - np.float32(self.far)) * np.float32(255.0 / max(self.near - self.far, 1e-6))
+
+    def level_of_distance(self, z_mm: float) -> float:
+        """Colour level of a distance in mm."""
+        return float(self.level(np.float32(self.fb_mm_px / z_mm)))
+
+
+def color_scale(disparity_px: np.ndarray, params: MatcherParams,
+                calibration: StereoCalibration | None) -> ColorScale:
+    """The colour scale of a frame: the preset's fixed distance range, or the frame's min-max."""
+    fb = (calibration.focal_px * calibration.rectified_baseline_mm
+          if calibration is not None else float("nan"))
     if params.color_range == "fixed" and calibration is not None:
-        fb = calibration.focal_px * calibration.rectified_baseline_mm
-        lo, hi = fb / params.color_z_far_mm, fb / params.color_z_near_mm
-    elif cv2.countNonZero(valid):
-        lo, hi = cv2.minMaxLoc(disparity_px, mask=valid)[:2]
-    else:
-        lo, hi = 0.0, 1.0
-    span = max(hi - lo, 1e-6)
-    # NaN saturates to 0 here; those pixels are blacked out below anyway
-    # (clipped at lo first: convertScaleAbs takes absolute values)
-    u8 = cv2.convertScaleAbs(cv2.max(disparity_px, float(lo)), alpha=255.0 / span,
-                             beta=-lo * 255.0 / span)
-    color = cv2.applyColorMap(u8, COLORMAPS[params.colormap])
-    return cv2.bitwise_and(color, color, mask=valid)
+        return ColorScale("distance", params.color_z_far_mm, params.color_z_near_mm, fb)
+    valid = cv2.compare(disparity_px, disparity_px, cv2.CMP_EQ)  # 255 where not NaN
+    lo, hi = cv2.minMaxLoc(disparity_px, mask=valid)[:2] if cv2.countNonZero(valid) else (0.0, 1.0)
+    return ColorScale("disparity", float(lo), float(max(hi, lo + 1e-6)), fb)
+
+
+def colorize(disparity_px: np.ndarray, scale: ColorScale, colormap: str) -> np.ndarray:
+    """Colour view of a disparity map (BGR uint8) on `scale`; invalid pixels black; near bright."""
+    level = scale.level(disparity_px)
+    u8 = np.clip(np.nan_to_num(level, nan=0.0), 0.0, 255.0).astype(np.uint8)
+    color = cv2.applyColorMap(u8, COLORMAPS[colormap])
+    color[np.isnan(disparity_px)] = 0
+    return color
 
 
 class StereoPipeline:
@@ -415,11 +447,12 @@ class StereoPipeline:
             lap("wls")
         final = wls_px if wls_px is not None else closed
         valid = np.isfinite(final)
-        color = colorize(final, p, self.calibration)
+        scale = color_scale(final, p, self.calibration)
+        color = colorize(final, scale, p.colormap)
         lap("colormap")
         t["total"] = (time.perf_counter() - start) * 1000.0
         return PipelineResult(
             rectified_left=rl, rectified_right=rr, disparity_px=raw, closed_px=closed,
             wls_px=wls_px, final_px=final, color_bgr=color, valid=valid, timings_ms=t,
             size=(w, h), params=p, disparity_range_px=self._range_full,
-            calibration=self.calibration)
+            calibration=self.calibration, color_scale=scale)

@@ -16,6 +16,8 @@ from PySide6.QtCore import QPointF, QRectF, Qt, Signal
 from PySide6.QtGui import QBrush, QColor, QFont, QPen, QTransform
 from PySide6.QtWidgets import QGraphicsItem, QGraphicsRectItem, QGraphicsSimpleTextItem
 
+from stereo_gui.core.matching import ColorScale
+
 pg.setConfigOptions(imageAxisOrder="row-major")
 
 # round distances for colour-bar ticks, mm, in order of preference (rounder first)
@@ -137,19 +139,23 @@ def colormap_lut(colormap_id: int) -> np.ndarray:
     return np.ascontiguousarray(bgr[:, ::-1])
 
 
-def distance_ticks(d_lo_px: float, d_hi_px: float, fb_mm_px: float, max_ticks: int = 7
-                   ) -> list[tuple[float, str]]:
+def distance_ticks(scale: ColorScale, max_ticks: int = 7) -> list[tuple[float, str]]:
     """Tick positions (0..255 colour level) labelled with distance for a colour bar.
 
-    The colour level of disparity d is 255 * (d - d_lo) / (d_hi - d_lo); distance Z = f*B/d.
-    Labels are round distances in m (or mm below 1 m when the whole range is below 1 m).
+    The levels come from `scale` (core.matching.ColorScale), the same mapping that made the
+    colour view. Labels are round distances in m (or mm when the whole range is below 1 m).
     """
-    if not (fb_mm_px > 0 and d_hi_px > d_lo_px and d_hi_px > 0):
+    fb = scale.fb_mm_px
+    if not (fb > 0 and scale.near != scale.far):
         return []
-    z_near = fb_mm_px / d_hi_px
-    z_far = fb_mm_px / d_lo_px if d_lo_px > 0 else math.inf
+    if scale.kind == "distance":
+        z_near, z_far = scale.near, scale.far
+    else:
+        if not scale.near > 0:
+            return []
+        z_near = fb / scale.near
+        z_far = fb / scale.far if scale.far > 0 else math.inf
     use_m = z_far >= 1000.0
-    span = d_hi_px - d_lo_px
     min_gap = 255.0 / (max_ticks + 1)
 
     def fmt(z: float, exact: bool = False) -> str:
@@ -175,7 +181,7 @@ def distance_ticks(d_lo_px: float, d_hi_px: float, fb_mm_px: float, max_ticks: i
     for tier in _NICE_MM_TIERS:
         for z in tier:
             if z_near <= z <= z_far:
-                level = 255.0 * (fb_mm_px / z - d_lo_px) / span
+                level = scale.level_of_distance(z)
                 if free(level):
                     ticks.append((level, fmt(z)))
     return sorted(ticks)
@@ -202,14 +208,14 @@ class DistanceColorBar(pg.PlotItem):
         self.setYRange(0, 256, padding=0)
         self.getViewBox().invertY(False)
 
-    def set_scale(self, colormap_id: int, d_lo_px: float, d_hi_px: float, fb_mm_px: float) -> None:
-        """Show the colour map for disparities d_lo..d_hi (px) with distance ticks."""
+    def set_scale(self, colormap_id: int, scale: ColorScale) -> None:
+        """Show the colour map with distance ticks placed as `scale` maps them."""
         if colormap_id != self._lut_id:
             lut = colormap_lut(colormap_id)
             self._img.setImage(lut.reshape(256, 1, 3), autoLevels=False)
             self._img.setRect(0, 0, 1, 256)
             self._lut_id = colormap_id
-        ticks = distance_ticks(d_lo_px, d_hi_px, fb_mm_px)
+        ticks = distance_ticks(scale)
         self.getAxis("right").setTicks([[(t + 0.5, s) for t, s in ticks], []])
 
 

@@ -98,7 +98,6 @@ class LiveOutput:
 
     result: PipelineResult
     images: dict[str, np.ndarray]
-    color_range_px: tuple[float, float]
     scale_note: str = ""  # says so when the calibration was scaled to the source's frame size
 
 
@@ -110,18 +109,6 @@ def _gray_disparity(disp_px: np.ndarray, lo: float, hi: float) -> np.ndarray:
     rgb = cv2.cvtColor(gray, cv2.COLOR_GRAY2RGB)
     rgb[invalid] = NO_MATCH_RGB
     return rgb
-
-
-def color_range_px(result: PipelineResult) -> tuple[float, float]:
-    """The disparities (px) that the colour view maps to levels 0 and 255 (as core.matching)."""
-    p, calib = result.params, result.calibration
-    if p.color_range == "fixed" and calib is not None:
-        fb = calib.focal_px * calib.rectified_baseline_mm
-        return fb / p.color_z_far_mm, fb / p.color_z_near_mm
-    if result.valid.any():
-        lo, hi = cv2.minMaxLoc(result.final_px, mask=result.valid.astype(np.uint8))[:2]
-        return float(lo), float(hi)
-    return 0.0, 1.0
 
 
 class LiveProcessor:
@@ -175,7 +162,7 @@ class LiveProcessor:
             "wls": cv2.cvtColor(r.color_bgr, cv2.COLOR_BGR2RGB),
         }
         images["wls"][~r.valid] = NO_MATCH_RGB
-        return LiveOutput(r, images, color_range_px(r), note)
+        return LiveOutput(r, images, note)
 
     def close(self) -> None:
         with self._lock:
@@ -497,13 +484,14 @@ class LiveTab(QWidget):
         calib = out.result.calibration
         if calib is None or self.panels["wls"].color_bar is None:
             return
-        lo, hi = out.color_range_px
-        state = (out.result.params.colormap, round(lo * 2), round(hi * 2))
+        scale = out.result.color_scale
+        if scale is None:
+            return
+        state = (out.result.params.colormap, scale.kind, round(scale.far, 1), round(scale.near, 1))
         if state == self._bar_state:
-            return  # ticks change only when the range moves by half a pixel
+            return  # the ticks change only when the range does
         self._bar_state = state
-        fb = calib.focal_px * calib.rectified_baseline_mm
-        self.panels["wls"].color_bar.set_scale(COLORMAPS[out.result.params.colormap], lo, hi, fb)
+        self.panels["wls"].color_bar.set_scale(COLORMAPS[out.result.params.colormap], scale)
 
     # ---- hover readout -----------------------------------------------------------------------
     def _disparity_of_view(self, key: str) -> np.ndarray | None:

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import (DISP_SCALE, MatcherParams, StereoPipeline, colorize,
-                                      fixed_to_px)
+from stereo_gui.core.matching import (DISP_SCALE, MatcherParams, StereoPipeline, color_scale,
+                                      colorize, fixed_to_px)
 from stereo_gui.core.stereo_calibration import StereoCalibration
 
 W, H, SHIFT = 240, 160, 12  # px; the synthetic pair is a plane at constant disparity SHIFT
@@ -125,22 +125,30 @@ def test_wrong_image_size_is_an_input_error():
 
 def test_fixed_colour_range_maps_a_distance_to_a_fixed_colour():
     c = calib(f=700.0, b=110.0)
+    fb = 700.0 * 110.0
     p = MatcherParams(color_range="fixed", color_z_near_mm=500.0, color_z_far_mm=3000.0)
-    d = np.full((4, 4), 77000 / 500.0, np.float32)
+
+    def paint(d, params=p):
+        d = np.asarray(d, np.float32)
+        return colorize(d, color_scale(d, params, c), params.colormap)
+
+    def ocean(level):
+        return cv2.applyColorMap(np.full((1, 1), level, np.uint8), cv2.COLORMAP_OCEAN)[0, 0]
+
+    d = np.full((4, 4), fb / 500.0, np.float32)
     d[0, 0] = np.nan
-    near = colorize(d, p, c)
-    lut = cv2.applyColorMap(np.full((1, 1), 255, np.uint8), cv2.COLORMAP_OCEAN)[0, 0]
-    assert (near[1, 1] == lut).all() and not near[0, 0].any()
-    beyond = colorize(np.full((2, 2), 77000 / 6000.0, np.float32), p, c)  # farther than far
-    bottom = cv2.applyColorMap(np.zeros((1, 1), np.uint8), cv2.COLORMAP_OCEAN)[0, 0]
-    assert (beyond[0, 0] == bottom).all()
+    near = paint(d)
+    assert (near[1, 1] == ocean(255)).all() and not near[0, 0].any()
+    assert (paint(np.full((2, 2), fb / 6000.0))[0, 0] == ocean(0)).all()  # farther than far
+    # linear in distance: 1.75 m, halfway between 0.5 and 3 m, gets the middle colour
+    assert (paint(np.full((1, 1), fb / 1750.0))[0, 0] == ocean(127)).all()
     # min-max (the report): the same map with one farther pixel changes the colour of the rest
     p2 = MatcherParams(color_range="minmax")
     d[2, 2] = 100.0
     d2 = d.copy()
     d2[3, 3] = 10.0
-    assert not np.array_equal(colorize(d, p2, c)[2, 2], colorize(d2, p2, c)[2, 2])
-    assert np.array_equal(colorize(d, p, c)[2, 2], colorize(d2, p, c)[2, 2])
+    assert not np.array_equal(paint(d, p2)[2, 2], paint(d2, p2)[2, 2])
+    assert np.array_equal(paint(d)[2, 2], paint(d2)[2, 2])
 
 
 def _bad20(result, truth):

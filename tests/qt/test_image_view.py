@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from PySide6.QtCore import Qt
 
+from stereo_gui.core.matching import ColorScale
 from stereo_gui.qt.image_view import ImagePanel, colormap_lut, distance_ticks
 
 
@@ -70,20 +71,24 @@ def test_markers_stay_until_cleared(panel):
 
 def test_distance_ticks_are_round_and_in_order():
     fb = 700.0 * 110.0  # f px * B mm
-    lo, hi = fb / 3000.0, fb / 500.0  # 0.5 .. 3 m
-    ticks = distance_ticks(lo, hi, fb)
-    labels = [t[1] for t in ticks]
-    assert "3 m" in labels and "1 m" in labels
-    levels = [t[0] for t in ticks]
-    assert levels == sorted(levels) and 0 <= levels[0] and levels[-1] <= 255.0 + 1e-9
-    # level of 1 m is where its disparity falls on the colour ramp
-    one = dict((s, t) for t, s in ticks)["1 m"]
-    assert one == pytest.approx(255 * (fb / 1000.0 - lo) / (hi - lo))
+    for scale in (ColorScale("distance", 3000.0, 500.0, fb),
+                  ColorScale("disparity", fb / 3000.0, fb / 500.0, fb)):  # 0.5 .. 3 m
+        ticks = distance_ticks(scale)
+        labels = [t[1] for t in ticks]
+        assert "3 m" in labels and "1 m" in labels and "0.5 m" in labels
+        levels = [t[0] for t in ticks]
+        assert levels == sorted(levels) and levels[0] == 0.0 and levels[-1] == 255.0
+        # 1 m sits where the colour view puts a pixel at 1 m
+        one = dict((s, t) for t, s in ticks)["1 m"]
+        assert one == pytest.approx(float(scale.level(np.float32(fb / 1000.0))), abs=1e-3)
+    # linear in distance: 1 m is 1/5 of the way from 0.5 m (top) to 3 m (bottom)
+    one = dict((s, t) for t, s in distance_ticks(ColorScale("distance", 3000.0, 500.0, fb)))
+    assert one["1 m"] == pytest.approx(255 * 2000 / 2500, abs=1e-3)
     # near range only: millimetres
-    assert all(s.endswith("mm") for _t, s in distance_ticks(fb / 900.0, fb / 300.0, fb))
-    # a range down to zero disparity reaches infinity
-    assert distance_ticks(0.0, hi, fb)[0][1] == "∞"
-    assert distance_ticks(5.0, 5.0, fb) == []
+    assert all(s.endswith("mm") for _t, s in distance_ticks(ColorScale("distance", 900, 300, fb)))
+    # a min-max range down to zero disparity reaches infinity
+    assert distance_ticks(ColorScale("disparity", 0.0, fb / 500.0, fb))[0][1] == "∞"
+    assert distance_ticks(ColorScale("disparity", 5.0, 5.0, fb)) == []
 
 
 def test_color_bar_matches_opencv_colormap(panel):
@@ -92,6 +97,6 @@ def test_color_bar_matches_opencv_colormap(panel):
     lut = colormap_lut(cv2.COLORMAP_OCEAN)
     ref = cv2.applyColorMap(np.array([[200]], np.uint8), cv2.COLORMAP_OCEAN)[0, 0, ::-1]
     assert tuple(lut[200]) == tuple(ref)
-    panel.color_bar.set_scale(cv2.COLORMAP_OCEAN, 20.0, 150.0, 77000.0)
+    panel.color_bar.set_scale(cv2.COLORMAP_OCEAN, ColorScale("disparity", 20.0, 150.0, 77000.0))
     ticks = panel.color_bar.getAxis("right")._tickLevels[0]
     assert ticks and not any(math.isnan(t) for t, _s in ticks)
