@@ -258,6 +258,7 @@ class ImagePanel(pg.GraphicsLayoutWidget):
             self.fit()
 
     def fit(self) -> None:
+        """Show the whole image (again, after a zoom or pan)."""
         if self._shape is not None:
             h, w = self._shape
             self.view.setRange(xRange=(0, w), yRange=(0, h), padding=0)

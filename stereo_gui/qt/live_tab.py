@@ -248,11 +248,6 @@ class LiveTab(QWidget):
             check.setChecked(key in shown)
             check.toggled.connect(self._layout_views)
             self.view_checks[key] = check
-        first = self.panels["left"].view
-        for key, panel in self.panels.items():
-            if key not in ("left", "right"):
-                panel.view.setXLink(first)
-                panel.view.setYLink(first)
         self._grid_host = QWidget()
         self._grid = QGridLayout(self._grid_host)
         self._grid.setContentsMargins(0, 0, 0, 0)
@@ -272,6 +267,10 @@ class LiveTab(QWidget):
         self.clear_button = QPushButton("Clear")
         self.clear_button.setToolTip("Remove all distance markers")
         self.clear_button.clicked.connect(self.clear_markers)
+        self.fit_button = QPushButton("Fit")
+        self.fit_button.setToolTip("Show the whole image in every view again (after zooming with "
+                                   "the mouse wheel or panning)")
+        self.fit_button.clicked.connect(self.fit_views)
         self.export_button = QToolButton()
         self.export_button.setText("Export frame ▾")
         # the arrow is in the text: the style's own indicator overlaps it
@@ -310,8 +309,8 @@ class LiveTab(QWidget):
         for c in self.view_checks.values():
             tools.addWidget(c)
         tools.addStretch(1)
-        for b in (self.ruler_button, self.clear_button, self.pause_button, self.snapshot_button,
-                  self.export_button, self.record_button):
+        for b in (self.ruler_button, self.clear_button, self.fit_button, self.pause_button,
+                  self.snapshot_button, self.export_button, self.record_button):
             tools.addWidget(b)
         for b in (self.export_button, self.record_button):  # as tall as the push buttons
             b.setSizePolicy(b.sizePolicy().horizontalPolicy(),
@@ -637,6 +636,10 @@ class LiveTab(QWidget):
         self._ruler_a = None
         for p in self.panels.values():
             p.clear_markers()
+
+    def fit_views(self) -> None:
+        for p in self.panels.values():
+            p.fit()
 
     # ---- pause and snapshot ------------------------------------------------------------------
     def set_paused(self, paused: bool) -> None:

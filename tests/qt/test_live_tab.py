@@ -198,3 +198,29 @@ def test_readings_use_the_active_fit(qtbot, ctx, live, sim_rig, wall_pair, array
     assert m.Z_mm == pytest.approx(1.1 * 1500.0, rel=0.02)
     assert ctx.measurements[-1].method == fit.model
     assert "fit" in live.readout_text("wls", 320, 240)
+
+
+def test_every_view_shows_the_whole_image_filling_its_panel(
+        qtbot, ctx, live, sim_rig, wall_pair, array_source):
+    """The views (the colour one narrower, beside its colour bar) each fit the image after the
+    layout changes, and Fit brings a zoomed view back."""
+    live.resize(1100, 800)
+    live.show()
+    _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
+    live.view_checks["right"].setChecked(True)
+    live.view_checks["closed"].setChecked(False)
+    live.resize(1200, 700)
+    qtbot.waitUntil(lambda: live.frames_shown >= 3, timeout=30000)
+
+    def fitted(panel) -> bool:
+        (x0, x1), (y0, y1) = panel.view.viewRange()
+        whole = x0 <= 0.5 and x1 >= 639.5 and y0 <= 0.5 and y1 >= 479.5
+        return whole and min((x1 - x0) / 640, (y1 - y0) / 480) < 1.02
+
+    for key in live.visible_views():
+        qtbot.waitUntil(lambda k=key: fitted(live.panels[k]), timeout=30000)
+    live.panels["wls"].view.scaleBy((0.5, 0.5))  # the mouse wheel
+    assert not fitted(live.panels["wls"])
+    assert fitted(live.panels["left"])  # zooming one view leaves the others alone
+    live.fit_button.click()
+    assert all(fitted(live.panels[k]) for k in live.visible_views())
