@@ -187,3 +187,28 @@ def test_switching_parallel_off_stops_the_helper_thread():
     pipe.process(left, right)
     assert not any(t.is_alive() for t in helpers)
     pipe.close()
+
+
+@pytest.mark.parametrize("kind, far, near", [("distance", 3000.0, 500.0),
+                                             ("disparity", 20.0, 160.0)])
+def test_colorize_paints_the_levels_of_its_scale(kind, far, near):
+    """The fast per-frame colouring agrees with ColorScale.level (what the colour bar uses)."""
+    from stereo_gui.core.matching import ColorScale
+
+    rng = np.random.default_rng(5)
+    d = rng.uniform(5.0, 200.0, (60, 80)).astype(np.float32)
+    d[::7, ::5] = np.nan
+    scale = ColorScale(kind, far, near, 700.0 * 110.0)
+    color = colorize(d, scale, "ocean")
+    lut = cv2.applyColorMap(np.arange(256, dtype=np.uint8).reshape(-1, 1), cv2.COLORMAP_OCEAN)[:, 0]
+    level = np.rint(np.clip(scale.level(d), 0, 255))
+    ok = np.isfinite(d)
+    assert not color[~ok].any()
+    for dl in (-1, 0, 1):
+        near_level = lut[np.clip(level[ok] + dl, 0, 255).astype(int)]
+        ok_here = (color[ok] == near_level).all(axis=1)
+        if dl == -1:
+            matched = ok_here
+        else:
+            matched |= ok_here
+    assert matched.all()
