@@ -13,6 +13,7 @@ from __future__ import annotations
 import datetime as _dt
 import logging
 import math
+import re
 from pathlib import Path
 
 import cv2
@@ -80,6 +81,19 @@ def save_calibration(calib: StereoCalibration, path: str | Path) -> Path:
     return path
 
 
+def _parse_error(exc: BaseException) -> str:
+    """The parser's own words ('line 3: Invalid or unsupported syntax'): the binding raises a
+    SystemError whose text only names the binding, with OpenCV's error as its cause."""
+    cause = exc.__cause__ or exc.__context__
+    if isinstance(exc, SystemError) and isinstance(cause, cv2.error):
+        exc = cause
+    text = str(exc).strip()
+    found = re.search(r"\((\d+)\): ([^']+)'?\s*$", text)
+    if found:
+        return f"line {found.group(1)}: {found.group(2).strip()}"
+    return text.splitlines()[-1] if text else type(exc).__name__
+
+
 def _open(path: Path) -> cv2.FileStorage:
     if not path.exists():
         raise CalibrationFileError(f"calibration file {path} does not exist")
@@ -88,8 +102,8 @@ def _open(path: Path) -> cv2.FileStorage:
     try:
         fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
     except (cv2.error, SystemError) as exc:
-        first = str(exc).strip().splitlines()[-1] if str(exc).strip() else ""
-        raise CalibrationFileError(f"{path} is not an OpenCV FileStorage file ({first})") from None
+        raise CalibrationFileError(
+            f"{path} is not an OpenCV FileStorage file ({_parse_error(exc)})") from None
     if not fs.isOpened():
         raise CalibrationFileError(f"{path} is not an OpenCV FileStorage file")
     return fs

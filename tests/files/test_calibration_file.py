@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import cv2
 import numpy as np
@@ -255,3 +256,15 @@ def test_scaling_to_another_aspect_ratio_is_refused(tmp_path):
     big = load_calibration_for_size(path, (1280, 960))
     assert big.scaled_from == (640, 480)
     assert np.allclose(big.M1, c.scaled_to((1280, 960)).M1)
+
+
+def test_unparsable_file_names_the_parse_error_not_the_binding(tmp_path):
+    """OpenCV's Python binding wraps the parse error in a SystemError that only names the
+    binding; the message must carry the parser's line and reason instead."""
+    junk = tmp_path / "junk.yaml"
+    junk.write_text("M1: [1, 2\n  foo: {")
+    with pytest.raises(CalibrationFileError) as caught:
+        load_calibration(junk)
+    message = str(caught.value)
+    assert "exception set" not in message and "cv2.FileStorage" not in message
+    assert re.search(r"\(line \d+: \w", message), message
