@@ -27,7 +27,8 @@ QUANTUM_PX = 1.0 / DISP_SCALE
 PATCH_PX = 9  # default side of the square patch a measurement looks at, px (odd)
 MAD_TO_SIGMA = 1.4826  # median absolute deviation -> standard deviation for normal noise
 
-REASONS = ("no valid pixels", "too near", "too far", "outside the image", "out of disparity range")
+REASONS = ("no valid pixels", "too near", "too far", "outside the image", "out of disparity range",
+           "no metric scale")
 
 
 @dataclass(frozen=True)
@@ -379,8 +380,17 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
         k = z_fit / Z
         X, Y, Z = X * k, Y * k, z_fit
         method = fit.model
-    fb = calibration.focal_px * calibration.rectified_baseline_mm
-    expected = Z * Z / fb * dd if fb > 0 else float("nan")
+        # the fit's own slope turns the disparity's uncertainty into millimetres
+        expected = abs(float(fit.predict(d + dd)) - float(fit.predict(d - dd))) / 2.0
+    elif not calibration.metric:
+        # Hartley's rectification has no scale: triangulation would give a number in unknown
+        # units; a regression fitted on true distances gives millimetres
+        return Measurement(x, y, False, "no metric scale", disparity_px=d,
+                           valid_fraction=valid_fraction, spread_px=spread, mode=mode,
+                           raw_disparity_px=raw_d)
+    else:
+        fb = calibration.focal_px * calibration.rectified_baseline_mm
+        expected = Z * Z / fb * dd if fb > 0 else float("nan")
     rng = math.sqrt(X * X + Y * Y + Z * Z)
     return Measurement(x, y, True, None, disparity_px=d, X_mm=X, Y_mm=Y, Z_mm=Z, range_mm=rng,
                        valid_fraction=valid_fraction, spread_px=spread, expected_error_mm=expected,

@@ -38,6 +38,9 @@ def disparity_to_png16(disparity_px: np.ndarray) -> np.ndarray:
 def points_mm(disparity_px: np.ndarray, calibration: StereoCalibration) -> np.ndarray:
     """(H, W, 3) float32 X, Y, Z in mm (left rectified frame) through Q; NaN where invalid."""
     d = _check(disparity_px)
+    if not calibration.metric:
+        raise InputError("this calibration has no metric scale (Hartley's method): depth and point "
+                         "clouds in millimetres need a calibration made with a chessboard")
     if (d.shape[1], d.shape[0]) != tuple(calibration.image_size):
         raise InputError(f"the disparity map is {d.shape[1]}x{d.shape[0]} but the calibration is "
                          f"for {calibration.width}x{calibration.height}")

@@ -143,6 +143,23 @@ def test_a_fit_replaces_triangulation_inside_its_span_only():
     assert m.Z_mm == pytest.approx(1.01 * f * b / 25.0, rel=1e-6)
     far = measure_point(np.full((48, 64), 5.0, np.float32), 30, 20, calibration=c, fit=fit)
     assert not far.valid and far.reason == "out of disparity range"
+    # the uncertainty follows the fit's slope: |dZ/dd| * dd, dd the 1/16 px quantum here
+    z = 1.01 * f * b
+    assert m.expected_error_mm == pytest.approx(z / 25.0**2 / 16.0, rel=1e-3)
+
+
+def test_a_hartley_calibration_measures_in_mm_only_through_a_fit():
+    """Hartley's rectification has no metric scale: triangulating would give a number in
+    unknown units labelled mm. Without a fit the reading says so; with one it is in mm."""
+    f, b = 500.0, 100.0
+    c = StereoCalibration.identity((64, 48), f, 1.0).with_updates(method="hartley")
+    disp = np.full((48, 64), 25.0, np.float32)
+    m = measure_point(disp, 30, 20, calibration=c)
+    assert not m.valid and m.reason == "no metric scale" and m.disparity_px == pytest.approx(25.0)
+    assert math.isnan(m.Z_mm)
+    fit = fit_inverse([(d, f * b / d) for d in (10.0, 20.0, 30.0, 40.0)])
+    m = measure_point(disp, 30, 20, calibration=c, fit=fit)
+    assert m.valid and m.Z_mm == pytest.approx(f * b / 25.0, rel=1e-6)
 
 
 def test_object_mode_reads_the_surface_around_the_click(rig):

@@ -105,3 +105,15 @@ def test_errors_and_atomic_writes(tmp_path, result, monkeypatch):
         depth_export.write_disparity_npy(target, r.final_px)
     assert target.read_bytes() == b"old"
     assert [p.name for p in tmp_path.iterdir()] == ["keep.npy"]
+
+
+def test_depth_and_clouds_refuse_a_calibration_without_metric_scale(tmp_path, result):
+    calib, r = result
+    hartley = calib.with_updates(method="hartley")
+    with pytest.raises(InputError, match="no metric scale"):
+        depth_export.write_depth_png16(tmp_path / "d.png", r.final_px, hartley)
+    with pytest.raises(InputError, match="no metric scale"):
+        depth_export.write_ply(tmp_path / "c.ply", r.final_px, r.rectified_left, hartley)
+    assert not (tmp_path / "d.png").exists() and not (tmp_path / "c.ply").exists()
+    # the disparity itself has no unit problem
+    depth_export.write_disparity_png16(tmp_path / "x16.png", r.final_px)
