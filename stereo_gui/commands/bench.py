@@ -28,7 +28,8 @@ def rss_mb() -> float:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--calib", metavar="C", help="calibration file (with LEFT RIGHT)")
+    parser.add_argument("--calib", metavar="C", help="calibration file (with LEFT RIGHT), or "
+                        "rectified:F,B for an already rectified pair (focal px, baseline mm)")
     parser.add_argument("left", nargs="?", metavar="LEFT",
                         help="left raw image (without LEFT RIGHT: the simulated rig)")
     parser.add_argument("right", nargs="?", metavar="RIGHT", help="right raw image")
@@ -46,7 +47,7 @@ def _input(args):
                              "for the simulated rig)")
         from stereo_gui.commands.disparity import load_calibration, read_pair
 
-        calib = load_calibration(args.calib)
+        calib = load_calibration(args.calib, args.left)
         left, right = read_pair(args.left, args.right, calib)
         return "files", calib, left, right
     from stereo_gui.sources.sim import Scene, SimRig

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import re
 from pathlib import Path
 
 import cv2
@@ -21,11 +22,30 @@ log = logging.getLogger(__name__)
 
 
 # ---- shared helpers ------------------------------------------------------------------------
-def load_calibration(path: str) -> StereoCalibration:
-    """The calibration file at `path` (the calibration file module is imported only when used)."""
+_RECTIFIED = re.compile(r"^rectified:\s*([^,]+),\s*([^,]+)$")
+CALIB_HELP = ("calibration file (YAML), or rectified:F,B for a pair that is already rectified "
+              "(a benchmark's): focal length F px, baseline B mm")
+
+
+def load_calibration(spec: str, left_image: str | None = None) -> StereoCalibration:
+    """The calibration file at `spec`, or for `rectified:F,B` the identity calibration of an
+    already rectified pair with focal length F px and baseline B mm at the size of `left_image`."""
+    m = _RECTIFIED.match(spec)
+    if m:
+        try:
+            f, b = float(m.group(1)), float(m.group(2))
+        except ValueError:
+            f = b = float("nan")
+        if not (f > 0 and b > 0 and np.isfinite(f) and np.isfinite(b)):
+            raise InputError(f"{spec!r}: give rectified:F,B with a focal length F in px and a "
+                             "baseline B in mm, both positive numbers")
+        if left_image is None:
+            raise InputError("rectified:F,B needs the LEFT image (its size is the calibration's)")
+        img = read_image(left_image, "left")
+        return StereoCalibration.identity((img.shape[1], img.shape[0]), f, b)
     from stereo_gui.files.calibration_file import load_calibration as _load
 
-    return _load(path)
+    return _load(spec)
 
 
 def read_image(path: str, what: str) -> np.ndarray:
@@ -59,7 +79,7 @@ def load_params(name: str) -> MatcherParams:
 
 def run_pipeline(args) -> tuple[StereoCalibration, PipelineResult]:
     """Calibration, images and preset from the common options, and the processed frame."""
-    calib = load_calibration(args.calib)
+    calib = load_calibration(args.calib, args.left)
     params = load_params(args.preset)
     left, right = read_pair(args.left, args.right, calib)
     with StereoPipeline(calib, params) as pipe:
@@ -67,7 +87,7 @@ def run_pipeline(args) -> tuple[StereoCalibration, PipelineResult]:
 
 
 def add_pair_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--calib", required=True, metavar="C", help="calibration file (YAML)")
+    parser.add_argument("--calib", required=True, metavar="C", help=CALIB_HELP)
     parser.add_argument("left", metavar="LEFT", help="left raw camera image")
     parser.add_argument("right", metavar="RIGHT", help="right raw camera image")
     parser.add_argument("--preset", default="live", metavar="P",

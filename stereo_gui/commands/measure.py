@@ -71,7 +71,8 @@ def write_outputs(args, calib, measurements: list[Measurement]) -> None:
 
         from stereo_gui.files.spreadsheet import MeasurementRecord, append_measurements
 
-        calib_file = str(Path(args.calib).resolve())
+        calib_file = (args.calib if args.calib.startswith("rectified:")
+                      else str(Path(args.calib).resolve()))
         records = [MeasurementRecord.from_measurement(m, calibration_file=calib_file,
                                                       calibration_rms_px=calib.rms_stereo)
                    for m in measurements]

@@ -65,3 +65,18 @@ def test_bad_input(rectified_pair, tmp_path, capsys):
     err = capsys.readouterr().err
     assert "none.yaml" in err and len(err.strip().splitlines()) == 1
     assert not list(tmp_path.iterdir())
+
+
+def test_an_already_rectified_pair_needs_no_calibration_file(rectified_pair, tmp_path, capsys):
+    """--calib rectified:F,B is the identity calibration at the size of LEFT."""
+    d, calib, left, right = rectified_pair
+    assert main(["disparity", "--calib", "rectified:300,100", str(d / "l.png"), str(d / "r.png"),
+                 "-o", str(tmp_path / "v.png"), "--npy", str(tmp_path / "d.npy")]) == 0
+    expected = StereoPipeline(calib, load_preset("live")).process(left, right)
+    np.testing.assert_array_equal(np.load(tmp_path / "d.npy"), expected.final_px)
+    capsys.readouterr()
+    for bad in ("rectified:300", "rectified:-3,100", "rectified:f,b"):
+        assert main(["disparity", "--calib", bad, str(d / "l.png"), str(d / "r.png"),
+                     "-o", str(tmp_path / "w.png")]) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
