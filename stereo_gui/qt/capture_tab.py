@@ -466,12 +466,15 @@ class CaptureTab(QWidget):
         self.frozen = out
         self._frozen_frame = frame
         self._last_reviewed_pose = out.pose
+        self._show_review_prompt()
+        self._set_processing(False)  # nothing to detect while a pair is under review
+        self._update_controls()
+
+    def _show_review_prompt(self) -> None:
         text = "Both cameras see the board. Save this pair (S) or Cancel (C)?"
         if self.session is None:
             text += "  (Save asks for a session folder first.)"
         self.prompt.setText(text)
-        self._set_processing(False)  # nothing to detect while a pair is under review
-        self._update_controls()
 
     def save_frozen(self) -> str | None:
         """Save the frozen pair into the session (asking for one if none is open)."""
@@ -586,6 +589,8 @@ class CaptureTab(QWidget):
             self.set_board(board)
         self.ctx.update_settings(last_session=str(session.folder))
         self.session_label.setText(f"Session: {session.folder}")
+        if self.state == "review":  # the prompt no longer needs to warn that Save asks for one
+            self._show_review_prompt()
         self._saved.clear()
         self.pair_list.clear()
         self.coverage.reset(self._image_size())

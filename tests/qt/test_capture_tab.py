@@ -70,6 +70,18 @@ def test_cancel_discards_and_same_pose_does_not_freeze_again(tab, tmp_path):
     assert CaptureSession.open(tmp_path / "s").pairs == ()
 
 
+def test_choosing_a_session_during_review_drops_the_ask_for_one_note(tab, tmp_path):
+    """A pair frozen before any session says Save will ask for a folder; once the technician
+    chose one with New session..., the prompt must stop saying so."""
+    out, frame = _board_frames()[0]
+    tab.show_output(out, frame)
+    assert tab.state == "review" and "session folder first" in tab.prompt.text()
+    tab.new_session(tmp_path / "s")
+    assert tab.state == "review"
+    assert "Save this pair (S)" in tab.prompt.text()
+    assert "session folder first" not in tab.prompt.text()
+
+
 def test_only_one_side_sees_board(tab, tmp_path):
     out, frame = _board_frames()[0]
     from dataclasses import replace
