@@ -7,11 +7,30 @@ from __future__ import annotations
 
 import contextlib
 import os
-import tempfile
+import secrets
+import stat
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from stereo_gui.core.errors import InputError
+
+
+def _create_temp(target: Path, folder: Path, suffix: str) -> Path:
+    """Create an empty, new file in `folder` with the permissions the user's umask gives a
+    new file (tempfile.mkstemp makes it 0600: a calibration or export would then be unreadable
+    for the other technicians of the workshop)."""
+    for _ in range(100):
+        path = folder / f".{target.name}.{secrets.token_hex(4)}{suffix}"
+        try:
+            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0),
+                         0o666)
+        except FileExistsError:
+            continue
+        except OSError as exc:
+            raise InputError(f"cannot write {target}: {exc.strerror or exc}") from exc
+        os.close(fd)
+        return path
+    raise InputError(f"cannot write {target}: no free temporary file name in {folder}")
 
 
 @contextlib.contextmanager
@@ -25,11 +44,10 @@ def atomic_path(target: str | os.PathLike, suffix: str | None = None) -> Iterato
     folder = target.parent if str(target.parent) else Path(".")
     if not folder.is_dir():
         raise InputError(f"cannot write {target}: folder {folder} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=suffix or target.suffix or ".tmp",
-                               dir=folder)
-    os.close(fd)
-    tmp_path = Path(tmp)
+    tmp_path = _create_temp(target, folder, suffix or target.suffix or ".tmp")
     try:
+        if target.is_file():  # replacing a file keeps its permissions
+            os.chmod(tmp_path, stat.S_IMODE(target.stat().st_mode))
         yield tmp_path
         with open(tmp_path, "rb+") as fh:
             os.fsync(fh.fileno())
