@@ -357,7 +357,7 @@ class MeasurementsTab(QWidget):
         self.sample_label.setText(
             f"{len(samples)} samples (valid readings with a true distance)." if samples else
             "No samples yet: enter true distances in the log. The cubic needs at least 4 "
-            "samples, the inverse model 3.")
+            "samples, the inverse model 2.")
         for m in MODELS:
             fit = self.fits.get(m)
             lab = self.r2_labels[m]

@@ -145,3 +145,15 @@ def test_new_reading_without_truth_keeps_the_active_fit(tab, ctx):
     ctx.activeFitChanged.connect(changes.append)
     ctx.add_measurement(_record(33.0))  # a live click: no true distance, the samples are the same
     assert ctx.active_fit is fit and changes == []
+
+
+def test_empty_log_states_the_sample_counts_the_fits_need(tab):
+    """The hint above the plot and each model's 'not fitted' reason give the same minimum."""
+    import re
+
+    tab.refit()
+    hint = tab.sample_label.text()
+    for model in ("cubic", "inverse"):
+        need = re.search(r"at least (\d+) samples", tab.fit_errors[model]).group(1)
+        said = re.search(rf"{model}[^,.]*? (\d+)", hint)
+        assert said and said.group(1) == need, (model, hint, tab.fit_errors[model])
