@@ -95,6 +95,7 @@ class CaptureSession:
         self._pairs = sorted(pairs, key=lambda e: e.number)
         self.has_manifest = has_manifest
         self.warnings = list(warnings or [])  # what opening had to tolerate
+        self._unreadable_manifest = False  # an unreadable session.json is moved aside, not lost
         self._lock = threading.RLock()
 
     # ---- creating and opening ---------------------------------------------------------------
@@ -133,11 +134,13 @@ class CaptureSession:
                 return cls._from_manifest(folder, data)
             except (OSError, UnicodeDecodeError, ValueError, TypeError, KeyError) as exc:
                 warnings.append(f"{manifest} is unreadable ({exc}); pairs found in the folder "
-                                "are used, without its board and exclusions")
+                                "are used, without its board and exclusions (the file is kept "
+                                f"as {MANIFEST}.unreadable when the session changes)")
                 log.warning("%s", warnings[-1])
         pairs = _discover(folder, warnings)
         s = cls(folder, None, None, CameraIds(), "", pairs, has_manifest=False, warnings=warnings)
         s.resolution = s._first_image_size()
+        s._unreadable_manifest = manifest.exists()
         return s
 
     @classmethod
@@ -314,6 +317,23 @@ class CaptureSession:
             "excluded": [p.name for p in self._pairs if p.excluded],
         }
 
+    def _unreadable_backup(self) -> Path:
+        path = self.folder / f"{MANIFEST}.unreadable"
+        n = 1
+        while path.exists():
+            n += 1
+            path = self.folder / f"{MANIFEST}.unreadable-{n}"
+        return path
+
     def _write_manifest(self) -> None:
+        if self._unreadable_manifest:
+            # keep what could not be read (its board and exclusions may be repaired by hand)
+            # instead of replacing it with a manifest that knows none of that
+            try:
+                os.replace(self.manifest_path, self._unreadable_backup())
+            except OSError as exc:
+                raise InputError(f"cannot keep the unreadable {self.manifest_path}: "
+                                 f"{exc.strerror or exc}") from exc
+            self._unreadable_manifest = False
         write_text_atomic(self.manifest_path, json.dumps(self.manifest(), indent=2) + "\n")
         self.has_manifest = True

@@ -577,7 +577,10 @@ class CaptureTab(QWidget):
         """Open an existing session (or a folder of pairs) to continue, review or delete."""
         from stereo_gui.files.session import CaptureSession
 
-        self._use_session(CaptureSession.open(folder))
+        session = CaptureSession.open(folder)
+        self._use_session(session)
+        if session.warnings:  # an unreadable session.json, pairs with missing images, ...
+            self.ctx.report_error("; ".join(session.warnings))
 
     def _use_session(self, session) -> None:
         if self._scan is not None:

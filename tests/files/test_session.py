@@ -136,6 +136,20 @@ def test_corrupt_manifest_falls_back_to_the_images(tmp_path):
     assert len(again.pairs) == 1 and again.warnings
 
 
+def test_unreadable_manifest_is_kept_aside_when_the_session_changes(tmp_path):
+    """Saving a pair into a session whose session.json could not be read must not overwrite
+    that file: its board and exclusions are only in there."""
+    s = _new(tmp_path)
+    s.add_pair(_img(1), _img(2))
+    s.manifest_path.write_text('{"format_version": 1, "excluded": ["chessboard-1"], ')
+    again = CaptureSession.open(tmp_path / "s")
+    assert f"{MANIFEST}.unreadable" in again.warnings[0]
+    again.add_pair(_img(3), _img(4))
+    kept = tmp_path / "s" / f"{MANIFEST}.unreadable"
+    assert kept.read_text() == '{"format_version": 1, "excluded": ["chessboard-1"], '
+    assert [p.number for p in CaptureSession.open(tmp_path / "s").pairs] == [1, 2]
+
+
 def test_missing_folder_is_an_input_error(tmp_path):
     with pytest.raises(InputError, match="does not exist"):
         CaptureSession.open(tmp_path / "nope")

@@ -124,6 +124,19 @@ def test_open_session_lists_pairs_with_coverage_and_delete(tab, tmp_path, qtbot)
     assert tab.state == "live"
 
 
+def test_opening_a_session_with_an_unreadable_manifest_says_so(tab, ctx, tmp_path, qtbot):
+    """The technician is told that the board and exclusions of session.json were not read."""
+    (tmp_path / "set").mkdir()
+    folder = write_calibration_set(tmp_path / "set", n_pairs=2, seed=3)
+    (folder / "session.json").write_text('{"format_version": 1, "pairs": [')
+    errors = []
+    ctx.errorOccurred.connect(errors.append)
+    tab.open_session(folder)
+    qtbot.waitUntil(lambda: not tab.scanning(), timeout=20000)
+    assert len(tab.saved_names()) == 2
+    assert errors and "session.json is unreadable" in errors[0]
+
+
 def test_board_settings_are_persisted(tab, ctx):
     tab.cols_spin.setValue(7)
     tab.rows_spin.setValue(5)
