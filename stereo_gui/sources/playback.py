@@ -53,9 +53,14 @@ class _ImageStore:
 
         left, right = self.files[i]
         try:
-            return load_image(left), load_image(right)
+            images = load_image(left), load_image(right)
         except StereoGuiError as exc:
             raise SourceError(str(exc)) from exc
+        (hl, wl), (hr, wr) = images[0].shape[:2], images[1].shape[:2]
+        if (wl, hl) != (wr, hr):  # as a camera pair must: nothing downstream can use such a pair
+            raise SourceError(f"{left.name} is {wl}x{hl} but {right.name} is {wr}x{hr}: both "
+                              "images of a pair must have the same size")
+        return images
 
     def close(self) -> None:
         pass

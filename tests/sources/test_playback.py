@@ -117,6 +117,17 @@ def test_plain_folder_of_pairs(tmp_path):
         assert g.t_left == pytest.approx(k / 12.0)
 
 
+def test_pair_of_different_image_sizes_is_refused(tmp_path):
+    """A folder whose right image is half the size of the left must not play as if it were a
+    stereo pair (the capture tab then said the right camera does not see the board)."""
+    f = _frames(1)[0]
+    cv2.imwrite(str(tmp_path / "left1.png"), f.left)
+    cv2.imwrite(str(tmp_path / "right1.png"), cv2.resize(f.right, None, fx=0.5, fy=0.5))
+    with pytest.raises(SourceError, match=r"left1.png is \d+x\d+ but right1.png is \d+x\d+"):
+        src = PlaybackSource(tmp_path, paced=False)
+        src.read()
+
+
 def test_side_by_side_video_file(tmp_path):
     frames = _frames(4)
     path = tmp_path / "sbs.avi"
