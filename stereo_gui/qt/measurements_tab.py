@@ -95,10 +95,19 @@ class MeasurementModel(QAbstractTableModel):
     def __init__(self, ctx, parent=None) -> None:
         super().__init__(parent)
         self.ctx = ctx
+        self._rows = len(ctx.measurements)
         ctx.measurementsChanged.connect(self._reset)
 
     def _reset(self) -> None:
+        n = len(self.ctx.measurements)
+        if n == self._rows:
+            # a reading changed (a true distance was entered): a reset would destroy the cell
+            # editor committing it and lose the current cell, so Down no longer led to the next
+            if n:
+                self.dataChanged.emit(self.index(0, 0), self.index(n - 1, len(COLUMNS) - 1))
+            return
         self.beginResetModel()
+        self._rows = n
         self.endResetModel()
 
     def rowCount(self, parent=QModelIndex()) -> int:  # noqa: N802 - Qt API

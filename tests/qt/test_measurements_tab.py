@@ -157,3 +157,29 @@ def test_empty_log_states_the_sample_counts_the_fits_need(tab):
         need = re.search(r"at least (\d+) samples", tab.fit_errors[model]).group(1)
         said = re.search(rf"{model}[^,.]*? (\d+)", hint)
         assert said and said.group(1) == need, (model, hint, tab.fit_errors[model])
+
+
+def test_entering_a_true_distance_keeps_the_current_cell(tab, ctx, qtbot):
+    """Type a distance, Return, Down: the next reading's true-distance cell, ready for the next
+    entry (the model was reset on every entry, which dropped the current cell)."""
+    from PySide6.QtCore import Qt
+    from PySide6.QtWidgets import QLineEdit
+
+    for d in DISPARITIES[:3]:
+        ctx.add_measurement(_record(d))
+    tab.resize(1000, 600)
+    tab.show()
+    table = tab.table
+    first = table.model().index(0, TRUE_COL)
+    table.setCurrentIndex(first)
+    table.edit(first)
+    editor = table.viewport().findChild(QLineEdit)  # the default delegate's editor
+    assert editor is not None
+    qtbot.keyClicks(editor, "1000")
+    qtbot.keyClick(editor, Qt.Key.Key_Return)  # the delegate commits in a queued call
+    qtbot.waitUntil(lambda: ctx.measurements[0].true_mm == 1000.0, timeout=5000)
+    assert (table.currentIndex().row(), table.currentIndex().column()) == (0, TRUE_COL)
+    qtbot.keyClick(table, Qt.Key.Key_Down)
+    assert (table.currentIndex().row(), table.currentIndex().column()) == (1, TRUE_COL)
+    ctx.add_measurement(_record(DISPARITIES[3]))  # a new reading still appears as a new row
+    assert table.model().rowCount() == 4
