@@ -28,6 +28,7 @@ from PySide6.QtWidgets import (
     QLabel,
     QListWidget,
     QListWidgetItem,
+    QMessageBox,
     QPushButton,
     QSpinBox,
     QSplitter,
@@ -745,8 +746,14 @@ class CaptureTab(QWidget):
 
     def _delete_selected(self) -> None:
         item = self.pair_list.currentItem()
-        if item is not None:
-            self.delete_pair(item.data(Qt.ItemDataRole.UserRole))
+        if item is None:
+            return
+        name = item.data(Qt.ItemDataRole.UserRole)
+        answer = QMessageBox.question(  # the files go, not only the list entry
+            self, "Delete pair", f"Delete pair {name}? Its two images are removed from "
+            f"{self.session.folder if self.session else 'the session folder'}.")
+        if answer == QMessageBox.StandardButton.Yes:
+            self.delete_pair(name)
 
     def delete_pair(self, name: str) -> None:
         """Delete a saved pair's files from the session."""

@@ -27,6 +27,7 @@ from PySide6.QtWidgets import (
     QHBoxLayout,
     QHeaderView,
     QLabel,
+    QMessageBox,
     QPushButton,
     QSplitter,
     QTableView,
@@ -290,7 +291,7 @@ class MeasurementsTab(QWidget):
         self.remove_button = QPushButton("Remove selected")
         self.remove_button.clicked.connect(self._remove_selected)
         self.clear_button = QPushButton("Clear log")
-        self.clear_button.clicked.connect(self.ctx.clear_measurements)
+        self.clear_button.clicked.connect(self._clear_log)
         self.xlsx_button = QPushButton("Export .xlsx…")
         self.xlsx_button.clicked.connect(self._choose_xlsx)
         self.csv_button = QPushButton("Export CSV…")
@@ -433,6 +434,19 @@ class MeasurementsTab(QWidget):
                 self.model_combo.blockSignals(False)
 
     # ---- log editing ---------------------------------------------------------------------------
+    def _clear_log(self) -> None:
+        """Empty the log after asking: the true distances typed in exist nowhere else."""
+        n = len(self.ctx.measurements)
+        if not n:
+            return
+        with_truth = sum(r.true_mm is not None for r in self.ctx.measurements)
+        answer = QMessageBox.question(
+            self, "Clear the log",
+            f"Remove all {n} readings ({with_truth} with a true distance) from the log? "
+            "Readings not exported are lost.")
+        if answer == QMessageBox.StandardButton.Yes:
+            self.ctx.clear_measurements()
+
     def _remove_selected(self) -> None:
         rows = sorted({i.row() for i in self.table.selectionModel().selectedRows()}, reverse=True)
         for r in rows:

@@ -137,6 +137,27 @@ def test_opening_a_session_with_an_unreadable_manifest_says_so(tab, ctx, tmp_pat
     assert errors and "session.json is unreadable" in errors[0]
 
 
+def test_delete_pair_button_asks_before_removing_the_files(tab, tmp_path, qtbot, monkeypatch):
+    from PySide6.QtWidgets import QMessageBox
+
+    (tmp_path / "set").mkdir()
+    folder = write_calibration_set(tmp_path / "set", n_pairs=2, seed=3)
+    tab.open_session(folder)
+    qtbot.waitUntil(lambda: not tab.scanning(), timeout=20000)
+    first = tab.saved_names()[0]
+    files = CaptureSession.open(folder).pair(first)
+    tab.show_saved_pair(first)  # as a click on it in the list
+    assert tab.delete_button.isEnabled()
+    monkeypatch.setattr(QMessageBox, "question",
+                        lambda *a, **k: QMessageBox.StandardButton.No)
+    tab.delete_button.click()
+    assert files.left.exists() and first in tab.saved_names()
+    monkeypatch.setattr(QMessageBox, "question",
+                        lambda *a, **k: QMessageBox.StandardButton.Yes)
+    tab.delete_button.click()
+    assert not files.left.exists() and first not in tab.saved_names()
+
+
 def test_board_settings_are_persisted(tab, ctx):
     tab.cols_spin.setValue(7)
     tab.rows_spin.setValue(5)

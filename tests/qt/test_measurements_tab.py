@@ -183,3 +183,25 @@ def test_entering_a_true_distance_keeps_the_current_cell(tab, ctx, qtbot):
     assert (table.currentIndex().row(), table.currentIndex().column()) == (1, TRUE_COL)
     ctx.add_measurement(_record(DISPARITIES[3]))  # a new reading still appears as a new row
     assert table.model().rowCount() == 4
+
+
+def test_clear_log_asks_first(tab, ctx, monkeypatch):
+    """One click on Clear log must not throw away the true distances typed in."""
+    from PySide6.QtWidgets import QMessageBox
+
+    _log_with_truth(ctx, tab)
+    n = len(ctx.measurements)
+    asked = []
+
+    def answer(reply):
+        def question(parent, title, text, *args, **kwargs):
+            asked.append(text)
+            return reply
+        return question
+
+    monkeypatch.setattr(QMessageBox, "question", answer(QMessageBox.StandardButton.No))
+    tab.clear_button.click()
+    assert len(ctx.measurements) == n and f"all {n} readings" in asked[-1]
+    monkeypatch.setattr(QMessageBox, "question", answer(QMessageBox.StandardButton.Yes))
+    tab.clear_button.click()
+    assert ctx.measurements == []
