@@ -37,9 +37,12 @@ def _env(tmp_path, **extra):
 
 @pytest.mark.slow
 def test_app_starts_and_quits_by_itself(tmp_path):
-    """`STEREO_GUI_QUIT_AFTER` closes the window; exit 0, no traceback, settings saved."""
+    """`STEREO_GUI_QUIT_AFTER` closes the window; exit 0, no traceback, settings saved.
+
+    6 s: the source is remembered once it has opened, and building the simulated rig takes
+    a few seconds on a busy machine."""
     proc = subprocess.run([sys.executable, "-m", "stereo_gui", "--source", "sim"],
-                          env=_env(tmp_path, STEREO_GUI_QUIT_AFTER="2"), capture_output=True,
+                          env=_env(tmp_path, STEREO_GUI_QUIT_AFTER="6"), capture_output=True,
                           text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert "Traceback" not in proc.stderr and "QThread: Destroyed" not in proc.stderr
