@@ -12,12 +12,14 @@ import json
 import math
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 from stereo_gui.core.board import parse_board
 from stereo_gui.core.calibrate import (
     DEFAULT_MIN_PAIRS,
     CalibrationResult,
+    RejectedPair,
     calibrate_hartley_features,
     calibrate_stereo,
 )
@@ -160,6 +162,15 @@ def summary_text(result: CalibrationResult, output: Path, seconds: float) -> str
     return "\n".join(lines)
 
 
+def _excluded_in_session(folder: Path) -> set[str]:
+    """Names of the pairs a capture session in `folder` excludes (none without a manifest)."""
+    from stereo_gui.files.session import MANIFEST, CaptureSession
+
+    if not (folder / MANIFEST).is_file():
+        return set()
+    return {p.name for p in CaptureSession.open(folder).pairs if p.excluded}
+
+
 def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     board = parse_board(args.board, args.square_mm)
@@ -177,8 +188,12 @@ def run(args: argparse.Namespace) -> int:
     found = discover_pairs(args.folder)
     if found.unpaired:
         sys.stderr.write(f"stereo-gui: warning: {found.warning()}\n")
+    excluded = _excluded_in_session(Path(args.folder))
+    pairs = [p for p in found.pairs if p.name not in excluded]
+    if found.pairs and not pairs:
+        raise InputError(f"every pair in {args.folder} is excluded in its capture session")
     items = [PairInput(p.name, (lambda f=p.left: load_image(f)), (lambda f=p.right: load_image(f)),
-                       p.left.name, p.right.name) for p in found.pairs]
+                       p.left.name, p.right.name) for p in pairs]
     progress = _StderrProgress(force_lines=args.progress)
     try:
         detections = detect_pairs(items, board, method=args.detector,
@@ -189,7 +204,7 @@ def run(args: argparse.Namespace) -> int:
             sys.stderr.write("stereo-gui: warning: no chessboard found; rectifying from "
                              "matched scene features (Hartley, no metric scale, no undistortion)\n")
             result = calibrate_hartley_features(
-                [(p.name, load_image(p.left), load_image(p.right)) for p in found.pairs],
+                [(p.name, load_image(p.left), load_image(p.right)) for p in pairs],
                 progress=lambda d, t, text: progress(d, t, "matching features"))
         else:
             result = calibrate_stereo(
@@ -198,6 +213,12 @@ def run(args: argparse.Namespace) -> int:
                 min_pairs=args.min_pairs, reject_outliers=not args.keep_outliers)
     finally:
         progress.clear()
+    skipped = [RejectedPair(p.name, "excluded in the capture session")
+               for p in found.pairs if p.name in excluded]
+    if skipped:
+        r = result.report
+        result = replace(result, report=replace(r, pairs_found=r.pairs_found + len(skipped),
+                                                rejected=r.rejected + tuple(skipped)))
     save_calibration(result.calibration, output)
     if ros_dir is not None:
         export_ros(result.calibration, ros_dir)

@@ -82,6 +82,26 @@ def test_hartley_method_says_it_is_not_metric(rig_dir, tmp_path, capsys):
     assert any("NOT in millimetres" in n for n in data["notes"])
 
 
+def test_pairs_excluded_in_a_capture_session_are_left_out(rig_dir, tmp_path, capsys):
+    """A session folder calibrates as the Calibration tab would: without its excluded pairs."""
+    from stereo_gui.files.session import CaptureSession
+
+    folder = tmp_path / "session"
+    shutil.copytree(rig_dir, folder)
+    session = CaptureSession.open(folder)
+    session.set_excluded("chessboard-3", True)
+    session.set_excluded("chessboard-7", True)
+    code, out, err = _run([folder, "--board", "9x6", "--square-mm", "25", "-o",
+                           tmp_path / "c.yaml", "--json"], capsys)
+    assert code == 0, err
+    data = json.loads(out)
+    assert data["pairs_found"] == N_PAIRS and data["pairs_used"] == N_PAIRS - 2
+    excluded = {r["name"]: r["reason"] for r in data["pairs_rejected"]}
+    assert excluded == {"chessboard-3": "excluded in the capture session",
+                        "chessboard-7": "excluded in the capture session"}
+    assert {p["name"] for p in data["per_pair"]}.isdisjoint(excluded)
+
+
 def _assert_one_error_line(code, out, err, *fragments):
     assert code == 2
     lines = err.strip().splitlines()
