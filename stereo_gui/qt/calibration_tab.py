@@ -157,6 +157,7 @@ class ErrorBarChart(pg.PlotWidget):
         super().__init__(parent)
         self.setLabel("left", "reprojection error", units="px")
         self.getAxis("left").enableAutoSIPrefix(False)  # not "mpx"
+        self.getAxis("bottom").enableAutoSIPrefix(False)  # not "pair (x0.001)" while empty
         self.setLabel("bottom", "pair")
         self.setMouseEnabled(x=False, y=False)
         self.hideButtons()

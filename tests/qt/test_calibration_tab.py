@@ -165,3 +165,14 @@ def test_shutdown_while_calibrating_joins_the_worker(tab, ctx, qtbot, session_fo
     assert ctx.shutdown(2000)  # what closing the window does: cancel and join every worker
     assert not worker.isRunning()
     qtbot.waitUntil(lambda: not tab.is_running(), timeout=30000)
+
+
+def test_empty_error_chart_axis_reads_pair_without_an_si_prefix(qtbot):
+    from stereo_gui.qt.calibration_tab import ErrorBarChart
+
+    chart = ErrorBarChart()
+    qtbot.addWidget(chart)
+    chart.show()
+    qtbot.waitExposed(chart)
+    label = chart.getPlotItem().getAxis("bottom").labelString()
+    assert "pair" in label and "x0.001" not in label
