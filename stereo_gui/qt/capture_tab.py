@@ -669,6 +669,7 @@ class CaptureTab(QWidget):
             info = self._saved.get(name) or SavedPairInfo(name, None, None)
             self._add_list_item(info)
         self._update_pairs_label()
+        self._update_controls()  # Delete pair needs pairs in the list
 
     def _add_list_item(self, info: SavedPairInfo) -> None:
         excluded = False

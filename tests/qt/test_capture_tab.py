@@ -111,6 +111,7 @@ def test_open_session_lists_pairs_with_coverage_and_delete(tab, tmp_path, qtbot)
     tab.open_session(folder)
     qtbot.waitUntil(lambda: not tab.scanning(), timeout=20000)
     assert len(tab.saved_names()) == 4
+    assert tab.delete_button.isEnabled()  # once the pairs are listed, not only after a click
     assert tab.pair_list.item(0).icon() is not None and not tab.pair_list.item(0).icon().isNull()
     assert tab.coverage.left_map.covered_fraction() > 0
     assert sum(tab.coverage.bar_values().values()) > 0
