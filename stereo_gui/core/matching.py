@@ -45,6 +45,13 @@ COLORMAPS: dict[str, int] = {
 }
 
 COLOR_RANGES = ("minmax", "fixed")
+# colours of pixels without depth in every view and export: no match (dark red), and the strip
+# the right camera cannot see (grey); neither occurs in the colour maps' ramps near them
+NO_MATCH_BGR = (20, 20, 110)
+NOT_SEEN_BGR = (96, 96, 96)
+
+INTERPOLATIONS: dict[str, int] = {"linear": cv2.INTER_LINEAR, "cubic": cv2.INTER_CUBIC,
+                                  "lanczos4": cv2.INTER_LANCZOS4}
 
 # the report's / OpenCV's names for some parameters, accepted when reading presets
 _ALIASES = {"window_size": "block_size", "minDisparity": "min_disparity",
@@ -74,12 +81,23 @@ class MatcherParams:
     disp12_max_diff: int = 5
     p1: int | None = None  # None: 8*3*w^2 as in the report
     p2: int | None = None  # None: 32*3*w^2
-    pre_filter_cap: int = 63
+    pre_filter_cap: int = 63  # 0: OpenCV's default (15), as the report left it
     mode: str = "sgbm"  # sgbm | 3way | hh | hh4
+    # search the whole disparity range at every column: both images are padded for the matchers
+    # (SGBM leaves the first minDisparity + numDisparities columns empty otherwise); False keeps
+    # the report's dead band at the left edge (the seed preset)
+    full_frame: bool = True
+    remap_interpolation: str = "linear"  # linear | cubic | lanczos4 (the report's)
     closing_kernel: int = 3  # side of the square closing kernel, px; 0 = no closing
     wls: bool = True
     wls_lambda: float = 80000.0
     wls_sigma: float = 1.8
+    # keep the WLS output only where its left-right confidence is above zero: elsewhere (no
+    # match, occlusions, failed consistency) the filter invents values from the neighbours
+    wls_confident_only: bool = True
+    # OpenCV's WLS filter turns off the matcher's uniqueness, speckle and left-right checks when
+    # it is made from it; True reproduces that (the report's code did it without knowing)
+    wls_disables_checks: bool = False
     bilateral: bool = False  # bilateral filter on the rectified images before matching
     bilateral_d: int = 5
     bilateral_sigma_color: float = 25.0
@@ -100,6 +118,11 @@ class MatcherParams:
             problems.append(f"num_disparities must be a positive multiple of 16, not {self.num_disparities}")
         if self.mode not in MODES:
             problems.append(f"mode must be one of {', '.join(MODES)}, not {self.mode!r}")
+        if self.remap_interpolation not in INTERPOLATIONS:
+            problems.append(f"remap_interpolation must be one of {', '.join(INTERPOLATIONS)}, "
+                            f"not {self.remap_interpolation!r}")
+        if not 0 <= self.pre_filter_cap <= 63:
+            problems.append(f"pre_filter_cap must be between 0 and 63, not {self.pre_filter_cap}")
         if self.colormap not in COLORMAPS:
             problems.append(f"unknown colormap {self.colormap!r}")
         if self.color_range not in COLOR_RANGES:
@@ -165,10 +188,12 @@ class MatcherParams:
                 continue
             kwargs[key] = value
         for key, v in kwargs.items():
-            if key in ("name", "description", "mode", "colormap", "color_range"):
+            if key in ("name", "description", "mode", "colormap", "color_range",
+                       "remap_interpolation"):
                 if not isinstance(v, str):
                     raise InputError(f"{where}: {key} must be a string")
-            elif key in ("wls", "bilateral", "parallel"):
+            elif key in ("wls", "bilateral", "parallel", "full_frame", "wls_confident_only",
+                         "wls_disables_checks"):
                 if not isinstance(v, bool):
                     raise InputError(f"{where}: {key} must be true or false")
             elif v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
@@ -212,6 +237,11 @@ class PipelineResult:
     disparity_range_px: tuple[float, float] = (0.0, 0.0)
     calibration: StereoCalibration | None = None
     color_scale: ColorScale | None = None  # how color_bgr was made from final_px
+    # the WLS filter's left-right confidence (0..255, float32, H x W), None without WLS
+    wls_confidence: np.ndarray | None = None
+    # pixels the right camera cannot see (their match fell outside the right image, or they lie
+    # in the strip at the left edge): None when the preset keeps the report's dead band
+    not_seen: np.ndarray | None = None
 
 
 def fixed_to_px(disp16: np.ndarray, min_disparity: float, factor: float = 1.0) -> np.ndarray:
@@ -268,8 +298,11 @@ def color_scale(disparity_px: np.ndarray, params: MatcherParams,
     return ColorScale("disparity", float(lo), float(max(hi, lo + 1e-6)), fb)
 
 
-def colorize(disparity_px: np.ndarray, scale: ColorScale, colormap: str) -> np.ndarray:
-    """Colour view of a disparity map (BGR uint8) on `scale`; invalid pixels black; near bright.
+def colorize(disparity_px: np.ndarray, scale: ColorScale, colormap: str,
+             not_seen: np.ndarray | None = None) -> np.ndarray:
+    """Colour view of a disparity map (BGR uint8) on `scale`; near bright. Invalid pixels get
+    NO_MATCH_BGR (black is the far end of OCEAN), pixels the right camera cannot see (`not_seen`
+    mask) NOT_SEEN_BGR.
 
     The levels are those of `ColorScale.level`, computed with OpenCV's saturating arithmetic
     (a few times faster than numpy here, and this runs on every frame).
@@ -288,7 +321,10 @@ def colorize(disparity_px: np.ndarray, scale: ColorScale, colormap: str) -> np.n
         k = 255.0 / max(near - far, 1e-6)
         u8 = cv2.convertScaleAbs(np.maximum(disparity_px, np.float32(far)), alpha=k, beta=-far * k)
     color = cv2.applyColorMap(u8, COLORMAPS[colormap])
-    return cv2.bitwise_and(color, color, mask=valid)
+    color[valid == 0] = NO_MATCH_BGR
+    if not_seen is not None:
+        color[not_seen] = NOT_SEEN_BGR
+    return color
 
 
 class StereoPipeline:
@@ -341,16 +377,23 @@ class StereoPipeline:
         s = p.scale
         self._min_s, self._num_s = p.matcher_range(self.calibration)
         self._range_full = (self._min_s / s, (self._min_s + self._num_s - 1) / s)
-        self._left = cv2.StereoSGBM_create(
-            minDisparity=self._min_s, numDisparities=self._num_s, blockSize=p.block_size,
-            P1=p.p1_value, P2=p.p2_value, disp12MaxDiff=p.disp12_max_diff,
-            preFilterCap=p.pre_filter_cap, uniquenessRatio=p.uniqueness_ratio,
-            speckleWindowSize=p.speckle_window_size, speckleRange=p.speckle_range,
-            mode=MODES[p.mode])
+        def sgbm():
+            return cv2.StereoSGBM_create(
+                minDisparity=self._min_s, numDisparities=self._num_s, blockSize=p.block_size,
+                P1=p.p1_value, P2=p.p2_value, disp12MaxDiff=p.disp12_max_diff,
+                preFilterCap=p.pre_filter_cap, uniquenessRatio=p.uniqueness_ratio,
+                speckleWindowSize=p.speckle_window_size, speckleRange=p.speckle_range,
+                mode=MODES[p.mode])
+
+        self._left = sgbm()
         self._right = cv2.ximgproc.createRightMatcher(self._left) if p.wls else None
         self._wls = None
         if p.wls:
-            self._wls = cv2.ximgproc.createDisparityWLSFilter(self._left)
+            # createDisparityWLSFilter switches off the uniqueness, speckle and left-right checks
+            # of the matcher it is given (the report's raw map ran without them): unless the
+            # preset reproduces that, it gets a copy of the matcher to configure itself from
+            self._wls = cv2.ximgproc.createDisparityWLSFilter(
+                self._left if p.wls_disables_checks else sgbm())
             self._wls.setLambda(float(p.wls_lambda))
             self._wls.setSigmaColor(float(p.wls_sigma))
         self._kernel = (np.ones((p.closing_kernel, p.closing_kernel), np.uint8)
@@ -360,6 +403,12 @@ class StereoPipeline:
         elif not p.parallel and self._executor is not None:
             self._executor.shutdown(wait=True)
             self._executor = None
+
+    @property
+    def edge_margin_px(self) -> float:
+        """Matches closer than this to the right image's left edge are not trusted (the matching
+        block reaches into the padding), full-resolution px."""
+        return (self._params.block_size // 2 + 1) / self._params.scale
 
     def _apply_pending(self) -> None:
         with self._lock:
@@ -382,13 +431,35 @@ class StereoPipeline:
         if self._maps is None:
             return left_bgr, right_bgr
         m = self._maps
+        interp = INTERPOLATIONS[self._params.remap_interpolation]
         if self._executor is not None:
-            fut = self._executor.submit(cv2.remap, right_bgr, m.right_x, m.right_y, cv2.INTER_LINEAR)
-            rl = cv2.remap(left_bgr, m.left_x, m.left_y, cv2.INTER_LINEAR)
+            fut = self._executor.submit(cv2.remap, right_bgr, m.right_x, m.right_y, interp)
+            rl = cv2.remap(left_bgr, m.left_x, m.left_y, interp)
             return rl, fut.result()
-        rl = cv2.remap(left_bgr, m.left_x, m.left_y, cv2.INTER_LINEAR)
-        rr = cv2.remap(right_bgr, m.right_x, m.right_y, cv2.INTER_LINEAR)
+        rl = cv2.remap(left_bgr, m.left_x, m.left_y, interp)
+        rr = cv2.remap(right_bgr, m.right_x, m.right_y, interp)
         return rl, rr
+
+    def _match(self, ml: np.ndarray, mr: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """Left (and, for WLS, right) SGBM disparity x16 of matched-resolution gray images.
+
+        With `full_frame` the images are padded with black columns so that SGBM, which leaves
+        its first minDisparity + numDisparities columns empty, searches the whole range at every
+        column: at the left for the left matcher, at the right for the right matcher (whose empty
+        band is on that side). Matches that land in the padding are removed afterwards
+        (`unseen_mask`); black never resembles texture, so they are rare.
+        """
+        pad = self._min_s + self._num_s if self._params.full_frame else 0
+        if self._right is None:
+            return compute_padded(self._left, ml, mr, pad, "left"), None
+        if self._executor is not None:
+            fut = self._executor.submit(compute_padded, self._right, mr, ml, pad, "right")
+            d16 = compute_padded(self._left, ml, mr, pad, "left")
+            d16_right = fut.result()
+        else:
+            d16 = compute_padded(self._left, ml, mr, pad, "left")
+            d16_right = compute_padded(self._right, mr, ml, pad, "right")
+        return d16, d16_right
 
     def process(self, left_bgr: np.ndarray, right_bgr: np.ndarray) -> PipelineResult:
         """Run every stage on one raw stereo pair."""
@@ -420,17 +491,11 @@ class StereoPipeline:
         else:
             ml, mr = gl, gr
         mw = ml.shape[1]
-        if mw - (self._min_s + self._num_s) <= p.block_size // 2:
+        if not p.full_frame and mw - (self._min_s + self._num_s) <= p.block_size // 2:
             raise InputError(
                 f"the images ({w}x{h}, matched at {mw} px wide) are too narrow for disparities up to "
                 f"{self._range_full[1]:.0f} px; narrow the disparity range or the working distances")
-        if self._right is not None and self._executor is not None:
-            fut = self._executor.submit(self._right.compute, mr, ml)
-            d16 = self._left.compute(ml, mr)
-            d16_right = fut.result()
-        else:
-            d16 = self._left.compute(ml, mr)
-            d16_right = self._right.compute(mr, ml) if self._right is not None else None
+        d16, d16_right = self._match(ml, mr)
         lap("match")
         closed16 = (cv2.morphologyEx(d16, cv2.MORPH_CLOSE, self._kernel)
                     if self._kernel is not None else d16)
@@ -442,15 +507,24 @@ class StereoPipeline:
             raw = cv2.resize(raw, (w, h), interpolation=cv2.INTER_NEAREST)
             closed = (cv2.resize(closed, (w, h), interpolation=cv2.INTER_NEAREST)
                       if closed16 is not d16 else raw)
+        edge = self.edge_margin_px
+        if p.full_frame:
+            into_padding = unseen_mask(raw, edge)
+            raw[into_padding] = np.nan
+            if closed is not raw:
+                closed[unseen_mask(closed, edge)] = np.nan
         lap("convert")
-        wls_px = None
+        wls_px = confidence = None
         if self._wls is not None:
             # the report filters the unclosed left disparity; a low-resolution map is enlarged by
             # the filter itself (values scaled) against the full-resolution guide
-            f16 = self._wls.filter(d16, gl, None, d16_right)
+            if p.full_frame:
+                f16 = self._wls.filter(d16, gl, None, d16_right, (0, 0, mw, ml.shape[0]))
+            else:
+                f16 = self._wls.filter(d16, gl, None, d16_right)
             wls_px = fixed_to_px(f16, self._min_s * factor)
-            # outside the filter's region of interest (the band at the left edge that the
-            # matcher cannot see, in matched-image px) the output is not a measurement
+            # outside the filter's region of interest (without full_frame: the band at the left
+            # edge that the matcher cannot see, in matched-image px) the output is not a measurement
             x, y, rw, rh = self._wls.getROI()
             x0, x1 = int(x * factor), int((x + rw) * factor)
             y0, y1 = int(y * factor), int((y + rh) * factor)
@@ -458,15 +532,71 @@ class StereoPipeline:
             wls_px[y1:] = np.nan
             wls_px[:, :x0] = np.nan
             wls_px[:, x1:] = np.nan
+            if p.full_frame:
+                wls_px[unseen_mask(wls_px, edge)] = np.nan
+            confidence = self._wls.getConfidenceMap()
+            if confidence.shape != wls_px.shape:
+                confidence = cv2.resize(confidence, (w, h), interpolation=cv2.INTER_NEAREST)
             lap("wls")
-        final = wls_px if wls_px is not None else closed
+        not_seen = None
+        if wls_px is None:
+            final = closed
+        elif p.wls_confident_only:
+            final = wls_px.copy()
+            final[~(confidence > 0)] = np.nan
+        else:
+            final = wls_px
         valid = np.isfinite(final)
+        if p.full_frame:
+            # the strip is known only once the final map has found where the surface at the edge
+            # is; whatever the matcher put there is a match the right camera cannot have made
+            not_seen = into_padding | unseen_strip(final, edge)
+            for m in {id(a): a for a in (raw, closed, wls_px, final) if a is not None}.values():
+                m[not_seen] = np.nan
         scale = color_scale(final, p, self.calibration)
-        color = colorize(final, scale, p.colormap)
+        color = colorize(final, scale, p.colormap, not_seen)
         lap("colormap")
         t["total"] = (time.perf_counter() - start) * 1000.0
         return PipelineResult(
             rectified_left=rl, rectified_right=rr, disparity_px=raw, closed_px=closed,
             wls_px=wls_px, final_px=final, color_bgr=color, valid=valid, timings_ms=t,
             size=(w, h), params=p, disparity_range_px=self._range_full,
-            calibration=self.calibration, color_scale=scale)
+            calibration=self.calibration, color_scale=scale, wls_confidence=confidence,
+            not_seen=not_seen)
+
+
+def compute_padded(matcher, reference: np.ndarray, other: np.ndarray, pad: int, side: str
+                   ) -> np.ndarray:
+    """`matcher.compute(reference, other)` with both images widened by `pad` black columns on
+    `side` ("left" for a left matcher, "right" for a right matcher) and the result cropped back
+    to the images' width (x16 fixed point, C-contiguous)."""
+    if pad <= 0:
+        return matcher.compute(reference, other)
+    w = reference.shape[1]
+    left, right = (pad, 0) if side == "left" else (0, pad)
+    d = matcher.compute(cv2.copyMakeBorder(reference, 0, 0, left, right, cv2.BORDER_CONSTANT, value=0),
+                        cv2.copyMakeBorder(other, 0, 0, left, right, cv2.BORDER_CONSTANT, value=0))
+    return np.ascontiguousarray(d[:, left:left + w])
+
+
+def unseen_strip(disparity_px: np.ndarray, margin_px: float = 0.0) -> np.ndarray:
+    """The strip at the left edge that the right camera cannot see, row by row: left of each
+    row's first valid pixel, the columns x < d + margin with d that pixel's disparity (the
+    surface there continues into the strip; nearer surfaces would only widen it)."""
+    h, w = disparity_px.shape
+    finite = np.isfinite(disparity_px)
+    first = np.argmax(finite, axis=1)  # 0 where a row has none: then nothing is marked
+    has = finite[np.arange(h), first]
+    d = np.where(has, disparity_px[np.arange(h), first], 0.0)
+    limit = np.minimum(first, np.ceil(d + margin_px - 0.5)).astype(np.int64)
+    limit[~has] = 0
+    return np.arange(w)[None, :] < limit[:, None]
+
+
+def unseen_mask(disparity_px: np.ndarray, margin_px: float = 0.0) -> np.ndarray:
+    """Pixels whose match x - d lies left of the right image (the right camera cannot see them),
+    or within `margin_px` of its edge, where the matching block overlaps the padding and the
+    image's border itself is what matches (full-resolution px)."""
+    cols = np.arange(disparity_px.shape[1], dtype=np.float32)[None, :]
+    with np.errstate(invalid="ignore"):
+        return (cols - disparity_px) < np.float32(margin_px - 0.5)

@@ -18,7 +18,8 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import DISP_SCALE, PipelineResult, fixed_to_px
+from stereo_gui.core.matching import (DISP_SCALE, PipelineResult, compute_padded, fixed_to_px,
+                                     unseen_mask)
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.core.util import to_gray
 
@@ -27,8 +28,19 @@ QUANTUM_PX = 1.0 / DISP_SCALE
 PATCH_PX = 9  # default side of the square patch a measurement looks at, px (odd)
 MAD_TO_SIGMA = 1.4826  # median absolute deviation -> standard deviation for normal noise
 
-REASONS = ("no valid pixels", "too near", "too far", "outside the image", "out of disparity range",
-           "no metric scale")
+NOT_SEEN = "not seen by the right camera"
+NOT_SEARCHED = "not searched (the report's dead band at the left edge)"
+REASONS = ("no valid pixels", NOT_SEEN, NOT_SEARCHED, "no texture", "too near", "too far", "outside the image",
+           "out of disparity range", "no metric scale")
+Z95 = 1.959964  # two-sided 95 % quantile of the normal distribution
+# floors of a reading's disparity uncertainty (1 sigma, px), measured on the simulated rig
+# (scripts/bench_accuracy.py --calibrate-bound): what the refinement's own standard error
+# does not see, and SGBM's bias towards whole pixels when a reading is not refined
+REFINED_FLOOR_PX = 0.03
+REFINEMENT_MOVE_SHARE = 0.15
+PIXEL_LOCKING_PX = 0.19
+REFINE_MAX_SHIFT_PX = 2.0  # how far the refinement may move from the matcher's estimate
+TEXTURE_MIN_STD = 3.0  # grey levels: below this a window holds little more than sensor noise
 
 
 @dataclass(frozen=True)
@@ -57,6 +69,7 @@ class Measurement:
     mode: str = "point"
     refined: bool = False
     raw_disparity_px: float = float("nan")  # the matcher's estimate before refinement
+    disparity_bound_px: float = float("nan")  # 95 % bound of the disparity error, px
 
     def to_json_dict(self) -> dict:
         """The fields of the `measure --json` contract (NaN -> None)."""
@@ -90,9 +103,13 @@ def robust_spread(values: np.ndarray) -> float:
 # ---- subpixel refinement -------------------------------------------------------------------
 @dataclass(frozen=True)
 class Refinement:
+    """A refined disparity (px), its standard error from the fit's residuals (px, 1 sigma),
+    whether it converged, and how far it moved from the starting estimate (px)."""
+
     disparity_px: float
     stderr_px: float
     converged: bool
+    moved_px: float = 0.0
 
 
 def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, d0: float,
@@ -107,13 +124,19 @@ def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: i
     h, w = left_gray.shape[:2]
     if max_shift_px is None:
         max_shift_px = float(half)
-    y0, y1 = max(0, y - half), min(h, y + half + 1)
-    x0, x1 = max(0, x - half), min(w, x + half + 1)
-    L = left_gray[y0:y1, x0:x1].astype(np.float32)
-    if L.size < 9:
-        return Refinement(d0, float("inf"), False)
     # right-image strip that can hold every shifted window, with a margin for the cubic kernel
     margin = int(math.ceil(max_shift_px)) + 3
+    y0, y1 = max(0, y - half), min(h, y + half + 1)
+    # near the edges of the right image the window keeps only the columns whose match (with the
+    # margin) stays inside it, so that a point the right camera sees close to its edge is still
+    # refined (with a narrower window) instead of being read off the matcher's whole pixels
+    x0 = max(0, x - half, int(math.ceil(d0 + margin)))
+    x1 = min(w, x + half + 1, int(math.floor(w + d0 - margin)))
+    if not x0 <= x < x1:
+        return Refinement(d0, float("inf"), False)
+    L = left_gray[y0:y1, x0:x1].astype(np.float32)
+    if L.size < 9 or x1 - x0 < 3:
+        return Refinement(d0, float("inf"), False)
     rx0 = int(math.floor(x0 - d0 - margin))
     rx1 = int(math.ceil(x1 - d0 + margin))
     if rx0 < 0 or rx1 > w:
@@ -157,7 +180,7 @@ def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: i
         if abs(delta) < 1e-3:
             converged = True
             break
-    return Refinement(d, stderr, converged)
+    return Refinement(d, stderr, converged, abs(d - d0))
 
 
 def rematch_strip(result: PipelineResult, y: int, half: int) -> np.ndarray | None:
@@ -179,8 +202,10 @@ def rematch_strip(result: PipelineResult, y: int, half: int) -> np.ndarray | Non
         P2=p.p2_value, disp12MaxDiff=p.disp12_max_diff, preFilterCap=p.pre_filter_cap,
         uniquenessRatio=p.uniqueness_ratio, speckleWindowSize=p.speckle_window_size,
         speckleRange=p.speckle_range, mode=cv2.StereoSGBM_MODE_SGBM_3WAY)
-    d16 = m.compute(gl[y0:y1], gr[y0:y1])
+    d16 = compute_padded(m, gl[y0:y1], gr[y0:y1], lo_i + num if p.full_frame else 0, "left")
     band = fixed_to_px(d16, lo_i)
+    if p.full_frame:
+        band[unseen_mask(band, p.block_size // 2 + 1)] = np.nan
     r0 = max(0, y - half) - y0
     r1 = min(h, y + half + 1) - y0
     return band[r0:r1]
@@ -253,12 +278,60 @@ def histogram_mode(values: np.ndarray) -> float:
     return float(centre)
 
 
+def consistent_pixels(result: PipelineResult, y0: int, y1: int, x0: int, x1: int
+                      ) -> np.ndarray | None:
+    """Mask of the window's pixels whose match passed the left-right check (the WLS filter's
+    confidence above zero), or None when the preset has no right matcher to check with."""
+    conf = result.wls_confidence
+    if conf is None:
+        return None
+    return conf[y0:y1, x0:x1] > 0
+
+
+def has_texture(gray: np.ndarray, x: int, y: int, half: int) -> bool:
+    """Whether the left window has anything to match: a spread of grey levels above what sensor
+    noise alone gives (TEXTURE_MIN_STD)."""
+    h, w = gray.shape[:2]
+    win = gray[max(0, y - half):min(h, y + half + 1), max(0, x - half):min(w, x + half + 1)]
+    return win.size > 0 and float(win.std()) >= TEXTURE_MIN_STD
+
+
+def _estimate_from_right(result: PipelineResult, x: int, y: int, half: int) -> float | None:
+    """The disparity of the nearest checked matches to the right of (x, y) in the window's rows
+    (where a surface the right camera cannot see continues into view), or None."""
+    disp = result.disparity_px
+    h, w = disp.shape
+    y0, y1 = max(0, y - half), min(h, y + half + 1)
+    reach = int(math.ceil(result.disparity_range_px[1])) + 2 * half + 1
+    x0, x1 = min(w, x + half + 1), min(w, x + half + 1 + reach)
+    if x1 <= x0:
+        return None
+    band = disp[y0:y1, x0:x1]
+    mask = np.isfinite(band)
+    conf = consistent_pixels(result, y0, y1, x0, x1)
+    if conf is not None:
+        mask &= conf
+    cols = np.flatnonzero(mask.any(axis=0))
+    if cols.size == 0:
+        return None
+    first = cols[0]
+    near = band[:, first:first + 2 * half + 1][mask[:, first:first + 2 * half + 1]]
+    return float(np.median(near))
+
+
 def _why_nothing(result: PipelineResult | None, x: int, y: int, half: int) -> str:
-    """Reason for a patch without valid pixels: the surface beyond the range, or no match."""
+    """Reason for a patch without a usable match: the right camera cannot see the point, nothing
+    to match, the surface beyond the range, or no match."""
     if result is None:
         return "no valid pixels"
-    scan = best_match_disparity(to_gray(result.rectified_left), to_gray(result.rectified_right),
-                                x, y, max(half, 5))
+    p = result.params
+    if not p.full_frame and x < result.disparity_range_px[1] + 1 + p.block_size // 2:
+        return NOT_SEARCHED
+    gl = to_gray(result.rectified_left)
+    d_est = _estimate_from_right(result, x, y, half)
+    if d_est is not None and x - d_est < half:
+        return NOT_SEEN
+    scan = best_match_disparity(gl, to_gray(result.rectified_right), x, y, max(half, 5))
     if scan is not None:
         d_lo, d_hi = result.disparity_range_px
         step = 1.0 / result.params.scale
@@ -267,6 +340,28 @@ def _why_nothing(result: PipelineResult | None, x: int, y: int, half: int) -> st
         if scan[0] < d_lo - step:
             return "too far"
     return "no valid pixels"
+
+
+def disparity_bound_px(refinement: Refinement | None, spread_px: float) -> float:
+    """The 95 % bound of a reading's disparity error, px (see the guide, "How sure is a
+    reading"). Refined: the alignment's own standard error, a floor for what it cannot see
+    (interpolation in rectification and resampling) and a share of its own correction (the part
+    of SGBM's bias towards whole pixels it leaves). Unrefined: the patch spread, with a floor
+    for that bias."""
+    if refinement is not None:
+        sigma = math.hypot(refinement.stderr_px, REFINED_FLOOR_PX,
+                           REFINEMENT_MOVE_SHARE * refinement.moved_px)
+    else:
+        sigma = math.hypot(spread_px, PIXEL_LOCKING_PX)
+    return Z95 * sigma
+
+
+def _depth_bound_mm(fb: float, d: float, bound_px: float) -> float:
+    """The larger depth change of a disparity moved by +-bound (the far side is the larger)."""
+    if not fb > 0:
+        return float("nan")
+    near = d - bound_px
+    return fb / near - fb / d if near > 0 else float("inf")
 
 
 # ---- the measurement -----------------------------------------------------------------------
@@ -301,48 +396,65 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
     y0, y1 = max(0, yi - half), min(h, yi + half + 1)
     x0, x1 = max(0, xi - half), min(w, xi + half + 1)
 
+    def invalid(reason: str, **fields) -> Measurement:
+        return Measurement(x, y, False, reason, mode=mode, **fields)
+
+    if result is not None and result.not_seen is not None and result.not_seen[yi, xi]:
+        return invalid(NOT_SEEN)  # as every view shows it
+    if result is not None and not has_texture(to_gray(result.rectified_left), xi, yi, half):
+        return invalid("no texture")  # whatever matched there matched noise
+
     scaled = result is not None and result.params.scale < 1.0
     if mode == "point":
         window = disp[y0:y1, x0:x1]
+        usable = np.isfinite(window)
+        checked = consistent_pixels(result, y0, y1, x0, x1) if result is not None else None
+        if checked is not None:
+            usable &= checked
         if scaled and rematch:
             band = rematch_strip(result, yi, half)
             if band is not None:
-                window = band[:, x0:x1]
-        values = window[np.isfinite(window)]
+                # the full-resolution values count where they agree with the frame's own
+                # (left-right checked) match to within its resolution
+                band = band[:, x0:x1]
+                with np.errstate(invalid="ignore"):
+                    usable &= np.abs(band - window) <= 2.0 / result.params.scale
+                window = band
+                usable &= np.isfinite(window)
+        values = window[usable]
         valid_fraction = values.size / window.size
         if values.size == 0:
-            return Measurement(x, y, False, _why_nothing(result, xi, yi, half), valid_fraction=0.0,
-                               mode=mode)
+            return invalid(_why_nothing(result, xi, yi, half), valid_fraction=0.0)
         d = float(np.median(values))
     else:
         view = result.final_px if result is not None else disp
         region = surface_region(view, xi, yi, window=max(4 * patch, 16))
         if region is None or not region.any():
-            return Measurement(x, y, False, "no valid pixels", valid_fraction=0.0, mode=mode)
+            return invalid(_why_nothing(result, xi, yi, half), valid_fraction=0.0)
         values = disp[region]
         values = values[np.isfinite(values)]
         valid_fraction = values.size / int(region.sum())
         if values.size == 0:
-            return Measurement(x, y, False, "no valid pixels", valid_fraction=0.0, mode=mode)
+            return invalid("no valid pixels", valid_fraction=0.0)
         d = histogram_mode(values)
     spread = robust_spread(values)
     raw_d = d
-    dd = max(spread, QUANTUM_PX)
+    common = dict(valid_fraction=valid_fraction, spread_px=spread, raw_disparity_px=raw_d)
 
-    refined = False
+    ref = None
     if result is not None:
         gl, gr = to_gray(result.rectified_left), to_gray(result.rectified_right)
     if refine and result is not None and mode == "point":
-        ref = refine_disparity(gl, gr, xi, yi, d, max(half, 3))
-        if ref.converged and math.isfinite(ref.stderr_px):
-            d, refined = ref.disparity_px, True
-            dd = max(ref.stderr_px, 1e-3)
+        r = refine_disparity(gl, gr, xi, yi, d, max(half, 3), max_shift_px=REFINE_MAX_SHIFT_PX)
+        if r.converged and math.isfinite(r.stderr_px):
+            d, ref = r.disparity_px, r
+    if result is not None and xi - d < -0.5:
+        return invalid(NOT_SEEN, disparity_px=d, **common)
 
     # the matcher cannot report disparities outside its range: a surface nearer than the range
     # allows gives a wrong match somewhere inside it. An exhaustive correlation scan of the
     # window, unlimited by the range, shows where the surface really is.
     step = 1.0 if result is None else 1.0 / result.params.scale
-    beyond = None
     if result is not None and mode == "point":
         scan = best_match_disparity(gl, gr, xi, yi, max(half, 5))
         if scan is not None:
@@ -350,48 +462,49 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
             k = int(round(d))
             at_estimate = float(np.nanmax(by_d[max(0, k - 1):k + 2])) if 0 <= k < by_d.size else -1.0
             if score_best > at_estimate and not (d_lo - step <= d_best <= d_hi + step):
-                beyond = "too near" if d_best > d_hi else "too far"
-            elif score_best > at_estimate and abs(d_best - d) > step + 1.0:
+                return invalid("too near" if d_best > d_hi else "too far", disparity_px=d,
+                               **common)
+            if score_best > at_estimate and abs(d_best - d) > step + 1.0:
                 # the window correlates better elsewhere: the patch's disparities are a wrong
                 # match (e.g. a surface the right camera cannot see), not a usable reading
-                beyond = "no valid pixels"
-    if beyond is not None:
-        return Measurement(x, y, False, beyond, disparity_px=d, valid_fraction=valid_fraction,
-                           spread_px=spread, mode=mode, raw_disparity_px=raw_d)
+                return invalid("no valid pixels", disparity_px=d, **common)
     if raw_d >= d_hi - step:
-        return Measurement(x, y, False, "too near", disparity_px=d, valid_fraction=valid_fraction,
-                           spread_px=spread, mode=mode, raw_disparity_px=raw_d)
+        return invalid("too near", disparity_px=d, **common)
     if d_lo > 0 and raw_d <= d_lo + step:
-        return Measurement(x, y, False, "too far", disparity_px=d, valid_fraction=valid_fraction,
-                           spread_px=spread, mode=mode, raw_disparity_px=raw_d)
+        return invalid("too far", disparity_px=d, **common)
     xyz = triangulate(calibration, x, y, d)
     if xyz is None:
-        return Measurement(x, y, False, "too far", disparity_px=d, valid_fraction=valid_fraction,
-                           spread_px=spread, mode=mode, raw_disparity_px=raw_d)
+        return invalid("too far", disparity_px=d, **common)
     X, Y, Z = xyz
     method = "triangulation"
+    bound_px = (disparity_bound_px(ref, spread) if result is not None
+                else Z95 * max(spread, QUANTUM_PX))
     if fit is not None:
         lo_s, hi_s = fit.disparity_span
         if not lo_s <= d <= hi_s:
-            return Measurement(x, y, False, "out of disparity range", disparity_px=d,
-                               valid_fraction=valid_fraction, spread_px=spread, mode=mode,
-                               method=fit.model, raw_disparity_px=raw_d)
+            return invalid("out of disparity range", disparity_px=d, method=fit.model, **common)
         z_fit = float(fit.predict(d))
         k = z_fit / Z
         X, Y, Z = X * k, Y * k, z_fit
         method = fit.model
         # the fit's own slope turns the disparity's uncertainty into millimetres
-        expected = abs(float(fit.predict(d + dd)) - float(fit.predict(d - dd))) / 2.0
+        expected = max(abs(float(fit.predict(d + s * bound_px)) - z_fit) for s in (-1.0, 1.0))
     elif not calibration.metric:
         # Hartley's rectification has no scale: triangulation would give a number in unknown
         # units; a regression fitted on true distances gives millimetres
-        return Measurement(x, y, False, "no metric scale", disparity_px=d,
-                           valid_fraction=valid_fraction, spread_px=spread, mode=mode,
-                           raw_disparity_px=raw_d)
+        return invalid("no metric scale", disparity_px=d, **common)
     else:
-        fb = calibration.focal_px * calibration.rectified_baseline_mm
-        expected = Z * Z / fb * dd if fb > 0 else float("nan")
+        expected = _depth_bound_mm(calibration.focal_px * calibration.rectified_baseline_mm, d,
+                                   bound_px) * (Z / _z_of(calibration, d))
     rng = math.sqrt(X * X + Y * Y + Z * Z)
     return Measurement(x, y, True, None, disparity_px=d, X_mm=X, Y_mm=Y, Z_mm=Z, range_mm=rng,
                        valid_fraction=valid_fraction, spread_px=spread, expected_error_mm=expected,
-                       method=method, mode=mode, refined=refined, raw_disparity_px=raw_d)
+                       method=method, mode=mode, refined=ref is not None, raw_disparity_px=raw_d,
+                       disparity_bound_px=bound_px)
+
+
+def _z_of(calibration: StereoCalibration, d: float) -> float:
+    """f*B/d: the depth the Q matrix gives a disparity d on the optical axis (for scaling a
+    bound to a Q with a principal-point offset)."""
+    fb = calibration.focal_px * calibration.rectified_baseline_mm
+    return fb / d if d > 0 and fb > 0 else float("nan")

@@ -8,7 +8,7 @@ import pytest
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import MatcherParams, StereoPipeline
-from stereo_gui.core.measure import (histogram_mode, measure_point, refine_disparity,
+from stereo_gui.core.measure import (Z95, histogram_mode, measure_point, refine_disparity,
                                      triangulate)
 from stereo_gui.core.regression import fit_inverse
 from stereo_gui.core.stereo_calibration import StereoCalibration
@@ -129,8 +129,11 @@ def test_bare_map_triangulates_through_q_with_median_and_spread():
     X, Y, Z = triangulate(c, 30, 20, 25.0)
     assert (m.X_mm, m.Y_mm) == pytest.approx((X, Y))
     assert m.range_mm == pytest.approx(math.sqrt(X * X + Y * Y + Z * Z))
-    # uncertainty: Z^2/(fB) * dd with dd at least the 1/16 px quantum
-    assert m.expected_error_mm == pytest.approx(Z * Z / (f * b) / 16.0)
+    # a bare map's 95 % bound: the disparity moved by 1.96 times its spread (at least the
+    # 1/16 px quantum) towards the far side
+    bound = Z95 / 16.0
+    assert m.disparity_bound_px == pytest.approx(bound)
+    assert m.expected_error_mm == pytest.approx(f * b / (25.0 - bound) - f * b / 25.0)
 
 
 def test_a_fit_replaces_triangulation_inside_its_span_only():
@@ -143,9 +146,10 @@ def test_a_fit_replaces_triangulation_inside_its_span_only():
     assert m.Z_mm == pytest.approx(1.01 * f * b / 25.0, rel=1e-6)
     far = measure_point(np.full((48, 64), 5.0, np.float32), 30, 20, calibration=c, fit=fit)
     assert not far.valid and far.reason == "out of disparity range"
-    # the uncertainty follows the fit's slope: |dZ/dd| * dd, dd the 1/16 px quantum here
+    # the bound follows the fit's own curve: the larger change of Z for d +- the disparity bound
     z = 1.01 * f * b
-    assert m.expected_error_mm == pytest.approx(z / 25.0**2 / 16.0, rel=1e-3)
+    bound = Z95 / 16.0
+    assert m.expected_error_mm == pytest.approx(z / (25.0 - bound) - z / 25.0, rel=1e-3)
 
 
 def test_a_hartley_calibration_measures_in_mm_only_through_a_fit():
@@ -225,3 +229,53 @@ def test_reduced_resolution_preset_rematches_a_full_resolution_strip(rig, walls)
     # full resolution: steps of 1/16 px, where the half-resolution map has steps of 1/8 px
     frac = np.unique(np.round((band[np.isfinite(band)] * 16) % 2))
     assert 1.0 in frac
+
+
+def test_left_edge_strip_says_not_seen_and_the_seeds_band_not_searched(rig, walls):
+    from stereo_gui.core.measure import NOT_SEARCHED, NOT_SEEN
+
+    calib = rig.true_calibration()
+    scene, (left, right) = walls[1000.0]  # d = f*B/Z = 82 px: the strip the right camera misses
+    quality = StereoPipeline(calib, load_preset("quality")).process(left, right)
+    seed = StereoPipeline(calib, load_preset("seed")).process(left, right)
+    for y in (60, 240, 420):
+        assert measure_point(quality, 30, y).reason == NOT_SEEN
+        assert measure_point(seed, 30, y).reason == NOT_SEARCHED
+        # right of the strip but inside the seed's 130 px dead band: quality reads it
+        m = measure_point(quality, 110, y)
+        true = rig.true_point_rectified(calib, scene, 110, y)[2]
+        assert m.valid and m.Z_mm == pytest.approx(true, rel=0.01)
+        assert measure_point(seed, 110, y).reason == NOT_SEARCHED
+    # the view paints the strip as not seen, and a click there agrees with it
+    assert quality.not_seen[240, :70].all() and not quality.not_seen[240, 100:].any()
+
+
+def test_a_flat_surface_has_no_texture():
+    from stereo_gui.core.matching import MatcherParams
+
+    c = StereoCalibration.identity((200, 120), 500.0, 100.0)
+    rng = np.random.default_rng(3)
+    flat = np.clip(128 + rng.normal(0, 1.0, (120, 200, 3)), 0, 255).astype(np.uint8)
+    other = np.clip(128 + rng.normal(0, 1.0, (120, 200, 3)), 0, 255).astype(np.uint8)
+    p = MatcherParams(min_disparity=0, num_disparities=32, block_size=5)
+    result = StereoPipeline(c, p).process(flat, other)
+    m = measure_point(result, 120, 60)
+    assert not m.valid and m.reason == "no texture"
+
+
+def test_refinement_near_the_right_images_edge_uses_a_narrower_window():
+    import cv2
+
+    rng = np.random.default_rng(5)
+    big = cv2.GaussianBlur(rng.random((60, 400)).astype(np.float32) * 255, (0, 0), 2.0)
+    true_d = 20.37
+    xs = np.arange(300, dtype=np.float32)
+    left = big[:, 50:350]
+    mx = np.tile(xs + 50 + true_d, (60, 1)).astype(np.float32)
+    my = np.repeat(np.arange(60, dtype=np.float32)[:, None], 300, axis=1)
+    right = cv2.remap(big, mx, my, cv2.INTER_CUBIC)
+    # x - d = 6 px from the right image's left edge: a centred 9 px window plus margin does not
+    # fit, the clipped one does
+    r = refine_disparity(left, right, 26, 30, 20.0, 4, max_shift_px=2.0)
+    assert r.converged and r.disparity_px == pytest.approx(true_d, abs=0.05)
+    assert r.moved_px == pytest.approx(abs(r.disparity_px - 20.0))
