@@ -5,7 +5,8 @@ Progress between steps; the worker stops it at the next yield once cancel is ask
 `control` argument (a JobControl) is callable and answers "cancel asked?", so it can be handed
 down to core functions that take `cancel=`; its `report` method fits their `progress=`
 callbacks (done, total, text), so progress from inside a long core call reaches the UI too.
-Whatever the generator returns is the result.
+Whatever the generator returns is the result. Progress, JobControl and JobCancelled live in
+`stereo_gui.pipeline.jobs` (no Qt), so jobs can be written and tested without Qt.
 
 Signals reach the UI thread queued: progress(Progress), finished(result), failed(str) for an
 exception (already phrased for a person), cancelled(). Exactly one of finished / failed /
@@ -16,64 +17,15 @@ from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Callable, Generator
-from dataclasses import dataclass
 
 from PySide6.QtCore import QObject, Signal
 
 from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.pipeline.jobs import Job, JobCancelled, JobControl, Progress
+
+__all__ = ["Job", "JobCancelled", "JobControl", "JobWorker", "Progress"]
 
 log = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True)
-class Progress:
-    """How far a job is: `done` of `total` steps, and what it is doing now."""
-
-    done: int
-    total: int
-    text: str = ""
-
-    @property
-    def percent(self) -> int:
-        return int(round(100.0 * self.done / self.total)) if self.total > 0 else 0
-
-
-class JobCancelled(Exception):
-    """Raised inside a job (or by a core function's cancel check) to stop it early."""
-
-
-class JobControl:
-    """Thread-safe cancel flag and progress outlet handed to a job.
-
-    Calling it answers whether cancel was asked (for core functions' `cancel=`); `report(done,
-    total, text)` sends progress to the UI (for core functions' `progress=`).
-    """
-
-    def __init__(self, on_progress: Callable[[Progress], None] | None = None) -> None:
-        self._event = threading.Event()
-        self._on_progress = on_progress
-
-    def report(self, done: int, total: int, text: str = "") -> None:
-        if self._on_progress is not None:
-            self._on_progress(Progress(int(done), int(total), str(text)))
-
-    def set(self) -> None:
-        self._event.set()
-
-    def is_set(self) -> bool:
-        return self._event.is_set()
-
-    def __call__(self) -> bool:
-        return self._event.is_set()
-
-    def check(self) -> None:
-        """Raise JobCancelled if cancel was asked."""
-        if self._event.is_set():
-            raise JobCancelled()
-
-
-Job = Callable[[JobControl], Generator[Progress, None, object]]
 
 
 class JobWorker(QObject):

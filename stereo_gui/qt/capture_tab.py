@@ -5,7 +5,7 @@ Both cameras live side by side with the board's corners drawn where found. When 
 board the pair freezes for review: Save (S) writes both raw images to the session folder,
 Cancel (C) goes live again. Automatic capture instead takes a pair by itself when the board is
 steady and its pose is new. Detection runs in the frame worker's thread (the processor made by
-`make_capture_processor`); this widget only draws what it gets.
+`stereo_gui.pipeline.capture.make_capture_processor`); this widget only draws what it gets.
 """
 
 from __future__ import annotations
@@ -42,14 +42,14 @@ from stereo_gui.core.detect import (
     PairDetection,
     PoseDescriptor,
     coverage,
-    detect_board,
     detect_pair,
     is_new_pose,
     pair_pose,
 )
 from stereo_gui.core.errors import StereoGuiError
-from stereo_gui.core.util import to_gray
-from stereo_gui.qt.calibration_worker import JobWorker, Progress
+from stereo_gui.pipeline.capture import CaptureOutput, display_rgb, make_capture_processor
+from stereo_gui.pipeline.jobs import Progress
+from stereo_gui.qt.calibration_worker import JobWorker
 from stereo_gui.qt.coverage_widget import CoverageWidget
 from stereo_gui.qt.widgets import pane, wrapping_label
 from stereo_gui.sources.base import StereoFrame
@@ -61,61 +61,6 @@ STEADY_PX = 2.0  # ... moving its corners less than this, px
 THUMB_SIZE = QSize(176, 66)  # a saved pair's thumbnail: both images side by side
 _FOUND = "#2e9e3e"
 _MISSING = "#c0392b"
-
-
-# ---- the processor (runs in the frame worker's thread) ------------------------------------------
-@dataclass(frozen=True, eq=False)
-class CaptureOutput:
-    """What the capture processor makes of a frame: RGB images for display and the detection."""
-
-    left_rgb: np.ndarray  # HxWx3 uint8, C-contiguous
-    right_rgb: np.ndarray
-    detection: PairDetection
-    board: BoardSpec
-
-    @property
-    def pose(self) -> PoseDescriptor | None:
-        return pair_pose(self.detection, self.board)
-
-
-def _maybe_board(gray: np.ndarray, board: BoardSpec) -> bool:
-    """A fast test whether a board may be in the image (a full search without a board takes
-    a few hundred ms; this quick check a few ms), so live frames without a board stay cheap."""
-    ok, _ = cv2.findChessboardCorners(
-        gray, board.pattern_size,
-        flags=cv2.CALIB_CB_FAST_CHECK | cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
-    return bool(ok)
-
-
-def detect_live(frame: StereoFrame, board: BoardSpec) -> CaptureOutput:
-    """Detect the board in both images of a live frame (subpixel where found)."""
-    size = frame.size
-    dets: list[Detection | None] = []
-    for img in (frame.left, frame.right):
-        gray = to_gray(img)
-        dets.append(detect_board(gray, board) if _maybe_board(gray, board) else None)
-    left, right = dets
-    if left is not None and right is not None:
-        # same rule as core.detect_pair: both cameras must number the grid from the same end
-        dl = left.corners[-1] - left.corners[0]
-        dr = right.corners[-1] - right.corners[0]
-        if float(np.dot(dl, dr)) < 0:
-            right = right.reversed()
-    pair = PairDetection(f"frame {frame.index}", left, right, size)
-    return CaptureOutput(_rgb(frame.left), _rgb(frame.right), pair, board)
-
-
-def make_capture_processor(board: BoardSpec):
-    """The frame worker processor of the capture tab, for `board`."""
-    def process(frame: StereoFrame) -> CaptureOutput:
-        return detect_live(frame, board)
-    return process
-
-
-def _rgb(bgr: np.ndarray) -> np.ndarray:
-    if bgr.ndim == 2:
-        return np.ascontiguousarray(np.repeat(bgr[:, :, None], 3, axis=2))
-    return np.ascontiguousarray(bgr[:, :, 2::-1])
 
 
 # ---- image panes ---------------------------------------------------------------------------------
@@ -722,7 +667,7 @@ class CaptureTab(QWidget):
         self._set_processing(False)
         self.frozen = None
         self._frozen_frame = None
-        self.view.show_pair(_rgb(left), _rgb(right))
+        self.view.show_pair(display_rgb(left), display_rgb(right))
         info = self._saved.get(name)
         det = info.detection if info is not None else None
         if det is not None:
