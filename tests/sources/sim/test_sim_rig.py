@@ -2,25 +2,17 @@
 
 from __future__ import annotations
 
-import json
-
 import cv2
 import numpy as np
 import pytest
 
 from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.detect import detect_board
-from stereo_gui.core.errors import InputError, SourceError
-from stereo_gui.sources.base import FrameSource
 from stereo_gui.sources.sim import (
-    BoardPose, CameraTruth, RigConfig, RigTruth, Scene, SimFrameTruth, SimRig, SimSource,
-    undistort_normalized, write_calibration_set,
+    RigConfig,
+    Scene,
+    SimRig,
 )
-
-
-@pytest.fixture(scope="module")
-def rig() -> SimRig:
-    return SimRig(seed=3)
 
 
 def _detect(img: np.ndarray, board: BoardSpec) -> np.ndarray | None:
@@ -34,48 +26,6 @@ def _match_order(found: np.ndarray, truth: np.ndarray) -> np.ndarray:
     fwd = np.sqrt(np.mean(np.sum((found - truth) ** 2, 1)))
     rev = np.sqrt(np.mean(np.sum((found[::-1] - truth) ** 2, 1)))
     return found if fwd <= rev else found[::-1]
-
-
-def test_default_rig_is_webcam_like(rig):
-    t = rig.truth
-    assert t.image_size == (640, 480)
-    assert t.baseline_mm == pytest.approx(110.0)
-    assert t.T[0, 0] < -109.0  # the right camera sits to the right: T_right_left points left
-    assert 0.5 <= t.relative_rotation_deg <= 1.5
-    for M, D in ((t.M1, t.D1), (t.M2, t.D2)):
-        assert 700 < M[0, 0] < 800 and 700 < M[1, 1] < 800
-        assert M[0, 2] != 320 and abs(M[0, 2] - 320) < 15 and abs(M[1, 2] - 240) < 15
-        assert -0.3 <= D[0, 0] <= -0.1 and D.shape == (1, 5)
-    assert not np.allclose(t.M1, t.M2)
-
-
-def test_ray_map_inverts_the_distortion_model(rig):
-    """Projecting the stored rays with cv2.projectPoints gives back their sample positions."""
-    for cam, (M, D) in enumerate(((rig.truth.M1, rig.truth.D1), (rig.truth.M2, rig.truth.D2))):
-        rays = rig._rays[cam]
-        s = rays.supersample
-        rng = np.random.default_rng(cam)
-        iy = rng.integers(0, rays.xy.shape[0], 300)
-        ix = rng.integers(0, rays.xy.shape[1], 300)
-        # include the far corners, where distortion is strongest
-        iy = np.r_[iy, 0, 0, rays.xy.shape[0] - 1, rays.xy.shape[0] - 1]
-        ix = np.r_[ix, 0, rays.xy.shape[1] - 1, 0, rays.xy.shape[1] - 1]
-        xy = rays.xy[iy, ix].astype(np.float64)
-        pts = np.concatenate([xy, np.ones((len(xy), 1))], 1)
-        proj, _ = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), M, D)
-        expected = np.stack([(ix + 0.5) / s - 0.5, (iy + 0.5) / s - 0.5], 1)
-        # float32 storage of the rays limits the round trip to about 1e-4 px
-        assert np.abs(proj.reshape(-1, 2) - expected).max() < 1e-3
-
-
-def test_newton_undistortion_matches_projectpoints():
-    cam = CameraTruth.make(750, 748, 321, 238, k1=-0.3, k2=0.09, p1=1e-3, p2=-1e-3, k3=-0.02)
-    rng = np.random.default_rng(0)
-    u, v = rng.uniform(0, 639, 500), rng.uniform(0, 479, 500)
-    x, y = undistort_normalized(u, v, cam.M, cam.D)
-    proj, _ = cv2.projectPoints(np.stack([x, y, np.ones_like(x)], 1), np.zeros(3), np.zeros(3),
-                                cam.M, cam.D)
-    assert np.abs(proj.reshape(-1, 2) - np.stack([u, v], 1)).max() < 1e-6
 
 
 def test_board_poses_are_varied_and_fully_visible(rig):
@@ -147,17 +97,6 @@ def test_calibration_on_rendered_pairs_recovers_the_rig():
     assert np.linalg.norm(T) == pytest.approx(110.0, rel=0.01)
 
 
-def test_truth_json_round_trip(rig):
-    data = json.loads(json.dumps(rig.truth.to_json()))
-    back = RigTruth.from_json(data)
-    for name in ("M1", "D1", "M2", "D2", "R", "T"):
-        np.testing.assert_array_equal(getattr(back, name), getattr(rig.truth, name))
-    assert back.board == rig.truth.board and back.image_size == rig.truth.image_size
-    assert data["baseline_mm"] == pytest.approx(110.0)
-    with pytest.raises(InputError):
-        RigTruth.from_json({"M1": [[1]]})
-
-
 def test_true_calibration_rectifies(rig):
     calib = rig.true_calibration()
     assert calib.method == "bouguet"
@@ -180,19 +119,6 @@ def test_true_calibration_rectifies(rig):
     ul = cv2.undistortPoints(xl[:2].reshape(1, 1, 2), calib.M1, calib.D1, P=calib.M1).reshape(2)
     ur = cv2.undistortPoints(xr[:2].reshape(1, 1, 2), calib.M2, calib.D2, P=calib.M2).reshape(2)
     assert abs(np.append(ur, 1) @ calib.F @ np.append(ul, 1)) < 1e-3
-
-
-def test_scene_depth_along_ray():
-    wall = Scene.wall(1000)
-    assert wall.depth_along_ray([0, 0, 0], [0, 0, 1]) == pytest.approx(1000.0)
-    d = np.array([0.3, 0.1, 1.0])
-    assert wall.depth_along_ray([0, 0, 0], d) == pytest.approx(1000.0 * np.linalg.norm(d))
-    assert wall.depth_along_ray([0, 0, 0], [0, 0, -1]) is None
-    assert wall.depth_along_ray([0, 0, 0], [1, 0, 0.01]) is None  # misses the edge of the wall
-    demo = Scene.demo()
-    box = demo.objects[1]
-    assert demo.depth_along_ray([0, 0, 0], box.center) == pytest.approx(np.linalg.norm(box.center))
-    assert demo.depth_along_ray([0, 0, 0], [0.0, -0.3, 1.0]) > 2900  # the background wall
 
 
 def test_true_point_rectified_is_on_the_scene(rig):
@@ -259,75 +185,6 @@ def test_board_in_front_of_a_scene_is_depth_tested():
     np.testing.assert_array_equal(hidden, only_wall)
     assert _detect(shown, rig.config.board) is not None
     assert corner_px is not None
-
-
-def test_write_calibration_set(tmp_path):
-    (tmp_path / "set").mkdir()
-    out = write_calibration_set(tmp_path / "set", n_pairs=2, seed=4)
-    names = sorted(p.name for p in out.iterdir())
-    assert names == ["chessboard-L1.png", "chessboard-L2.png", "chessboard-R1.png",
-                     "chessboard-R2.png", "truth.json"]
-    data = json.loads((out / "truth.json").read_text())
-    assert data["seed"] == 4 and data["board"] == {"cols": 9, "rows": 6, "square_mm": 25.0}
-    truth = RigTruth.from_json(data)
-    assert truth.baseline_mm == pytest.approx(110.0)
-    img = cv2.imread(str(out / "chessboard-L1.png"))
-    assert img.shape == (480, 640, 3)
-    # the written image is the rig's rendering of the recorded pose
-    pose = BoardPose(np.array(data["pairs"][0]["R_left_board"]), np.array(data["pairs"][0]["t_left_board_mm"]))
-    found = _detect(img, truth.board)
-    truth_px = SimRig(seed=4).project(pose.corners_left_mm(truth.board), 0)
-    assert np.abs(_match_order(found, truth_px) - truth_px).max() < 0.5
-
-
-def test_sim_source_frames():
-    src = SimSource(SimRig(RigConfig(supersample=2)), mode="mixed", paced=False, seed=1)
-    assert isinstance(src, FrameSource)
-    assert src.name == "Simulated rig" and src.nominal_fps == 30.0
-    frames = [src.read() for _ in range(4)]
-    assert [f.index for f in frames] == [0, 1, 2, 3]
-    f = frames[-1]
-    assert f.left.shape == (480, 640, 3) and f.right.shape == (480, 640, 3)
-    assert isinstance(f.truth, SimFrameTruth) and f.truth.pose is not None
-    assert f.truth.scene is not None and f.truth.truth.baseline_mm == pytest.approx(110.0)
-    # the board moves smoothly: consecutive poses differ by little
-    step = np.linalg.norm(frames[2].truth.pose.t - frames[1].truth.pose.t)
-    assert 0 < step < 60
-    src.close()
-    src.close()
-    with pytest.raises(SourceError):
-        src.read()
-
-
-def test_sim_source_modes_and_bad_arguments():
-    rig = SimRig(RigConfig(supersample=1))
-    scene_only = SimSource(rig, mode="scene", paced=False).read()
-    assert scene_only.truth.pose is None and scene_only.truth.scene is not None
-    board_only = SimSource(rig, mode="board", paced=False).read()
-    assert board_only.truth.scene is None and board_only.truth.pose is not None
-    with pytest.raises(InputError):
-        SimSource(rig, mode="cinema")
-    with pytest.raises(InputError):
-        SimSource(rig, fps=0)
-
-
-def test_sim_source_paces_frames(monkeypatch):
-    """paced=True waits for the next frame time (a fake clock: tests never sleep)."""
-    import stereo_gui.sources.sim as sim
-
-    clock = {"t": 100.0}
-    slept = []
-    monkeypatch.setattr(sim.time, "monotonic", lambda: clock["t"])
-
-    def fake_sleep(dt):
-        slept.append(dt)
-        clock["t"] += dt
-
-    monkeypatch.setattr(sim.time, "sleep", fake_sleep)
-    src = SimSource(SimRig(RigConfig(supersample=1)), mode="scene", fps=10.0, paced=True)
-    times = [src.read().t_left for _ in range(3)]
-    assert times == pytest.approx([100.0, 100.1, 100.2])
-    assert sum(slept) == pytest.approx(0.2)
 
 
 def test_scene_rendering_has_no_disparity_bias(rig):
