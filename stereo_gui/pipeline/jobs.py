@@ -2,7 +2,7 @@
 cancel flag it checks.
 
 A job is a generator function `job(control) -> Generator[Progress, None, result]`. It yields
-Progress between steps; the worker running it (`stereo_gui.qt.calibration_worker.JobWorker`)
+Progress between steps; the worker running it (`stereo_gui.qt.workers.job_worker.JobWorker`)
 stops it at the next yield once cancel is asked for. The `control` argument (a JobControl) is
 callable and answers "cancel asked?", so it can be handed down to core functions that take
 `cancel=`; its `report` method fits their `progress=` callbacks (done, total, text), so progress

@@ -50,7 +50,7 @@ from stereo_gui.pipeline.calibration import (
     read_image,
 )
 from stereo_gui.pipeline.jobs import Progress
-from stereo_gui.qt.calibration_worker import JobWorker
+from stereo_gui.qt.workers.job_worker import JobWorker
 from stereo_gui.qt.widgets import pane, wrapping_label
 
 log = logging.getLogger(__name__)

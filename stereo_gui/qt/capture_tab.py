@@ -49,7 +49,7 @@ from stereo_gui.core.detect import (
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.pipeline.capture import CaptureOutput, display_rgb, make_capture_processor
 from stereo_gui.pipeline.jobs import Progress
-from stereo_gui.qt.calibration_worker import JobWorker
+from stereo_gui.qt.workers.job_worker import JobWorker
 from stereo_gui.qt.coverage_widget import CoverageWidget
 from stereo_gui.qt.widgets import pane, wrapping_label
 from stereo_gui.sources.base import StereoFrame

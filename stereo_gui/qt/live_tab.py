@@ -42,7 +42,7 @@ from stereo_gui.pipeline.live import LiveOutput, LiveProcessor
 from stereo_gui.qt.image_view import ImagePanel, marker_color
 from stereo_gui.qt.params_panel import ParamsPanel, load_preset
 from stereo_gui.qt.playback_bar import PlaybackBar
-from stereo_gui.qt.recorder import (
+from stereo_gui.qt.workers.recorder import (
     describe_result,
     format_elapsed,
     new_recording_folder,

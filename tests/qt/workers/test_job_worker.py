@@ -5,7 +5,7 @@ from __future__ import annotations
 import threading
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.qt.calibration_worker import JobWorker, Progress
+from stereo_gui.qt.workers.job_worker import JobWorker, Progress
 
 
 def _counting_job(n):

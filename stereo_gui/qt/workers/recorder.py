@@ -19,7 +19,8 @@ from pathlib import Path
 from PySide6.QtCore import QObject, Signal
 
 from stereo_gui.core.errors import InputError, StereoGuiError
-from stereo_gui.qt.frame_worker import FrameWorker, JobRunner
+from stereo_gui.qt.workers.frame_worker import FrameWorker
+from stereo_gui.qt.workers.job_runner import JobRunner
 
 log = logging.getLogger(__name__)
 

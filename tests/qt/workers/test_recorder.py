@@ -112,7 +112,7 @@ def test_changing_the_source_stops_the_recording(qtbot, ctx, live, array_source,
 def test_new_recording_folder_names(tmp_path):
     import datetime as dt
 
-    from stereo_gui.qt.recorder import format_elapsed, new_recording_folder
+    from stereo_gui.qt.workers.recorder import format_elapsed, new_recording_folder
 
     now = dt.datetime(2026, 5, 4, 3, 2, 1)
     first = new_recording_folder(tmp_path, now)

@@ -7,7 +7,7 @@ import threading
 import numpy as np
 import pytest
 
-from stereo_gui.qt.frame_worker import FrameWorker, JobRunner, ProcessedFrame
+from stereo_gui.qt.workers.frame_worker import FrameWorker, ProcessedFrame
 
 
 @pytest.fixture
@@ -122,19 +122,6 @@ def test_stop_joins_quickly_and_can_restart(qtbot, worker, array_source):
     qtbot.waitUntil(lambda: worker.frames_processed > 2, timeout=30000)
 
 
-def test_job_runner_delivers_results_with_ids(qtbot):
-    jobs = JobRunner()
-    try:
-        with qtbot.waitSignal(jobs.finished, timeout=30000) as sig:
-            job_id = jobs.submit(lambda: 6 * 7)
-        assert sig.args == [job_id, 42]
-        with qtbot.waitSignal(jobs.failed, timeout=30000) as sig:
-            bad_id = jobs.submit(lambda: 1 / 0)
-        assert sig.args[0] == bad_id and "division" in sig.args[1]
-    finally:
-        assert jobs.stop(2000)
-
-
 def test_exit_while_a_read_blocks_does_not_abort(tmp_path):
     """A source stuck in read() past the stop timeout must not crash the process at exit
     (a QThread destroyed while running aborts it; our frame threads are daemon threads)."""
@@ -144,7 +131,7 @@ def test_exit_while_a_read_blocks_does_not_abort(tmp_path):
     code = (
         "import threading, time\n"
         "from PySide6.QtWidgets import QApplication\n"
-        "from stereo_gui.qt.frame_worker import FrameWorker\n"
+        "from stereo_gui.qt.workers.frame_worker import FrameWorker\n"
         "app = QApplication([])\n"
         "entered = threading.Event()\n"
         "class Stuck:\n"
