@@ -51,7 +51,7 @@ from stereo_gui.pipeline.calibration import (
 )
 from stereo_gui.pipeline.jobs import Progress
 from stereo_gui.qt.workers.job_worker import JobWorker
-from stereo_gui.qt.widgets import pane, wrapping_label
+from stereo_gui.qt.widgets.helpers import pane, wrapping_label
 
 log = logging.getLogger(__name__)
 

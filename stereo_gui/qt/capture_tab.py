@@ -50,8 +50,8 @@ from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.pipeline.capture import CaptureOutput, display_rgb, make_capture_processor
 from stereo_gui.pipeline.jobs import Progress
 from stereo_gui.qt.workers.job_worker import JobWorker
-from stereo_gui.qt.coverage_widget import CoverageWidget
-from stereo_gui.qt.widgets import pane, wrapping_label
+from stereo_gui.qt.widgets.coverage import CoverageWidget
+from stereo_gui.qt.widgets.helpers import pane, wrapping_label
 from stereo_gui.sources.base import StereoFrame
 
 log = logging.getLogger(__name__)
@@ -230,7 +230,7 @@ class CaptureTab(QWidget):
         self.square_spin.valueChanged.connect(self._board_edited)
         self.auto_check.toggled.connect(self._auto_toggled)
 
-        from stereo_gui.qt.playback_bar import PlaybackBar
+        from stereo_gui.qt.widgets.playback_bar import PlaybackBar
 
         self.playback = PlaybackBar(self.ctx)  # shown only for a recorded source
         self.playback.used.connect(self._playback_used)

@@ -39,9 +39,9 @@ from PySide6.QtWidgets import (
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.matching import COLORMAPS, MatcherParams
 from stereo_gui.pipeline.live import LiveOutput, LiveProcessor
-from stereo_gui.qt.image_view import ImagePanel, marker_color
-from stereo_gui.qt.params_panel import ParamsPanel, load_preset
-from stereo_gui.qt.playback_bar import PlaybackBar
+from stereo_gui.qt.widgets.image_view import ImagePanel, marker_color
+from stereo_gui.qt.widgets.params_panel import ParamsPanel, load_preset
+from stereo_gui.qt.widgets.playback_bar import PlaybackBar
 from stereo_gui.qt.workers.recorder import (
     describe_result,
     format_elapsed,

@@ -29,8 +29,8 @@ from stereo_gui.qt.context import AppContext
 from stereo_gui.qt.workers.job_runner import JobRunner
 from stereo_gui.qt.live_tab import LiveTab
 from stereo_gui.qt.measurements_tab import MeasurementsTab
-from stereo_gui.qt.source_dialog import SourceChoice, SourceDialog, describe_spec
-from stereo_gui.qt.widgets import pane
+from stereo_gui.qt.dialogs.source_dialog import SourceChoice, SourceDialog, describe_spec
+from stereo_gui.qt.widgets.helpers import pane
 
 log = logging.getLogger(__name__)
 
@@ -403,7 +403,7 @@ class MainWindow(QMainWindow):
         self.statusBar().showMessage(text, 10000)
 
     def show_about(self) -> None:
-        from stereo_gui.qt.about import show_about
+        from stereo_gui.qt.dialogs.about import show_about
 
         show_about(self)
 

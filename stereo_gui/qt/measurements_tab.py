@@ -38,7 +38,7 @@ from PySide6.QtWidgets import (
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.pipeline.jobs import Progress
 from stereo_gui.qt.workers.job_worker import JobWorker
-from stereo_gui.qt.widgets import pane, wrapping_label
+from stereo_gui.qt.widgets.helpers import pane, wrapping_label
 
 log = logging.getLogger(__name__)
 

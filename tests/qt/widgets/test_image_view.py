@@ -9,7 +9,7 @@ import pytest
 from PySide6.QtCore import Qt
 
 from stereo_gui.core.matching import ColorScale
-from stereo_gui.qt.image_view import ImagePanel, colormap_lut, distance_ticks
+from stereo_gui.qt.widgets.image_view import ImagePanel, colormap_lut, distance_ticks
 
 
 @pytest.fixture

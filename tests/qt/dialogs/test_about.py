@@ -9,7 +9,7 @@ from PySide6.QtGui import QGuiApplication
 from PySide6.QtWidgets import QWidget
 
 from stereo_gui import __version__
-from stereo_gui.qt.about import AboutDialog, about_html, application_icon, show_about, versions
+from stereo_gui.qt.dialogs.about import AboutDialog, about_html, application_icon, show_about, versions
 
 
 def test_versions_name_the_real_libraries():

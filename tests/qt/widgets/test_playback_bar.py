@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from stereo_gui.qt.source_dialog import SourceChoice
+from stereo_gui.qt.dialogs.source_dialog import SourceChoice
 
 
 def test_record_play_back_step_and_measure_the_same_distance(qtbot, ctx, window, sim_rig,
@@ -86,7 +86,7 @@ def test_record_play_back_step_and_measure_the_same_distance(qtbot, ctx, window,
 def test_playback_bar_of_a_side_by_side_video(qtbot, ctx, tmp_path):
     import cv2
 
-    from stereo_gui.qt.playback_bar import PlaybackBar
+    from stereo_gui.qt.widgets.playback_bar import PlaybackBar
     from stereo_gui.sources.open import open_source
 
     video = tmp_path / "sbs.avi"
