@@ -180,7 +180,7 @@ def main(argv: list[str]) -> int:
 
     # 7. regression: a flat target at known distances (the simulated walls, played back as
     #    recorded folders), two readings on each, the true distance typed into the log
-    from stereo_gui.qt.measurements_tab import TRUE_COL
+    from stereo_gui.qt.widgets.measurement_table import TRUE_COL
     from stereo_gui.qt.dialogs.source_dialog import SourceChoice
 
     walls = work / "walls"

@@ -1,17 +1,31 @@
 """The Capture tab's frame processor (runs in the frame worker's thread): find the chessboard in
-both images of a live frame and hand the tab RGB images to draw. No Qt here."""
+both images of a live frame and hand the tab RGB images to draw; and the job that reads a
+session's saved pairs back for coverage and thumbnails. No Qt here."""
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
 from stereo_gui.core.board import BoardSpec
-from stereo_gui.core.detect import Detection, PairDetection, PoseDescriptor, detect_board, pair_pose
+from stereo_gui.core.detect import (
+    Detection,
+    PairDetection,
+    PoseDescriptor,
+    detect_board,
+    detect_pair,
+    pair_pose,
+)
+from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.util import to_gray
+from stereo_gui.files.pairs import load_image
+from stereo_gui.pipeline.jobs import Progress
 from stereo_gui.sources.base import StereoFrame
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True, eq=False)
@@ -67,3 +81,30 @@ def display_rgb(bgr: np.ndarray) -> np.ndarray:
     if bgr.ndim == 2:
         return np.ascontiguousarray(np.repeat(bgr[:, :, None], 3, axis=2))
     return np.ascontiguousarray(bgr[:, :, 2::-1])
+
+
+def session_scan_job(pairs, board: BoardSpec, thumb_size: tuple[int, int]):
+    """A JobWorker job over a session's saved pairs (files.session pairs): detect the board in
+    each (for coverage) and shrink both images to `thumb_size` (w, h) px for thumbnails.
+
+    Returns [(name, PairDetection or None, [left, right] BGR or None)]; an unreadable pair is
+    logged and listed with None.
+    """
+
+    def job(cancel):
+        out = []
+        for i, p in enumerate(pairs):
+            cancel.check()
+            yield Progress(i, len(pairs), f"reading pair {p.name}")
+            try:
+                left, right = load_image(p.left), load_image(p.right)
+                det = detect_pair(p.name, left, right, board)
+                small = [cv2.resize(im, thumb_size, interpolation=cv2.INTER_AREA)
+                         for im in (left, right)]
+            except (StereoGuiError, ValueError, cv2.error) as exc:
+                log.warning("pair %s: %s", p.name, exc)
+                det, small = None, None
+            out.append((p.name, det, small))
+        return out
+
+    return job

@@ -73,8 +73,8 @@ def build_window(source: str | None = None, calib: str | None = None):
     """
     from stereo_gui.files.settings import load_settings
     from stereo_gui.qt.context import AppContext
-    from stereo_gui.qt.main_window import MainWindow
     from stereo_gui.qt.dialogs.source_dialog import SourceChoice
+    from stereo_gui.qt.main_window import MainWindow
 
     configure_pyqtgraph()
     settings, warnings = load_settings()

@@ -23,14 +23,14 @@ from PySide6.QtWidgets import (
 )
 
 from stereo_gui.core.errors import StereoGuiError
-from stereo_gui.qt.calibration_tab import CalibrationTab
-from stereo_gui.qt.capture_tab import CaptureTab
 from stereo_gui.qt.context import AppContext
-from stereo_gui.qt.workers.job_runner import JobRunner
-from stereo_gui.qt.live_tab import LiveTab
-from stereo_gui.qt.measurements_tab import MeasurementsTab
 from stereo_gui.qt.dialogs.source_dialog import SourceChoice, SourceDialog, describe_spec
+from stereo_gui.qt.tabs.calibration import CalibrationTab
+from stereo_gui.qt.tabs.capture import CaptureTab
+from stereo_gui.qt.tabs.live import LiveTab
+from stereo_gui.qt.tabs.measurements import MeasurementsTab
 from stereo_gui.qt.widgets.helpers import pane
+from stereo_gui.qt.workers.job_runner import JobRunner
 
 log = logging.getLogger(__name__)
 

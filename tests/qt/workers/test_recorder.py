@@ -10,7 +10,7 @@ import threading
 import numpy as np
 
 from stereo_gui.files.recording import open_recording
-from stereo_gui.qt.live_tab import RECORD_TEXT
+from stereo_gui.qt.widgets.record_button import RECORD_TEXT
 
 
 def _pair():
@@ -40,7 +40,7 @@ def test_record_button_writes_raw_frames_with_timestamps(qtbot, ctx, live, array
     assert folder.startswith(str(tmp_path / "recs")) and "rec-" in folder
     assert live.record_button.isChecked() and ctx.recorder.is_recording
     qtbot.waitUntil(lambda: ctx.recorder.frames_written >= 4, timeout=20000)
-    live._update_record_button()
+    live.record_button._update_record_button()
     assert live.record_button.text().startswith("■ Stop 0:")  # the time; the count:
     assert "frames written" in live.record_button.toolTip()
     with qtbot.waitSignal(ctx.recorder.stopped, timeout=20000) as sig:

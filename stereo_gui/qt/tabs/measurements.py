@@ -11,14 +11,10 @@ from __future__ import annotations
 
 import datetime as _dt
 import logging
-import math
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-import pyqtgraph as pg
-from PySide6.QtCore import QAbstractTableModel, QModelIndex, Qt, Signal
-from PySide6.QtGui import QBrush, QColor
+from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (
     QAbstractItemView,
     QComboBox,
@@ -37,214 +33,17 @@ from PySide6.QtWidgets import (
 
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.pipeline.jobs import Progress
-from stereo_gui.qt.workers.job_worker import JobWorker
 from stereo_gui.qt.widgets.helpers import pane, wrapping_label
+from stereo_gui.qt.widgets.measurement_table import MeasurementModel, samples_from
+from stereo_gui.qt.widgets.regression_plot import MODELS, RegressionPlot
+from stereo_gui.qt.workers.job_worker import JobWorker
 
 log = logging.getLogger(__name__)
 
-MODELS = ("cubic", "inverse")
-_COLOURS = {"cubic": "#f39c12", "inverse": "#5dade2"}  # curves, on the plots' dark background
 _LABEL_COLOURS = {"cubic": "#b9570b", "inverse": "#1f6fa8"}  # the same hues, darker, for text
 _MODEL_TEXT = {"triangulation": "Triangulation (calibration)",
                "cubic": "Cubic fit (the report's model)",
                "inverse": "Inverse fit Z = a / (d − d0)"}
-
-
-def _num(v, digits: int = 1) -> str:
-    if v is None:
-        return ""
-    try:
-        f = float(v)
-    except (TypeError, ValueError):
-        return str(v)
-    return f"{f:.{digits}f}" if math.isfinite(f) else "—"
-
-
-def _short_time(iso: str) -> str:
-    try:
-        t = _dt.datetime.fromisoformat(iso)
-    except (TypeError, ValueError):
-        return iso
-    return t.astimezone().strftime("%H:%M:%S") if t.tzinfo else t.strftime("%H:%M:%S")
-
-
-# (header, how to show a record, tooltip); the true distance sits next to what it is compared with
-COLUMNS = (
-    ("Time", lambda r: _short_time(r.time), "time of the reading"),
-    ("x, y (px)", lambda r: f"{_num(r.x_px, 0)}, {_num(r.y_px, 0)}",
-     "pixel of the rectified left image"),
-    ("Disparity (px)", lambda r: _num(r.disparity_px, 3), "median disparity of the patch"),
-    ("True distance (mm)", lambda r: _num(r.true_mm) if r.true_mm is not None else "",
-     "double-click to enter the measured true distance: it makes the reading a regression sample"),
-    ("Z (mm)", lambda r: _num(r.Z_mm), "depth along the optical axis"),
-    ("Range (mm)", lambda r: _num(r.range_mm), "distance from the left camera"),
-    ("± (mm)", lambda r: _num(r.expected_error_mm),
-     "expected depth error: Z² / (f·B) × the disparity uncertainty of the patch"),
-    ("Valid", lambda r: "yes" if r.valid else f"no: {r.reason}" if r.reason else "no",
-     "whether the reading is usable, and why not"),
-    ("X (mm)", lambda r: _num(r.X_mm), "left rectified camera frame"),
-    ("Y (mm)", lambda r: _num(r.Y_mm), "left rectified camera frame"),
-    ("Method", lambda r: r.method, "triangulation or the fit used"),
-)
-TRUE_COL = 3
-VALID_COL = 7
-_LEFT_ALIGNED = (0, VALID_COL, len(COLUMNS) - 1)
-
-
-class MeasurementModel(QAbstractTableModel):
-    """A table over ctx.measurements; the true-distance column is editable."""
-
-    def __init__(self, ctx, parent=None) -> None:
-        super().__init__(parent)
-        self.ctx = ctx
-        self._rows = len(ctx.measurements)
-        ctx.measurementsChanged.connect(self._reset)
-
-    def _reset(self) -> None:
-        n = len(self.ctx.measurements)
-        if n == self._rows:
-            # a reading changed (a true distance was entered): a reset would destroy the cell
-            # editor committing it and lose the current cell, so Down no longer led to the next
-            if n:
-                self.dataChanged.emit(self.index(0, 0), self.index(n - 1, len(COLUMNS) - 1))
-            return
-        self.beginResetModel()
-        self._rows = n
-        self.endResetModel()
-
-    def rowCount(self, parent=QModelIndex()) -> int:  # noqa: N802 - Qt API
-        return 0 if parent.isValid() else len(self.ctx.measurements)
-
-    def columnCount(self, parent=QModelIndex()) -> int:  # noqa: N802 - Qt API
-        return 0 if parent.isValid() else len(COLUMNS)
-
-    def headerData(self, section, orientation, role=Qt.ItemDataRole.DisplayRole):  # noqa: N802
-        if orientation == Qt.Orientation.Horizontal:
-            if role == Qt.ItemDataRole.DisplayRole:
-                return COLUMNS[section][0]
-            if role == Qt.ItemDataRole.ToolTipRole:
-                return COLUMNS[section][2]
-        elif role == Qt.ItemDataRole.DisplayRole:
-            return str(section + 1)
-        return None
-
-    def data(self, index, role=Qt.ItemDataRole.DisplayRole):
-        if not index.isValid():
-            return None
-        rec = self.ctx.measurements[index.row()]
-        col = index.column()
-        if role == Qt.ItemDataRole.DisplayRole:
-            return COLUMNS[col][1](rec)
-        if role == Qt.ItemDataRole.EditRole and col == TRUE_COL:
-            return "" if rec.true_mm is None else f"{rec.true_mm:g}"
-        if role == Qt.ItemDataRole.ForegroundRole and not rec.valid:
-            return QBrush(QColor("#a93226"))
-        if role == Qt.ItemDataRole.BackgroundRole and col == TRUE_COL:
-            return QBrush(QColor("#fdf6d8"))
-        if role == Qt.ItemDataRole.TextAlignmentRole and col not in _LEFT_ALIGNED:
-            return int(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
-        if role == Qt.ItemDataRole.ToolTipRole and col == VALID_COL and not rec.valid:
-            return rec.reason
-        return None
-
-    def flags(self, index):
-        f = super().flags(index)
-        if index.isValid() and index.column() == TRUE_COL:
-            f |= Qt.ItemFlag.ItemIsEditable
-        return f
-
-    def setData(self, index, value, role=Qt.ItemDataRole.EditRole) -> bool:  # noqa: N802
-        if role != Qt.ItemDataRole.EditRole or index.column() != TRUE_COL:
-            return False
-        text = str(value).strip().replace(",", ".")
-        if text == "":
-            true_mm = None
-        else:
-            try:
-                true_mm = float(text)
-            except ValueError:
-                self.ctx.report_error(f"true distance {value!r} is not a number of millimetres")
-                return False
-            if not math.isfinite(true_mm) or true_mm <= 0:
-                self.ctx.report_error(f"true distance must be a positive number of mm, not {value}")
-                return False
-        rec = self.ctx.measurements[index.row()]
-        self.ctx.update_measurement(index.row(), replace(rec, true_mm=true_mm))
-        return True
-
-
-def samples_from(records) -> list[tuple[float, float]]:
-    """(disparity px, true distance mm) of the valid readings that have a true distance."""
-    out = []
-    for r in records:
-        if r.true_mm is not None and r.valid and math.isfinite(r.disparity_px):
-            out.append((float(r.disparity_px), float(r.true_mm)))
-    return out
-
-
-class RegressionPlot(pg.GraphicsLayoutWidget):
-    """Distance against disparity (samples and both fits) above the residuals of each fit."""
-
-    def __init__(self, parent=None) -> None:
-        super().__init__(parent)
-        self.main = self.addPlot(row=0, col=0)
-        self.main.setLabel("left", "true distance", units="mm")
-        self.main.setLabel("bottom", "disparity", units="px")
-        self.main.showGrid(x=True, y=True, alpha=0.25)
-        for plot in (self.main,):
-            for ax in ("left", "bottom"):
-                plot.getAxis(ax).enableAutoSIPrefix(False)  # "kmm" helps nobody
-        self.main.addLegend(offset=(-10, 10))
-        self.resid = self.addPlot(row=1, col=0)
-        self.resid.setLabel("left", "residual", units="mm")
-        self.resid.setLabel("bottom", "disparity", units="px")
-        self.resid.showGrid(x=True, y=True, alpha=0.25)
-        self.resid.setXLink(self.main)
-        for ax in ("left", "bottom"):
-            self.resid.getAxis(ax).enableAutoSIPrefix(False)
-        zero = pg.InfiniteLine(angle=0, pos=0, pen=pg.mkPen("#888", style=Qt.PenStyle.DashLine))
-        self.resid.addItem(zero)
-        self.ci.layout.setRowStretchFactor(0, 3)
-        self.ci.layout.setRowStretchFactor(1, 2)
-        self.samples = pg.ScatterPlotItem(size=8, brush=pg.mkBrush("#f4f4f4"), pen=None,
-                                          name="samples")
-        self.main.addItem(self.samples)
-        self.curves = {}
-        self.resid_points = {}
-        for m in MODELS:
-            self.curves[m] = self.main.plot([], [], pen=pg.mkPen(_COLOURS[m], width=2), name=m)
-            self.resid_points[m] = pg.ScatterPlotItem(size=7, brush=pg.mkBrush(_COLOURS[m]),
-                                                      pen=None)
-            self.resid.addItem(self.resid_points[m])
-
-    def draw(self, samples, fits: dict) -> None:
-        if samples:
-            d = np.array([s[0] for s in samples])
-            z = np.array([s[1] for s in samples])
-            self.samples.setData(d, z)
-            lo, hi = float(d.min()), float(d.max())
-            pad = max(0.05 * (hi - lo), 0.5)
-            grid = np.linspace(lo - pad, hi + pad, 200)
-        else:
-            self.samples.setData([], [])
-            grid = None
-        for m in MODELS:
-            fit = fits.get(m)
-            if fit is None or grid is None:
-                self.curves[m].setData([], [])
-                self.resid_points[m].setData([], [])
-                continue
-            with np.errstate(all="ignore"):
-                y = np.asarray(fit.predict(grid), float)
-            y = np.where(np.isfinite(y), y, np.nan)
-            self.curves[m].setData(grid, y, connect="finite")
-            fd = np.array([s[0] for s in fit.samples], float)
-            self.resid_points[m].setData(fd, np.asarray(fit.residuals_mm, float))
-        if samples:
-            z = np.array([s[1] for s in samples])
-            span = max(float(z.max() - z.min()), 10.0)
-            self.main.setYRange(float(z.min()) - 0.15 * span, float(z.max()) + 0.15 * span)
-            self.main.setXRange(float(grid[0]), float(grid[-1]))
 
 
 class MeasurementsTab(QWidget):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from stereo_gui.files.session import CaptureSession
-from stereo_gui.qt.calibration_tab import CalibrationTab
+from stereo_gui.qt.tabs.calibration import CalibrationTab
 from stereo_gui.sources.sim import write_calibration_set
 
 N_PAIRS = 12
@@ -45,14 +45,14 @@ def test_calibrate_session_shows_results(tab, ctx, qtbot, session_folder):
     rep = run.result.report
     assert rep.pairs_found == N_PAIRS
     assert ctx.calibration is run.result.calibration
-    for lab in (tab.rms_left_label, tab.rms_right_label, tab.rms_stereo_label, tab.epipolar_label):
+    for lab in (tab.figures.rms_left_label, tab.figures.rms_right_label, tab.figures.rms_stereo_label, tab.figures.epipolar_label):
         assert lab.text().endswith("px") or " px " in lab.text(), lab.text()
-    assert float(tab.rms_stereo_label.text().split()[0]) < 1.0
-    assert "nominal 110.0 mm" in tab.baseline_label.text()
+    assert float(tab.figures.rms_stereo_label.text().split()[0]) < 1.0
+    assert "nominal 110.0 mm" in tab.figures.baseline_label.text()
     assert "Mrekt" in tab.matrices_text.toPlainText()
     assert "without rectification" in tab.matrices_text.toPlainText()
     assert tab.chart.bar_count() == rep.pairs_used
-    assert f"{rep.pairs_used} used of {N_PAIRS}" in tab.pairs_label.text()
+    assert f"{rep.pairs_used} used of {N_PAIRS}" in tab.figures.pairs_label.text()
     assert tab.progress.value() == 100
     # the first pair is shown rectified at once
     assert tab.rect_view.shown == tab.chart.names[0]
@@ -129,14 +129,14 @@ def test_bad_folder_reports_error(tab, ctx, qtbot, tmp_path):
 def test_save_and_load_calibration_file(tab, ctx, qtbot, session_folder, tmp_path):
     tab.folder_edit.setText(str(session_folder))
     run = _calibrate(tab, qtbot)
-    assert "NOT SAVED" in tab.source_label.text()
+    assert "NOT SAVED" in tab.figures.source_label.text()
     path = tmp_path / "calib.yaml"
     assert tab.save_calibration(path) and path.exists()
-    assert ctx.calibration_path == path and "calib.yaml" in tab.source_label.text()
+    assert ctx.calibration_path == path and "calib.yaml" in tab.figures.source_label.text()
     # the file saved here is the one loaded at the next start, as from the File menu
     assert ctx.settings.last_calibration == str(path.resolve())
     ctx.set_calibration(None)
-    assert tab.rms_stereo_label.text() == "—" and tab.chart.bar_count() == 0
+    assert tab.figures.rms_stereo_label.text() == "—" and tab.chart.bar_count() == 0
     assert tab.load_calibration(path)
     assert ctx.calibration.rms_stereo == pytest.approx(run.result.calibration.rms_stereo)
     assert tab.chart.bar_count() == len(run.result.calibration.per_pair)
@@ -153,8 +153,8 @@ def test_hartley_states_its_limits(tab, qtbot, session_folder):
     tab.method_combo.setCurrentIndex(tab.method_combo.findData("hartley"))
     run = _calibrate(tab, qtbot)
     assert run.result.calibration.method == "hartley"
-    assert "no metric scale" in tab.baseline_label.text()
-    assert "NOT in millimetres" in tab.note_label.text()
+    assert "no metric scale" in tab.figures.baseline_label.text()
+    assert "NOT in millimetres" in tab.figures.note_label.text()
     assert "no metric scale" in tab.rect_view.title.text
 
 
@@ -168,7 +168,7 @@ def test_shutdown_while_calibrating_joins_the_worker(tab, ctx, qtbot, session_fo
 
 
 def test_empty_error_chart_axis_reads_pair_without_an_si_prefix(qtbot):
-    from stereo_gui.qt.calibration_tab import ErrorBarChart
+    from stereo_gui.qt.tabs.calibration import ErrorBarChart
 
     chart = ErrorBarChart()
     qtbot.addWidget(chart)

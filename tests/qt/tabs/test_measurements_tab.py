@@ -8,7 +8,8 @@ import pytest
 from openpyxl import load_workbook
 
 from stereo_gui.files.spreadsheet import MeasurementRecord, read_csv
-from stereo_gui.qt.measurements_tab import TRUE_COL, MeasurementsTab
+from stereo_gui.qt.tabs.measurements import MeasurementsTab
+from stereo_gui.qt.widgets.measurement_table import TRUE_COL
 
 F_PX, B_MM = 750.0, 110.0
 

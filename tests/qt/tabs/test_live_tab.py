@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from PySide6.QtCore import Qt
 
-from stereo_gui.qt.live_tab import TRUE_CALIBRATION_NOTE, LiveOutput
+from stereo_gui.qt.tabs.live import TRUE_CALIBRATION_NOTE, LiveOutput
 
 
 def double_click(qtbot, widget, pos):
@@ -174,7 +174,7 @@ def test_pause_freezes_and_resume_continues(qtbot, ctx, live, sim_rig, wall_pair
 
 
 def test_format_distance():
-    from stereo_gui.qt.live_tab import format_distance
+    from stereo_gui.qt.tabs.live import format_distance
 
     assert format_distance(1503.2) == "1.503 m"
     assert format_distance(850.04) == "850.0 mm"

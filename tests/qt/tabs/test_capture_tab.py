@@ -8,7 +8,7 @@ import pytest
 
 from stereo_gui.core.board import BoardSpec
 from stereo_gui.files.session import CaptureSession
-from stereo_gui.qt.capture_tab import CaptureTab, make_capture_processor
+from stereo_gui.qt.tabs.capture import CaptureTab, make_capture_processor
 from stereo_gui.sources.sim import SimSource, write_calibration_set
 
 

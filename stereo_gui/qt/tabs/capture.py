@@ -12,25 +12,16 @@ from __future__ import annotations
 
 import logging
 from collections import deque
-from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
-import pyqtgraph as pg
-from PySide6.QtCore import QSize, Qt, Signal
-from PySide6.QtGui import QIcon, QImage, QPixmap
+from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (
-    QCheckBox,
-    QDoubleSpinBox,
     QFileDialog,
     QHBoxLayout,
     QLabel,
-    QListWidget,
-    QListWidgetItem,
     QMessageBox,
     QPushButton,
-    QSpinBox,
     QSplitter,
     QWidget,
 )
@@ -38,116 +29,36 @@ from PySide6.QtWidgets import (
 from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.detect import (
     NEW_POSE_DISTANCE,
-    Detection,
     PairDetection,
     PoseDescriptor,
     coverage,
-    detect_pair,
     is_new_pose,
     pair_pose,
 )
 from stereo_gui.core.errors import StereoGuiError
-from stereo_gui.pipeline.capture import CaptureOutput, display_rgb, make_capture_processor
-from stereo_gui.pipeline.jobs import Progress
-from stereo_gui.qt.workers.job_worker import JobWorker
-from stereo_gui.qt.widgets.coverage import CoverageWidget
+from stereo_gui.files.pairs import load_image
+from stereo_gui.pipeline.capture import (
+    CaptureOutput,
+    display_rgb,
+    make_capture_processor,
+    session_scan_job,
+)
+from stereo_gui.qt.widgets.board_row import BoardRow
 from stereo_gui.qt.widgets.helpers import pane, wrapping_label
+from stereo_gui.qt.widgets.saved_pairs import (
+    THUMB_SIZE,
+    SavedPairInfo,
+    SavedPairsPanel,
+    pair_thumbnail,
+)
+from stereo_gui.qt.widgets.stereo_pair_view import StereoPairView
+from stereo_gui.qt.workers.job_worker import JobWorker
 from stereo_gui.sources.base import StereoFrame
 
 log = logging.getLogger(__name__)
 
 STEADY_FRAMES = 4  # automatic capture: the board must hold still over this many frames
 STEADY_PX = 2.0  # ... moving its corners less than this, px
-THUMB_SIZE = QSize(176, 66)  # a saved pair's thumbnail: both images side by side
-_FOUND = "#2e9e3e"
-_MISSING = "#c0392b"
-
-
-# ---- image panes ---------------------------------------------------------------------------------
-class StereoPairView(QWidget):
-    """Left and right images side by side (equal size), each with a title and the corners."""
-
-    def __init__(self, parent=None) -> None:
-        super().__init__(parent)
-        row = QHBoxLayout(self)
-        row.setContentsMargins(0, 0, 0, 0)
-        row.setSpacing(2)
-        self.titles: list[pg.LabelItem] = []
-        self.images: list[pg.ImageItem] = []
-        self.corner_lines: list[pg.PlotCurveItem] = []
-        self.corner_dots: list[pg.ScatterPlotItem] = []
-        self.views: list[pg.ViewBox] = []
-        for name in ("Left", "Right"):
-            glw = pg.GraphicsLayoutWidget()
-            glw.setBackground("#202020")
-            title = pg.LabelItem(name, size="11pt", color="w")
-            glw.addItem(title, row=0, col=0)
-            vb = glw.addViewBox(row=1, col=0, lockAspect=True, enableMouse=False)
-            vb.invertY(True)
-            img = pg.ImageItem(axisOrder="row-major")
-            vb.addItem(img)
-            line = pg.PlotCurveItem(pen=pg.mkPen("#ffd21f", width=1.5))
-            dots = pg.ScatterPlotItem(size=6, pen=pg.mkPen(None), brush=pg.mkBrush("#ff5a1f"))
-            vb.addItem(line)
-            vb.addItem(dots)
-            row.addWidget(glw, 1)
-            self.titles.append(title)
-            self.images.append(img)
-            self.corner_lines.append(line)
-            self.corner_dots.append(dots)
-            self.views.append(vb)
-        self._shape: tuple[int, int] | None = None
-
-    def show_pair(self, left_rgb: np.ndarray, right_rgb: np.ndarray) -> None:
-        for img, arr in zip(self.images, (left_rgb, right_rgb), strict=True):
-            img.setImage(arr, levels=(0, 255), autoLevels=False)
-        shape = left_rgb.shape[:2]
-        if shape != self._shape:  # refit only when the size changes, not every frame
-            self._shape = shape
-            for vb in self.views:
-                vb.setRange(xRange=(0, shape[1]), yRange=(0, shape[0]), padding=0.01)
-
-    def show_corners(self, side: int, det: Detection | None, both: bool) -> None:
-        line, dots = self.corner_lines[side], self.corner_dots[side]
-        if det is None:
-            line.setData([], [])
-            dots.setData([], [])
-            return
-        c = det.corners.reshape(-1, 2)
-        line.setData(c[:, 0], c[:, 1])
-        colour = "#2ee65a" if both else "#ffb01f"
-        line.setPen(pg.mkPen(colour, width=1.5))
-        dots.setData(c[:, 0], c[:, 1], brush=pg.mkBrush(colour))
-
-    def set_title(self, side: int, text: str, colour: str = "w") -> None:
-        self.titles[side].setText(text, color=colour)
-
-
-def _thumbnail(left_bgr: np.ndarray, right_bgr: np.ndarray) -> QIcon:
-    h = THUMB_SIZE.height()
-    w = THUMB_SIZE.width() // 2 - 2
-    parts = [cv2.resize(im, (w, h), interpolation=cv2.INTER_AREA) for im in (left_bgr, right_bgr)]
-    gap = np.full((h, 4, 3), 40, np.uint8)
-    both = np.ascontiguousarray(np.hstack([parts[0], gap, parts[1]])[:, :, ::-1])
-    qimg = QImage(both.data, both.shape[1], both.shape[0], both.strides[0],
-                  QImage.Format.Format_RGB888).copy()
-    return QIcon(QPixmap.fromImage(qimg))
-
-
-@dataclass(frozen=True, eq=False)
-class SavedPairInfo:
-    """A saved pair as the tab shows it: its detection (for coverage) and a thumbnail."""
-
-    name: str
-    detection: PairDetection | None
-    icon: QIcon | None
-
-
-def _read(path) -> np.ndarray:
-    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if img is None:
-        raise StereoGuiError(f"cannot read image {path}")
-    return img
 
 
 # ---- the tab -------------------------------------------------------------------------------------
@@ -201,34 +112,15 @@ class CaptureTab(QWidget):
         bar.addWidget(self.session_label, 1)
         ml.addLayout(bar)
 
-        board = QHBoxLayout()
-        board.addWidget(QLabel("Board inner corners:"))
-        self.cols_spin = QSpinBox()
-        self.cols_spin.setRange(2, 40)
-        self.rows_spin = QSpinBox()
-        self.rows_spin.setRange(2, 40)
-        self.square_spin = QDoubleSpinBox()
-        self.square_spin.setRange(0.5, 500.0)
-        self.square_spin.setDecimals(2)
-        self.square_spin.setSuffix(" mm")
-        board.addWidget(self.cols_spin)
-        board.addWidget(QLabel("×"))
-        board.addWidget(self.rows_spin)
-        board.addSpacing(12)
-        board.addWidget(QLabel("Square size:"))
-        board.addWidget(self.square_spin)
-        board.addSpacing(24)
-        self.auto_check = QCheckBox("Automatic capture (steady board, new pose)")
-        self.auto_check.setToolTip(
+        self.board_row = BoardRow(
             f"Take a pair by itself when the board holds still (corners move less than "
             f"{STEADY_PX:g} px over {STEADY_FRAMES} frames) and its pose differs from those kept")
-        board.addWidget(self.auto_check)
-        board.addStretch(1)
-        ml.addLayout(board)
-        for w in (self.cols_spin, self.rows_spin):
-            w.valueChanged.connect(self._board_edited)
-        self.square_spin.valueChanged.connect(self._board_edited)
-        self.auto_check.toggled.connect(self._auto_toggled)
+        row = self.board_row
+        self.cols_spin, self.rows_spin = row.cols_spin, row.rows_spin
+        self.square_spin, self.auto_check = row.square_spin, row.auto_check
+        ml.addWidget(row)
+        row.edited.connect(self._board_edited)
+        row.auto_check.toggled.connect(self._auto_toggled)
 
         from stereo_gui.qt.widgets.playback_bar import PlaybackBar
 
@@ -258,23 +150,12 @@ class CaptureTab(QWidget):
         ml.addLayout(review)
         split.addWidget(main)
 
-        side, sl = pane()
-        self.coverage = CoverageWidget()
-        sl.addWidget(self.coverage)
-        self.pairs_label = QLabel("Saved pairs")
-        sl.addWidget(self.pairs_label)
-        self.pair_list = QListWidget()
-        self.pair_list.setIconSize(THUMB_SIZE)
-        self.pair_list.setUniformItemSizes(True)
-        self.pair_list.itemClicked.connect(
-            lambda item: self.show_saved_pair(item.data(Qt.ItemDataRole.UserRole)))
-        sl.addWidget(self.pair_list, 1)
-        pb = QHBoxLayout()
-        self.delete_button = QPushButton("Delete pair")
-        self.delete_button.clicked.connect(self._delete_selected)
-        pb.addWidget(self.delete_button)
-        pb.addStretch(1)
-        sl.addLayout(pb)
+        side = SavedPairsPanel()
+        side.pairClicked.connect(self.show_saved_pair)
+        side.delete_button.clicked.connect(self._delete_selected)
+        self.saved_panel = side
+        self.coverage, self.pairs_label = side.coverage, side.pairs_label
+        self.pair_list, self.delete_button = side.pair_list, side.delete_button
         split.addWidget(side)
         split.setStretchFactor(0, 3)
         split.setStretchFactor(1, 1)
@@ -288,27 +169,16 @@ class CaptureTab(QWidget):
 
     # ---- board settings ----------------------------------------------------------------------
     def _load_board_settings(self) -> None:
-        board = self.ctx.settings.board
-        for w, v in ((self.cols_spin, board.cols), (self.rows_spin, board.rows),
-                     (self.square_spin, board.square_mm)):
-            w.blockSignals(True)
-            w.setValue(v)
-            w.blockSignals(False)
-        self.auto_check.blockSignals(True)
-        self.auto_check.setChecked(bool(self.ctx.settings.auto_capture))
-        self.auto_check.blockSignals(False)
+        self.board_row.show_board(self.ctx.settings.board)
+        self.board_row.show_auto(bool(self.ctx.settings.auto_capture))
 
     @property
     def board(self) -> BoardSpec:
-        return BoardSpec(self.cols_spin.value(), self.rows_spin.value(), self.square_spin.value())
+        return self.board_row.board
 
     def set_board(self, board: BoardSpec) -> None:
         """Use `board` (updates the spin boxes, the settings and the live detector)."""
-        for w, v in ((self.cols_spin, board.cols), (self.rows_spin, board.rows),
-                     (self.square_spin, board.square_mm)):
-            w.blockSignals(True)
-            w.setValue(v)
-            w.blockSignals(False)
+        self.board_row.show_board(board)
         self._board_edited()
 
     def _board_edited(self) -> None:
@@ -347,11 +217,10 @@ class CaptureTab(QWidget):
         except StereoGuiError as exc:
             self.ctx.report_error(str(exc))
             return
-        current = self.pair_list.currentItem()
-        name = current.data(Qt.ItemDataRole.UserRole) if current is not None else None
+        name = self.saved_panel.current_name()
         self._refill_list()
         if name is not None:
-            self._select_in_list(name)
+            self.saved_panel.select(name)
 
     def _set_processing(self, on: bool) -> None:
         """Detect in live frames only while live frames are shown (saves CPU while reviewing)."""
@@ -372,7 +241,7 @@ class CaptureTab(QWidget):
             return  # a frozen or saved pair is on screen: live frames wait
         self._last_output = out
         self.view.show_pair(out.left_rgb, out.right_rgb)
-        self._draw_detection(out.detection)
+        self.view.show_detection(out.detection)
         det = out.detection
         if not det.found:
             self._recent_corners.clear()
@@ -396,15 +265,6 @@ class CaptureTab(QWidget):
         side = "right" if det.right is None else "left"
         return f"Only the {'left' if side == 'right' else 'right'} camera sees the board: " \
                f"move it into the {side} camera's view"
-
-    def _draw_detection(self, det: PairDetection) -> None:
-        both = det.found
-        for i, (d, name) in enumerate(((det.left, "Left"), (det.right, "Right"))):
-            self.view.show_corners(i, d, both)
-            if d is None:
-                self.view.set_title(i, f"{name}: no board", _MISSING)
-            else:
-                self.view.set_title(i, f"{name}: board found", _FOUND)
 
     # ---- review --------------------------------------------------------------------------------
     def _freeze(self, out: CaptureOutput, frame: StereoFrame) -> None:
@@ -454,11 +314,10 @@ class CaptureTab(QWidget):
             self.ctx.report_error(f"could not save the pair: {exc}")
             return None
         name = getattr(pair, "name", str(pair))
-        info = SavedPairInfo(name, det, _thumbnail(frame.left, frame.right))
+        info = SavedPairInfo(name, det, pair_thumbnail(frame.left, frame.right))
         self._saved[name] = info
         self._add_list_item(info)
-        self.coverage.add_pair(det.left.corners if det.left else None,
-                               det.right.corners if det.right else None)
+        self.saved_panel.add_coverage(det)
         self._update_coverage()
         self.ctx.show_status(f"Saved pair {name} to {self.session.folder}")
         self.pairSaved.emit(name)
@@ -563,22 +422,7 @@ class CaptureTab(QWidget):
             return
         board = self.board
 
-        def job(cancel):
-            out = []
-            for i, p in enumerate(pairs):
-                cancel.check()
-                yield Progress(i, len(pairs), f"reading pair {p.name}")
-                try:
-                    left, right = _read(p.left), _read(p.right)
-                    det = detect_pair(p.name, left, right, board)
-                    small = [cv2.resize(im, (THUMB_SIZE.width() // 2, THUMB_SIZE.height()),
-                                        interpolation=cv2.INTER_AREA) for im in (left, right)]
-                except (StereoGuiError, ValueError, cv2.error) as exc:
-                    log.warning("pair %s: %s", p.name, exc)
-                    det, small = None, None
-                out.append((p.name, det, small))
-            return out
-
+        job = session_scan_job(pairs, board, (THUMB_SIZE.width() // 2, THUMB_SIZE.height()))
         self.pairs_label.setText(f"Saved pairs: reading {len(pairs)}…")
         worker = JobWorker(job, "reading the session")
         worker.finished_ok.connect(self._scan_done)
@@ -593,14 +437,13 @@ class CaptureTab(QWidget):
             return
         self._scan = None
         for name, det, small in results:
-            icon = _thumbnail(*small) if small is not None else None
+            icon = pair_thumbnail(*small) if small is not None else None
             info = SavedPairInfo(name, det, icon)
             if name in self._saved:
                 continue  # saved while the scan ran
             self._saved[name] = info
             if det is not None:
-                self.coverage.add_pair(det.left.corners if det.left else None,
-                                       det.right.corners if det.right else None)
+                self.saved_panel.add_coverage(det)
         self._refill_list()
         self._update_coverage()
 
@@ -613,7 +456,7 @@ class CaptureTab(QWidget):
         for name in order:
             info = self._saved.get(name) or SavedPairInfo(name, None, None)
             self._add_list_item(info)
-        self._update_pairs_label()
+        self.saved_panel.update_label()
         self._update_controls()  # Delete pair needs pairs in the list
 
     def _add_list_item(self, info: SavedPairInfo) -> None:
@@ -622,21 +465,7 @@ class CaptureTab(QWidget):
             for p in self.session.pairs:
                 if p.name == info.name:
                     excluded = bool(getattr(p, "excluded", False))
-        text = info.name
-        if info.detection is not None and not info.detection.found:
-            text += "  (board not found in both)"
-        if excluded:
-            text += "  (excluded)"
-        item = QListWidgetItem(text)
-        if info.icon is not None:
-            item.setIcon(info.icon)
-        item.setData(Qt.ItemDataRole.UserRole, info.name)
-        self.pair_list.addItem(item)
-        self._update_pairs_label()
-
-    def _update_pairs_label(self) -> None:
-        n = self.pair_list.count()
-        self.pairs_label.setText(f"Saved pairs ({n}): click one to review it")
+        self.saved_panel.add_item(info, excluded)
 
     def _saved_poses(self) -> list[PoseDescriptor]:
         """Pose descriptors of the saved pairs in which both cameras saw the board."""
@@ -647,8 +476,7 @@ class CaptureTab(QWidget):
         self.coverage.set_coverage(coverage(self._saved_poses()))
 
     def saved_names(self) -> list[str]:
-        return [self.pair_list.item(i).data(Qt.ItemDataRole.UserRole)
-                for i in range(self.pair_list.count())]
+        return self.saved_panel.names()
 
     # ---- saved pairs -----------------------------------------------------------------------------
     def show_saved_pair(self, name: str) -> None:
@@ -659,7 +487,7 @@ class CaptureTab(QWidget):
         if pair is None:
             return
         try:
-            left, right = _read(pair.left), _read(pair.right)
+            left, right = load_image(pair.left), load_image(pair.right)
         except StereoGuiError as exc:
             self.ctx.report_error(str(exc))
             return
@@ -671,7 +499,7 @@ class CaptureTab(QWidget):
         info = self._saved.get(name)
         det = info.detection if info is not None else None
         if det is not None:
-            self._draw_detection(det)
+            self.view.show_detection(det)
         else:
             for i, side in enumerate(("Left", "Right")):
                 self.view.show_corners(i, None, False)
@@ -680,21 +508,13 @@ class CaptureTab(QWidget):
             self.view.titles[i].setText(f"{side} — saved pair {name}: "
                                         + self.view.titles[i].text.split(": ", 1)[-1])
         self.prompt.setText(f"Reviewing saved pair {name}. Delete it, or go back to live.")
-        self._select_in_list(name)
+        self.saved_panel.select(name)
         self._update_controls()
 
-    def _select_in_list(self, name: str) -> None:
-        for i in range(self.pair_list.count()):
-            item = self.pair_list.item(i)
-            if item.data(Qt.ItemDataRole.UserRole) == name:
-                self.pair_list.setCurrentItem(item)
-                return
-
     def _delete_selected(self) -> None:
-        item = self.pair_list.currentItem()
-        if item is None:
+        name = self.saved_panel.current_name()
+        if name is None:
             return
-        name = item.data(Qt.ItemDataRole.UserRole)
         answer = QMessageBox.question(  # the files go, not only the list entry
             self, "Delete pair", f"Delete pair {name}? Its two images are removed from "
             f"{self.session.folder if self.session else 'the session folder'}.")
@@ -715,8 +535,7 @@ class CaptureTab(QWidget):
         for info in self._saved.values():
             det = info.detection
             if det is not None:
-                self.coverage.add_pair(det.left.corners if det.left else None,
-                                       det.right.corners if det.right else None)
+                self.saved_panel.add_coverage(det)
         self._refill_list()
         self._update_coverage()
         self.ctx.show_status(f"Deleted pair {name}")

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stereo_gui.qt.live_tab import TRUE_CALIBRATION_NOTE
+from stereo_gui.qt.tabs.live import TRUE_CALIBRATION_NOTE
 
 
 def _show_wall(qtbot, ctx, live, calib, wall_pair, array_source):

@@ -12,20 +12,15 @@ from the session and the rig recalibrated.
 from __future__ import annotations
 
 import logging
-import math
 from pathlib import Path
 
 import cv2
-import numpy as np
-import pyqtgraph as pg
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QFont
 from PySide6.QtWidgets import (
     QComboBox,
     QDoubleSpinBox,
     QFileDialog,
-    QFormLayout,
-    QGroupBox,
     QHBoxLayout,
     QLabel,
     QLineEdit,
@@ -50,125 +45,15 @@ from stereo_gui.pipeline.calibration import (
     read_image,
 )
 from stereo_gui.pipeline.jobs import Progress
+from stereo_gui.qt.widgets.calibration_charts import ErrorBarChart, RectifiedPairView
+from stereo_gui.qt.widgets.calibration_figures import CalibrationFigures, format_px
+from stereo_gui.qt.widgets.helpers import pane
 from stereo_gui.qt.workers.job_worker import JobWorker
-from stereo_gui.qt.widgets.helpers import pane, wrapping_label
 
 log = logging.getLogger(__name__)
 
-LINE_EVERY_PX = 32  # rectification check: a horizontal line every this many rows
-_BAR_LEFT = "#4f8fd6"
-_BAR_RIGHT = "#e08a3c"
-_BAR_SELECTED = "#f5e342"
 _MONO = QFont("Monospace")
 _MONO.setStyleHint(QFont.StyleHint.TypeWriter)
-
-
-class ErrorBarChart(pg.PlotWidget):
-    """Reprojection error per pair (left and right bars); a click selects a pair."""
-
-    pairClicked = Signal(str)
-
-    def __init__(self, parent=None) -> None:
-        super().__init__(parent)
-        self.setLabel("left", "reprojection error", units="px")
-        self.getAxis("left").enableAutoSIPrefix(False)  # not "mpx"
-        self.getAxis("bottom").enableAutoSIPrefix(False)  # not "pair (x0.001)" while empty
-        self.setLabel("bottom", "pair")
-        self.setMouseEnabled(x=False, y=False)
-        self.hideButtons()
-        self.setMenuEnabled(False)
-        self.addLegend(offset=(-10, 10))
-        self.names: list[str] = []
-        self.selected: str | None = None
-        self._left = pg.BarGraphItem(x=[], height=[], width=0.38, brush=_BAR_LEFT, name="left")
-        self._right = pg.BarGraphItem(x=[], height=[], width=0.38, brush=_BAR_RIGHT, name="right")
-        self._mark = pg.BarGraphItem(x=[], height=[], width=0.9, brush=pg.mkBrush(245, 227, 66, 90),
-                                     pen=pg.mkPen(_BAR_SELECTED, width=2))
-        for it in (self._mark, self._left, self._right):
-            self.addItem(it)
-        self.scene().sigMouseClicked.connect(self._clicked)
-        self.setToolTip("Click a bar to look at that pair (and exclude it if it is bad)")
-
-    def set_errors(self, names: list[str], left: list[float], right: list[float]) -> None:
-        self.names = list(names)
-        x = np.arange(len(names), dtype=float)
-        self._left.setOpts(x=x - 0.2, height=np.asarray(left, float))
-        self._right.setOpts(x=x + 0.2, height=np.asarray(right, float))
-        ax = self.getAxis("bottom")
-        step = max(1, math.ceil(len(names) / 25))
-        ax.setTicks([[(i, _short(n)) for i, n in enumerate(names) if i % step == 0], []])
-        top = max([*left, *right, 0.1])
-        self.setXRange(-0.7, max(len(names) - 0.3, 0.5), padding=0)
-        self.setYRange(0, top * 1.15, padding=0)
-        self.select(self.selected if self.selected in self.names else None)
-
-    def bar_count(self) -> int:
-        return len(self.names)
-
-    def heights(self) -> tuple[np.ndarray, np.ndarray]:
-        return (np.asarray(self._left.opts["height"]), np.asarray(self._right.opts["height"]))
-
-    def select(self, name: str | None) -> None:
-        self.selected = name
-        if name is None or name not in self.names:
-            self._mark.setOpts(x=[], height=[])
-            return
-        i = self.names.index(name)
-        lh, rh = self.heights()
-        self._mark.setOpts(x=[float(i)], height=[float(max(lh[i], rh[i])) * 1.05 + 1e-3])
-
-    def _clicked(self, ev) -> None:
-        if not self.names:
-            return
-        p = self.plotItem.vb.mapSceneToView(ev.scenePos())
-        i = int(round(p.x()))
-        inside = self.plotItem.vb.sceneBoundingRect().contains(ev.scenePos())
-        if inside and 0 <= i < len(self.names):
-            self.select(self.names[i])
-            self.pairClicked.emit(self.names[i])
-
-
-def _short(name: str) -> str:
-    """A short tick label: the number of 'chessboard-L3' style names, else the name."""
-    digits = "".join(ch for ch in name if ch.isdigit())
-    return digits if digits and len(name) > 6 else name
-
-
-class RectifiedPairView(pg.GraphicsLayoutWidget):
-    """A rectified pair side by side with horizontal lines: matching points sit on one line."""
-
-    def __init__(self, parent=None) -> None:
-        super().__init__(parent)
-        self.setBackground("#202020")
-        self.title = pg.LabelItem("Rectification check: select a pair", color="w")
-        self.addItem(self.title, row=0, col=0)
-        self.vb = self.addViewBox(row=1, col=0, lockAspect=True, enableMouse=True)
-        self.vb.invertY(True)
-        self.image = pg.ImageItem(axisOrder="row-major")
-        self.vb.addItem(self.image)
-        self.lines = pg.PlotCurveItem(pen=pg.mkPen((80, 255, 80, 150), width=1), connect="pairs")
-        self.vb.addItem(self.lines)
-        self.shown: str | None = None
-
-    def show_pair(self, name: str, left_rect: np.ndarray, right_rect: np.ndarray,
-                  note: str = "") -> None:
-        h, w = left_rect.shape[:2]
-        gap = np.zeros((h, 6, 3), np.uint8)
-        both = np.ascontiguousarray(np.hstack([left_rect, gap, right_rect])[:, :, ::-1])
-        self.image.setImage(both, levels=(0, 255), autoLevels=False)
-        ys = np.arange(LINE_EVERY_PX // 2, h, LINE_EVERY_PX, dtype=float)
-        xs = np.tile([0.0, float(both.shape[1])], len(ys))
-        self.lines.setData(xs, np.repeat(ys, 2))
-        self.vb.setRange(xRange=(0, both.shape[1]), yRange=(0, h), padding=0.01)
-        self.title.setText(f"Rectified pair {name}: left | right. A point should lie on the same "
-                           f"row in both{note}")
-        self.shown = name
-
-    def clear_pair(self) -> None:
-        self.image.clear()
-        self.lines.setData([], [])
-        self.title.setText("Rectification check: select a pair")
-        self.shown = None
 
 
 class CalibrationTab(QWidget):
@@ -259,28 +144,8 @@ class CalibrationTab(QWidget):
 
         # left: figures and matrices
         left, ll = pane()
-        figures = QGroupBox("Result")
-        form = QFormLayout(figures)
-        self.source_label = wrapping_label()
-        self.rms_left_label = QLabel()
-        self.rms_right_label = QLabel()
-        self.rms_stereo_label = QLabel()
-        self.epipolar_label = QLabel()
-        self.baseline_label = QLabel()
-        self.rotation_label = QLabel()
-        self.pairs_label = wrapping_label()
-        form.addRow("Calibration:", self.source_label)
-        form.addRow("RMS left camera:", self.rms_left_label)
-        form.addRow("RMS right camera:", self.rms_right_label)
-        form.addRow("RMS stereo:", self.rms_stereo_label)
-        form.addRow("Epipolar error:", self.epipolar_label)
-        form.addRow("Baseline:", self.baseline_label)
-        form.addRow("Rotation between cameras:", self.rotation_label)
-        form.addRow("Pairs:", self.pairs_label)
-        self.note_label = wrapping_label()
-        self.note_label.setStyleSheet("color: #b03a2e; font-weight: bold")
-        form.addRow(self.note_label)
-        ll.addWidget(figures)
+        self.figures = CalibrationFigures()
+        ll.addWidget(self.figures)
         self.rejected_list = QListWidget()
         self.rejected_list.setMaximumHeight(80)
         self.rejected_list.setToolTip(
@@ -417,8 +282,8 @@ class CalibrationTab(QWidget):
         self._maps_for = run.result.calibration
         self.progress.setValue(100)
         rep = run.result.report
-        quality = (f"stereo RMS {_px(rep.rms_stereo)}" if rep.method != "hartley" else
-                   f"epipolar error {_px(rep.epipolar_error_px)}, Hartley: no metric scale")
+        quality = (f"stereo RMS {format_px(rep.rms_stereo)}" if rep.method != "hartley" else
+                   f"epipolar error {format_px(rep.epipolar_error_px)}, Hartley: no metric scale")
         self.progress_label.setText(
             f"Done: {rep.pairs_used} of {rep.pairs_found} pairs used, {quality}. "
             f"Not saved yet: use Save calibration… to keep it.")
@@ -501,12 +366,7 @@ class CalibrationTab(QWidget):
         c = self.calibration
         nominal = float(self.baseline_spin.value())
         if c is None:
-            for lab in (self.rms_left_label, self.rms_right_label, self.rms_stereo_label,
-                        self.epipolar_label, self.baseline_label, self.rotation_label,
-                        self.pairs_label):
-                lab.setText("—")
-            self.source_label.setText("none yet: calibrate, or load a calibration file")
-            self.note_label.setText("")
+            self.figures.show_none()
             return
         path = self.ctx.calibration_path if self.ctx.calibration is c else None
         if path is not None:
@@ -515,28 +375,6 @@ class CalibrationTab(QWidget):
             src = f"calibrated from {self.run.folder}, NOT SAVED"
         else:
             src = "not saved"
-        self.source_label.setText(f"{src}; {c.image_size[0]}x{c.image_size[1]} px, "
-                                  f"board {c.board.label() if c.board else 'unknown'}, "
-                                  f"method {c.method}, alpha {c.alpha:g}, created {c.created}")
-        self.rms_left_label.setText(_px(c.rms_left))
-        self.rms_right_label.setText(_px(c.rms_right))
-        self.rms_stereo_label.setText(_px(c.rms_stereo) if math.isfinite(c.rms_stereo)
-                                      else "— (no stereo solve in Hartley's method)")
-        self.epipolar_label.setText(f"{_px(c.epipolar_error_px)} mean |y left − y right| of the "
-                                    f"corners after rectification")
-        if c.metric:
-            b = c.baseline_mm
-            diff = b - nominal + 0.0  # + 0.0: no "-0.00"
-            if abs(diff) < 0.005:
-                diff = 0.0
-            self.baseline_label.setText(
-                f"{b:.2f} mm (nominal {nominal:.1f} mm, difference {diff:+.2f} mm, "
-                f"{100 * diff / nominal:+.2f} %)")
-            self.note_label.setText("")
-        else:
-            self.baseline_label.setText("no metric scale (Hartley): distances are not in mm")
-            self.note_label.setText(HARTLEY_NOTE)
-        self.rotation_label.setText(f"{c.relative_rotation_deg:.3f}°")
         if self.run is not None and self.run.result.calibration is c:
             rep = self.run.result.report
             txt = f"{rep.pairs_used} used of {rep.pairs_found}"
@@ -544,9 +382,9 @@ class CalibrationTab(QWidget):
                 txt += f", {len(rep.rejected)} rejected"
             if self.run.excluded:
                 txt += f", {len(self.run.excluded)} excluded by you"
-            self.pairs_label.setText(txt)
         else:
-            self.pairs_label.setText(f"{len(c.per_pair)} used")
+            txt = f"{len(c.per_pair)} used"
+        self.figures.show_calibration(c, src, nominal, txt)
 
     # ---- pairs: select, rectification check, exclude --------------------------------------------
     def select_pair(self, name: str) -> None:
@@ -672,5 +510,4 @@ class CalibrationTab(QWidget):
                                         else "Exclude pair")
 
 
-def _px(v: float) -> str:
-    return f"{v:.3f} px" if v is not None and math.isfinite(v) else "—"
+
