@@ -82,7 +82,7 @@ def main(argv: list[str]) -> int:
     shot("start")
 
     # 2. the source chooser, with "Two cameras" picked to show the camera lists
-    from stereo_gui.qt.source_dialog import SourceDialog
+    from stereo_gui.qt.dialogs.source_dialog import SourceDialog
 
     dlg = SourceDialog(window.source_choice, parent=window)
     dlg.cams.setChecked(True)
@@ -180,8 +180,8 @@ def main(argv: list[str]) -> int:
 
     # 7. regression: a flat target at known distances (the simulated walls, played back as
     #    recorded folders), two readings on each, the true distance typed into the log
-    from stereo_gui.qt.measurements_tab import TRUE_COL
-    from stereo_gui.qt.source_dialog import SourceChoice
+    from stereo_gui.qt.widgets.measurement_table import TRUE_COL
+    from stereo_gui.qt.dialogs.source_dialog import SourceChoice
 
     walls = work / "walls"
     simulate.run(p.parse_args([str(walls), "--pairs", "1", "--scene"]))

@@ -39,7 +39,7 @@ def main(argv: list[str] | None = None) -> int:
     from stereo_gui.qt.app import configure_pyqtgraph
     from stereo_gui.qt.context import AppContext
     from stereo_gui.qt.main_window import MainWindow
-    from stereo_gui.qt.source_dialog import SourceChoice
+    from stereo_gui.qt.dialogs.source_dialog import SourceChoice
     from stereo_gui.sources.open import open_source
 
     app = QApplication.instance() or QApplication(sys.argv[:1])

@@ -89,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
     from PySide6.QtWidgets import QApplication
 
     from stereo_gui.qt.app import build_window
-    from stereo_gui.qt.source_dialog import SourceChoice
+    from stereo_gui.qt.dialogs.source_dialog import SourceChoice
 
     app = QApplication.instance() or QApplication(sys.argv[:1])
     app.setApplicationName("Stereo GUI")

@@ -73,8 +73,8 @@ def build_window(source: str | None = None, calib: str | None = None):
     """
     from stereo_gui.files.settings import load_settings
     from stereo_gui.qt.context import AppContext
+    from stereo_gui.qt.dialogs.source_dialog import SourceChoice
     from stereo_gui.qt.main_window import MainWindow
-    from stereo_gui.qt.source_dialog import SourceChoice
 
     configure_pyqtgraph()
     settings, warnings = load_settings()
@@ -121,7 +121,7 @@ def run_app(source: str | None = None, calib: str | None = None) -> int:
     app.setApplicationName("Stereo GUI")
     app.setOrganizationName("stereo-gui")
     app.setDesktopFileName("stereo-gui")  # matches resources/stereo-gui.desktop
-    from stereo_gui.qt.about import application_icon
+    from stereo_gui.qt.dialogs.about import application_icon
 
     app.setWindowIcon(application_icon())
     ctx, window = build_window(source, calib)

@@ -13,8 +13,9 @@ from PySide6.QtCore import QObject, Signal
 
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.files.settings import Settings
-from stereo_gui.qt.frame_worker import FrameWorker, JobRunner
-from stereo_gui.qt.recorder import Recorder
+from stereo_gui.qt.workers.frame_worker import FrameWorker
+from stereo_gui.qt.workers.job_runner import JobRunner
+from stereo_gui.qt.workers.recorder import Recorder
 
 log = logging.getLogger(__name__)
 

@@ -23,14 +23,14 @@ from PySide6.QtWidgets import (
 )
 
 from stereo_gui.core.errors import StereoGuiError
-from stereo_gui.qt.calibration_tab import CalibrationTab
-from stereo_gui.qt.capture_tab import CaptureTab
 from stereo_gui.qt.context import AppContext
-from stereo_gui.qt.frame_worker import JobRunner
-from stereo_gui.qt.live_tab import LiveTab
-from stereo_gui.qt.measurements_tab import MeasurementsTab
-from stereo_gui.qt.source_dialog import SourceChoice, SourceDialog, describe_spec
-from stereo_gui.qt.widgets import pane
+from stereo_gui.qt.dialogs.source_dialog import SourceChoice, SourceDialog, describe_spec
+from stereo_gui.qt.tabs.calibration import CalibrationTab
+from stereo_gui.qt.tabs.capture import CaptureTab
+from stereo_gui.qt.tabs.live import LiveTab
+from stereo_gui.qt.tabs.measurements import MeasurementsTab
+from stereo_gui.qt.widgets.helpers import pane
+from stereo_gui.qt.workers.job_runner import JobRunner
 
 log = logging.getLogger(__name__)
 
@@ -285,7 +285,7 @@ class MainWindow(QMainWindow):
     def _update_recording_label(self) -> None:
         rec = self.ctx.recorder
         if rec.is_recording:
-            from stereo_gui.qt.recorder import format_elapsed
+            from stereo_gui.qt.workers.recorder import format_elapsed
 
             self.recording_label.setText(f"● REC {format_elapsed(rec.elapsed_s)}, "
                                          f"{rec.frames_written} frames")
@@ -403,7 +403,7 @@ class MainWindow(QMainWindow):
         self.statusBar().showMessage(text, 10000)
 
     def show_about(self) -> None:
-        from stereo_gui.qt.about import show_about
+        from stereo_gui.qt.dialogs.about import show_about
 
         show_about(self)
 

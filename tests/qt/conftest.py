@@ -95,7 +95,7 @@ def make_tab(qtbot, ctx):
 @pytest.fixture
 def live(qtbot, ctx):
     """The Live tab, shown at 1000x700 and active (its processor installed)."""
-    from stereo_gui.qt.live_tab import LiveTab
+    from stereo_gui.qt.tabs.live import LiveTab
 
     tab = LiveTab(ctx)
     qtbot.addWidget(tab)

@@ -8,7 +8,7 @@ import pytest
 from PySide6.QtWidgets import QApplication
 
 from stereo_gui.qt.main_window import TAB_NAMES, MainWindow
-from stereo_gui.qt.source_dialog import SourceChoice, SourceDialog
+from stereo_gui.qt.dialogs.source_dialog import SourceChoice, SourceDialog
 
 
 def _assert_no_thread_destroyed_warning(qtlog):
@@ -190,7 +190,7 @@ def test_ros_files_are_told_apart_by_name():
 
 
 def test_help_about_opens_the_about_dialog(window, qtbot):
-    from stereo_gui.qt.about import AboutDialog
+    from stereo_gui.qt.dialogs.about import AboutDialog
 
     window.show_about()
     qtbot.waitUntil(lambda: any(isinstance(w, AboutDialog) and w.isVisible()

@@ -1,0 +1,102 @@
+"""The Live tab's frame processor: the frame worker runs `LiveProcessor` on every frame.
+
+It runs the pipeline (rectify, SGBM, closing, WLS, colour map) and converts each view into a
+displayable uint8 image, so the UI thread only hands arrays to pyqtgraph. No Qt here.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from stereo_gui.core.matching import MatcherParams, PipelineResult, StereoPipeline
+from stereo_gui.sources.base import StereoFrame
+
+log = logging.getLogger(__name__)
+
+# invalid pixels get a colour of their own: black means "far" in the OCEAN map and gray views
+NO_MATCH_RGB = (110, 20, 20)
+
+
+@dataclass(frozen=True, eq=False)
+class LiveOutput:
+    """What the processor hands to the UI: the pipeline result and each view as uint8 (RGB or
+    gray), plus the disparity (px) mapped to colour levels 0 and 255 of the colour view."""
+
+    result: PipelineResult
+    images: dict[str, np.ndarray]
+    scale_note: str = ""  # says so when the calibration was scaled to the source's frame size
+
+
+def _gray_disparity(disp_px: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """Disparity (px, NaN invalid) as RGB uint8: gray, near bright; invalid NO_MATCH_RGB."""
+    span = max(hi - lo, 1e-6)
+    invalid = np.isnan(disp_px)
+    gray = cv2.convertScaleAbs(disp_px, alpha=255.0 / span, beta=-lo * 255.0 / span)
+    rgb = cv2.cvtColor(gray, cv2.COLOR_GRAY2RGB)
+    rgb[invalid] = NO_MATCH_RGB
+    return rgb
+
+
+class LiveProcessor:
+    """The frame worker's processor for the Live tab (called in the worker thread only).
+
+    The pipeline is built on the first frame, in the worker thread (building rectification maps
+    takes a while); `set_params` may be called from any thread and applies to the next frame.
+    Frames of another size than the calibration's use `StereoCalibration.scaled_to` (same aspect
+    ratio: `LiveOutput.scale_note` says so); another aspect ratio raises CalibrationError with
+    the reason, for every frame, so it is never silently wrong.
+    """
+
+    def __init__(self, calibration, params: MatcherParams) -> None:
+        self.calibration = calibration
+        self._lock = threading.Lock()
+        self._params = params
+        self._pipeline: StereoPipeline | None = None
+        self._size: tuple[int, int] | None = None  # frame size the pipeline was built for
+        self._note = ""
+
+    def set_params(self, params: MatcherParams) -> None:
+        with self._lock:
+            self._params = params
+            if self._pipeline is not None:
+                self._pipeline.set_params(params)
+
+    def __call__(self, frame: StereoFrame) -> LiveOutput:
+        size = (int(frame.left.shape[1]), int(frame.left.shape[0]))
+        with self._lock:
+            if self._pipeline is None or self._size != size:
+                if self._pipeline is not None:
+                    self._pipeline.close()
+                    self._pipeline = None
+                calib = self.calibration.scaled_to(size)  # CalibrationError: another aspect
+                self._pipeline = StereoPipeline(calib, self._params)
+                self._size = size
+                c = self.calibration
+                self._note = ("" if calib is c else
+                              f"Calibration made at {c.width}x{c.height} px, scaled to the "
+                              f"source's {size[0]}x{size[1]} px (same aspect ratio)")
+                if self._note:
+                    log.info("%s", self._note)
+            pipeline, note = self._pipeline, self._note
+        r = pipeline.process(frame.left, frame.right)
+        lo, hi = r.disparity_range_px
+        images = {
+            "left": cv2.cvtColor(r.rectified_left, cv2.COLOR_BGR2RGB),
+            "right": cv2.cvtColor(r.rectified_right, cv2.COLOR_BGR2RGB),
+            "raw": _gray_disparity(r.disparity_px, lo, hi),
+            "closed": _gray_disparity(r.closed_px, lo, hi),
+            "wls": cv2.cvtColor(r.color_bgr, cv2.COLOR_BGR2RGB),
+        }
+        images["wls"][~r.valid] = NO_MATCH_RGB
+        return LiveOutput(r, images, note)
+
+    def close(self) -> None:
+        with self._lock:
+            if self._pipeline is not None:
+                self._pipeline.close()
+

@@ -1,0 +1,513 @@
+"""The Calibration tab: calibrate from a capture session, check the result, save or load it.
+
+Calibrate runs `stereo_gui.pipeline.calibration.calibration_job` in a JobWorker (detection of
+every pair, then the core's calibrate_stereo) with a progress bar and Cancel. The results show
+what the report showed (camera matrices without and with rectification, distortion) and what a
+person can check (RMS per camera and stereo, baseline against the nominal one, epipolar error,
+rotation between the cameras, rejected pairs). A bar chart gives each pair's reprojection error;
+clicking a bar shows that pair rectified with horizontal lines, and the pair can be excluded
+from the session and the rig recalibrated.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import cv2
+from PySide6.QtCore import Qt, Signal
+from PySide6.QtGui import QFont
+from PySide6.QtWidgets import (
+    QComboBox,
+    QDoubleSpinBox,
+    QFileDialog,
+    QHBoxLayout,
+    QLabel,
+    QLineEdit,
+    QListWidget,
+    QListWidgetItem,
+    QPlainTextEdit,
+    QProgressBar,
+    QPushButton,
+    QSplitter,
+    QVBoxLayout,
+    QWidget,
+)
+
+from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.calibrate import HARTLEY_NOTE
+from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.core.stereo_calibration import RectifyMaps, StereoCalibration
+from stereo_gui.pipeline.calibration import (
+    CalibrationRun,
+    calibration_job,
+    matrices_text,
+    read_image,
+)
+from stereo_gui.pipeline.jobs import Progress
+from stereo_gui.qt.widgets.calibration_charts import ErrorBarChart, RectifiedPairView
+from stereo_gui.qt.widgets.calibration_figures import CalibrationFigures, format_px
+from stereo_gui.qt.widgets.helpers import pane
+from stereo_gui.qt.workers.job_worker import JobWorker
+
+log = logging.getLogger(__name__)
+
+_MONO = QFont("Monospace")
+_MONO.setStyleHint(QFont.StyleHint.TypeWriter)
+
+
+class CalibrationTab(QWidget):
+    """Calibrate, review and save/load the stereo calibration (see module docstring)."""
+
+    calibrationFinished = Signal(object)  # CalibrationRun
+
+    def __init__(self, ctx, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.ctx = ctx
+        self.worker: JobWorker | None = None
+        self.run: CalibrationRun | None = None
+        self.calibration: StereoCalibration | None = None
+        self._maps: RectifyMaps | None = None
+        self._maps_for: StereoCalibration | None = None
+        self.selected_pair: str | None = None
+        self._build()
+        s = ctx.settings
+        self.baseline_spin.setValue(float(s.nominal_baseline_mm))
+        if s.last_session:
+            self.folder_edit.setText(str(s.last_session))
+        ctx.calibrationChanged.connect(self._calibration_changed)
+        ctx.settingsChanged.connect(self._settings_changed)
+        ctx.currentTabChanged.connect(lambda name: self.set_active(name == "calibration"))
+        if ctx.calibration is not None:
+            self._calibration_changed(ctx.calibration)
+        else:
+            self._show_calibration(None)
+
+    # ---- layout ------------------------------------------------------------------------------
+    def _build(self) -> None:
+        root = QVBoxLayout(self)
+
+        row = QHBoxLayout()
+        row.addWidget(QLabel("Pairs folder:"))
+        self.folder_edit = QLineEdit()
+        self.folder_edit.setPlaceholderText("a capture session, or a folder of chessboard-L1.png / "
+                                            "chessboard-R1.png pairs")
+        browse = QPushButton("Browse…")
+        browse.clicked.connect(self._browse)
+        row.addWidget(self.folder_edit, 1)
+        row.addWidget(browse)
+        root.addLayout(row)
+
+        row = QHBoxLayout()
+        row.addWidget(QLabel("Method:"))
+        self.method_combo = QComboBox()
+        self.method_combo.addItem("Bouguet (metric, from the board)", "bouguet")
+        self.method_combo.addItem("Hartley (no metric scale)", "hartley")
+        self.method_combo.setToolTip(HARTLEY_NOTE)
+        row.addWidget(self.method_combo)
+        row.addWidget(QLabel("Alpha:"))
+        self.alpha_spin = QDoubleSpinBox()
+        self.alpha_spin.setRange(0.0, 1.0)
+        self.alpha_spin.setSingleStep(0.1)
+        self.alpha_spin.setValue(0.0)
+        self.alpha_spin.setToolTip("stereoRectify alpha: 0 keeps only valid pixels (zoomed in), "
+                                   "1 keeps every source pixel (black borders)")
+        row.addWidget(self.alpha_spin)
+        row.addWidget(QLabel("Nominal baseline:"))
+        self.baseline_spin = QDoubleSpinBox()
+        self.baseline_spin.setRange(1.0, 5000.0)
+        self.baseline_spin.setDecimals(1)
+        self.baseline_spin.setSuffix(" mm")
+        self.baseline_spin.setValue(110.0)
+        self.baseline_spin.valueChanged.connect(self._baseline_edited)
+        row.addWidget(self.baseline_spin)
+        row.addSpacing(16)
+        self.calibrate_button = QPushButton("Calibrate")
+        self.calibrate_button.clicked.connect(self.start_calibration)
+        self.cancel_button = QPushButton("Cancel")
+        self.cancel_button.clicked.connect(self.cancel_calibration)
+        self.cancel_button.setEnabled(False)
+        row.addWidget(self.calibrate_button)
+        row.addWidget(self.cancel_button)
+        self.progress = QProgressBar()
+        self.progress.setRange(0, 100)
+        self.progress.setValue(0)
+        self.progress.setFormat("%p%")
+        row.addWidget(self.progress, 1)
+        root.addLayout(row)
+        self.progress_label = QLabel("")
+        self.progress_label.setStyleSheet("color: gray")
+        root.addWidget(self.progress_label)
+
+        split = QSplitter(Qt.Orientation.Horizontal)
+        root.addWidget(split, 1)
+
+        # left: figures and matrices
+        left, ll = pane()
+        self.figures = CalibrationFigures()
+        ll.addWidget(self.figures)
+        self.rejected_list = QListWidget()
+        self.rejected_list.setMaximumHeight(80)
+        self.rejected_list.setToolTip(
+            "Click a pair to look at it (and include an excluded one again)")
+        self.rejected_list.itemClicked.connect(
+            lambda item: self.select_pair(item.data(Qt.ItemDataRole.UserRole)))
+        ll.addWidget(QLabel("Rejected or excluded pairs:"))
+        ll.addWidget(self.rejected_list)
+        self.matrices_text = QPlainTextEdit()
+        self.matrices_text.setReadOnly(True)
+        self.matrices_text.setFont(_MONO)
+        self.matrices_text.setLineWrapMode(QPlainTextEdit.LineWrapMode.NoWrap)
+        ll.addWidget(QLabel("Camera matrices (px) and distortion:"))
+        ll.addWidget(self.matrices_text, 1)
+        files = QHBoxLayout()
+        self.load_button = QPushButton("Load calibration…")
+        self.save_button = QPushButton("Save calibration…")
+        self.load_button.clicked.connect(self._choose_load)
+        self.save_button.clicked.connect(self._choose_save)
+        files.addWidget(self.load_button)
+        files.addWidget(self.save_button)
+        files.addStretch(1)
+        ll.addLayout(files)
+        split.addWidget(left)
+
+        # right: chart and rectification check
+        right = QSplitter(Qt.Orientation.Vertical)
+        chart_box, cl = pane()
+        self.chart = ErrorBarChart()
+        self.chart.pairClicked.connect(self.select_pair)
+        cl.addWidget(self.chart, 1)
+        pair_row = QHBoxLayout()
+        self.pair_label = QLabel("Click a bar to see that pair")
+        self.exclude_button = QPushButton("Exclude pair")
+        self.exclude_button.setToolTip("Mark the pair as excluded in the session (its files stay)")
+        self.exclude_button.clicked.connect(self._toggle_exclude_selected)
+        self.recalibrate_button = QPushButton("Recalibrate")
+        self.recalibrate_button.clicked.connect(self.start_calibration)
+        pair_row.addWidget(self.pair_label, 1)
+        pair_row.addWidget(self.exclude_button)
+        pair_row.addWidget(self.recalibrate_button)
+        cl.addLayout(pair_row)
+        right.addWidget(chart_box)
+        self.rect_view = RectifiedPairView()
+        right.addWidget(self.rect_view)
+        right.setSizes([300, 400])
+        split.addWidget(right)
+        split.setSizes([520, 760])
+        self._update_buttons()
+
+    # ---- settings ------------------------------------------------------------------------------
+    def _settings_changed(self, s) -> None:
+        # follow the capture tab's session unless a calibration is running
+        if s.last_session and self.worker is None \
+                and self.folder_edit.text() != str(s.last_session):
+            self.folder_edit.setText(str(s.last_session))
+
+    def _baseline_edited(self, v: float) -> None:
+        if float(self.ctx.settings.nominal_baseline_mm) != v:
+            self.ctx.update_settings(nominal_baseline_mm=float(v))
+        self._show_figures()
+
+    def set_active(self, active: bool) -> None:
+        """Shown or hidden by the main window; this tab needs no live frames."""
+        if active:
+            self.ctx.frames.set_processor(None)
+
+    def _browse(self) -> None:
+        folder = QFileDialog.getExistingDirectory(self, "Folder of calibration pairs",
+                                                  self.folder_edit.text() or str(Path.home()))
+        if folder:
+            self.folder_edit.setText(folder)
+
+    @property
+    def board(self) -> BoardSpec:
+        return self.ctx.settings.board
+
+    # ---- calibration run -----------------------------------------------------------------------
+    def start_calibration(self) -> bool:
+        """Start calibrating the folder's included pairs; False if it cannot start."""
+        if self.worker is not None:
+            return False
+        text = self.folder_edit.text().strip()
+        if not text:
+            self.ctx.report_error("choose the folder of calibration pairs first")
+            return False
+        folder = Path(text)
+        if not folder.is_dir():
+            self.ctx.report_error(f"folder {folder} does not exist")
+            return False
+        board = self._folder_board(folder) or self.board
+        job = calibration_job(folder, board, float(self.alpha_spin.value()),
+                              self.method_combo.currentData())
+        w = JobWorker(job, "calibration")
+        w.progress.connect(self._progress)
+        w.finished_ok.connect(self._finished)
+        w.failed.connect(self._failed)
+        w.cancelled.connect(self._cancelled)
+        w.done.connect(self._worker_done)
+        self.ctx.register_worker(w)
+        self.worker = w
+        self.progress.setValue(0)
+        self.progress_label.setText(f"Calibrating {folder} with a {board.label()} board…")
+        self._update_buttons()
+        w.start()
+        return True
+
+    def _folder_board(self, folder: Path) -> BoardSpec | None:
+        """The board recorded in the session manifest, if any (it wins over the settings)."""
+        try:
+            from stereo_gui.files.session import CaptureSession
+
+            b = getattr(CaptureSession.open(folder), "board", None)
+        except (StereoGuiError, OSError):
+            return None
+        return b if isinstance(b, BoardSpec) else None
+
+    def cancel_calibration(self) -> None:
+        if self.worker is not None:
+            self.worker.cancel()
+            self.progress_label.setText("Cancelling at the next step…")
+
+    def is_running(self) -> bool:
+        return self.worker is not None
+
+    def _progress(self, p: Progress) -> None:
+        self.progress.setValue(p.percent)
+        if p.text:
+            self.progress_label.setText(p.text)
+
+    def _finished(self, run: CalibrationRun) -> None:
+        self.run = run
+        self._maps = run.maps
+        self._maps_for = run.result.calibration
+        self.progress.setValue(100)
+        rep = run.result.report
+        quality = (f"stereo RMS {format_px(rep.rms_stereo)}" if rep.method != "hartley" else
+                   f"epipolar error {format_px(rep.epipolar_error_px)}, Hartley: no metric scale")
+        self.progress_label.setText(
+            f"Done: {rep.pairs_used} of {rep.pairs_found} pairs used, {quality}. "
+            f"Not saved yet: use Save calibration… to keep it.")
+        # the new calibration is in use at once (live view, measurements)
+        self.ctx.set_calibration(run.result.calibration, None)
+        self.ctx.show_status(f"Calibrated from {rep.pairs_used} pairs in {run.folder}")
+        self.calibrationFinished.emit(run)
+
+    def _failed(self, message: str) -> None:
+        self.progress.setValue(0)
+        self.progress_label.setText(f"Calibration failed: {message}")
+        self.ctx.report_error(message)
+
+    def _cancelled(self) -> None:
+        self.progress.setValue(0)
+        self.progress_label.setText("Calibration cancelled")
+
+    def _worker_done(self) -> None:
+        w = self.worker
+        self.worker = None
+        if w is not None:
+            self.ctx.unregister_worker(w)
+            w.wait(2000)
+            w.deleteLater()
+        self._update_buttons()
+
+    def shutdown(self, timeout_ms: int = 2000) -> bool:
+        """Cancel a running calibration and join its thread."""
+        if self.worker is None:
+            return True
+        return self.worker.stop(timeout_ms)
+
+    # ---- showing a calibration -----------------------------------------------------------------
+    def _calibration_changed(self, calib) -> None:
+        if self.run is not None and calib is not self.run.result.calibration:
+            self.run = None  # a loaded file replaces the last run
+        self._show_calibration(calib)
+
+    def _show_calibration(self, calib: StereoCalibration | None) -> None:
+        self.calibration = calib
+        if calib is not self._maps_for:
+            self._maps = None
+            self._maps_for = None
+        self._show_figures()
+        if calib is None:
+            self.matrices_text.setPlainText("")
+            self.chart.set_errors([], [], [])
+            self.rect_view.clear_pair()
+            self.rejected_list.clear()
+            self._update_buttons()
+            return
+        self.matrices_text.setPlainText(matrices_text(calib))
+        names = [p.name for p in calib.per_pair]
+        self.chart.set_errors(names, [p.error_left for p in calib.per_pair],
+                              [p.error_right for p in calib.per_pair])
+        self.rejected_list.clear()
+        if self.run is not None:
+            entries = [(r.name, f"{r.name}: {r.reason}") for r in self.run.result.report.rejected]
+            entries += [(n, f"{n}: excluded by you") for n in self.run.excluded]
+            for name, text in entries:
+                item = QListWidgetItem(text)
+                item.setData(Qt.ItemDataRole.UserRole, name)
+                item.setToolTip(text)
+                self.rejected_list.addItem(item)
+        if self.rejected_list.count() == 0:
+            item = QListWidgetItem("none")
+            item.setFlags(Qt.ItemFlag.NoItemFlags)
+            self.rejected_list.addItem(item)
+        if names and self.run is not None:
+            keep = self.selected_pair
+            if keep is not None and (keep in names or keep in self.run.excluded):
+                self.select_pair(keep)  # an excluded pair stays in view, to include it again
+            else:
+                self.select_pair(names[0])
+        else:
+            self.rect_view.clear_pair()
+        self._update_buttons()
+
+    def _show_figures(self) -> None:
+        c = self.calibration
+        nominal = float(self.baseline_spin.value())
+        if c is None:
+            self.figures.show_none()
+            return
+        path = self.ctx.calibration_path if self.ctx.calibration is c else None
+        if path is not None:
+            src = f"{Path(path).name} ({path})"
+        elif self.run is not None and self.run.result.calibration is c:
+            src = f"calibrated from {self.run.folder}, NOT SAVED"
+        else:
+            src = "not saved"
+        if self.run is not None and self.run.result.calibration is c:
+            rep = self.run.result.report
+            txt = f"{rep.pairs_used} used of {rep.pairs_found}"
+            if rep.rejected:
+                txt += f", {len(rep.rejected)} rejected"
+            if self.run.excluded:
+                txt += f", {len(self.run.excluded)} excluded by you"
+        else:
+            txt = f"{len(c.per_pair)} used"
+        self.figures.show_calibration(c, src, nominal, txt)
+
+    # ---- pairs: select, rectification check, exclude --------------------------------------------
+    def select_pair(self, name: str) -> None:
+        """Show pair `name` rectified (when its files are known) and offer to exclude it."""
+        self.selected_pair = name
+        self.chart.select(name)
+        c = self.calibration
+        err = next((p for p in (c.per_pair if c else ()) if p.name == name), None)
+        txt = f"Pair {name}"
+        if err is not None:
+            txt += f": error left {err.error_left:.3f} px, right {err.error_right:.3f} px"
+        self.pair_label.setText(txt)
+        self._update_buttons()
+        files = self._pair_files(name)
+        if c is None or files is None:
+            self.rect_view.clear_pair()
+            self.rect_view.title.setText(f"Pair {name}: images not available (calibrate from "
+                                         f"the session to see them)")
+            return
+        try:
+            left, right = read_image(files[0]), read_image(files[1])
+        except StereoGuiError as exc:
+            self.ctx.report_error(str(exc))
+            return
+        if (left.shape[1], left.shape[0]) != tuple(c.image_size):
+            self.rect_view.clear_pair()
+            return
+        maps = self._rectify_maps(c)
+        lr = cv2.remap(left, maps.left_x, maps.left_y, cv2.INTER_LINEAR)
+        rr = cv2.remap(right, maps.right_x, maps.right_y, cv2.INTER_LINEAR)
+        note = " (Hartley: row-aligned, no metric scale)" if not c.metric else ""
+        self.rect_view.show_pair(name, lr, rr, note)
+
+    def _rectify_maps(self, c: StereoCalibration) -> RectifyMaps:
+        if self._maps is None or self._maps_for is not c:
+            self._maps = c.rectify_maps()
+            self._maps_for = c
+        return self._maps
+
+    def _pair_files(self, name: str) -> tuple[str, str] | None:
+        if self.run is not None and name in self.run.files:
+            return self.run.files[name]
+        if self.run is not None:  # an excluded pair: not in the run, but in the session
+            try:
+                p = self._session().pair(name)
+            except (StereoGuiError, OSError):
+                return None
+            return (str(p.left), str(p.right))
+        return None
+
+    def rejected_lines(self) -> list[str]:
+        """The texts of the rejected/excluded list (for tests and screenshots)."""
+        return [self.rejected_list.item(i).text() for i in range(self.rejected_list.count())]
+
+    def _session(self):
+        from stereo_gui.files.session import CaptureSession
+
+        folder = self.run.folder if self.run is not None else Path(self.folder_edit.text())
+        return CaptureSession.open(folder)
+
+    def _is_excluded(self, name: str) -> bool:
+        try:
+            s = self._session()
+        except (StereoGuiError, OSError):
+            return False
+        return any(p.name == name and getattr(p, "excluded", False) for p in s.pairs)
+
+    def _toggle_exclude_selected(self) -> None:
+        name = self.selected_pair
+        if name is None:
+            return
+        self.set_excluded(name, not self._is_excluded(name))
+
+    def set_excluded(self, name: str, excluded: bool = True) -> None:
+        """Exclude (or include again) a pair in the session; Recalibrate then leaves it out."""
+        try:
+            self._session().set_excluded(name, excluded)
+        except (StereoGuiError, OSError) as exc:
+            self.ctx.report_error(f"could not change pair {name}: {exc}")
+            return
+        self.ctx.show_status(f"Pair {name} {'excluded' if excluded else 'included again'}: "
+                             f"press Recalibrate")
+        self.pair_label.setText(f"Pair {name} {'excluded' if excluded else 'included'}: press "
+                                f"Recalibrate")
+        self._update_buttons()
+
+    # ---- files ---------------------------------------------------------------------------------
+    def _choose_save(self) -> None:
+        if self.calibration is None:
+            return
+        start = str(self.ctx.calibration_path or (Path(self.folder_edit.text() or Path.home())
+                                                   / "calibration.yaml"))
+        path, _ = QFileDialog.getSaveFileName(self, "Save calibration", start,
+                                              "OpenCV YAML (*.yaml *.yml)")
+        if path:
+            self.save_calibration(path)
+
+    def save_calibration(self, path: str | Path) -> bool:
+        return self.ctx.save_calibration_file(self.calibration, path)
+
+    def _choose_load(self) -> None:
+        cp = self.ctx.calibration_path
+        start = str(cp.parent) if cp else str(Path.home())
+        path, _ = QFileDialog.getOpenFileName(self, "Load calibration", start,
+                                              "OpenCV YAML (*.yaml *.yml);;All files (*)")
+        if path:
+            self.load_calibration(path)
+
+    def load_calibration(self, path: str | Path) -> bool:
+        return self.ctx.open_calibration_file(path)
+
+    def _update_buttons(self) -> None:
+        running = self.worker is not None
+        self.calibrate_button.setEnabled(not running)
+        self.recalibrate_button.setEnabled(not running and self.run is not None)
+        self.cancel_button.setEnabled(running)
+        self.save_button.setEnabled(self.calibration is not None and not running)
+        self.load_button.setEnabled(not running)
+        sel = self.selected_pair
+        self.exclude_button.setEnabled(not running and sel is not None and self.run is not None)
+        if sel is not None and self.run is not None:
+            self.exclude_button.setText("Include pair again" if self._is_excluded(sel)
+                                        else "Exclude pair")
+
+
+

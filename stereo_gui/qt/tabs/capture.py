@@ -1,0 +1,562 @@
+"""The Capture tab: take chessboard pairs for calibration (the report's
+Take_images_for_calibration, with buttons).
+
+Both cameras live side by side with the board's corners drawn where found. When both see the
+board the pair freezes for review: Save (S) writes both raw images to the session folder,
+Cancel (C) goes live again. Automatic capture instead takes a pair by itself when the board is
+steady and its pose is new. Detection runs in the frame worker's thread (the processor made by
+`stereo_gui.pipeline.capture.make_capture_processor`); this widget only draws what it gets.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import deque
+from pathlib import Path
+
+import numpy as np
+from PySide6.QtCore import Qt, Signal
+from PySide6.QtWidgets import (
+    QFileDialog,
+    QHBoxLayout,
+    QLabel,
+    QMessageBox,
+    QPushButton,
+    QSplitter,
+    QWidget,
+)
+
+from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.detect import (
+    NEW_POSE_DISTANCE,
+    PairDetection,
+    PoseDescriptor,
+    coverage,
+    is_new_pose,
+    pair_pose,
+)
+from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.files.pairs import load_image
+from stereo_gui.pipeline.capture import (
+    CaptureOutput,
+    display_rgb,
+    make_capture_processor,
+    session_scan_job,
+)
+from stereo_gui.qt.widgets.board_row import BoardRow
+from stereo_gui.qt.widgets.helpers import pane, wrapping_label
+from stereo_gui.qt.widgets.saved_pairs import (
+    THUMB_SIZE,
+    SavedPairInfo,
+    SavedPairsPanel,
+    pair_thumbnail,
+)
+from stereo_gui.qt.widgets.stereo_pair_view import StereoPairView
+from stereo_gui.qt.workers.job_worker import JobWorker
+from stereo_gui.sources.base import StereoFrame
+
+log = logging.getLogger(__name__)
+
+STEADY_FRAMES = 4  # automatic capture: the board must hold still over this many frames
+STEADY_PX = 2.0  # ... moving its corners less than this, px
+
+
+# ---- the tab -------------------------------------------------------------------------------------
+class CaptureTab(QWidget):
+    """Capture chessboard pairs into a session folder, with review, auto-capture and coverage."""
+
+    sessionChanged = Signal(object)  # the CaptureSession now open, or None
+    pairSaved = Signal(str)  # name of the pair just written
+
+    def __init__(self, ctx, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.ctx = ctx
+        self.session = None  # files.session.CaptureSession
+        self.state = "live"  # "live", "review" (frozen live pair) or "saved" (showing a saved pair)
+        self.frozen: CaptureOutput | None = None
+        self._frozen_frame: StereoFrame | None = None
+        self._active = False
+        self._last_output: CaptureOutput | None = None
+        self._last_reviewed_pose: PoseDescriptor | None = None
+        self._recent_corners: deque[np.ndarray] = deque(maxlen=STEADY_FRAMES)
+        self._saved: dict[str, SavedPairInfo] = {}
+        self._scan: JobWorker | None = None
+        self._build()
+        self._load_board_settings()
+        ctx.frames.frameReady.connect(self._on_frame_ready)
+        ctx.currentTabChanged.connect(lambda name: self.set_active(name == "capture"))
+        last = ctx.settings.last_session
+        if last and Path(last).is_dir():
+            try:
+                self.open_session(last)
+            except StereoGuiError as exc:
+                log.warning("last capture session %s not reopened: %s", last, exc)
+
+    # ---- layout ------------------------------------------------------------------------------
+    def _build(self) -> None:
+        root = QHBoxLayout(self)
+        split = QSplitter(Qt.Orientation.Horizontal)
+        root.addWidget(split)
+
+        main, ml = pane()
+
+        bar = QHBoxLayout()
+        self.new_button = QPushButton("New session…")
+        self.open_button = QPushButton("Open session…")
+        self.new_button.clicked.connect(self._choose_new_session)
+        self.open_button.clicked.connect(self._choose_open_session)
+        self.session_label = QLabel("No session: choose New session… before saving pairs")
+        self.session_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        bar.addWidget(self.new_button)
+        bar.addWidget(self.open_button)
+        bar.addWidget(self.session_label, 1)
+        ml.addLayout(bar)
+
+        self.board_row = BoardRow(
+            f"Take a pair by itself when the board holds still (corners move less than "
+            f"{STEADY_PX:g} px over {STEADY_FRAMES} frames) and its pose differs from those kept")
+        row = self.board_row
+        self.cols_spin, self.rows_spin = row.cols_spin, row.rows_spin
+        self.square_spin, self.auto_check = row.square_spin, row.auto_check
+        ml.addWidget(row)
+        row.edited.connect(self._board_edited)
+        row.auto_check.toggled.connect(self._auto_toggled)
+
+        from stereo_gui.qt.widgets.playback_bar import PlaybackBar
+
+        self.playback = PlaybackBar(self.ctx)  # shown only for a recorded source
+        self.playback.used.connect(self._playback_used)
+        ml.addWidget(self.playback)
+        self.view = StereoPairView()
+        ml.addWidget(self.view, 1)
+
+        review = QHBoxLayout()
+        self.prompt = wrapping_label()
+        f = self.prompt.font()
+        f.setPointSize(f.pointSize() + 2)
+        self.prompt.setFont(f)
+        self.save_button = QPushButton("Save pair (S)")
+        self.save_button.setShortcut("S")
+        self.cancel_button = QPushButton("Cancel (C)")
+        self.cancel_button.setShortcut("C")
+        self.live_button = QPushButton("Back to live")
+        self.save_button.clicked.connect(self.save_frozen)
+        self.cancel_button.clicked.connect(self.cancel_frozen)
+        self.live_button.clicked.connect(self.go_live)
+        review.addWidget(self.prompt, 1)
+        review.addWidget(self.save_button)
+        review.addWidget(self.cancel_button)
+        review.addWidget(self.live_button)
+        ml.addLayout(review)
+        split.addWidget(main)
+
+        side = SavedPairsPanel()
+        side.pairClicked.connect(self.show_saved_pair)
+        side.delete_button.clicked.connect(self._delete_selected)
+        self.saved_panel = side
+        self.coverage, self.pairs_label = side.coverage, side.pairs_label
+        self.pair_list, self.delete_button = side.pair_list, side.delete_button
+        split.addWidget(side)
+        split.setStretchFactor(0, 3)
+        split.setStretchFactor(1, 1)
+        split.setSizes([900, 330])
+        self._update_controls()
+
+    def _playback_used(self) -> None:
+        """Moving through a recording shows live frames again (leaves a frozen pair)."""
+        if self.state != "live":
+            self.go_live()
+
+    # ---- board settings ----------------------------------------------------------------------
+    def _load_board_settings(self) -> None:
+        self.board_row.show_board(self.ctx.settings.board)
+        self.board_row.show_auto(bool(self.ctx.settings.auto_capture))
+
+    @property
+    def board(self) -> BoardSpec:
+        return self.board_row.board
+
+    def set_board(self, board: BoardSpec) -> None:
+        """Use `board` (updates the spin boxes, the settings and the live detector)."""
+        self.board_row.show_board(board)
+        self._board_edited()
+
+    def _board_edited(self) -> None:
+        board = self.board
+        self.ctx.update_settings(board_cols=board.cols, board_rows=board.rows,
+                                 square_mm=board.square_mm)
+        self._recent_corners.clear()
+        if self.state == "live":
+            self._set_processing(True)
+
+    def _auto_toggled(self, on: bool) -> None:
+        self.ctx.update_settings(auto_capture=bool(on))
+        self._recent_corners.clear()
+        if on and self.state == "review":
+            self.cancel_frozen()
+        self._update_controls()
+
+    # ---- activity ----------------------------------------------------------------------------
+    def set_active(self, active: bool) -> None:
+        """Called when the tab is shown (True) or hidden: the shown tab owns the processor."""
+        if active == self._active:
+            return
+        self._active = active
+        if active:
+            self._set_processing(self.state == "live")
+            self._reload_session()
+
+    def _reload_session(self) -> None:
+        """Read the session again (the Calibration tab may have excluded pairs meanwhile)."""
+        if self.session is None or self._scan is not None:
+            return
+        from stereo_gui.files.session import CaptureSession
+
+        try:
+            self.session = CaptureSession.open(self.session.folder)
+        except StereoGuiError as exc:
+            self.ctx.report_error(str(exc))
+            return
+        name = self.saved_panel.current_name()
+        self._refill_list()
+        if name is not None:
+            self.saved_panel.select(name)
+
+    def _set_processing(self, on: bool) -> None:
+        """Detect in live frames only while live frames are shown (saves CPU while reviewing)."""
+        if self._active:
+            self.ctx.frames.set_processor(make_capture_processor(self.board) if on else None)
+
+    def _on_frame_ready(self) -> None:
+        if not self._active:
+            return
+        pf = self.ctx.frames.latest()
+        if pf is None or not isinstance(pf.output, CaptureOutput):
+            return
+        self.show_output(pf.output, pf.frame)
+
+    def show_output(self, out: CaptureOutput, frame: StereoFrame) -> None:
+        """Draw one processed live frame and act on it (freeze, or auto-capture)."""
+        if self.state != "live":
+            return  # a frozen or saved pair is on screen: live frames wait
+        self._last_output = out
+        self.view.show_pair(out.left_rgb, out.right_rgb)
+        self.view.show_detection(out.detection)
+        det = out.detection
+        if not det.found:
+            self._recent_corners.clear()
+            if det.left is None or det.right is None:
+                self._last_reviewed_pose = None  # the board left a view: the next pose is new
+            self.prompt.setText(self._live_hint(det))
+            return
+        pose = out.pose
+        if self.auto_check.isChecked():
+            self._auto_capture(out, frame, pose)
+            return
+        if (self._last_reviewed_pose is not None and pose is not None
+                and pose.distance(self._last_reviewed_pose) < NEW_POSE_DISTANCE / 2):
+            self.prompt.setText("Move the board to a new pose (or out of view and back)")
+            return
+        self._freeze(out, frame)
+
+    def _live_hint(self, det: PairDetection) -> str:
+        if det.left is None and det.right is None:
+            return "Hold the chessboard so that both cameras see all of it"
+        side = "right" if det.right is None else "left"
+        return f"Only the {'left' if side == 'right' else 'right'} camera sees the board: " \
+               f"move it into the {side} camera's view"
+
+    # ---- review --------------------------------------------------------------------------------
+    def _freeze(self, out: CaptureOutput, frame: StereoFrame) -> None:
+        self.state = "review"
+        self.frozen = out
+        self._frozen_frame = frame
+        self._last_reviewed_pose = out.pose
+        self._show_review_prompt()
+        self._set_processing(False)  # nothing to detect while a pair is under review
+        self._update_controls()
+
+    def _show_review_prompt(self) -> None:
+        text = "Both cameras see the board. Save this pair (S) or Cancel (C)?"
+        if self.session is None:
+            text += "  (Save asks for a session folder first.)"
+        self.prompt.setText(text)
+
+    def save_frozen(self) -> str | None:
+        """Save the frozen pair into the session (asking for one if none is open)."""
+        if self.state != "review" or self._frozen_frame is None or self.frozen is None:
+            return None
+        if self.session is None and not self._choose_new_session():
+            return None
+        name = self._save_pair(self._frozen_frame, self.frozen.detection)
+        self.go_live()
+        return name
+
+    def cancel_frozen(self) -> None:
+        if self.state == "review":
+            self.go_live()
+
+    def go_live(self) -> None:
+        if self.state != "live":
+            self._set_processing(True)
+        self.state = "live"
+        self.frozen = None
+        self._frozen_frame = None
+        self._recent_corners.clear()
+        self.pair_list.clearSelection()
+        self.prompt.setText("Live")
+        self._update_controls()
+
+    def _save_pair(self, frame: StereoFrame, det: PairDetection) -> str | None:
+        try:
+            pair = self.session.add_pair(frame.left, frame.right)
+        except (StereoGuiError, OSError) as exc:
+            self.ctx.report_error(f"could not save the pair: {exc}")
+            return None
+        name = getattr(pair, "name", str(pair))
+        info = SavedPairInfo(name, det, pair_thumbnail(frame.left, frame.right))
+        self._saved[name] = info
+        self._add_list_item(info)
+        self.saved_panel.add_coverage(det)
+        self._update_coverage()
+        self.ctx.show_status(f"Saved pair {name} to {self.session.folder}")
+        self.pairSaved.emit(name)
+        return name
+
+    def _auto_capture(self, out: CaptureOutput, frame: StereoFrame, pose: PoseDescriptor) -> None:
+        corners = out.detection.left.corners.reshape(-1, 2)  # type: ignore[union-attr]
+        self._recent_corners.append(corners)
+        steady = len(self._recent_corners) == STEADY_FRAMES and max(
+            float(np.abs(c - corners).max()) for c in self._recent_corners) < STEADY_PX
+        new = is_new_pose(pose, self._saved_poses())
+        if not new:
+            self.prompt.setText("Pose already captured: move or tilt the board somewhere new")
+        elif not steady:
+            self.prompt.setText("New pose: hold the board still…")
+        elif self.session is None:
+            self.prompt.setText("Automatic capture needs a session: choose New session…")
+        else:
+            self._save_pair(frame, out.detection)
+            self._recent_corners.clear()
+            self.prompt.setText("Pair taken. Move the board to the next pose")
+
+    # ---- sessions --------------------------------------------------------------------------------
+    def _choose_new_session(self) -> bool:
+        last = self.ctx.settings.last_session
+        start = str(Path(last).parent) if last else str(Path.home())
+        folder = QFileDialog.getExistingDirectory(self, "Folder for the new capture session", start)
+        if not folder:
+            return False
+        try:
+            self.new_session(folder)
+        except StereoGuiError as exc:
+            self.ctx.report_error(str(exc))
+            return False
+        return True
+
+    def _choose_open_session(self) -> None:
+        start = self.ctx.settings.last_session or str(Path.home())
+        folder = QFileDialog.getExistingDirectory(self, "Open a capture session folder", start)
+        if folder:
+            try:
+                self.open_session(folder)
+            except StereoGuiError as exc:
+                self.ctx.report_error(str(exc))
+
+    def _camera_names(self) -> tuple[str, str]:
+        src = self.ctx.frames.source()
+        name = getattr(src, "name", "") if src is not None else ""
+        return (f"{name} left", f"{name} right") if name else ("left", "right")
+
+    def new_session(self, folder: str | Path) -> None:
+        """Start a session in `folder` with the current board."""
+        from stereo_gui.files.session import CaptureSession
+
+        out = self._last_output
+        size = (out.detection.image_size if out is not None else
+                tuple(self.ctx.settings.resolution))
+        session = CaptureSession.create(folder, self.board, size, self._camera_names())
+        self._use_session(session)
+
+    def open_session(self, folder: str | Path) -> None:
+        """Open an existing session (or a folder of pairs) to continue, review or delete."""
+        from stereo_gui.files.session import CaptureSession
+
+        session = CaptureSession.open(folder)
+        self._use_session(session)
+        if session.warnings:  # an unreadable session.json, pairs with missing images, ...
+            self.ctx.report_error("; ".join(session.warnings))
+
+    def _use_session(self, session) -> None:
+        if self._scan is not None:
+            self._scan.stop()
+            self._scan = None
+        self.session = session
+        board = getattr(session, "board", None)
+        if isinstance(board, BoardSpec) and board != self.board:
+            self.set_board(board)
+        self.ctx.update_settings(last_session=str(session.folder))
+        self.session_label.setText(f"Session: {session.folder}")
+        if self.state == "review":  # the prompt no longer needs to warn that Save asks for one
+            self._show_review_prompt()
+        self._saved.clear()
+        self.pair_list.clear()
+        self.coverage.reset(self._image_size())
+        self._update_coverage()
+        self.sessionChanged.emit(session)
+        self._start_scan()
+        self._update_controls()
+
+    def _image_size(self) -> tuple[int, int]:
+        res = getattr(self.session, "resolution", None)
+        if res:
+            return (int(res[0]), int(res[1]))
+        if self._last_output is not None:
+            return self._last_output.detection.image_size
+        return (640, 480)
+
+    def _start_scan(self) -> None:
+        """Detect the board in the session's saved pairs (off the UI thread) for coverage."""
+        pairs = list(self.session.pairs)
+        if not pairs:
+            return
+        board = self.board
+
+        job = session_scan_job(pairs, board, (THUMB_SIZE.width() // 2, THUMB_SIZE.height()))
+        self.pairs_label.setText(f"Saved pairs: reading {len(pairs)}…")
+        worker = JobWorker(job, "reading the session")
+        worker.finished_ok.connect(self._scan_done)
+        worker.failed.connect(self.ctx.report_error)
+        worker.done.connect(lambda: self.ctx.unregister_worker(worker))
+        self.ctx.register_worker(worker)
+        self._scan = worker
+        worker.start()
+
+    def _scan_done(self, results) -> None:
+        if self.sender() is not self._scan:
+            return
+        self._scan = None
+        for name, det, small in results:
+            icon = pair_thumbnail(*small) if small is not None else None
+            info = SavedPairInfo(name, det, icon)
+            if name in self._saved:
+                continue  # saved while the scan ran
+            self._saved[name] = info
+            if det is not None:
+                self.saved_panel.add_coverage(det)
+        self._refill_list()
+        self._update_coverage()
+
+    def scanning(self) -> bool:
+        return self._scan is not None
+
+    def _refill_list(self) -> None:
+        self.pair_list.clear()
+        order = [p.name for p in self.session.pairs] if self.session is not None else []
+        for name in order:
+            info = self._saved.get(name) or SavedPairInfo(name, None, None)
+            self._add_list_item(info)
+        self.saved_panel.update_label()
+        self._update_controls()  # Delete pair needs pairs in the list
+
+    def _add_list_item(self, info: SavedPairInfo) -> None:
+        excluded = False
+        if self.session is not None:
+            for p in self.session.pairs:
+                if p.name == info.name:
+                    excluded = bool(getattr(p, "excluded", False))
+        self.saved_panel.add_item(info, excluded)
+
+    def _saved_poses(self) -> list[PoseDescriptor]:
+        """Pose descriptors of the saved pairs in which both cameras saw the board."""
+        return [pair_pose(i.detection, self.board) for i in self._saved.values()
+                if i.detection is not None and i.detection.found]
+
+    def _update_coverage(self) -> None:
+        self.coverage.set_coverage(coverage(self._saved_poses()))
+
+    def saved_names(self) -> list[str]:
+        return self.saved_panel.names()
+
+    # ---- saved pairs -----------------------------------------------------------------------------
+    def show_saved_pair(self, name: str) -> None:
+        """Show a saved pair (with its corners) instead of the live view."""
+        if self.session is None:
+            return
+        pair = next((p for p in self.session.pairs if p.name == name), None)
+        if pair is None:
+            return
+        try:
+            left, right = load_image(pair.left), load_image(pair.right)
+        except StereoGuiError as exc:
+            self.ctx.report_error(str(exc))
+            return
+        self.state = "saved"
+        self._set_processing(False)
+        self.frozen = None
+        self._frozen_frame = None
+        self.view.show_pair(display_rgb(left), display_rgb(right))
+        info = self._saved.get(name)
+        det = info.detection if info is not None else None
+        if det is not None:
+            self.view.show_detection(det)
+        else:
+            for i, side in enumerate(("Left", "Right")):
+                self.view.show_corners(i, None, False)
+                self.view.set_title(i, side)
+        for i, side in enumerate(("Left", "Right")):
+            self.view.titles[i].setText(f"{side} — saved pair {name}: "
+                                        + self.view.titles[i].text.split(": ", 1)[-1])
+        self.prompt.setText(f"Reviewing saved pair {name}. Delete it, or go back to live.")
+        self.saved_panel.select(name)
+        self._update_controls()
+
+    def _delete_selected(self) -> None:
+        name = self.saved_panel.current_name()
+        if name is None:
+            return
+        answer = QMessageBox.question(  # the files go, not only the list entry
+            self, "Delete pair", f"Delete pair {name}? Its two images are removed from "
+            f"{self.session.folder if self.session else 'the session folder'}.")
+        if answer == QMessageBox.StandardButton.Yes:
+            self.delete_pair(name)
+
+    def delete_pair(self, name: str) -> None:
+        """Delete a saved pair's files from the session."""
+        if self.session is None:
+            return
+        try:
+            self.session.delete_pair(name)
+        except (StereoGuiError, OSError) as exc:
+            self.ctx.report_error(f"could not delete pair {name}: {exc}")
+            return
+        self._saved.pop(name, None)
+        self.coverage.reset(self._image_size())
+        for info in self._saved.values():
+            det = info.detection
+            if det is not None:
+                self.saved_panel.add_coverage(det)
+        self._refill_list()
+        self._update_coverage()
+        self.ctx.show_status(f"Deleted pair {name}")
+        if self.state == "saved":
+            self.go_live()
+
+    # ---- controls --------------------------------------------------------------------------------
+    def _update_controls(self) -> None:
+        review = self.state == "review"
+        self.prompt.setStyleSheet(
+            "background: #fff3b0; border: 1px solid #d4a017; padding: 4px; font-weight: bold"
+            if review else "padding: 4px")
+        self.save_button.setEnabled(review)
+        self.cancel_button.setEnabled(review)
+        self.live_button.setEnabled(self.state == "saved")
+        self.delete_button.setEnabled(self.session is not None and self.pair_list.count() > 0)
+        if review:
+            self.save_button.setDefault(True)
+
+    def shutdown(self) -> None:
+        if self._scan is not None:
+            self._scan.stop()
+            self._scan = None
+

@@ -1,0 +1,388 @@
+"""The Measurements tab: the log of readings, the regression the report did in Excel, exports.
+
+The log is `ctx.measurements` (MeasurementRecord). Entering the true distance of a reading (the
+editable column) makes it a regression sample (disparity px, true distance mm); both models are
+fitted again at once: the report's cubic and Z = a / (d - d0). The plot shows samples, both
+curves and the residuals with R^2. The model chosen for live readings goes to
+`ctx.set_active_fit`. Exports: the log and regression to .xlsx (in a worker) and CSV.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import logging
+from pathlib import Path
+
+import numpy as np
+from PySide6.QtCore import Qt, Signal
+from PySide6.QtWidgets import (
+    QAbstractItemView,
+    QComboBox,
+    QFileDialog,
+    QGroupBox,
+    QHBoxLayout,
+    QHeaderView,
+    QLabel,
+    QMessageBox,
+    QPushButton,
+    QSplitter,
+    QTableView,
+    QVBoxLayout,
+    QWidget,
+)
+
+from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.pipeline.jobs import Progress
+from stereo_gui.qt.widgets.helpers import pane, wrapping_label
+from stereo_gui.qt.widgets.measurement_table import MeasurementModel, samples_from
+from stereo_gui.qt.widgets.regression_plot import MODELS, RegressionPlot
+from stereo_gui.qt.workers.job_worker import JobWorker
+
+log = logging.getLogger(__name__)
+
+_LABEL_COLOURS = {"cubic": "#b9570b", "inverse": "#1f6fa8"}  # the same hues, darker, for text
+_MODEL_TEXT = {"triangulation": "Triangulation (calibration)",
+               "cubic": "Cubic fit (the report's model)",
+               "inverse": "Inverse fit Z = a / (d − d0)"}
+
+
+class MeasurementsTab(QWidget):
+    """The measurement log, the regression and the exports (see module docstring)."""
+
+    fitsChanged = Signal()
+    exportFinished = Signal(str)  # path written
+
+    def __init__(self, ctx, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.ctx = ctx
+        self.fits: dict[str, object] = {}  # model name -> FitResult
+        self.fit_errors: dict[str, str] = {}
+        self._loaded_fit = None  # a fit loaded from a file (not refitted from the log)
+        self._export: JobWorker | None = None
+        self._build()
+        ctx.measurementsChanged.connect(self.refit)
+        ctx.activeFitChanged.connect(self._active_fit_changed)
+        ctx.currentTabChanged.connect(lambda name: self.set_active(name == "measurements"))
+        self.refit()
+
+    # ---- layout ------------------------------------------------------------------------------
+    def _build(self) -> None:
+        root = QVBoxLayout(self)
+        split = QSplitter(Qt.Orientation.Horizontal)
+        root.addWidget(split, 1)
+
+        left, ll = pane()
+        self.count_label = QLabel("")
+        ll.addWidget(self.count_label)
+        self.model = MeasurementModel(self.ctx, self)
+        self.table = QTableView()
+        self.table.setModel(self.model)
+        self.table.setSelectionBehavior(QAbstractItemView.SelectionBehavior.SelectRows)
+        self.table.setEditTriggers(QAbstractItemView.EditTrigger.DoubleClicked
+                                   | QAbstractItemView.EditTrigger.EditKeyPressed
+                                   | QAbstractItemView.EditTrigger.AnyKeyPressed)
+        self.table.setAlternatingRowColors(True)
+        hh = self.table.horizontalHeader()
+        hh.setSectionResizeMode(QHeaderView.ResizeMode.ResizeToContents)
+        hh.setStretchLastSection(True)
+        self.table.verticalHeader().setDefaultSectionSize(22)
+        ll.addWidget(self.table, 1)
+        row = QHBoxLayout()
+        self.remove_button = QPushButton("Remove selected")
+        self.remove_button.clicked.connect(self._remove_selected)
+        self.clear_button = QPushButton("Clear log")
+        self.clear_button.clicked.connect(self._clear_log)
+        self.xlsx_button = QPushButton("Export .xlsx…")
+        self.xlsx_button.clicked.connect(self._choose_xlsx)
+        self.csv_button = QPushButton("Export CSV…")
+        self.csv_button.clicked.connect(self._choose_csv)
+        for b in (self.remove_button, self.clear_button):
+            row.addWidget(b)
+        row.addStretch(1)
+        row.addWidget(self.xlsx_button)
+        row.addWidget(self.csv_button)
+        ll.addLayout(row)
+        split.addWidget(left)
+
+        right, rl = pane()
+        box = QGroupBox("Regression: true distance against disparity")
+        bl = QVBoxLayout(box)
+        self.sample_label = wrapping_label()
+        bl.addWidget(self.sample_label)
+        self.r2_labels: dict[str, QLabel] = {}
+        for m in MODELS:
+            lab = wrapping_label()
+            lab.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+            lab.setStyleSheet(f"color: {_LABEL_COLOURS[m]}")
+            self.r2_labels[m] = lab
+            bl.addWidget(lab)
+        self.plot = RegressionPlot()
+        self.plot.setMinimumHeight(280)
+        bl.addWidget(self.plot, 1)
+        use = QHBoxLayout()
+        use.addWidget(QLabel("Live readings use:"))
+        self.model_combo = QComboBox()
+        for key in ("triangulation", *MODELS):
+            self.model_combo.addItem(_MODEL_TEXT[key], key)
+        self.model_combo.currentIndexChanged.connect(self._model_chosen)
+        use.addWidget(self.model_combo, 1)
+        bl.addLayout(use)
+        fits = QHBoxLayout()
+        self.save_fit_button = QPushButton("Save fit…")
+        self.save_fit_button.clicked.connect(self._choose_save_fit)
+        self.load_fit_button = QPushButton("Load fit…")
+        self.load_fit_button.clicked.connect(self._choose_load_fit)
+        fits.addStretch(1)
+        fits.addWidget(self.save_fit_button)
+        fits.addWidget(self.load_fit_button)
+        bl.addLayout(fits)
+        rl.addWidget(box, 1)
+        split.addWidget(right)
+        split.setSizes([700, 560])
+
+    def set_active(self, active: bool) -> None:
+        """This tab shows no live frames: while it is shown, frames are not processed."""
+        if active:
+            self.ctx.frames.set_processor(None)
+
+    # ---- regression --------------------------------------------------------------------------
+    def refit(self) -> None:
+        """Fit both models to the current samples and show them."""
+        from stereo_gui.core import regression
+
+        recs = self.ctx.measurements
+        n_true = sum(1 for r in recs if r.true_mm is not None)
+        samples = samples_from(recs)
+        self.count_label.setText(
+            f"{len(recs)} readings, {n_true} with a true distance. Double-click the True distance "
+            f"cell of a reading to enter what you measured (mm).")
+        self.fits, self.fit_errors = {}, {}
+        for m, fn in (("cubic", regression.fit_cubic), ("inverse", regression.fit_inverse)):
+            try:
+                self.fits[m] = fn(samples)
+            except (StereoGuiError, ValueError, np.linalg.LinAlgError) as exc:
+                self.fit_errors[m] = str(exc)
+        if self._loaded_fit is not None and self._loaded_fit.model not in self.fits:
+            self.fits[self._loaded_fit.model] = self._loaded_fit
+        self.sample_label.setText(
+            f"{len(samples)} samples (valid readings with a true distance)." if samples else
+            "No samples yet: enter true distances in the log. The cubic needs at least 4 "
+            "samples, the inverse model 2.")
+        for m in MODELS:
+            fit = self.fits.get(m)
+            lab = self.r2_labels[m]
+            if fit is not None:
+                src = " (loaded from file)" if fit is self._loaded_fit else ""
+                lab.setText(f"<b>{m}</b>{src}: R² = {fit.r2:.5f}, "
+                            f"residual RMS {fit.rms_mm:.1f} mm, "
+                            f"{len(fit.samples)} samples<br>"
+                            f"<span style='font-family: monospace'>{fit.formula()}</span>")
+            else:
+                lab.setText(f"<b>{m}</b>: not fitted ({self.fit_errors.get(m, 'no samples')})")
+        self.plot.draw(samples, self.fits)
+        self._update_model_choices()
+        # a live reading that uses a fit follows its refit
+        key = self.model_combo.currentData()
+        if key in MODELS:
+            new = self.fits.get(key)
+            if new is not None and new == self.ctx.active_fit:
+                self.fits[key] = self.ctx.active_fit  # same samples, same fit: no new announcement
+            elif new is not self.ctx.active_fit:
+                self.ctx.set_active_fit(new)
+        self.save_fit_button.setEnabled(bool(self.fits))
+        self.fitsChanged.emit()
+
+    def r2(self, model: str) -> float | None:
+        fit = self.fits.get(model)
+        return None if fit is None else float(fit.r2)
+
+    def _update_model_choices(self) -> None:
+        view = self.model_combo.model()
+        for i in range(self.model_combo.count()):
+            key = self.model_combo.itemData(i)
+            item = view.item(i)
+            if item is not None and key in MODELS:
+                item.setEnabled(key in self.fits)
+        key = self.model_combo.currentData()
+        if key in MODELS and key not in self.fits:
+            self.model_combo.setCurrentIndex(0)
+
+    def use_model(self, key: str) -> None:
+        """Make live readings use 'triangulation', 'cubic' or 'inverse'."""
+        i = self.model_combo.findData(key)
+        if i >= 0:
+            self.model_combo.setCurrentIndex(i)
+
+    def _model_chosen(self, _index: int) -> None:
+        key = self.model_combo.currentData()
+        fit = self.fits.get(key) if key in MODELS else None
+        if key in MODELS and fit is None:
+            self.model_combo.setCurrentIndex(0)
+            return
+        if fit is not self.ctx.active_fit:
+            self.ctx.set_active_fit(fit)
+        if self.ctx.settings.measure_model != key:
+            self.ctx.update_settings(measure_model=key)
+
+    def _active_fit_changed(self, fit) -> None:
+        key = "triangulation" if fit is None else getattr(fit, "model", "triangulation")
+        if key != self.model_combo.currentData():
+            i = self.model_combo.findData(key)
+            if i >= 0:
+                self.model_combo.blockSignals(True)
+                self.model_combo.setCurrentIndex(i)
+                self.model_combo.blockSignals(False)
+
+    # ---- log editing ---------------------------------------------------------------------------
+    def _clear_log(self) -> None:
+        """Empty the log after asking: the true distances typed in exist nowhere else."""
+        n = len(self.ctx.measurements)
+        if not n:
+            return
+        with_truth = sum(r.true_mm is not None for r in self.ctx.measurements)
+        answer = QMessageBox.question(
+            self, "Clear the log",
+            f"Remove all {n} readings ({with_truth} with a true distance) from the log? "
+            "Readings not exported are lost.")
+        if answer == QMessageBox.StandardButton.Yes:
+            self.ctx.clear_measurements()
+
+    def _remove_selected(self) -> None:
+        rows = sorted({i.row() for i in self.table.selectionModel().selectedRows()}, reverse=True)
+        for r in rows:
+            self.ctx.remove_measurement(r)
+
+    # ---- fits as files -------------------------------------------------------------------------
+    def _start_dir(self) -> str:
+        return self.ctx.settings.last_export_dir or str(Path.home())
+
+    def _remember_dir(self, path) -> None:
+        self.ctx.update_settings(last_export_dir=str(Path(path).parent))
+
+    def _choose_save_fit(self) -> None:
+        key = self.model_combo.currentData()
+        fit = self.fits.get(key) if key in MODELS else (
+            self.fits.get("inverse") or self.fits.get("cubic"))
+        if fit is None:
+            return
+        path, _ = QFileDialog.getSaveFileName(self, f"Save the {fit.model} fit",
+                                              str(Path(self._start_dir())
+                                                  / f"{fit.model}-fit.json"),
+                                              "Fit (*.json)")
+        if path:
+            self.save_fit(fit, path)
+
+    def save_fit(self, fit, path) -> bool:
+        from stereo_gui.files.fit_file import save_fit
+
+        try:
+            save_fit(fit, path)
+        except (StereoGuiError, OSError) as exc:
+            self.ctx.report_error(f"could not save the fit: {exc}")
+            return False
+        self._remember_dir(path)
+        self.ctx.show_status(f"Saved the {fit.model} fit to {path}")
+        return True
+
+    def _choose_load_fit(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(self, "Load a fit", self._start_dir(),
+                                              "Fit (*.json);;All files (*)")
+        if path:
+            self.load_fit(path)
+
+    def load_fit(self, path) -> bool:
+        """Load a saved fit and make live readings use it."""
+        from stereo_gui.files.fit_file import load_fit
+
+        try:
+            fit = load_fit(path)
+        except (StereoGuiError, OSError, ValueError) as exc:
+            self.ctx.report_error(f"could not load the fit {path}: {exc}")
+            return False
+        self._loaded_fit = fit
+        self.refit()
+        self.fits[fit.model] = fit  # the loaded one wins over a refit from the log
+        self._update_model_choices()
+        self.use_model(fit.model)
+        self.ctx.set_active_fit(fit)
+        self._remember_dir(path)
+        self.ctx.show_status(f"Loaded the {fit.model} fit from {path}; live readings use it")
+        return True
+
+    # ---- exports -------------------------------------------------------------------------------
+    def _choose_xlsx(self) -> None:
+        stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M")
+        path, _ = QFileDialog.getSaveFileName(self, "Export measurements",
+                                              str(Path(self._start_dir())
+                                                  / f"measurements-{stamp}.xlsx"),
+                                              "Excel workbook (*.xlsx)")
+        if path:
+            if not path.lower().endswith(".xlsx"):
+                path += ".xlsx"
+            self.export_xlsx(path)
+
+    def export_xlsx(self, path) -> bool:
+        """Write the log, the regression and the calibration to `path` in a worker."""
+        if self._export is not None:
+            self.ctx.report_error("an export is still running")
+            return False
+        from stereo_gui.files.spreadsheet import write_workbook
+
+        records = list(self.ctx.measurements)
+        fits = [self.fits[m] for m in MODELS if m in self.fits]
+        calib, calib_path = self.ctx.calibration, self.ctx.calibration_path
+        path = Path(path)
+
+        def job(control):
+            yield Progress(0, 1, f"writing {path.name}")
+            return write_workbook(path, records, fits, calib, calib_path)
+
+        w = JobWorker(job, "export")
+        w.finished_ok.connect(lambda p: self._export_done(str(p)))
+        w.failed.connect(lambda msg: self.ctx.report_error(f"export to {path} failed: {msg}"))
+        w.done.connect(self._export_ended)
+        self.ctx.register_worker(w)
+        self._export = w
+        self.xlsx_button.setEnabled(False)
+        self.ctx.show_status(f"Exporting {len(records)} readings to {path}…")
+        w.start()
+        self._remember_dir(path)
+        return True
+
+    def _export_done(self, path: str) -> None:
+        self.ctx.show_status(f"Exported to {path}")
+        self.exportFinished.emit(path)
+
+    def _export_ended(self) -> None:
+        w, self._export = self._export, None
+        if w is not None:
+            self.ctx.unregister_worker(w)
+            w.wait(2000)
+            w.deleteLater()
+        self.xlsx_button.setEnabled(True)
+
+    def _choose_csv(self) -> None:
+        stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M")
+        path, _ = QFileDialog.getSaveFileName(self, "Export measurements as CSV",
+                                              str(Path(self._start_dir())
+                                                  / f"measurements-{stamp}.csv"),
+                                              "CSV (*.csv)")
+        if path:
+            self.export_csv(path)
+
+    def export_csv(self, path) -> bool:
+        from stereo_gui.files.spreadsheet import write_csv
+
+        try:
+            write_csv(path, list(self.ctx.measurements))
+        except (StereoGuiError, OSError) as exc:
+            self.ctx.report_error(f"could not write {path}: {exc}")
+            return False
+        self._remember_dir(path)
+        self.ctx.show_status(f"Exported {len(self.ctx.measurements)} readings to {path}")
+        return True
+
+    def shutdown(self, timeout_ms: int = 2000) -> bool:
+        if self._export is not None:
+            return self._export.stop(timeout_ms)
+        return True

@@ -1,0 +1,77 @@
+"""The Calibration tab's figures a person can check: RMS per camera and stereo, epipolar error,
+baseline against the nominal one, rotation between the cameras, pairs used."""
+
+from __future__ import annotations
+
+import math
+
+from PySide6.QtWidgets import QFormLayout, QGroupBox, QLabel
+
+from stereo_gui.core.calibrate import HARTLEY_NOTE
+from stereo_gui.qt.widgets.helpers import wrapping_label
+
+
+def format_px(v: float) -> str:
+    return f"{v:.3f} px" if v is not None and math.isfinite(v) else "—"
+
+
+class CalibrationFigures(QGroupBox):
+    """The "Result" group: one label per figure (see the module docstring)."""
+
+    def __init__(self, parent=None) -> None:
+        super().__init__("Result", parent)
+        form = QFormLayout(self)
+        self.source_label = wrapping_label()
+        self.rms_left_label = QLabel()
+        self.rms_right_label = QLabel()
+        self.rms_stereo_label = QLabel()
+        self.epipolar_label = QLabel()
+        self.baseline_label = QLabel()
+        self.rotation_label = QLabel()
+        self.pairs_label = wrapping_label()
+        form.addRow("Calibration:", self.source_label)
+        form.addRow("RMS left camera:", self.rms_left_label)
+        form.addRow("RMS right camera:", self.rms_right_label)
+        form.addRow("RMS stereo:", self.rms_stereo_label)
+        form.addRow("Epipolar error:", self.epipolar_label)
+        form.addRow("Baseline:", self.baseline_label)
+        form.addRow("Rotation between cameras:", self.rotation_label)
+        form.addRow("Pairs:", self.pairs_label)
+        self.note_label = wrapping_label()
+        self.note_label.setStyleSheet("color: #b03a2e; font-weight: bold")
+        form.addRow(self.note_label)
+
+    def show_none(self) -> None:
+        for lab in (self.rms_left_label, self.rms_right_label, self.rms_stereo_label,
+                    self.epipolar_label, self.baseline_label, self.rotation_label,
+                    self.pairs_label):
+            lab.setText("—")
+        self.source_label.setText("none yet: calibrate, or load a calibration file")
+        self.note_label.setText("")
+
+    def show_calibration(self, c, source: str, nominal: float, pairs: str) -> None:
+        """Show StereoCalibration `c`; `source` says where it came from, `nominal` is the nominal
+        baseline (mm), `pairs` how many pairs it used."""
+        self.source_label.setText(f"{source}; {c.image_size[0]}x{c.image_size[1]} px, "
+                                  f"board {c.board.label() if c.board else 'unknown'}, "
+                                  f"method {c.method}, alpha {c.alpha:g}, created {c.created}")
+        self.rms_left_label.setText(format_px(c.rms_left))
+        self.rms_right_label.setText(format_px(c.rms_right))
+        self.rms_stereo_label.setText(format_px(c.rms_stereo) if math.isfinite(c.rms_stereo)
+                                      else "— (no stereo solve in Hartley's method)")
+        self.epipolar_label.setText(f"{format_px(c.epipolar_error_px)} mean |y left − y right| "
+                                    f"of the corners after rectification")
+        if c.metric:
+            b = c.baseline_mm
+            diff = b - nominal + 0.0  # + 0.0: no "-0.00"
+            if abs(diff) < 0.005:
+                diff = 0.0
+            self.baseline_label.setText(
+                f"{b:.2f} mm (nominal {nominal:.1f} mm, difference {diff:+.2f} mm, "
+                f"{100 * diff / nominal:+.2f} %)")
+            self.note_label.setText("")
+        else:
+            self.baseline_label.setText("no metric scale (Hartley): distances are not in mm")
+            self.note_label.setText(HARTLEY_NOTE)
+        self.rotation_label.setText(f"{c.relative_rotation_deg:.3f}°")
+        self.pairs_label.setText(pairs)

@@ -1,0 +1,143 @@
+"""The measurement log as a Qt table model over `ctx.measurements` (MeasurementRecord); the
+true-distance column is editable and makes a reading a regression sample."""
+
+from __future__ import annotations
+
+import datetime as _dt
+import math
+from dataclasses import replace
+
+from PySide6.QtCore import QAbstractTableModel, QModelIndex, Qt
+from PySide6.QtGui import QBrush, QColor
+
+
+def _num(v, digits: int = 1) -> str:
+    if v is None:
+        return ""
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return str(v)
+    return f"{f:.{digits}f}" if math.isfinite(f) else "—"
+
+
+def _short_time(iso: str) -> str:
+    try:
+        t = _dt.datetime.fromisoformat(iso)
+    except (TypeError, ValueError):
+        return iso
+    return t.astimezone().strftime("%H:%M:%S") if t.tzinfo else t.strftime("%H:%M:%S")
+
+
+# (header, how to show a record, tooltip); the true distance sits next to what it is compared with
+COLUMNS = (
+    ("Time", lambda r: _short_time(r.time), "time of the reading"),
+    ("x, y (px)", lambda r: f"{_num(r.x_px, 0)}, {_num(r.y_px, 0)}",
+     "pixel of the rectified left image"),
+    ("Disparity (px)", lambda r: _num(r.disparity_px, 3), "median disparity of the patch"),
+    ("True distance (mm)", lambda r: _num(r.true_mm) if r.true_mm is not None else "",
+     "double-click to enter the measured true distance: it makes the reading a regression sample"),
+    ("Z (mm)", lambda r: _num(r.Z_mm), "depth along the optical axis"),
+    ("Range (mm)", lambda r: _num(r.range_mm), "distance from the left camera"),
+    ("± (mm)", lambda r: _num(r.expected_error_mm),
+     "expected depth error: Z² / (f·B) × the disparity uncertainty of the patch"),
+    ("Valid", lambda r: "yes" if r.valid else f"no: {r.reason}" if r.reason else "no",
+     "whether the reading is usable, and why not"),
+    ("X (mm)", lambda r: _num(r.X_mm), "left rectified camera frame"),
+    ("Y (mm)", lambda r: _num(r.Y_mm), "left rectified camera frame"),
+    ("Method", lambda r: r.method, "triangulation or the fit used"),
+)
+TRUE_COL = 3
+VALID_COL = 7
+_LEFT_ALIGNED = (0, VALID_COL, len(COLUMNS) - 1)
+
+
+class MeasurementModel(QAbstractTableModel):
+    """A table over ctx.measurements; the true-distance column is editable."""
+
+    def __init__(self, ctx, parent=None) -> None:
+        super().__init__(parent)
+        self.ctx = ctx
+        self._rows = len(ctx.measurements)
+        ctx.measurementsChanged.connect(self._reset)
+
+    def _reset(self) -> None:
+        n = len(self.ctx.measurements)
+        if n == self._rows:
+            # a reading changed (a true distance was entered): a reset would destroy the cell
+            # editor committing it and lose the current cell, so Down no longer led to the next
+            if n:
+                self.dataChanged.emit(self.index(0, 0), self.index(n - 1, len(COLUMNS) - 1))
+            return
+        self.beginResetModel()
+        self._rows = n
+        self.endResetModel()
+
+    def rowCount(self, parent=QModelIndex()) -> int:  # noqa: N802 - Qt API
+        return 0 if parent.isValid() else len(self.ctx.measurements)
+
+    def columnCount(self, parent=QModelIndex()) -> int:  # noqa: N802 - Qt API
+        return 0 if parent.isValid() else len(COLUMNS)
+
+    def headerData(self, section, orientation, role=Qt.ItemDataRole.DisplayRole):  # noqa: N802
+        if orientation == Qt.Orientation.Horizontal:
+            if role == Qt.ItemDataRole.DisplayRole:
+                return COLUMNS[section][0]
+            if role == Qt.ItemDataRole.ToolTipRole:
+                return COLUMNS[section][2]
+        elif role == Qt.ItemDataRole.DisplayRole:
+            return str(section + 1)
+        return None
+
+    def data(self, index, role=Qt.ItemDataRole.DisplayRole):
+        if not index.isValid():
+            return None
+        rec = self.ctx.measurements[index.row()]
+        col = index.column()
+        if role == Qt.ItemDataRole.DisplayRole:
+            return COLUMNS[col][1](rec)
+        if role == Qt.ItemDataRole.EditRole and col == TRUE_COL:
+            return "" if rec.true_mm is None else f"{rec.true_mm:g}"
+        if role == Qt.ItemDataRole.ForegroundRole and not rec.valid:
+            return QBrush(QColor("#a93226"))
+        if role == Qt.ItemDataRole.BackgroundRole and col == TRUE_COL:
+            return QBrush(QColor("#fdf6d8"))
+        if role == Qt.ItemDataRole.TextAlignmentRole and col not in _LEFT_ALIGNED:
+            return int(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+        if role == Qt.ItemDataRole.ToolTipRole and col == VALID_COL and not rec.valid:
+            return rec.reason
+        return None
+
+    def flags(self, index):
+        f = super().flags(index)
+        if index.isValid() and index.column() == TRUE_COL:
+            f |= Qt.ItemFlag.ItemIsEditable
+        return f
+
+    def setData(self, index, value, role=Qt.ItemDataRole.EditRole) -> bool:  # noqa: N802
+        if role != Qt.ItemDataRole.EditRole or index.column() != TRUE_COL:
+            return False
+        text = str(value).strip().replace(",", ".")
+        if text == "":
+            true_mm = None
+        else:
+            try:
+                true_mm = float(text)
+            except ValueError:
+                self.ctx.report_error(f"true distance {value!r} is not a number of millimetres")
+                return False
+            if not math.isfinite(true_mm) or true_mm <= 0:
+                self.ctx.report_error(f"true distance must be a positive number of mm, not {value}")
+                return False
+        rec = self.ctx.measurements[index.row()]
+        self.ctx.update_measurement(index.row(), replace(rec, true_mm=true_mm))
+        return True
+
+
+def samples_from(records) -> list[tuple[float, float]]:
+    """(disparity px, true distance mm) of the valid readings that have a true distance."""
+    out = []
+    for r in records:
+        if r.true_mm is not None and r.valid and math.isfinite(r.disparity_px):
+            out.append((float(r.disparity_px), float(r.true_mm)))
+    return out

@@ -1,0 +1,111 @@
+"""The Capture tab's side pane: coverage guidance above the saved pairs (thumbnails; click one
+to review it) and Delete pair."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from PySide6.QtCore import QSize, Qt, Signal
+from PySide6.QtGui import QIcon, QImage, QPixmap
+from PySide6.QtWidgets import (
+    QHBoxLayout,
+    QLabel,
+    QListWidget,
+    QListWidgetItem,
+    QPushButton,
+    QVBoxLayout,
+    QWidget,
+)
+
+from stereo_gui.core.detect import PairDetection
+from stereo_gui.qt.widgets.coverage import CoverageWidget
+
+THUMB_SIZE = QSize(176, 66)  # a saved pair's thumbnail: both images side by side
+
+
+def pair_thumbnail(left_bgr: np.ndarray, right_bgr: np.ndarray) -> QIcon:
+    """Both images of a pair side by side, THUMB_SIZE, as an icon."""
+    h = THUMB_SIZE.height()
+    w = THUMB_SIZE.width() // 2 - 2
+    parts = [cv2.resize(im, (w, h), interpolation=cv2.INTER_AREA) for im in (left_bgr, right_bgr)]
+    gap = np.full((h, 4, 3), 40, np.uint8)
+    both = np.ascontiguousarray(np.hstack([parts[0], gap, parts[1]])[:, :, ::-1])
+    qimg = QImage(both.data, both.shape[1], both.shape[0], both.strides[0],
+                  QImage.Format.Format_RGB888).copy()
+    return QIcon(QPixmap.fromImage(qimg))
+
+
+@dataclass(frozen=True, eq=False)
+class SavedPairInfo:
+    """A saved pair as the tab shows it: its detection (for coverage) and a thumbnail."""
+
+    name: str
+    detection: PairDetection | None
+    icon: QIcon | None
+
+
+class SavedPairsPanel(QWidget):
+    """Coverage of the saved pairs, their list and Delete pair; `pairClicked(name)`."""
+
+    pairClicked = Signal(str)
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        sl = QVBoxLayout(self)
+        sl.setContentsMargins(0, 0, 0, 0)
+        self.coverage = CoverageWidget()
+        sl.addWidget(self.coverage)
+        self.pairs_label = QLabel("Saved pairs")
+        sl.addWidget(self.pairs_label)
+        self.pair_list = QListWidget()
+        self.pair_list.setIconSize(THUMB_SIZE)
+        self.pair_list.setUniformItemSizes(True)
+        self.pair_list.itemClicked.connect(
+            lambda item: self.pairClicked.emit(item.data(Qt.ItemDataRole.UserRole)))
+        sl.addWidget(self.pair_list, 1)
+        pb = QHBoxLayout()
+        self.delete_button = QPushButton("Delete pair")
+        pb.addWidget(self.delete_button)
+        pb.addStretch(1)
+        sl.addLayout(pb)
+
+    def add_coverage(self, det: PairDetection) -> None:
+        """Count a saved pair's corners in the coverage maps."""
+        self.coverage.add_pair(det.left.corners if det.left else None,
+                               det.right.corners if det.right else None)
+
+    def add_item(self, info: SavedPairInfo, excluded: bool) -> None:
+        """Append a saved pair to the list (with its thumbnail and what is wrong with it)."""
+        text = info.name
+        if info.detection is not None and not info.detection.found:
+            text += "  (board not found in both)"
+        if excluded:
+            text += "  (excluded)"
+        item = QListWidgetItem(text)
+        if info.icon is not None:
+            item.setIcon(info.icon)
+        item.setData(Qt.ItemDataRole.UserRole, info.name)
+        self.pair_list.addItem(item)
+        self.update_label()
+
+    def update_label(self) -> None:
+        n = self.pair_list.count()
+        self.pairs_label.setText(f"Saved pairs ({n}): click one to review it")
+
+    def names(self) -> list[str]:
+        """The pair names listed, in order."""
+        return [self.pair_list.item(i).data(Qt.ItemDataRole.UserRole)
+                for i in range(self.pair_list.count())]
+
+    def current_name(self) -> str | None:
+        item = self.pair_list.currentItem()
+        return item.data(Qt.ItemDataRole.UserRole) if item is not None else None
+
+    def select(self, name: str) -> None:
+        for i in range(self.pair_list.count()):
+            item = self.pair_list.item(i)
+            if item.data(Qt.ItemDataRole.UserRole) == name:
+                self.pair_list.setCurrentItem(item)
+                return

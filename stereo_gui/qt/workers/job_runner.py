@@ -1,0 +1,116 @@
+"""The job runner: one background thread for occasional requests (a click's measurement, an
+export, a snapshot), results delivered by signal with the request's id."""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable
+
+from PySide6.QtCore import QObject, Signal
+
+from stereo_gui.qt.workers.frame_worker import close_quietly
+
+log = logging.getLogger(__name__)
+
+_JOIN_TIMEOUT_MS = 2000
+
+
+class JobRunner(QObject):
+    """One background thread for occasional jobs; `finished(id, result)` / `failed(id, message)`.
+
+    Jobs run in order; `submit` returns the job's id so a caller can drop a stale answer. The
+    thread is a daemon Python thread (not a QThread): a job that cannot be interrupted (opening
+    a device) and outlives `stop()` is abandoned at exit instead of aborting Qt.
+    """
+
+    finished = Signal(int, object)
+    failed = Signal(int, str)
+
+    def __init__(self, name: str = "jobs", parent: QObject | None = None) -> None:
+        super().__init__(parent)
+        self._cond = threading.Condition()
+        self._jobs: list[tuple[int, Callable[[], object]]] = []
+        self._next_id = 1
+        self._stopping = False
+        self._busy = False
+        self._name = name
+        self._thread: threading.Thread | None = None
+
+    def submit(self, fn: Callable[[], object]) -> int:
+        with self._cond:
+            job_id = self._next_id
+            self._next_id += 1
+            self._jobs.append((job_id, fn))
+            self._cond.notify_all()
+            if self._thread is None or not self._thread.is_alive():
+                self._stopping = False
+                self._thread = threading.Thread(target=self._loop, name=self._name, daemon=True)
+                self._thread.start()
+        return job_id
+
+    def is_running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def is_busy(self) -> bool:
+        """True while a job is queued or running."""
+        with self._cond:
+            return self._busy or bool(self._jobs)
+
+    def stop(self, timeout_ms: int = _JOIN_TIMEOUT_MS) -> bool:
+        """Drop queued jobs, let the running one finish, join the thread; False if it did not."""
+        with self._cond:
+            self._stopping = True
+            self._jobs.clear()
+            self._cond.notify_all()
+            thread = self._thread
+        if thread is None:
+            return True
+        thread.join(timeout_ms / 1000.0)
+        if thread.is_alive():
+            log.warning("%s: a job is still running; it is abandoned", self._name)
+            return False
+        with self._cond:
+            if self._thread is thread:
+                self._thread = None
+        return True
+
+    def _emit(self, signal, *args) -> None:
+        try:
+            signal.emit(*args)
+        except RuntimeError:  # the receiver side was deleted while the job ran (at exit)
+            log.debug("%s: result dropped, object deleted", self._name)
+
+    def _loop(self) -> None:
+        while True:
+            with self._cond:
+                while not self._stopping and not self._jobs:
+                    self._cond.wait()
+                if self._stopping:
+                    return
+                job_id, fn = self._jobs.pop(0)
+                self._busy = True
+            try:
+                result = fn()
+            except Exception as exc:  # noqa: BLE001 - reported to the caller by signal
+                log.debug("job %d failed", job_id, exc_info=True)
+                with self._cond:
+                    self._busy = False
+                    stopping = self._stopping
+                if not stopping:
+                    self._emit(self.failed, job_id, str(exc) or type(exc).__name__)
+                continue
+            with self._cond:
+                self._busy = False
+                stopping = self._stopping
+            if not stopping:
+                self._emit(self.finished, job_id, result)
+            else:
+                _dispose(result)
+
+
+def _dispose(result) -> None:
+    """Release what a job produced after nobody wants it (an opened source)."""
+    source = getattr(result, "source", result)
+    if hasattr(source, "close") and hasattr(source, "read"):
+        close_quietly(source)

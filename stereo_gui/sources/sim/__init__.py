@@ -1,0 +1,36 @@
+"""The simulated stereo rig: two distorted pinhole cameras with known truth, rendering a chessboard
+and textured planar objects. It is a frame source, the demo, and the ground truth of the tests.
+
+Rendering goes through OpenCV's distortion model exactly: for each camera a ray map holds, for
+every supersample of every output pixel, the normalised undistorted ray (x, y, 1) obtained by
+inverting the distortion model (Newton iteration, checked against cv2.projectPoints). Each frame
+intersects those rays with the planes of the board and scene, looks up the texture, and averages
+the supersamples (anti-aliasing). Frames: the left camera frame is the world frame; a point X_left
+maps to the right camera as X_right = R @ X_left + T (R_right_left, T_right_left, mm), the same
+convention as cv2.stereoCalibrate.
+
+The package, by room: `camera` (the rig's description and truth), `rays` (distortion inversion,
+ray maps), `textures` (board and object textures), `scene` (board poses, scene objects),
+`rig` (SimRig: poses, rendering, ground truth), `calibration_set` (sets on disk with
+truth.json) and `live` (SimSource). Every public name is importable from here.
+"""
+
+from stereo_gui.sources.sim.calibration_set import (
+    SCENE_FOLDER,
+    SCENE_WALL_DISTANCES_MM,
+    calibration_set_names,
+    write_calibration_set,
+)
+from stereo_gui.sources.sim.camera import TRUTH_FORMAT_VERSION, CameraTruth, RigConfig, RigTruth
+from stereo_gui.sources.sim.live import SimSource
+from stereo_gui.sources.sim.rays import RayMap, ray_map, undistort_normalized
+from stereo_gui.sources.sim.rig import SimFrameTruth, SimRig
+from stereo_gui.sources.sim.scene import BoardPose, Scene, SceneObject
+from stereo_gui.sources.sim.textures import OCTAVES
+
+__all__ = [
+    "OCTAVES", "SCENE_FOLDER", "SCENE_WALL_DISTANCES_MM", "TRUTH_FORMAT_VERSION", "BoardPose",
+    "CameraTruth", "RayMap", "RigConfig", "RigTruth", "Scene", "SceneObject", "SimFrameTruth",
+    "SimRig", "SimSource", "calibration_set_names", "ray_map", "undistort_normalized",
+    "write_calibration_set",
+]

@@ -1,0 +1,79 @@
+"""Calibration sets on disk: board pairs in the report's naming, optional scene pairs, and
+truth.json with everything the rig was built with."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from stereo_gui.core.errors import InputError
+from stereo_gui.files.atomic import write_image_atomic, write_text_atomic
+from stereo_gui.sources.sim.camera import RigConfig
+from stereo_gui.sources.sim.rig import SimRig
+from stereo_gui.sources.sim.scene import Scene
+
+SCENE_WALL_DISTANCES_MM = (500.0, 1000.0, 1500.0, 2000.0, 3000.0)
+# scene pairs go into a subfolder so that calibrating OUT_DIR does not take them for board pairs
+SCENE_FOLDER = "scenes"
+
+
+def calibration_set_names(n_pairs: int, scene: bool) -> list[str]:
+    """The file names write_calibration_set writes for these arguments."""
+    names = [f"chessboard-{side}{n}.png" for n in range(1, n_pairs + 1) for side in "LR"]
+    if scene:
+        names += [f"{SCENE_FOLDER}/scene-{side}{k}.png"
+                  for k in range(1, len(SCENE_WALL_DISTANCES_MM) + 2) for side in "LR"]
+    return names + ["truth.json"]
+
+
+def write_calibration_set(out_dir, n_pairs: int = 20, seed: int = 0, scene: bool = False,
+                          config: RigConfig | None = None, progress=None) -> Path:
+    """Write a calibration set in the report's naming plus truth.json; return the folder.
+
+    chessboard-L{n}.png / chessboard-R{n}.png for n = 1..n_pairs; with `scene`, also
+    scenes/scene-L{k}.png / scenes/scene-R{k}.png for walls at SCENE_WALL_DISTANCES_MM and the
+    demo scene, with their true distances in truth.json (paths relative to the folder).
+    `progress(done, total)` is called after each pair. Every file is written atomically.
+    """
+    out = Path(out_dir)
+    if n_pairs < 0:
+        raise InputError(f"number of pairs must not be negative, not {n_pairs}")
+    rig = SimRig(config, seed=seed)
+    poses = rig.board_poses(n_pairs)
+    rng = np.random.default_rng(seed * 104729 + 5)
+    scenes = ([Scene.wall(d) for d in SCENE_WALL_DISTANCES_MM] + [Scene.demo()]) if scene else []
+    total = len(poses) + len(scenes)
+    pairs = []
+    for n, pose in enumerate(poses, start=1):
+        left, right = rig.render_board_pair(pose, rng)
+        lname, rname = f"chessboard-L{n}.png", f"chessboard-R{n}.png"
+        write_image_atomic(out / lname, left)
+        write_image_atomic(out / rname, right)
+        pairs.append({"n": n, "left": lname, "right": rname, **pose.to_json()})
+        if progress:
+            progress(n, total)
+    scene_entries = []
+    for k, sc in enumerate(scenes, start=1):
+        left, right = rig.render_scene(sc, rng)
+        lname, rname = f"{SCENE_FOLDER}/scene-L{k}.png", f"{SCENE_FOLDER}/scene-R{k}.png"
+        (out / SCENE_FOLDER).mkdir(exist_ok=True)
+        write_image_atomic(out / lname, left)
+        write_image_atomic(out / rname, right)
+        entry = {"name": sc.name, "left": lname, "right": rname}
+        if len(sc.objects) == 1:
+            entry["distance_mm"] = float(sc.objects[0].center[2])
+        else:
+            entry["objects"] = [o.to_json() for o in sc.objects]
+        scene_entries.append(entry)
+        if progress:
+            progress(len(poses) + k, total)
+    data = rig.truth.to_json()
+    data.update({"seed": int(seed), "generator": "stereo_gui.sources.sim",
+                 "noise_sigma": rig.config.noise_sigma, "gain_right": rig.config.gain_right,
+                 "pairs": pairs})
+    if scene:
+        data["scenes"] = scene_entries
+    write_text_atomic(out / "truth.json", json.dumps(data, indent=2) + "\n")
+    return out

@@ -1,0 +1,137 @@
+"""The simulated rig's description: each camera's true intrinsics, how to build a rig, and
+the rig's true parameters as cv2.stereoCalibrate names them (saved as truth.json)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.errors import InputError
+
+TRUTH_FORMAT_VERSION = 1
+
+
+@dataclass(frozen=True, eq=False)
+class CameraTruth:
+    """One camera's true intrinsics: M (3x3 float64, px) and D (1x5 float64: k1 k2 p1 p2 k3)."""
+
+    M: np.ndarray
+    D: np.ndarray
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "M", np.asarray(self.M, np.float64).reshape(3, 3))
+        object.__setattr__(self, "D", np.asarray(self.D, np.float64).reshape(1, 5))
+
+    @staticmethod
+    def make(fx: float, fy: float, cx: float, cy: float,
+             k1: float = 0.0, k2: float = 0.0, p1: float = 0.0, p2: float = 0.0,
+             k3: float = 0.0) -> CameraTruth:
+        M = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+        return CameraTruth(M, np.array([[k1, k2, p1, p2, k3]]))
+
+
+def _default_left() -> CameraTruth:
+    return CameraTruth.make(752.0, 748.5, 323.6, 237.2, k1=-0.182, k2=0.061, p1=1.1e-3,
+                            p2=-6.0e-4, k3=-0.012)
+
+
+def _default_right() -> CameraTruth:
+    return CameraTruth.make(745.3, 742.8, 316.1, 243.4, k1=-0.214, k2=0.083, p1=-7.5e-4,
+                            p2=1.25e-3, k3=-0.021)
+
+
+@dataclass(frozen=True)
+class RigConfig:
+    """How to build a simulated rig. Angles in radians, lengths in mm, noise in grey levels."""
+
+    image_size: tuple[int, int] = (640, 480)  # (width, height), px
+    left: CameraTruth = field(default_factory=_default_left)
+    right: CameraTruth = field(default_factory=_default_right)
+    # R_right_left as a Rodrigues vector: about 0.8 degrees in total
+    rvec_right_left: tuple[float, float, float] = (0.0061, -0.0118, 0.0042)
+    baseline_mm: float = 110.0
+    # direction of T_right_left; scaled so that |T| = baseline_mm
+    t_direction: tuple[float, float, float] = (-1.0, 0.0065, -0.0085)
+    noise_sigma: float = 2.0  # sensor noise, grey levels (standard deviation)
+    gain_right: float = 0.93  # the right camera is a little darker
+    board: BoardSpec = field(default_factory=BoardSpec)
+    supersample: int = 3  # samples per pixel along each axis (anti-aliasing)
+
+    @staticmethod
+    def for_size(size: tuple[int, int]) -> RigConfig:
+        """The default rig at another resolution: the same horizontal field of view (camera
+        matrices scaled by width/640, principal points kept at the same place relative to the
+        centre); fewer supersamples above 640x480 to keep rendering fast."""
+        w, h = int(size[0]), int(size[1])
+        base = RigConfig()
+        if (w, h) == base.image_size:
+            return base
+        if w < 64 or h < 48:
+            raise InputError(f"the simulated rig needs at least 64x48 pixels, not {w}x{h}")
+        k = w / base.image_size[0]
+
+        def scaled(cam: CameraTruth) -> CameraTruth:
+            M = cam.M.copy()
+            M[:2, :2] *= k
+            M[0, 2] = (M[0, 2] - (base.image_size[0] - 1) / 2) * k + (w - 1) / 2
+            M[1, 2] = (M[1, 2] - (base.image_size[1] - 1) / 2) * k + (h - 1) / 2
+            return CameraTruth(M, cam.D.copy())
+
+        return RigConfig(image_size=(w, h), left=scaled(base.left), right=scaled(base.right),
+                         supersample=3 if w * h <= 640 * 480 else 2)
+
+
+@dataclass(frozen=True, eq=False)
+class RigTruth:
+    """The rig's true parameters, named as cv2.stereoCalibrate returns them (T in mm)."""
+
+    image_size: tuple[int, int]
+    M1: np.ndarray
+    D1: np.ndarray
+    M2: np.ndarray
+    D2: np.ndarray
+    R: np.ndarray  # R_right_left
+    T: np.ndarray  # T_right_left, 3x1, mm
+    board: BoardSpec
+
+    @property
+    def baseline_mm(self) -> float:
+        return float(np.linalg.norm(self.T))
+
+    @property
+    def relative_rotation_deg(self) -> float:
+        rvec, _ = cv2.Rodrigues(self.R)
+        return float(np.degrees(np.linalg.norm(rvec)))
+
+    def to_json(self) -> dict:
+        return {
+            "format_version": TRUTH_FORMAT_VERSION,
+            "image_size": [int(self.image_size[0]), int(self.image_size[1])],
+            "M1": self.M1.tolist(), "D1": self.D1.reshape(-1).tolist(),
+            "M2": self.M2.tolist(), "D2": self.D2.reshape(-1).tolist(),
+            "R": self.R.tolist(), "T": self.T.reshape(-1).tolist(),
+            "baseline_mm": self.baseline_mm,
+            "relative_rotation_deg": self.relative_rotation_deg,
+            "board": {"cols": self.board.cols, "rows": self.board.rows,
+                      "square_mm": self.board.square_mm},
+        }
+
+    @staticmethod
+    def from_json(data: dict) -> RigTruth:
+        try:
+            b = data["board"]
+            return RigTruth(
+                image_size=(int(data["image_size"][0]), int(data["image_size"][1])),
+                M1=np.array(data["M1"], np.float64).reshape(3, 3),
+                D1=np.array(data["D1"], np.float64).reshape(1, -1),
+                M2=np.array(data["M2"], np.float64).reshape(3, 3),
+                D2=np.array(data["D2"], np.float64).reshape(1, -1),
+                R=np.array(data["R"], np.float64).reshape(3, 3),
+                T=np.array(data["T"], np.float64).reshape(3, 1),
+                board=BoardSpec(int(b["cols"]), int(b["rows"]), float(b["square_mm"])),
+            )
+        except (KeyError, TypeError, ValueError, IndexError) as exc:
+            raise InputError(f"rig truth is incomplete or malformed: {exc}") from exc

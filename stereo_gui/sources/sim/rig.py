@@ -1,0 +1,355 @@
+"""The simulated stereo rig: board poses seen by both cameras, rendering of board and scene
+pairs (rays through OpenCV's distortion model, textures, supersampling, sensor noise), and the
+ground truth a perfect calibration and a perfect measurement would find."""
+
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.sources.sim.camera import RigConfig, RigTruth
+from stereo_gui.sources.sim.rays import ray_map
+from stereo_gui.sources.sim.scene import BoardPose, Scene, SceneObject
+from stereo_gui.sources.sim.textures import _board_texture, _texture
+
+_BOARD_BACKGROUND = 118.0  # plain grey behind the board when no scene is shown
+_NOISE_PAD = 64  # the noise bank is this much larger than an image (random crops)
+
+
+@dataclass(frozen=True)
+class SimFrameTruth:
+    """Ground truth attached to a simulated frame (StereoFrame.truth)."""
+
+    pose: BoardPose | None
+    scene: Scene | None
+    truth: RigTruth
+
+
+@dataclass(frozen=True, eq=False)
+class _Plane:
+    """A rectangle in one camera's frame, ready for rendering: origin + a*u + b*v, a in
+    [0, width], b in [0, height] (mm)."""
+
+    origin: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    width: float
+    height: float
+
+
+class SimRig:
+    """A simulated stereo rig with known truth that renders board and scene pairs."""
+
+    def __init__(self, config: RigConfig | None = None, seed: int = 0):
+        self.config = config or RigConfig()
+        self.seed = int(seed)
+        c = self.config
+        R, _ = cv2.Rodrigues(np.asarray(c.rvec_right_left, np.float64).reshape(3, 1))
+        tdir = np.asarray(c.t_direction, np.float64).reshape(3)
+        T = (tdir / np.linalg.norm(tdir) * c.baseline_mm).reshape(3, 1)
+        self.truth = RigTruth(tuple(c.image_size), c.left.M.copy(), c.left.D.copy(),
+                              c.right.M.copy(), c.right.D.copy(), R, T, c.board)
+        self._rays = (ray_map(c.left, c.image_size, c.supersample),
+                      ray_map(c.right, c.image_size, c.supersample))
+        self._scene_cache: dict[tuple, tuple] = {}
+        self._noise: dict[int, np.ndarray] = {}
+        self._lock = threading.Lock()
+
+    # ---- geometry -------------------------------------------------------------------------
+    def _to_camera(self, cam: int, p: np.ndarray) -> np.ndarray:
+        """Points (..., 3) in the left frame -> camera `cam` (0 left, 1 right) frame."""
+        if cam == 0:
+            return p
+        return p @ self.truth.R.T + self.truth.T.reshape(3)
+
+    def _dir_to_camera(self, cam: int, d: np.ndarray) -> np.ndarray:
+        return d if cam == 0 else d @ self.truth.R.T
+
+    def project(self, points_left_mm: np.ndarray, cam: int) -> np.ndarray:
+        """Project (N, 3) left-frame points (mm) into camera `cam`'s image, (N, 2) px."""
+        M, D = (self.truth.M1, self.truth.D1) if cam == 0 else (self.truth.M2, self.truth.D2)
+        rvec = np.zeros(3) if cam == 0 else cv2.Rodrigues(self.truth.R)[0]
+        tvec = np.zeros(3) if cam == 0 else self.truth.T.reshape(3)
+        pts, _ = cv2.projectPoints(np.asarray(points_left_mm, np.float64).reshape(-1, 1, 3),
+                                   rvec, tvec, M, D)
+        return pts.reshape(-1, 2)
+
+    def board_outline_mm(self) -> tuple[float, float, float, float]:
+        """The printed board (squares plus white border) on its plane: (a0, b0, a1, b1) mm."""
+        b = self.config.board
+        s = b.square_mm
+        return (-2.0 * s, -2.0 * s, (b.cols + 1) * s, (b.rows + 1) * s)
+
+    def _board_visible(self, pose: BoardPose, margin_px: float = 8.0) -> bool:
+        a0, b0, a1, b1 = self.board_outline_mm()
+        # densely sample the outline: the distorted image of a straight edge is curved
+        k = np.linspace(0.0, 1.0, 17)
+        edge = np.concatenate([
+            np.stack([a0 + (a1 - a0) * k, np.full_like(k, b0)], 1),
+            np.stack([a0 + (a1 - a0) * k, np.full_like(k, b1)], 1),
+            np.stack([np.full_like(k, a0), b0 + (b1 - b0) * k], 1),
+            np.stack([np.full_like(k, a1), b0 + (b1 - b0) * k], 1)])
+        pts = np.concatenate([edge, np.zeros((len(edge), 1))], 1) @ pose.R.T + pose.t
+        w, h = self.config.image_size
+        for cam in (0, 1):
+            pc = self._to_camera(cam, pts)
+            if np.any(pc[:, 2] < 100.0):
+                return False
+            # beyond about 50 degrees off-axis the distortion polynomial is not meaningful
+            if np.any(np.hypot(pc[:, 0], pc[:, 1]) / pc[:, 2] > 0.9):
+                return False
+            uv = self.project(pts, cam)
+            if (uv[:, 0].min() < margin_px or uv[:, 1].min() < margin_px
+                    or uv[:, 0].max() > w - 1 - margin_px or uv[:, 1].max() > h - 1 - margin_px):
+                return False
+        return True
+
+    def random_board_pose(self, rng: np.random.Generator, max_tries: int = 2000) -> BoardPose:
+        """One random board pose fully visible in both images (0.4-1.2 m, tilts up to 40 deg).
+
+        Depth and tilt are drawn first; the position is then drawn uniformly over the room the
+        board leaves in both images, so that poses reach the image edges (needed to see the
+        distortion) as often as the centre.
+        """
+        b = self.config.board
+        w, h = self.config.image_size
+        margin = 10.0
+        centre_board = np.array([(b.cols - 1) * b.square_mm / 2, (b.rows - 1) * b.square_mm / 2, 0])
+        a0, b0, a1, b1 = self.board_outline_mm()
+        outline = np.array([[a0, b0, 0], [a1, b0, 0], [a1, b1, 0], [a0, b1, 0]], np.float64)
+        f = float(self.truth.M1[0, 0])
+        for _ in range(max_tries):
+            z = rng.uniform(400.0, 1200.0)
+            tilt_x = math.radians(rng.uniform(-40, 40))
+            tilt_y = math.radians(rng.uniform(-40, 40))
+            if math.hypot(tilt_x, tilt_y) > math.radians(45):
+                continue
+            spin = math.radians(rng.uniform(-20, 20))
+            R = (cv2.Rodrigues(np.array([0.0, tilt_y, 0.0]))[0]
+                 @ cv2.Rodrigues(np.array([tilt_x, 0.0, 0.0]))[0]
+                 @ cv2.Rodrigues(np.array([0.0, 0.0, spin]))[0])
+            t0 = np.array([0.0, 0.0, z]) - R @ centre_board
+            pts = outline @ R.T + t0
+            if np.any(pts[:, 2] < 150.0):
+                continue
+            lo, hi = np.array([-np.inf, -np.inf]), np.array([np.inf, np.inf])
+            for cam in (0, 1):
+                uv = self.project(pts, cam)
+                lo = np.maximum(lo, [margin - uv[:, 0].min(), margin - uv[:, 1].min()])
+                hi = np.minimum(hi, [w - 1 - margin - uv[:, 0].max(), h - 1 - margin - uv[:, 1].max()])
+            if np.any(hi <= lo):
+                continue
+            shift_px = rng.uniform(lo, hi)
+            pose = BoardPose(R, t0 + np.array([shift_px[0] * z / f, shift_px[1] * z / f, 0.0]))
+            if self._board_visible(pose, margin_px=margin - 2.0):
+                return pose
+        raise RuntimeError("could not find a board pose visible in both cameras")
+
+    def board_poses(self, n: int, seed: int | None = None) -> list[BoardPose]:
+        """`n` varied board poses (0.4-1.2 m, tilts up to 40 deg, positions covering the image),
+        each with the whole board visible in both images with a margin."""
+        rng = np.random.default_rng(self.seed * 7919 + 17 if seed is None else seed)
+        return [self.random_board_pose(rng) for _ in range(int(n))]
+
+    # ---- rendering ------------------------------------------------------------------------
+    def _plane_in_camera(self, cam: int, origin, u, v, width: float, height: float) -> _Plane:
+        return _Plane(self._to_camera(cam, np.asarray(origin, np.float64)),
+                      self._dir_to_camera(cam, np.asarray(u, np.float64)),
+                      self._dir_to_camera(cam, np.asarray(v, np.float64)), width, height)
+
+    def _bbox(self, cam: int, plane_left: _Plane) -> tuple[int, int, int, int] | None:
+        """Supersample-grid box (x0, y0, x1, y1) that contains the plane's image, or None."""
+        s = self.config.supersample
+        w, h = self.config.image_size
+        k = np.linspace(0.0, 1.0, 33)
+        ab = np.concatenate([
+            np.stack([k * plane_left.width, np.zeros_like(k)], 1),
+            np.stack([k * plane_left.width, np.full_like(k, plane_left.height)], 1),
+            np.stack([np.zeros_like(k), k * plane_left.height], 1),
+            np.stack([np.full_like(k, plane_left.width), k * plane_left.height], 1)])
+        pts = plane_left.origin + ab[:, :1] * plane_left.u + ab[:, 1:] * plane_left.v
+        pc = self._to_camera(cam, pts)
+        if np.all(pc[:, 2] <= 0):
+            return None
+        rad = np.hypot(pc[:, 0], pc[:, 1]) / np.maximum(pc[:, 2], 1e-9)
+        if np.any(pc[:, 2] <= 1.0) or np.any(rad > 0.9):
+            return (0, 0, w * s, h * s)  # partly behind or far off-axis: test every ray
+        uv = self.project(pts, cam)
+        x0 = int(math.floor((uv[:, 0].min() - 3) * s))
+        y0 = int(math.floor((uv[:, 1].min() - 3) * s))
+        x1 = int(math.ceil((uv[:, 0].max() + 4) * s))
+        y1 = int(math.ceil((uv[:, 1].max() + 4) * s))
+        x0, y0 = max(0, x0), max(0, y0)
+        x1, y1 = min(w * s, x1), min(h * s, y1)
+        if x1 <= x0 or y1 <= y0:
+            return None
+        return (x0, y0, x1, y1)
+
+    def _draw_plane(self, cam: int, plane_left: _Plane, tex: np.ndarray, texel: float,
+                    img: np.ndarray, zbuf: np.ndarray | None, box0: tuple[int, int] = (0, 0)
+                    ) -> None:
+        """Draw a textured rectangle into the supersampled `img` (which starts at supersample
+        (x, y) = box0 of the full grid), with a depth test against `zbuf` when given.
+
+        The texture spans the rectangle (texel centres at (i + 0.5) * texel mm); it must have an
+        alpha channel (remap's zero border marks rays that miss the rectangle).
+        """
+        box = self._bbox(cam, plane_left)
+        if box is None:
+            return
+        ox, oy = box0
+        hh, ww = img.shape[:2]
+        x0, y0 = max(box[0], ox), max(box[1], oy)
+        x1, y1 = min(box[2], ox + ww), min(box[3], oy + hh)
+        if x1 <= x0 or y1 <= y0:
+            return
+        pl = self._plane_in_camera(cam, plane_left.origin, plane_left.u, plane_left.v,
+                                   plane_left.width, plane_left.height)
+        n = np.cross(pl.u, pl.v)
+        npo = float(n @ pl.origin)
+        if abs(npo) < 1e-9:
+            return  # the plane passes through the camera centre: seen edge-on
+        # a ray t*(x, y, 1) meets the plane at depth t = n.o / n.r, where (a, b) =
+        # (u.(t r - o), v.(t r - o)): a homography of (x, y, 1); fold in mm -> texel centres
+        Ha = npo * pl.u - float(pl.u @ pl.origin) * n
+        Hb = npo * pl.v - float(pl.v @ pl.origin) * n
+        H = np.stack([Ha / texel - 0.5 * n, Hb / texel - 0.5 * n, n])
+        xy = np.ascontiguousarray(self._rays[cam].xy[y0:y1, x0:x1])
+        tmap = cv2.perspectiveTransform(xy, H)
+        sampled = cv2.remap(tex, tmap, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                            borderValue=(0, 0, 0, 0))
+        mask = cv2.compare(sampled[..., 3], 127, cv2.CMP_GT)
+        Hz = np.array([[0.0, 0.0, npo], [0.0, 0.0, 0.0], n])  # (x, y, 1) -> (depth, 0)
+        z = cv2.perspectiveTransform(xy, Hz)[..., 0]
+        cv2.bitwise_and(mask, cv2.compare(z, 0.0, cv2.CMP_GT), dst=mask)
+        if zbuf is not None:
+            zb = zbuf[y0 - oy:y1 - oy, x0 - ox:x1 - ox]
+            cv2.bitwise_and(mask, cv2.compare(z, zb, cv2.CMP_LT), dst=mask)
+            cv2.copyTo(z, mask, zb)
+        cv2.copyTo(np.ascontiguousarray(sampled[..., :3]), mask, img[y0 - oy:y1 - oy, x0 - ox:x1 - ox])
+
+    def _object_plane(self, obj: SceneObject) -> _Plane:
+        return _Plane(obj.corner_origin, obj.u, obj.v, obj.width_mm, obj.height_mm)
+
+    def _board_plane(self, pose: BoardPose) -> _Plane:
+        a0, b0, a1, b1 = self.board_outline_mm()
+        origin = pose.t + pose.R @ np.array([a0, b0, 0.0])
+        return _Plane(origin, pose.R[:, 0], pose.R[:, 1], a1 - a0, b1 - b0)
+
+    def _background(self, cam: int, scene: Scene | None):
+        """Supersampled image (uint8 BGR), depth buffer and averaged image of the static scene
+        for one camera (cached: the scene does not move)."""
+        key = (cam, id(scene))
+        with self._lock:
+            hit = self._scene_cache.get(key)
+            if hit is not None and hit[0] is scene:
+                return hit[1:]
+        s = self.config.supersample
+        w, h = self.config.image_size
+        img = np.full((h * s, w * s, 3), _BOARD_BACKGROUND, np.uint8)
+        zbuf = np.full((h * s, w * s), np.inf, np.float32)
+        if scene is not None:
+            for obj in scene.objects:
+                tex, texel = _texture(int(obj.seed), float(obj.width_mm), float(obj.height_mm))
+                self._draw_plane(cam, self._object_plane(obj), tex, texel, img, zbuf)
+        small = img if s == 1 else cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA)
+        with self._lock:
+            if len(self._scene_cache) > 8:
+                self._scene_cache.clear()
+            self._scene_cache[key] = (scene, img, zbuf, small)
+        return img, zbuf, small
+
+    def _noise_bank(self, cam: int) -> np.ndarray:
+        """Gaussian sensor noise around 128 (uint8), larger than an image; frames use random
+        crops of it, which is much cheaper than drawing fresh noise for every pixel."""
+        bank = self._noise.get(cam)
+        if bank is None:
+            w, h = self.config.image_size
+            rng = np.random.default_rng(self.seed * 31 + cam + 99)
+            noise = rng.standard_normal((h + _NOISE_PAD, w + _NOISE_PAD, 3)) * self.config.noise_sigma
+            bank = np.clip(np.rint(noise + 128.0), 0, 255).astype(np.uint8)
+            self._noise[cam] = bank
+        return bank
+
+    def _render_camera(self, cam: int, pose: BoardPose | None, scene: Scene | None,
+                       rng: np.random.Generator) -> np.ndarray:
+        s = self.config.supersample
+        w, h = self.config.image_size
+        bg, zb, small = self._background(cam, scene)
+        out = small.copy()
+        if pose is not None:
+            plane = self._board_plane(pose)
+            box = self._bbox(cam, plane)
+            if box is not None:
+                # work only on the board's box, aligned to whole pixels
+                x0, y0 = box[0] // s * s, box[1] // s * s
+                x1, y1 = min(w * s, -(-box[2] // s) * s), min(h * s, -(-box[3] // s) * s)
+                crop = bg[y0:y1, x0:x1].copy()
+                zcrop = zb[y0:y1, x0:x1].copy() if scene is not None else None
+                tex, texel = _board_texture(*self.config.board.pattern_size,
+                                            float(self.config.board.square_mm))
+                self._draw_plane(cam, plane, tex, texel, crop, zcrop, box0=(x0, y0))
+                part = crop if s == 1 else cv2.resize(crop, ((x1 - x0) // s, (y1 - y0) // s),
+                                                      interpolation=cv2.INTER_AREA)
+                out[y0 // s:y1 // s, x0 // s:x1 // s] = part
+        gain = 1.0 if cam == 0 else float(self.config.gain_right)
+        if self.config.noise_sigma > 0:
+            dx, dy = (int(v) for v in rng.integers(0, _NOISE_PAD + 1, 2))
+            noise = self._noise_bank(cam)[dy:dy + h, dx:dx + w]
+            return cv2.addWeighted(out, gain, noise, 1.0, -128.0, dtype=cv2.CV_8U)
+        return cv2.convertScaleAbs(out, alpha=gain)
+
+    def _render(self, pose: BoardPose | None, scene: Scene | None, rng) -> tuple[np.ndarray, np.ndarray]:
+        rng = rng if rng is not None else np.random.default_rng()
+        return self._render_camera(0, pose, scene, rng), self._render_camera(1, pose, scene, rng)
+
+    def render_board_pair(self, pose: BoardPose, rng=None, scene: Scene | None = None
+                          ) -> tuple[np.ndarray, np.ndarray]:
+        """Left and right BGR uint8 (h, w, 3) images of the board at `pose` (optionally in front
+        of a scene)."""
+        return self._render(pose, scene, rng)
+
+    def calibration_set(self, n_pairs: int, seed: int | None = None
+                        ) -> list[tuple[np.ndarray, np.ndarray]]:
+        """`n_pairs` rendered board pairs at varied poses (deterministic for the rig's seed)."""
+        rng = np.random.default_rng(self.seed * 104729 + 5 if seed is None else seed)
+        return [self.render_board_pair(p, rng) for p in self.board_poses(n_pairs, seed)]
+
+    def render_scene(self, scene: Scene, rng=None) -> tuple[np.ndarray, np.ndarray]:
+        """Left and right BGR uint8 images of a scene."""
+        return self._render(None, scene, rng)
+
+    # ---- ground truth for the pipeline --------------------------------------------------
+    def true_calibration(self, alpha: float = 0.0) -> StereoCalibration:
+        """The calibration a perfect calibration would find (Bouguet rectification)."""
+        t = self.truth
+        size = tuple(int(v) for v in t.image_size)
+        R1, R2, P1, P2, Q, _, _ = cv2.stereoRectify(t.M1, t.D1, t.M2, t.D2, size, t.R, t.T,
+                                                    flags=cv2.CALIB_ZERO_DISPARITY, alpha=alpha)
+        tx = t.T.reshape(3)
+        Tx = np.array([[0, -tx[2], tx[1]], [tx[2], 0, -tx[0]], [-tx[1], tx[0], 0]], np.float64)
+        E = Tx @ t.R
+        F = np.linalg.inv(t.M2).T @ E @ np.linalg.inv(t.M1)
+        F = F / F[2, 2]
+        return StereoCalibration(size, t.M1.copy(), t.D1.copy(), t.M2.copy(), t.D2.copy(),
+                                 t.R.copy(), t.T.copy(), E, F, R1, R2, P1, P2, Q, board=t.board,
+                                 rms_left=0.0, rms_right=0.0, rms_stereo=0.0,
+                                 epipolar_error_px=0.0, method="bouguet", alpha=float(alpha))
+
+    def true_point_rectified(self, calib: StereoCalibration, scene: Scene, x: float, y: float
+                             ) -> np.ndarray | None:
+        """True (X, Y, Z) mm in the left rectified frame of `calib` seen at rectified pixel
+        (x, y), or None if the ray hits nothing."""
+        ray_rect = np.linalg.inv(np.asarray(calib.P1, np.float64)[:, :3]) @ np.array([x, y, 1.0])
+        R1 = np.asarray(calib.R1, np.float64)
+        ray_left = R1.T @ ray_rect
+        ray_left /= np.linalg.norm(ray_left)
+        t = scene.depth_along_ray(np.zeros(3), ray_left)
+        if t is None:
+            return None
+        return R1 @ (t * ray_left)

@@ -1,0 +1,66 @@
+"""Textures of the simulated world (cached): the printed chessboard and the multi-scale noise
+of object surfaces, so that the matcher finds detail at every distance."""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import cv2
+import numpy as np
+
+# grey levels of the printed board (not 0/255, so that noise does not clip)
+_BLACK = 28.0
+_WHITE = 225.0
+_TEXELS_PER_SQUARE = 96  # board texture resolution: 0.26 mm texels for 25 mm squares
+_TEXTURE_MAX_PX = 1536.0  # longest side of an object texture, texels
+# multi-scale noise octaves of object textures: (size in texels, amplitude)
+OCTAVES = ((1, 0.55), (2, 0.8), (4, 1.0), (8, 0.9), (16, 0.8), (48, 0.9), (160, 0.7))
+
+
+@functools.lru_cache(maxsize=16)
+def _texture(seed: int, width_mm: float, height_mm: float) -> tuple[np.ndarray, float]:
+    """A rich colour texture (uint8 HxWx3) for an object, and its texel size in mm.
+
+    Multi-scale noise (octaves of smoothly upsampled random images) so that there is detail for
+    the matcher at every distance: the texel follows the object's size, walls grow with distance.
+    """
+    texel = max(max(width_mm, height_mm) / _TEXTURE_MAX_PX, 0.35)
+    tw = max(8, int(math.ceil(width_mm / texel)) + 2)
+    th = max(8, int(math.ceil(height_mm / texel)) + 2)
+    rng = np.random.default_rng(seed)
+    acc = np.zeros((th, tw, 3), np.float32)
+    total = 0.0
+    for k, amp in OCTAVES:
+        sw, sh = max(2, tw // k), max(2, th // k)
+        small = rng.standard_normal((sh, sw, 3), dtype=np.float32)
+        small[..., 1:] = 0.6 * small[..., :1] + 0.4 * small[..., 1:]  # partly grey, partly colour
+        layer = small if k == 1 else cv2.resize(small, (tw, th), interpolation=cv2.INTER_CUBIC)
+        acc += amp * layer[:th, :tw]
+        total += amp * amp
+    acc *= 46.0 / math.sqrt(total)
+    acc += 125.0 + rng.uniform(-30.0, 30.0, 3).astype(np.float32)  # a tint per object
+    tex = np.empty((th, tw, 4), np.uint8)
+    tex[..., :3] = np.clip(acc, 10, 245)
+    tex[..., 3] = 255  # alpha: outside the texture remap gives 0, which masks the object
+    return tex, texel
+
+
+@functools.lru_cache(maxsize=8)
+def _board_texture(cols: int, rows: int, square_mm: float) -> tuple[np.ndarray, float]:
+    """The printed board (BGRA uint8) over its outline, and its texel size in mm.
+
+    Squares are exact in texels (TEXELS_PER_SQUARE each), the black corner square at (-1, -1)
+    as OpenCV expects, a white border of one square around them.
+    """
+    n = _TEXELS_PER_SQUARE
+    qa = (np.arange((cols + 3) * n) + 0.5) / n - 2.0  # texel centres in squares from corner 0
+    qb = (np.arange((rows + 3) * n) + 0.5) / n - 2.0
+    ia, ib = np.floor(qa).astype(int), np.floor(qb).astype(int)
+    in_a = (ia >= -1) & (ia < cols)
+    in_b = (ib >= -1) & (ib < rows)
+    black = in_b[:, None] & in_a[None, :] & (((ib[:, None] + ia[None, :]) & 1) == 0)
+    tex = np.empty((len(qb), len(qa), 4), np.uint8)
+    tex[..., :3] = np.where(black, np.uint8(_BLACK), np.uint8(_WHITE))[..., None]
+    tex[..., 3] = 255
+    return tex, square_mm / n

@@ -1,0 +1,68 @@
+"""The Live tab's frame processor without Qt: displayable views, no-match colour, scaling."""
+
+import cv2
+import numpy as np
+import pytest
+
+from stereo_gui.core.errors import CalibrationError
+from stereo_gui.core.matching import MatcherParams
+from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.pipeline.live import NO_MATCH_RGB, LiveOutput, LiveProcessor
+from stereo_gui.sources.base import StereoFrame
+
+W, H, SHIFT = 240, 160, 12  # px: an already rectified plane at constant disparity SHIFT
+
+
+def _frame(w=W, h=H, shift=SHIFT, seed=3) -> StereoFrame:
+    rng = np.random.default_rng(seed)
+    big = cv2.GaussianBlur(rng.random((h, w + shift)).astype(np.float32), (0, 0), 1.0)
+    big = cv2.normalize(big, None, 20, 235, cv2.NORM_MINMAX).astype(np.uint8)
+    left = cv2.cvtColor(np.ascontiguousarray(big[:, :w]), cv2.COLOR_GRAY2BGR)
+    right = cv2.cvtColor(np.ascontiguousarray(big[:, shift:shift + w]), cv2.COLOR_GRAY2BGR)
+    return StereoFrame(left, right, 0.0, 0.0, 0)
+
+
+def _processor() -> LiveProcessor:
+    calib = StereoCalibration.identity((W, H), 300.0, 100.0)
+    return LiveProcessor(calib, MatcherParams(num_disparities=32, block_size=5))
+
+
+def test_every_view_is_displayable_and_no_match_has_its_colour():
+    proc = _processor()
+    try:
+        out = proc(_frame())
+    finally:
+        proc.close()
+    assert isinstance(out, LiveOutput) and out.scale_note == ""
+    for key in ("left", "right", "raw", "closed", "wls"):
+        img = out.images[key]
+        assert img.dtype == np.uint8 and img.shape == (H, W, 3), key
+    r = out.result
+    assert np.nanmedian(r.final_px[r.valid]) == pytest.approx(SHIFT, abs=0.5)
+    invalid = ~r.valid
+    assert invalid.any(), "the left border cannot match: some pixels must be invalid"
+    assert (out.images["wls"][invalid] == NO_MATCH_RGB).all()
+    raw_invalid = np.isnan(r.disparity_px)
+    assert (out.images["raw"][raw_invalid] == NO_MATCH_RGB).all()
+
+
+def test_a_frame_of_another_size_scales_the_calibration_and_says_so():
+    proc = _processor()
+    try:
+        out = proc(_frame(w=W // 2, h=H // 2, shift=SHIFT // 2))
+        assert out.images["left"].shape == (H // 2, W // 2, 3)
+        assert "scaled" in out.scale_note and f"{W}x{H}" in out.scale_note
+        with pytest.raises(CalibrationError, match="aspect"):
+            proc(_frame(w=W, h=W))
+    finally:
+        proc.close()
+
+
+def test_new_parameters_apply_to_the_next_frame():
+    proc = _processor()
+    try:
+        assert proc(_frame()).result.params.block_size == 5
+        proc.set_params(MatcherParams(num_disparities=32, block_size=7))
+        assert proc(_frame()).result.params.block_size == 7
+    finally:
+        proc.close()

@@ -1,0 +1,181 @@
+"""The Calibration tab on a simulated calibration set: results, exclude + recalibrate, cancel."""
+
+from __future__ import annotations
+
+import pytest
+
+from stereo_gui.files.session import CaptureSession
+from stereo_gui.qt.tabs.calibration import CalibrationTab
+from stereo_gui.sources.sim import write_calibration_set
+
+N_PAIRS = 12
+
+
+@pytest.fixture(scope="module")
+def calib_set(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("calset")
+    return write_calibration_set(folder, n_pairs=N_PAIRS, seed=11)
+
+
+@pytest.fixture
+def session_folder(calib_set, tmp_path):
+    """A fresh copy, so that exclusions written by one test do not leak into another."""
+    import shutil
+
+    dst = tmp_path / "session"
+    shutil.copytree(calib_set, dst)
+    return dst
+
+
+@pytest.fixture
+def tab(make_tab):
+    return make_tab(CalibrationTab)
+
+
+def _calibrate(tab, qtbot, timeout=120000):
+    with qtbot.waitSignal(tab.calibrationFinished, timeout=timeout) as blocker:
+        assert tab.start_calibration()
+    qtbot.waitUntil(lambda: not tab.is_running(), timeout=30000)
+    return blocker.args[0]
+
+
+def test_calibrate_session_shows_results(tab, ctx, qtbot, session_folder):
+    tab.folder_edit.setText(str(session_folder))
+    run = _calibrate(tab, qtbot)
+    rep = run.result.report
+    assert rep.pairs_found == N_PAIRS
+    assert ctx.calibration is run.result.calibration
+    for lab in (tab.figures.rms_left_label, tab.figures.rms_right_label, tab.figures.rms_stereo_label, tab.figures.epipolar_label):
+        assert lab.text().endswith("px") or " px " in lab.text(), lab.text()
+    assert float(tab.figures.rms_stereo_label.text().split()[0]) < 1.0
+    assert "nominal 110.0 mm" in tab.figures.baseline_label.text()
+    assert "Mrekt" in tab.matrices_text.toPlainText()
+    assert "without rectification" in tab.matrices_text.toPlainText()
+    assert tab.chart.bar_count() == rep.pairs_used
+    assert f"{rep.pairs_used} used of {N_PAIRS}" in tab.figures.pairs_label.text()
+    assert tab.progress.value() == 100
+    # the first pair is shown rectified at once
+    assert tab.rect_view.shown == tab.chart.names[0]
+
+
+def test_click_exclude_and_recalibrate_changes_used_count(tab, qtbot, session_folder):
+    tab.folder_edit.setText(str(session_folder))
+    run = _calibrate(tab, qtbot)
+    used = run.result.report.pairs_used
+    name = tab.chart.names[2]
+    # a click in the middle of the third bar selects that pair
+    vb = tab.chart.plotItem.vb
+    tab.chart.resize(600, 300)
+    tab.chart.show()
+    qtbot.waitExposed(tab.chart)
+    from PySide6.QtCore import QPointF, Qt
+
+    pos = tab.chart.mapFromScene(vb.mapViewToScene(QPointF(2.0, 0.01)))
+    with qtbot.waitSignal(tab.chart.pairClicked, timeout=2000) as clicked:
+        qtbot.mouseClick(tab.chart.viewport(), Qt.MouseButton.LeftButton, pos=pos)
+    assert clicked.args == [name]
+    assert tab.rect_view.shown == name
+    assert tab.exclude_button.isEnabled()
+    tab.exclude_button.click()
+    assert CaptureSession.open(session_folder).pair(name).excluded
+    assert tab.exclude_button.text() == "Include pair again"
+    run2 = _calibrate(tab, qtbot)
+    assert run2.result.report.pairs_used == used - 1
+    assert name not in run2.result.report.used
+    assert tab.chart.bar_count() == used - 1
+    assert f"{name}: excluded by you" in tab.rejected_lines()
+    # the excluded pair stays selectable from the list, and can be included again
+    item = tab.rejected_list.findItems(f"{name}: excluded by you", Qt.MatchFlag.MatchExactly)[0]
+    tab.rejected_list.itemClicked.emit(item)
+    assert tab.selected_pair == name and tab.rect_view.shown == name
+    assert tab.exclude_button.text() == "Include pair again"
+    tab.exclude_button.click()
+    assert not CaptureSession.open(session_folder).pair(name).excluded
+    run3 = _calibrate(tab, qtbot)
+    assert run3.result.report.pairs_used == used
+
+
+def test_cancel_stops_calibration(tab, ctx, qtbot, session_folder):
+    tab.folder_edit.setText(str(session_folder))
+    finished = []
+    tab.calibrationFinished.connect(finished.append)
+    tab.start_calibration()
+    assert tab.cancel_button.isEnabled()
+    with qtbot.waitSignal(tab.worker.cancelled, timeout=60000):
+        tab.cancel_button.click()
+    qtbot.waitUntil(lambda: not tab.is_running(), timeout=30000)
+    assert finished == []
+    assert ctx.calibration is None
+    assert "cancelled" in tab.progress_label.text()
+    assert tab.calibrate_button.isEnabled() and not tab.cancel_button.isEnabled()
+
+
+def test_bad_folder_reports_error(tab, ctx, qtbot, tmp_path):
+    errors = []
+    ctx.errorOccurred.connect(errors.append)
+    tab.folder_edit.setText(str(tmp_path / "nope"))
+    assert not tab.start_calibration()
+    assert errors and "does not exist" in errors[0]
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    tab.folder_edit.setText(str(empty))
+    with qtbot.waitSignal(ctx.errorOccurred, timeout=20000) as blocker:
+        assert tab.start_calibration()
+    assert "pairs" in blocker.args[0] or "no" in blocker.args[0]
+    qtbot.waitUntil(lambda: not tab.is_running(), timeout=30000)
+    assert "failed" in tab.progress_label.text()
+
+
+def test_save_and_load_calibration_file(tab, ctx, qtbot, session_folder, tmp_path):
+    tab.folder_edit.setText(str(session_folder))
+    run = _calibrate(tab, qtbot)
+    assert "NOT SAVED" in tab.figures.source_label.text()
+    path = tmp_path / "calib.yaml"
+    assert tab.save_calibration(path) and path.exists()
+    assert ctx.calibration_path == path and "calib.yaml" in tab.figures.source_label.text()
+    # the file saved here is the one loaded at the next start, as from the File menu
+    assert ctx.settings.last_calibration == str(path.resolve())
+    ctx.set_calibration(None)
+    assert tab.figures.rms_stereo_label.text() == "—" and tab.chart.bar_count() == 0
+    assert tab.load_calibration(path)
+    assert ctx.calibration.rms_stereo == pytest.approx(run.result.calibration.rms_stereo)
+    assert tab.chart.bar_count() == len(run.result.calibration.per_pair)
+    errors = []
+    ctx.errorOccurred.connect(errors.append)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("not a calibration")
+    assert not tab.load_calibration(bad)
+    assert errors and "bad.yaml" in errors[0]
+
+
+def test_hartley_states_its_limits(tab, qtbot, session_folder):
+    tab.folder_edit.setText(str(session_folder))
+    tab.method_combo.setCurrentIndex(tab.method_combo.findData("hartley"))
+    run = _calibrate(tab, qtbot)
+    assert run.result.calibration.method == "hartley"
+    assert "no metric scale" in tab.figures.baseline_label.text()
+    assert "NOT in millimetres" in tab.figures.note_label.text()
+    assert "no metric scale" in tab.rect_view.title.text
+
+
+def test_shutdown_while_calibrating_joins_the_worker(tab, ctx, qtbot, session_folder):
+    tab.folder_edit.setText(str(session_folder))
+    assert tab.start_calibration()
+    worker = tab.worker
+    assert ctx.shutdown(2000)  # what closing the window does: cancel and join every worker
+    assert not worker.isRunning()
+    qtbot.waitUntil(lambda: not tab.is_running(), timeout=30000)
+
+
+def test_empty_error_chart_axis_reads_pair_without_an_si_prefix(qtbot):
+    from stereo_gui.qt.tabs.calibration import ErrorBarChart
+
+    chart = ErrorBarChart()
+    qtbot.addWidget(chart)
+    chart.show()
+    qtbot.waitExposed(chart)
+    chart.setXRange(0.0, 0.002)  # an empty plot's tiny range is what made pyqtgraph add a prefix
+    axis = chart.getPlotItem().getAxis("bottom")
+    axis.updateAutoSIPrefix()
+    label = axis.labelString()
+    assert "pair" in label and "x0.001" not in label and "(m" not in label

@@ -1,0 +1,213 @@
+"""The Capture tab on the simulated rig: freeze and save pairs, cancel, auto-capture, sessions."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from stereo_gui.core.board import BoardSpec
+from stereo_gui.files.session import CaptureSession
+from stereo_gui.qt.tabs.capture import CaptureTab, make_capture_processor
+from stereo_gui.sources.sim import SimSource, write_calibration_set
+
+
+@pytest.fixture
+def tab(make_tab):
+    return make_tab(CaptureTab)
+
+
+def _board_frames(n=40, seed=0):
+    """Processed frames of the simulated rig with the board in view of both cameras."""
+    src = SimSource(mode="board", paced=False, seed=seed, frames_per_move=6)
+    proc = make_capture_processor(BoardSpec())
+    out = []
+    try:
+        for _ in range(n):
+            f = src.read()
+            o = proc(f)
+            if o.detection.found:
+                out.append((o, f))
+            if len(out) >= 3:
+                break
+    finally:
+        src.close()
+    assert out, "the simulated rig never showed the board to both cameras"
+    return out
+
+
+def test_both_sides_found_freezes_and_save_writes_both_images(tab, tmp_path, qtbot):
+    tab.new_session(tmp_path / "session")
+    out, frame = _board_frames()[0]
+    tab.show_output(out, frame)
+    assert tab.state == "review"
+    assert tab.save_button.isEnabled() and tab.cancel_button.isEnabled()
+    assert "board found" in tab.view.titles[0].text and "board found" in tab.view.titles[1].text
+    with qtbot.waitSignal(tab.pairSaved, timeout=30000) as blocker:
+        tab.save_button.click()
+    name = blocker.args[0]
+    assert tab.state == "live"
+    session = CaptureSession.open(tmp_path / "session")
+    assert [p.name for p in session.pairs] == [name]
+    p = session.pairs[0]
+    left, right = cv2.imread(str(p.left)), cv2.imread(str(p.right))
+    assert np.array_equal(left, frame.left) and np.array_equal(right, frame.right)
+    assert tab.saved_names() == [name]
+    assert tab.coverage.bar_values()["X"] >= 0
+    assert "1 pairs kept" in tab.coverage.count_label.text()
+
+
+def test_cancel_discards_and_same_pose_does_not_freeze_again(tab, tmp_path):
+    tab.new_session(tmp_path / "s")
+    out, frame = _board_frames()[0]
+    tab.show_output(out, frame)
+    assert tab.state == "review"
+    tab.cancel_button.click()
+    assert tab.state == "live"
+    tab.show_output(out, frame)  # the board has not moved: no second freeze
+    assert tab.state == "live"
+    assert "new pose" in tab.prompt.text()
+    assert CaptureSession.open(tmp_path / "s").pairs == ()
+
+
+def test_choosing_a_session_during_review_drops_the_ask_for_one_note(tab, tmp_path):
+    """A pair frozen before any session says Save will ask for a folder; once the technician
+    chose one with New session..., the prompt must stop saying so."""
+    out, frame = _board_frames()[0]
+    tab.show_output(out, frame)
+    assert tab.state == "review" and "session folder first" in tab.prompt.text()
+    tab.new_session(tmp_path / "s")
+    assert tab.state == "review"
+    assert "Save this pair (S)" in tab.prompt.text()
+    assert "session folder first" not in tab.prompt.text()
+
+
+def test_only_one_side_sees_board(tab, tmp_path):
+    out, frame = _board_frames()[0]
+    from dataclasses import replace
+
+    half = replace(out, detection=replace(out.detection, right=None))
+    tab.show_output(half, frame)
+    assert tab.state == "live"
+    assert "no board" in tab.view.titles[1].text
+    assert "Only the left camera" in tab.prompt.text()
+
+
+def test_auto_capture_takes_steady_new_poses_only(tab, tmp_path, ctx):
+    tab.new_session(tmp_path / "auto")
+    tab.auto_check.setChecked(True)
+    assert ctx.settings.auto_capture is True
+    out, frame = _board_frames()[0]
+    for _ in range(6):  # the same view again and again: steady; taken once, then not new
+        tab.show_output(out, frame)
+    assert tab.state == "live"
+    assert len(CaptureSession.open(tmp_path / "auto").pairs) == 1
+    assert "already captured" in tab.prompt.text()
+
+
+def test_open_session_lists_pairs_with_coverage_and_delete(tab, tmp_path, qtbot):
+    (tmp_path / "set").mkdir()
+    folder = write_calibration_set(tmp_path / "set", n_pairs=4, seed=3)
+    tab.open_session(folder)
+    qtbot.waitUntil(lambda: not tab.scanning(), timeout=20000)
+    assert len(tab.saved_names()) == 4
+    assert tab.delete_button.isEnabled()  # once the pairs are listed, not only after a click
+    assert tab.pair_list.item(0).icon() is not None and not tab.pair_list.item(0).icon().isNull()
+    assert tab.coverage.left_map.covered_fraction() > 0
+    assert sum(tab.coverage.bar_values().values()) > 0
+    first = tab.saved_names()[0]
+    tab.show_saved_pair(first)
+    assert tab.state == "saved" and tab.live_button.isEnabled()
+    files = CaptureSession.open(folder).pair(first)
+    tab.delete_pair(first)
+    assert first not in tab.saved_names() and len(tab.saved_names()) == 3
+    assert not files.left.exists() and not files.right.exists()
+    assert tab.state == "live"
+
+
+def test_opening_a_session_with_an_unreadable_manifest_says_so(tab, ctx, tmp_path, qtbot):
+    """The technician is told that the board and exclusions of session.json were not read."""
+    (tmp_path / "set").mkdir()
+    folder = write_calibration_set(tmp_path / "set", n_pairs=2, seed=3)
+    (folder / "session.json").write_text('{"format_version": 1, "pairs": [')
+    errors = []
+    ctx.errorOccurred.connect(errors.append)
+    tab.open_session(folder)
+    qtbot.waitUntil(lambda: not tab.scanning(), timeout=20000)
+    assert len(tab.saved_names()) == 2
+    assert errors and "session.json is unreadable" in errors[0]
+
+
+def test_delete_pair_button_asks_before_removing_the_files(tab, tmp_path, qtbot, monkeypatch):
+    from PySide6.QtWidgets import QMessageBox
+
+    (tmp_path / "set").mkdir()
+    folder = write_calibration_set(tmp_path / "set", n_pairs=2, seed=3)
+    tab.open_session(folder)
+    qtbot.waitUntil(lambda: not tab.scanning(), timeout=20000)
+    first = tab.saved_names()[0]
+    files = CaptureSession.open(folder).pair(first)
+    tab.show_saved_pair(first)  # as a click on it in the list
+    assert tab.delete_button.isEnabled()
+    monkeypatch.setattr(QMessageBox, "question",
+                        lambda *a, **k: QMessageBox.StandardButton.No)
+    tab.delete_button.click()
+    assert files.left.exists() and first in tab.saved_names()
+    monkeypatch.setattr(QMessageBox, "question",
+                        lambda *a, **k: QMessageBox.StandardButton.Yes)
+    tab.delete_button.click()
+    assert not files.left.exists() and first not in tab.saved_names()
+
+
+def test_board_settings_are_persisted(tab, ctx):
+    tab.cols_spin.setValue(7)
+    tab.rows_spin.setValue(5)
+    tab.square_spin.setValue(30.0)
+    s = ctx.settings
+    assert (s.board_cols, s.board_rows, s.square_mm) == (7, 5, 30.0)
+    assert tab.board == BoardSpec(7, 5, 30.0)
+
+
+def test_live_through_frame_worker_freezes_on_board(tab, ctx, qtbot, tmp_path):
+    tab.new_session(tmp_path / "live")
+    ctx.frames.set_source(SimSource(mode="board", paced=False, frames_per_move=8))
+    tab.set_active(True)
+    qtbot.waitUntil(lambda: tab.state == "review", timeout=30000)
+    assert tab.frozen is not None and tab.frozen.detection.found
+    with qtbot.waitSignal(tab.pairSaved, timeout=30000):
+        tab.save_frozen()
+    assert len(CaptureSession.open(tmp_path / "live").pairs) == 1
+
+
+def test_keys_s_and_c_save_and_cancel(tab, tmp_path, qtbot):
+    from PySide6.QtCore import Qt
+
+    tab.new_session(tmp_path / "keys")
+    tab.show()
+    with qtbot.waitActive(tab):
+        tab.activateWindow()
+    tab.view.setFocus()
+    frames = _board_frames()
+    out, frame = frames[0]
+    tab.show_output(out, frame)
+    assert tab.state == "review"
+    qtbot.keyClick(tab, Qt.Key.Key_C)
+    qtbot.waitUntil(lambda: tab.state == "live", timeout=3000)  # a shortcut animates the click
+    tab._last_reviewed_pose = None  # as if the board had left the view in between
+    tab.show_output(out, frame)
+    assert tab.state == "review"
+    with qtbot.waitSignal(tab.pairSaved, timeout=30000):
+        qtbot.keyClick(tab, Qt.Key.Key_S)
+    assert len(CaptureSession.open(tmp_path / "keys").pairs) == 1
+
+
+def test_list_follows_exclusions_made_elsewhere(tab, tmp_path, qtbot):
+    (tmp_path / "ex").mkdir()
+    folder = write_calibration_set(tmp_path / "ex", n_pairs=3, seed=4)
+    tab.open_session(folder)
+    qtbot.waitUntil(lambda: not tab.scanning(), timeout=20000)
+    name = tab.saved_names()[1]
+    CaptureSession.open(folder).set_excluded(name, True)  # as the Calibration tab does
+    tab.set_active(True)
+    assert "(excluded)" in tab.pair_list.item(1).text()
+    assert "(excluded)" not in tab.pair_list.item(0).text()

@@ -1,0 +1,226 @@
+"""The Live tab on the simulated rig: views update, clicks measure known distances, parameters
+apply, no-calibration page, snapshot, ruler."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from PySide6.QtCore import Qt
+
+from stereo_gui.qt.tabs.live import TRUE_CALIBRATION_NOTE, LiveOutput
+
+
+def double_click(qtbot, widget, pos):
+    """What a platform sends for a double-click: press, release, double-click, release
+    (QTest.mouseDClick alone sends only the double-click event)."""
+    left = Qt.MouseButton.LeftButton
+    qtbot.mousePress(widget, left, pos=pos)
+    qtbot.mouseRelease(widget, left, pos=pos)
+    qtbot.mouseDClick(widget, left, pos=pos)
+    qtbot.mouseRelease(widget, left, pos=pos)
+
+
+def _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source):
+    scene, left, right = wall_pair
+    calib = sim_rig.true_calibration()
+    ctx.set_calibration(calib, None, note=TRUE_CALIBRATION_NOTE)
+    ctx.frames.set_source(array_source(left, right, fps=30))
+    with qtbot.waitSignal(live.frameShown, timeout=30000):
+        pass
+    return scene, calib
+
+
+def test_live_view_updates_on_the_sim_rig(qtbot, ctx, live, sim_rig):
+    from stereo_gui.sources.sim import SimSource
+
+    ctx.set_calibration(sim_rig.true_calibration())
+    assert live.stack.currentIndex() == 1
+    ctx.frames.set_source(SimSource(rig=sim_rig, mode="scene", fps=30))
+    qtbot.waitUntil(lambda: live.frames_shown >= 2, timeout=60000)
+    out = live._output
+    assert isinstance(out, LiveOutput)
+    for key in live.visible_views():
+        img = live.panels[key].item.image
+        assert img is not None and img.dtype == np.uint8
+        assert img.shape[:2] == (480, 640)
+    # the demo scene lies within the colour bar's range, so the bar carries distance ticks
+    ticks = live.panels["wls"].color_bar.getAxis("right")._tickLevels
+    assert ticks and any(label.endswith("m") for _pos, label in ticks[0])
+
+
+def test_double_click_reports_a_known_distance_within_1_percent(
+        qtbot, ctx, live, sim_rig, wall_pair, array_source):
+    scene, calib = _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
+    x, y = 300.0, 250.0
+    panel = live.panels["wls"]
+    pos = panel.widget_pos_of_pixel(x, y)
+    with qtbot.waitSignal(live.measured, timeout=30000) as sig:
+        double_click(qtbot, panel.viewport(), pos)
+    m = sig.args[0]
+    assert m.valid, m.reason
+    assert abs(m.x - x) < 1.5 and abs(m.y - y) < 1.5  # the click landed where it was aimed
+    truth = sim_rig.true_point_rectified(calib, scene, m.x, m.y)
+    assert truth is not None
+    assert m.Z_mm == pytest.approx(truth[2], rel=0.01)
+    # logged for the Measurements tab, a marker on every view that shares the left's pixels
+    assert len(ctx.measurements) == 1
+    rec = ctx.measurements[0]
+    assert rec.Z_mm == pytest.approx(m.Z_mm) and rec.valid
+    assert rec.calibration_file == TRUE_CALIBRATION_NOTE
+    assert panel.marker_count() == 1 and live.panels["raw"].marker_count() == 1
+    live.clear_markers()
+    assert panel.marker_count() == 0
+
+
+def test_invalid_point_says_why(qtbot, ctx, live, sim_rig, wall_pair, array_source):
+    _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
+    with qtbot.waitSignal(live.measured, timeout=30000) as sig:
+        live.measure_at(-5.0, 10.0)
+    m = sig.args[0]
+    assert not m.valid and m.reason == "outside the image"
+    assert not ctx.measurements[-1].valid and ctx.measurements[-1].reason == "outside the image"
+
+
+def test_ruler_measures_3d_distance_between_two_points(
+        qtbot, ctx, live, sim_rig, wall_pair, array_source):
+    scene, calib = _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
+    live.ruler_button.setChecked(True)
+    a, b = (200.0, 240.0), (440.0, 240.0)
+    for x, y in (a, b):
+        with qtbot.waitSignal(live.measured, timeout=30000):
+            live.measure_at(x, y)
+    ta = sim_rig.true_point_rectified(calib, scene, *a)
+    tb = sim_rig.true_point_rectified(calib, scene, *b)
+    assert live.last_ruler_mm == pytest.approx(float(np.linalg.norm(ta - tb)), rel=0.02)
+
+
+def test_hover_readout_shows_distance_and_validity(qtbot, ctx, live, sim_rig, wall_pair,
+                                                   array_source):
+    _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
+    text = live.readout_text("wls", 320, 240)
+    assert "disparity" in text and "distance" in text and "valid" in text
+    assert "m" in text.split("distance")[1]
+    assert "outside" in live.readout_text("wls", 5000, 10)
+
+
+def test_parameter_change_applies_to_next_frame(qtbot, ctx, live, sim_rig, wall_pair,
+                                                array_source):
+    _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
+    before = live._output.result.params.closing_kernel
+    new = 5 if before != 5 else 7
+    live.params_panel.closing.setValue(new)
+    qtbot.waitUntil(lambda: live._output.result.params.closing_kernel == new, timeout=30000)
+    # and switching the WLS filter off shows the closed map in the colour view
+    live.params_panel.wls.setChecked(False)
+    qtbot.waitUntil(lambda: live._output.result.wls_px is None, timeout=30000)
+    assert "no WLS" in live.panels["wls"].title.text
+
+
+def test_preset_chooser_and_save_as(qtbot, ctx, live):
+    panel = live.params_panel
+    assert {"seed", "live", "quality"} <= {panel.preset.itemText(i)
+                                           for i in range(panel.preset.count())}
+    got = []
+    panel.paramsChanged.connect(got.append)
+    assert panel.apply_preset("seed")
+    assert got[-1].block_size == 3 and got[-1].num_disparities == 128 and got[-1].wls_lambda == 80000
+    assert panel.block_size.value() == 3
+    assert panel.save_as("my bench")
+    assert panel.preset.findText("my bench") >= 0
+    assert not panel.save_as("live")  # built-in names are refused with a message
+    assert panel.error_label.isVisibleTo(panel)
+
+
+def test_without_calibration_the_tab_says_so_and_offers_the_true_one(
+        qtbot, ctx, live, sim_rig):
+    from stereo_gui.sources.sim import SimSource
+
+    assert live.stack.currentIndex() == 0
+    assert not live.no_calib.use_true.isVisibleTo(live)  # no simulated rig yet
+    calibrate = []
+    live.calibrateRequested.connect(lambda: calibrate.append(1))
+    qtbot.mouseClick(live.no_calib.calibrate, Qt.MouseButton.LeftButton)
+    assert calibrate
+    ctx.frames.set_source(SimSource(rig=sim_rig, mode="scene", fps=30))
+    assert live.no_calib.use_true.isVisibleTo(live)
+    qtbot.mouseClick(live.no_calib.use_true, Qt.MouseButton.LeftButton)
+    assert ctx.calibration is not None and ctx.calibration_note == TRUE_CALIBRATION_NOTE
+    assert live.stack.currentIndex() == 1 and live.calib_note.isVisibleTo(live)
+
+
+def test_snapshot_writes_each_shown_view_as_png(qtbot, ctx, live, sim_rig, wall_pair,
+                                                array_source, tmp_path):
+    import cv2
+
+    _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
+    live.set_visible_views(("left", "wls"))
+    with qtbot.waitSignal(ctx.jobs.finished, timeout=30000):
+        live.snapshot(tmp_path)
+    files = sorted(p.name for p in tmp_path.iterdir())
+    assert len(files) == 2 and files[0].endswith("-left.png") and files[1].endswith("-wls.png")
+    img = cv2.imread(str(tmp_path / files[1]))
+    assert img.shape == (480, 640, 3)
+
+
+def test_pause_freezes_and_resume_continues(qtbot, ctx, live, sim_rig, wall_pair, array_source):
+    _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
+    live.set_paused(True)
+    assert ctx.frames.paused and live.pause_button.text() == "Resume"
+    live.set_paused(False)
+    n = live.frames_shown
+    qtbot.waitUntil(lambda: live.frames_shown > n, timeout=30000)
+
+
+def test_format_distance():
+    from stereo_gui.qt.tabs.live import format_distance
+
+    assert format_distance(1503.2) == "1.503 m"
+    assert format_distance(850.04) == "850.0 mm"
+    assert format_distance(math.nan) == "–"
+
+
+def test_readings_use_the_active_fit(qtbot, ctx, live, sim_rig, wall_pair, array_source):
+    from stereo_gui.core.regression import fit_inverse
+
+    _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
+    calib = ctx.calibration
+    fb = calib.focal_px * calib.rectified_baseline_mm
+    # a deliberately wrong model (every distance 10 % longer) shows that readings follow it
+    d = np.array([20.0, 40.0, 60.0, 80.0, 100.0])
+    fit = fit_inverse(list(zip(d, 1.1 * fb / d)))
+    ctx.set_active_fit(fit)
+    with qtbot.waitSignal(live.measured, timeout=30000) as sig:
+        live.measure_at(320.0, 240.0)
+    m = sig.args[0]
+    assert m.valid and m.method == fit.model
+    assert m.Z_mm == pytest.approx(1.1 * 1500.0, rel=0.02)
+    assert ctx.measurements[-1].method == fit.model
+    assert "fit" in live.readout_text("wls", 320, 240)
+
+
+def test_every_view_shows_the_whole_image_filling_its_panel(
+        qtbot, ctx, live, sim_rig, wall_pair, array_source):
+    """The views (the colour one narrower, beside its colour bar) each fit the image after the
+    layout changes, and Fit brings a zoomed view back."""
+    live.resize(1100, 800)
+    live.show()
+    _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
+    live.view_checks["right"].setChecked(True)
+    live.view_checks["closed"].setChecked(False)
+    live.resize(1200, 700)
+    qtbot.waitUntil(lambda: live.frames_shown >= 3, timeout=30000)
+
+    def fitted(panel) -> bool:
+        (x0, x1), (y0, y1) = panel.view.viewRange()
+        whole = x0 <= 0.5 and x1 >= 639.5 and y0 <= 0.5 and y1 >= 479.5
+        return whole and min((x1 - x0) / 640, (y1 - y0) / 480) < 1.02
+
+    for key in live.visible_views():
+        qtbot.waitUntil(lambda k=key: fitted(live.panels[k]), timeout=30000)
+    live.panels["wls"].view.scaleBy((0.5, 0.5))  # the mouse wheel
+    assert not fitted(live.panels["wls"])
+    assert fitted(live.panels["left"])  # zooming one view leaves the others alone
+    live.fit_button.click()
+    assert all(fitted(live.panels[k]) for k in live.visible_views())

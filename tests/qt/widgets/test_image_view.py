@@ -1,0 +1,102 @@
+"""Image panels: pixel mapping, double-click and hover signals, markers, distance colour bar."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from PySide6.QtCore import Qt
+
+from stereo_gui.core.matching import ColorScale
+from stereo_gui.qt.widgets.image_view import ImagePanel, colormap_lut, distance_ticks
+
+
+@pytest.fixture
+def panel(qtbot):
+    p = ImagePanel("wls", "test view", color_bar=True)
+    qtbot.addWidget(p)
+    p.resize(700, 560)
+    p.show()
+    p.set_image(np.zeros((48, 64), np.uint8))
+    return p
+
+
+def test_double_click_reports_image_pixel(qtbot, panel):
+    pos = panel.widget_pos_of_pixel(40, 10)
+    left = Qt.MouseButton.LeftButton
+    with qtbot.waitSignal(panel.doubleClicked, timeout=30000) as sig:
+        qtbot.mousePress(panel.viewport(), left, pos=pos)
+        qtbot.mouseRelease(panel.viewport(), left, pos=pos)
+        qtbot.mouseDClick(panel.viewport(), left, pos=pos)
+        qtbot.mouseRelease(panel.viewport(), left, pos=pos)
+    key, x, y = sig.args
+    assert key == "wls"
+    assert abs(x - 40) <= 0.5 and abs(y - 10) <= 0.5
+
+
+def test_hover_reports_pixel_and_exit(qtbot, panel):
+    got = []
+    panel.hovered.connect(lambda k, x, y: got.append((x, y)))
+    qtbot.mouseMove(panel.viewport(), panel.widget_pos_of_pixel(20, 30))
+    qtbot.waitUntil(lambda: bool(got), timeout=30000)
+    x, y = got[-1]
+    assert abs(x - 20) <= 0.5 and abs(y - 30) <= 0.5
+
+
+def test_images_are_shown_as_they_are_and_fit_once(panel):
+    img = np.full((48, 64, 3), 7, np.uint8)
+    panel.set_image(img)
+    assert panel.item.levels is None  # no auto-levels, no per-pixel rescaling
+    panel.item.render()
+    assert panel.item.qimage.pixelColor(3, 3).red() == 7
+    with pytest.raises(TypeError):
+        panel.set_image(img.astype(np.float32))
+    panel.view.setRange(xRange=(0, 10), yRange=(0, 10), padding=0)
+    panel.set_image(img)  # same size: the user's zoom stays
+    assert panel.view.viewRange()[0][1] == pytest.approx(10, abs=2)
+    panel.set_image(np.zeros((96, 128), np.uint8))  # new size: fit again
+    assert panel.image_size() == (128, 96)
+
+
+def test_markers_stay_until_cleared(panel):
+    panel.add_marker(10, 10, "1.503 m")
+    panel.add_marker(20, 10, "B", line_to=(10, 10))
+    assert panel.marker_count() == 2
+    panel.set_image(np.zeros((48, 64), np.uint8))
+    assert panel.marker_count() == 2
+    panel.clear_markers()
+    assert panel.marker_count() == 0
+
+
+def test_distance_ticks_are_round_and_in_order():
+    fb = 700.0 * 110.0  # f px * B mm
+    for scale in (ColorScale("distance", 3000.0, 500.0, fb),
+                  ColorScale("disparity", fb / 3000.0, fb / 500.0, fb)):  # 0.5 .. 3 m
+        ticks = distance_ticks(scale)
+        labels = [t[1] for t in ticks]
+        assert "3 m" in labels and "1 m" in labels and "0.5 m" in labels
+        levels = [t[0] for t in ticks]
+        assert levels == sorted(levels) and levels[0] == 0.0 and levels[-1] == 255.0
+        # 1 m sits where the colour view puts a pixel at 1 m
+        one = dict((s, t) for t, s in ticks)["1 m"]
+        assert one == pytest.approx(float(scale.level(np.float32(fb / 1000.0))), abs=1e-3)
+    # linear in distance: 1 m is 1/5 of the way from 0.5 m (top) to 3 m (bottom)
+    one = dict((s, t) for t, s in distance_ticks(ColorScale("distance", 3000.0, 500.0, fb)))
+    assert one["1 m"] == pytest.approx(255 * 2000 / 2500, abs=1e-3)
+    # near range only: millimetres
+    assert all(s.endswith("mm") for _t, s in distance_ticks(ColorScale("distance", 900, 300, fb)))
+    # a min-max range down to zero disparity reaches infinity
+    assert distance_ticks(ColorScale("disparity", 0.0, fb / 500.0, fb))[0][1] == "∞"
+    assert distance_ticks(ColorScale("disparity", 5.0, 5.0, fb)) == []
+
+
+def test_color_bar_matches_opencv_colormap(panel):
+    import cv2
+
+    lut = colormap_lut(cv2.COLORMAP_OCEAN)
+    ref = cv2.applyColorMap(np.array([[200]], np.uint8), cv2.COLORMAP_OCEAN)[0, 0, ::-1]
+    assert tuple(lut[200]) == tuple(ref)
+    panel.color_bar.set_scale(cv2.COLORMAP_OCEAN, ColorScale("disparity", 20.0, 150.0, 77000.0))
+    ticks = panel.color_bar.getAxis("right")._tickLevels[0]
+    assert ticks and not any(math.isnan(t) for t, _s in ticks)

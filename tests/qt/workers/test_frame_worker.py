@@ -1,0 +1,153 @@
+"""The frame worker: newest frame wins, processor swaps apply, errors reach the user, stop joins."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+
+from stereo_gui.qt.workers.frame_worker import FrameWorker, ProcessedFrame
+
+
+@pytest.fixture
+def worker(qtbot):
+    w = FrameWorker()
+    yield w
+    assert w.stop(2000)
+    assert not w.is_running()
+
+
+def test_delivers_processed_frames_off_the_ui_thread(qtbot, worker, array_source):
+    ui_thread = threading.get_ident()
+    seen_threads = []
+
+    def proc(frame):
+        seen_threads.append(threading.get_ident())
+        return float(frame.left.mean())
+
+    worker.set_processor(proc)
+    src = array_source()
+    # armed before the source starts: frameReady comes once until latest() is taken
+    with qtbot.waitSignal(worker.frameReady, timeout=30000):
+        worker.set_source(src)
+    pf = worker.latest()
+    assert isinstance(pf, ProcessedFrame)
+    assert pf.output == pytest.approx(float(src.left.mean()))
+    assert seen_threads and ui_thread not in seen_threads
+    qtbot.waitUntil(lambda: worker.fps_camera > 0 and worker.fps_processing > 0, timeout=30000)
+
+
+def test_frame_ready_is_coalesced_until_latest_is_taken(qtbot, worker, array_source):
+    count = []
+    worker.frameReady.connect(lambda: count.append(1))
+    worker.set_source(array_source(fps=500))
+    qtbot.waitUntil(lambda: worker.frames_processed >= 20, timeout=30000)
+    qtbot.wait(1)  # deliver queued signals
+    # nobody called latest(): only one notification however many frames were processed
+    assert len(count) == 1
+    first = worker.latest()
+    qtbot.waitUntil(lambda: len(count) == 2, timeout=30000)
+    second = worker.latest()
+    assert second.frame.index > first.frame.index
+
+
+def test_processor_change_applies_to_next_frame(qtbot, worker, array_source):
+    worker.set_processor(lambda f: "a")
+    worker.set_source(array_source())
+    qtbot.waitUntil(lambda: worker.latest() is not None and worker.latest().output == "a",
+                    timeout=30000)
+    worker.set_processor(lambda f: "b")
+    qtbot.waitUntil(lambda: (worker.latest() is not None and worker.latest().output == "b"),
+                    timeout=30000)
+
+
+def test_processor_error_is_reported_once_and_loop_goes_on(qtbot, worker, array_source):
+    errors = []
+    worker.errorOccurred.connect(errors.append)
+
+    def bad(frame):
+        raise ValueError("broken processor")
+
+    worker.set_processor(bad)
+    worker.set_source(array_source())
+    qtbot.waitUntil(lambda: len(errors) >= 1, timeout=30000)
+    assert "broken processor" in errors[0]
+    worker.set_processor(lambda f: 1)
+    qtbot.waitUntil(lambda: worker.latest() is not None and worker.latest().output == 1,
+                    timeout=30000)
+    assert len(errors) == 1
+
+
+def test_failing_source_is_reported_and_closed(qtbot, worker, array_source):
+    src = array_source()
+    src.close()  # read() now raises SourceError
+    with qtbot.waitSignal(worker.errorOccurred, timeout=30000) as sig:
+        worker.set_source(src)
+    assert "closed" in sig.args[0]
+
+
+def test_new_source_closes_the_old_one(qtbot, worker, array_source):
+    a, b = array_source(), array_source(left=np.zeros((48, 64, 3), np.uint8))
+    worker.set_processor(lambda f: int(f.left.max()))
+    worker.set_source(a)
+    qtbot.waitUntil(lambda: worker.latest() is not None, timeout=30000)
+    worker.set_source(b)
+    qtbot.waitUntil(lambda: a.closed.is_set(), timeout=30000)
+    qtbot.waitUntil(lambda: worker.latest() is not None and worker.latest().output == 0,
+                    timeout=30000)
+    worker.stop()
+    assert b.closed.is_set()
+
+
+def test_pause_stops_processing(qtbot, worker, array_source):
+    worker.set_source(array_source())
+    qtbot.waitUntil(lambda: worker.frames_processed > 2, timeout=30000)
+    worker.pause()
+    assert worker.paused
+    n = worker.frames_processed
+    # after pausing, at most the frame being processed at that moment is added
+    qtbot.wait(50)
+    assert worker.frames_processed <= n + 1
+    worker.resume()
+    qtbot.waitUntil(lambda: worker.frames_processed > n + 2, timeout=30000)
+
+
+def test_stop_joins_quickly_and_can_restart(qtbot, worker, array_source):
+    worker.set_source(array_source(fps=30))
+    qtbot.waitUntil(lambda: worker.frames_processed > 0, timeout=30000)
+    assert worker.stop(2000)
+    assert not worker.is_running()
+    worker.set_source(array_source())
+    qtbot.waitUntil(lambda: worker.frames_processed > 2, timeout=30000)
+
+
+def test_exit_while_a_read_blocks_does_not_abort(tmp_path):
+    """A source stuck in read() past the stop timeout must not crash the process at exit
+    (a QThread destroyed while running aborts it; our frame threads are daemon threads)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import threading, time\n"
+        "from PySide6.QtWidgets import QApplication\n"
+        "from stereo_gui.qt.workers.frame_worker import FrameWorker\n"
+        "app = QApplication([])\n"
+        "entered = threading.Event()\n"
+        "class Stuck:\n"
+        "    name = 'stuck camera'; nominal_fps = 30.0\n"
+        "    def read(self):\n"
+        "        entered.set(); time.sleep(30)\n"
+        "    def close(self): pass\n"
+        "w = FrameWorker()\n"
+        "w.set_source(Stuck())\n"
+        "assert entered.wait(10)\n"
+        "assert w.stop(200) is False\n"
+        "print('stopped-late')\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=60, env={**__import__("os").environ,
+                                           "QT_QPA_PLATFORM": "offscreen"})
+    assert proc.returncode == 0, proc.stderr
+    assert "stopped-late" in proc.stdout
+    assert "QThread: Destroyed" not in proc.stderr and "Abort" not in proc.stderr

@@ -1,0 +1,65 @@
+"""The simulated rig as a live source: frames, modes, pacing."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from stereo_gui.core.errors import InputError, SourceError
+from stereo_gui.sources.base import FrameSource
+from stereo_gui.sources.sim import (
+    RigConfig,
+    SimFrameTruth,
+    SimRig,
+    SimSource,
+)
+
+
+def test_sim_source_frames():
+    src = SimSource(SimRig(RigConfig(supersample=2)), mode="mixed", paced=False, seed=1)
+    assert isinstance(src, FrameSource)
+    assert src.name == "Simulated rig" and src.nominal_fps == 30.0
+    frames = [src.read() for _ in range(4)]
+    assert [f.index for f in frames] == [0, 1, 2, 3]
+    f = frames[-1]
+    assert f.left.shape == (480, 640, 3) and f.right.shape == (480, 640, 3)
+    assert isinstance(f.truth, SimFrameTruth) and f.truth.pose is not None
+    assert f.truth.scene is not None and f.truth.truth.baseline_mm == pytest.approx(110.0)
+    # the board moves smoothly: consecutive poses differ by little
+    step = np.linalg.norm(frames[2].truth.pose.t - frames[1].truth.pose.t)
+    assert 0 < step < 60
+    src.close()
+    src.close()
+    with pytest.raises(SourceError):
+        src.read()
+
+
+def test_sim_source_modes_and_bad_arguments():
+    rig = SimRig(RigConfig(supersample=1))
+    scene_only = SimSource(rig, mode="scene", paced=False).read()
+    assert scene_only.truth.pose is None and scene_only.truth.scene is not None
+    board_only = SimSource(rig, mode="board", paced=False).read()
+    assert board_only.truth.scene is None and board_only.truth.pose is not None
+    with pytest.raises(InputError):
+        SimSource(rig, mode="cinema")
+    with pytest.raises(InputError):
+        SimSource(rig, fps=0)
+
+
+def test_sim_source_paces_frames(monkeypatch):
+    """paced=True waits for the next frame time (a fake clock: tests never sleep)."""
+    import stereo_gui.sources.sim.live as live
+
+    clock = {"t": 100.0}
+    slept = []
+    monkeypatch.setattr(live.time, "monotonic", lambda: clock["t"])
+
+    def fake_sleep(dt):
+        slept.append(dt)
+        clock["t"] += dt
+
+    monkeypatch.setattr(live.time, "sleep", fake_sleep)
+    src = SimSource(SimRig(RigConfig(supersample=1)), mode="scene", fps=10.0, paced=True)
+    times = [src.read().t_left for _ in range(3)]
+    assert times == pytest.approx([100.0, 100.1, 100.2])
+    assert sum(slept) == pytest.approx(0.2)
