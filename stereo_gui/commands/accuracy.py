@@ -180,7 +180,8 @@ class WallTruth:
         return float(p_rect[2]), seen
 
 
-def _report_reading(result, x: float, y: float, calib: StereoCalibration) -> tuple[float, str | None]:
+def _report_reading(result, x: float, y: float, calib: StereoCalibration
+                    ) -> tuple[float, str | None]:
     """The report's measurement done with plain OpenCV: the mean raw disparity of the 3x3 patch
     around the pixel (its code), over the pixels SGBM matched (it averaged the invalid marker
     too, which no honest comparison keeps), triangulated through Q."""

@@ -574,8 +574,9 @@ def compute_padded(matcher, reference: np.ndarray, other: np.ndarray, pad: int, 
         return matcher.compute(reference, other)
     w = reference.shape[1]
     left, right = (pad, 0) if side == "left" else (0, pad)
-    d = matcher.compute(cv2.copyMakeBorder(reference, 0, 0, left, right, cv2.BORDER_CONSTANT, value=0),
-                        cv2.copyMakeBorder(other, 0, 0, left, right, cv2.BORDER_CONSTANT, value=0))
+    border = (0, 0, left, right, cv2.BORDER_CONSTANT)
+    d = matcher.compute(cv2.copyMakeBorder(reference, *border, value=0),
+                        cv2.copyMakeBorder(other, *border, value=0))
     return np.ascontiguousarray(d[:, left:left + w])
 
 

@@ -30,8 +30,8 @@ MAD_TO_SIGMA = 1.4826  # median absolute deviation -> standard deviation for nor
 
 NOT_SEEN = "not seen by the right camera"
 NOT_SEARCHED = "not searched (the report's dead band at the left edge)"
-REASONS = ("no valid pixels", NOT_SEEN, NOT_SEARCHED, "no texture", "too near", "too far", "outside the image",
-           "out of disparity range", "no metric scale")
+REASONS = ("no valid pixels", NOT_SEEN, NOT_SEARCHED, "no texture", "too near", "too far",
+           "outside the image", "out of disparity range", "no metric scale")
 Z95 = 1.959964  # two-sided 95 % quantile of the normal distribution
 # floors of a reading's disparity uncertainty (1 sigma, px), measured on the simulated rig
 # (scripts/bench_accuracy.py --calibrate-bound): what the refinement's own standard error

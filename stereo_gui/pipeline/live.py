@@ -13,13 +13,16 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from stereo_gui.core.matching import MatcherParams, PipelineResult, StereoPipeline
+from stereo_gui.core.matching import (NO_MATCH_BGR, NOT_SEEN_BGR, MatcherParams, PipelineResult,
+                                     StereoPipeline)
 from stereo_gui.sources.base import StereoFrame
 
 log = logging.getLogger(__name__)
 
-# invalid pixels get a colour of their own: black means "far" in the OCEAN map and gray views
-NO_MATCH_RGB = (110, 20, 20)
+# pixels without depth get colours of their own (black means "far" in OCEAN and the gray views),
+# the same in every view and in `disparity -o`: no match, and not seen by the right camera
+NO_MATCH_RGB = NO_MATCH_BGR[::-1]
+NOT_SEEN_RGB = NOT_SEEN_BGR[::-1]
 
 
 @dataclass(frozen=True, eq=False)
@@ -32,13 +35,17 @@ class LiveOutput:
     scale_note: str = ""  # says so when the calibration was scaled to the source's frame size
 
 
-def _gray_disparity(disp_px: np.ndarray, lo: float, hi: float) -> np.ndarray:
-    """Disparity (px, NaN invalid) as RGB uint8: gray, near bright; invalid NO_MATCH_RGB."""
+def _gray_disparity(disp_px: np.ndarray, lo: float, hi: float,
+                    not_seen: np.ndarray | None = None) -> np.ndarray:
+    """Disparity (px, NaN invalid) as RGB uint8: gray, near bright; invalid NO_MATCH_RGB, the
+    strip the right camera cannot see NOT_SEEN_RGB."""
     span = max(hi - lo, 1e-6)
     invalid = np.isnan(disp_px)
     gray = cv2.convertScaleAbs(disp_px, alpha=255.0 / span, beta=-lo * 255.0 / span)
     rgb = cv2.cvtColor(gray, cv2.COLOR_GRAY2RGB)
     rgb[invalid] = NO_MATCH_RGB
+    if not_seen is not None:
+        rgb[not_seen] = NOT_SEEN_RGB
     return rgb
 
 
@@ -88,11 +95,10 @@ class LiveProcessor:
         images = {
             "left": cv2.cvtColor(r.rectified_left, cv2.COLOR_BGR2RGB),
             "right": cv2.cvtColor(r.rectified_right, cv2.COLOR_BGR2RGB),
-            "raw": _gray_disparity(r.disparity_px, lo, hi),
-            "closed": _gray_disparity(r.closed_px, lo, hi),
-            "wls": cv2.cvtColor(r.color_bgr, cv2.COLOR_BGR2RGB),
+            "raw": _gray_disparity(r.disparity_px, lo, hi, r.not_seen),
+            "closed": _gray_disparity(r.closed_px, lo, hi, r.not_seen),
+            "wls": cv2.cvtColor(r.color_bgr, cv2.COLOR_BGR2RGB),  # (painted so by colorize)
         }
-        images["wls"][~r.valid] = NO_MATCH_RGB
         return LiveOutput(r, images, note)
 
     def close(self) -> None:

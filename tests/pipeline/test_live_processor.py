@@ -7,7 +7,7 @@ import pytest
 from stereo_gui.core.errors import CalibrationError
 from stereo_gui.core.matching import MatcherParams
 from stereo_gui.core.stereo_calibration import StereoCalibration
-from stereo_gui.pipeline.live import NO_MATCH_RGB, LiveOutput, LiveProcessor
+from stereo_gui.pipeline.live import NO_MATCH_RGB, NOT_SEEN_RGB, LiveOutput, LiveProcessor
 from stereo_gui.sources.base import StereoFrame
 
 W, H, SHIFT = 240, 160, 12  # px: an already rectified plane at constant disparity SHIFT
@@ -39,11 +39,15 @@ def test_every_view_is_displayable_and_no_match_has_its_colour():
         assert img.dtype == np.uint8 and img.shape == (H, W, 3), key
     r = out.result
     assert np.nanmedian(r.final_px[r.valid]) == pytest.approx(SHIFT, abs=0.5)
-    invalid = ~r.valid
-    assert invalid.any(), "the left border cannot match: some pixels must be invalid"
-    assert (out.images["wls"][invalid] == NO_MATCH_RGB).all()
-    raw_invalid = np.isnan(r.disparity_px)
-    assert (out.images["raw"][raw_invalid] == NO_MATCH_RGB).all()
+    # the strip at the left edge the right camera cannot see is grey, other invalid pixels
+    # dark red, in the colour view and the gray ones alike
+    assert r.not_seen is not None and r.not_seen[:, :SHIFT - 1].all()
+    invalid = ~r.valid & ~r.not_seen
+    for key, m in (("wls", r.final_px), ("raw", r.disparity_px), ("closed", r.closed_px)):
+        assert (out.images[key][r.not_seen] == NOT_SEEN_RGB).all(), key
+        no_match = np.isnan(m) & ~r.not_seen
+        assert (out.images[key][no_match] == NO_MATCH_RGB).all(), key
+    assert invalid.any()
 
 
 def test_a_frame_of_another_size_scales_the_calibration_and_says_so():

@@ -52,9 +52,11 @@ log = logging.getLogger(__name__)
 VIEWS: dict[str, str] = {
     "left": "Rectified left",
     "right": "Rectified right",
-    "raw": "Raw disparity (SGBM), bright = near, dark red = no match",
-    "closed": "After the closing filter, dark red = no match",
-    "wls": "WLS filtered, colour = distance, dark red = no match",
+    "raw": "Raw disparity (SGBM), bright = near, dark red = no match, grey = not seen by the "
+           "right camera",
+    "closed": "After the closing filter, dark red = no match, grey = not seen",
+    "wls": "WLS filtered (confident pixels), colour = distance, dark red = no match, "
+           "grey = not seen",
 }
 SHORT_NAMES = {"left": "Left", "right": "Right", "raw": "Raw", "closed": "Closed", "wls": "WLS"}
 DEFAULT_VIEWS = ("left", "raw", "closed", "wls")
@@ -296,7 +298,7 @@ class LiveTab(QWidget):
         wls = out.result.wls_px is not None
         self.panels["wls"].set_title(VIEWS["wls"] if wls else
                                      "Closed disparity (no WLS), colour = distance, "
-                                     "dark red = no match")
+                                     "dark red = no match, grey = not seen")
         if self._hover is not None:
             self._show_readout(*self._hover)
         if out.scale_note != self._scale_note:
