@@ -1,9 +1,12 @@
-"""`stereo-gui bench`: frames per second and per-stage milliseconds of the pipeline per preset.
+"""`stereo-gui bench`: the speed of a preset side by side with the report's own loop, or
+(`--accuracy`) the accuracy of the presets over the whole frame on the simulated rig.
 
-Runs on a given raw pair (--calib C LEFT RIGHT) or on the simulated rig's demo scene, the same
-pair over and over (what is measured is processing, not the source). `live` and `seed` always
-run, so their speed ratio is measured in the same run. Resident memory is reported at the start
-and end of each preset's run (it should stay flat).
+Speed runs on a given raw pair (--calib C LEFT RIGHT) or on the simulated rig's demo scene, the
+same pair over and over (what is measured is processing, not the source). Each preset is timed
+end to end as the Live tab runs it (rectify, match, filter, colour map, and the conversion of
+every view for display); the reference is the report's loop, its own code (core.report_loop),
+timed in the same run, so the ratio holds whatever else the machine is doing. Resident memory is
+reported at the start and end of each run (it should stay flat).
 """
 
 from __future__ import annotations
@@ -14,7 +17,8 @@ import os
 import time
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import StereoPipeline
+
+REFERENCE = "report"
 
 
 def rss_mb() -> float:
@@ -36,8 +40,30 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--frames", type=int, default=30, metavar="N",
                         help="frames per preset (default 30)")
     parser.add_argument("--preset", action="append", metavar="P",
-                        help="preset to time (repeatable; default live, seed, quality)")
+                        help="preset to time beside the report's loop (repeatable; default live)")
+    parser.add_argument("--size", metavar="WxH",
+                        help="simulated rig's frame size (default 640x480; without LEFT RIGHT)")
+    parser.add_argument("--accuracy", action="store_true",
+                        help="instead of speed: accuracy of the presets over a 9x7 grid of the "
+                        "whole frame on simulated walls at 0.5, 1, 2 and 3 m")
+    parser.add_argument("--calibration", choices=("true", "computed", "both"), default="both",
+                        help="with --accuracy: the rig's true calibration, one computed from 20 "
+                        "rendered board pairs, or both (default)")
+    parser.add_argument("--seed", type=int, default=None, metavar="S",
+                        help="with --accuracy: the simulated rig's seed (default: the benchmark's)")
     parser.add_argument("--json", action="store_true", help="print the results as JSON")
+
+
+def _size(text: str | None) -> tuple[int, int]:
+    if text is None:
+        return 640, 480
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise InputError(f"--size: expected WxH in pixels, e.g. 1280x720 (not {text!r})") from None
+    if w < 64 or h < 48 or w > 8192 or h > 8192:
+        raise InputError(f"--size {w}x{h}: between 64x48 and 8192x8192")
+    return w, h
 
 
 def _input(args):
@@ -45,35 +71,36 @@ def _input(args):
         if not (args.calib and args.left and args.right):
             raise InputError("bench needs --calib C together with LEFT and RIGHT (or none of them "
                              "for the simulated rig)")
+        if args.size:
+            raise InputError("--size is for the simulated rig; the images give their own size")
         from stereo_gui.commands.disparity import load_calibration, read_pair
 
         calib = load_calibration(args.calib, args.left)
         left, right = read_pair(args.left, args.right, calib)
         return "files", calib, left, right
-    from stereo_gui.sources.sim import Scene, SimRig
+    from stereo_gui.sources.sim import RigConfig, Scene, SimRig
 
-    rig = SimRig(seed=0)
+    rig = SimRig(RigConfig.for_size(_size(args.size)), seed=0)
     calib = rig.true_calibration(alpha=0.0)
     left, right = rig.render_scene(Scene.demo())
     return "simulated rig, demo scene", calib, left, right
 
 
-def bench_preset(calib, params, left, right, frames: int, warmup: int = 2) -> dict:
-    """Time `frames` frames of one preset; returns fps, mean ms per stage and RSS."""
-    with StereoPipeline(calib, params) as pipe:
-        for _ in range(warmup):
-            pipe.process(left, right)
-        rss0 = rss_mb()
-        sums: dict[str, float] = {}
-        cpu0 = time.process_time()
-        t0 = time.perf_counter()
-        for _ in range(frames):
-            r = pipe.process(left, right)
-            for k, v in r.timings_ms.items():
-                sums[k] = sums.get(k, 0.0) + v
-        elapsed = time.perf_counter() - t0
-        cpu = time.process_time() - cpu0
-        rss1 = rss_mb()
+def _time(step, frames: int, warmup: int = 2) -> dict:
+    """Time `frames` calls of step() -> (stage timings dict or None, valid fraction)."""
+    for _ in range(warmup):
+        step()
+    rss0 = rss_mb()
+    sums: dict[str, float] = {}
+    cpu0 = time.process_time()
+    t0 = time.perf_counter()
+    valid = float("nan")
+    for _ in range(frames):
+        stages, valid = step()
+        for k, v in (stages or {}).items():
+            sums[k] = sums.get(k, 0.0) + v
+    elapsed = time.perf_counter() - t0
+    cpu = time.process_time() - cpu0
     return {
         "fps": frames / elapsed if elapsed > 0 else float("inf"),
         "ms_per_frame": 1000.0 * elapsed / frames,
@@ -81,9 +108,51 @@ def bench_preset(calib, params, left, right, frames: int, warmup: int = 2) -> di
         # CPU time of all threads per frame: what the frame costs, whatever else the machine runs
         "cpu_ms_per_frame": 1000.0 * cpu / frames,
         "rss_start_mb": rss0,
-        "rss_end_mb": rss1,
-        "valid_fraction": float(r.valid.mean()),
+        "rss_end_mb": rss_mb(),
+        "valid_fraction": valid,
     }
+
+
+def bench_preset(calib, params, left, right, frames: int, warmup: int = 2) -> dict:
+    """Time one preset as the Live tab runs it (pipeline and display conversion)."""
+    from stereo_gui.pipeline.live import LiveProcessor
+    from stereo_gui.sources.base import StereoFrame
+
+    frame = StereoFrame(left, right, 0.0, 0.0, 0)
+    proc = LiveProcessor(calib, params)
+    try:
+        def step():
+            t0 = time.perf_counter()
+            out = proc(frame)
+            stages = dict(out.result.timings_ms)
+            stages["display"] = (time.perf_counter() - t0) * 1000.0 - stages["total"]
+            stages["total"] += stages["display"]
+            return stages, float(out.result.valid.mean())
+
+        return _time(step, frames, warmup)
+    finally:
+        proc.close()
+
+
+def bench_reference(calib, left, right, frames: int, warmup: int = 2) -> dict:
+    """Time the report's own loop on the same pair."""
+    import numpy as np
+
+    from stereo_gui.core.report_loop import MIN_DISP, NUM_DISP, WINDOW_SIZE, ReportLoop
+
+    w = calib.image_size[0]
+    if w - (MIN_DISP + NUM_DISP) <= WINDOW_SIZE // 2:
+        raise InputError(f"the images are {w} px wide: too narrow for the report's loop, which "
+                         f"searches disparities {MIN_DISP}..{MIN_DISP + NUM_DISP - 1} px")
+    loop = ReportLoop(calib)
+
+    def step():
+        t0 = time.perf_counter()
+        out = loop.process(left, right)
+        total = (time.perf_counter() - t0) * 1000.0
+        return {"total": total}, float(np.isfinite(out.disparity_px).mean())
+
+    return _time(step, frames, warmup)
 
 
 def run_bench(args) -> dict:
@@ -91,36 +160,66 @@ def run_bench(args) -> dict:
 
     if args.frames < 1:
         raise InputError(f"--frames must be at least 1, not {args.frames}")
-    names = list(dict.fromkeys(args.preset or ["live", "seed", "quality"]))
+    names = list(dict.fromkeys(args.preset or ["live"]))
     params = {n: load_preset(n) for n in names}  # unknown names fail before any work
-    for n in ("live", "seed"):
-        if n not in params:
-            params[n] = load_preset(n)
     source, calib, left, right = _input(args)
-    out = {"source": source, "size": list(calib.image_size), "frames": args.frames,
-           "cv_threads": None, "presets": {}}
     import cv2
 
-    out["cv_threads"] = cv2.getNumThreads()
+    out = {"source": source, "size": list(calib.image_size), "frames": args.frames,
+           "cv_threads": cv2.getNumThreads(), "reference": REFERENCE, "presets": {}}
+    # the reference first and last, so that a change of the machine's load shows in its two runs
+    ref_before = bench_reference(calib, left, right, args.frames)
     for name, p in params.items():
         out["presets"][name] = bench_preset(calib, p, left, right, args.frames)
-    out["live_over_seed"] = out["presets"]["live"]["fps"] / out["presets"]["seed"]["fps"]
+    ref_after = bench_reference(calib, left, right, args.frames)
+    ref = dict(ref_after)
+    ref["fps"] = 2.0 / (1.0 / ref_before["fps"] + 1.0 / ref_after["fps"])
+    ref["fps_runs"] = [ref_before["fps"], ref_after["fps"]]
+    out[REFERENCE] = ref
+    out["over_report"] = {n: r["fps"] / ref["fps"] for n, r in out["presets"].items()}
     return out
 
 
 def run(args) -> int:
+    if args.accuracy:
+        return run_accuracy_bench(args)
     res = run_bench(args)
     if args.json:
         print(json.dumps(res, indent=2))
         return 0
     w, h = res["size"]
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    print(f"{res['source']}, {w}x{h}, {res['frames']} frames per preset, "
+    print(f"{res['source']}, {w}x{h}, {res['frames']} frames per run, "
           f"OpenCV threads {res['cv_threads']}, load average {load:.1f} on {os.cpu_count()} CPUs")
+    ref = res[REFERENCE]
+    runs = " and ".join(f"{v:.1f}" for v in ref["fps_runs"])
+    print(f"{'report':>10}: {ref['fps']:6.1f} fps (the report's loop, its own code; runs before and "
+          f"after: {runs} fps)")
     for name, r in res["presets"].items():
         stages = ", ".join(f"{k} {v:.1f}" for k, v in r["stages_ms"].items() if k != "total")
         print(f"{name:>10}: {r['fps']:6.1f} fps ({r['ms_per_frame']:.1f} ms/frame, CPU "
               f"{r['cpu_ms_per_frame']:.1f} ms/frame; {stages} ms); "
-              f"RSS {r['rss_start_mb']:.0f} -> {r['rss_end_mb']:.0f} MiB")
-    print(f"live is {res['live_over_seed']:.1f}x as fast as seed")
+              f"RSS {r['rss_start_mb']:.0f} -> {r['rss_end_mb']:.0f} MiB; "
+              f"{res['over_report'][name]:.1f}x the report's loop")
+    return 0
+
+
+def run_accuracy_bench(args) -> int:
+    from stereo_gui.commands.accuracy import BENCH_SEED, format_table, run_accuracy
+
+    if args.calib or args.left or args.right or args.size:
+        raise InputError("--accuracy runs on the simulated rig: no --calib, images or --size")
+    presets = tuple(dict.fromkeys(["report"] + (args.preset or ["seed", "live", "quality"])))
+    cal = ("true", "computed") if args.calibration == "both" else (args.calibration,)
+    seed = BENCH_SEED if args.seed is None else args.seed
+    res = run_accuracy(presets=presets, seed=seed, calibrations=cal)
+    if args.json:
+        print(json.dumps({"seed": seed, "calibrations": {
+            k: [r.summary() for r in v] for k, v in res.items()}}, indent=2))
+        return 0
+    print(f"accuracy on the simulated rig (seed {seed}): 9x7 grid over the whole frame; cover = "
+          "readings / points both cameras see; errors of Z in %; +-cov = share of readings whose "
+          "95 % bound covers the true error; med+- = median bound in % of the distance")
+    for label, reports in res.items():
+        print(format_table(label, reports))
     return 0
