@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.files.atomic import write_bytes_atomic, write_text_atomic
+from stereo_gui.files.atomic import write_bytes_atomic, write_json_atomic
 from stereo_gui.files.readers import read_csv_rows, read_json_object
 
 log = logging.getLogger(__name__)
@@ -201,8 +201,10 @@ class RecordingWriter:
                 self._video.release()
                 self._video = None
                 try:
+                    # cv2.VideoWriter does not report a full disk: the video is read back
+                    self._verify_video()
                     os.replace(self._video_tmp, self.folder / VIDEO)
-                except OSError as exc:
+                except (OSError, InputError) as exc:
                     self._error = self._error or exc
             if self._error is None:
                 self._write_header(complete=True)
@@ -291,6 +293,19 @@ class RecordingWriter:
                 raise InputError(f"cannot write a {self.codec} video in {self.folder}")
         self._video.write(np.ascontiguousarray(sbs))
 
+    def _verify_video(self) -> None:
+        import cv2
+
+        cap = cv2.VideoCapture(str(self._video_tmp))
+        try:
+            frames = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) if cap.isOpened() else 0
+        finally:
+            cap.release()
+        if frames < self._count:
+            raise InputError(f"the video of {self.folder} holds {frames} of {self._count} "
+                             "frames (the disk may be full); it is kept as "
+                             f"{self._video_tmp.name}")
+
     def _write_header(self, complete: bool) -> None:
         header = {
             "format_version": FORMAT_VERSION,
@@ -305,7 +320,7 @@ class RecordingWriter:
             "video_codec": self.codec,
             "complete": complete,
         }
-        write_text_atomic(self.folder / HEADER, json.dumps(header, indent=2) + "\n")
+        write_json_atomic(self.folder / HEADER, header)
 
 
 def is_recording(folder: str | os.PathLike) -> bool:

@@ -405,8 +405,16 @@ def _new_workbook(records, fits, calibration, calibration_file):
     return wb
 
 
+def _verify_xlsx(path: Path) -> None:
+    """A workbook that does not read back (a torn zip, a member whose CRC fails) is refused."""
+    with zipfile.ZipFile(path) as z:
+        bad = z.testzip()
+    if bad is not None:
+        raise ValueError(f"{bad} is damaged")
+
+
 def _save(wb, path: Path) -> Path:
-    with atomic_path(path) as tmp:
+    with atomic_path(path, verify=_verify_xlsx) as tmp:
         wb.save(tmp)
     return path
 

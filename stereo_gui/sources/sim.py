@@ -27,7 +27,7 @@ import numpy as np
 from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.stereo_calibration import StereoCalibration
-from stereo_gui.files.atomic import write_image_atomic, write_text_atomic
+from stereo_gui.files.atomic import write_image_atomic, write_json_atomic
 from stereo_gui.sources.base import FramePacer, StereoFrame
 
 log = logging.getLogger(__name__)
@@ -850,7 +850,7 @@ def write_calibration_set(out_dir, n_pairs: int = 20, seed: int = 0, scene: bool
                  "pairs": pairs})
     if scene:
         data["scenes"] = scene_entries
-    write_text_atomic(out / "truth.json", json.dumps(data, indent=2) + "\n")
+    write_json_atomic(out / "truth.json", data)
     return out
 
 
