@@ -10,7 +10,8 @@ import numpy as np
 from stereo_gui.core.errors import InputError
 
 
-MAX_BOARD_CORNERS = 100  # inner corners a side
+MIN_BOARD_CORNERS = 3  # inner corners a side
+MAX_BOARD_CORNERS = 100
 MIN_SQUARE_MM = 0.01
 MAX_SQUARE_MM = 10_000.0
 
@@ -24,8 +25,10 @@ class BoardSpec:
     square_mm: float = 25.0
 
     def __post_init__(self) -> None:
-        if self.cols < 2 or self.rows < 2:
-            raise InputError(f"a chessboard needs at least 2x2 inner corners, not {self.cols}x{self.rows}")
+        if self.cols < MIN_BOARD_CORNERS or self.rows < MIN_BOARD_CORNERS:
+            # OpenCV's chessboard detectors need more than 2 corners a side
+            raise InputError(f"a chessboard needs at least {MIN_BOARD_CORNERS}x{MIN_BOARD_CORNERS} "
+                             f"inner corners, not {self.cols}x{self.rows}")
         if self.cols > MAX_BOARD_CORNERS or self.rows > MAX_BOARD_CORNERS:
             raise InputError(f"a chessboard of {self.cols}x{self.rows} inner corners is not "
                              f"plausible (at most {MAX_BOARD_CORNERS} a side)")

@@ -27,7 +27,7 @@ from stereo_gui.core.stereo_calibration import (
     StereoCalibration,
     check_matrices,
 )
-from stereo_gui.files.atomic import write_many_atomic, write_text_atomic
+from stereo_gui.files.atomic import os_error_text, write_many_atomic, write_text_atomic
 
 log = logging.getLogger(__name__)
 
@@ -123,6 +123,12 @@ def _open(path: Path) -> cv2.FileStorage:
         raise CalibrationFileError(f"calibration file {path} does not exist")
     if not path.is_file():
         raise CalibrationFileError(f"calibration file {path} is not a file")
+    try:  # opened by Python first: OpenCV would call an unreadable file "not FileStorage"
+        with open(path, "rb"):
+            pass
+    except OSError as exc:
+        raise CalibrationFileError(f"calibration file {path} cannot be read: "
+                                   f"{os_error_text(exc)}") from None
     try:
         fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
     except (cv2.error, SystemError) as exc:

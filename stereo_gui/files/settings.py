@@ -18,7 +18,13 @@ import typing
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 
-from stereo_gui.core.board import MAX_BOARD_CORNERS, MAX_SQUARE_MM, MIN_SQUARE_MM, BoardSpec
+from stereo_gui.core.board import (
+    MAX_BOARD_CORNERS,
+    MAX_SQUARE_MM,
+    MIN_BOARD_CORNERS,
+    MIN_SQUARE_MM,
+    BoardSpec,
+)
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.measure import PATCH_PX
 from stereo_gui.files.atomic import write_json_atomic
@@ -102,10 +108,10 @@ def _text_ok(v) -> bool:
 _CHECKS: dict[str, tuple[typing.Callable[[object], bool], str]] = {
     "resolution": (lambda v: 0 < v[0] <= 100_000 and 0 < v[1] <= 100_000,
                    "two positive integers up to 100000"),
-    "board_cols": (lambda v: 2 <= v <= MAX_BOARD_CORNERS,
-                   f"an integer from 2 to {MAX_BOARD_CORNERS}"),
-    "board_rows": (lambda v: 2 <= v <= MAX_BOARD_CORNERS,
-                   f"an integer from 2 to {MAX_BOARD_CORNERS}"),
+    "board_cols": (lambda v: MIN_BOARD_CORNERS <= v <= MAX_BOARD_CORNERS,
+                   f"an integer from {MIN_BOARD_CORNERS} to {MAX_BOARD_CORNERS}"),
+    "board_rows": (lambda v: MIN_BOARD_CORNERS <= v <= MAX_BOARD_CORNERS,
+                   f"an integer from {MIN_BOARD_CORNERS} to {MAX_BOARD_CORNERS}"),
     "square_mm": (lambda v: MIN_SQUARE_MM <= v <= MAX_SQUARE_MM,
                   f"a number of millimetres from {MIN_SQUARE_MM:g} to {MAX_SQUARE_MM:g}"),
     "nominal_baseline_mm": (lambda v: math.isfinite(v) and 0 < v <= 1e5,

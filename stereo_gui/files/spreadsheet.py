@@ -23,6 +23,7 @@ import logging
 import math
 import os
 import zipfile
+import zlib
 from collections.abc import Iterable, Sequence
 from dataclasses import astuple, dataclass, fields
 from pathlib import Path
@@ -444,7 +445,9 @@ def _load_ours(path: Path):
 
     try:
         wb = load_workbook(path)
-    except (InvalidFileException, zipfile.BadZipFile, KeyError, ValueError, OSError) as exc:
+    except (InvalidFileException, zipfile.BadZipFile, KeyError, ValueError, OSError, TypeError,
+            AttributeError, IndexError, EOFError, SyntaxError, zlib.error, RecursionError) as exc:
+        # SyntaxError: xml.etree's ParseError on the junk XML of a damaged zip
         raise InputError(f"{path} is not a readable .xlsx workbook ({exc}); "
                          "it was left untouched") from exc
     if MEASUREMENTS_SHEET not in wb.sheetnames:
