@@ -66,6 +66,9 @@ _RANGES: dict[str, tuple[float, float]] = {
 }
 
 
+_OPTIONAL = ("z_min_mm", "z_max_mm", "p1", "p2", "cv_threads")  # None means "not set"
+
+
 @dataclass(frozen=True)
 class MatcherParams:
     """Everything that decides how a frame becomes a disparity map. Sizes in px of the matched image.
@@ -111,7 +114,7 @@ class MatcherParams:
         # hold anything: NaN, 1e308, 1e-9)
         for key, (lo, hi) in _RANGES.items():
             v = getattr(self, key)
-            if v is None:
+            if v is None and key in _OPTIONAL:
                 continue
             if isinstance(v, bool) or not isinstance(v, int | float) or \
                     not (lo <= v <= hi) or (isinstance(v, float) and not math.isfinite(v)):

@@ -118,6 +118,41 @@ def _parse_error(exc: BaseException) -> str:
     return text.splitlines()[-1] if text else type(exc).__name__
 
 
+MAX_FILE_BYTES = 4 << 20  # a calibration with a thousand pairs is a few hundred kB
+MAX_NESTING = 64
+
+
+def _check_parsable(path: Path, where: str) -> None:
+    """Refuse what would crash OpenCV's parser: it recurses per nesting level and a file with
+    100,000 nested brackets overflows the C stack (a segmentation fault, not an error)."""
+    try:
+        size = path.stat().st_size
+        if size > MAX_FILE_BYTES:
+            raise CalibrationFileError(f"{where} is {size} bytes: too large for a calibration")
+        data = path.read_bytes()
+    except OSError as exc:
+        raise CalibrationFileError(f"{where} cannot be read: {os_error_text(exc)}") from None
+    depth = deepest = 0
+    quote = 0
+    for byte in data:
+        if quote:
+            if byte == quote:
+                quote = 0
+        elif byte in (0x22, 0x27):  # " '
+            quote = byte
+        elif byte in (0x5B, 0x7B):  # [ {
+            depth += 1
+            deepest = max(deepest, depth)
+        elif byte in (0x5D, 0x7D):  # ] }
+            depth = max(0, depth - 1)
+        elif byte == 0x0A:
+            quote = 0
+    indent = max((len(line) - len(line.lstrip(b" \t")) for line in data.splitlines()),
+                 default=0)
+    if deepest > MAX_NESTING or indent > 40 * MAX_NESTING:
+        raise CalibrationFileError(f"{where} is nested too deeply to be a calibration file")
+
+
 def _open(path: Path) -> cv2.FileStorage:
     if not path.exists():
         raise CalibrationFileError(f"calibration file {path} does not exist")
@@ -129,6 +164,7 @@ def _open(path: Path) -> cv2.FileStorage:
     except OSError as exc:
         raise CalibrationFileError(f"calibration file {path} cannot be read: "
                                    f"{os_error_text(exc)}") from None
+    _check_parsable(path, f"calibration file {path}")
     try:
         fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
     except (cv2.error, SystemError) as exc:
@@ -168,6 +204,19 @@ def _mat(fs, name: str, where: str) -> np.ndarray | None:
     node = fs.getNode(name)
     if node.empty() or node.isNone():
         return None
+    # check the header against the data before OpenCV reads it: a huge rows x cols makes
+    # FileNode.mat() abort the process instead of raising
+    rows, cols, dt, data = (node.getNode(k) for k in ("rows", "cols", "dt", "data"))
+    if not node.isMap() or rows.empty() or cols.empty() or data.empty():
+        raise CalibrationFileError(f"{where}: {name} is not a matrix")
+    if not (rows.isInt() and cols.isInt() and 1 <= rows.real() <= 16
+            and 1 <= cols.real() <= 16):
+        raise CalibrationFileError(f"{where}: matrix {name} should have 1 to 16 rows and columns")
+    if not (dt.isString() and dt.string() in ("d", "f", "i", "u", "s", "c", "w")):
+        raise CalibrationFileError(f"{where}: matrix {name} has an unknown element type")
+    if not data.isSeq() or data.size() != int(rows.real()) * int(cols.real()):
+        raise CalibrationFileError(f"{where}: matrix {name} says {int(rows.real())}x"
+                                   f"{int(cols.real())} but holds {data.size()} values")
     try:
         m = node.mat()
     except (cv2.error, SystemError) as exc:  # a header that disagrees with its data, ...
@@ -320,6 +369,8 @@ def load_calibration(path: str | Path) -> StereoCalibration:
         calib = _read_calibration(fs, where)
     except (cv2.error, SystemError) as exc:  # OpenCV's parser gave up on a damaged node
         raise CalibrationFileError(f"{where} is damaged ({_parse_error(exc)})") from None
+    except UnicodeDecodeError:
+        raise CalibrationFileError(f"{where}: a text value is not UTF-8") from None
     finally:
         fs.release()
     check_calibration(calib, where)
@@ -434,6 +485,7 @@ def _ros_read(path: Path) -> dict:
     where = str(path)
     if not path.exists():
         raise CalibrationFileError(f"ROS camera_info file {path} does not exist")
+    _check_parsable(path, f"ROS camera_info file {path}")
     try:
         fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_FORMAT_YAML)
     except (cv2.error, SystemError):
@@ -447,6 +499,7 @@ def _ros_read(path: Path) -> dict:
             if n.empty() or not n.isInt():
                 raise CalibrationFileError(f"{where}: {key} is missing or not a whole number")
             out[key] = int(n.real())
+        _check_size(out["image_width"], out["image_height"], where)
         out["distortion_model"] = _string(fs, "distortion_model", "plumb_bob")
         if out["distortion_model"] not in ("plumb_bob", "rational_polynomial"):
             raise CalibrationFileError(f"{where}: distortion model {out['distortion_model']!r} is "
@@ -460,7 +513,14 @@ def _ros_read(path: Path) -> dict:
             rows, cols, data = n.getNode("rows"), n.getNode("cols"), n.getNode("data")
             if rows.empty() or cols.empty() or data.empty() or not data.isSeq():
                 raise CalibrationFileError(f"{where}: {key} needs rows, cols and data")
+            if not (rows.isInt() and cols.isInt() and 1 <= rows.real() <= 4
+                    and 1 <= cols.real() <= 14):
+                raise CalibrationFileError(f"{where}: {key} rows and cols should be whole "
+                                           "numbers from 1 to 14")
             r, c = int(rows.real()), int(cols.real())
+            if data.size() > 64 or not all(data.at(i).isReal() or data.at(i).isInt()
+                                           for i in range(data.size())):
+                raise CalibrationFileError(f"{where}: {key} data should be numbers")
             vals = np.array([data.at(i).real() for i in range(data.size())], np.float64)
             if vals.size != r * c:
                 raise CalibrationFileError(f"{where}: {key} has {vals.size} values, rows x cols "
@@ -473,6 +533,10 @@ def _ros_read(path: Path) -> dict:
                 raise CalibrationFileError(f"{where}: {key} holds values that are not finite")
             out[key] = m
         return out
+    except UnicodeDecodeError:
+        raise CalibrationFileError(f"{where}: a text value is not UTF-8") from None
+    except (cv2.error, SystemError) as exc:
+        raise CalibrationFileError(f"{where} is damaged ({_parse_error(exc)})") from None
     finally:
         fs.release()
 
@@ -491,6 +555,12 @@ def import_ros(left_path: str | Path, right_path: str | Path) -> StereoCalibrati
         raise CalibrationFileError(f"{lp} is {size[0]}x{size[1]} but {rp} is "
                                    f"{right['image_width']}x{right['image_height']}")
     M1, M2 = left["camera_matrix"], right["camera_matrix"]
+    for path, M, name in ((lp, M1, "camera_matrix"), (rp, M2, "camera_matrix")):
+        _check_camera(M, name, str(path))
+    for path, P in ((lp, left["projection_matrix"]), (rp, right["projection_matrix"])):
+        if not (0 < P[0, 0] <= MAX_FOCAL_PX and 0 < P[1, 1] <= MAX_FOCAL_PX):
+            raise CalibrationFileError(f"{path}: projection_matrix has focal lengths "
+                                       f"{P[0, 0]:g}, {P[1, 1]:g} px (they must be positive)")
     D1 = left["distortion_coefficients"].reshape(1, -1)
     D2 = right["distortion_coefficients"].reshape(1, -1)
     R1, R2 = left["rectification_matrix"], right["rectification_matrix"]
@@ -512,8 +582,7 @@ def import_ros(left_path: str | Path, right_path: str | Path) -> StereoCalibrati
     calib = StereoCalibration(image_size=size, M1=M1, D1=D1, M2=M2, D2=D2, R=R, T=T, E=E, F=F,
                               R1=R1, R2=R2, P1=P1, P2=P2, Q=Q, method="bouguet",
                               created=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"))
-    check_matrices({k: getattr(calib, k) for k in MATRIX_SHAPES} | {"D1": D1, "D2": D2},
-                   f"{lp} + {rp}")
+    check_calibration(calib, f"{lp} + {rp}")
     return calib
 
 
