@@ -29,6 +29,10 @@ class _Parser(argparse.ArgumentParser):
     """An argument parser whose usage errors exit with status 2 and one clear line."""
 
     def error(self, message: str) -> None:  # noqa: D401 - argparse API
+        if "expected one argument" in message:
+            # `--at -1,5`: argparse takes a value that starts with "-" for an option
+            message += (" (a value that starts with '-' must be attached with '=', as in "
+                        "--at=-1,5)")
         sys.stderr.write(f"{self.prog}: error: {message}\n")
         raise SystemExit(2)
 
@@ -70,6 +74,16 @@ def _setup_logging(verbose: bool) -> None:
         level=logging.DEBUG if verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",
     )
+    quiet_opencv(verbose)
+
+
+def quiet_opencv(verbose: bool = False) -> None:
+    """Keep OpenCV's own "[ WARN:0@0.05] global cap_v4l.cpp..." lines off the user's terminal:
+    our messages say what went wrong in the user's words. With --verbose they are shown."""
+    import cv2
+
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_WARNING if verbose
+                                  else cv2.utils.logging.LOG_LEVEL_SILENT)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -39,6 +39,9 @@ def load_calibration(spec: str, left_image: str | None = None) -> StereoCalibrat
         if not (f > 0 and b > 0 and np.isfinite(f) and np.isfinite(b)):
             raise InputError(f"{spec!r}: give rectified:F,B with a focal length F in px and a "
                              "baseline B in mm, both positive numbers")
+        if not (1.0 <= f <= 1e6 and 0.01 <= b <= 1e6):
+            raise InputError(f"{spec!r}: a focal length of {f:g} px and a baseline of {b:g} mm "
+                             "are not plausible (F from 1 to 1e6 px, B from 0.01 to 1e6 mm)")
         if left_image is None:
             raise InputError("rectified:F,B needs the LEFT image (its size is the calibration's)")
         img = read_image(left_image, "left")
@@ -52,7 +55,13 @@ def read_image(path: str, what: str) -> np.ndarray:
     p = Path(path)
     if not p.is_file():
         raise InputError(f"{what} image {path} does not exist")
-    img = cv2.imread(str(p), cv2.IMREAD_COLOR)
+    try:  # read by Python first: "permission denied" is then said as such
+        data = np.fromfile(str(p), np.uint8)
+    except OSError as exc:
+        from stereo_gui.files.atomic import os_error_text
+
+        raise InputError(f"{what} image {path} cannot be read: {os_error_text(exc)}") from None
+    img = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
     if img is None:
         raise InputError(f"{what} image {path} cannot be read as an image")
     return img
@@ -109,12 +118,36 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="coloured point cloud of the valid pixels (binary PLY, mm)")
 
 
+def check_outputs(outputs) -> None:
+    """Every output path (path, required suffix or None) can be written, before any is: its
+    folder exists, it is not a folder, its suffix is right, no two are the same file."""
+    seen: set[Path] = set()
+    for path, suffix in outputs:
+        if not path:
+            continue
+        p = Path(path)
+        folder = p.parent if str(p.parent) else Path(".")
+        if not folder.is_dir():
+            raise InputError(f"cannot write {p}: folder {folder} does not exist (nothing was "
+                             "written)")
+        if p.is_dir():
+            raise InputError(f"cannot write {p}: it is a folder (nothing was written)")
+        if suffix and p.suffix.lower() != suffix:
+            raise InputError(f"{p}: this output must be a {suffix} file (nothing was written)")
+        key = p.resolve()
+        if key in seen:
+            raise InputError(f"{p} is given for two outputs (nothing was written)")
+        seen.add(key)
+
+
 def run(args) -> int:
     from stereo_gui.files import depth_export
     from stereo_gui.files.atomic import write_image_atomic
 
     if Path(args.output).suffix.lower() not in (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"):
         raise InputError(f"{args.output}: the colour view needs an image suffix such as .png")
+    check_outputs([(args.output, None), (args.npy, ".npy"), (args.png16, ".png"),
+                   (args.depth_png, ".png"), (args.ply, ".ply")])
     calib, result = run_pipeline(args)
     write_image_atomic(args.output, result.color_bgr)
     written = [args.output]

@@ -18,13 +18,24 @@ from stereo_gui.sources.sim import (SCENE_FOLDER, SimRig, calibration_set_names,
 _OWN_NAMES = re.compile(r"^(chessboard-[LR]\d+|scenes/scene-[LR]\d+)\.png$|^truth\.json$")
 
 
+def _seed(text: str) -> int:
+    """--seed: a whole number from 0 to 2**32 - 1 (numpy's seeds are never negative)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if not 0 <= value < 2**32:
+        raise argparse.ArgumentTypeError(f"{value} is not a seed: give 0 to {2**32 - 1}")
+    return value
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("out_dir", metavar="OUT_DIR", help="folder to write (created if missing)")
     parser.add_argument("--pairs", type=int, default=20, metavar="N",
                         help="number of chessboard pairs (default 20)")
     parser.add_argument("--scene", action="store_true",
                         help="also write scene pairs: walls at 0.5, 1, 1.5, 2, 3 m and the demo scene")
-    parser.add_argument("--seed", type=int, default=0, metavar="S",
+    parser.add_argument("--seed", type=_seed, default=0, metavar="S",
                         help="random seed of the board poses and noise (default 0)")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace a simulated set already in OUT_DIR")

@@ -10,6 +10,12 @@ import numpy as np
 from stereo_gui.core.errors import InputError
 
 
+MIN_BOARD_CORNERS = 3  # inner corners a side
+MAX_BOARD_CORNERS = 100
+MIN_SQUARE_MM = 0.01
+MAX_SQUARE_MM = 10_000.0
+
+
 @dataclass(frozen=True)
 class BoardSpec:
     """A chessboard with `cols` x `rows` inner corners and squares of `square_mm` millimetres."""
@@ -19,10 +25,19 @@ class BoardSpec:
     square_mm: float = 25.0
 
     def __post_init__(self) -> None:
-        if self.cols < 2 or self.rows < 2:
-            raise InputError(f"a chessboard needs at least 2x2 inner corners, not {self.cols}x{self.rows}")
+        if self.cols < MIN_BOARD_CORNERS or self.rows < MIN_BOARD_CORNERS:
+            # OpenCV's chessboard detectors need more than 2 corners a side
+            raise InputError(f"a chessboard needs at least {MIN_BOARD_CORNERS}x{MIN_BOARD_CORNERS} "
+                             f"inner corners, not {self.cols}x{self.rows}")
+        if self.cols > MAX_BOARD_CORNERS or self.rows > MAX_BOARD_CORNERS:
+            raise InputError(f"a chessboard of {self.cols}x{self.rows} inner corners is not "
+                             f"plausible (at most {MAX_BOARD_CORNERS} a side)")
         if not np.isfinite(self.square_mm) or self.square_mm <= 0:
             raise InputError(f"square size must be a positive number of millimetres, not {self.square_mm}")
+        if not MIN_SQUARE_MM <= self.square_mm <= MAX_SQUARE_MM:
+            # beyond these, millimetres overflow or vanish in the calibration's arithmetic
+            raise InputError(f"square size {self.square_mm:g} mm is not plausible (give "
+                             f"{MIN_SQUARE_MM:g} to {MAX_SQUARE_MM:g} mm)")
 
     @property
     def pattern_size(self) -> tuple[int, int]:

@@ -107,6 +107,9 @@ def detect_board(image: np.ndarray, board: BoardSpec, method: str = "classic") -
         raise ValueError(f"unknown detection method {method!r}; use one of {METHODS}")
     gray = to_gray(image)
     size = (int(gray.shape[1]), int(gray.shape[0]))
+    # a board needs a few pixels a square; OpenCV's detectors assert on smaller images
+    if size[0] < 4 * (board.cols + 1) or size[1] < 4 * (board.rows + 1):
+        return None
     if method == "sb":
         ok, corners = cv2.findChessboardCornersSB(gray, board.pattern_size, flags=_SB_FLAGS)
         if not ok:

@@ -60,6 +60,22 @@ _ALIASES = {"window_size": "block_size", "minDisparity": "min_disparity",
             "disp12MaxDiff": "disp12_max_diff", "P1": "p1", "P2": "p2", "lmbda": "wls_lambda"}
 
 
+# (smallest, largest) value of each number of MatcherParams; wider than the parameter panel's
+_RANGES: dict[str, tuple[float, float]] = {
+    "block_size": (1, 51), "min_disparity": (-1024, 1024), "num_disparities": (16, 2048),
+    "z_min_mm": (1.0, 1e6), "z_max_mm": (1.0, 1e7), "uniqueness_ratio": (0, 100),
+    "speckle_window_size": (0, 10_000), "speckle_range": (0, 1000), "disp12_max_diff": (-1, 1000),
+    "p1": (0, 10_000_000), "p2": (0, 10_000_000), "pre_filter_cap": (0, 63),
+    "closing_kernel": (0, 51), "wls_lambda": (0.0, 1e7), "wls_sigma": (0.0, 100.0),
+    "bilateral_d": (0, 50), "bilateral_sigma_color": (0.0, 1000.0),
+    "bilateral_sigma_space": (0.0, 1000.0), "scale": (0.1, 1.0),
+    "color_z_near_mm": (1.0, 1e7), "color_z_far_mm": (1.0, 1e7), "cv_threads": (0, 256),
+}
+
+
+_OPTIONAL = ("z_min_mm", "z_max_mm", "p1", "p2", "cv_threads")  # None means "not set"
+
+
 @dataclass(frozen=True)
 class MatcherParams:
     """Everything that decides how a frame becomes a disparity map. Sizes in px of the matched image.
@@ -112,6 +128,17 @@ class MatcherParams:
 
     def __post_init__(self) -> None:
         problems = []
+        # every number finite and within what SGBM and the filters can take (a preset file can
+        # hold anything: NaN, 1e308, 1e-9)
+        for key, (lo, hi) in _RANGES.items():
+            v = getattr(self, key)
+            if v is None and key in _OPTIONAL:
+                continue
+            if isinstance(v, bool) or not isinstance(v, int | float) or \
+                    not (lo <= v <= hi) or (isinstance(v, float) and not math.isfinite(v)):
+                problems.append(f"{key} must be a number from {lo:g} to {hi:g}, not {v!r:.40}")
+        if problems:
+            raise InputError(f"matcher parameters of {self.name!r}: " + "; ".join(problems))
         if self.block_size < 1 or self.block_size % 2 == 0:
             problems.append(f"block_size must be odd and >= 1, not {self.block_size}")
         if self.num_disparities <= 0 or self.num_disparities % 16:
@@ -121,8 +148,6 @@ class MatcherParams:
         if self.remap_interpolation not in INTERPOLATIONS:
             problems.append(f"remap_interpolation must be one of {', '.join(INTERPOLATIONS)}, "
                             f"not {self.remap_interpolation!r}")
-        if not 0 <= self.pre_filter_cap <= 63:
-            problems.append(f"pre_filter_cap must be between 0 and 63, not {self.pre_filter_cap}")
         if self.colormap not in COLORMAPS:
             problems.append(f"unknown colormap {self.colormap!r}")
         if self.color_range not in COLOR_RANGES:

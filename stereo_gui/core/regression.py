@@ -163,27 +163,74 @@ def fit_to_dict(f: FitResult) -> dict:
     return doc
 
 
+MAX_COEFFICIENT = 1e12  # larger coefficients turn every reading into overflow: a damaged file
+MAX_DISPARITY_PX = 1e5
+MAX_SAMPLES = 100_000
+
+
+def _finite(value, name: str, limit: float = MAX_COEFFICIENT) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ValueError(f"{name} should be a number, not {type(value).__name__}")
+    v = float(value)
+    if not (math.isfinite(v) and abs(v) <= limit):
+        raise ValueError(f"{name} is {v:g}, not a finite number up to {limit:g}")
+    return v
+
+
+def _list(value, name: str) -> list:
+    if not isinstance(value, list):
+        raise ValueError(f"{name} should be a list, not {type(value).__name__}")
+    if len(value) > MAX_SAMPLES:
+        raise ValueError(f"{name} has {len(value)} entries (at most {MAX_SAMPLES})")
+    return value
+
+
 def fit_from_dict(doc, where: str) -> FitResult:
-    """The fit `doc` describes (as made by fit_to_dict); InputError naming `where` if unusable."""
+    """The fit `doc` describes (as made by fit_to_dict); InputError naming `where` and the field
+    if unusable (wrong types, values that are not finite or absurd, inconsistent lengths)."""
     try:
         if not isinstance(doc, dict):
             raise ValueError("not a JSON object")
         version = doc.get("format_version", FORMAT_VERSION)
-        if not isinstance(version, int) or version > FORMAT_VERSION:
+        if isinstance(version, bool) or not isinstance(version, int) or version > FORMAT_VERSION:
             raise ValueError(f"format version {version!r} is newer than this program reads")
         model = doc["model"]
-        if model not in MODELS:
+        if not isinstance(model, str) or model not in MODELS:
             raise ValueError(f"unknown model {model!r}")
-        coef = tuple(float(c) for c in doc["coefficients"])
-        if len(coef) != (4 if model == "cubic" else 2) or not all(map(math.isfinite, coef)):
+        raw = _list(doc["coefficients"], "coefficients")
+        if len(raw) != (4 if model == "cubic" else 2):
             raise ValueError("wrong number of coefficients or values that are not finite")
+        coef = tuple(_finite(c, f"coefficient {i + 1}") for i, c in enumerate(raw))
+        if model == "inverse":
+            if not coef[0] > 0:
+                raise ValueError(f"coefficient a (f*B) is {coef[0]:g}; it must be positive")
+            _finite(coef[1], "d0", MAX_DISPARITY_PX)
         r2 = doc.get("r2")
-        r2 = float("nan") if r2 is None else float(r2)
-        samples = tuple((float(a), float(b)) for a, b in doc.get("samples", []))
-        residuals = tuple(float(r) for r in doc.get("residuals_mm", []))
+        r2 = float("nan") if r2 is None else _finite(r2, "r2")
+        if r2 > 1.0 + 1e-9:
+            raise ValueError(f"r2 is {r2:g}; it cannot exceed 1")
+        samples = []
+        for i, s in enumerate(_list(doc.get("samples", []), "samples"), start=1):
+            if not isinstance(s, list) or len(s) != 2:
+                raise ValueError(f"sample {i} should be [disparity px, distance mm]")
+            d = _finite(s[0], f"sample {i} disparity", MAX_DISPARITY_PX)
+            z = _finite(s[1], f"sample {i} distance")
+            if not z > 0:
+                raise ValueError(f"sample {i} distance is {z:g}; it must be positive")
+            samples.append((d, z))
+        residuals = tuple(_finite(r, f"residual {i}") for i, r in
+                          enumerate(_list(doc.get("residuals_mm", []), "residuals_mm"), start=1))
+        if residuals and len(residuals) != len(samples):
+            raise ValueError(f"{len(residuals)} residuals for {len(samples)} samples")
         norm = doc.get("normalisation") or {}
-        return FitResult(model, coef, r2, residuals, samples,
-                         float(norm.get("offset_px", REPORT_MIN_DISP)),
-                         float(norm.get("span_px", REPORT_NUM_DISP)))
+        if not isinstance(norm, dict):
+            raise ValueError("normalisation should be an object")
+        offset = _finite(norm.get("offset_px", REPORT_MIN_DISP), "normalisation offset_px",
+                         MAX_DISPARITY_PX)
+        span = _finite(norm.get("span_px", REPORT_NUM_DISP), "normalisation span_px",
+                       MAX_DISPARITY_PX)
+        if not span > 0:
+            raise ValueError(f"normalisation span_px is {span:g}; it must be positive")
+        return FitResult(model, coef, r2, residuals, tuple(samples), offset, span)
     except (KeyError, TypeError, ValueError) as exc:
         raise InputError(f"{where} is not usable: {exc}") from exc

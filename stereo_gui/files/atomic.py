@@ -1,78 +1,306 @@
-"""Atomic writes of user data: write a temporary file next to the target, then rename it.
+"""Atomic writes of user data: write a temporary file next to the target, check it, rename it.
 
-A crash or a full disk in the middle of a write leaves the earlier file intact.
+Every writer of the application goes through here. The data is written to a new temporary file
+in the target's folder (open, write, fsync, close), the temporary file is checked (its size
+against the bytes written, and, when the caller gives one, a `verify` function that reads it back
+as the format it is: a calibration is re-parsed, a workbook's zip is tested, ...), and only then
+renamed over the target. A full disk, an I/O error at any step or a file that does not read back
+raises InputError naming the target, the temporary file is removed and the earlier target stays
+byte for byte as it was.
+
+Writers that must hand a path to a library (cv2.VideoWriter, ...) use `atomic_path`, which does
+the same checks after the library is done. Libraries that can write to memory (cv2.FileStorage,
+openpyxl, numpy) should: the bytes then go through `write_bytes_atomic`, where every error of the
+disk is seen.
+
+The system calls go through `_ops` so that tests can make any step fail (tests/files/
+test_atomic.py); tests/files/test_full_disk.py runs every writer on a real full filesystem.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
+import gc
+import logging
 import os
 import secrets
 import stat
+import sys
+import traceback
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-from stereo_gui.core.errors import InputError
+from stereo_gui.core.errors import InputError, StereoGuiError
+
+log = logging.getLogger(__name__)
+
+# what `verify` may raise to say the file does not read back
+Verify = Callable[[Path], None]
+READ_BACK_LIMIT = 4 << 20  # bytes: files up to this size are read back and compared whole
 
 
-def _create_temp(target: Path, folder: Path, suffix: str) -> Path:
-    """Create an empty, new file in `folder` with the permissions the user's umask gives a
-    new file (tempfile.mkstemp makes it 0600: a calibration or export would then be unreadable
-    for the other technicians of the workshop)."""
+class _Ops:
+    """The system calls of a write, in one place so that a test can make any of them fail."""
+
+    open = staticmethod(os.open)
+    write = staticmethod(os.write)
+    fsync = staticmethod(os.fsync)
+    close = staticmethod(os.close)
+    replace = staticmethod(os.replace)
+
+
+_ops = _Ops()
+
+_WORDS = {
+    errno.ENOSPC: "No space left on device (the disk is full)",
+    errno.EDQUOT: "disk quota exceeded",
+    errno.EACCES: "permission denied",
+    errno.EPERM: "permission denied",
+    errno.EROFS: "the file system is read-only",
+    errno.EFBIG: "file too large for the file system",
+    errno.EIO: "input/output error of the disk",
+}
+
+
+def os_error_text(exc: OSError) -> str:
+    """What went wrong, in words a user reads ("permission denied", "no space left on device")."""
+    words = _WORDS.get(exc.errno or -1)
+    if words:
+        return words
+    return (exc.strerror or str(exc) or type(exc).__name__).lower()
+
+
+def _kept(target: Path, existed: bool) -> str:
+    return f"{target} was left as it was" if existed else "nothing was written"
+
+
+def _create_temp(target: Path, folder: Path, suffix: str) -> tuple[Path, int]:
+    """Create a new file in `folder`, open for writing, with the permissions the user's umask gives
+    a new file (tempfile.mkstemp makes it 0600: a calibration or export would then be unreadable
+    for the other technicians of the workshop). Returns its path and descriptor."""
     for _ in range(100):
         path = folder / f".{target.name}.{secrets.token_hex(4)}{suffix}"
         try:
-            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0),
-                         0o666)
+            fd = _ops.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0),
+                           0o666)
         except FileExistsError:
             continue
         except OSError as exc:
-            raise InputError(f"cannot write {target}: {exc.strerror or exc}") from exc
-        os.close(fd)
-        return path
+            raise InputError(f"cannot write {target}: {os_error_text(exc)}") from exc
+        return path, fd
     raise InputError(f"cannot write {target}: no free temporary file name in {folder}")
 
 
-@contextlib.contextmanager
-def atomic_path(target: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
-    """Yield a temporary path in the target's folder; on success rename it over the target.
-
-    The temporary name keeps the target's suffix (OpenCV and openpyxl choose the format by it).
-    On any error the temporary file is removed and the target is untouched.
-    """
-    target = Path(target)
+def _folder_of(target: Path) -> Path:
     folder = target.parent if str(target.parent) else Path(".")
     if not folder.is_dir():
         raise InputError(f"cannot write {target}: folder {folder} does not exist")
-    tmp_path = _create_temp(target, folder, suffix or target.suffix or ".tmp")
+    return folder
+
+
+def _keep_mode(target: Path, tmp_path: Path) -> None:
+    if target.is_file():  # replacing a file keeps its permissions
+        os.chmod(tmp_path, stat.S_IMODE(target.stat().st_mode))
+
+
+def _sync_folder(folder: Path) -> None:
+    """Make the rename itself durable (best effort: not every system opens folders)."""
     try:
-        if target.is_file():  # replacing a file keeps its permissions
-            os.chmod(tmp_path, stat.S_IMODE(target.stat().st_mode))
-        yield tmp_path
-        with open(tmp_path, "rb+") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp_path, target)
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def _run_verify(verify: Verify | None, tmp_path: Path, target: Path, existed: bool) -> None:
+    if verify is None:
+        return
+    try:
+        verify(tmp_path)
+    except (StereoGuiError, OSError, ValueError, KeyError, TypeError, EOFError) as exc:
+        detail = os_error_text(exc) if isinstance(exc, OSError) else str(exc)
+        raise InputError(f"cannot write {target}: the file written does not read back "
+                         f"({detail}); the disk may be full; {_kept(target, existed)}") from exc
+
+
+def _commit(tmp_path: Path, target: Path, folder: Path) -> None:
+    _ops.replace(tmp_path, target)
+    _sync_folder(folder)
+
+
+def _prepare(target: Path, data: bytes, verify: Verify | None) -> Path:
+    """Write `data` to a new temporary file beside `target` and check it; return its path."""
+    data = memoryview(data).cast("B")
+    folder = _folder_of(target)
+    existed = target.exists()
+    tmp_path, fd = _create_temp(target, folder, target.suffix or ".tmp")
+    try:
+        try:
+            _keep_mode(target, tmp_path)
+            done = 0
+            while done < len(data):
+                n = _ops.write(fd, data[done:])
+                if not n or n < 0:  # a write that makes no progress: the device is full
+                    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+                done += n
+            _ops.fsync(fd)
+        finally:
+            # close even when a write failed; a close that fails loses data too
+            closing, fd = fd, -1
+            _ops.close(closing)
+        size = tmp_path.stat().st_size
+        if size != len(data):
+            raise InputError(f"cannot write {target}: {size} of {len(data)} bytes reached the "
+                             f"disk; {_kept(target, existed)}")
+        if len(data) <= READ_BACK_LIMIT and tmp_path.read_bytes() != data:
+            raise InputError(f"cannot write {target}: the file written differs from the data; "
+                             f"{_kept(target, existed)}")
+        _run_verify(verify, tmp_path, target, existed)
     except OSError as exc:
-        tmp_path.unlink(missing_ok=True)
-        raise InputError(f"cannot write {target}: {exc.strerror or exc}") from exc
+        _discard(tmp_path, fd)
+        raise InputError(f"cannot write {target}: {os_error_text(exc)}; "
+                         f"{_kept(target, existed)}") from exc
     except BaseException:
+        _discard(tmp_path, fd)
+        raise
+    return tmp_path
+
+
+def write_bytes_atomic(target: str | os.PathLike, data: bytes,
+                       verify: Verify | None = None) -> Path:
+    """Write `data` to `target` atomically and checked (see the module doc); return the target."""
+    return write_many_atomic([(target, data, verify)])[0]
+
+
+def write_many_atomic(items) -> list[Path]:
+    """Write several files as one: `items` are (target, data bytes, verify or None). Every file
+    is written and checked under its temporary name before any target is replaced, so a full
+    disk leaves all the old files (a rename, which needs no space, is the only step after)."""
+    prepared: list[tuple[Path, Path]] = []
+    try:
+        for target, data, verify in items:
+            target = Path(target)
+            prepared.append((_prepare(target, data, verify), target))
+    except BaseException:
+        for tmp_path, _ in prepared:
+            _discard(tmp_path, -1)
+        raise
+    done: list[Path] = []
+    for i, (tmp_path, target) in enumerate(prepared):
+        try:
+            _commit(tmp_path, target, _folder_of(target))
+        except OSError as exc:
+            for rest, _ in prepared[i:]:
+                _discard(rest, -1)
+            written = f" ({', '.join(map(str, done))} already replaced)" if done else ""
+            raise InputError(f"cannot write {target}: {os_error_text(exc)}; "
+                             f"{target} was left as it was{written}") from exc
+        done.append(target)
+    return done
+
+
+def _discard(tmp_path: Path, fd: int) -> None:
+    if fd >= 0:
+        with contextlib.suppress(OSError):
+            os.close(fd)
+    with contextlib.suppress(OSError):
         tmp_path.unlink(missing_ok=True)
+
+
+def write_text_atomic(target: str | os.PathLike, text: str, verify: Verify | None = None) -> Path:
+    """Write `text` as UTF-8 atomically and checked; return the target."""
+    return write_bytes_atomic(target, text.encode("utf-8"), verify)
+
+
+def _verify_json(path: Path) -> None:
+    import json
+
+    json.loads(path.read_text(encoding="utf-8"))
+
+
+def write_json_atomic(target: str | os.PathLike, doc) -> Path:
+    """Write `doc` as indented JSON atomically; the file is parsed back before the rename."""
+    import json
+
+    return write_text_atomic(target, json.dumps(doc, indent=2) + "\n",
+                             _verify_json)
+
+
+@contextlib.contextmanager
+def atomic_path(target: str | os.PathLike, suffix: str | None = None,
+                verify: Verify | None = None) -> Iterator[Path]:
+    """Yield a temporary path in the target's folder; when the block is done, check the file
+    (it exists, is not empty, `verify` accepts it) and rename it over the target.
+
+    For libraries that write to a path themselves. The temporary name keeps the target's suffix
+    (OpenCV and openpyxl choose the format by it). On any error the temporary file is removed and
+    the target is untouched.
+    """
+    target = Path(target)
+    folder = _folder_of(target)
+    existed = target.exists()
+    tmp_path, fd = _create_temp(target, folder, suffix or target.suffix or ".tmp")
+    try:
+        _ops.close(fd)
+        fd = -1
+        _keep_mode(target, tmp_path)
+        yield tmp_path
+        if not tmp_path.is_file() or tmp_path.stat().st_size == 0:
+            raise InputError(f"cannot write {target}: nothing reached the disk; "
+                             f"{_kept(target, existed)}")
+        sync_fd = _ops.open(tmp_path, os.O_RDONLY)
+        try:
+            _ops.fsync(sync_fd)
+        finally:
+            _ops.close(sync_fd)
+        _run_verify(verify, tmp_path, target, existed)
+        _commit(tmp_path, target, folder)
+    except OSError as exc:
+        _release_abandoned(exc)
+        _discard(tmp_path, fd)
+        raise InputError(f"cannot write {target}: {os_error_text(exc)}; "
+                         f"{_kept(target, existed)}") from exc
+    except BaseException as exc:
+        _release_abandoned(exc)
+        _discard(tmp_path, fd)
         raise
 
 
-def write_atomic(target: str | os.PathLike, writer: Callable[[Path], None]) -> Path:
+def _release_abandoned(exc: BaseException) -> None:
+    """Let go, now and quietly, of the file objects a library abandoned when it failed.
+
+    openpyxl's ZipFile on a full disk raises, stays open in the frames of the traceback, and when
+    the garbage collector ends it its __del__ fails again on the same disk: "Exception ignored
+    in ZipFile.__del__" and a traceback on the user's terminal, long after the clear message.
+    Clearing the finished frames of the traceback ends those objects here, where a failure to
+    close them is logged instead.
+    """
+    previous = sys.unraisablehook
+
+    def quiet(unraisable) -> None:
+        log.debug("closing a file abandoned by a failed write failed too: %s",
+                  unraisable.exc_value)
+
+    sys.unraisablehook = quiet
+    try:
+        traceback.clear_frames(exc.__traceback__)
+        gc.collect()
+    finally:
+        sys.unraisablehook = previous
+
+
+def write_atomic(target: str | os.PathLike, writer: Callable[[Path], None],
+                 verify: Verify | None = None) -> Path:
     """Call `writer(tmp_path)` and move the result over `target` atomically; return the target."""
-    with atomic_path(target) as tmp:
+    with atomic_path(target, verify=verify) as tmp:
         writer(tmp)
     return Path(target)
-
-
-def write_bytes_atomic(target: str | os.PathLike, data: bytes) -> Path:
-    return write_atomic(target, lambda p: p.write_bytes(data))
-
-
-def write_text_atomic(target: str | os.PathLike, text: str) -> Path:
-    return write_atomic(target, lambda p: p.write_text(text, encoding="utf-8"))
 
 
 def write_image_atomic(target: str | os.PathLike, image) -> Path:
@@ -80,7 +308,11 @@ def write_image_atomic(target: str | os.PathLike, image) -> Path:
     import cv2
 
     target = Path(target)
-    ok, buf = cv2.imencode(target.suffix or ".png", image)
+    try:
+        ok, buf = cv2.imencode(target.suffix or ".png", image)
+    except cv2.error:
+        ok, buf = False, None
     if not ok:
-        raise InputError(f"cannot write {target}: OpenCV could not encode the image as {target.suffix}")
+        raise InputError(f"cannot write {target}: OpenCV could not encode the image as "
+                         f"{target.suffix or 'an image'}")
     return write_bytes_atomic(target, buf.tobytes())

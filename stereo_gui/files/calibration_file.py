@@ -27,7 +27,7 @@ from stereo_gui.core.stereo_calibration import (
     StereoCalibration,
     check_matrices,
 )
-from stereo_gui.files.atomic import atomic_path, write_text_atomic
+from stereo_gui.files.atomic import os_error_text, write_many_atomic, write_text_atomic
 
 log = logging.getLogger(__name__)
 
@@ -36,48 +36,72 @@ MATRIX_NAMES = ("M1", "D1", "M2", "D2", "R", "T", "E", "F", "R1", "R2", "P1", "P
 
 
 # ---- OpenCV FileStorage YAML -------------------------------------------------------------------
+def calibration_text(calib: StereoCalibration) -> str:
+    """`calib` as the FileStorage YAML text `save_calibration` writes."""
+    fs = cv2.FileStorage(".yaml", cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_MEMORY
+                         | cv2.FILE_STORAGE_FORMAT_YAML)
+    if not fs.isOpened():
+        raise InputError("OpenCV could not start a FileStorage document")
+    fs.write("format_version", FORMAT_VERSION)
+    fs.write("created", calib.created)
+    fs.write("method", calib.method)
+    fs.write("alpha", float(calib.alpha))
+    fs.write("image_width", int(calib.width))
+    fs.write("image_height", int(calib.height))
+    if calib.scaled_from is not None:
+        fs.write("scaled_from_width", int(calib.scaled_from[0]))
+        fs.write("scaled_from_height", int(calib.scaled_from[1]))
+    for name in MATRIX_NAMES:
+        fs.write(name, np.asarray(getattr(calib, name), np.float64))
+    for name in ("optimal_M1", "optimal_M2"):
+        m = getattr(calib, name)
+        if m is not None:
+            fs.write(name, np.asarray(m, np.float64))
+    if calib.board is not None:
+        fs.write("board_cols", int(calib.board.cols))
+        fs.write("board_rows", int(calib.board.rows))
+        fs.write("square_mm", float(calib.board.square_mm))
+    fs.write("rms_left", float(calib.rms_left))
+    fs.write("rms_right", float(calib.rms_right))
+    fs.write("rms_stereo", float(calib.rms_stereo))
+    fs.write("epipolar_error_px", float(calib.epipolar_error_px))
+    fs.write("baseline_mm", float(calib.baseline_mm))  # for people reading the file
+    fs.startWriteStruct("per_pair", cv2.FileNode_SEQ)
+    for pe in calib.per_pair:
+        fs.startWriteStruct("", cv2.FileNode_MAP)
+        fs.write("name", str(pe.name))
+        fs.write("error_left", float(pe.error_left))
+        fs.write("error_right", float(pe.error_right))
+        fs.endWriteStruct()
+    fs.endWriteStruct()
+    return fs.releaseAndGetString()
+
+
+def _same_calibration(a: StereoCalibration, b: StereoCalibration) -> bool:
+    for name in MATRIX_NAMES:
+        if not np.array_equal(np.asarray(getattr(a, name), np.float64).reshape(-1),
+                              np.asarray(getattr(b, name), np.float64).reshape(-1)):
+            return False
+    return (a.image_size == b.image_size and len(a.per_pair) == len(b.per_pair)
+            and a.board == b.board)
+
+
 def save_calibration(calib: StereoCalibration, path: str | Path) -> Path:
-    """Write `calib` to `path` as FileStorage YAML, atomically; return the path."""
+    """Write `calib` to `path` as FileStorage YAML, atomically; return the path.
+
+    cv2.FileStorage does not report a failed write (a full disk leaves a torn file and no error),
+    so the document is made in memory, written by files.atomic, and read back with
+    `load_calibration` before it replaces `path`.
+    """
     path = Path(path)
-    with atomic_path(path, suffix=".yaml") as tmp:
-        fs = cv2.FileStorage(str(tmp), cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_FORMAT_YAML)
-        if not fs.isOpened():
-            raise InputError(f"cannot write {path}")
-        try:
-            fs.write("format_version", FORMAT_VERSION)
-            fs.write("created", calib.created)
-            fs.write("method", calib.method)
-            fs.write("alpha", float(calib.alpha))
-            fs.write("image_width", int(calib.width))
-            fs.write("image_height", int(calib.height))
-            if calib.scaled_from is not None:
-                fs.write("scaled_from_width", int(calib.scaled_from[0]))
-                fs.write("scaled_from_height", int(calib.scaled_from[1]))
-            for name in MATRIX_NAMES:
-                fs.write(name, np.asarray(getattr(calib, name), np.float64))
-            for name in ("optimal_M1", "optimal_M2"):
-                m = getattr(calib, name)
-                if m is not None:
-                    fs.write(name, np.asarray(m, np.float64))
-            if calib.board is not None:
-                fs.write("board_cols", int(calib.board.cols))
-                fs.write("board_rows", int(calib.board.rows))
-                fs.write("square_mm", float(calib.board.square_mm))
-            fs.write("rms_left", float(calib.rms_left))
-            fs.write("rms_right", float(calib.rms_right))
-            fs.write("rms_stereo", float(calib.rms_stereo))
-            fs.write("epipolar_error_px", float(calib.epipolar_error_px))
-            fs.write("baseline_mm", float(calib.baseline_mm))  # for people reading the file
-            fs.startWriteStruct("per_pair", cv2.FileNode_SEQ)
-            for pe in calib.per_pair:
-                fs.startWriteStruct("", cv2.FileNode_MAP)
-                fs.write("name", str(pe.name))
-                fs.write("error_left", float(pe.error_left))
-                fs.write("error_right", float(pe.error_right))
-                fs.endWriteStruct()
-            fs.endWriteStruct()
-        finally:
-            fs.release()
+    check_calibration(calib, f"cannot save {path}")
+    text = calibration_text(calib)
+
+    def verify(tmp: Path) -> None:
+        if not _same_calibration(load_calibration(tmp), calib):
+            raise CalibrationFileError("the matrices read back differ from those written")
+
+    write_text_atomic(path, text, verify)
     return path
 
 
@@ -94,11 +118,53 @@ def _parse_error(exc: BaseException) -> str:
     return text.splitlines()[-1] if text else type(exc).__name__
 
 
+MAX_FILE_BYTES = 4 << 20  # a calibration with a thousand pairs is a few hundred kB
+MAX_NESTING = 64
+
+
+def _check_parsable(path: Path, where: str) -> None:
+    """Refuse what would crash OpenCV's parser: it recurses per nesting level and a file with
+    100,000 nested brackets overflows the C stack (a segmentation fault, not an error)."""
+    try:
+        size = path.stat().st_size
+        if size > MAX_FILE_BYTES:
+            raise CalibrationFileError(f"{where} is {size} bytes: too large for a calibration")
+        data = path.read_bytes()
+    except OSError as exc:
+        raise CalibrationFileError(f"{where} cannot be read: {os_error_text(exc)}") from None
+    depth = deepest = 0
+    quote = 0
+    for byte in data:
+        if quote:
+            if byte == quote:
+                quote = 0
+        elif byte in (0x22, 0x27):  # " '
+            quote = byte
+        elif byte in (0x5B, 0x7B):  # [ {
+            depth += 1
+            deepest = max(deepest, depth)
+        elif byte in (0x5D, 0x7D):  # ] }
+            depth = max(0, depth - 1)
+        elif byte == 0x0A:
+            quote = 0
+    indent = max((len(line) - len(line.lstrip(b" \t")) for line in data.splitlines()),
+                 default=0)
+    if deepest > MAX_NESTING or indent > 40 * MAX_NESTING:
+        raise CalibrationFileError(f"{where} is nested too deeply to be a calibration file")
+
+
 def _open(path: Path) -> cv2.FileStorage:
     if not path.exists():
         raise CalibrationFileError(f"calibration file {path} does not exist")
     if not path.is_file():
         raise CalibrationFileError(f"calibration file {path} is not a file")
+    try:  # opened by Python first: OpenCV would call an unreadable file "not FileStorage"
+        with open(path, "rb"):
+            pass
+    except OSError as exc:
+        raise CalibrationFileError(f"calibration file {path} cannot be read: "
+                                   f"{os_error_text(exc)}") from None
+    _check_parsable(path, f"calibration file {path}")
     try:
         fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
     except (cv2.error, SystemError) as exc:
@@ -138,81 +204,223 @@ def _mat(fs, name: str, where: str) -> np.ndarray | None:
     node = fs.getNode(name)
     if node.empty() or node.isNone():
         return None
-    m = node.mat()
+    # check the header against the data before OpenCV reads it: a huge rows x cols makes
+    # FileNode.mat() abort the process instead of raising
+    rows, cols, dt, data = (node.getNode(k) for k in ("rows", "cols", "dt", "data"))
+    if not node.isMap() or rows.empty() or cols.empty() or data.empty():
+        raise CalibrationFileError(f"{where}: {name} is not a matrix")
+    if not (rows.isInt() and cols.isInt() and 1 <= rows.real() <= 16
+            and 1 <= cols.real() <= 16):
+        raise CalibrationFileError(f"{where}: matrix {name} should have 1 to 16 rows and columns")
+    if not (dt.isString() and dt.string() in ("d", "f", "i", "u", "s", "c", "w")):
+        raise CalibrationFileError(f"{where}: matrix {name} has an unknown element type")
+    if not data.isSeq() or data.size() != int(rows.real()) * int(cols.real()):
+        raise CalibrationFileError(f"{where}: matrix {name} says {int(rows.real())}x"
+                                   f"{int(cols.real())} but holds {data.size()} values")
+    try:
+        m = node.mat()
+    except (cv2.error, SystemError) as exc:  # a header that disagrees with its data, ...
+        raise CalibrationFileError(f"{where}: matrix {name} is not readable "
+                                   f"({_parse_error(exc)})") from None
     if m is None:
         raise CalibrationFileError(f"{where}: {name} is not a matrix")
     return np.asarray(m, np.float64)
 
 
+# ---- validation -------------------------------------------------------------------------------
+MAX_IMAGE_SIDE_PX = 100_000  # larger images are not made by any camera: the file is damaged
+MAX_FOCAL_PX = 1e7
+MAX_BASELINE_MM = 1e7
+MAX_DISTORTION = 1e6
+
+
+def _fail(where: str, text: str) -> None:
+    raise CalibrationFileError(f"{where}: {text}")
+
+
+def _check_size(w: int, h: int, where: str, what: str = "image size") -> None:
+    if not (0 < w <= MAX_IMAGE_SIDE_PX and 0 < h <= MAX_IMAGE_SIDE_PX):
+        _fail(where, f"{what} {w}x{h} is not valid (1 to {MAX_IMAGE_SIDE_PX} px a side)")
+
+
+def _check_camera(M: np.ndarray, name: str, where: str) -> None:
+    fx, fy = M[0, 0], M[1, 1]
+    if not (0 < fx <= MAX_FOCAL_PX and 0 < fy <= MAX_FOCAL_PX):
+        _fail(where, f"matrix {name} has focal lengths {fx:g}, {fy:g} px (they must be positive "
+                     f"and at most {MAX_FOCAL_PX:g})")
+    if not np.allclose(M[2], (0.0, 0.0, 1.0), atol=1e-9) or M[1, 0] != 0:
+        _fail(where, f"matrix {name} is not a camera matrix (its last row must be 0 0 1)")
+
+
+def check_calibration(calib: StereoCalibration, where: str) -> None:
+    """Raise CalibrationFileError naming the field of `calib` that no camera could have: an
+    absurd image size, a zero or negative focal length, a zero baseline, a singular
+    rectification, not a rotation, negative or non-finite quality figures, ...
+
+    NaN quality figures mean "not known" where a calibration legitimately has none (an imported
+    or already-rectified calibration has no per-pair record; Hartley's method has no stereo RMS);
+    anywhere else they are refused.
+    """
+    check_matrices({k: getattr(calib, k) for k in MATRIX_SHAPES}
+                   | {"D1": calib.D1, "D2": calib.D2}, where)
+    _check_size(calib.width, calib.height, where)
+    if calib.scaled_from is not None:
+        sw, sh = calib.scaled_from
+        _check_size(sw, sh, where, "scaled_from size")
+        if sw * calib.height != sh * calib.width:
+            _fail(where, f"scaled_from size {sw}x{sh} does not have the aspect ratio of "
+                         f"{calib.width}x{calib.height}")
+    _check_camera(calib.M1, "M1", where)
+    _check_camera(calib.M2, "M2", where)
+    for name in ("D1", "D2"):
+        if np.max(np.abs(getattr(calib, name))) > MAX_DISTORTION:
+            _fail(where, f"distortion {name} holds coefficients above {MAX_DISTORTION:g}")
+    R = calib.R
+    if not (np.allclose(R.T @ R, np.eye(3), atol=1e-4) and abs(np.linalg.det(R) - 1) < 1e-4):
+        _fail(where, "matrix R is not a rotation")
+    baseline = calib.baseline_mm
+    if not 0 < baseline <= MAX_BASELINE_MM:
+        _fail(where, f"T gives a baseline of {baseline:g} mm (it must be positive and at most "
+                     f"{MAX_BASELINE_MM:g} mm)")
+    for name in ("R1", "R2"):
+        if not abs(np.linalg.det(getattr(calib, name))) > 1e-9:
+            _fail(where, f"matrix {name} is singular: it cannot rectify")
+    for name in ("P1", "P2"):
+        P = getattr(calib, name)
+        if not (0 < P[0, 0] <= MAX_FOCAL_PX and 0 < P[1, 1] <= MAX_FOCAL_PX):
+            _fail(where, f"matrix {name} has focal lengths {P[0, 0]:g}, {P[1, 1]:g} px (they "
+                         "must be positive)")
+    if calib.P2[0, 3] == 0 and calib.P2[1, 3] == 0:
+        _fail(where, "matrix P2 has no baseline term (P2[0,3] and P2[1,3] are zero)")
+    if calib.Q[2, 3] == 0 or calib.Q[3, 2] == 0:
+        _fail(where, "matrix Q cannot turn disparities into distances (Q[2,3] or Q[3,2] is 0)")
+    if calib.method not in ("bouguet", "hartley", "identity"):
+        _fail(where, f"unknown method {calib.method!r}")
+    if not (math.isfinite(calib.alpha) and -1.0 <= calib.alpha <= 1.0):
+        _fail(where, f"alpha {calib.alpha:g} is not between -1 and 1")
+    unknown_ok = not calib.per_pair
+    for name in ("rms_left", "rms_right", "rms_stereo", "epipolar_error_px"):
+        v = _as_float(getattr(calib, name))
+        if math.isnan(v):
+            if unknown_ok or (name == "rms_stereo" and calib.method == "hartley"):
+                continue
+            _fail(where, f"{name} is not a number")
+        if not (math.isfinite(v) and v >= 0):
+            _fail(where, f"{name} is {v:g}; it must be a finite number of pixels >= 0")
+    for i, pe in enumerate(calib.per_pair, start=1):
+        for side, v in (("error_left", pe.error_left), ("error_right", pe.error_right)):
+            v = _as_float(v)
+            if not (math.isfinite(v) and v >= 0):
+                _fail(where, f"per_pair entry {i} ({pe.name}): {side} is {v:g}; it must be a "
+                             "finite number of pixels >= 0")
+
+
+def _as_float(v) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return float("nan")
+
+
+def _scaled_from(fs, where: str) -> tuple[int, int] | None:
+    present = [not fs.getNode(n).empty() for n in ("scaled_from_width", "scaled_from_height")]
+    if not any(present):
+        return None
+    if not all(present):
+        _fail(where, "scaled_from_width and scaled_from_height must be given together")
+    return (_int(fs, "scaled_from_width", where), _int(fs, "scaled_from_height", where))
+
+
+def _per_pair(fs, where: str) -> list[PairError]:
+    per_pair = []
+    pp = fs.getNode("per_pair")
+    if pp.empty() or pp.isNone():
+        return per_pair
+    if not pp.isSeq():
+        _fail(where, "per_pair should be a sequence")
+    for i in range(pp.size()):
+        item = pp.at(i)
+        if not item.isMap():
+            _fail(where, f"per_pair entry {i + 1} is incomplete")
+        name = item.getNode("name")
+        el, er = item.getNode("error_left"), item.getNode("error_right")
+        if el.empty() or er.empty():
+            _fail(where, f"per_pair entry {i + 1} is incomplete")
+        if not all(n.isReal() or n.isInt() for n in (el, er)):
+            _fail(where, f"per_pair entry {i + 1}: error_left and error_right should be numbers")
+        if name.isString():
+            nm = name.string()
+        elif name.isInt() or name.isReal():
+            nm = f"{name.real():g}"
+        else:
+            nm = str(i + 1)
+        per_pair.append(PairError(nm, float(el.real()), float(er.real())))
+    return per_pair
+
+
 def load_calibration(path: str | Path) -> StereoCalibration:
     """Read a calibration written by save_calibration; raise CalibrationFileError saying exactly
-    what is wrong (missing file, not FileStorage, unsupported version, bad or missing matrix)."""
+    what is wrong (missing file, not FileStorage, unsupported version, bad or missing matrix, a
+    value no camera has: see check_calibration)."""
     path = Path(path)
     where = str(path)
     fs = _open(path)
     try:
-        vnode = fs.getNode("format_version")
-        if vnode.empty() or vnode.isNone():
-            raise CalibrationFileError(f"{where}: not a stereo-gui calibration file (format_version "
-                                       "is missing)")
-        if not vnode.isInt() or int(vnode.real()) != FORMAT_VERSION:
-            shown = vnode.string() if vnode.isString() else f"{vnode.real():g}"
-            raise CalibrationFileError(f"{where}: unsupported format_version {shown} (this version "
-                                       f"reads {FORMAT_VERSION})")
-        w = _int(fs, "image_width", where)
-        h = _int(fs, "image_height", where)
-        if w <= 0 or h <= 0:
-            raise CalibrationFileError(f"{where}: image size {w}x{h} is not valid")
-        mats = {name: _mat(fs, name, where) for name in MATRIX_NAMES}
-        check_matrices(mats, where)
-        opt = {}
-        for name in ("optimal_M1", "optimal_M2"):
-            m = _mat(fs, name, where)
-            if m is not None:
-                if m.shape != (3, 3) or not np.all(np.isfinite(m)):
-                    raise CalibrationFileError(f"{where}: matrix {name} should be a finite 3x3")
-            opt[name] = m
-        board = None
-        if not fs.getNode("board_cols").empty():
-            try:
-                board = BoardSpec(_int(fs, "board_cols", where), _int(fs, "board_rows", where),
-                                  _real(fs, "square_mm", where))
-            except InputError as exc:
-                raise CalibrationFileError(f"{where}: {exc}") from None
-        per_pair = []
-        pp = fs.getNode("per_pair")
-        if not pp.empty() and not pp.isNone():
-            if not pp.isSeq():
-                raise CalibrationFileError(f"{where}: per_pair should be a sequence")
-            for i in range(pp.size()):
-                item = pp.at(i)
-                name = item.getNode("name")
-                el, er = item.getNode("error_left"), item.getNode("error_right")
-                if not item.isMap() or el.empty() or er.empty():
-                    raise CalibrationFileError(f"{where}: per_pair entry {i + 1} is incomplete")
-                nm = name.string() if name.isString() else (f"{name.real():g}" if not name.empty() else str(i + 1))
-                per_pair.append(PairError(nm, float(el.real()), float(er.real())))
-        method = _string(fs, "method", "bouguet")
-        if method not in ("bouguet", "hartley", "identity"):
-            raise CalibrationFileError(f"{where}: unknown method {method!r}")
-        sfw, sfh = fs.getNode("scaled_from_width"), fs.getNode("scaled_from_height")
-        scaled_from = None
-        if not sfw.empty() and not sfh.empty():
-            scaled_from = (int(sfw.real()), int(sfh.real()))
-        nan = float("nan")
-        return StereoCalibration(
-            image_size=(w, h),
-            M1=mats["M1"], D1=mats["D1"].reshape(1, -1), M2=mats["M2"], D2=mats["D2"].reshape(1, -1),
-            R=mats["R"], T=mats["T"], E=mats["E"], F=mats["F"], R1=mats["R1"], R2=mats["R2"],
-            P1=mats["P1"], P2=mats["P2"], Q=mats["Q"], board=board,
-            rms_left=_real(fs, "rms_left", where, nan), rms_right=_real(fs, "rms_right", where, nan),
-            rms_stereo=_real(fs, "rms_stereo", where, nan),
-            epipolar_error_px=_real(fs, "epipolar_error_px", where, nan),
-            per_pair=tuple(per_pair), method=method, alpha=_real(fs, "alpha", where, 0.0),
-            optimal_M1=opt["optimal_M1"], optimal_M2=opt["optimal_M2"],
-            created=_string(fs, "created", ""), scaled_from=scaled_from)
+        calib = _read_calibration(fs, where)
+    except (cv2.error, SystemError) as exc:  # OpenCV's parser gave up on a damaged node
+        raise CalibrationFileError(f"{where} is damaged ({_parse_error(exc)})") from None
+    except UnicodeDecodeError:
+        raise CalibrationFileError(f"{where}: a text value is not UTF-8") from None
     finally:
         fs.release()
+    check_calibration(calib, where)
+    return calib
+
+
+def _read_calibration(fs, where: str) -> StereoCalibration:
+    vnode = fs.getNode("format_version")
+    if vnode.empty() or vnode.isNone():
+        raise CalibrationFileError(f"{where}: not a stereo-gui calibration file (format_version "
+                                   "is missing)")
+    if not vnode.isInt() or int(vnode.real()) != FORMAT_VERSION:
+        shown = vnode.string() if vnode.isString() else f"{vnode.real():g}"
+        raise CalibrationFileError(f"{where}: unsupported format_version {shown} (this version "
+                                   f"reads {FORMAT_VERSION})")
+    w = _int(fs, "image_width", where)
+    h = _int(fs, "image_height", where)
+    _check_size(w, h, where)
+    mats = {name: _mat(fs, name, where) for name in MATRIX_NAMES}
+    check_matrices(mats, where)
+    opt = {}
+    for name in ("optimal_M1", "optimal_M2"):
+        m = _mat(fs, name, where)
+        if m is not None:
+            if m.shape != (3, 3) or not np.all(np.isfinite(m)):
+                raise CalibrationFileError(f"{where}: matrix {name} should be a finite 3x3")
+        opt[name] = m
+    board = None
+    if not fs.getNode("board_cols").empty():
+        try:
+            board = BoardSpec(_int(fs, "board_cols", where), _int(fs, "board_rows", where),
+                              _real(fs, "square_mm", where))
+        except InputError as exc:
+            raise CalibrationFileError(f"{where}: {exc}") from None
+    per_pair = _per_pair(fs, where)
+    method = _string(fs, "method", "bouguet")
+    if method not in ("bouguet", "hartley", "identity"):
+        raise CalibrationFileError(f"{where}: unknown method {method!r}")
+    nan = float("nan")
+    return StereoCalibration(
+        image_size=(w, h),
+        M1=mats["M1"], D1=mats["D1"].reshape(1, -1), M2=mats["M2"], D2=mats["D2"].reshape(1, -1),
+        R=mats["R"], T=mats["T"], E=mats["E"], F=mats["F"], R1=mats["R1"], R2=mats["R2"],
+        P1=mats["P1"], P2=mats["P2"], Q=mats["Q"], board=board,
+        rms_left=_real(fs, "rms_left", where, nan), rms_right=_real(fs, "rms_right", where, nan),
+        rms_stereo=_real(fs, "rms_stereo", where, nan),
+        epipolar_error_px=_real(fs, "epipolar_error_px", where, nan),
+        per_pair=tuple(per_pair), method=method, alpha=_real(fs, "alpha", where, 0.0),
+        optimal_M1=opt["optimal_M1"], optimal_M2=opt["optimal_M2"],
+        created=_string(fs, "created", ""), scaled_from=_scaled_from(fs, where))
 
 
 def load_calibration_for_size(path: str | Path, image_size: tuple[int, int]) -> StereoCalibration:
@@ -266,11 +474,10 @@ def export_ros(calib: StereoCalibration, folder: str | Path, prefix: str = "") -
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"cannot write ROS files: folder {folder} does not exist")
-    out = []
-    for side in ("left", "right"):
-        p = folder / f"{prefix}{side}.yaml"
-        write_text_atomic(p, ros_camera_info_text(calib, side))
-        out.append(p)
+    # both written and read back before either replaces an old file
+    out = write_many_atomic([(folder / f"{prefix}{side}.yaml",
+                              ros_camera_info_text(calib, side).encode("utf-8"), _ros_read)
+                             for side in ("left", "right")])
     return out[0], out[1]
 
 
@@ -278,6 +485,7 @@ def _ros_read(path: Path) -> dict:
     where = str(path)
     if not path.exists():
         raise CalibrationFileError(f"ROS camera_info file {path} does not exist")
+    _check_parsable(path, f"ROS camera_info file {path}")
     try:
         fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_FORMAT_YAML)
     except (cv2.error, SystemError):
@@ -291,6 +499,7 @@ def _ros_read(path: Path) -> dict:
             if n.empty() or not n.isInt():
                 raise CalibrationFileError(f"{where}: {key} is missing or not a whole number")
             out[key] = int(n.real())
+        _check_size(out["image_width"], out["image_height"], where)
         out["distortion_model"] = _string(fs, "distortion_model", "plumb_bob")
         if out["distortion_model"] not in ("plumb_bob", "rational_polynomial"):
             raise CalibrationFileError(f"{where}: distortion model {out['distortion_model']!r} is "
@@ -304,7 +513,14 @@ def _ros_read(path: Path) -> dict:
             rows, cols, data = n.getNode("rows"), n.getNode("cols"), n.getNode("data")
             if rows.empty() or cols.empty() or data.empty() or not data.isSeq():
                 raise CalibrationFileError(f"{where}: {key} needs rows, cols and data")
+            if not (rows.isInt() and cols.isInt() and 1 <= rows.real() <= 4
+                    and 1 <= cols.real() <= 14):
+                raise CalibrationFileError(f"{where}: {key} rows and cols should be whole "
+                                           "numbers from 1 to 14")
             r, c = int(rows.real()), int(cols.real())
+            if data.size() > 64 or not all(data.at(i).isReal() or data.at(i).isInt()
+                                           for i in range(data.size())):
+                raise CalibrationFileError(f"{where}: {key} data should be numbers")
             vals = np.array([data.at(i).real() for i in range(data.size())], np.float64)
             if vals.size != r * c:
                 raise CalibrationFileError(f"{where}: {key} has {vals.size} values, rows x cols "
@@ -317,6 +533,10 @@ def _ros_read(path: Path) -> dict:
                 raise CalibrationFileError(f"{where}: {key} holds values that are not finite")
             out[key] = m
         return out
+    except UnicodeDecodeError:
+        raise CalibrationFileError(f"{where}: a text value is not UTF-8") from None
+    except (cv2.error, SystemError) as exc:
+        raise CalibrationFileError(f"{where} is damaged ({_parse_error(exc)})") from None
     finally:
         fs.release()
 
@@ -335,6 +555,12 @@ def import_ros(left_path: str | Path, right_path: str | Path) -> StereoCalibrati
         raise CalibrationFileError(f"{lp} is {size[0]}x{size[1]} but {rp} is "
                                    f"{right['image_width']}x{right['image_height']}")
     M1, M2 = left["camera_matrix"], right["camera_matrix"]
+    for path, M, name in ((lp, M1, "camera_matrix"), (rp, M2, "camera_matrix")):
+        _check_camera(M, name, str(path))
+    for path, P in ((lp, left["projection_matrix"]), (rp, right["projection_matrix"])):
+        if not (0 < P[0, 0] <= MAX_FOCAL_PX and 0 < P[1, 1] <= MAX_FOCAL_PX):
+            raise CalibrationFileError(f"{path}: projection_matrix has focal lengths "
+                                       f"{P[0, 0]:g}, {P[1, 1]:g} px (they must be positive)")
     D1 = left["distortion_coefficients"].reshape(1, -1)
     D2 = right["distortion_coefficients"].reshape(1, -1)
     R1, R2 = left["rectification_matrix"], right["rectification_matrix"]
@@ -356,8 +582,7 @@ def import_ros(left_path: str | Path, right_path: str | Path) -> StereoCalibrati
     calib = StereoCalibration(image_size=size, M1=M1, D1=D1, M2=M2, D2=D2, R=R, T=T, E=E, F=F,
                               R1=R1, R2=R2, P1=P1, P2=P2, Q=Q, method="bouguet",
                               created=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"))
-    check_matrices({k: getattr(calib, k) for k in MATRIX_SHAPES} | {"D1": D1, "D2": D2},
-                   f"{lp} + {rp}")
+    check_calibration(calib, f"{lp} + {rp}")
     return calib
 
 

@@ -7,6 +7,7 @@ Input disparities are float32 px of the rectified left image with NaN where inva
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import cv2
@@ -15,7 +16,7 @@ import numpy as np
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import DISP_SCALE
 from stereo_gui.core.stereo_calibration import StereoCalibration
-from stereo_gui.files.atomic import atomic_path, write_image_atomic
+from stereo_gui.files.atomic import write_bytes_atomic, write_image_atomic
 
 UINT16_MAX = np.iinfo(np.uint16).max
 
@@ -74,9 +75,16 @@ def write_disparity_png16(path, disparity_px: np.ndarray) -> Path:
 
 def write_disparity_npy(path, disparity_px: np.ndarray) -> Path:
     d = _check(disparity_px)
-    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        np.save(fh, d.astype(np.float32))
-    return Path(path)
+    buf = io.BytesIO()
+    np.save(buf, d.astype(np.float32))
+    expected = d.shape
+
+    def verify(tmp: Path) -> None:
+        back = np.load(tmp, allow_pickle=False)
+        if back.shape != expected or back.dtype != np.float32:
+            raise ValueError(f"it holds {back.dtype} {back.shape}, not float32 {expected}")
+
+    return write_bytes_atomic(path, buf.getvalue(), verify)
 
 
 def write_depth_png16(path, disparity_px: np.ndarray, calibration: StereoCalibration) -> Path:
@@ -112,9 +120,7 @@ def write_ply(path, disparity_px: np.ndarray, color_bgr: np.ndarray,
         "property uchar red\nproperty uchar green\nproperty uchar blue\n"
         "end_header\n"
     ).encode("ascii")
-    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        fh.write(header)
-        fh.write(vertex.tobytes())
+    write_bytes_atomic(path, header + vertex.tobytes())  # size and bytes checked there
     return n
 
 

@@ -7,13 +7,13 @@ import os
 from pathlib import Path
 
 from stereo_gui.core.regression import FitResult, fit_from_dict, fit_to_dict
-from stereo_gui.files.atomic import write_text_atomic
+from stereo_gui.files.atomic import write_json_atomic
 from stereo_gui.files.readers import read_json_object
 
 
 def save_fit(fit: FitResult, path: str | os.PathLike) -> Path:
     """Write the fit as JSON (atomically); returns the path."""
-    return write_text_atomic(path, json.dumps(fit_to_dict(fit), indent=2) + "\n")
+    return write_json_atomic(path, fit_to_dict(fit))
 
 
 def load_fit(path: str | os.PathLike) -> FitResult:

@@ -162,7 +162,9 @@ def load_image(path: str | Path, grayscale: bool = False) -> np.ndarray:
     try:
         data = np.fromfile(str(path), np.uint8)  # works with any characters in the path
     except OSError as exc:
-        raise InputError(f"cannot read image {path}: {exc.strerror or exc}") from exc
+        from stereo_gui.files.atomic import os_error_text
+
+        raise InputError(f"cannot read image {path}: {os_error_text(exc)}") from exc
     img = None
     if data.size:
         img = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE if grayscale else cv2.IMREAD_COLOR)

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import MatcherParams
-from stereo_gui.files.atomic import write_text_atomic
+from stereo_gui.files.atomic import write_json_atomic
 from stereo_gui.files.readers import read_json_object
 from stereo_gui.resources import resource_path
 
@@ -87,7 +87,7 @@ def save_user_preset(params: MatcherParams, name: str | None = None) -> Path:
     d = params.replace(name=name).to_dict()
     doc = {"format_version": FORMAT_VERSION, "name": name, "description": d.pop("description"),
            "params": {k: v for k, v in d.items() if k != "name"}}
-    return write_text_atomic(folder / f"{name}.json", json.dumps(doc, indent=2) + "\n")
+    return write_json_atomic(folder / f"{name}.json", doc)
 
 
 def delete_user_preset(name: str) -> None:

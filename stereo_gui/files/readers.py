@@ -8,6 +8,9 @@ import os
 from pathlib import Path
 
 from stereo_gui.core.errors import InputError
+from stereo_gui.files.atomic import os_error_text
+
+MAX_JSON_BYTES = 64 << 20  # none of our JSON files comes near this
 
 
 def read_json_object(path: str | os.PathLike, what: str) -> dict:
@@ -15,10 +18,14 @@ def read_json_object(path: str | os.PathLike, what: str) -> dict:
     is not JSON or holds something other than an object."""
     path = Path(path)
     try:
+        if path.stat().st_size > MAX_JSON_BYTES:
+            raise InputError(f"{what} {path} is too large ({path.stat().st_size} bytes) to be one")
         doc = json.loads(path.read_text(encoding="utf-8"))
     except OSError as exc:
-        raise InputError(f"cannot read {what} {path}: {exc.strerror or exc}") from exc
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read {what} {path}: {os_error_text(exc)}") from exc
+    except RecursionError:
+        raise InputError(f"{what} {path} is nested too deeply to be one") from None
+    except (ValueError, UnicodeDecodeError) as exc:  # JSONDecodeError, huge integer literals
         raise InputError(f"{what} {path} is not valid JSON: {exc}") from exc
     if not isinstance(doc, dict):
         raise InputError(f"{what} {path} does not hold a JSON object")
@@ -32,8 +39,12 @@ def read_csv_rows(path: str | os.PathLike, columns: tuple[str, ...], what: str) 
     try:
         with open(path, newline="", encoding="utf-8") as fh:
             rows = list(csv.reader(fh))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read {path}: {exc}") from exc
+    except OSError as exc:
+        raise InputError(f"cannot read {path}: {os_error_text(exc)}") from exc
+    except UnicodeDecodeError as exc:
+        raise InputError(f"cannot read {path}: it is not UTF-8 text ({exc})") from exc
+    except csv.Error as exc:  # a field over csv's limit (128 KiB), a NUL byte, ...
+        raise InputError(f"{path} is not {what}: {exc}") from exc
     if not rows or tuple(rows[0]) != tuple(columns):
         raise InputError(f"{path} is not {what} (its first row is not {', '.join(columns)})")
     return rows[1:]

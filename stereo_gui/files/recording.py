@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.files.atomic import write_bytes_atomic, write_text_atomic
+from stereo_gui.files.atomic import write_bytes_atomic, write_json_atomic
 from stereo_gui.files.readers import read_csv_rows, read_json_object
 
 log = logging.getLogger(__name__)
@@ -201,8 +201,10 @@ class RecordingWriter:
                 self._video.release()
                 self._video = None
                 try:
+                    # cv2.VideoWriter does not report a full disk: the video is read back
+                    self._verify_video()
                     os.replace(self._video_tmp, self.folder / VIDEO)
-                except OSError as exc:
+                except (OSError, InputError) as exc:
                     self._error = self._error or exc
             if self._error is None:
                 self._write_header(complete=True)
@@ -291,6 +293,19 @@ class RecordingWriter:
                 raise InputError(f"cannot write a {self.codec} video in {self.folder}")
         self._video.write(np.ascontiguousarray(sbs))
 
+    def _verify_video(self) -> None:
+        import cv2
+
+        cap = cv2.VideoCapture(str(self._video_tmp))
+        try:
+            frames = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) if cap.isOpened() else 0
+        finally:
+            cap.release()
+        if frames < self._count:
+            raise InputError(f"the video of {self.folder} holds {frames} of {self._count} "
+                             "frames (the disk may be full); it is kept as "
+                             f"{self._video_tmp.name}")
+
     def _write_header(self, complete: bool) -> None:
         header = {
             "format_version": FORMAT_VERSION,
@@ -305,18 +320,92 @@ class RecordingWriter:
             "video_codec": self.codec,
             "complete": complete,
         }
-        write_text_atomic(self.folder / HEADER, json.dumps(header, indent=2) + "\n")
+        write_json_atomic(self.folder / HEADER, header)
 
 
 def is_recording(folder: str | os.PathLike) -> bool:
     return (Path(folder) / HEADER).is_file()
 
 
-def open_recording(folder: str | os.PathLike) -> Recording:
-    """Read a recording folder's header and frame list; raise InputError if it is not one.
+MAX_FPS = 1000.0
+MAX_SIDE_PX = 100_000
+MAX_FRAMES = 10_000_000
 
-    A recording cut short by a crash opens with what was written (`complete` False); frames whose
-    images are missing and a torn last line are left out with a warning.
+
+def _ends_with_newline(path: Path) -> bool:
+    try:
+        with open(path, "rb") as fh:
+            fh.seek(0, os.SEEK_END)
+            if fh.tell() == 0:
+                return True
+            fh.seek(-1, os.SEEK_END)
+            return fh.read(1) in (b"\n", b"\r")
+    except OSError:
+        return True
+
+
+def _header_fields(header: dict, hpath: Path) -> tuple[tuple[int, int], float, str, str, bool,
+                                                         str | None, bool]:
+    """size, fps, source, created, complete, video name, images: checked, or InputError naming
+    the field."""
+    def bad(field: str, text: str) -> InputError:
+        return InputError(f"{hpath}: {field} {text}")
+
+    fps = header.get("fps", 30.0)
+    if fps is None:
+        fps = 30.0
+    if isinstance(fps, bool) or not isinstance(fps, int | float) or \
+            not (math.isfinite(fps) and 0 < fps <= MAX_FPS):
+        raise bad("fps", f"is {fps!r:.40}; it must be a number of frames per second from 0 to "
+                         f"{MAX_FPS:g}")
+    size = header.get("size")
+    if size is None:
+        size = [0, 0]
+    elif not (isinstance(size, list) and len(size) == 2 and all(
+            isinstance(v, int) and not isinstance(v, bool) and 0 < v <= MAX_SIDE_PX
+            for v in size)):
+        raise bad("size", f"is {size!r:.60}; it must be [width, height] in px (1 to "
+                          f"{MAX_SIDE_PX})")
+    for field in ("source", "created"):
+        if not isinstance(header.get(field, ""), str):
+            raise bad(field, "should be text")
+    complete = header.get("complete", False)
+    if not isinstance(complete, bool):
+        raise bad("complete", "should be true or false")
+    video = header.get("video")
+    if video is not None and (not isinstance(video, str) or video != VIDEO):
+        raise bad("video", f"should be {VIDEO!r} or null, not {video!r:.60}")
+    images = header.get("images", "png")
+    if images not in ("png", None):
+        raise bad("images", f"should be \"png\" or null, not {images!r:.40}")
+    frames = header.get("frames", 0)
+    if isinstance(frames, bool) or not isinstance(frames, int) or not 0 <= frames <= MAX_FRAMES:
+        raise bad("frames", f"is {frames!r:.40}; it must be a count from 0 to {MAX_FRAMES}")
+    return ((int(size[0]), int(size[1])), float(fps), header.get("source", ""),
+            header.get("created", ""), complete, video, images is not None)
+
+
+def _image_path(folder: Path, rel: str, where: str, field: str) -> Path | None:
+    if not rel:
+        return None
+    path = folder / rel
+    try:
+        inside = not Path(rel).is_absolute() and \
+            path.resolve().is_relative_to(folder.resolve())
+    except (OSError, RuntimeError, ValueError):
+        inside = False
+    if not inside:
+        raise InputError(f"{where}: {field} {rel[:80]!r} is not a file inside the recording")
+    return path
+
+
+def open_recording(folder: str | os.PathLike) -> Recording:
+    """Read a recording folder's header and frame list; raise InputError naming the file and the
+    field when it is not one or is damaged (indices that are negative, repeated or go backwards,
+    times that are not finite or go backwards, image paths outside the folder, ...).
+
+    A recording cut short by a crash opens with what was written (`complete` False): a torn last
+    line of frames.csv and frames whose images are missing are left out with a warning.
     """
     folder = Path(folder)
     hpath = folder / HEADER
@@ -326,37 +415,59 @@ def open_recording(folder: str | os.PathLike) -> Recording:
     if header.get("kind") != KIND:
         raise InputError(f"{hpath} is not a stereo-gui recording header")
     version = header.get("format_version")
-    if not isinstance(version, int) or version > FORMAT_VERSION:
-        raise InputError(f"{hpath} has format version {version!r}; this version reads "
+    if isinstance(version, bool) or not isinstance(version, int) or version > FORMAT_VERSION:
+        raise InputError(f"{hpath} has format version {version!r:.40}; this version reads "
                          f"{FORMAT_VERSION} and older")
+    size, fps, source, created, complete, video_name, images = _header_fields(header, hpath)
     warnings: list[str] = []
     frames: list[RecordedFrame] = []
     fpath = folder / FRAMES
     rows = read_csv_rows(fpath, FRAME_COLUMNS, "a recording's frame list")
+    torn_end = not _ends_with_newline(fpath)
+    last_index = -1
+    last_t = (-math.inf, -math.inf)
     for line, row in enumerate(rows, start=2):
+        is_last = line == len(rows) + 1
+        where = f"{fpath}, line {line}"
+        if not row:
+            continue
         try:
+            if len(row) != len(FRAME_COLUMNS):
+                raise ValueError(f"it has {len(row)} fields, not {len(FRAME_COLUMNS)}")
             idx, tl, tr = int(row[0]), float(row[1]), float(row[2])
             lrel, rrel = row[3], row[4]
-        except (ValueError, IndexError):
-            warnings.append(f"{fpath}, line {line}: unreadable, left out")
-            continue
-        left = folder / lrel if lrel else None
-        right = folder / rrel if rrel else None
+            if images and not (lrel and rrel):
+                raise ValueError("an image file is missing from the line")
+            if torn_end and is_last:
+                raise ValueError("the line is not finished")
+        except ValueError as exc:
+            if is_last:  # the process died while writing it: what came before is whole
+                warnings.append(f"{where}: torn last line left out ({exc})")
+                continue
+            raise InputError(f"{where}: unreadable ({exc})") from None
+        if idx < 0 or idx <= last_index:
+            raise InputError(f"{where}: index {idx} is negative or does not follow "
+                             f"{last_index} (indices must rise)")
+        if not (math.isfinite(tl) and math.isfinite(tr)):
+            raise InputError(f"{where}: t_left/t_right must be finite seconds, not {row[1]!r:.30}"
+                             f", {row[2]!r:.30}")
+        if tl < last_t[0] or tr < last_t[1]:
+            raise InputError(f"{where}: t_left/t_right go backwards in time")
+        last_index, last_t = idx, (tl, tr)
+        left = _image_path(folder, lrel, where, "left")
+        right = _image_path(folder, rrel, where, "right")
         if (left is not None and not left.is_file()) or (right is not None and not right.is_file()):
-            warnings.append(f"{fpath}, line {line}: images missing, frame {idx} left out")
+            warnings.append(f"{where}: images missing, frame {idx} left out")
             continue
         frames.append(RecordedFrame(idx, tl, tr, left, right))
-    video = folder / header["video"] if header.get("video") else None
+    video = folder / video_name if video_name else None
     if video is not None and not video.is_file():
         warnings.append(f"{folder}: video {video.name} is missing (recording not closed?)")
         video = None
-    size = header.get("size") or [0, 0]
-    complete = bool(header.get("complete"))
     if not complete:
         warnings.append(f"{folder}: the recording was not closed cleanly; "
                         f"{len(frames)} frame(s) were saved")
     for w in warnings:
         log.warning("%s", w)
-    return Recording(folder, (int(size[0]), int(size[1])), float(header.get("fps") or 30.0),
-                     str(header.get("source", "")), str(header.get("created", "")),
-                     tuple(frames), video, complete, tuple(warnings))
+    return Recording(folder, size, fps, source, created, tuple(frames), video, complete,
+                     tuple(warnings))

@@ -25,7 +25,7 @@ import numpy as np
 
 from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.errors import InputError, StereoGuiError
-from stereo_gui.files.atomic import write_bytes_atomic, write_text_atomic
+from stereo_gui.files.atomic import write_bytes_atomic, write_json_atomic
 
 log = logging.getLogger(__name__)
 
@@ -76,6 +76,50 @@ def _discover(folder: Path, warnings: list[str] | None = None) -> list[PairEntry
     if warnings is not None and found.warning():
         warnings.append(f"{folder}: {found.warning()}")
     return [PairEntry(p.name, p.number, Path(p.left), Path(p.right)) for p in found.pairs]
+
+
+MAX_SIDE_PX = 100_000
+MAX_TEXT = 4096
+
+
+def _whole(v, field: str, lo: int = -(2**31), hi: int = 2**31) -> int:
+    if isinstance(v, bool) or not isinstance(v, int):
+        raise ValueError(f"{field} should be a whole number, not {v!r:.40}")
+    if not lo <= v <= hi:
+        raise ValueError(f"{field} is {v}; it must be from {lo} to {hi}")
+    return v
+
+
+def _number(v, field: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        raise ValueError(f"{field} should be a number, not {v!r:.40}")
+    return float(v)
+
+
+def _text(v, field: str, empty: bool = True) -> str:
+    if not isinstance(v, str) or len(v) > MAX_TEXT or "\0" in v or (not empty and not v):
+        raise ValueError(f"{field} should be {'a' if empty else 'a non-empty'} text of at most "
+                         f"{MAX_TEXT} characters")
+    return v
+
+
+def _is_inside(folder: Path, path: Path) -> bool:
+    try:
+        Path(path).resolve().relative_to(Path(folder).resolve())
+    except (ValueError, OSError, RuntimeError):
+        return False
+    return True
+
+
+def _inside(folder: Path, rel, field: str) -> Path:
+    """The manifest's relative path `rel` as a path inside `folder`; ValueError for a path that
+    leads out of it (an absolute path, "..", a link pointing elsewhere)."""
+    rel = _text(rel, field, empty=False)
+    path = folder / rel
+    if Path(rel).is_absolute() or not _is_inside(folder, path) or \
+            Path(path).resolve() == Path(folder).resolve():
+        raise ValueError(f"{field} {rel!r} is not a file inside the session folder")
+    return path
 
 
 class CaptureSession:
@@ -129,14 +173,18 @@ class CaptureSession:
         manifest = folder / MANIFEST
         warnings: list[str] = []
         if manifest.exists():
+            problem = ""
             try:
                 data = json.loads(manifest.read_text(encoding="utf-8"))
                 return cls._from_manifest(folder, data)
-            except (OSError, UnicodeDecodeError, ValueError, TypeError, KeyError) as exc:
-                warnings.append(f"{manifest} is unreadable ({exc}); pairs found in the folder "
-                                "are used, without its board and exclusions (the file is kept "
-                                f"as {MANIFEST}.unreadable when the session changes)")
-                log.warning("%s", warnings[-1])
+            except RecursionError:
+                problem = "nested too deeply to be a manifest"
+            except (OSError, UnicodeDecodeError, ValueError, StereoGuiError) as exc:
+                problem = str(exc)
+            warnings.append(f"{manifest} is unreadable ({problem}); pairs found in the folder "
+                            "are used, without its board and exclusions (the file is kept "
+                            f"as {MANIFEST}.unreadable when the session changes)")
+            log.warning("%s", warnings[-1])
         pairs = _discover(folder, warnings)
         s = cls(folder, None, None, CameraIds(), "", pairs, has_manifest=False, warnings=warnings)
         s.resolution = s._first_image_size()
@@ -144,22 +192,68 @@ class CaptureSession:
         return s
 
     @classmethod
-    def _from_manifest(cls, folder: Path, data: dict) -> CaptureSession:
+    def _from_manifest(cls, folder: Path, data) -> CaptureSession:
+        """The session a parsed manifest describes; ValueError naming the field that is wrong
+        (the caller then falls back to the pairs found in the folder)."""
+        if not isinstance(data, dict):
+            raise ValueError(f"it holds a JSON {type(data).__name__}, not an object")
         version = data.get("format_version")
-        if not isinstance(version, int) or version > FORMAT_VERSION:
+        if isinstance(version, bool) or not isinstance(version, int) or not \
+                1 <= version <= FORMAT_VERSION:
             raise ValueError(f"format version {version!r} is not one this version reads")
         b = data.get("board")
-        board = BoardSpec(int(b["cols"]), int(b["rows"]), float(b["square_mm"])) if b else None
+        board = None
+        if b is not None:
+            if not isinstance(b, dict):
+                raise ValueError("board should be an object")
+            try:
+                board = BoardSpec(_whole(b.get("cols"), "board cols"),
+                                  _whole(b.get("rows"), "board rows"),
+                                  _number(b.get("square_mm"), "board square_mm"))
+            except InputError as exc:
+                raise ValueError(f"board: {exc}") from None
         res = data.get("resolution")
-        resolution = (int(res[0]), int(res[1])) if res else None
+        resolution = None
+        if res is not None:
+            if not isinstance(res, list) or len(res) != 2:
+                raise ValueError("resolution should be [width, height]")
+            resolution = (_whole(res[0], "resolution width", 1, MAX_SIDE_PX),
+                          _whole(res[1], "resolution height", 1, MAX_SIDE_PX))
         cams = data.get("cameras") or {}
-        cameras = CameraIds(str(cams.get("left", "")), str(cams.get("right", "")))
-        excluded = set(data.get("excluded", []))
+        if not isinstance(cams, dict):
+            raise ValueError("cameras should be an object")
+        cameras = CameraIds(_text(cams.get("left", ""), "cameras left"),
+                            _text(cams.get("right", ""), "cameras right"))
+        excluded_raw = data.get("excluded", [])
+        if not isinstance(excluded_raw, list):
+            raise ValueError("excluded should be a list of pair names")
+        excluded = {_text(x, "excluded") for x in excluded_raw}
+        raw_pairs = data.get("pairs", [])
+        if not isinstance(raw_pairs, list):
+            raise ValueError("pairs should be a list")
         warnings: list[str] = []
         pairs: list[PairEntry] = []
-        for p in data.get("pairs", []):
-            e = PairEntry(str(p["name"]), int(p["number"]), folder / p["left"], folder / p["right"],
-                          str(p.get("time", "")), str(p["name"]) in excluded)
+        names: set[str] = set()
+        numbers: set[int] = set()
+        files: set[Path] = set()
+        for i, p in enumerate(raw_pairs, start=1):
+            if not isinstance(p, dict):
+                raise ValueError(f"pairs entry {i} should be an object")
+            name = _text(p.get("name"), f"pairs entry {i} name", empty=False)
+            number = _whole(p.get("number"), f"pairs entry {i} number", 1, 10**9)
+            if name in names:
+                raise ValueError(f"pairs entry {i}: name {name!r} is listed twice")
+            if number in numbers:
+                raise ValueError(f"pairs entry {i}: number {number} is listed twice")
+            left = _inside(folder, p.get("left"), f"pairs entry {i} left")
+            right = _inside(folder, p.get("right"), f"pairs entry {i} right")
+            if left == right or left in files or right in files:
+                raise ValueError(f"pairs entry {i}: its image files are listed twice")
+            names.add(name)
+            numbers.add(number)
+            files.update((left, right))
+            e = PairEntry(name, number, left, right, _text(p.get("time", ""), f"pairs entry {i} "
+                                                           "time"), name in excluded)
             if not (e.left.is_file() and e.right.is_file()):
                 warnings.append(f"{folder}: pair {e.name} is listed but its images are missing; "
                                 "it is left out")
@@ -177,8 +271,8 @@ class CaptureSession:
             pairs.append(e)
         for w in warnings:
             log.warning("%s", w)
-        return cls(folder, board, resolution, cameras, str(data.get("created", "")), pairs,
-                   has_manifest=True, warnings=warnings)
+        return cls(folder, board, resolution, cameras, _text(data.get("created", ""), "created"),
+                   pairs, has_manifest=True, warnings=warnings)
 
     # ---- reading ----------------------------------------------------------------------------
     @property
@@ -262,9 +356,14 @@ class CaptureSession:
         return entry
 
     def delete_pair(self, name: str) -> None:
-        """Delete a pair's images and forget it."""
+        """Delete a pair's images and forget it. Only files inside the session folder are ever
+        deleted (InputError otherwise)."""
         with self._lock:
             entry = self.pair(name)
+            for p in (entry.left, entry.right):
+                if not _is_inside(self.folder, p):
+                    raise InputError(f"pair {name}: {p} is not inside the session folder "
+                                     f"{self.folder}; nothing was deleted")
             for p in (entry.left, entry.right):
                 try:
                     p.unlink(missing_ok=True)
@@ -335,5 +434,5 @@ class CaptureSession:
                 raise InputError(f"cannot keep the unreadable {self.manifest_path}: "
                                  f"{exc.strerror or exc}") from exc
             self._unreadable_manifest = False
-        write_text_atomic(self.manifest_path, json.dumps(self.manifest(), indent=2) + "\n")
+        write_json_atomic(self.manifest_path, self.manifest())
         self.has_manifest = True

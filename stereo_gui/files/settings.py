@@ -12,15 +12,22 @@ import json
 import logging
 import math
 import os
+import re
 import types
 import typing
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 
-from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.board import (
+    MAX_BOARD_CORNERS,
+    MAX_SQUARE_MM,
+    MIN_BOARD_CORNERS,
+    MIN_SQUARE_MM,
+    BoardSpec,
+)
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.measure import PATCH_PX
-from stereo_gui.files.atomic import write_text_atomic
+from stereo_gui.files.atomic import write_json_atomic
 
 log = logging.getLogger(__name__)
 
@@ -89,14 +96,40 @@ def settings_path() -> Path:
 
 # ---- validation -----------------------------------------------------------------------------
 # extra checks on values that have the right type; a failing check is reported like a bad type
+MAX_TEXT = 4096  # characters of a path or name; longer is a damaged file
+MAX_GEOMETRY = 65536  # characters of a base64 window geometry or state
+_BASE64 = re.compile(r"[A-Za-z0-9+/=]*")
+
+
+def _text_ok(v) -> bool:
+    return v is None or (len(v) <= MAX_TEXT and "\0" not in v)
+
+
 _CHECKS: dict[str, tuple[typing.Callable[[object], bool], str]] = {
-    "resolution": (lambda v: v[0] > 0 and v[1] > 0, "two positive integers"),
-    "board_cols": (lambda v: v >= 2, "an integer of at least 2"),
-    "board_rows": (lambda v: v >= 2, "an integer of at least 2"),
-    "square_mm": (lambda v: math.isfinite(v) and v > 0, "a positive number"),
-    "nominal_baseline_mm": (lambda v: math.isfinite(v) and v > 0, "a positive number"),
-    "patch_size": (lambda v: v >= 1 and v % 2 == 1, "an odd positive integer"),
+    "resolution": (lambda v: 0 < v[0] <= 100_000 and 0 < v[1] <= 100_000,
+                   "two positive integers up to 100000"),
+    "board_cols": (lambda v: MIN_BOARD_CORNERS <= v <= MAX_BOARD_CORNERS,
+                   f"an integer from {MIN_BOARD_CORNERS} to {MAX_BOARD_CORNERS}"),
+    "board_rows": (lambda v: MIN_BOARD_CORNERS <= v <= MAX_BOARD_CORNERS,
+                   f"an integer from {MIN_BOARD_CORNERS} to {MAX_BOARD_CORNERS}"),
+    "square_mm": (lambda v: MIN_SQUARE_MM <= v <= MAX_SQUARE_MM,
+                  f"a number of millimetres from {MIN_SQUARE_MM:g} to {MAX_SQUARE_MM:g}"),
+    "nominal_baseline_mm": (lambda v: math.isfinite(v) and 0 < v <= 1e5,
+                            "a positive number up to 100000"),
+    "patch_size": (lambda v: 1 <= v <= 101 and v % 2 == 1, "an odd integer from 1 to 101"),
+    # QByteArray.fromBase64 needs ASCII: anything else would stop the window from opening
+    "window_geometry": (lambda v: len(v) <= MAX_GEOMETRY and bool(_BASE64.fullmatch(v)),
+                        "base64 text"),
+    "window_state": (lambda v: len(v) <= MAX_GEOMETRY and bool(_BASE64.fullmatch(v)),
+                     "base64 text"),
+    "recent_files": (lambda v: len(v) <= 100 and all(map(_text_ok, v)),
+                     "a list of at most 100 paths"),
+    "visible_views": (lambda v: len(v) <= 100 and all(map(_text_ok, v)),
+                      "a list of view names"),
 }
+for _key in ("source", "preset", "last_calibration", "last_session", "last_export_dir",
+             "recordings_dir", "colormap", "measure_model"):
+    _CHECKS[_key] = (_text_ok, f"text of at most {MAX_TEXT} characters")
 
 
 def _convert(value, tp):
@@ -193,14 +226,21 @@ def load_settings(path: str | os.PathLike | None = None) -> tuple[Settings, list
     try:
         text = path.read_text(encoding="utf-8")
         data = json.loads(text)
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except RecursionError:
+        warnings.append(f"settings file {path} is nested too deeply to be settings; "
+                        "defaults used")
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
         warnings.append(f"settings file {path} could not be read ({exc}); defaults used")
     else:
         if not isinstance(data, dict):
             warnings.append(f"settings file {path} does not hold a JSON object; defaults used")
         else:
             version = data.get("format_version")
-            if version != FORMAT_VERSION:
+            if _newer(version):
+                warnings.append(f"settings file {path} has format version {version}, from a "
+                                "newer version of stereo-gui; defaults used, and the file is "
+                                "left as it is")
+            elif version != FORMAT_VERSION or isinstance(version, bool):
                 warnings.append(f"settings file {path} has format version {version!r}, "
                                 f"this version reads {FORMAT_VERSION}; defaults used")
             else:
@@ -214,13 +254,35 @@ def load_settings(path: str | os.PathLike | None = None) -> tuple[Settings, list
     return Settings(), warnings
 
 
+def _newer(version) -> bool:
+    return isinstance(version, int) and not isinstance(version, bool) and version > FORMAT_VERSION
+
+
+def _version_on_disk(path: Path):
+    """The format_version of the settings file at `path`, or None when there is none to read."""
+    try:
+        if path.stat().st_size > 16 << 20:
+            return None
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError, RecursionError):
+        return None
+    return data.get("format_version") if isinstance(data, dict) else None
+
+
 def save_settings(settings: Settings, path: str | os.PathLike | None = None) -> Path:
-    """Write the settings atomically (creating the folder); raise InputError if it cannot."""
+    """Write the settings atomically (creating the folder); raise InputError if it cannot.
+
+    A settings file written by a newer version of the application is never replaced (the newer
+    version's settings would be lost to this version's defaults): InputError says so.
+    """
     path = Path(path) if path is not None else settings_path()
+    version = _version_on_disk(path)
+    if _newer(version):
+        raise InputError(f"settings not saved: {path} belongs to a newer version of stereo-gui "
+                         f"(format {version}) and is left as it is")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(
             f"cannot create settings folder {path.parent}: {exc.strerror or exc}") from exc
-    text = json.dumps(settings_to_dict(settings), indent=2, sort_keys=False) + "\n"
-    return write_text_atomic(path, text)
+    return write_json_atomic(path, settings_to_dict(settings))

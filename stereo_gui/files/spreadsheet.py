@@ -23,6 +23,7 @@ import logging
 import math
 import os
 import zipfile
+import zlib
 from collections.abc import Iterable, Sequence
 from dataclasses import astuple, dataclass, fields
 from pathlib import Path
@@ -405,8 +406,16 @@ def _new_workbook(records, fits, calibration, calibration_file):
     return wb
 
 
+def _verify_xlsx(path: Path) -> None:
+    """A workbook that does not read back (a torn zip, a member whose CRC fails) is refused."""
+    with zipfile.ZipFile(path) as z:
+        bad = z.testzip()
+    if bad is not None:
+        raise ValueError(f"{bad} is damaged")
+
+
 def _save(wb, path: Path) -> Path:
-    with atomic_path(path) as tmp:
+    with atomic_path(path, verify=_verify_xlsx) as tmp:
         wb.save(tmp)
     return path
 
@@ -436,7 +445,9 @@ def _load_ours(path: Path):
 
     try:
         wb = load_workbook(path)
-    except (InvalidFileException, zipfile.BadZipFile, KeyError, ValueError, OSError) as exc:
+    except (InvalidFileException, zipfile.BadZipFile, KeyError, ValueError, OSError, TypeError,
+            AttributeError, IndexError, EOFError, SyntaxError, zlib.error, RecursionError) as exc:
+        # SyntaxError: xml.etree's ParseError on the junk XML of a damaged zip
         raise InputError(f"{path} is not a readable .xlsx workbook ({exc}); "
                          "it was left untouched") from exc
     if MEASUREMENTS_SHEET not in wb.sheetnames:

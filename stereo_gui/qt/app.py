@@ -90,8 +90,9 @@ def build_window(source: str | None = None, calib: str | None = None):
         try:
             calib_obj, calib_path = load_calibration(settings.last_calibration), \
                 settings.last_calibration
-        except (StereoGuiError, OSError) as exc:
+        except Exception as exc:  # noqa: BLE001 - a remembered file never blocks the start
             calib_error = f"The last calibration could not be loaded: {exc}"
+            log.warning("%s", calib_error, exc_info=not isinstance(exc, StereoGuiError))
 
     size = tuple(settings.resolution)
     if source:
@@ -107,7 +108,9 @@ def build_window(source: str | None = None, calib: str | None = None):
     window.open_source(SourceChoice(spec, size, settings.swap_lr), fallback_to_auto=not source)
     problems = [w for w in warnings] + ([calib_error] if calib_error else [])
     if problems:
-        window.show_error("; ".join(problems))
+        # keep what the tabs reported while they opened (a remembered session, ...)
+        shown = window.error_bar.label.text() if window.error_bar.isVisibleTo(window) else ""
+        window.show_error("; ".join(problems + ([shown] if shown else [])))
     return ctx, window
 
 

@@ -100,6 +100,11 @@ class MainWindow(QMainWindow):
     def __init__(self, ctx: AppContext, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.ctx = ctx
+        # errors reported before the error bar exists (a remembered session that cannot be
+        # opened, bad settings) are shown once it does
+        early_errors: list[str] = []
+        collect = early_errors.append
+        ctx.errorOccurred.connect(collect)
         self.source_choice = self._choice_from_settings()
         self._closing = False
         self._opening: tuple[SourceChoice, bool] = (self.source_choice, False)
@@ -138,7 +143,10 @@ class MainWindow(QMainWindow):
         self._build_menus()
         self._build_status_bar()
 
+        ctx.errorOccurred.disconnect(collect)
         ctx.errorOccurred.connect(self.show_error)
+        if early_errors:
+            self.show_error("; ".join(early_errors))
         ctx.statusMessage.connect(lambda text: self.statusBar().showMessage(text, 8000))
         ctx.calibrationChanged.connect(self._update_calibration_label)
         ctx.frames.sourceChanged.connect(self._update_source_label)

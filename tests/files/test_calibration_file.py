@@ -96,7 +96,7 @@ def test_save_is_atomic_and_leaves_no_temporary_files(tmp_path, monkeypatch):
     save_calibration(make_calibration(), target)
     before = target.read_bytes()
     broken = make_calibration().with_updates(per_pair=(PairError("x", "not a number", 0.0),))
-    with pytest.raises(ValueError):  # fails mid-write: a per-pair error is not a number
+    with pytest.raises(CalibrationFileError, match="error_left"):  # not a number: refused
         save_calibration(broken, target)
     assert target.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["calib.yaml"]

@@ -100,8 +100,10 @@ def test_errors_and_atomic_writes(tmp_path, result, monkeypatch):
     def boom(*a, **k):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(np, "save", boom)
-    with pytest.raises(InputError, match="No space"):
+    from stereo_gui.files import atomic
+
+    monkeypatch.setattr(atomic._ops, "write", boom)
+    with pytest.raises(InputError, match="(?i)no space"):
         depth_export.write_disparity_npy(target, r.final_px)
     assert target.read_bytes() == b"old"
     assert [p.name for p in tmp_path.iterdir()] == ["keep.npy"]

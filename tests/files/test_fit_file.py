@@ -47,8 +47,10 @@ def test_failed_save_keeps_the_old_file(tmp_path, monkeypatch):
     def boom(*a, **k):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(os, "replace", boom)
-    with pytest.raises(InputError, match="No space"):
+    from stereo_gui.files import atomic
+
+    monkeypatch.setattr(atomic._ops, "replace", boom)
+    with pytest.raises(InputError, match="(?i)no space"):
         save_fit(fit_cubic(SAMPLES), path)
     assert path.read_text() == before
     assert [p.name for p in tmp_path.iterdir()] == ["fit.json"]

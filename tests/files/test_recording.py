@@ -160,3 +160,45 @@ def test_open_recording_refuses_other_folders(tmp_path):
     (tmp_path / "recording.json").write_text("[1, 2]")
     with pytest.raises(InputError, match="recording.json does not hold a JSON object"):
         open_recording(tmp_path)
+
+
+def test_a_torn_last_line_is_left_out_and_the_rest_plays(tmp_path):
+    """Issue 13 item 6: the last line cut after `left/000004.png,` made playback die at it."""
+    from stereo_gui.sources.playback import PlaybackSource
+
+    w = RecordingWriter(tmp_path / "rec", background=False)
+    for f in _frames(4):
+        w.write(f)
+    w._csv_file.flush()
+    text = (tmp_path / "rec" / "frames.csv").read_text()
+    last = text.rstrip("\n").rsplit("\n", 1)[1]
+    torn = text[: len(text) - len(last) - 1] + last[: last.index(".png,") + 5] + "\n"
+    (tmp_path / "rec" / "frames.csv").write_text(torn)
+    rec = open_recording(tmp_path / "rec")
+    assert [f.index for f in rec.frames] == [0, 1, 2]
+    assert any("torn last line" in x for x in rec.warnings)
+    src = PlaybackSource(tmp_path / "rec", paced=False)
+    try:
+        got = [src.read() for _ in range(3)]
+    finally:
+        src.close()
+    assert all(f.left is not None and f.right is not None for f in got)
+
+
+@pytest.mark.parametrize(("line", "message"), [
+    ("0,5000,5000,left/000001.png,right/000001.png", "does not follow"),  # duplicate index
+    ("-5,5000,5000,left/000001.png,right/000001.png", "negative"),
+    ("7,nan,5000,left/000001.png,right/000001.png", "finite"),
+    ("7,-100,5000,left/000001.png,right/000001.png", "backwards"),
+    ("7,5000,5000,../../etc/passwd,right/000001.png", "not a file inside"),
+])
+def test_damaged_frame_lists_are_refused_naming_line_and_field(tmp_path, line, message):
+    w = RecordingWriter(tmp_path / "rec", background=False)
+    for f in _frames(2):
+        w.write(f)
+    w.close()
+    fpath = tmp_path / "rec" / "frames.csv"
+    rows = fpath.read_text().splitlines()
+    fpath.write_text("\n".join(rows[:2] + [line] + rows[2:]) + "\n")
+    with pytest.raises(InputError, match=f"frames.csv, line 3: .*{message}"):
+        open_recording(tmp_path / "rec")

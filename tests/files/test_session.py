@@ -175,28 +175,10 @@ def test_full_disk_loses_nothing_already_saved(tmp_path, monkeypatch, fail_at):
     s = _new(tmp_path)
     first = s.add_pair(_img(1), _img(2))
     before = {p: (tmp_path / "s" / p).read_bytes() for p in _files(tmp_path / "s")}
-    calls = {"n": 0}
-    real_bytes, real_text = session_mod.write_bytes_atomic, session_mod.write_text_atomic
+    from disk_faults import install
 
-    def failing(real):
-        def write(path, data):
-            calls["n"] += 1
-            if calls["n"] == fail_at:
-                # a real full disk: partial data goes to the temp file, then the write fails
-                return _enospc(path)
-            return real(path, data)
-        return write
-
-    def _enospc(path):
-        from stereo_gui.files.atomic import atomic_path
-
-        with atomic_path(path) as tmp:
-            tmp.write_bytes(b"\x89PNG partial")
-            raise OSError(28, "No space left on device")
-
-    monkeypatch.setattr(session_mod, "write_bytes_atomic", failing(real_bytes))
-    monkeypatch.setattr(session_mod, "write_text_atomic", failing(real_text))
-    with pytest.raises(InputError, match="No space left"):
+    install(monkeypatch, "write", fail_at)  # a real full disk: half the data, then ENOSPC
+    with pytest.raises(InputError, match="(?i)no space left"):
         s.add_pair(_img(3), _img(4))
     after = {p: (tmp_path / "s" / p).read_bytes() for p in _files(tmp_path / "s")}
     assert after == before  # same files, same bytes, no half pair, no temp file
@@ -237,3 +219,57 @@ def test_subfolder_layout_opens_and_names_match_discovery(tmp_path):
     t = _new(tmp_path)
     e = t.add_pair(_img(1), _img(2))
     assert [p.name for p in discover_pairs(t.folder).pairs] == [e.name]
+
+
+def test_a_manifest_path_outside_the_folder_is_refused_and_never_deleted(tmp_path):
+    """Issue 13 item 7: `"left": "../victim.txt"` was accepted and Delete pair removed it."""
+    import json
+
+    s = _new(tmp_path)
+    s.add_pair(_img(1), _img(2))
+    victim = tmp_path / "victim.txt"
+    victim.write_text("not yours")
+    manifest = tmp_path / "s" / MANIFEST
+    doc = json.loads(manifest.read_text())
+    doc["pairs"][0]["left"] = "../victim.txt"
+    manifest.write_text(json.dumps(doc))
+    opened = CaptureSession.open(tmp_path / "s")
+    assert any("not a file inside the session folder" in w for w in opened.warnings)
+    for p in opened.pairs:
+        assert victim.resolve() not in (p.left.resolve(), p.right.resolve())
+        opened.delete_pair(p.name)
+    assert victim.read_text() == "not yours"
+
+
+def test_delete_pair_refuses_a_file_outside_the_folder(tmp_path):
+    from dataclasses import replace
+
+    s = _new(tmp_path)
+    entry = s.add_pair(_img(1), _img(2))
+    victim = tmp_path / "victim.txt"
+    victim.write_text("not yours")
+    s._pairs[0] = replace(entry, left=tmp_path / "s" / ".." / "victim.txt")
+    with pytest.raises(InputError, match="not inside the session folder"):
+        s.delete_pair(entry.name)
+    assert victim.exists() and entry.right.exists()
+
+
+@pytest.mark.parametrize(("doc", "message"), [
+    ([1, 2, 3], "JSON list, not an object"),
+    ({"format_version": 1, "pairs": [{"name": "a", "number": -1, "left": "l", "right": "r"}]},
+     "number is -1"),
+    ({"format_version": 1, "pairs": [{"name": "a", "number": 1, "left": "l1", "right": "r1"},
+                                     {"name": "b", "number": 1, "left": "l2", "right": "r2"}]},
+     "listed twice"),
+    ({"format_version": 1, "resolution": [99999999999, 480]}, "resolution width"),
+    ({"format_version": 1, "board": {"cols": 9, "rows": 6, "square_mm": 1e308}}, "board"),
+    ({"format_version": 1, "pairs": "x"}, "pairs should be a list"),
+])
+def test_bad_manifests_are_reported_by_field_and_the_folder_still_opens(tmp_path, doc, message):
+    import json
+
+    folder = tmp_path / "s"
+    folder.mkdir()
+    (folder / MANIFEST).write_text(json.dumps(doc))
+    s = CaptureSession.open(folder)
+    assert any(message in w for w in s.warnings), s.warnings

@@ -11,7 +11,6 @@ import pytest
 from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.errors import InputError
 from stereo_gui.files import settings as st
-from stereo_gui.files.atomic import write_atomic
 from stereo_gui.files.settings import Settings, load_settings, save_settings, settings_path
 
 
@@ -123,12 +122,10 @@ def test_failed_save_keeps_the_old_file(monkeypatch):
     save_settings(Settings(preset="seed"))
     before = settings_path().read_bytes()
 
-    def boom(*a, **k):
-        raise OSError(28, "No space left on device")
+    from disk_faults import install
 
-    monkeypatch.setattr(st, "write_text_atomic", lambda path, text: write_atomic(
-        path, lambda p: (p.write_text(text[:10]), boom())))
-    with pytest.raises(InputError, match="No space left"):
+    install(monkeypatch, "write")
+    with pytest.raises(InputError, match="(?i)no space left"):
         save_settings(Settings(preset="live"))
     assert settings_path().read_bytes() == before
     assert [p.name for p in settings_path().parent.iterdir()] == ["settings.json"]

@@ -96,3 +96,114 @@ def test_build_window_loads_the_last_calibration_and_reports_a_broken_one(qtbot,
         assert "broken.yaml" in window.error_bar.label.text()
     finally:
         window.close()
+
+
+# ---- remembered files that are bad never block the start (issue 13, item 4) -----------------
+def _bad_header_calibration(sim_rig, path):
+    """A calibration whose M1 header says 4 rows but holds 9 numbers."""
+    from stereo_gui.files.calibration_file import save_calibration
+
+    save_calibration(sim_rig.true_calibration(), path)
+    text = path.read_text()
+    start = text.index("M1: !!opencv-matrix")
+    text = text[:start] + text[start:].replace("rows: 3", "rows: 4", 1)
+    path.write_text(text)
+    return path
+
+
+def _nan_scale_calibration(sim_rig, path):
+    from stereo_gui.files.calibration_file import save_calibration
+
+    save_calibration(sim_rig.true_calibration(), path)
+    path.write_text(path.read_text() + "scaled_from_width: .nan\nscaled_from_height: 480\n")
+    return path
+
+
+def _write_settings(doc):
+    import json
+
+    from stereo_gui.files.settings import settings_path
+
+    settings_path().parent.mkdir(parents=True, exist_ok=True)
+    settings_path().write_text(doc if isinstance(doc, str) else json.dumps(doc))
+    return settings_path()
+
+
+def _start(qtbot):
+    from stereo_gui.qt.app import build_window
+
+    ctx, window = build_window()
+    qtbot.addWidget(window)
+    return ctx, window
+
+
+def test_bad_remembered_files_are_reported_and_defaults_used(qtbot, sim_rig, tmp_path):
+    session = tmp_path / "session"
+    session.mkdir()
+    (session / "session.json").write_text("[1, 2, 3]")
+    _write_settings({"format_version": 1, "source": "sim", "window_geometry": "AdnQywADé€",
+                     "last_calibration": str(_bad_header_calibration(sim_rig, tmp_path / "c.yaml")),
+                     "last_session": str(session)})
+    ctx, window = _start(qtbot)
+    try:
+        text = window.error_bar.label.text()
+        assert window.error_bar.isVisibleTo(window)
+        assert "window_geometry" in text  # the geometry is not used
+        assert "c.yaml" in text and "M1" in text  # the calibration is not loaded
+        assert ctx.calibration is None
+        assert "session.json" in text  # the session opened without its manifest
+    finally:
+        window.close()
+
+
+def test_a_nan_scale_in_the_last_calibration_is_reported(qtbot, sim_rig, tmp_path):
+    path = _nan_scale_calibration(sim_rig, tmp_path / "nan.yaml")
+    _write_settings({"format_version": 1, "source": "sim", "last_calibration": str(path)})
+    ctx, window = _start(qtbot)
+    try:
+        assert ctx.calibration is None
+        assert "scaled_from_width" in window.error_bar.label.text()
+    finally:
+        window.close()
+
+
+def test_deeply_nested_settings_give_the_defaults(qtbot):
+    _write_settings("[" * 100_000 + "]" * 100_000)
+    ctx, window = _start(qtbot)
+    try:
+        assert "nested too deeply" in window.error_bar.label.text()
+        assert ctx.settings.preset == "live"
+    finally:
+        window.close()
+
+
+def test_a_newer_versions_settings_file_is_left_on_disk(qtbot):
+    path = _write_settings({"format_version": 99, "source": "sim", "preset": "future"})
+    before = path.read_bytes()
+    ctx, window = _start(qtbot)
+    try:
+        assert "newer version" in window.error_bar.label.text()
+    finally:
+        window.close()  # saves the settings: it must not replace the newer file
+    assert path.read_bytes() == before
+
+
+@pytest.mark.slow
+def test_the_application_starts_with_bad_remembered_files(tmp_path, sim_rig):
+    """The issue's probe: these made every launch end in a traceback and exit status 1."""
+    import json
+
+    session = tmp_path / "session"
+    session.mkdir()
+    (session / "session.json").write_text("[1, 2, 3]")
+    cfg = tmp_path / "cfg"
+    cfg.mkdir()
+    (cfg / "settings.json").write_text(json.dumps(
+        {"format_version": 1, "source": "sim", "window_geometry": "AdnQywADé€",
+         "last_calibration": str(_bad_header_calibration(sim_rig, tmp_path / "c.yaml")),
+         "last_session": str(session)}))
+    proc = subprocess.run([sys.executable, "-m", "stereo_gui"],
+                          env=_env(tmp_path, STEREO_GUI_QUIT_AFTER="1"), capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr

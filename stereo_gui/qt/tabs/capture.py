@@ -90,7 +90,7 @@ class CaptureTab(QWidget):
             try:
                 self.open_session(last)
             except StereoGuiError as exc:
-                log.warning("last capture session %s not reopened: %s", last, exc)
+                ctx.report_error(f"The last capture session {last} was not reopened: {exc}")
 
     # ---- layout ------------------------------------------------------------------------------
     def _build(self) -> None:

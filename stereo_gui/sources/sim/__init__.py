@@ -21,7 +21,13 @@ from stereo_gui.sources.sim.calibration_set import (
     calibration_set_names,
     write_calibration_set,
 )
-from stereo_gui.sources.sim.camera import TRUTH_FORMAT_VERSION, CameraTruth, RigConfig, RigTruth
+from stereo_gui.sources.sim.camera import (
+    TRUTH_FORMAT_VERSION,
+    CameraTruth,
+    RigConfig,
+    RigTruth,
+    load_truth,
+)
 from stereo_gui.sources.sim.live import SimSource
 from stereo_gui.sources.sim.rays import RayMap, ray_map, undistort_normalized
 from stereo_gui.sources.sim.rig import SimFrameTruth, SimRig
@@ -31,6 +37,6 @@ from stereo_gui.sources.sim.textures import OCTAVES
 __all__ = [
     "OCTAVES", "SCENE_FOLDER", "SCENE_WALL_DISTANCES_MM", "TRUTH_FORMAT_VERSION", "BoardPose",
     "CameraTruth", "RayMap", "RigConfig", "RigTruth", "Scene", "SceneObject", "SimFrameTruth",
-    "SimRig", "SimSource", "calibration_set_names", "ray_map", "undistort_normalized",
-    "write_calibration_set",
+    "SimRig", "SimSource", "calibration_set_names", "load_truth", "ray_map",
+    "undistort_normalized", "write_calibration_set",
 ]

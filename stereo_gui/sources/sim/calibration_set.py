@@ -3,13 +3,12 @@ truth.json with everything the rig was built with."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.files.atomic import write_image_atomic, write_text_atomic
+from stereo_gui.files.atomic import write_image_atomic, write_json_atomic
 from stereo_gui.sources.sim.camera import RigConfig
 from stereo_gui.sources.sim.rig import SimRig
 from stereo_gui.sources.sim.scene import Scene
@@ -75,5 +74,5 @@ def write_calibration_set(out_dir, n_pairs: int = 20, seed: int = 0, scene: bool
                  "pairs": pairs})
     if scene:
         data["scenes"] = scene_entries
-    write_text_atomic(out / "truth.json", json.dumps(data, indent=2) + "\n")
+    write_json_atomic(out / "truth.json", data)
     return out

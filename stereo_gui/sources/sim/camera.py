@@ -4,6 +4,7 @@ the rig's true parameters as cv2.stereoCalibrate names them (saved as truth.json
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -120,18 +121,72 @@ class RigTruth:
         }
 
     @staticmethod
-    def from_json(data: dict) -> RigTruth:
+    def from_json(data: dict, where: str = "rig truth") -> RigTruth:
+        """The truth `to_json` wrote; InputError naming `where` and the field when a value is
+        missing, of the wrong type, not finite or not what a camera can have."""
+        def bad(text: str) -> InputError:
+            return InputError(f"{where}: {text}")
+
+        def matrix(key: str, shape: tuple[int, ...]) -> np.ndarray:
+            raw = data.get(key)
+            try:
+                m = np.array(raw, np.float64)
+            except (TypeError, ValueError, OverflowError):
+                raise bad(f"{key} should be a list of numbers") from None
+            if m.size != int(np.prod(shape)) or (m.ndim != len(shape) and m.ndim != 1):
+                raise bad(f"{key} should be {'x'.join(map(str, shape))} numbers")
+            m = m.reshape(shape)
+            if not np.all(np.isfinite(m)) or np.max(np.abs(m)) > 1e7:
+                raise bad(f"{key} holds values that are not finite or absurd")
+            return m
+
+        if not isinstance(data, dict):
+            raise bad("should be a JSON object")
+        size = data.get("image_size")
+        if not (isinstance(size, list) and len(size) == 2 and all(
+                isinstance(v, int) and not isinstance(v, bool) and 0 < v <= 100_000
+                for v in size)):
+            raise bad(f"image_size should be [width, height] in px, not {size!r:.60}")
+        M1, M2 = matrix("M1", (3, 3)), matrix("M2", (3, 3))
+        for key, M in (("M1", M1), ("M2", M2)):
+            if not (M[0, 0] > 0 and M[1, 1] > 0 and np.allclose(M[2], (0, 0, 1))):
+                raise bad(f"{key} is not a camera matrix (positive focal lengths, last row 0 0 1)")
+        D = {}
+        for key in ("D1", "D2"):
+            raw = data.get(key)
+            n = len(raw) if isinstance(raw, list) else -1
+            if n not in (4, 5, 8, 12, 14):
+                raise bad(f"{key} should have 4, 5, 8, 12 or 14 coefficients")
+            D[key] = matrix(key, (n,)).reshape(1, -1)
+        R = matrix("R", (3, 3))
+        if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) <= 0:
+            raise bad("R is not a rotation")
+        T = matrix("T", (3,)).reshape(3, 1)
+        if not np.linalg.norm(T) > 0:
+            raise bad("T is zero: the cameras would be at the same place")
+        b = data.get("board")
+        if not isinstance(b, dict):
+            raise bad("board should be an object with cols, rows, square_mm")
+        cols, rows, sq = b.get("cols"), b.get("rows"), b.get("square_mm")
+        if not (isinstance(cols, int) and isinstance(rows, int) and not isinstance(cols, bool)
+                and not isinstance(rows, bool) and isinstance(sq, int | float)
+                and not isinstance(sq, bool)):
+            raise bad("board cols and rows should be whole numbers and square_mm a number")
         try:
-            b = data["board"]
-            return RigTruth(
-                image_size=(int(data["image_size"][0]), int(data["image_size"][1])),
-                M1=np.array(data["M1"], np.float64).reshape(3, 3),
-                D1=np.array(data["D1"], np.float64).reshape(1, -1),
-                M2=np.array(data["M2"], np.float64).reshape(3, 3),
-                D2=np.array(data["D2"], np.float64).reshape(1, -1),
-                R=np.array(data["R"], np.float64).reshape(3, 3),
-                T=np.array(data["T"], np.float64).reshape(3, 1),
-                board=BoardSpec(int(b["cols"]), int(b["rows"]), float(b["square_mm"])),
-            )
-        except (KeyError, TypeError, ValueError, IndexError) as exc:
-            raise InputError(f"rig truth is incomplete or malformed: {exc}") from exc
+            board = BoardSpec(cols, rows, float(sq))
+        except InputError as exc:
+            raise bad(f"board: {exc}") from None
+        return RigTruth(image_size=(size[0], size[1]), M1=M1, D1=D["D1"], M2=M2, D2=D["D2"],
+                        R=R, T=T, board=board)
+
+
+def load_truth(path: str | Path) -> RigTruth:
+    """The rig truth of a `truth.json` written by `write_calibration_set` (or its folder)."""
+    from stereo_gui.files.readers import read_json_object
+
+    path = Path(path)
+    if path.is_dir():
+        path = path / "truth.json"
+    return RigTruth.from_json(read_json_object(path, "rig truth"), where=str(path))
+
+
