@@ -35,7 +35,7 @@ from stereo_gui.qt.widgets import pane
 log = logging.getLogger(__name__)
 
 TAB_NAMES = ("capture", "calibration", "live", "measurements")
-CALIB_FILTER = "Calibration files (*.yaml *.yml *.xml *.json);;All files (*)"
+CALIB_FILTER = "Calibration files (*.yaml *.yml *.xml *.json *.txt);;All files (*)"
 SIM_BANNER = ("Running on the SIMULATED stereo rig: {why}. Distances are of the rendered scene, "
               "not of the real world. Choose a source in File > Choose source… once cameras "
               "are connected.")

@@ -119,6 +119,34 @@ def _auto(size: tuple[int, int], swap: bool) -> OpenedSource:
     return OpenedSource(_sim("mixed", size, swap), True, f"{why}; showing the simulated rig")
 
 
+def expected_frame_size(spec: str | None, size: tuple[int, int] = (640, 480)
+                        ) -> tuple[int, int] | None:
+    """The (width, height) px of one image the source `spec` will deliver, before it is opened:
+    `size` for cameras and the simulated rig (what they are asked for), the first frame's for a
+    recording, folder or video; None when that cannot be read."""
+    try:
+        s = parse_source_spec(spec)
+    except InputError:
+        return None
+    if s.kind in ("auto", "sim", "cams", "sbs"):
+        return int(size[0]), int(size[1])
+    from stereo_gui.sources.playback import PlaybackSource
+
+    try:
+        src = PlaybackSource(s.path, paced=False)
+    except (SourceError, OSError) as exc:
+        log.info("cannot read the frame size of %s: %s", s.path, exc)
+        return None
+    try:
+        frame = src.read()
+        return int(frame.left.shape[1]), int(frame.left.shape[0])
+    except (SourceError, OSError) as exc:
+        log.info("cannot read the frame size of %s: %s", s.path, exc)
+        return None
+    finally:
+        src.close()
+
+
 def open_source(spec: str | None, size: tuple[int, int] = (640, 480), swap: bool = False
                 ) -> OpenedSource:
     """Open the source a spec names (see SPEC_HELP); `size` is one image's (width, height) px.
