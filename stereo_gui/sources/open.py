@@ -125,7 +125,9 @@ def _auto(size: tuple[int, int], swap: bool) -> OpenedSource:
         why = f"only one camera was found ({cams[0].label()})"
     else:
         why = "no cameras were found"
-    log.info("automatic source: %s; using the simulated rig", why)
+    # said on the terminal too (not only in the window's banner), without -v
+    log.warning("%s; showing the simulated rig (choose cameras with File > Choose source, or "
+                "--source cams:L,R)", why)
     return OpenedSource(_sim("mixed", size, swap), True, f"{why}; showing the simulated rig")
 
 

@@ -179,3 +179,16 @@ def test_remembered_cameras_are_found_under_their_new_index(monkeypatch):
     opened = open_source("sbs:2", remembered_cameras=(remembered[1],))
     assert opened.spec == "sbs:6"
     opened.source.close()
+
+
+def test_falling_back_to_the_simulated_rig_is_said_as_a_warning(monkeypatch, caplog):
+    """Without -v only warnings reach the terminal: the fallback must be one."""
+    import logging
+
+    monkeypatch.setattr(cameras, "list_cameras", lambda: [])
+    with caplog.at_level(logging.WARNING, logger="stereo_gui.sources.open"):
+        opened = open_source("auto", size=(160, 120))
+    assert opened.fell_back_to_sim
+    warned = [r for r in caplog.records if r.levelno == logging.WARNING]
+    assert warned and "showing the simulated rig" in warned[0].getMessage()
+    assert "no cameras were found" in warned[0].getMessage()
