@@ -26,6 +26,7 @@ import numpy as np
 
 from stereo_gui.core.errors import CalibrationFileError
 from stereo_gui.core.stereo_calibration import StereoCalibration, check_matrices
+from stereo_gui.files.filestorage import read_matrix
 
 log = logging.getLogger(__name__)
 
@@ -81,19 +82,7 @@ def holds_stereo_sample_matrices(fs: cv2.FileStorage) -> bool:
 
 
 def _matrix(fs: cv2.FileStorage, name: str, where: Path) -> np.ndarray:
-    node = fs.getNode(name)
-    try:
-        m = node.mat()
-    except (cv2.error, SystemError):
-        m = None
-    if m is None and node.isSeq():  # a plain list of numbers
-        try:
-            m = np.array([node.at(i).real() for i in range(node.size())], np.float64)
-        except (cv2.error, SystemError):
-            m = None
-    if m is None:
-        raise CalibrationFileError(f"{where}: {name} is not a matrix")
-    m = np.asarray(m, np.float64)
+    m = read_matrix(fs.getNode(name), name, str(where))
     if not np.all(np.isfinite(m)):
         raise CalibrationFileError(f"{where}: matrix {name} holds values that are not finite")
     return m
@@ -118,11 +107,8 @@ def _size_in(fs: cv2.FileStorage, where: Path) -> tuple[int, int] | None:
         if node.isSeq() and node.size() == 2:  # cv::Size: [640, 480]
             values = [node.at(0).real(), node.at(1).real()]
         elif node.isMap():  # a 2-element matrix (Python's fs.write of a tuple)
-            try:
-                m = node.mat()
-            except (cv2.error, SystemError):
-                m = None
-            if m is not None and m.size == 2:
+            m = read_matrix(node, key, str(where))
+            if m.size == 2:
                 values = [float(v) for v in m.reshape(-1)]
         if values and all(v == int(v) and v > 0 for v in values):
             return int(values[0]), int(values[1])
