@@ -25,15 +25,21 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
+PREFIX = "stereo-gui"  # every line the command line writes to stderr starts "stereo-gui: ..."
+
+
 class _Parser(argparse.ArgumentParser):
-    """An argument parser whose usage errors exit with status 2 and one clear line."""
+    """An argument parser whose usage errors exit with status 2 and one clear line, with the
+    same prefix as every other error ("stereo-gui: error: calibrate: ...")."""
 
     def error(self, message: str) -> None:  # noqa: D401 - argparse API
         if "expected one argument" in message:
             # `--at -1,5`: argparse takes a value that starts with "-" for an option
             message += (" (a value that starts with '-' must be attached with '=', as in "
                         "--at=-1,5)")
-        sys.stderr.write(f"{self.prog}: error: {message}\n")
+        sub = self.prog[len(PREFIX):].strip()
+        where = f"{sub}: " if sub else ""
+        sys.stderr.write(f"{PREFIX}: error: {where}{message} (see {self.prog} --help)\n")
         raise SystemExit(2)
 
 
@@ -69,11 +75,22 @@ def _sub_parser(name: str) -> tuple[argparse.ArgumentParser, object]:
     return p, module
 
 
+class _UserFormatter(logging.Formatter):
+    """Warnings and errors as a user reads them: "stereo-gui: warning: ...", the prefix of
+    every message the command line writes (with -v: level and logger name, for developers)."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        text = super().format(record)
+        return f"{PREFIX}: {record.levelname.lower()}: {text}"
+
+
 def _setup_logging(verbose: bool) -> None:
-    logging.basicConfig(
-        level=logging.DEBUG if verbose else logging.WARNING,
-        format="%(levelname)s %(name)s: %(message)s",
-    )
+    if verbose:
+        logging.basicConfig(level=logging.DEBUG, format="%(levelname)s %(name)s: %(message)s")
+    else:
+        handler = logging.StreamHandler()
+        handler.setFormatter(_UserFormatter("%(message)s"))
+        logging.basicConfig(level=logging.WARNING, handlers=[handler])
     quiet_opencv(verbose)
 
 
@@ -97,12 +114,15 @@ def main(argv: list[str] | None = None) -> int:
             return int(module.run(args) or 0)
         args = _gui_parser().parse_args(argv)
         _setup_logging(args.verbose)
+        from stereo_gui.qt.preflight import check_gui_can_start
+
+        check_gui_can_start()  # no display or a missing Qt library: one line, not Qt's abort
         from stereo_gui.qt.app import run_app  # Qt is imported only for the GUI
 
         return run_app(source=args.source, calib=args.calib)
     except StereoGuiError as exc:
-        sys.stderr.write(f"stereo-gui: error: {exc}\n")
+        sys.stderr.write(f"{PREFIX}: error: {exc}\n")
         return 2
     except KeyboardInterrupt:
-        sys.stderr.write("stereo-gui: interrupted\n")
+        sys.stderr.write(f"{PREFIX}: interrupted\n")
         return 130

@@ -31,3 +31,28 @@ def test_unknown_option_exits_2_with_one_line():
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     assert proc.stderr.strip().splitlines()[-1].startswith("stereo-gui: error:")
+
+
+@pytest.mark.parametrize("argv", [["--no-such-option"], *[[name, "--no-such-option"]
+                                                          for name in SUBCOMMANDS]])
+def test_every_subcommand_has_one_error_prefix(argv, capsys):
+    """Usage errors of every subcommand, like bad input, start "stereo-gui: error:"."""
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("stereo-gui: error: ")
+    if argv[0] in SUBCOMMANDS:
+        assert err.startswith(f"stereo-gui: error: {argv[0]}: ")
+        assert f"stereo-gui {argv[0]} --help" in err
+
+
+def test_bad_input_and_warnings_share_the_prefix(tmp_path, capsys):
+    assert main(["measure", "--calib", str(tmp_path / "none.yaml"), "a.png", "b.png",
+                 "--at", "1,1"]) == 2
+    assert capsys.readouterr().err.startswith("stereo-gui: error: ")
+    code = ("import logging; from stereo_gui.cli import _setup_logging; _setup_logging(False); "
+            "logging.getLogger('stereo_gui.sources.open').warning('no cameras were found'); "
+            "logging.getLogger('stereo_gui.x').info('not shown')")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert proc.stderr == "stereo-gui: warning: no cameras were found\n"

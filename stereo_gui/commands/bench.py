@@ -32,8 +32,9 @@ def rss_mb() -> float:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--calib", metavar="C", help="calibration file (with LEFT RIGHT), or "
-                        "rectified:F,B for an already rectified pair (focal px, baseline mm)")
+    parser.add_argument("--calib", metavar="C", help="calibration (with LEFT RIGHT): a file "
+                        "of ours, OpenCV's, ROS's or Middlebury's, or rectified:F,B[,DOFFS] for "
+                        "an already rectified pair (focal px, baseline mm, cx_right - cx_left px)")
     parser.add_argument("left", nargs="?", metavar="LEFT",
                         help="left raw image (without LEFT RIGHT: the simulated rig)")
     parser.add_argument("right", nargs="?", metavar="RIGHT", help="right raw image")

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import logging
-import re
 from pathlib import Path
 
 import cv2
@@ -22,33 +21,27 @@ log = logging.getLogger(__name__)
 
 
 # ---- shared helpers ------------------------------------------------------------------------
-_RECTIFIED = re.compile(r"^rectified:\s*([^,]+),\s*([^,]+)$")
-CALIB_HELP = ("calibration file (YAML), or rectified:F,B for a pair that is already rectified "
-              "(a benchmark's): focal length F px, baseline B mm")
+CALIB_HELP = ("calibration: our file, an OpenCV stereo calibration (one YAML/XML file with "
+              "M1 D1 M2 D2 R T, or its intrinsics.yml + extrinsics.yml), a ROS left.yaml or "
+              "right.yaml, a Middlebury calib.txt, or rectified:F,B[,DOFFS] for a pair that is "
+              "already rectified (focal px, baseline mm, cx_right - cx_left px)")
 
 
 def load_calibration(spec: str, left_image: str | None = None) -> StereoCalibration:
-    """The calibration file at `spec`, or for `rectified:F,B` the identity calibration of an
-    already rectified pair with focal length F px and baseline B mm at the size of `left_image`."""
-    m = _RECTIFIED.match(spec)
-    if m:
-        try:
-            f, b = float(m.group(1)), float(m.group(2))
-        except ValueError:
-            f = b = float("nan")
-        if not (f > 0 and b > 0 and np.isfinite(f) and np.isfinite(b)):
-            raise InputError(f"{spec!r}: give rectified:F,B with a focal length F in px and a "
-                             "baseline B in mm, both positive numbers")
-        if not (1.0 <= f <= 1e6 and 0.01 <= b <= 1e6):
-            raise InputError(f"{spec!r}: a focal length of {f:g} px and a baseline of {b:g} mm "
-                             "are not plausible (F from 1 to 1e6 px, B from 0.01 to 1e6 mm)")
-        if left_image is None:
-            raise InputError("rectified:F,B needs the LEFT image (its size is the calibration's)")
-        img = read_image(left_image, "left")
-        return StereoCalibration.identity((img.shape[1], img.shape[0]), f, b)
-    from stereo_gui.files.calibration_file import load_calibration as _load
+    """The calibration `spec` names (see CALIB_HELP); a file without an image size, and
+    `rectified:F,B[,DOFFS]`, take the size of `left_image`."""
+    from stereo_gui.files.any_calibration import load_any_calibration
 
-    return _load(spec)
+    def size() -> tuple[int, int] | None:
+        if left_image is None:
+            return None
+        img = read_image(left_image, "left")
+        return img.shape[1], img.shape[0]
+
+    loaded = load_any_calibration(spec, size)
+    if loaded.kind != "stereo-gui":
+        log.info("calibration: %s", loaded.description)
+    return loaded.calibration
 
 
 def read_image(path: str, what: str) -> np.ndarray:

@@ -179,8 +179,9 @@ class MatcherParams:
         if self.z_min_mm is None:
             return float(self.min_disparity), float(self.min_disparity + self.num_disparities - 1)
         fb = calibration.focal_px * calibration.rectified_baseline_mm
-        d_min = fb / self.z_max_mm if self.z_max_mm else 0.0
-        return d_min, fb / self.z_min_mm
+        doffs = calibration.disparity_offset_px  # d = f B / Z - doffs
+        d_min = fb / self.z_max_mm - doffs if self.z_max_mm else -doffs  # (infinity)
+        return d_min, fb / self.z_min_mm - doffs
 
     def matcher_range(self, calibration: StereoCalibration, scale: float | None = None
                       ) -> tuple[int, int]:
@@ -289,26 +290,28 @@ class ColorScale:
     so that a colour always means the same distance, and the middle of the map is the middle
     of the working range (not crowded at the far end as a disparity ramp would be).
     kind "disparity": linear in disparity from `far` to `near`, both in px (the report's
-    per-frame min-max normalisation). `fb_mm_px` = f*B converts between the two.
+    per-frame min-max normalisation). `fb_mm_px` = f*B and `doffs_px` convert between the two:
+    Z = f B / (d + doffs).
     """
 
     kind: str
     far: float
     near: float
     fb_mm_px: float
+    doffs_px: float = 0.0
 
     def level(self, disparity_px: np.ndarray) -> np.ndarray:
         """Colour level (float, not clipped; NaN where the disparity is NaN)."""
         d = np.asarray(disparity_px, np.float32)
         if self.kind == "distance":
             with np.errstate(divide="ignore", invalid="ignore"):
-                z = np.float32(self.fb_mm_px) / d
+                z = np.float32(self.fb_mm_px) / (d + np.float32(self.doffs_px))
             return (np.float32(self.far) - z) * np.float32(255.0 / (self.far - self.near))
         return (d - np.float32(self.far)) * np.float32(255.0 / max(self.near - self.far, 1e-6))
 
     def level_of_distance(self, z_mm: float) -> float:
         """Colour level of a distance in mm."""
-        return float(self.level(np.float32(self.fb_mm_px / z_mm)))
+        return float(self.level(np.float32(self.fb_mm_px / z_mm - self.doffs_px)))
 
 
 def color_scale(disparity_px: np.ndarray, params: MatcherParams,
@@ -317,7 +320,8 @@ def color_scale(disparity_px: np.ndarray, params: MatcherParams,
     fb = (calibration.focal_px * calibration.rectified_baseline_mm
           if calibration is not None else float("nan"))
     if params.color_range == "fixed" and calibration is not None:
-        return ColorScale("distance", params.color_z_far_mm, params.color_z_near_mm, fb)
+        return ColorScale("distance", params.color_z_far_mm, params.color_z_near_mm, fb,
+                          calibration.disparity_offset_px)
     valid = cv2.compare(disparity_px, disparity_px, cv2.CMP_EQ)  # 255 where not NaN
     lo, hi = cv2.minMaxLoc(disparity_px, mask=valid)[:2] if cv2.countNonZero(valid) else (0.0, 1.0)
     return ColorScale("disparity", float(lo), float(max(hi, lo + 1e-6)), fb)
@@ -339,7 +343,9 @@ def colorize(disparity_px: np.ndarray, scale: ColorScale, colormap: str,
         # value is >= 0, so convertScaleAbs's absolute value changes nothing
         k = 255.0 / (far - near)
         fb = float(scale.fb_mm_px)
-        inv = cv2.pow(disparity_px, -1.0)
+        shifted = (cv2.add(disparity_px, float(scale.doffs_px)) if scale.doffs_px
+                   else disparity_px)
+        inv = cv2.pow(shifted, -1.0)
         np.minimum(inv, np.float32(far / fb), out=inv)  # (cv2.min takes a float for a Scalar)
         u8 = cv2.convertScaleAbs(inv, alpha=-k * fb, beta=far * k)
     else:

@@ -174,28 +174,46 @@ class StereoCalibration:
                        optimal_M1=cam(self.optimal_M1), optimal_M2=cam(self.optimal_M2),
                        scaled_from=None if original == (nw, nh) else original)
 
+    @property
+    def disparity_offset_px(self) -> float:
+        """doffs = cx_right - cx_left of the rectified cameras, px: Z = f B / (d + doffs).
+
+        Zero for our own calibrations (CALIB_ZERO_DISPARITY); other stereo cameras and
+        benchmarks (Middlebury's `doffs`) have one. Read from Q, which triangulation uses.
+        """
+        q32 = float(self.Q[3, 2])
+        return float(self.Q[3, 3]) / q32 if q32 else 0.0
+
     @staticmethod
     def identity(image_size: tuple[int, int], focal_px: float, baseline_mm: float,
-                 cx: float | None = None, cy: float | None = None) -> StereoCalibration:
-        """A calibration for pairs that are already rectified (benchmarks): maps are the identity."""
+                 cx: float | None = None, cy: float | None = None,
+                 doffs_px: float = 0.0) -> StereoCalibration:
+        """A calibration for pairs that are already rectified (benchmarks): maps are the identity.
+
+        `doffs_px` = cx_right - cx_left (Middlebury's doffs): the right camera's principal point
+        lies that far right of the left one's, and Z = f B / (d + doffs).
+        """
         w, h = int(image_size[0]), int(image_size[1])
         cx = (w - 1) / 2.0 if cx is None else float(cx)
         cy = (h - 1) / 2.0 if cy is None else float(cy)
+        cx2 = cx + float(doffs_px)
         M = np.array([[focal_px, 0, cx], [0, focal_px, cy], [0, 0, 1]], np.float64)
+        M2 = np.array([[focal_px, 0, cx2], [0, focal_px, cy], [0, 0, 1]], np.float64)
         D = np.zeros((1, 5))
         I3 = np.eye(3)
         T = np.array([[-baseline_mm], [0.0], [0.0]])
         P1 = np.hstack([M, np.zeros((3, 1))])
-        P2 = np.hstack([M, np.array([[-focal_px * baseline_mm], [0], [0]])])
+        P2 = np.hstack([M2, np.array([[-focal_px * baseline_mm], [0], [0]])])
+        # as cv2.stereoRectify builds it: Q[3,3] = (cx1 - cx2) / Tx with Tx = -B
         Q = np.array(
-            [[1, 0, 0, -cx], [0, 1, 0, -cy], [0, 0, 0, focal_px], [0, 0, 1.0 / baseline_mm, 0]],
+            [[1, 0, 0, -cx], [0, 1, 0, -cy], [0, 0, 0, focal_px],
+             [0, 0, 1.0 / baseline_mm, float(doffs_px) / baseline_mm]],
             np.float64,
         )
         tx = np.array([[0, 0, 0], [0, 0, baseline_mm], [0, -baseline_mm, 0]], np.float64)
         E = tx
-        Minv = np.linalg.inv(M)
-        F = Minv.T @ E @ Minv
-        return StereoCalibration((w, h), M, D, M.copy(), D.copy(), I3, T, E, F, I3.copy(),
+        F = np.linalg.inv(M2).T @ E @ np.linalg.inv(M)
+        return StereoCalibration((w, h), M, D, M2, D.copy(), I3, T, E, F, I3.copy(),
                                  I3.copy(), P1, P2, Q, method="identity")
 
 

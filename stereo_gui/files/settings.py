@@ -42,6 +42,9 @@ class Settings:
     """Everything the application remembers between runs. Units are in the field names."""
 
     source: str = "auto"  # as --source takes it: auto, sim, cams:L,R, sbs:N, a folder or a video
+    # the cameras of a cams:/sbs: source by name and USB ids (CameraInfo.identity), in the
+    # spec's order, so that one plugged in again under another index is found again
+    cameras: tuple[str, ...] = ()
     resolution: tuple[int, int] = (640, 480)  # (width, height), px
     swap_lr: bool = False
     board_cols: int = 9  # inner corners

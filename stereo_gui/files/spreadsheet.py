@@ -2,13 +2,18 @@
 
 A workbook written here has three sheets:
 
-- **Measurements**: one row per `MeasurementRecord`, units in the headers (see `COLUMNS`).
+- **Measurements**: one row per `MeasurementRecord`, units in the headers (see `COLUMNS`); the
+  time is a real date-time cell (UTC), so Excel and LibreOffice sort, filter and format it.
 - **Regression**: the (disparity, true distance) samples with each fitted model's prediction and
   residual, a table of the models (formula, R^2, coefficients), the fitted curves evaluated on a
   disparity grid (hidden columns) and a native Excel scatter chart of distance against disparity:
   samples as markers, each fit as a line. This replaces the report's manual Excel step.
 - **Calibration**: the figures (RMS, baseline, board, date) and the matrices M1 D1 M2 D2 R T P1 P2 Q
   as small tables.
+
+A new workbook is streamed with openpyxl's write-only mode (time linear in the rows: 20,000
+readings take seconds); appending loads the workbook and adds rows below the last one.
+CSV numbers are rounded to what they mean: 0.1 mm and 0.001 px (`csv_decimals`).
 
 Every write goes through a temporary file in the same folder and a rename, so a crash or a full
 disk mid-write leaves the earlier file intact.
@@ -32,7 +37,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.files.atomic import atomic_path, write_text_atomic
+from stereo_gui.files.atomic import atomic_path, os_error_text, write_text_atomic
 from stereo_gui.files.readers import read_csv_rows
 
 if TYPE_CHECKING:  # only for annotations: the regression module is imported where used
@@ -114,6 +119,12 @@ HEADERS = tuple(c[1] for c in COLUMNS)
 _FIELD_NAMES = tuple(f.name for f in fields(MeasurementRecord))
 assert tuple(c[0] for c in COLUMNS) == _FIELD_NAMES  # the layout covers every field, in order
 
+# In a workbook the time is a date-time cell in UTC (Excel has no time zones); CSV keeps ISO text.
+XLSX_TIME_HEADER = "Time (UTC)"
+XLSX_TIME_FORMAT = "yyyy-mm-dd hh:mm:ss.000"
+XLSX_HEADERS = tuple(XLSX_TIME_HEADER if name == "time" else header
+                     for name, header, _, _ in COLUMNS)
+
 
 # ---- cell values ----------------------------------------------------------------------------
 def _cell(value: Any) -> Any:
@@ -130,10 +141,30 @@ def _cell(value: Any) -> Any:
     return value
 
 
+def _time_cell(text: str) -> Any:
+    """An ISO 8601 time as a naive UTC datetime for a date-time cell (text that is not a time
+    stays text)."""
+    try:
+        t = _dt.datetime.fromisoformat(str(text))
+    except ValueError:
+        return text or None
+    if t.tzinfo is not None:
+        t = t.astimezone(_dt.timezone.utc).replace(tzinfo=None)
+    return t
+
+
+def _time_text(value: _dt.datetime) -> str:
+    """A date-time cell (UTC) back as ISO 8601 text, milliseconds only when it has them."""
+    t = value.replace(tzinfo=_dt.timezone.utc)
+    return t.isoformat(timespec="milliseconds" if t.microsecond else "seconds")
+
+
 def _record_from_row(values: Sequence[Any], where: str) -> MeasurementRecord:
     kw: dict[str, Any] = {}
     for (name, header, _, _), v in zip(COLUMNS, values, strict=False):
-        if name in ("time", "reason", "method", "calibration_file"):
+        if name == "time" and isinstance(v, _dt.datetime):
+            kw[name] = _time_text(v)
+        elif name in ("time", "reason", "method", "calibration_file"):
             kw[name] = "" if v is None else str(v)
         elif name == "valid":
             text = str(v).strip().lower()
@@ -155,25 +186,58 @@ def _bold():
     return Font(bold=True)
 
 
-def _write_measurements_sheet(ws, records: Iterable[MeasurementRecord]) -> None:
+def _row_values(rec: MeasurementRecord) -> list[Any]:
+    values = [_cell(v) for v in astuple(rec)]
+    values[0] = _time_cell(rec.time)
+    return values
+
+
+def _formats() -> list[str]:
+    return [XLSX_TIME_FORMAT if name == "time" else fmt for name, _, fmt, _ in COLUMNS]
+
+
+def _write_measurements_sheet(ws, records: Iterable[MeasurementRecord]) -> int:
+    """Stream the header and one row per record into a write-only sheet; return the count."""
+    from openpyxl.cell import WriteOnlyCell
     from openpyxl.utils import get_column_letter
 
-    ws.append(list(HEADERS))
-    for c in ws[1]:
-        c.font = _bold()
-    for i, (_, _, _, width) in enumerate(COLUMNS, start=1):
+    for i, ((name, _, _, width), header) in enumerate(zip(COLUMNS, XLSX_HEADERS, strict=True),
+                                                      start=1):
+        # wide enough for the bold header with its unit ("Expected error (mm)" was cut off)
+        width = max(21 if name == "time" else width, round(1.1 * len(header) + 2))
         ws.column_dimensions[get_column_letter(i)].width = width
     ws.freeze_panes = "A2"
-    _append_measurement_rows(ws, records)
+    bold = _bold()
+    header = []
+    for text in XLSX_HEADERS:
+        c = WriteOnlyCell(ws, text)
+        c.font = bold
+        header.append(c)
+    ws.append(header)
+    formats = _formats()
+    n = 0
+    for rec in records:
+        row = []
+        for value, fmt in zip(_row_values(rec), formats, strict=True):
+            c = WriteOnlyCell(ws, value)
+            c.number_format = fmt
+            row.append(c)
+        ws.append(row)
+        n += 1
+    return n
 
 
 def _append_measurement_rows(ws, records: Iterable[MeasurementRecord]) -> int:
+    """Append records below the last row of a loaded (not write-only) sheet."""
+    # the sheet's size is read once: ws.max_row scans every cell, so asking it per row made a
+    # 20,000-row export quadratic
+    row = ws.max_row
+    formats = _formats()
     n = 0
     for rec in records:
-        ws.append([_cell(v) for v in astuple(rec)])
-        row = ws.max_row
-        for col, (_, _, fmt, _) in enumerate(COLUMNS, start=1):
-            ws.cell(row=row, column=col).number_format = fmt
+        row += 1
+        for col, (value, fmt) in enumerate(zip(_row_values(rec), formats, strict=True), start=1):
+            ws.cell(row=row, column=col, value=value).number_format = fmt
         n += 1
     return n
 
@@ -204,22 +268,114 @@ def _samples(records: Sequence[MeasurementRecord], fits: Sequence) -> list[tuple
     return list(seen)
 
 
-def _write_regression_sheet(ws, samples: list[tuple[float, float]], fits: Sequence) -> None:
-    from openpyxl.chart import Reference, ScatterChart, Series
-    from openpyxl.utils import get_column_letter
+class _Draft:
+    """The cells of a small sheet, written in any order and then put into a worksheet in row
+    order (a write-only sheet takes rows only from top to bottom)."""
 
-    bold = _bold()
-    ws["A1"] = "Regression: distance against disparity"
-    ws["A1"].font = bold
+    def __init__(self) -> None:
+        self.cells: dict[tuple[int, int], tuple[Any, str | None, bool]] = {}
+        self.widths: dict[int, float] = {}
+        self.hidden: set[int] = set()
+        self.charts: list[tuple[Any, str]] = []
+        self.print_one_page_wide = False  # landscape, scaled to the page's width when printed
+
+    def set(self, row: int, col: int, value: Any, fmt: str | None = None,
+            bold: bool = False) -> None:
+        self.cells[(row, col)] = (value, fmt, bold)
+
+    def to_sheet(self, ws) -> None:
+        from openpyxl.cell import WriteOnlyCell
+        from openpyxl.utils import get_column_letter
+        from openpyxl.worksheet._write_only import WriteOnlyWorksheet
+
+        for col, width in self.widths.items():
+            ws.column_dimensions[get_column_letter(col)].width = width
+        for col in self.hidden:
+            ws.column_dimensions[get_column_letter(col)].hidden = True
+        if self.print_one_page_wide:
+            ws.page_setup.orientation = "landscape"
+            ws.sheet_properties.pageSetUpPr.fitToPage = True
+            ws.page_setup.fitToWidth = 1
+            ws.page_setup.fitToHeight = 0
+        bold = _bold()
+        if isinstance(ws, WriteOnlyWorksheet):
+            n_rows = max((r for r, _ in self.cells), default=0)
+            n_cols = max((c for _, c in self.cells), default=0)
+            for r in range(1, n_rows + 1):
+                row: list[Any] = [None] * n_cols
+                for c in range(1, n_cols + 1):
+                    if (r, c) in self.cells:
+                        value, fmt, is_bold = self.cells[(r, c)]
+                        cell = WriteOnlyCell(ws, value)
+                        if fmt:
+                            cell.number_format = fmt
+                        if is_bold:
+                            cell.font = bold
+                        row[c - 1] = cell
+                ws.append(row)
+        else:
+            for (r, c), (value, fmt, is_bold) in self.cells.items():
+                cell = ws.cell(row=r, column=c, value=value)
+                if fmt:
+                    cell.number_format = fmt
+                if is_bold:
+                    cell.font = bold
+        for chart, anchor in self.charts:
+            ws.add_chart(chart, anchor)
+
+
+# Chart colours that read on white in Excel and in LibreOffice (which ignores Excel's chart
+# styles and drew the samples as white markers): samples as filled dark markers, each fit a
+# colour, dash and width of its own (Okabe-Ito colours, distinct for colour-blind readers too).
+# Two good fits lie on top of each other: a thin solid line over or under a wide dashed one
+# shows both, whichever order the program draws them in.
+SAMPLE_COLOUR = "1F1F1F"
+# (colour, dash, width in EMU: 12700 per point)
+FIT_STYLES: tuple[tuple[str, str, int], ...] = (
+    ("D55E00", "solid", 22225), ("0072B2", "dash", 57150),
+    ("009E73", "sysDot", 38100), ("CC79A7", "lgDash", 31750))
+
+
+def _sample_series(ys, xs):
+    from openpyxl.chart import Series
+    from openpyxl.chart.shapes import GraphicalProperties
+    from openpyxl.drawing.line import LineProperties
+
+    s = Series(ys, xs, title="Samples (true distance)")
+    s.marker.symbol = "circle"
+    s.marker.size = 7
+    s.marker.graphicalProperties = GraphicalProperties(
+        solidFill=SAMPLE_COLOUR, ln=LineProperties(solidFill=SAMPLE_COLOUR))
+    s.graphicalProperties.line.noFill = True
+    return s
+
+
+def _fit_series(ys, xs, title: str, k: int):
+    from openpyxl.chart import Series
+
+    colour, dash, width = FIT_STYLES[k % len(FIT_STYLES)]
+    line = Series(ys, xs, title=title)
+    line.marker.symbol = "none"
+    line.smooth = True
+    line.graphicalProperties.line.solidFill = colour
+    line.graphicalProperties.line.width = width
+    line.graphicalProperties.line.prstDash = dash
+    return line
+
+
+def _write_regression_sheet(ws, samples: list[tuple[float, float]], fits: Sequence) -> None:
+    from openpyxl.chart import Reference, ScatterChart
+
+    draft = _Draft()
+    draft.set(1, 1, "Regression: distance against disparity", bold=True)
 
     # samples table: A disparity, B true distance, then prediction and residual per fit
     header = ["Disparity (px)", "True distance (mm)"]
     for fit in fits:
         header += [f"{fit.model} prediction (mm)", f"{fit.model} residual (mm)"]
     for col, text in enumerate(header, start=1):
-        c = ws.cell(row=3, column=col, value=text)
-        c.font = bold
-        ws.column_dimensions[get_column_letter(col)].width = max(12, len(text) + 2)
+        draft.set(3, col, text, bold=True)
+        draft.widths[col] = max(12, len(text) + 2)
     residual_maps = []
     for fit in fits:
         residual_maps.append({(float(d), float(z)): float(r)
@@ -228,12 +384,11 @@ def _write_regression_sheet(ws, samples: list[tuple[float, float]], fits: Sequen
     predictions = [_predict(fit, d_arr) if samples else np.empty(0) for fit in fits]
     for i, (d, z) in enumerate(samples):
         row = 4 + i
-        ws.cell(row=row, column=1, value=_cell(d)).number_format = "0.000"
-        ws.cell(row=row, column=2, value=_cell(z)).number_format = "0.0"
+        draft.set(row, 1, _cell(d), "0.000")
+        draft.set(row, 2, _cell(z), "0.0")
         for k, fit in enumerate(fits):
-            pc = ws.cell(row=row, column=3 + 2 * k, value=_cell(predictions[k][i]))
-            rc = ws.cell(row=row, column=4 + 2 * k, value=_cell(residual_maps[k].get((d, z))))
-            pc.number_format = rc.number_format = "0.0"
+            draft.set(row, 3 + 2 * k, _cell(predictions[k][i]), "0.0")
+            draft.set(row, 4 + 2 * k, _cell(residual_maps[k].get((d, z))), "0.0")
     first_sample_row, last_sample_row = 4, 3 + len(samples)
 
     # models table, right of the samples
@@ -242,23 +397,21 @@ def _write_regression_sheet(ws, samples: list[tuple[float, float]], fits: Sequen
     mheader = ["Model", "Formula", "R^2", "Samples", "RMS residual (mm)"] + [
         f"c{i}" for i in range(n_coef)]
     for j, text in enumerate(mheader):
-        c = ws.cell(row=3, column=mcol + j, value=text)
-        c.font = bold
-    ws.column_dimensions[get_column_letter(mcol)].width = 12
-    ws.column_dimensions[get_column_letter(mcol + 1)].width = 48
+        draft.set(3, mcol + j, text, bold=True)
+    draft.widths[mcol] = 12
+    draft.widths[mcol + 1] = 48
     for k, fit in enumerate(fits):
         row = 4 + k
         res = np.asarray(fit.residuals_mm, float)
         rms = float(np.sqrt(np.mean(res**2))) if res.size else float("nan")
         values = [fit.model, fit.formula(), _cell(fit.r2), len(fit.samples), _cell(rms)]
         values += [_cell(c) for c in fit.coefficients]
+        formats = {2: "0.00000", 4: "0.00"}
         for j, v in enumerate(values):
-            ws.cell(row=row, column=mcol + j, value=v)
-        ws.cell(row=row, column=mcol + 2).number_format = "0.00000"
-        ws.cell(row=row, column=mcol + 4).number_format = "0.00"
+            draft.set(row, mcol + j, v, formats.get(j))
     if not fits:
-        ws.cell(row=4, column=mcol, value="no fit yet: enter true distances for at least "
-                                          "a few measurements and fit a model")
+        draft.set(4, mcol, "no fit yet: enter true distances for at least a few measurements "
+                           "and fit a model")
 
     # fitted curves on a disparity grid, in hidden columns the chart reads
     gcol = mcol + len(mheader) + 1
@@ -267,49 +420,42 @@ def _write_regression_sheet(ws, samples: list[tuple[float, float]], fits: Sequen
         lo, hi = float(d_arr.min()), float(d_arr.max())
         pad = 0.05 * (hi - lo) if hi > lo else 1.0
         grid = np.linspace(lo - pad, hi + pad, CURVE_POINTS)
-        ws.cell(row=3, column=gcol, value="Curve disparity (px)").font = bold
+        draft.set(3, gcol, "Curve disparity (px)", bold=True)
         curves = [_predict(fit, grid) for fit in fits]
         for k, fit in enumerate(fits):
-            ws.cell(row=3, column=gcol + 1 + k, value=f"{fit.model} curve (mm)").font = bold
+            draft.set(3, gcol + 1 + k, f"{fit.model} curve (mm)", bold=True)
         for i, g in enumerate(grid):
-            ws.cell(row=4 + i, column=gcol, value=float(g))
+            draft.set(4 + i, gcol, float(g))
             for k in range(len(fits)):
-                ws.cell(row=4 + i, column=gcol + 1 + k, value=_cell(curves[k][i]))
+                draft.set(4 + i, gcol + 1 + k, _cell(curves[k][i]))
         grid_rows = len(grid)
-        for c in range(gcol, gcol + 1 + len(fits)):
-            ws.column_dimensions[get_column_letter(c)].hidden = True
+        draft.hidden.update(range(gcol, gcol + 1 + len(fits)))
 
-    if not samples:
-        return
-    chart = ScatterChart()
-    chart.title = "Distance against disparity"
-    chart.style = 13
-    chart.scatterStyle = "lineMarker"  # required by the schema; openpyxl leaves it out otherwise
-    chart.x_axis.axPos = "b"
-    chart.x_axis.title = "Disparity (px)"
-    chart.y_axis.title = "Distance (mm)"
-    # recent Excel hides axes openpyxl does not mark as kept, and skips hidden cells by default
-    chart.x_axis.delete = False
-    chart.y_axis.delete = False
-    chart.visible_cells_only = False
-    chart.width, chart.height = 18, 10
-    xs = Reference(ws, min_col=1, min_row=first_sample_row, max_row=last_sample_row)
-    ys = Reference(ws, min_col=2, min_row=first_sample_row, max_row=last_sample_row)
-    s = Series(ys, xs, title="Samples (true distance)")
-    s.marker.symbol = "circle"
-    s.marker.size = 7
-    s.graphicalProperties.line.noFill = True
-    chart.series.append(s)
-    if grid_rows:
-        gx = Reference(ws, min_col=gcol, min_row=4, max_row=3 + grid_rows)
-        for k, fit in enumerate(fits):
-            gy = Reference(ws, min_col=gcol + 1 + k, min_row=4, max_row=3 + grid_rows)
-            line = Series(gy, gx, title=f"{fit.model} fit (R^2 {fit.r2:.4f})")
-            line.marker.symbol = "none"
-            line.smooth = True
-            chart.series.append(line)
-    anchor_row = max(last_sample_row, 3 + len(fits)) + 3
-    ws.add_chart(chart, f"A{anchor_row}")
+    if samples:
+        chart = ScatterChart()
+        chart.title = "Distance against disparity"
+        chart.scatterStyle = "lineMarker"  # required by the schema; openpyxl leaves it out otherwise
+        chart.x_axis.axPos = "b"
+        chart.x_axis.title = "Disparity (px)"
+        chart.y_axis.title = "Distance (mm)"
+        # recent Excel hides axes openpyxl does not mark as kept, and skips hidden cells by default
+        chart.x_axis.delete = False
+        chart.y_axis.delete = False
+        chart.visible_cells_only = False
+        chart.width, chart.height = 16, 10  # cm: fits a portrait page when printed
+        chart.legend.position = "b"  # on the right it was cut off at the page's edge
+        xs = Reference(ws, min_col=1, min_row=first_sample_row, max_row=last_sample_row)
+        ys = Reference(ws, min_col=2, min_row=first_sample_row, max_row=last_sample_row)
+        chart.series.append(_sample_series(ys, xs))
+        if grid_rows:
+            gx = Reference(ws, min_col=gcol, min_row=4, max_row=3 + grid_rows)
+            for k, fit in enumerate(fits):
+                gy = Reference(ws, min_col=gcol + 1 + k, min_row=4, max_row=3 + grid_rows)
+                chart.series.append(_fit_series(gy, gx, f"{fit.model} fit (R^2 {fit.r2:.4f})", k))
+        anchor_row = max(last_sample_row, 3 + len(fits)) + 3
+        draft.charts.append((chart, f"A{anchor_row}"))
+        draft.print_one_page_wide = True  # printed (or made a PDF), the chart is not cut
+    draft.to_sheet(ws)
 
 
 _MATRIX_NOTES = {
@@ -327,13 +473,11 @@ CALIBRATION_MATRICES = tuple(_MATRIX_NOTES)
 
 
 def _write_calibration_sheet(ws, calib: StereoCalibration | None, calib_file: str | None) -> None:
-    from openpyxl.utils import get_column_letter
-
-    bold = _bold()
-    ws["A1"] = "Calibration"
-    ws["A1"].font = bold
+    draft = _Draft()
+    draft.set(1, 1, "Calibration", bold=True)
     if calib is None:
-        ws["A3"] = "no calibration given"
+        draft.set(3, 1, "no calibration given")
+        draft.to_sheet(ws)
         return
     board = calib.board
     figures: list[tuple[str, Any, str]] = [
@@ -355,33 +499,33 @@ def _write_calibration_sheet(ws, calib: StereoCalibration | None, calib_file: st
         ("Alpha", calib.alpha, "0.00"),
     ]
     for i, (label, value, fmt) in enumerate(figures):
-        ws.cell(row=3 + i, column=1, value=label).font = bold
-        ws.cell(row=3 + i, column=2, value=_cell(value)).number_format = fmt
-    ws.column_dimensions["A"].width = 26
-    ws.column_dimensions["B"].width = 28
+        draft.set(3 + i, 1, label, bold=True)
+        draft.set(3 + i, 2, _cell(value), fmt)
+    draft.widths[1] = 26
+    draft.widths[2] = 28
     row = 3 + len(figures) + 1
     if calib.per_pair:
         for j, text in enumerate(("Pair", "Error left (px)", "Error right (px)")):
-            ws.cell(row=row, column=1 + j, value=text).font = bold
+            draft.set(row, 1 + j, text, bold=True)
         for k, pe in enumerate(calib.per_pair):
-            ws.cell(row=row + 1 + k, column=1, value=pe.name)
-            ws.cell(row=row + 1 + k, column=2, value=_cell(pe.error_left)).number_format = "0.0000"
-            ws.cell(row=row + 1 + k, column=3, value=_cell(pe.error_right)).number_format = "0.0000"
+            draft.set(row + 1 + k, 1, pe.name)
+            draft.set(row + 1 + k, 2, _cell(pe.error_left), "0.0000")
+            draft.set(row + 1 + k, 3, _cell(pe.error_right), "0.0000")
 
     # matrices stacked in columns E.., each under a bold label row
     col0 = 5
     r = 3
     for name, note in _MATRIX_NOTES.items():
         m = np.atleast_2d(np.asarray(getattr(calib, name), float))
-        ws.cell(row=r, column=col0, value=name).font = bold
-        ws.cell(row=r, column=col0 + 1, value=note)
+        draft.set(r, col0, name, bold=True)
+        draft.set(r, col0 + 1, note)
         for i in range(m.shape[0]):
             for j in range(m.shape[1]):
-                c = ws.cell(row=r + 1 + i, column=col0 + j, value=_cell(m[i, j]))
-                c.number_format = "0.000000"
+                draft.set(r + 1 + i, col0 + j, _cell(m[i, j]), "0.000000")
         r += m.shape[0] + 2
     for j in range(5):
-        ws.column_dimensions[get_column_letter(col0 + j)].width = 14
+        draft.widths[col0 + j] = 14
+    draft.to_sheet(ws)
 
 
 # ---- workbooks ------------------------------------------------------------------------------
@@ -390,16 +534,23 @@ def _check_xlsx_name(path: Path) -> None:
         raise InputError(f"{path}: a workbook file name must end in .xlsx")
 
 
-def _new_workbook(records, fits, calibration, calibration_file):
+def _new_workbook(records, fits, calibration, calibration_file, target: Path):
     from openpyxl import Workbook
 
-    wb = Workbook()
-    ws = wb.active
-    ws.title = MEASUREMENTS_SHEET
-    _write_measurements_sheet(ws, records)
-    fits = tuple(fits or ())
-    _write_regression_sheet(wb.create_sheet(REGRESSION_SHEET), _samples(records, fits), fits)
-    _write_calibration_sheet(wb.create_sheet(CALIBRATION_SHEET), calibration, calibration_file)
+    wb = Workbook(write_only=True)  # streamed: linear in the rows
+    try:
+        # write-only sheets stream their rows into temporary files as they are appended, so a
+        # full disk already shows here
+        _write_measurements_sheet(wb.create_sheet(MEASUREMENTS_SHEET), records)
+        fits = tuple(fits or ())
+        _write_regression_sheet(wb.create_sheet(REGRESSION_SHEET), _samples(records, fits), fits)
+        _write_calibration_sheet(wb.create_sheet(CALIBRATION_SHEET), calibration,
+                                 calibration_file)
+    except OSError as exc:
+        _discard_write_only(wb)
+        raise InputError(f"cannot write {target}: {os_error_text(exc)}; "
+                         f"{'it was left untouched' if target.exists() else 'nothing was written'}"
+                         ) from exc
     wb.properties.keywords = WORKBOOK_KEYWORDS
     wb.properties.creator = "stereo-gui"
     wb.properties.title = "Stereo GUI measurements"
@@ -415,9 +566,32 @@ def _verify_xlsx(path: Path) -> None:
 
 
 def _save(wb, path: Path) -> Path:
-    with atomic_path(path, verify=_verify_xlsx) as tmp:
-        wb.save(tmp)
+    try:
+        with atomic_path(path, verify=_verify_xlsx) as tmp:
+            wb.save(tmp)
+    except BaseException:
+        _discard_write_only(wb)
+        raise
     return path
+
+
+def _discard_write_only(wb) -> None:
+    """After a failed save, close the streamed sheets of a write-only workbook and remove their
+    temporary files (left open, they print a traceback when they are collected later)."""
+    if not getattr(wb, "write_only", False):
+        return
+    for ws in wb.worksheets:
+        writer = getattr(ws, "_writer", None)
+        if writer is None or ws.closed:
+            continue
+        try:
+            ws.close()
+        except Exception:  # noqa: BLE001 - best effort after the real error
+            log.debug("closing sheet %s after a failed save", ws.title, exc_info=True)
+        try:
+            writer.cleanup()
+        except Exception:  # noqa: BLE001
+            log.debug("removing the temporary file of sheet %s", ws.title, exc_info=True)
 
 
 def write_workbook(path: str | os.PathLike, records: Iterable[MeasurementRecord],
@@ -432,7 +606,7 @@ def write_workbook(path: str | os.PathLike, records: Iterable[MeasurementRecord]
     _check_xlsx_name(path)
     records = list(records)
     wb = _new_workbook(records, fits, calibration,
-                       None if calibration_file is None else str(calibration_file))
+                       None if calibration_file is None else str(calibration_file), path)
     _save(wb, path)
     log.info("wrote %d measurements to %s", len(records), path)
     return path
@@ -455,7 +629,8 @@ def _load_ours(path: Path):
                          f"{MEASUREMENTS_SHEET!r} sheet); it was left untouched")
     ws = wb[MEASUREMENTS_SHEET]
     header = tuple(c.value for c in next(ws.iter_rows(min_row=1, max_row=1)))
-    if header[: len(HEADERS)] != HEADERS:
+    # workbooks written before the time became a date-time cell head it "Time (ISO 8601)"
+    if header[: len(HEADERS)] not in (XLSX_HEADERS, HEADERS):
         raise InputError(f"{path}: the {MEASUREMENTS_SHEET!r} sheet does not have the columns "
                          "stereo-gui writes; it was left untouched")
     return wb
@@ -487,6 +662,7 @@ def append_measurements(path: str | os.PathLike, records: Iterable[MeasurementRe
         write_workbook(path, records, fits or (), calibration, calibration_file)
         return len(records)
     wb = _load_ours(path)
+    wb[MEASUREMENTS_SHEET].cell(row=1, column=1).value = XLSX_TIME_HEADER
     n = _append_measurement_rows(wb[MEASUREMENTS_SHEET], records)
     cf = None if calibration_file is None else str(calibration_file)
     if fits is not None:
@@ -517,16 +693,40 @@ def _replace_sheet(wb, title: str, index: int, fill) -> None:
 
 
 # ---- CSV ------------------------------------------------------------------------------------
+def csv_decimals(field: str) -> int | None:
+    """Decimals a CSV number of record field `field` keeps, from the unit in its name: 0.1 mm,
+    0.001 px, 0.1 % (a fraction to 0.001); None for a number without a unit (6 digits)."""
+    if field.endswith("_mm"):
+        return 1
+    if field.endswith("_px") or field.endswith("fraction"):
+        return 3
+    if field.endswith("_pct"):
+        return 1
+    return None
+
+
+def _csv_number(value: float, decimals: int | None) -> str:
+    text = f"{value:.{decimals}f}" if decimals is not None else f"{value:.6g}"
+    return text[1:] if text.startswith("-") and float(text) == 0 else text  # no "-0.0"
+
+
 def records_to_csv(records: Iterable[MeasurementRecord]) -> str:
-    """The log as CSV text: a header with units, one row per record; empty where no number."""
+    """The log as CSV text: a header with units, one row per record; empty where no number;
+    numbers rounded to what they mean (`csv_decimals`)."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(HEADERS)
+    decimals = [csv_decimals(name) for name in _FIELD_NAMES]
     for rec in records:
         row = []
-        for v in astuple(rec):
+        for v, dec in zip(astuple(rec), decimals, strict=True):
             v = _cell(v)
-            row.append("" if v is None else repr(v) if isinstance(v, float) else v)
+            if v is None:
+                row.append("")
+            elif isinstance(v, float):
+                row.append(_csv_number(v, dec))
+            else:
+                row.append(v)
         w.writerow(row)
     return buf.getvalue()
 

@@ -79,31 +79,36 @@ def build_window(source: str | None = None, calib: str | None = None):
     configure_pyqtgraph()
     settings, warnings = load_settings()
     ctx = AppContext(settings)
-    calib_obj, calib_path, calib_error = None, None, ""
-    if calib:
-        from stereo_gui.files.calibration_file import load_calibration
-
-        calib_obj, calib_path = load_calibration(calib), calib  # raises for a bad --calib
-    elif settings.last_calibration:
-        from stereo_gui.files.calibration_file import load_calibration
-
-        try:
-            calib_obj, calib_path = load_calibration(settings.last_calibration), \
-                settings.last_calibration
-        except Exception as exc:  # noqa: BLE001 - a remembered file never blocks the start
-            calib_error = f"The last calibration could not be loaded: {exc}"
-            log.warning("%s", calib_error, exc_info=not isinstance(exc, StereoGuiError))
-
     size = tuple(settings.resolution)
     if source:
         check_source_spec(source)  # a bad --source is a user mistake: exit 2 before the window
     spec = source or settings.source or "auto"
 
+    from stereo_gui.files.any_calibration import load_any_calibration
+    from stereo_gui.sources.open import expected_frame_size
+
+    def frame_size():  # for a file without an image size (OpenCV's sample writes none)
+        return expected_frame_size(spec, size)
+
+    loaded, calib_error = None, ""
+    if calib:
+        loaded = load_any_calibration(calib, frame_size)  # raises for a bad --calib
+    elif settings.last_calibration:
+        try:
+            loaded = load_any_calibration(settings.last_calibration, frame_size)
+        except Exception as exc:  # noqa: BLE001 - a remembered file never blocks the start
+            calib_error = f"The last calibration could not be loaded: {exc}"
+            log.warning("%s", calib_error, exc_info=not isinstance(exc, StereoGuiError))
+
     window = MainWindow(ctx)
     _install_excepthook(ctx)
-    if calib_obj is not None:
-        ctx.set_calibration(calib_obj, Path(calib_path).resolve())
-        ctx.settings = ctx.settings.with_updates(last_calibration=str(Path(calib_path).resolve()))
+    if loaded is not None and loaded.path is not None:
+        ctx.set_calibration(loaded.calibration, loaded.path.resolve())
+        ctx.settings = ctx.settings.with_updates(last_calibration=str(loaded.path.resolve()))
+    elif loaded is not None:  # rectified:F,B[,DOFFS] is remembered as written
+        ctx.set_calibration(loaded.calibration, None, note=loaded.description)
+        ctx.settings = ctx.settings.with_updates(last_calibration=calib or
+                                                 settings.last_calibration)
     # opening takes seconds (devices, the simulated rig's ray maps): done off the UI thread
     window.open_source(SourceChoice(spec, size, settings.swap_lr), fallback_to_auto=not source)
     problems = [w for w in warnings] + ([calib_error] if calib_error else [])

@@ -68,18 +68,28 @@ class AppContext(QObject):
         self.calibrationChanged.emit(calib)
 
     def open_calibration_file(self, path: str | Path) -> bool:
-        """Load the calibration file `path`, use it and remember it for the next start; False
-        (after reporting why) when it cannot be read."""
-        from stereo_gui.files.calibration_file import load_calibration
+        """Load the calibration file `path` (ours, OpenCV's, ROS's or Middlebury's: see
+        files.any_calibration), use it and remember it for the next start; False (after
+        reporting why) when it cannot be read. A file without an image size takes the size of
+        the frames shown."""
+        from stereo_gui.files.any_calibration import load_any_calibration
 
         try:
-            calib = load_calibration(path)
+            loaded = load_any_calibration(path, self.frame_size)
         except (StereoGuiError, OSError) as exc:
             self.report_error(f"Cannot load calibration {path}: {exc}")
             return False
-        self._use_calibration_file(calib, path)
-        self.show_status(f"Loaded calibration {path}")
+        self._use_calibration_file(loaded.calibration, path)
+        extra = "" if loaded.kind == "stereo-gui" else f" ({loaded.description})"
+        self.show_status(f"Loaded calibration {path}{extra}")
         return True
+
+    def frame_size(self) -> tuple[int, int]:
+        """(width, height) px of the frames shown, or those the source was asked for."""
+        latest = self.frames.latest()
+        if latest is not None:
+            return int(latest.frame.left.shape[1]), int(latest.frame.left.shape[0])
+        return tuple(self.settings.resolution)
 
     def save_calibration_file(self, calib, path: str | Path) -> bool:
         """Write `calib` to `path`, use it from there and remember it for the next start; False

@@ -8,6 +8,7 @@ the user sees (a red bar above the tabs, also written to the status bar).
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 from pathlib import Path
 
 from PySide6.QtCore import QByteArray, Qt, QTimer, Signal
@@ -35,7 +36,7 @@ from stereo_gui.qt.workers.job_runner import JobRunner
 log = logging.getLogger(__name__)
 
 TAB_NAMES = ("capture", "calibration", "live", "measurements")
-CALIB_FILTER = "Calibration files (*.yaml *.yml *.xml *.json);;All files (*)"
+CALIB_FILTER = "Calibration files (*.yaml *.yml *.xml *.json *.txt);;All files (*)"
 SIM_BANNER = ("Running on the SIMULATED stereo rig: {why}. Distances are of the rendered scene, "
               "not of the real world. Choose a source in File > Choose source… once cameras "
               "are connected.")
@@ -245,10 +246,14 @@ class MainWindow(QMainWindow):
         from stereo_gui.sources.open import open_source
 
         spec, size, swap = choice.spec, tuple(choice.size), bool(choice.swap)
+        # the remembered cameras are found again by name and USB ids if their indices changed
+        s = self.ctx.settings
+        known = tuple(s.cameras) if spec == s.source else ()
         self.source_label.setText(f"Source: opening {describe_spec(spec)}…")
         self.statusBar().showMessage(f"Opening {describe_spec(spec)}…")
         self._opening = (choice, fallback_to_auto)
-        self._opening_id = self._opener.submit(lambda: open_source(spec, size=size, swap=swap))
+        self._opening_id = self._opener.submit(
+            lambda: open_source(spec, size=size, swap=swap, remembered_cameras=known))
         return self._opening_id
 
     def is_opening_source(self) -> bool:
@@ -259,7 +264,11 @@ class MainWindow(QMainWindow):
             _close_source(opened.source)  # a newer request or the window closed meanwhile
             return
         self.statusBar().clearMessage()
-        self.use_source(opened.source, self._opening[0], opened.fell_back_to_sim, opened.message)
+        choice = self._opening[0]
+        if opened.spec:  # absolute paths; cameras where they were found
+            choice = replace(choice, spec=opened.spec)
+        self.use_source(opened.source, choice, opened.fell_back_to_sim, opened.message,
+                        cameras=opened.cameras)
 
     def _source_failed(self, job_id: int, message: str) -> None:
         if job_id != self._opening_id or self._closing:
@@ -271,8 +280,9 @@ class MainWindow(QMainWindow):
             self.open_source(SourceChoice("auto", choice.size, choice.swap))
 
     def use_source(self, source, choice: SourceChoice, fell_back_to_sim: bool = False,
-                   message: str = "") -> None:
-        """Use an already opened source (remembered in the settings)."""
+                   message: str = "", cameras: tuple[str, ...] = ()) -> None:
+        """Use an already opened source (remembered in the settings, with the identities of its
+        cameras)."""
         self.source_choice = choice
         self.ctx.source_fell_back_to_sim = bool(fell_back_to_sim)
         if fell_back_to_sim:
@@ -283,7 +293,7 @@ class MainWindow(QMainWindow):
             if message:
                 self.statusBar().showMessage(message, 8000)
         self.ctx.update_settings(source=choice.spec, resolution=tuple(choice.size),
-                                 swap_lr=bool(choice.swap))
+                                 swap_lr=bool(choice.swap), cameras=tuple(cameras))
         self.ctx.frames.set_source(source)
         self.sourceOpened.emit(choice.spec)
 

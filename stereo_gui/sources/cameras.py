@@ -1,14 +1,16 @@
 """Real frame sources: two USB cameras, one side-by-side stereo camera, a side-by-side video file.
 
-All use cv2.VideoCapture. Devices fail in the field (unplugged, claimed by another program, a USB
+All use cv2.VideoCapture, with the backend cv2-enumerate-cameras lists a camera under (it names
+cameras, with USB vendor and product ids, on Windows, Linux and macOS). Devices fail in the field (unplugged, claimed by another program, a USB
 bus without bandwidth for two streams); every such failure becomes a SourceError whose message
 names the device and says what to try.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
-import sys
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,6 +26,12 @@ log = logging.getLogger(__name__)
 SYSFS_VIDEO = Path("/sys/class/video4linux")
 # consecutive failed grabs before a camera counts as gone (a single dropped frame is normal)
 MAX_FAILED_GRABS = 5
+# the backends cv2-enumerate-cameras lists a camera under, best first: each camera is shown once,
+# under the first (V4L2 before GStreamer on Linux, Media Foundation before DirectShow on Windows)
+_BACKEND_ORDER = (cv2.CAP_V4L2, cv2.CAP_MSMF, cv2.CAP_DSHOW, cv2.CAP_AVFOUNDATION,
+                  cv2.CAP_GSTREAMER)
+BACKEND_NAMES = {cv2.CAP_V4L2: "V4L2", cv2.CAP_MSMF: "MSMF", cv2.CAP_DSHOW: "DirectShow",
+                 cv2.CAP_AVFOUNDATION: "AVFoundation", cv2.CAP_GSTREAMER: "GStreamer"}
 
 
 class EndOfSource(SourceError):
@@ -32,40 +40,71 @@ class EndOfSource(SourceError):
 
 @dataclass(frozen=True)
 class CameraInfo:
-    """A video device: OpenCV index, the name the system gives it, and its device path if any."""
+    """A video device: OpenCV index, the name the system gives it, its device path if any, the
+    OpenCV backend (cv2.CAP_*) to open it with (None: OpenCV chooses) and its USB vendor and
+    product ids when known."""
 
     index: int
     name: str
     path: str | None = None
+    backend: int | None = None
+    vid: int | None = None
+    pid: int | None = None
+
+    @property
+    def usb_id(self) -> str:
+        """'046d:0825', or '' when the ids are not known."""
+        return f"{self.vid:04x}:{self.pid:04x}" if self.vid is not None and self.pid is not None \
+            else ""
+
+    @property
+    def identity(self) -> str:
+        """What a camera is remembered by besides its index: its name and USB ids, so that a
+        webcam plugged in again under another index is found again."""
+        return f"{self.name} [{self.usb_id}]" if self.usb_id else self.name
 
     def label(self) -> str:
-        return f"{self.index}: {self.name}"
+        return f"{self.index}: {self.identity}"
 
 
-def _list_sysfs(root: Path) -> list[CameraInfo]:
-    cams = []
-    for dev in root.glob("video*"):
-        suffix = dev.name[len("video"):]
-        if not suffix.isdigit():
-            continue
-        # webcams often expose a second node for metadata; its "index" attribute is not 0
-        try:
-            if int((dev / "index").read_text().strip() or 0) != 0:
+def _metadata_node(path: str | None) -> bool:
+    """True for a Linux webcam's second, metadata-only node (/dev/video1 beside /dev/video0),
+    which sysfs marks with an "index" other than 0. cv2-enumerate-cameras tells them apart only
+    when it may open the device (ioctl); without that permission it lists both."""
+    if not path or not path.startswith("/dev/video"):
+        return False
+    try:
+        return int((SYSFS_VIDEO / Path(path).name / "index").read_text().strip() or 0) != 0
+    except (OSError, ValueError):
+        return False
+
+
+def _enumerate(enumerate_fn=None, backends=None) -> list[CameraInfo]:
+    """Cameras from cv2-enumerate-cameras (or `enumerate_fn(backend)`, a stand-in with the same
+    results), each once, under the best backend that lists it."""
+    if enumerate_fn is None:
+        from cv2_enumerate_cameras import enumerate_cameras, supported_backends
+
+        enumerate_fn, backends = enumerate_cameras, supported_backends
+    order = {b: i for i, b in enumerate(_BACKEND_ORDER)}
+    cams: list[CameraInfo] = []
+    seen: set = set()
+    for backend in sorted(backends or (), key=lambda b: order.get(b, len(order))):
+        for c in enumerate_fn(backend):
+            key = c.path or (c.name, c.vid, c.pid, c.index)
+            if key in seen or _metadata_node(c.path):
                 continue
-        except (OSError, ValueError):
-            pass
-        try:
-            name = (dev / "name").read_text(errors="replace").strip() or f"Camera {suffix}"
-        except OSError:
-            name = f"Camera {suffix}"
-        cams.append(CameraInfo(int(suffix), name, f"/dev/{dev.name}"))
-    return sorted(cams, key=lambda c: c.index)
+            seen.add(key)
+            cams.append(CameraInfo(int(c.index), str(c.name or f"Camera {c.index}"), c.path,
+                                   int(backend), c.vid, c.pid))
+    return cams
 
 
 def _probe(max_index: int) -> list[CameraInfo]:
     cams = []
     for i in range(max_index):
-        cap = cv2.VideoCapture(i)
+        with quiet_opencv():
+            cap = cv2.VideoCapture(i)
         try:
             if cap.isOpened():
                 cams.append(CameraInfo(i, f"Camera {i}", None))
@@ -74,20 +113,69 @@ def _probe(max_index: int) -> list[CameraInfo]:
     return cams
 
 
-def list_cameras(max_probe: int = 4, sysfs_root: Path | None = None) -> list[CameraInfo]:
-    """The video devices present, by OpenCV index; never raises (an empty list when none).
+def list_cameras(max_probe: int = 4, enumerate_fn=None, backends=None) -> list[CameraInfo]:
+    """The video devices present, with names, backends and USB ids from cv2-enumerate-cameras
+    (Windows, Linux, macOS; no device is opened); never raises (an empty list when none).
 
-    On Linux the names come from sysfs (no device is opened); elsewhere the first `max_probe`
-    indices are tried with cv2.VideoCapture.
+    `enumerate_fn(backend)` and `backends` replace the library (tests). Should the library fail,
+    the first `max_probe` indices are tried with cv2.VideoCapture ("Camera N", no ids).
     """
     try:
-        root = SYSFS_VIDEO if sysfs_root is None else Path(sysfs_root)
-        if sysfs_root is not None or sys.platform.startswith("linux"):
-            return _list_sysfs(root) if root.is_dir() else []
-        return _probe(max_probe)
+        return _enumerate(enumerate_fn, backends)
     except Exception as exc:  # noqa: BLE001 - listing devices must never stop the application
-        log.warning("listing cameras failed: %s", exc)
+        log.warning("listing cameras failed (%s); trying indices 0-%d", exc, max_probe - 1)
+    try:
+        return _probe(max_probe)
+    except Exception as exc:  # noqa: BLE001
+        log.warning("probing cameras failed: %s", exc)
         return []
+
+
+def find_camera(index: int, cameras: list[CameraInfo]) -> CameraInfo | None:
+    """The listed camera with OpenCV index `index` (the first backend's), or None."""
+    return next((c for c in cameras if c.index == index), None)
+
+
+def find_cameras_again(indices: tuple[int, ...], remembered: tuple[str, ...],
+                       cameras: list[CameraInfo]) -> tuple[tuple[int, ...], list[str]]:
+    """The indices of the remembered cameras now: a camera whose `identity` (name and USB ids)
+    is no longer at its remembered index but at another listed one moved there (unplugged and
+    plugged in again, another USB port). Returns the indices and a note per camera that moved.
+
+    Cameras that are at their index, or that are not listed at all, keep their index.
+    """
+    if len(remembered) != len(indices) or not cameras:
+        return tuple(indices), []
+    out = list(indices)
+    taken = {i for i, ident in zip(indices, remembered, strict=True)
+             if (c := find_camera(i, cameras)) is not None and c.identity == ident}
+    notes = []
+    for slot, (index, ident) in enumerate(zip(indices, remembered, strict=True)):
+        if not ident or index in taken:
+            continue
+        moved = next((c for c in cameras if c.identity == ident and c.index not in taken), None)
+        if moved is not None:
+            out[slot] = moved.index
+            taken.add(moved.index)
+            notes.append(f"camera {ident} is now at index {moved.index} (was {index})")
+    return tuple(out), notes
+
+
+_log_lock = threading.Lock()
+
+
+@contextlib.contextmanager
+def quiet_opencv():
+    """Keep OpenCV's own lines (`[ WARN:0@1.1] ... can't open camera by index`, "OpenCV should be
+    configured with libavdevice") off the terminal while a camera is opened: our SourceError
+    says what happened and what to do."""
+    with _log_lock:
+        previous = cv2.utils.logging.getLogLevel()
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+        try:
+            yield
+        finally:
+            cv2.utils.logging.setLogLevel(previous)
 
 
 def _as_bgr(img: np.ndarray) -> np.ndarray:
@@ -98,14 +186,19 @@ def _as_bgr(img: np.ndarray) -> np.ndarray:
     return img
 
 
-def _open_camera(index: int, size: tuple[int, int], role: str):
-    """Open camera `index` at `size` (width, height) px or raise SourceError."""
-    cap = cv2.VideoCapture(int(index))
-    if cap is None or not cap.isOpened():
+def _open_camera(index: int, size: tuple[int, int], role: str, backend: int | None = None):
+    """Open camera `index` (with OpenCV backend `backend`, as the listing reports it) at `size`
+    (width, height) px or raise SourceError."""
+    with quiet_opencv():
+        cap = (cv2.VideoCapture(int(index)) if backend is None
+               else cv2.VideoCapture(int(index), int(backend)))
+        opened = cap is not None and cap.isOpened()
+    if not opened:
         if cap is not None:
             cap.release()
         raise SourceError(f"cannot open {role} camera {index}: no such device, or another "
-                          "program is using it")
+                          "program is using it; check the cable, close other camera programs, "
+                          "or choose other cameras (File > Choose source, or --source cams:L,R)")
     # MJPG lets two cameras share one USB bus at 640x480 and 30 fps (raw YUYV often cannot)
     cap.set(cv2.CAP_PROP_FOURCC, cv2.VideoWriter.fourcc(*"MJPG"))
     cap.set(cv2.CAP_PROP_FRAME_WIDTH, int(size[0]))
@@ -127,12 +220,13 @@ class TwoCameraSource:
     exposures are as close in time as the devices allow."""
 
     def __init__(self, left_index: int, right_index: int, size: tuple[int, int] = (640, 480),
-                 swap: bool = False):
+                 swap: bool = False, backends: tuple[int | None, int | None] = (None, None)):
         if left_index == right_index:
             raise SourceError(f"left and right camera are the same device ({left_index}): "
                               "choose two different cameras")
         if swap:
             left_index, right_index = right_index, left_index
+            backends = (backends[1], backends[0])
         self.left_index, self.right_index = int(left_index), int(right_index)
         self.size = (int(size[0]), int(size[1]))
         self.name = f"Cameras {self.left_index}, {self.right_index}"
@@ -140,8 +234,8 @@ class TwoCameraSource:
         self._index = 0
         self._closed = False
         try:
-            self._caps.append(_open_camera(self.left_index, self.size, "left"))
-            self._caps.append(_open_camera(self.right_index, self.size, "right"))
+            self._caps.append(_open_camera(self.left_index, self.size, "left", backends[0]))
+            self._caps.append(_open_camera(self.right_index, self.size, "right", backends[1]))
         except BaseException:
             self.close()
             raise
@@ -227,12 +321,13 @@ class _SideBySideCapture:
 class SideBySideSource(_SideBySideCapture):
     """One stereo camera that delivers both images side by side in one frame."""
 
-    def __init__(self, index: int, size: tuple[int, int] = (1280, 480), swap: bool = False):
+    def __init__(self, index: int, size: tuple[int, int] = (1280, 480), swap: bool = False,
+                 backend: int | None = None):
         self.index = int(index)
         self.size = (int(size[0]), int(size[1]))  # the whole frame, both halves
         self.swap = bool(swap)
         self.name = f"Side-by-side camera {self.index}"
-        self._cap = _open_camera(self.index, self.size, "side-by-side")
+        self._cap = _open_camera(self.index, self.size, "side-by-side", backend)
         self.nominal_fps = _fps(self._cap)
         self._index = 0
         self._closed = False

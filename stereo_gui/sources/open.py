@@ -23,11 +23,19 @@ _SIM = re.compile(r"^sim(?::(mixed|board|scene))?$")
 @dataclass(frozen=True)
 class OpenedSource:
     """An opened source; `fell_back_to_sim` when automatic selection found no usable cameras
-    (the window then shows a banner), `message` says why or what was chosen."""
+    (the window then shows a banner), `message` says why or what was chosen.
+
+    `spec` is the spec to remember for this source ("" when the one asked for): a folder or
+    video as an absolute path, cameras under the indices they were found at. `cameras` are the
+    identities (name and USB ids, `CameraInfo.identity`) of the cameras opened, in the order of
+    the spec's indices, to find them again under other indices.
+    """
 
     source: FrameSource
     fell_back_to_sim: bool = False
     message: str = ""
+    spec: str = ""
+    cameras: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -64,9 +72,9 @@ def parse_source_spec(spec: str | None) -> SourceSpec:
         return SourceSpec("sbs", indices=(int(m.group(1)),))
     path = Path(text).expanduser()
     if path.is_dir():
-        return SourceSpec("folder", path=path)
+        return SourceSpec("folder", path=path.resolve())
     if path.is_file():
-        return SourceSpec("video", path=path)
+        return SourceSpec("video", path=path.resolve())
     raise InputError(f"source {text!r} is neither an existing folder or video file nor one of: "
                      f"{SPEC_HELP}")
 
@@ -107,24 +115,73 @@ def _auto(size: tuple[int, int], swap: bool) -> OpenedSource:
     cams = list_cameras()
     if len(cams) >= 2:
         try:
-            src = TwoCameraSource(cams[0].index, cams[1].index, size=size, swap=swap)
-            return OpenedSource(src, False, f"using cameras {cams[0].label()} and {cams[1].label()}")
+            src = TwoCameraSource(cams[0].index, cams[1].index, size=size, swap=swap,
+                                  backends=(cams[0].backend, cams[1].backend))
+            return OpenedSource(src, False, f"using cameras {cams[0].label()} and {cams[1].label()}",
+                                cameras=(cams[0].identity, cams[1].identity))
         except SourceError as exc:
             why = f"two cameras were found but could not be opened ({exc})"
     elif len(cams) == 1:
         why = f"only one camera was found ({cams[0].label()})"
     else:
         why = "no cameras were found"
-    log.info("automatic source: %s; using the simulated rig", why)
+    # said on the terminal too (not only in the window's banner), without -v
+    log.warning("%s; showing the simulated rig (choose cameras with File > Choose source, or "
+                "--source cams:L,R)", why)
     return OpenedSource(_sim("mixed", size, swap), True, f"{why}; showing the simulated rig")
 
 
-def open_source(spec: str | None, size: tuple[int, int] = (640, 480), swap: bool = False
-                ) -> OpenedSource:
+def expected_frame_size(spec: str | None, size: tuple[int, int] = (640, 480)
+                        ) -> tuple[int, int] | None:
+    """The (width, height) px of one image the source `spec` will deliver, before it is opened:
+    `size` for cameras and the simulated rig (what they are asked for), the first frame's for a
+    recording, folder or video; None when that cannot be read."""
+    try:
+        s = parse_source_spec(spec)
+    except InputError:
+        return None
+    if s.kind in ("auto", "sim", "cams", "sbs"):
+        return int(size[0]), int(size[1])
+    from stereo_gui.sources.playback import PlaybackSource
+
+    try:
+        src = PlaybackSource(s.path, paced=False)
+    except (SourceError, OSError) as exc:
+        log.info("cannot read the frame size of %s: %s", s.path, exc)
+        return None
+    try:
+        frame = src.read()
+        return int(frame.left.shape[1]), int(frame.left.shape[0])
+    except (SourceError, OSError) as exc:
+        log.info("cannot read the frame size of %s: %s", s.path, exc)
+        return None
+    finally:
+        src.close()
+
+
+def _cameras(indices: tuple[int, ...], remembered: tuple[str, ...]):
+    """(indices, backends, identities, notes) of the cameras a spec names, found again by their
+    remembered identities when they moved to other indices."""
+    from stereo_gui.sources.cameras import find_camera, find_cameras_again, list_cameras
+
+    listed = list_cameras()
+    indices, notes = find_cameras_again(tuple(indices), tuple(remembered), listed)
+    infos = [find_camera(i, listed) for i in indices]
+    backends = tuple(c.backend if c is not None else None for c in infos)
+    idents = tuple(c.identity if c is not None else "" for c in infos)
+    for n in notes:
+        log.info("%s", n)
+    return indices, backends, idents if all(idents) else (), notes
+
+
+def open_source(spec: str | None, size: tuple[int, int] = (640, 480), swap: bool = False,
+                remembered_cameras: tuple[str, ...] = ()) -> OpenedSource:
     """Open the source a spec names (see SPEC_HELP); `size` is one image's (width, height) px.
 
-    Bad specs raise InputError; devices or files that cannot be opened raise SourceError.
-    Only "auto" falls back to the simulated rig (and says so in the result).
+    `remembered_cameras` are the identities saved with a cams:/sbs: spec (OpenedSource.cameras):
+    a camera found under another index now is opened there. Cameras open with the backend the
+    listing reports. Bad specs raise InputError; devices or files that cannot be opened raise
+    SourceError. Only "auto" falls back to the simulated rig (and says so in the result).
     """
     size = (int(size[0]), int(size[1]))
     if size[0] <= 0 or size[1] <= 0:
@@ -137,22 +194,21 @@ def open_source(spec: str | None, size: tuple[int, int] = (640, 480), swap: bool
     if s.kind == "cams":
         from stereo_gui.sources.cameras import TwoCameraSource
 
-        src = TwoCameraSource(s.indices[0], s.indices[1], size=size, swap=swap)
-        return OpenedSource(src, False, src.name)
+        (left, right), backends, idents, notes = _cameras(s.indices, remembered_cameras)
+        src = TwoCameraSource(left, right, size=size, swap=swap, backends=backends)
+        return OpenedSource(src, False, "; ".join([src.name, *notes]),
+                            spec=f"cams:{left},{right}", cameras=idents)
     if s.kind == "sbs":
         from stereo_gui.sources.cameras import SideBySideSource
 
-        src = SideBySideSource(s.indices[0], size=(2 * size[0], size[1]), swap=swap)
-        return OpenedSource(src, False, src.name)
-    if s.kind == "folder":
-        from stereo_gui.sources.playback import PlaybackSource  # owned elsewhere; import at use
-
-        src = PlaybackSource(s.path)
-        src = _SwappedSource(src) if swap else src
-        return OpenedSource(src, False, src.name)
-    # a side-by-side video plays back like a recording: pause, step, seek and loop
-    from stereo_gui.sources.playback import PlaybackSource
+        (index,), (backend,), idents, notes = _cameras(s.indices, remembered_cameras)
+        src = SideBySideSource(index, size=(2 * size[0], size[1]), swap=swap, backend=backend)
+        return OpenedSource(src, False, "; ".join([src.name, *notes]), spec=f"sbs:{index}",
+                            cameras=idents)
+    # a folder of pairs, a recording, or a side-by-side video: all play back like a recording
+    # (pause, step, seek and loop); remembered by absolute path, so that it opens from anywhere
+    from stereo_gui.sources.playback import PlaybackSource  # owned elsewhere; import at use
 
     src = PlaybackSource(s.path)
     src = _SwappedSource(src) if swap else src
-    return OpenedSource(src, False, src.name)
+    return OpenedSource(src, False, src.name, spec=str(s.path))

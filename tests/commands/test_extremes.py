@@ -60,7 +60,7 @@ def test_absurd_square_sizes_exit_2(tmp_path, pair, capsys, square):
 def test_absurd_rectified_calibrations_exit_2(tmp_path, pair, capsys, spec):
     code = main(["disparity", "--calib", spec, str(pair[0]), str(pair[1]),
                  "-o", str(tmp_path / "o.png")])
-    _one_line(capsys, code, "not plausible")
+    _one_line(capsys, code, "must be a positive number of pixels")
 
 
 @pytest.mark.parametrize(("params", "field"), [('{"wls_lambda": NaN}', "wls_lambda"),

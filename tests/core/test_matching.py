@@ -288,3 +288,33 @@ def test_new_parameters_validate():
         MatcherParams(pre_filter_cap=64)
     with pytest.raises(InputError, match="true or false"):
         MatcherParams.from_dict({"full_frame": "yes"})
+
+
+def test_a_principal_point_offset_shifts_the_disparity_range_and_the_colours():
+    """With doffs = cx_right - cx_left, d = f B / Z - doffs: the matcher searches the disparities
+    of the working distances and a colour still means the same distance."""
+    from stereo_gui.core.matching import ColorScale
+
+    fb, doffs = 700.0 * 110.0, 30.0
+    c = StereoCalibration.identity((W, H), 700.0, 110.0, doffs_px=doffs)
+    assert c.disparity_offset_px == pytest.approx(doffs)
+    d_min, d_max = MatcherParams(z_min_mm=500.0, z_max_mm=2000.0).disparity_limits(c)
+    assert d_min == pytest.approx(fb / 2000.0 - doffs) and d_max == pytest.approx(fb / 500.0 - doffs)
+    lo, num = MatcherParams(z_min_mm=500.0, z_max_mm=2000.0).disparity_range(c)
+    assert lo == math.floor(fb / 2000.0 - doffs) and lo + num - 1 >= fb / 500.0 - doffs
+    # fixed colours: the disparity of 1.75 m (halfway between 0.5 and 3 m) gets the middle colour
+    p = MatcherParams(color_range="fixed", color_z_near_mm=500.0, color_z_far_mm=3000.0)
+    d = np.full((2, 2), fb / 1750.0 - doffs, np.float32)
+    scale = color_scale(d, p, c)
+    assert scale.doffs_px == pytest.approx(doffs)
+    assert scale.level_of_distance(1750.0) == pytest.approx(127.5, abs=1e-3)
+    ocean = cv2.applyColorMap(np.full((1, 1), 127, np.uint8), cv2.COLORMAP_OCEAN)[0, 0]
+    assert (colorize(d, scale, "ocean")[0, 0] == ocean).all()
+    # the fast colouring agrees with ColorScale.level here too
+    s2 = ColorScale("distance", 3000.0, 500.0, fb, doffs)
+    dd = np.array([[fb / 800.0 - doffs, fb / 2500.0 - doffs]], np.float32)
+    lut = cv2.applyColorMap(np.arange(256, dtype=np.uint8).reshape(-1, 1), cv2.COLORMAP_OCEAN)[:, 0]
+    levels = np.rint(s2.level(dd)).astype(int)[0]
+    got = colorize(dd, s2, "ocean")[0]
+    for g, lv in zip(got, levels, strict=True):
+        assert any((g == lut[np.clip(lv + k, 0, 255)]).all() for k in (-1, 0, 1))

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+import datetime as _dt
 import math
 import zipfile
-from dataclasses import astuple
+from dataclasses import astuple, replace
 from pathlib import Path
 
 import numpy as np
@@ -100,11 +101,14 @@ def test_measurements_sheet_holds_what_was_written(tmp_path):
     assert wb.sheetnames == ["Measurements", "Regression", "Calibration"]
     ws = wb["Measurements"]
     header = [c.value for c in ws[1]]
-    assert tuple(header) == HEADERS
+    assert tuple(header) == ss.XLSX_HEADERS
+    assert header[0] == "Time (UTC)"
     assert "Disparity (px)" in header and "Z (mm)" in header and "True distance (mm)" in header
     assert ws.max_row == 1 + len(recs)
     for row, rec in zip(ws.iter_rows(min_row=2, values_only=True), recs, strict=True):
-        for value, expected in zip(row, astuple(rec), strict=True):
+        # the time is a real date-time cell (UTC, naive: Excel has no time zones)
+        assert row[0] == _dt.datetime.fromisoformat(rec.time).replace(tzinfo=None)
+        for value, expected in zip(row[1:], astuple(rec)[1:], strict=True):
             if isinstance(expected, float) and math.isnan(expected) or expected in ("", None):
                 assert value is None  # Excel has no NaN: an empty cell
             elif isinstance(expected, float):
@@ -116,7 +120,67 @@ def test_measurements_sheet_holds_what_was_written(tmp_path):
     assert ws.cell(row=2, column=col).number_format == "0.0"
     col = header.index("Valid fraction") + 1
     assert ws.cell(row=2, column=col).number_format == "0.0%"
+    assert ws.cell(row=2, column=1).is_date
+    assert ws.cell(row=2, column=1).number_format == "yyyy-mm-dd hh:mm:ss.000"
     assert wb.properties.keywords == ss.WORKBOOK_KEYWORDS
+
+
+def test_times_in_other_zones_and_with_milliseconds_become_utc_date_times(tmp_path):
+    recs = [replace(_record(1), time="2026-11-22T11:30:05.250+01:00"),
+            replace(_record(2), time="2026-11-22T10:30:06Z")]
+    path = write_workbook(tmp_path / "log.xlsx", recs)
+    ws = openpyxl.load_workbook(path)["Measurements"]
+    assert ws["A2"].value == _dt.datetime(2026, 11, 22, 10, 30, 5, 250000)
+    assert ws["A3"].value == _dt.datetime(2026, 11, 22, 10, 30, 6)
+    back = read_measurements(path)
+    assert [r.time for r in back] == ["2026-11-22T10:30:05.250+00:00",
+                                      "2026-11-22T10:30:06+00:00"]
+
+
+def test_a_workbook_with_text_times_from_before_is_read_and_appended_to(tmp_path):
+    """Workbooks written before the time became a date-time cell head it 'Time (ISO 8601)'."""
+    path = tmp_path / "old.xlsx"
+    wb = openpyxl.Workbook()
+    ws = wb.active
+    ws.title = "Measurements"
+    ws.append(list(HEADERS))
+    old = _record(0)
+    ws.append([ss._cell(v) for v in astuple(old)])
+    wb.save(path)
+    append_measurements(path, [_record(1)])
+    back = read_measurements(path)
+    assert [r.time for r in back] == [old.time, _record(1).time]
+    ws = openpyxl.load_workbook(path)["Measurements"]
+    assert ws["A1"].value == "Time (UTC)" and isinstance(ws["A3"].value, _dt.datetime)
+
+
+def test_appending_reads_the_sheet_size_once_not_per_row(tmp_path, monkeypatch):
+    """ws.max_row scans every cell: asked per appended row it made a 20,000-row export take
+    minutes (quadratic). New workbooks are streamed (write-only)."""
+    from openpyxl.worksheet.worksheet import Worksheet
+
+    path = tmp_path / "log.xlsx"
+    write_workbook(path, _records(3))
+    calls = []
+    real = Worksheet.max_row
+    monkeypatch.setattr(Worksheet, "max_row", property(lambda ws: calls.append(1) or real.fget(ws)))
+    append_measurements(path, [_record(i % 10) for i in range(200)])
+    monkeypatch.undo()
+    assert len(calls) < 10  # a few while loading; one for the append (was one per row)
+    assert len(read_measurements(path)) == 3 + 1 + 200
+
+
+def test_new_workbooks_are_streamed_in_write_only_mode(tmp_path, monkeypatch):
+    made = []
+    real_init = openpyxl.Workbook.__init__
+
+    def init(self, *a, **kw):
+        real_init(self, *a, **kw)
+        made.append(self.write_only)
+
+    monkeypatch.setattr(openpyxl.Workbook, "__init__", init)
+    write_workbook(tmp_path / "log.xlsx", _records(3), calibration=_calibration())
+    assert made == [True]
 
 
 def test_read_measurements_round_trips_records(tmp_path):
@@ -185,6 +249,30 @@ def test_regression_sheet_and_native_chart(tmp_path):
     assert xml.count('<symbol val="none"') == len(fits)
     assert xml.count('<symbol val="circle"') == 1
     assert '<plotVisOnly val="0"' in xml and "<scatterStyle" in xml
+
+
+def test_chart_markers_and_fit_lines_have_colours_of_their_own(tmp_path):
+    """LibreOffice ignores Excel's chart style: without explicit colours the samples were white
+    markers on white and both fits similar greens."""
+    import re
+
+    recs = _records()
+    fits = _make_fits(_samples(recs))
+    write_workbook(tmp_path / "log.xlsx", recs, fits)
+    with zipfile.ZipFile(tmp_path / "log.xlsx") as z:
+        xml = z.read("xl/charts/chart1.xml").decode()
+    series = re.findall(r"<c:ser>.*?</c:ser>", xml, re.S) or re.findall(r"<ser>.*?</ser>", xml,
+                                                                         re.S)
+    assert len(series) == 1 + len(fits)
+    marker = re.search(r"<(?:c:)?marker>.*?</(?:c:)?marker>", series[0], re.S).group(0)
+    assert f'srgbClr val="{ss.SAMPLE_COLOUR}"' in marker  # a filled, dark marker
+    assert ss.SAMPLE_COLOUR.upper() not in ("FFFFFF",)
+    colours, dashes = [], []
+    for ser in series[1:]:
+        colours.append(re.search(r'<a:ln[^>]*>.*?srgbClr val="([0-9A-F]{6})"', ser, re.S).group(1))
+        dashes.append(re.search(r'prstDash val="(\w+)"', ser).group(1))
+    assert len(set(colours)) == len(fits) and len(set(dashes)) == len(fits)
+    assert ss.SAMPLE_COLOUR not in colours
 
 
 def test_samples_without_fits_come_from_true_distances(tmp_path):
@@ -318,11 +406,37 @@ def test_csv_round_trip(tmp_path):
     text = (tmp_path / "log.csv").read_text(encoding="utf-8")
     assert text.splitlines()[0].startswith("Time (ISO 8601),x (px),y (px),Disparity (px)")
     back = read_csv(tmp_path / "log.csv")
-    assert all(_same(a, b) for a, b in zip(back, recs, strict=True)) and len(back) == len(recs)
+    assert len(back) == len(recs)
+    for a, b in zip(back, recs, strict=True):
+        for name, x, y in zip(ss._FIELD_NAMES, astuple(a), astuple(b), strict=True):
+            if isinstance(y, float) and math.isnan(y):
+                assert math.isnan(x), name
+            elif isinstance(y, float):
+                # rounded to its meaning: 0.1 mm, 0.001 px, 0.1 % of a fraction
+                assert x == pytest.approx(y, abs=0.5 * 10.0 ** -ss.csv_decimals(name)), name
+            else:
+                assert x == y, name
     import csv
 
     rows = list(csv.reader(text.splitlines()))
     assert rows[-1][HEADERS.index("Z (mm)")] == ""  # NaN is an empty field
+
+
+def test_csv_numbers_are_rounded_to_their_meaning(tmp_path):
+    rec = replace(_record(1), x_px=100.123456789, disparity_px=47.123456789, Z_mm=1750.987654321,
+                  X_mm=-0.0123, valid_fraction=0.87654321, calibration_rms_px=0.2134567)
+    write_csv(tmp_path / "log.csv", [rec])
+    import csv
+
+    row = dict(zip(HEADERS, list(csv.reader((tmp_path / "log.csv").read_text().splitlines()))[1],
+                   strict=True))
+    assert row["x (px)"] == "100.123"
+    assert row["Disparity (px)"] == "47.123"
+    assert row["Z (mm)"] == "1751.0"
+    assert row["X (mm)"] == "0.0"  # not "-0.0"
+    assert row["Valid fraction"] == "0.877"
+    assert row["Calibration RMS (px)"] == "0.213"
+    assert row["Time (ISO 8601)"] == rec.time
 
 
 def test_csv_of_something_else_is_refused(tmp_path):

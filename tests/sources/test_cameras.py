@@ -225,32 +225,131 @@ def test_video_file_source_paces(tmp_path, monkeypatch):
     assert clock["t"] == pytest.approx(5.0 + 2 / 20.0)
 
 
-def test_list_cameras_from_sysfs(tmp_path):
-    for n, name, index in ((0, "HD Webcam C270", 0), (1, "HD Webcam C270", 1),
-                           (2, "USB2.0 Camera", 0), (10, "", 0)):
-        d = tmp_path / f"video{n}"
-        d.mkdir()
-        (d / "name").write_text(name + "\n")
-        (d / "index").write_text(f"{index}\n")
-    (tmp_path / "vbi0").mkdir()
-    cams = list_cameras(sysfs_root=tmp_path)
-    assert cams == [CameraInfo(0, "HD Webcam C270", "/dev/video0"),
-                    CameraInfo(2, "USB2.0 Camera", "/dev/video2"),
-                    CameraInfo(10, "Camera 10", "/dev/video10")]
-    assert cams[1].label() == "2: USB2.0 Camera"
-    assert list_cameras(sysfs_root=tmp_path / "absent") == []
+class FakeEnumerated:
+    """What cv2_enumerate_cameras.enumerate_cameras(backend) returns: CameraInfo objects."""
+
+    def __init__(self, index, name, path, vid, pid, backend):
+        self.index, self.name, self.path = index, name, path
+        self.vid, self.pid, self.backend = vid, pid, backend
 
 
-def test_list_cameras_never_raises(monkeypatch):
+def fake_enumeration(devices):
+    """enumerate_cameras(backend) over `devices` {backend: [(index, name, path, vid, pid)]}."""
+    def enumerate_fn(backend):
+        return [FakeEnumerated(*d, backend) for d in devices.get(backend, [])]
+
+    return enumerate_fn
+
+
+LINUX = {
+    # the library lists every camera under GStreamer and V4L2 (GStreamer first)
+    cv2.CAP_GSTREAMER: [(0, "HD Webcam C270", "/dev/video0", 0x046D, 0x0825),
+                        (2, "HD Webcam C270", "/dev/video2", 0x046D, 0x0825),
+                        (4, "USB2.0 Camera", "/dev/video4", None, None)],
+    cv2.CAP_V4L2: [(0, "HD Webcam C270", "/dev/video0", 0x046D, 0x0825),
+                   (2, "HD Webcam C270", "/dev/video2", 0x046D, 0x0825),
+                   (4, "USB2.0 Camera", "/dev/video4", None, None)],
+}
+
+
+def test_list_cameras_through_the_enumeration_library():
+    cams = list_cameras(enumerate_fn=fake_enumeration(LINUX),
+                        backends=(cv2.CAP_GSTREAMER, cv2.CAP_V4L2))
+    # each camera once, under V4L2 (preferred to GStreamer), with its USB ids
+    assert cams == [CameraInfo(0, "HD Webcam C270", "/dev/video0", cv2.CAP_V4L2, 0x046D, 0x0825),
+                    CameraInfo(2, "HD Webcam C270", "/dev/video2", cv2.CAP_V4L2, 0x046D, 0x0825),
+                    CameraInfo(4, "USB2.0 Camera", "/dev/video4", cv2.CAP_V4L2)]
+    assert cams[0].label() == "0: HD Webcam C270 [046d:0825]"
+    assert cams[2].label() == "4: USB2.0 Camera"
+    windows = {cv2.CAP_MSMF: [(0, "Integrated Webcam", r"\\?\usb#vid_0bda&pid_5520", 0x0BDA,
+                               0x5520)],
+               cv2.CAP_DSHOW: [(0, "Integrated Webcam", r"\\?\usb#vid_0bda&pid_5520", 0x0BDA,
+                                0x5520),
+                               (1, "OBS Virtual Camera", None, None, None)]}
+    cams = list_cameras(enumerate_fn=fake_enumeration(windows),
+                        backends=(cv2.CAP_DSHOW, cv2.CAP_MSMF))
+    assert [(c.index, c.name, c.backend) for c in cams] == [
+        (0, "Integrated Webcam", cv2.CAP_MSMF), (1, "OBS Virtual Camera", cv2.CAP_DSHOW)]
+
+
+def test_metadata_nodes_are_left_out_even_when_the_library_cannot_tell(tmp_path, monkeypatch):
+    """A webcam's metadata node (/dev/video1, sysfs index 1) looks like a camera to the library
+    when it may not open the device; sysfs says which node captures."""
+    for n, index in ((0, 0), (1, 1)):
+        (tmp_path / f"video{n}").mkdir()
+        (tmp_path / f"video{n}" / "index").write_text(f"{index}\n")
+    monkeypatch.setattr(cameras, "SYSFS_VIDEO", tmp_path)
+    devices = {cv2.CAP_V4L2: [(0, "HD Webcam C270", "/dev/video0", 0x046D, 0x0825),
+                              (1, "HD Webcam C270", "/dev/video1", 0x046D, 0x0825)]}
+    cams = list_cameras(enumerate_fn=fake_enumeration(devices), backends=(cv2.CAP_V4L2,))
+    assert [c.index for c in cams] == [0]
+
+
+def test_list_cameras_never_raises(monkeypatch, fake_cams):
     assert isinstance(list_cameras(), list)  # whatever this machine has
 
-    def broken(root):
+    def broken(backend):
         raise PermissionError("denied")
 
-    monkeypatch.setattr(cameras, "_list_sysfs", broken)
-    monkeypatch.setattr(cameras.sys, "platform", "linux")
-    monkeypatch.setattr(cameras, "SYSFS_VIDEO", cameras.Path("/"))
-    assert list_cameras() == []
+    fake_cams.devices = {1: {"value": 0}}
+    # the library failing: OpenCV indices are probed instead
+    assert [c.index for c in list_cameras(enumerate_fn=broken, backends=(cv2.CAP_V4L2,))] == [1]
+    monkeypatch.setattr(cameras, "_probe", lambda n: 1 / 0)
+    assert list_cameras(enumerate_fn=broken, backends=(cv2.CAP_V4L2,)) == []
+
+
+def test_cameras_open_with_the_backend_the_listing_reports(fake_cams, monkeypatch):
+    opened = []
+
+    class Recording(FakeCapture):
+        def __init__(self, index, *args):
+            opened.append((index, *args))
+            super().__init__(index, *args)
+
+    monkeypatch.setattr(cameras.cv2, "VideoCapture", Recording)
+    TwoCameraSource(0, 1, backends=(cv2.CAP_V4L2, cv2.CAP_DSHOW)).close()
+    TwoCameraSource(0, 1, swap=True, backends=(cv2.CAP_V4L2, cv2.CAP_DSHOW)).close()
+    SideBySideSource(0, backend=cv2.CAP_MSMF).close()
+    TwoCameraSource(0, 1).close()
+    assert opened == [(0, cv2.CAP_V4L2), (1, cv2.CAP_DSHOW), (1, cv2.CAP_DSHOW), (0, cv2.CAP_V4L2),
+                      (0, cv2.CAP_MSMF), (0,), (1,)]
+
+
+def test_a_camera_that_came_back_under_another_index_is_found_again():
+    c270 = "HD Webcam C270 [046d:0825]"
+    usb = "USB2.0 Camera [1908:2311]"
+    now = [CameraInfo(0, "HD Webcam C270", "/dev/video0", 200, 0x046D, 0x0825),
+           CameraInfo(6, "USB2.0 Camera", "/dev/video6", 200, 0x1908, 0x2311)]
+    # the USB camera was at 2, now at 6; the webcam stayed at 0
+    assert cameras.find_cameras_again((0, 2), (c270, usb), now) == (
+        (0, 6), ["camera USB2.0 Camera [1908:2311] is now at index 6 (was 2)"])
+    # both where they were: nothing moves
+    assert cameras.find_cameras_again((0, 6), (c270, usb), now) == ((0, 6), [])
+    # two identical webcams (a home-made rig): the one that moved takes the free index
+    twins = [CameraInfo(0, "HD Webcam C270", "/dev/video0", 200, 0x046D, 0x0825),
+             CameraInfo(4, "HD Webcam C270", "/dev/video4", 200, 0x046D, 0x0825)]
+    assert cameras.find_cameras_again((0, 2), (c270, c270), twins)[0] == (0, 4)
+    # not plugged in, or nothing remembered: the indices stay (opening then says what is wrong)
+    assert cameras.find_cameras_again((0, 2), (c270, "Other"), now)[0] == (0, 2)
+    assert cameras.find_cameras_again((0, 2), (), now)[0] == (0, 2)
+
+
+def test_opening_a_camera_keeps_opencvs_own_warnings_off_the_terminal(capfd):
+    """OpenCV prints '[ WARN:0@0.07] ... can't open camera by index' and 'should be configured
+    with libavdevice' for a missing camera; our SourceError says it instead."""
+    import cv2 as real_cv2
+
+    log = real_cv2.utils.logging
+    before = log.getLogLevel()
+    log.setLogLevel(log.LOG_LEVEL_WARNING)  # as with --verbose: the opening silences it itself
+    try:
+        with pytest.raises(SourceError, match="cannot open left camera 57.*choose other cameras"):
+            cameras._open_camera(57, (64, 48), "left")
+        err = capfd.readouterr().err
+        assert "WARN" not in err and "libavdevice" not in err
+        assert log.getLogLevel() == log.LOG_LEVEL_WARNING  # and puts the level back
+    finally:
+        log.setLogLevel(before)
 
 
 def test_probe_lists_openable_indices(fake_cams):

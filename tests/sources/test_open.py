@@ -146,3 +146,49 @@ def test_video_and_folder_specs(tmp_path):
     opened = open_source(str(tmp_path))
     assert isinstance(opened.source, playback.PlaybackSource) and not opened.fell_back_to_sim
     opened.source.close()
+
+
+def test_a_relative_folder_or_video_is_remembered_absolute(tmp_path, monkeypatch):
+    for side in "LR":
+        cv2.imwrite(str(tmp_path / f"chessboard-{side}1.png"), np.zeros((24, 32, 3), np.uint8))
+    monkeypatch.chdir(tmp_path.parent)
+    opened = open_source(tmp_path.name)
+    opened.source.close()
+    assert opened.spec == str(tmp_path.resolve())
+
+
+def test_remembered_cameras_are_found_under_their_new_index(monkeypatch):
+    """A webcam unplugged and plugged in again comes back under another index: the remembered
+    name and USB ids find it; each camera opens with the backend the listing reports."""
+    monkeypatch.setattr(cameras.cv2, "VideoCapture", _Cap)
+    listed = [CameraInfo(0, "HD Webcam C270", "/dev/video0", cv2.CAP_V4L2, 0x046D, 0x0825),
+              CameraInfo(6, "USB2.0 Camera", "/dev/video6", cv2.CAP_V4L2, 0x1908, 0x2311)]
+    monkeypatch.setattr(cameras, "list_cameras", lambda: listed)
+    _Cap.present = {0, 6}
+    remembered = (listed[0].identity, listed[1].identity)
+    opened = open_source("cams:0,2", remembered_cameras=remembered)
+    assert opened.spec == "cams:0,6" and opened.cameras == remembered
+    assert "is now at index 6 (was 2)" in opened.message
+    f = opened.source.read()
+    assert (f.left[0, 0, 0], f.right[0, 0, 0]) == (0, 6)
+    opened.source.close()
+    # nothing remembered: the indices as given, their identities recorded for the next time
+    opened = open_source("cams:6,0")
+    assert opened.spec == "cams:6,0" and opened.cameras == (remembered[1], remembered[0])
+    opened.source.close()
+    opened = open_source("sbs:2", remembered_cameras=(remembered[1],))
+    assert opened.spec == "sbs:6"
+    opened.source.close()
+
+
+def test_falling_back_to_the_simulated_rig_is_said_as_a_warning(monkeypatch, caplog):
+    """Without -v only warnings reach the terminal: the fallback must be one."""
+    import logging
+
+    monkeypatch.setattr(cameras, "list_cameras", lambda: [])
+    with caplog.at_level(logging.WARNING, logger="stereo_gui.sources.open"):
+        opened = open_source("auto", size=(160, 120))
+    assert opened.fell_back_to_sim
+    warned = [r for r in caplog.records if r.levelno == logging.WARNING]
+    assert warned and "showing the simulated rig" in warned[0].getMessage()
+    assert "no cameras were found" in warned[0].getMessage()

@@ -147,9 +147,8 @@ class SourceDialog(QDialog):
 
     def _camera_combo(self) -> QComboBox:
         combo = QComboBox()
-        for cam in self._cameras:
-            name = getattr(cam, "name", "") or "camera"
-            combo.addItem(f"{cam.index}: {name}", int(cam.index))
+        for cam in self._cameras:  # "0: HD Webcam C270 [046d:0825]"
+            combo.addItem(cam.label(), int(cam.index))
         if not self._cameras:
             for i in range(4):  # still let the user try an index the system did not list
                 combo.addItem(f"{i}: (not listed)", i)

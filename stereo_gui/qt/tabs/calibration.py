@@ -488,8 +488,9 @@ class CalibrationTab(QWidget):
     def _choose_load(self) -> None:
         cp = self.ctx.calibration_path
         start = str(cp.parent) if cp else str(Path.home())
-        path, _ = QFileDialog.getOpenFileName(self, "Load calibration", start,
-                                              "OpenCV YAML (*.yaml *.yml);;All files (*)")
+        path, _ = QFileDialog.getOpenFileName(
+            self, "Load calibration (ours, OpenCV's, ROS's or Middlebury's)", start,
+            "Calibration files (*.yaml *.yml *.xml *.txt);;All files (*)")
         if path:
             self.load_calibration(path)
 
