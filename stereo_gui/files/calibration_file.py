@@ -276,7 +276,8 @@ def check_calibration(calib: StereoCalibration, where: str) -> None:
         if np.max(np.abs(getattr(calib, name))) > MAX_DISTORTION:
             _fail(where, f"distortion {name} holds coefficients above {MAX_DISTORTION:g}")
     R = calib.R
-    if not (np.allclose(R.T @ R, np.eye(3), atol=1e-4) and abs(np.linalg.det(R) - 1) < 1e-4):
+    if np.max(np.abs(R)) > 1.0 + 1e-4 or not (
+            np.allclose(R.T @ R, np.eye(3), atol=1e-4) and abs(np.linalg.det(R) - 1) < 1e-4):
         _fail(where, "matrix R is not a rotation")
     baseline = calib.baseline_mm
     if not 0 < baseline <= MAX_BASELINE_MM:
