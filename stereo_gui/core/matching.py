@@ -13,6 +13,7 @@ maps are enlarged (nearest neighbour) and multiplied by 1/scale.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
 import math
 import threading
@@ -108,6 +109,9 @@ class MatcherParams:
     wls: bool = True
     wls_lambda: float = 80000.0
     wls_sigma: float = 1.8
+    # filter against the full-resolution left image (False: at the matched resolution, then
+    # enlarged; 4x fewer pixels for a half-resolution preset)
+    wls_full_resolution: bool = True
     # keep the WLS output only where its left-right confidence is above zero: elsewhere (no
     # match, occlusions, failed consistency) the filter invents values from the neighbours
     wls_confident_only: bool = True
@@ -219,7 +223,7 @@ class MatcherParams:
                 if not isinstance(v, str):
                     raise InputError(f"{where}: {key} must be a string")
             elif key in ("wls", "bilateral", "parallel", "full_frame", "wls_confident_only",
-                         "wls_disables_checks"):
+                         "wls_disables_checks", "wls_full_resolution"):
                 if not isinstance(v, bool):
                     raise InputError(f"{where}: {key} must be true or false")
             elif v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
@@ -352,10 +356,27 @@ def colorize(disparity_px: np.ndarray, scale: ColorScale, colormap: str,
         k = 255.0 / max(near - far, 1e-6)
         u8 = cv2.convertScaleAbs(np.maximum(disparity_px, np.float32(far)), alpha=k, beta=-far * k)
     color = cv2.applyColorMap(u8, COLORMAPS[colormap])
-    color[valid == 0] = NO_MATCH_BGR
+    paint(color, cv2.bitwise_not(valid), NO_MATCH_BGR)
     if not_seen is not None:
-        color[not_seen] = NOT_SEEN_BGR
+        paint(color, not_seen, NOT_SEEN_BGR)
     return color
+
+
+@functools.lru_cache(maxsize=16)
+def _solid(h: int, w: int, channels: int, value: tuple[int, ...]) -> np.ndarray:
+    img = np.empty((h, w, channels), np.uint8)
+    img[:] = value
+    img.setflags(write=False)
+    return img
+
+
+def paint(image: np.ndarray, mask: np.ndarray, value: tuple[int, ...]) -> None:
+    """Set the pixels of a uint8 H x W x C `image` where `mask` (bool or uint8, H x W) is set to
+    `value`, in place (cv2.copyTo: many times faster than numpy's boolean assignment)."""
+    if mask.dtype == np.bool_:
+        mask = mask.view(np.uint8)
+    h, w = image.shape[:2]
+    cv2.copyTo(_solid(h, w, image.shape[2], tuple(value)), mask, image)
 
 
 class StereoPipeline:
@@ -549,11 +570,16 @@ class StereoPipeline:
         if self._wls is not None:
             # the report filters the unclosed left disparity; a low-resolution map is enlarged by
             # the filter itself (values scaled) against the full-resolution guide
+            guide = gl if p.wls_full_resolution else ml
             if p.full_frame:
-                f16 = self._wls.filter(d16, gl, None, d16_right, (0, 0, mw, ml.shape[0]))
+                f16 = self._wls.filter(d16, guide, None, d16_right, (0, 0, mw, ml.shape[0]))
             else:
-                f16 = self._wls.filter(d16, gl, None, d16_right)
-            wls_px = fixed_to_px(f16, self._min_s * factor)
+                f16 = self._wls.filter(d16, guide, None, d16_right)
+            if guide is gl:
+                wls_px = fixed_to_px(f16, self._min_s * factor)
+            else:  # filtered at the matched resolution (4x fewer pixels), then enlarged
+                wls_px = cv2.resize(fixed_to_px(f16, self._min_s, factor), (w, h),
+                                    interpolation=cv2.INTER_LINEAR)
             # outside the filter's region of interest (without full_frame: the band at the left
             # edge that the matcher cannot see, in matched-image px) the output is not a measurement
             x, y, rw, rh = self._wls.getROI()

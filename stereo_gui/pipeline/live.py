@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.matching import (NO_MATCH_BGR, NOT_SEEN_BGR, MatcherParams, PipelineResult,
-                                     StereoPipeline)
+                                     StereoPipeline, paint)
 from stereo_gui.sources.base import StereoFrame
 
 log = logging.getLogger(__name__)
@@ -40,12 +40,12 @@ def _gray_disparity(disp_px: np.ndarray, lo: float, hi: float,
     """Disparity (px, NaN invalid) as RGB uint8: gray, near bright; invalid NO_MATCH_RGB, the
     strip the right camera cannot see NOT_SEEN_RGB."""
     span = max(hi - lo, 1e-6)
-    invalid = np.isnan(disp_px)
+    invalid = cv2.compare(disp_px, disp_px, cv2.CMP_NE)  # 255 where NaN
     gray = cv2.convertScaleAbs(disp_px, alpha=255.0 / span, beta=-lo * 255.0 / span)
     rgb = cv2.cvtColor(gray, cv2.COLOR_GRAY2RGB)
-    rgb[invalid] = NO_MATCH_RGB
+    paint(rgb, invalid, NO_MATCH_RGB)
     if not_seen is not None:
-        rgb[not_seen] = NOT_SEEN_RGB
+        paint(rgb, not_seen, NOT_SEEN_RGB)
     return rgb
 
 
