@@ -40,7 +40,7 @@ def _gray_disparity(disp_px: np.ndarray, lo: float, hi: float,
     """Disparity (px, NaN invalid) as RGB uint8: gray, near bright; invalid NO_MATCH_RGB, the
     strip the right camera cannot see NOT_SEEN_RGB."""
     span = max(hi - lo, 1e-6)
-    invalid = cv2.compare(disp_px, disp_px, cv2.CMP_NE)  # 255 where NaN
+    invalid = cv2.bitwise_not(cv2.compare(disp_px, disp_px, cv2.CMP_EQ))  # 255 where NaN
     gray = cv2.convertScaleAbs(disp_px, alpha=255.0 / span, beta=-lo * 255.0 / span)
     rgb = cv2.cvtColor(gray, cv2.COLOR_GRAY2RGB)
     paint(rgb, invalid, NO_MATCH_RGB)
