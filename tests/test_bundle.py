@@ -12,6 +12,7 @@ They use dist/stereo-gui/ when present and build it with packaging/build.sh othe
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import shutil
@@ -28,6 +29,7 @@ REPO = Path(__file__).resolve().parents[1]
 BUNDLE_DIR = REPO / "dist" / "stereo-gui"
 EXE = BUNDLE_DIR / ("stereo-gui.exe" if sys.platform == "win32" else "stereo-gui")
 
+BUILD_VENV = Path(os.environ.get("STEREO_GUI_BUILD_VENV", REPO / "build" / "package-venv"))
 RESOURCES = REPO / "resources"
 _ON_LINUX = sys.platform.startswith("linux")
 
@@ -42,6 +44,28 @@ def bundle_test(func):
 def _resource_files() -> set[Path]:
     return {p.relative_to(RESOURCES) for p in RESOURCES.rglob("*")
             if p.is_file() and "__pycache__" not in p.parts}
+
+
+def _slim():
+    """packaging/slim.py (the bundle's ELF reader), imported from its path."""
+    name = "_packaging_slim"
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, REPO / "packaging" / "slim.py")
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module  # dataclasses look their module up there
+        spec.loader.exec_module(module)
+    return sys.modules[name]
+
+
+def _bundled_elf_files() -> dict[Path, object]:
+    read_elf = _slim().read_elf
+    found = {}
+    for path in (BUNDLE_DIR / "_internal").rglob("*"):
+        if path.is_file() and not path.is_symlink():
+            info = read_elf(path)
+            if info is not None:
+                found[path] = info
+    return found
 
 
 def test_installed_package_finds_every_resource_file():
@@ -175,3 +199,56 @@ def test_simulate_calibrate_measure_in_the_bundle(bundle, tmp_path):
     assert point["valid"]
     assert abs(point["Z_mm"] - 1000.0) < 10.0
 
+
+@bundle_test
+@pytest.mark.skipif(not _ON_LINUX, reason="the GTK theme plugin is a Linux one")
+def test_gtk_theme_plugin_and_gtk_are_left_out(bundle):
+    internal = BUNDLE_DIR / "_internal"
+    assert not (internal / "PySide6" / "Qt" / "plugins" / "platformthemes" / "libqgtk3.so").exists()
+    gtk = sorted(p.name for p in internal.rglob("*")
+                 if p.name.startswith(("libgtk-3.so", "libgdk-3.so", "libpango-1.0.so")))
+    assert not gtk, gtk
+    # the other platform theme (XDG desktop portal, over D-Bus) stays
+    assert (internal / "PySide6" / "Qt" / "plugins" / "platformthemes"
+            / "libqxdgdesktopportal.so").is_file()
+
+
+@bundle_test
+@pytest.mark.skipif(not _ON_LINUX, reason="ELF libraries")
+def test_every_library_a_bundled_binary_needs_is_bundled_or_left_to_the_system(bundle):
+    # Nothing the bundle keeps may need a library the spec left out (with the GTK theme): every
+    # DT_NEEDED name missing from the bundle must be one PyInstaller leaves to the system (libc,
+    # libGL, libxcb, ...) or one it could not find on this build machine. PyInstaller's own
+    # rules are asked in the build venv.
+    python = BUILD_VENV / "bin" / "python"
+    if not python.is_file():
+        pytest.skip(f"no build venv at {BUILD_VENV} (STEREO_GUI_BUILD_VENV) to ask PyInstaller")
+    elf = _bundled_elf_files()
+    bundled = {p.name for p in (BUNDLE_DIR / "_internal").rglob("*")}
+    missing = sorted({name for info in elf.values() for name in info.needed} - bundled)
+    # the dynamic loader itself (ld-linux-x86-64.so.2, ld-linux-aarch64.so.1) is never bundled
+    missing = [name for name in missing if not name.startswith(("ld-linux", "ld64.so"))]
+    probe = ("import json, sys\n"
+             "from PyInstaller.depend.dylib import include_library\n"
+             "from PyInstaller.depend.bindepend import resolve_library_path\n"
+             "names = json.load(sys.stdin)\n"
+             "print(json.dumps([n for n in names\n"
+             "                  if include_library(n) and resolve_library_path(n)]))\n")
+    proc = subprocess.run([str(python), "-c", probe], input=json.dumps(missing),
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    left_out_wrongly = json.loads(proc.stdout)
+    needers = {name: sorted(str(p.relative_to(BUNDLE_DIR)) for p, info in elf.items()
+                            if name in info.needed) for name in left_out_wrongly}
+    assert not left_out_wrongly, f"needed but not bundled: {needers}"
+
+
+@bundle_test
+@pytest.mark.skipif(not _ON_LINUX or shutil.which("strip") is None,
+                    reason="debug sections are stripped on Linux when binutils' strip is installed")
+def test_bundled_libraries_carry_no_debug_sections(bundle):
+    elf = _bundled_elf_files()
+    assert any(p.name.startswith("libpython3") for p in elf), "libpython not found in the bundle"
+    with_debug = {str(p.relative_to(BUNDLE_DIR)): info.debug_bytes
+                  for p, info in elf.items() if info.debug_bytes}
+    assert not with_debug, with_debug
