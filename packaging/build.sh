@@ -45,5 +45,5 @@ echo "build.sh: running PyInstaller"
 
 BUNDLE="$ROOT/dist/stereo-gui"
 "$BUNDLE/stereo-gui" --version
-echo "build.sh: bundle ready in $(( $(date +%s) - start )) s: $BUNDLE ($(du -sh "$BUNDLE" | cut -f1))"
+echo "build.sh: bundle ready in $(( $(date +%s) - start )) s: $BUNDLE ($(du -sh "$BUNDLE" | cut -f1), $(find "$BUNDLE" -type f | wc -l) files)"
 echo "build.sh: run it with $BUNDLE/stereo-gui"
