@@ -188,20 +188,22 @@ def test_histogram_mode_finds_the_peak_between_bins():
     assert histogram_mode(values) == pytest.approx(40.3, abs=0.1)
 
 
-def test_refine_disparity_finds_a_subpixel_shift():
-    rng = np.random.default_rng(5)
+def _shifted_pair(true_d: float):
+    """A textured 300x60 pair with right(u) = left(u + true_d), sampled from one wide image."""
     import cv2
 
+    rng = np.random.default_rng(5)
     big = cv2.GaussianBlur(rng.random((60, 400)).astype(np.float32) * 255, (0, 0), 2.0)
-    true_d = 20.37
     xs = np.arange(300, dtype=np.float32)
-    left = big[:, 50:350]
-    # right(u) = left(u + d): sample the wide image at u + 50 + d
     mx = np.tile(xs + 50 + true_d, (60, 1)).astype(np.float32)
     my = np.repeat(np.arange(60, dtype=np.float32)[:, None], 300, axis=1)
-    right = cv2.remap(big, mx, my, cv2.INTER_CUBIC)
+    return big[:, 50:350], cv2.remap(big, mx, my, cv2.INTER_CUBIC)
+
+
+def test_refine_disparity_finds_a_subpixel_shift():
+    left, right = _shifted_pair(20.37)
     r = refine_disparity(left, right, 150, 30, 20.0, 5)
-    assert r.converged and r.disparity_px == pytest.approx(true_d, abs=0.03)
+    assert r.converged and r.disparity_px == pytest.approx(20.37, abs=0.03)
 
 
 def test_bad_arguments():
@@ -264,16 +266,8 @@ def test_a_flat_surface_has_no_texture():
 
 
 def test_refinement_near_the_right_images_edge_uses_a_narrower_window():
-    import cv2
-
-    rng = np.random.default_rng(5)
-    big = cv2.GaussianBlur(rng.random((60, 400)).astype(np.float32) * 255, (0, 0), 2.0)
     true_d = 20.37
-    xs = np.arange(300, dtype=np.float32)
-    left = big[:, 50:350]
-    mx = np.tile(xs + 50 + true_d, (60, 1)).astype(np.float32)
-    my = np.repeat(np.arange(60, dtype=np.float32)[:, None], 300, axis=1)
-    right = cv2.remap(big, mx, my, cv2.INTER_CUBIC)
+    left, right = _shifted_pair(true_d)
     # x - d = 6 px from the right image's left edge: a centred 9 px window plus margin does not
     # fit, the clipped one does
     r = refine_disparity(left, right, 26, 30, 20.0, 4, max_shift_px=2.0)
