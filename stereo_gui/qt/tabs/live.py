@@ -6,8 +6,10 @@ Work is split by thread:
   uint8 image;
 - a double-click becomes a `measure_point` job on the context's job thread, run on the result
   that was on screen when the user clicked;
-- the UI thread only hands arrays to pyqtgraph, reads one pixel for the hover readout
-  (`stereo_gui.pipeline.readout`), and draws markers.
+- the pointer's readout is the same `measure_point` a double-click would run at that pixel of
+  the frame shown (`stereo_gui.pipeline.readout.read_pointer`), on the job thread too, coalesced:
+  while one hover reading runs, only the newest pointer position waits (no queue);
+- the UI thread only hands arrays to pyqtgraph, writes the readout line and draws markers.
 
 Snapshot and depth exports are `live_exports.LiveExports`; recording is the
 `RecordButton` widget.
@@ -18,6 +20,7 @@ from __future__ import annotations
 import datetime as _dt
 import logging
 import math
+import time
 from pathlib import Path
 
 from PySide6.QtCore import Qt, Signal
@@ -37,7 +40,8 @@ from PySide6.QtWidgets import (
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.matching import COLORMAPS, MatcherParams
 from stereo_gui.pipeline.live import LiveOutput, LiveProcessor
-from stereo_gui.pipeline.readout import format_distance, pointer_readout
+from stereo_gui.pipeline.readout import (MEASURABLE_VIEWS, PointerReading, format_distance,
+                                         format_error, read_pointer, readout_line)
 from stereo_gui.qt.tabs.live_exports import EXPORTS, LiveExports
 from stereo_gui.qt.widgets.image_view import ImagePanel, marker_color
 from stereo_gui.qt.widgets.no_calibration_page import NoCalibrationPage
@@ -60,7 +64,9 @@ VIEWS: dict[str, str] = {
 }
 SHORT_NAMES = {"left": "Left", "right": "Right", "raw": "Raw", "closed": "Closed", "wls": "WLS"}
 DEFAULT_VIEWS = ("left", "raw", "closed", "wls")
-MEASURABLE = ("left", "raw", "closed", "wls")  # views sharing the left image's pixel frame
+MEASURABLE = MEASURABLE_VIEWS  # views sharing the left image's pixel frame
+HOVER_REFRESH_S = 0.25  # a resting pointer's reading follows new frames at most this often
+HOVER_HINT = "Point at a view to read the distance there; double-click to log it."
 TRUE_CALIBRATION_NOTE = "simulated rig's TRUE calibration"
 class LiveTab(QWidget):
     """The Live tab. `ctx` is the AppContext."""
@@ -69,6 +75,7 @@ class LiveTab(QWidget):
     loadCalibrationRequested = Signal()
     measured = Signal(object)  # Measurement, after its marker was drawn
     frameShown = Signal()  # a new frame was drawn (for tests and benchmarks)
+    hoverRead = Signal(object)  # PointerReading, after the readout line shows it
 
     def __init__(self, ctx, parent: QWidget | None = None) -> None:
         super().__init__(parent)
@@ -77,6 +84,12 @@ class LiveTab(QWidget):
         self._processor: LiveProcessor | None = None
         self._output: LiveOutput | None = None
         self._hover: tuple[str, float, float] | None = None
+        self._hover_job: int | None = None  # id of the hover reading running on the job thread
+        self._hover_next: tuple | None = None  # the newest pointer request waiting for it
+        self._hover_last: tuple | None = None  # (output, key, pixel, fit) last asked for
+        self.hover_jobs_submitted = 0
+        self._hover_t = 0.0  # when the last hover reading was asked for, time.monotonic() s
+        self.last_reading: PointerReading | None = None
         self._pending: dict[int, tuple[str, bool]] = {}  # job id -> (view key, ruler click)
         self._ruler_a = None  # first Measurement of a ruler pair
         self._bar_state = None
@@ -149,7 +162,7 @@ class LiveTab(QWidget):
         self.playback = PlaybackBar(ctx)
         self.playback.used.connect(lambda: self.set_paused(False))
 
-        self.readout = QLabel("Double-click a view to measure the distance there.")
+        self.readout = QLabel(HOVER_HINT)
         self.readout.setTextFormat(Qt.TextFormat.PlainText)
         self.readout.setStyleSheet("font-family: monospace; padding: 2px 4px;")
         self.calib_note = QLabel()
@@ -299,8 +312,8 @@ class LiveTab(QWidget):
         self.panels["wls"].set_title(VIEWS["wls"] if wls else
                                      "Closed disparity (no WLS), colour = distance, "
                                      "dark red = no match, grey = not seen")
-        if self._hover is not None:
-            self._show_readout(*self._hover)
+        if self._hover is not None and time.monotonic() - self._hover_t >= HOVER_REFRESH_S:
+            self._request_reading(*self._hover)  # a resting pointer reads the new frame too
         if out.scale_note != self._scale_note:
             self._scale_note = out.scale_note
             self.scale_label.setText(out.scale_note)
@@ -327,17 +340,54 @@ class LiveTab(QWidget):
     def _hovered(self, key: str, x: float, y: float) -> None:
         self._hover = None if math.isnan(x) else (key, x, y)
         if self._hover is None:
-            self.readout.setText("Double-click a view to measure the distance there.")
+            self._hover_next = None
+            self.readout.setText(HOVER_HINT)
         else:
-            self._show_readout(key, x, y)
+            self._request_reading(key, x, y)
 
-    def _show_readout(self, key: str, x: float, y: float) -> None:
-        self.readout.setText(self.readout_text(key, x, y))
+    def _request_reading(self, key: str, x: float, y: float) -> None:
+        """Ask for the reading under the pointer on the frame shown: at once when no hover
+        reading runs, else as the one waiting (replacing an older wish: newest wins)."""
+        out = self._output
+        if out is None:
+            self.readout.setText(f"x {round(x):4d}  y {round(y):4d}   no frame yet")
+            return
+        fit = self.ctx.active_fit
+        ask = (out, key if key not in MEASURABLE else "left", round(x), round(y), id(fit))
+        if ask == self._hover_last and self._hover_job is None:
+            return  # the same pixel of the same frame: the line already says it
+        request = (out, key, x, y, fit, int(self.ctx.settings.patch_size),
+                   getattr(self.shown_frame, "truth", None))
+        if self._hover_job is not None:
+            self._hover_next = request
+            return
+        self._submit_reading(request)
+        self._hover_last = ask
 
-    def readout_text(self, key: str, x: float, y: float) -> str:
-        """What the readout line says for the pointer at (x, y) px of view `key`."""
-        result = self._output.result if self._output is not None else None
-        return pointer_readout(result, key, x, y, self.ctx.active_fit)
+    def _submit_reading(self, request) -> None:
+        out, key, x, y, fit, patch, truth = request
+        self._hover_t = time.monotonic()
+        result = out.result
+        self._hover_job = self.ctx.jobs.submit(
+            lambda: read_pointer(result, key, x, y, patch, fit, truth))
+        self.hover_jobs_submitted += 1
+
+    def _hover_finished(self, reading) -> None:
+        self._hover_job = None
+        if self._hover is not None:
+            self.last_reading = reading
+            self.readout.setText(readout_line(reading))
+            self.hoverRead.emit(reading)
+        request, self._hover_next = self._hover_next, None
+        if request is not None and self._hover is not None:
+            out, key, x, y, fit = request[:5]
+            self._hover_last = (out, key if key not in MEASURABLE else "left", round(x),
+                                round(y), id(fit))
+            self._submit_reading(request)
+
+    def readout_text(self) -> str:
+        """What the readout line says now."""
+        return self.readout.text()
 
     # ---- measuring ---------------------------------------------------------------------------
     def _double_clicked(self, key: str, x: float, y: float) -> None:
@@ -363,6 +413,9 @@ class LiveTab(QWidget):
         return job
 
     def _job_finished(self, job_id: int, m) -> None:
+        if job_id == self._hover_job:
+            self._hover_finished(m)
+            return
         if job_id not in self._pending:
             return  # another tab's job
         _key, ruler = self._pending.pop(job_id)
@@ -390,6 +443,11 @@ class LiveTab(QWidget):
         self.measured.emit(m)
 
     def _job_failed(self, job_id: int, message: str) -> None:
+        if job_id == self._hover_job:
+            log.warning("hover reading failed: %s", message)
+            key, x, y = self._hover or ("", 0.0, 0.0)
+            self._hover_finished(PointerReading(key, x, y, note=f"reading failed: {message}"))
+            return
         if self._pending.pop(job_id, None) is not None:
             self.ctx.report_error(f"Measurement failed: {message}")
 
@@ -397,7 +455,7 @@ class LiveTab(QWidget):
         if not m.valid:
             return f"({m.x:.0f}, {m.y:.0f}): no distance: {m.reason}"
         return (f"({m.x:.0f}, {m.y:.0f}): Z {format_distance(m.Z_mm)}, range "
-                f"{format_distance(m.range_mm)} ± {format_distance(m.expected_error_mm)}, "
+                f"{format_distance(m.range_mm)} {format_error(m.expected_error_mm)}, "
                 f"disparity {m.disparity_px:.2f} px, {m.valid_fraction:.0%} valid ({m.method})")
 
     def _record(self, m):

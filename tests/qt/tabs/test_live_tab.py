@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from PySide6.QtCore import Qt
 
+from stereo_gui.pipeline.readout import format_distance
 from stereo_gui.qt.tabs.live import TRUE_CALIBRATION_NOTE, LiveOutput
 
 
@@ -96,13 +97,75 @@ def test_ruler_measures_3d_distance_between_two_points(
     assert live.last_ruler_mm == pytest.approx(float(np.linalg.norm(ta - tb)), rel=0.02)
 
 
-def test_hover_readout_shows_distance_and_validity(qtbot, ctx, live, sim_rig, wall_pair,
-                                                   array_source):
+def _hover(qtbot, live, key, x, y):
+    """Point at (x, y) of view `key` and wait for the readout of that position."""
+    with qtbot.waitSignal(live.hoverRead, timeout=30000,
+                          check_params_cb=lambda r: (r.x, r.y) == (x, y)) as sig:
+        live.panels[key].hovered.emit(key, x, y)
+    return sig.args[0]
+
+
+def test_hover_reads_what_a_double_click_gives_at_that_pixel(qtbot, ctx, live, sim_rig,
+                                                             wall_pair, array_source):
     _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
-    text = live.readout_text("wls", 320, 240)
-    assert "disparity" in text and "distance" in text and "valid" in text
-    assert "m" in text.split("distance")[1]
-    assert "outside" in live.readout_text("wls", 5000, 10)
+    live.set_paused(True)  # one frame for both
+    for key, (x, y) in (("wls", (320.0, 240.0)), ("raw", (101.0, 377.0)),
+                        ("left", (610.0, 30.0)), ("wls", (3.0, 200.0))):
+        reading = _hover(qtbot, live, key, x, y)
+        with qtbot.waitSignal(live.measured, timeout=30000) as sig:
+            live.measure_at(x, y, key)
+        click = sig.args[0]
+        hover = reading.measurement
+        assert hover.valid == click.valid and hover.reason == click.reason
+        if click.valid:
+            assert hover.Z_mm == click.Z_mm
+            assert hover.expected_error_mm == click.expected_error_mm
+            assert format_distance(click.Z_mm) in live.readout_text()
+            assert f"± {click.expected_error_mm:.1f} mm" in live.readout_text()
+        else:  # the click's reason, e.g. "not seen by the right camera" at the left edge
+            assert click.reason in live.readout_text()
+    assert "right image" in _hover(qtbot, live, "right", 320.0, 240.0).note
+    assert "outside" in _hover(qtbot, live, "wls", 5000.0, 10.0).note
+    live.panels["wls"].hovered.emit("wls", math.nan, math.nan)  # the pointer leaves
+    assert "double-click" in live.readout_text()
+
+
+def test_fast_pointer_moves_do_not_queue_readings(qtbot, ctx, live, sim_rig, wall_pair,
+                                                  array_source):
+    _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
+    live.set_paused(True)
+    before = live.hover_jobs_submitted
+    panel = live.panels["wls"]
+    for i in range(60):  # faster than any reading: no event is processed in between
+        panel.hovered.emit("wls", 200.0 + i, 240.0)
+    assert live.hover_jobs_submitted - before == 1  # one runs, the newest position waits
+    reading = None
+    while reading is None or reading.x != 259.0:
+        with qtbot.waitSignal(live.hoverRead, timeout=30000) as sig:
+            pass
+        reading = sig.args[0]
+    assert live.hover_jobs_submitted - before == 2  # the first and the newest, nothing between
+    assert "x  259" in live.readout_text()
+    assert not ctx.jobs.is_busy()
+
+
+def test_hover_on_the_simulated_rig_shows_the_true_distance_labelled(
+        qtbot, ctx, live, sim_rig, wall_pair, array_source):
+    from stereo_gui.sources.sim.rig import SimFrameTruth
+
+    scene, left, right = wall_pair
+    calib = sim_rig.true_calibration()
+    ctx.set_calibration(calib, None, note=TRUE_CALIBRATION_NOTE)
+    ctx.frames.set_source(array_source(left, right, fps=30,
+                                       truth=SimFrameTruth(None, scene, sim_rig.truth)))
+    with qtbot.waitSignal(live.frameShown, timeout=30000):
+        pass
+    live.set_paused(True)
+    reading = _hover(qtbot, live, "wls", 320.0, 240.0)
+    truth = sim_rig.true_point_rectified(calib, scene, 320.0, 240.0)
+    assert reading.true_z_mm == pytest.approx(truth[2])
+    assert f"TRUE (simulated scene): Z {format_distance(truth[2])}" in live.readout_text()
+    assert reading.measurement.Z_mm == pytest.approx(truth[2], rel=0.01)
 
 
 def test_parameter_change_applies_to_next_frame(qtbot, ctx, live, sim_rig, wall_pair,
@@ -173,14 +236,6 @@ def test_pause_freezes_and_resume_continues(qtbot, ctx, live, sim_rig, wall_pair
     qtbot.waitUntil(lambda: live.frames_shown > n, timeout=30000)
 
 
-def test_format_distance():
-    from stereo_gui.qt.tabs.live import format_distance
-
-    assert format_distance(1503.2) == "1.503 m"
-    assert format_distance(850.04) == "850.0 mm"
-    assert format_distance(math.nan) == "–"
-
-
 def test_readings_use_the_active_fit(qtbot, ctx, live, sim_rig, wall_pair, array_source):
     from stereo_gui.core.regression import fit_inverse
 
@@ -197,7 +252,9 @@ def test_readings_use_the_active_fit(qtbot, ctx, live, sim_rig, wall_pair, array
     assert m.valid and m.method == fit.model
     assert m.Z_mm == pytest.approx(1.1 * 1500.0, rel=0.02)
     assert ctx.measurements[-1].method == fit.model
-    assert "fit" in live.readout_text("wls", 320, 240)
+    live.set_paused(True)
+    reading = _hover(qtbot, live, "wls", 320.0, 240.0)
+    assert reading.measurement.method == fit.model and "fit" in live.readout_text()
 
 
 def test_every_view_shows_the_whole_image_filling_its_panel(
