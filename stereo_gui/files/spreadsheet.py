@@ -110,8 +110,28 @@ COLUMNS: tuple[tuple[str, str, str, int], ...] = (
     ("calibration_rms_px", "Calibration RMS (px)", "0.000", 12),
 )
 HEADERS = tuple(c[1] for c in COLUMNS)
+# derived from each record and written after its columns (readers ignore them): how far Z is
+# from the true distance once one was entered
+ERROR_COLUMNS: tuple[tuple[str, str, int], ...] = (
+    ("Error Z - true (mm)", "0.0", 12), ("Error (%)", "0.00", 10))
+ERROR_HEADERS = tuple(c[0] for c in ERROR_COLUMNS)
 _FIELD_NAMES = tuple(f.name for f in fields(MeasurementRecord))
 assert tuple(c[0] for c in COLUMNS) == _FIELD_NAMES  # the layout covers every field, in order
+
+
+# a ruler distance in the log: the method starts so; X/Y/Z are the components of B - A and
+# Range its length
+RULER_METHOD = "ruler A–B"
+
+
+def record_error(rec: MeasurementRecord) -> tuple[float, float]:
+    """(measured - true distance in mm, the same in % of the true distance); NaN without a true
+    distance or a valid reading. Measured is Z, or the length for a ruler distance."""
+    measured = rec.range_mm if rec.method.startswith(RULER_METHOD) else rec.Z_mm
+    if rec.true_mm is None or not rec.valid or not math.isfinite(measured) or rec.true_mm <= 0:
+        return float("nan"), float("nan")
+    err = float(measured) - float(rec.true_mm)
+    return err, 100.0 * err / float(rec.true_mm)
 
 
 # ---- cell values ----------------------------------------------------------------------------
@@ -157,10 +177,11 @@ def _bold():
 def _write_measurements_sheet(ws, records: Iterable[MeasurementRecord]) -> None:
     from openpyxl.utils import get_column_letter
 
-    ws.append(list(HEADERS))
+    ws.append(list(HEADERS + ERROR_HEADERS))
     for c in ws[1]:
         c.font = _bold()
-    for i, (_, _, _, width) in enumerate(COLUMNS, start=1):
+    widths = [c[3] for c in COLUMNS] + [c[2] for c in ERROR_COLUMNS]
+    for i, width in enumerate(widths, start=1):
         ws.column_dimensions[get_column_letter(i)].width = width
     ws.freeze_panes = "A2"
     _append_measurement_rows(ws, records)
@@ -168,10 +189,11 @@ def _write_measurements_sheet(ws, records: Iterable[MeasurementRecord]) -> None:
 
 def _append_measurement_rows(ws, records: Iterable[MeasurementRecord]) -> int:
     n = 0
+    formats = [c[2] for c in COLUMNS] + [c[1] for c in ERROR_COLUMNS]
     for rec in records:
-        ws.append([_cell(v) for v in astuple(rec)])
+        ws.append([_cell(v) for v in astuple(rec) + record_error(rec)])
         row = ws.max_row
-        for col, (_, _, fmt, _) in enumerate(COLUMNS, start=1):
+        for col, fmt in enumerate(formats, start=1):
             ws.cell(row=row, column=col).number_format = fmt
         n += 1
     return n
@@ -510,10 +532,10 @@ def records_to_csv(records: Iterable[MeasurementRecord]) -> str:
     """The log as CSV text: a header with units, one row per record; empty where no number."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(HEADERS)
+    w.writerow(HEADERS + ERROR_HEADERS)
     for rec in records:
         row = []
-        for v in astuple(rec):
+        for v in astuple(rec) + record_error(rec):
             v = _cell(v)
             row.append("" if v is None else repr(v) if isinstance(v, float) else v)
         w.writerow(row)
@@ -526,6 +548,9 @@ def write_csv(path: str | os.PathLike, records: Iterable[MeasurementRecord]) -> 
 
 
 def read_csv(path: str | os.PathLike) -> list[MeasurementRecord]:
-    """Read a CSV file written by `write_csv`."""
-    rows = read_csv_rows(path, HEADERS, "a measurement CSV of stereo-gui")
+    """Read a CSV file written by `write_csv` (with the error columns or, older, without)."""
+    try:
+        rows = read_csv_rows(path, HEADERS + ERROR_HEADERS, "a measurement CSV of stereo-gui")
+    except InputError:
+        rows = read_csv_rows(path, HEADERS, "a measurement CSV of stereo-gui")
     return [_record_from_row(r, f"{path}, line {i}") for i, r in enumerate(rows, start=2) if r]

@@ -100,11 +100,11 @@ def test_measurements_sheet_holds_what_was_written(tmp_path):
     assert wb.sheetnames == ["Measurements", "Regression", "Calibration"]
     ws = wb["Measurements"]
     header = [c.value for c in ws[1]]
-    assert tuple(header) == HEADERS
+    assert tuple(header) == HEADERS + ss.ERROR_HEADERS
     assert "Disparity (px)" in header and "Z (mm)" in header and "True distance (mm)" in header
     assert ws.max_row == 1 + len(recs)
     for row, rec in zip(ws.iter_rows(min_row=2, values_only=True), recs, strict=True):
-        for value, expected in zip(row, astuple(rec), strict=True):
+        for value, expected in zip(row[:len(HEADERS)], astuple(rec), strict=True):
             if isinstance(expected, float) and math.isnan(expected) or expected in ("", None):
                 assert value is None  # Excel has no NaN: an empty cell
             elif isinstance(expected, float):
@@ -323,6 +323,39 @@ def test_csv_round_trip(tmp_path):
 
     rows = list(csv.reader(text.splitlines()))
     assert rows[-1][HEADERS.index("Z (mm)")] == ""  # NaN is an empty field
+
+
+def test_error_columns_say_how_far_z_is_from_the_true_distance(tmp_path):
+    import csv
+
+    rec = _records(1)[0]
+    rec = ss.MeasurementRecord(**{**rec.__dict__, "Z_mm": 1512.0, "valid": True,
+                                  "true_mm": 1500.0})
+    assert ss.record_error(rec) == pytest.approx((12.0, 0.8))
+    blank = ss.MeasurementRecord(**{**rec.__dict__, "true_mm": None})
+    assert all(math.isnan(v) for v in ss.record_error(blank))
+    write_csv(tmp_path / "log.csv", [rec, blank])
+    rows = list(csv.reader((tmp_path / "log.csv").read_text(encoding="utf-8").splitlines()))
+    i = rows[0].index("Error Z - true (mm)")
+    assert float(rows[1][i]) == pytest.approx(12.0) and float(rows[1][i + 1]) == pytest.approx(0.8)
+    assert rows[2][i] == "" and rows[2][i + 1] == ""
+    assert len(read_csv(tmp_path / "log.csv")) == 2  # the derived columns are not read back
+    path = write_workbook(tmp_path / "log.xlsx", [rec, blank])
+    ws = openpyxl.load_workbook(path)["Measurements"]
+    header = [c.value for c in ws[1]]
+    j = header.index("Error (%)") + 1
+    assert ws.cell(row=2, column=j).value == pytest.approx(0.8)
+    assert ws.cell(row=3, column=j).value is None
+    assert len(read_measurements(path)) == 2
+
+
+def test_a_csv_written_before_the_error_columns_still_reads(tmp_path):
+    recs = _records(2)
+    text = ss.records_to_csv(recs).splitlines()
+    n = len(ss.ERROR_HEADERS)
+    old = "\n".join(",".join(line.split(",")[:-n]) for line in text) + "\n"
+    (tmp_path / "old.csv").write_text(old, encoding="utf-8")
+    assert len(read_csv(tmp_path / "old.csv")) == len(recs)
 
 
 def test_csv_of_something_else_is_refused(tmp_path):
