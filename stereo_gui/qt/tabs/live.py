@@ -39,6 +39,7 @@ from PySide6.QtWidgets import (
 
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.matching import COLORMAPS, MatcherParams
+from stereo_gui.files.spreadsheet import RULER_METHOD
 from stereo_gui.pipeline.live import LiveOutput, LiveProcessor
 from stereo_gui.pipeline.readout import (MEASURABLE_VIEWS, PointerReading, format_distance,
                                          format_error, read_pointer, readout_line)
@@ -421,25 +422,40 @@ class LiveTab(QWidget):
         _key, ruler = self._pending.pop(job_id)
         color = marker_color(m.valid)
         label = format_distance(m.Z_mm) if m.valid else f"✕ {m.reason or 'invalid'}"
-        line_to, line_text = None, ""
+        line_to, line_text, ruler_record, status = None, "", None, self._status_text(m)
         if ruler:
-            if self._ruler_a is None or not self._ruler_a.valid:
-                self._ruler_a = m
-                label = "A: " + label
-            else:
-                a = self._ruler_a
-                self._ruler_a = None
+            a = self._ruler_a
+            if a is None:
                 if m.valid:
-                    dist = math.dist((a.X_mm, a.Y_mm, a.Z_mm), (m.X_mm, m.Y_mm, m.Z_mm))
-                    label = f"B: {label}"
-                    line_text = f"A–B {format_distance(dist)}"
-                    line_to = (a.x, a.y)
-                    color = "#40c4ff"
-                    self.last_ruler_mm = dist
+                    self._ruler_a = m
+                    label = "A: " + label
+                    status = f"Ruler: A at {status}; double-click the second point (B)."
+                else:
+                    label = "A? " + label
+                    status = (f"Ruler: the first point has no distance ({m.reason}); "
+                              f"double-click another first point (A).")
+            elif not m.valid:
+                label = "B? " + label  # A stays: only B is asked for again
+                status = (f"Ruler: the second point has no distance ({m.reason}); double-click "
+                          f"another second point (B).")
+            else:
+                self._ruler_a = None
+                dist = math.dist((a.X_mm, a.Y_mm, a.Z_mm), (m.X_mm, m.Y_mm, m.Z_mm))
+                bound = math.hypot(a.expected_error_mm, m.expected_error_mm)
+                label = f"B: {label}"
+                line_text = f"A–B {format_distance(dist)}"
+                line_to = (a.x, a.y)
+                color = "#40c4ff"
+                self.last_ruler_mm = dist
+                ruler_record = self._ruler_record(a, m, dist, bound)
+                status = (f"Ruler: A–B {format_distance(dist)} {format_error(bound)} "
+                          f"(logged)")
         for key in MEASURABLE:
             self.panels[key].add_marker(m.x, m.y, label, color, line_to, line_text)
         self.ctx.add_measurement(self._record(m))
-        self.ctx.show_status(self._status_text(m))
+        if ruler_record is not None:
+            self.ctx.add_measurement(ruler_record)
+        self.ctx.show_status(status)
         self.measured.emit(m)
 
     def _job_failed(self, job_id: int, message: str) -> None:
@@ -473,6 +489,19 @@ class LiveTab(QWidget):
             calibration_file=str(path) if path else self.ctx.calibration_note,
             calibration_rms_px=float(getattr(calib, "rms_stereo", float("nan"))),
         )
+
+    def _ruler_record(self, a, b, dist_mm: float, bound_mm: float):
+        """The log entry of a ruler distance: at B's pixel, X/Y/Z the components of B - A
+        (mm), Range the length |B - A|, ± the two points' bounds added in quadrature."""
+        from stereo_gui.files.spreadsheet import MeasurementRecord
+
+        rec = self._record(b)
+        return MeasurementRecord(**{
+            **rec.__dict__, "disparity_px": float("nan"), "X_mm": b.X_mm - a.X_mm,
+            "Y_mm": b.Y_mm - a.Y_mm, "Z_mm": b.Z_mm - a.Z_mm, "range_mm": float(dist_mm),
+            "valid_fraction": min(a.valid_fraction, b.valid_fraction),
+            "expected_error_mm": float(bound_mm),
+            "method": f"{RULER_METHOD} from ({a.x:.0f}, {a.y:.0f})"})
 
     def _ruler_toggled(self, on: bool) -> None:
         self._ruler_a = None

@@ -95,6 +95,35 @@ def test_ruler_measures_3d_distance_between_two_points(
     ta = sim_rig.true_point_rectified(calib, scene, *a)
     tb = sim_rig.true_point_rectified(calib, scene, *b)
     assert live.last_ruler_mm == pytest.approx(float(np.linalg.norm(ta - tb)), rel=0.02)
+    # both points and the distance between them are in the log
+    assert len(ctx.measurements) == 3
+    rec = ctx.measurements[-1]
+    assert rec.method.startswith("ruler A–B") and rec.valid
+    assert rec.range_mm == pytest.approx(live.last_ruler_mm)
+    assert rec.expected_error_mm > 0 and math.isnan(rec.disparity_px)  # not a regression sample
+
+
+def test_ruler_says_when_a_point_has_no_distance(qtbot, ctx, live, sim_rig, wall_pair,
+                                                 array_source):
+    _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
+    live.ruler_button.setChecked(True)
+    statuses = []
+    ctx.statusMessage.connect(statuses.append)
+    with qtbot.waitSignal(live.measured, timeout=30000):
+        live.measure_at(-5.0, 10.0)  # outside the image: no first point
+    assert "first point has no distance (outside the image)" in statuses[-1]
+    assert "another first point" in statuses[-1]
+    with qtbot.waitSignal(live.measured, timeout=30000):
+        live.measure_at(200.0, 240.0)  # A
+    assert "double-click the second point" in statuses[-1]
+    with qtbot.waitSignal(live.measured, timeout=30000):
+        live.measure_at(700.0, 240.0)  # no B: A stays
+    assert "second point has no distance" in statuses[-1]
+    with qtbot.waitSignal(live.measured, timeout=30000):
+        live.measure_at(440.0, 240.0)
+    assert "A–B" in statuses[-1] and "logged" in statuses[-1]
+    assert ctx.measurements[-1].method.startswith("ruler A–B")
+    assert ctx.measurements[-1].x_px == pytest.approx(440.0)
 
 
 def _hover(qtbot, live, key, x, y):
