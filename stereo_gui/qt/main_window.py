@@ -11,7 +11,7 @@ import logging
 from pathlib import Path
 
 from PySide6.QtCore import QByteArray, Qt, QTimer, Signal
-from PySide6.QtGui import QAction, QCloseEvent, QKeySequence
+from PySide6.QtGui import QAction, QCloseEvent, QGuiApplication, QKeySequence
 from PySide6.QtWidgets import (
     QFileDialog,
     QHBoxLayout,
@@ -34,6 +34,19 @@ from stereo_gui.qt.workers.job_runner import JobRunner
 
 log = logging.getLogger(__name__)
 
+DEFAULT_SIZE = (1366, 860)  # px, when the screen has room for it
+_FRAME_PX = 32  # room left for the window manager's title bar, px
+NARROW_SCREEN_PX = 1200  # below this width the Live tab starts with its parameters hidden
+
+
+def default_window_size(available) -> tuple[int, int]:
+    """(width, height) px of a new window: DEFAULT_SIZE, within `available` (a QRect of the
+    screen's usable area, None when unknown) less room for the title bar."""
+    w, h = DEFAULT_SIZE
+    if available is None:
+        return w, h
+    return min(w, available.width()), min(h, available.height() - _FRAME_PX)
+
 TAB_NAMES = ("capture", "calibration", "live", "measurements")
 CALIB_FILTER = "Calibration files (*.yaml *.yml *.xml *.json);;All files (*)"
 SIM_BANNER = ("Running on the SIMULATED stereo rig: {why}. Distances are of the rendered scene, "
@@ -46,6 +59,11 @@ def _close_source(source) -> None:
         source.close()
     except Exception:  # noqa: BLE001 - a broken device must not stop the window
         log.warning("closing an unused source failed", exc_info=True)
+
+
+def is_simulated(source) -> bool:
+    """Whether `source` renders the simulated rig (its frames are of no real scene)."""
+    return hasattr(getattr(source, "rig", None), "true_calibration")
 
 
 def _format_rms(value) -> str:
@@ -109,7 +127,7 @@ class MainWindow(QMainWindow):
         self._opener.failed.connect(self._source_failed)
         ctx.register_worker(self._opener)
         self.setWindowTitle("Stereo GUI")
-        self.resize(1280, 860)
+        self.resize(*default_window_size(self._available_geometry()))
 
         self.banner = _MessageBar(
             "background: #ffd54f; color: #3e2700; font-weight: bold;", closable=False)
@@ -270,6 +288,10 @@ class MainWindow(QMainWindow):
         if fell_back_to_sim:
             why = (message or "no cameras were found").split(";")[0].strip()
             self.banner.show_text(SIM_BANNER.format(why=why))
+        elif is_simulated(source):  # chosen (--source sim, the source dialog): said all the same
+            self.banner.show_text(SIM_BANNER.format(why="it was chosen as the source"))
+            if message:
+                self.statusBar().showMessage(message, 8000)
         else:
             self.banner.hide()
             if message:
@@ -408,12 +430,28 @@ class MainWindow(QMainWindow):
         show_about(self)
 
     # ---- geometry and shutdown ---------------------------------------------------------------
+    def _available_geometry(self):
+        """The part of the screen a window may use (without panels and docks), or None."""
+        screen = self.screen() or QGuiApplication.primaryScreen()
+        return screen.availableGeometry() if screen is not None else None
+
     def _restore_geometry(self) -> None:
         s = self.ctx.settings
         if s.window_geometry:
             self.restoreGeometry(QByteArray.fromBase64(s.window_geometry.encode("ascii")))
         if s.window_state:
             self.restoreState(QByteArray.fromBase64(s.window_state.encode("ascii")))
+        avail = self._available_geometry()
+        if avail is not None:
+            # a window remembered from a larger screen starts within this one
+            g = self.geometry()
+            w, h = min(g.width(), avail.width()), min(g.height(), avail.height() - _FRAME_PX)
+            if (w, h) != (g.width(), g.height()):
+                self.resize(w, h)
+            if not avail.intersects(self.frameGeometry()):
+                self.move(avail.topLeft())
+            if avail.width() < NARROW_SCREEN_PX:
+                self.live_tab.params_button.setChecked(False)  # the views need the width
 
     def save_settings(self) -> None:
         """Store geometry (and whatever the tabs changed) in the settings file."""

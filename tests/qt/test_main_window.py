@@ -56,7 +56,8 @@ def test_open_source_runs_off_the_ui_thread(qtbot, ctx, window):
     with qtbot.waitSignal(window.sourceOpened, timeout=120000) as sig:
         window.open_source(SourceChoice("sim"))
     assert sig.args == ["sim"]
-    assert not window.banner.isVisibleTo(window)
+    # chosen, not fallen back to: the banner says SIMULATED all the same (issue 12, item 10)
+    assert window.banner.isVisibleTo(window) and "chosen" in window.banner.label.text()
 
 
 def test_a_failing_source_is_reported(qtbot, ctx, window, tmp_path):
@@ -197,3 +198,45 @@ def test_help_about_opens_the_about_dialog(window, qtbot):
                                 for w in window.findChildren(AboutDialog)), timeout=30000)
     dialog = window.findChildren(AboutDialog)[0]
     dialog.close()
+
+
+def test_a_chosen_simulated_rig_has_the_banner_too(qtbot, ctx, window, sim_rig, array_source):
+    """`--source sim` (or the rig chosen in the dialog) says SIMULATED as loudly as the
+    automatic fallback does; a real source takes the banner away."""
+    window.use_source(_sim_source(sim_rig), SourceChoice("sim"))
+    assert window.banner.isVisibleTo(window) and "SIMULATED" in window.banner.label.text()
+    assert "chosen" in window.banner.label.text()
+    window.use_source(array_source(), SourceChoice("cams:0,1"))
+    assert not window.banner.isVisibleTo(window)
+
+
+def test_the_window_fits_laptop_screens(qtbot, ctx, window):
+    """Usable at 1366x768 and 1280x720, reachable at 1024x768: no tab needs more room than a
+    1024x768 screen has, a new window starts within the screen and the Live toolbar wraps
+    instead of cutting buttons off."""
+    from PySide6.QtCore import QRect
+
+    from stereo_gui.qt.main_window import default_window_size
+
+    assert default_window_size(QRect(0, 0, 1280, 720)) == (1280, 720 - 32)
+    assert default_window_size(QRect(0, 0, 1366, 768)) == (1366, 768 - 32)
+    assert default_window_size(QRect(0, 0, 1920, 1080)) == (1366, 860)
+    for name in TAB_NAMES:
+        window.show_tab(name)
+        hint = window.minimumSizeHint()
+        assert hint.width() <= 1024 and hint.height() <= 768 - 32, (name, hint)
+    window.show_tab("live")
+    live = window.live_tab
+    for width in (1280, 1024):
+        window.resize(width, 688)
+        qtbot.waitUntil(lambda w=width: window.width() == w, timeout=5000)
+        QApplication.processEvents()
+        page = live.ruler_button.parentWidget()
+        for b in (live.ruler_button, live.pause_button, live.export_button, live.record_button,
+                  live.params_button):
+            assert page.rect().contains(b.geometry()), (width, b.text(), b.geometry())
+    # the parameters give their room to the views
+    live.params_button.setChecked(False)
+    assert not live.params_scroll.isVisibleTo(live)
+    live.params_button.setChecked(True)
+    assert live.params_scroll.isVisibleTo(live)

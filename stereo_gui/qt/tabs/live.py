@@ -27,10 +27,10 @@ from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (
     QCheckBox,
     QGridLayout,
-    QHBoxLayout,
     QLabel,
     QPushButton,
     QScrollArea,
+    QSizePolicy,
     QSplitter,
     QStackedWidget,
     QVBoxLayout,
@@ -44,6 +44,7 @@ from stereo_gui.pipeline.live import LiveOutput, LiveProcessor
 from stereo_gui.pipeline.readout import (MEASURABLE_VIEWS, PointerReading, format_distance,
                                          format_error, read_pointer, readout_line)
 from stereo_gui.qt.tabs.live_exports import EXPORTS, LiveExports
+from stereo_gui.qt.widgets.flow_layout import FlowLayout
 from stereo_gui.qt.widgets.image_view import ImagePanel, marker_color
 from stereo_gui.qt.widgets.no_calibration_page import NoCalibrationPage
 from stereo_gui.qt.widgets.params_panel import ParamsPanel, load_preset
@@ -57,12 +58,14 @@ log = logging.getLogger(__name__)
 VIEWS: dict[str, str] = {
     "left": "Rectified left",
     "right": "Rectified right",
-    "raw": "Raw disparity (SGBM), bright = near, dark red = no match, grey = not seen by the "
-           "right camera",
-    "closed": "After the closing filter, dark red = no match, grey = not seen",
-    "wls": "WLS filtered (confident pixels), colour = distance, dark red = no match, "
-           "grey = not seen",
+    "raw": "Raw disparity (SGBM), bright = near",
+    "closed": "After the closing filter",
+    "wls": "WLS filtered (confident pixels), colour = distance",
 }
+NO_WLS_TITLE = "Closed disparity (no WLS), colour = distance"
+# what the colours of pixels without depth mean, once under the views (not in every title)
+LEGEND = ("<span style='color:#6e1414'>■</span> dark red: no match &nbsp; "
+          "<span style='color:#606060'>■</span> grey: not seen by the right camera")
 SHORT_NAMES = {"left": "Left", "right": "Right", "raw": "Raw", "closed": "Closed", "wls": "WLS"}
 DEFAULT_VIEWS = ("left", "raw", "closed", "wls")
 MEASURABLE = MEASURABLE_VIEWS  # views sharing the left image's pixel frame
@@ -149,23 +152,30 @@ class LiveTab(QWidget):
         self.fit_button.clicked.connect(self.fit_views)
         self.export_button = self.exports.make_export_button()
         self.record_button = RecordButton(ctx)
-        tools = QHBoxLayout()
+        self.params_button = QPushButton("Parameters")
+        self.params_button.setCheckable(True)
+        self.params_button.setChecked(True)
+        self.params_button.setToolTip("Show or hide the matcher parameters beside the views")
+        # the toolbar wraps onto a second row on a narrow window instead of being cut off
+        tools = FlowLayout()
         tools.addWidget(QLabel("Show:"))
         for c in self.view_checks.values():
             tools.addWidget(c)
-        tools.addStretch(1)
+        tools.add_stretch()
         for b in (self.ruler_button, self.clear_button, self.fit_button, self.pause_button,
-                  self.snapshot_button, self.export_button, self.record_button):
+                  self.snapshot_button, self.export_button, self.record_button,
+                  self.params_button):
             tools.addWidget(b)
-        for b in (self.export_button, self.record_button):  # as tall as the push buttons
-            b.setSizePolicy(b.sizePolicy().horizontalPolicy(),
-                            self.pause_button.sizePolicy().verticalPolicy())
         self.playback = PlaybackBar(ctx)
         self.playback.used.connect(lambda: self.set_paused(False))
 
         self.readout = QLabel(HOVER_HINT)
         self.readout.setTextFormat(Qt.TextFormat.PlainText)
         self.readout.setStyleSheet("font-family: monospace; padding: 2px 4px;")
+        # a long reading must not make the window wider than a laptop screen
+        self.readout.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
+        self.legend = QLabel(LEGEND)
+        self.legend.setStyleSheet("padding: 0px 4px;")
         self.calib_note = QLabel()
         self.calib_note.setStyleSheet("background: #ffd54f; color: #3e2700; padding: 2px 6px;")
         self.calib_note.hide()
@@ -181,6 +191,7 @@ class LiveTab(QWidget):
         vcol.addWidget(self.calib_note)
         vcol.addWidget(self.scale_label)
         vcol.addWidget(self._grid_host, 1)
+        vcol.addWidget(self.legend)
         vcol.addWidget(self.readout)
 
         self.no_calib = NoCalibrationPage()
@@ -197,6 +208,8 @@ class LiveTab(QWidget):
         splitter.setStretchFactor(0, 1)
         splitter.setSizes([1000, scroll.minimumWidth()])
         splitter.setCollapsible(0, False)
+        self.params_scroll = scroll
+        self.params_button.toggled.connect(scroll.setVisible)
         outer = QVBoxLayout(self)
         outer.setContentsMargins(0, 0, 0, 0)
         outer.addWidget(splitter)
@@ -226,7 +239,9 @@ class LiveTab(QWidget):
         keys = [k for k in VIEWS if self.view_checks[k].isChecked()]
         cols = 1 if len(keys) == 1 else 2
         for i, key in enumerate(keys):
-            self._grid.addWidget(self.panels[key], i // cols, i % cols)
+            # an odd last view spans the row: no empty cell beside it (2-2-1 with Right on)
+            span = cols if i == len(keys) - 1 and len(keys) % cols else 1
+            self._grid.addWidget(self.panels[key], i // cols, i % cols, 1, span)
             self.panels[key].show()
         self.ctx.update_settings(visible_views=tuple(keys)) if self.ctx.settings else None
 
@@ -310,9 +325,7 @@ class LiveTab(QWidget):
         if "wls" in self.visible_views():
             self._update_color_bar(out)
         wls = out.result.wls_px is not None
-        self.panels["wls"].set_title(VIEWS["wls"] if wls else
-                                     "Closed disparity (no WLS), colour = distance, "
-                                     "dark red = no match, grey = not seen")
+        self.panels["wls"].set_title(VIEWS["wls"] if wls else NO_WLS_TITLE)
         if self._hover is not None and time.monotonic() - self._hover_t >= HOVER_REFRESH_S:
             self._request_reading(*self._hover)  # a resting pointer reads the new frame too
         if out.scale_note != self._scale_note:

@@ -77,7 +77,7 @@ class MeasurementsTab(QWidget):
         root.addWidget(split, 1)
 
         left, ll = pane()
-        self.count_label = QLabel("")
+        self.count_label = wrapping_label()
         ll.addWidget(self.count_label)
         self.model = MeasurementModel(self.ctx, self)
         self.table = QTableView()
