@@ -10,6 +10,7 @@ import pyqtgraph as pg
 from PySide6.QtCore import Signal
 
 LINE_EVERY_PX = 32  # rectification check: a horizontal line every this many rows
+LEGEND_HEADROOM = 1.5  # the error chart's y range over its tallest bar
 _BAR_LEFT = "#4f8fd6"
 _BAR_RIGHT = "#e08a3c"
 _BAR_SELECTED = "#f5e342"
@@ -51,7 +52,8 @@ class ErrorBarChart(pg.PlotWidget):
         ax.setTicks([[(i, _short(n)) for i, n in enumerate(names) if i % step == 0], []])
         top = max([*left, *right, 0.1])
         self.setXRange(-0.7, max(len(names) - 0.3, 0.5), padding=0)
-        self.setYRange(0, top * 1.15, padding=0)
+        # headroom above the tallest bar: the legend (top right) sits there, not on the bars
+        self.setYRange(0, top * LEGEND_HEADROOM, padding=0)
         self.select(self.selected if self.selected in self.names else None)
 
     def bar_count(self) -> int:

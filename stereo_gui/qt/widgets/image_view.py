@@ -70,9 +70,12 @@ class StereoImageItem(pg.ImageItem):
         self.setImage(np.ascontiguousarray(image), autoLevels=False, autoDownsample=False)
 
 
-def _label_item(text: str, color: str, x: float, y: float, left: bool = False,
-                centred: bool = False) -> QGraphicsRectItem:
-    """A text label with a dark box, constant size on screen, anchored above-right of (x, y).
+_LABEL_GAP_PX = 6  # between a point and its label, screen px
+
+
+def _label_item(text: str, color: str, x: float, y: float) -> QGraphicsRectItem:
+    """A text label with a dark box, constant size on screen, its top-left corner at (x, y);
+    `place_label` then moves it beside its point (the transform's offset, screen px).
 
     Plain Qt items: pyqtgraph's TextItem re-computes its transform on every paint through a
     signal, which crashes PySide6 6.12 (a reference-count error, "bool_dealloc").
@@ -91,43 +94,86 @@ def _label_item(text: str, color: str, x: float, y: float, left: bool = False,
     label.setPos(4, 2)
     box.setFlag(QGraphicsItem.GraphicsItemFlag.ItemIgnoresTransformations, True)
     box.setPos(x, y)
-    w, h = r.width() + 8, r.height() + 4
-    if centred:  # below the point (the middle of a ruler line), clear of its end labels
-        dx, dy = -w / 2, 6
-    else:
-        dx, dy = (-w - 8 if left else 8), -h - 6
-    box.setTransform(QTransform.fromTranslate(dx, dy))
     return box
+
+
+def label_offsets(w: float, h: float, centred: bool = False) -> list[tuple[float, float]]:
+    """Where a label of w x h screen px may go relative to its point, in order of preference:
+    above-right, above-left, below-right, below-left, then further up and down (a ruler's
+    middle label: below, then above, centred)."""
+    g = _LABEL_GAP_PX
+    if centred:
+        base = [(-w / 2, g), (-w / 2, -h - g)]
+        return base + [(-w / 2, g + k * (h + 2)) for k in (1, 2)] + \
+            [(-w / 2, -h - g - k * (h + 2)) for k in (1, 2)]
+    right, left, above, below = g + 2, -w - g - 2, -h - g, g
+    out = [(right, above), (left, above), (right, below), (left, below)]
+    for k in (1, 2, 3):
+        step = k * (h + 2)
+        out += [(right, above - step), (left, above - step), (right, below + step),
+                (left, below + step)]
+    return out
+
+
+def choose_offset(anchor: QPointF, size: tuple[float, float], bounds: QRectF | None,
+                  taken: list[QRectF], centred: bool = False) -> tuple[float, float]:
+    """The first offset of `label_offsets` whose label rect (screen px, at `anchor` + offset)
+    lies inside `bounds` and overlaps none of `taken`; else the first inside `bounds`; else
+    the first. `bounds` None: nothing known about the view (not laid out yet)."""
+    w, h = size
+    offsets = label_offsets(w, h, centred)
+    if bounds is None or bounds.isEmpty():
+        return offsets[0]
+    inside = []
+    for dx, dy in offsets:
+        rect = QRectF(anchor.x() + dx, anchor.y() + dy, w, h)
+        if bounds.contains(rect):
+            if not any(rect.intersects(t) for t in taken):
+                return dx, dy
+            inside.append((dx, dy))
+    return inside[0] if inside else offsets[0]
 
 
 class _Marker:
     """A point with a label (and, for a ruler, a line to its partner) in one view."""
 
-    def __init__(self, view: pg.ViewBox, x: float, y: float, text: str, color: str,
-                 line_to: tuple[float, float] | None = None, line_text: str = "",
-                 label_left: bool = False) -> None:
-        self.view = view
+    def __init__(self, panel: ImagePanel, x: float, y: float, text: str, color: str,
+                 line_to: tuple[float, float] | None = None, line_text: str = "") -> None:
+        self.view = panel.view
         self.items = []
+        self.labels: list[QGraphicsRectItem] = []
+        self.centred: list[bool] = []  # per label: a ruler's middle label
         if line_to is not None:
             line = pg.PlotCurveItem([line_to[0] + 0.5, x + 0.5], [line_to[1] + 0.5, y + 0.5],
                                     pen=pg.mkPen(color, width=2, style=Qt.PenStyle.DashLine))
             self.items.append(line)
             if line_text:
                 mx, my = (line_to[0] + x) / 2 + 0.5, (line_to[1] + y) / 2 + 0.5
-                self.items.append(_label_item(line_text, color, mx, my, centred=True))
+                self._add_label(panel, line_text, color, mx, my, centred=True)
         dot = pg.ScatterPlotItem([x + 0.5], [y + 0.5], size=11, symbol="o",
                                  pen=pg.mkPen("k", width=1.5), brush=pg.mkBrush(color))
         self.items.append(dot)
         if text:
-            self.items.append(_label_item(text, color, x + 0.5, y + 0.5, left=label_left))
+            self._add_label(panel, text, color, x + 0.5, y + 0.5)
         for it in self.items:
             it.setZValue(10)
-            view.addItem(it)
+            self.view.addItem(it)
+
+    def _add_label(self, panel: ImagePanel, text: str, color: str, x: float, y: float,
+                   centred: bool = False) -> None:
+        box = _label_item(text, color, x, y)
+        taken = panel.label_rects() + [panel.label_rect(b) for b in self.labels]
+        panel.place_label(box, taken, centred)
+        self.items.append(box)
+        self.labels.append(box)
+        self.centred.append(centred)
 
     def remove(self) -> None:
         for it in self.items:
             self.view.removeItem(it)
         self.items.clear()
+        self.labels.clear()
+        self.centred.clear()
 
 
 def colormap_lut(colormap_id: int) -> np.ndarray:
@@ -143,7 +189,7 @@ def distance_ticks(scale: ColorScale, max_ticks: int = 7) -> list[tuple[float, s
     """Tick positions (0..255 colour level) labelled with distance for a colour bar.
 
     The levels come from `scale` (core.matching.ColorScale), the same mapping that made the
-    colour view. Labels are round distances in m (or mm when the whole range is below 1 m).
+    colour view. Labels are round distances in m (below 1 m too: one unit rule everywhere).
     """
     fb = scale.fb_mm_px
     if not (fb > 0 and scale.near != scale.far):
@@ -155,13 +201,10 @@ def distance_ticks(scale: ColorScale, max_ticks: int = 7) -> list[tuple[float, s
             return []
         z_near = fb / scale.near
         z_far = fb / scale.far if scale.far > 0 else math.inf
-    use_m = z_far >= 1000.0
     min_gap = 255.0 / (max_ticks + 1)
 
     def fmt(z: float, exact: bool = False) -> str:
-        if use_m:
-            return f"{z / 1000:.2f} m" if exact else f"{z / 1000:g} m"
-        return f"{z:.0f} mm" if exact else f"{z:g} mm"
+        return f"{z / 1000:.2f} m" if exact else f"{z / 1000:g} m"
 
     ticks: list[tuple[float, str]] = []
 
@@ -187,6 +230,9 @@ def distance_ticks(scale: ColorScale, max_ticks: int = 7) -> list[tuple[float, s
     return sorted(ticks)
 
 
+_BAR_END_ROOM = 14.0  # colour levels of room beyond each end of the colour bar's ramp
+
+
 class DistanceColorBar(pg.PlotItem):
     """A vertical colour bar whose axis is labelled in distance (near at the top)."""
 
@@ -205,8 +251,12 @@ class DistanceColorBar(pg.PlotItem):
         self.addItem(self._img)
         self._lut_id: int | None = None
         self.setXRange(0, 1, padding=0)
-        self.setYRange(0, 256, padding=0)
+        # room above and below the ramp: the end labels are centred on the ends (the bottom
+        # one was cut in half)
+        self.setYRange(-_BAR_END_ROOM, 256 + _BAR_END_ROOM, padding=0)
         self.getViewBox().invertY(False)
+        # no ticks until a frame gives the range (the axis' own 0..250 meant nothing)
+        self.getAxis("right").setTicks([[], []])
 
     def set_scale(self, colormap_id: int, scale: ColorScale) -> None:
         """Show the colour map with distance ticks placed as `scale` maps them."""
@@ -244,6 +294,8 @@ class ImagePanel(pg.GraphicsLayoutWidget):
         self._shape: tuple[int, int] | None = None
         self._markers: list[_Marker] = []
         self.item.hovered.connect(lambda x, y: self.hovered.emit(self.key, x, y))
+        self.view.sigResized.connect(self._relayout_labels)
+        self.view.sigRangeChanged.connect(self._relayout_labels)
         self.item.doubleClicked.connect(lambda x, y: self.doubleClicked.emit(self.key, x, y))
 
     def set_title(self, text: str) -> None:
@@ -270,12 +322,49 @@ class ImagePanel(pg.GraphicsLayoutWidget):
     def add_marker(self, x: float, y: float, text: str, color: str = "#ffeb3b",
                    line_to: tuple[float, float] | None = None, line_text: str = "") -> None:
         """A point with a label at image pixel (x, y); with `line_to`, a dashed line from that
-        pixel labelled `line_text` at its middle (the ruler). Labels near the right edge are
-        drawn to the left of their point so they stay inside the view."""
-        size = self.image_size()
-        label_left = size is not None and x > 0.7 * size[0]
-        self._markers.append(_Marker(self.view, x, y, text, color, line_to, line_text,
-                                     label_left))
+        pixel labelled `line_text` at its middle (the ruler). Each label goes beside its point
+        where it stays inside the view and clear of the labels already there (as the view is
+        zoomed now)."""
+        self._markers.append(_Marker(self, x, y, text, color, line_to, line_text))
+
+    # ---- label placement (screen px of the view's scene) --------------------------------------
+    def screen_pos(self, x: float, y: float) -> QPointF:
+        """Where item coordinate (x, y) of the view (pixel corners at integers) is drawn,
+        in scene px (the frame of the labels' offsets)."""
+        self.view.updateMatrix()
+        return self.view.mapViewToScene(QPointF(x, y))
+
+    def view_rect(self) -> QRectF | None:
+        """The part of the scene showing the image (the view box), None before layout."""
+        r = self.view.sceneBoundingRect()
+        return None if r.width() < 2 or r.height() < 2 else r
+
+    def place_label(self, box: QGraphicsRectItem, taken: list[QRectF], centred: bool) -> None:
+        """Move `box` beside its point, inside the view and clear of the `taken` rects."""
+        r = box.rect()
+        dx, dy = choose_offset(self.screen_pos(box.pos().x(), box.pos().y()),
+                               (r.width(), r.height()), self.view_rect(), taken, centred)
+        box.setTransform(QTransform.fromTranslate(dx, dy))
+
+    def _relayout_labels(self, *_args) -> None:
+        """Place every label again, oldest first: labels keep their size on screen, so a zoom
+        or a resize of the view moves them relative to each other."""
+        taken: list[QRectF] = []
+        for m in self._markers:
+            for box, centred in zip(m.labels, m.centred, strict=True):
+                self.place_label(box, taken, centred)
+                taken.append(self.label_rect(box))
+
+    def label_rect(self, box: QGraphicsRectItem) -> QRectF:
+        """The scene rect of a marker's label as the view is zoomed now."""
+        t = box.transform()
+        p = self.screen_pos(box.pos().x(), box.pos().y())  # the point it labels
+        r = box.rect()
+        return QRectF(p.x() + t.dx(), p.y() + t.dy(), r.width(), r.height())
+
+    def label_rects(self) -> list[QRectF]:
+        """The scene rects of the labels drawn now."""
+        return [self.label_rect(box) for m in self._markers for box in m.labels]
 
     def clear_markers(self) -> None:
         for m in self._markers:
