@@ -11,12 +11,13 @@ import logging
 from pathlib import Path
 
 from PySide6.QtCore import QByteArray, Qt, QTimer, Signal
-from PySide6.QtGui import QAction, QCloseEvent, QGuiApplication, QKeySequence
+from PySide6.QtGui import QAction, QCloseEvent, QGuiApplication, QKeySequence, QShortcut
 from PySide6.QtWidgets import (
     QFileDialog,
     QHBoxLayout,
     QLabel,
     QMainWindow,
+    QMenu,
     QTabWidget,
     QToolButton,
     QWidget,
@@ -30,6 +31,7 @@ from stereo_gui.qt.tabs.capture import CaptureTab
 from stereo_gui.qt.tabs.live import LiveTab
 from stereo_gui.qt.tabs.measurements import MeasurementsTab
 from stereo_gui.qt.widgets.helpers import pane
+from stereo_gui.qt.widgets.playback_bar import playback_of
 from stereo_gui.qt.workers.job_runner import JobRunner
 
 log = logging.getLogger(__name__)
@@ -59,6 +61,39 @@ def _close_source(source) -> None:
         source.close()
     except Exception:  # noqa: BLE001 - a broken device must not stop the window
         log.warning("closing an unused source failed", exc_info=True)
+
+
+SOURCE_SHORTCUT = "Ctrl+Shift+O"  # File > Choose source…
+
+
+def recent_entry(path: str) -> tuple[str, str, str]:
+    """(kind, path, menu text) of a recent file: kind is calibration, session, recording,
+    folder, video or missing."""
+    p = Path(path)
+    if not p.exists():
+        return "missing", path, f"{p.name} (missing)"
+    if p.is_dir():
+        from stereo_gui.files.recording import is_recording
+        from stereo_gui.files.session import MANIFEST
+
+        if (p / MANIFEST).is_file():
+            return "session", path, f"Session: {p.name}   ({p.parent})"
+        if is_recording(p):
+            return "recording", path, f"Recording: {p.name}   ({p.parent})"
+        return "folder", path, f"Folder of pairs: {p.name}   ({p.parent})"
+    from stereo_gui.sources.playback import VIDEO_EXTENSIONS
+
+    if p.suffix.lower() in VIDEO_EXTENSIONS:
+        return "video", path, f"Video: {p.name}   ({p.parent})"
+    return "calibration", path, f"Calibration: {p.name}   ({p.parent})"
+
+
+def _quietly(fn, default=False):
+    """fn() or `default` when it raises (a property of a source closed meanwhile)."""
+    try:
+        return fn()
+    except Exception:  # noqa: BLE001
+        return default
 
 
 def is_simulated(source) -> bool:
@@ -153,8 +188,10 @@ class MainWindow(QMainWindow):
         col.addWidget(self.tabs, 1)
         self.setCentralWidget(central)
 
+        self._last_session_seen = ctx.settings.last_session
         self._build_menus()
         self._build_status_bar()
+        ctx.settingsChanged.connect(self._settings_changed)
 
         ctx.errorOccurred.connect(self.show_error)
         ctx.statusMessage.connect(lambda text: self.statusBar().showMessage(text, 8000))
@@ -175,7 +212,10 @@ class MainWindow(QMainWindow):
     def _build_menus(self) -> None:
         file_menu = self.menuBar().addMenu("&File")
         self.act_source = QAction("Choose &source…", self)
+        self.act_source.setShortcut(QKeySequence(SOURCE_SHORTCUT))
         self.act_source.triggered.connect(self.choose_source)
+        self.recent_menu = QMenu("Open &recent", self)
+        self.recent_menu.aboutToShow.connect(self._fill_recent_menu)
         self.act_open = QAction("&Open calibration…", self)
         self.act_open.setShortcut(QKeySequence.StandardKey.Open)
         self.act_open.triggered.connect(lambda: self.open_calibration())
@@ -192,16 +232,85 @@ class MainWindow(QMainWindow):
         quit_act = QAction("&Quit", self)
         quit_act.setShortcut(QKeySequence.StandardKey.Quit)
         quit_act.triggered.connect(self.close)
-        for a in (self.act_source, None, self.act_open, self.act_save, None, self.act_import_ros,
-                  self.act_export_ros, None, quit_act):
+        for a in (self.act_source, None, self.act_open, self.recent_menu, self.act_save, None,
+                  self.act_import_ros, self.act_export_ros, None, quit_act):
             if a is None:
                 file_menu.addSeparator()
+            elif isinstance(a, QMenu):
+                file_menu.addMenu(a)
             else:
                 file_menu.addAction(a)
+        self._build_shortcuts()
         help_menu = self.menuBar().addMenu("&Help")
         about = QAction("&About Stereo GUI", self)
         about.triggered.connect(self.show_about)
         help_menu.addAction(about)
+
+    def _build_shortcuts(self) -> None:
+        """Ctrl+1..4 switch tabs; Space pauses the Live view (or the playback) while Live is
+        shown, and only then, so that Space keeps its meaning elsewhere."""
+        self.tab_shortcuts = []
+        for i, name in enumerate(TAB_NAMES):
+            sc = QShortcut(QKeySequence(f"Ctrl+{i + 1}"), self)
+            sc.activated.connect(lambda n=name: self.show_tab(n))
+            self.tab_shortcuts.append(sc)
+        self.pause_shortcut = QShortcut(QKeySequence(Qt.Key.Key_Space), self)
+        self.pause_shortcut.activated.connect(self.toggle_live_pause)
+        self.pause_shortcut.setEnabled(False)
+
+    def toggle_live_pause(self) -> None:
+        """Pause or resume what the Live tab shows: the playback when a recording plays, else
+        the live view."""
+        live = self.live_tab
+        if live.playback.source() is not None:
+            live.playback.toggle_play()
+        else:
+            live.set_paused(not live.pause_button.isChecked())
+
+    # ---- recent files ----------------------------------------------------------------------
+    def remember_recent(self, path: str | Path) -> None:
+        """Put `path` (a calibration, session, recording or video) first in File > Open recent."""
+        p = str(Path(path).expanduser().resolve())
+        if self.ctx.settings.recent_files[:1] != (p,):
+            self.ctx.settings = self.ctx.settings.with_recent(p)
+            self.ctx.settingsChanged.emit(self.ctx.settings)
+
+    def _settings_changed(self, settings) -> None:
+        session = settings.last_session
+        if session and session != self._last_session_seen:
+            self._last_session_seen = session
+            self.remember_recent(session)
+
+    def _fill_recent_menu(self) -> None:
+        self.recent_menu.clear()
+        entries = [recent_entry(p) for p in self.ctx.settings.recent_files]
+        if not entries:
+            none = self.recent_menu.addAction("(nothing yet)")
+            none.setEnabled(False)
+            return
+        for kind, path, label in entries:
+            act = self.recent_menu.addAction(label)
+            act.setToolTip(path)
+            act.setEnabled(kind != "missing")
+            act.triggered.connect(lambda _c=False, p=path: self.open_recent(p))
+
+    def open_recent(self, path: str) -> bool:
+        """Open a recent file as what it is: a calibration is loaded, a capture session opened
+        in the Capture tab, a recording, folder or video played as the source."""
+        kind, path, _label = recent_entry(path)
+        if kind == "missing":
+            self.ctx.report_error(f"{path} is no longer there.")
+            return False
+        if kind == "calibration":
+            return self.open_calibration(path)
+        if kind == "session":
+            self.show_tab("capture")
+            self.capture_tab.open_session(path)
+            return True
+        c = self.source_choice
+        self.open_source(SourceChoice(path, tuple(c.size), bool(c.swap)))
+        self.show_tab("live")
+        return True
 
     def _build_status_bar(self) -> None:
         sb = self.statusBar()
@@ -238,6 +347,7 @@ class MainWindow(QMainWindow):
         if hasattr(w, "set_active"):
             w.set_active(True)
         self.ctx.set_current_tab(self.current_tab_name())
+        self.pause_shortcut.setEnabled(self.current_tab_name() == "live")
 
     # ---- source ------------------------------------------------------------------------------
     def choose_source(self) -> None:
@@ -298,6 +408,8 @@ class MainWindow(QMainWindow):
                 self.statusBar().showMessage(message, 8000)
         self.ctx.update_settings(source=choice.spec, resolution=tuple(choice.size),
                                  swap_lr=bool(choice.swap))
+        if Path(choice.spec).expanduser().exists():  # a recording, a folder or a video
+            self.remember_recent(choice.spec)
         self.ctx.frames.set_source(source)
         self.sourceOpened.emit(choice.spec)
 
@@ -320,6 +432,12 @@ class MainWindow(QMainWindow):
         if f.paused:
             self.camera_fps_label.setText("Camera: paused")
             self.processing_fps_label.setText("Processing: paused")
+            return
+        playback = playback_of(f.source())
+        if playback is not None and _quietly(lambda: bool(playback.paused)):
+            # the reader re-delivers the paused frame: its rate is no camera's
+            self.camera_fps_label.setText("Playback: paused")
+            self.processing_fps_label.setText(f"Processing: {f.fps_processing:.1f} fps")
             return
         self.camera_fps_label.setText(f"Camera: {f.fps_camera:.1f} fps")
         self.processing_fps_label.setText(f"Processing: {f.fps_processing:.1f} fps")

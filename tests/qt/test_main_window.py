@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gc
 
+import numpy as np
 import pytest
 from PySide6.QtWidgets import QApplication
 
@@ -240,3 +241,55 @@ def test_the_window_fits_laptop_screens(qtbot, ctx, window):
     assert not live.params_scroll.isVisibleTo(live)
     live.params_button.setChecked(True)
     assert live.params_scroll.isVisibleTo(live)
+
+
+def test_open_recent_lists_calibrations_sessions_and_recordings(qtbot, ctx, window, sim_rig,
+                                                               tmp_path):
+    from stereo_gui.files.calibration_file import save_calibration
+    from stereo_gui.files.recording import RecordingWriter
+    from stereo_gui.files.session import MANIFEST
+    from stereo_gui.qt.main_window import recent_entry
+    from stereo_gui.sources.base import StereoFrame
+
+    calib = tmp_path / "rig.yaml"
+    save_calibration(sim_rig.true_calibration(), calib)
+    assert window.open_calibration(str(calib))
+    rng = np.random.default_rng(1)
+    with RecordingWriter(tmp_path / "rec", fps=10, background=False) as w:
+        for k in range(3):
+            img = rng.integers(0, 255, (24, 32, 3), dtype=np.uint8)
+            w.write(StereoFrame(img, img, 0.1 * k, 0.1 * k, k))
+    with qtbot.waitSignal(window.sourceOpened, timeout=60000):
+        window.open_source(SourceChoice(str(tmp_path / "rec")))
+    session = tmp_path / "session"
+    session.mkdir()
+    (session / MANIFEST).write_text("{}")
+    ctx.update_settings(last_session=str(session))  # what the Capture tab does
+    recent = ctx.settings.recent_files
+    assert recent[:3] == (str(session), str(tmp_path / "rec"), str(calib))
+    assert [recent_entry(p)[0] for p in recent[:3]] == ["session", "recording", "calibration"]
+    window._fill_recent_menu()
+    texts = [a.text() for a in window.recent_menu.actions()]
+    assert texts[0].startswith("Session: session") and texts[2].startswith("Calibration: rig")
+    ctx.set_calibration(None)
+    assert window.open_recent(str(calib)) and ctx.calibration is not None
+    assert recent_entry(str(tmp_path / "gone.yaml"))[0] == "missing"
+    assert not window.open_recent(str(tmp_path / "gone.yaml"))
+
+
+def test_shortcuts_switch_tabs_and_space_pauses_live_only(qtbot, ctx, window):
+    from PySide6.QtGui import QKeySequence
+
+    from stereo_gui.qt.main_window import SOURCE_SHORTCUT
+
+    assert window.act_source.shortcut() == QKeySequence(SOURCE_SHORTCUT)
+    for i, name in enumerate(TAB_NAMES):
+        assert window.tab_shortcuts[i].key() == QKeySequence(f"Ctrl+{i + 1}")
+        window.tab_shortcuts[i].activated.emit()
+        assert window.current_tab_name() == name
+        assert window.pause_shortcut.isEnabled() == (name == "live")
+    window.show_tab("live")
+    window.pause_shortcut.activated.emit()
+    assert window.live_tab.pause_button.isChecked() and ctx.frames.paused
+    window.pause_shortcut.activated.emit()
+    assert not window.live_tab.pause_button.isChecked() and not ctx.frames.paused

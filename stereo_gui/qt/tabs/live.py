@@ -23,9 +23,10 @@ import math
 import time
 from pathlib import Path
 
-from PySide6.QtCore import Qt, Signal
+from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtWidgets import (
     QCheckBox,
+    QDoubleSpinBox,
     QGridLayout,
     QLabel,
     QPushButton,
@@ -41,15 +42,17 @@ from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.matching import COLORMAPS, MatcherParams
 from stereo_gui.files.spreadsheet import RULER_METHOD
 from stereo_gui.pipeline.live import LiveOutput, LiveProcessor
+from stereo_gui.pipeline.region import Region
 from stereo_gui.pipeline.readout import (MEASURABLE_VIEWS, PointerReading, format_distance,
                                          format_error, read_pointer, readout_line)
 from stereo_gui.qt.tabs.live_exports import EXPORTS, LiveExports
 from stereo_gui.qt.widgets.flow_layout import FlowLayout
 from stereo_gui.qt.widgets.image_view import ImagePanel, marker_color
 from stereo_gui.qt.widgets.no_calibration_page import NoCalibrationPage
-from stereo_gui.qt.widgets.params_panel import ParamsPanel, load_preset
+from stereo_gui.qt.widgets.params_panel import MODIFIED, ParamsPanel, load_preset
 from stereo_gui.qt.widgets.playback_bar import PlaybackBar
 from stereo_gui.qt.widgets.record_button import RecordButton
+from stereo_gui.qt.workers.job_runner import JobRunner
 from stereo_gui.sources.base import StereoFrame
 
 log = logging.getLogger(__name__)
@@ -69,6 +72,8 @@ LEGEND = ("<span style='color:#6e1414'>■</span> dark red: no match &nbsp; "
 SHORT_NAMES = {"left": "Left", "right": "Right", "raw": "Raw", "closed": "Closed", "wls": "WLS"}
 DEFAULT_VIEWS = ("left", "raw", "closed", "wls")
 MEASURABLE = MEASURABLE_VIEWS  # views sharing the left image's pixel frame
+CLOUD_INTERVAL_MS = 400  # the 3D view follows the frames at most this often
+REGION_VIEW = "wls"  # the view that carries the region box
 HOVER_REFRESH_S = 0.25  # a resting pointer's reading follows new frames at most this often
 HOVER_HINT = "Point at a view to read the distance there; double-click to log it."
 TRUE_CALIBRATION_NOTE = "simulated rig's TRUE calibration"
@@ -80,6 +85,7 @@ class LiveTab(QWidget):
     measured = Signal(object)  # Measurement, after its marker was drawn
     frameShown = Signal()  # a new frame was drawn (for tests and benchmarks)
     hoverRead = Signal(object)  # PointerReading, after the readout line shows it
+    cloudShown = Signal(object)  # CloudPoints, after the 3D view drew them
 
     def __init__(self, ctx, parent: QWidget | None = None) -> None:
         super().__init__(parent)
@@ -94,6 +100,7 @@ class LiveTab(QWidget):
         self.hover_jobs_submitted = 0
         self._hover_t = 0.0  # when the last hover reading was asked for, time.monotonic() s
         self.last_reading: PointerReading | None = None
+        self.last_region = None  # RegionStats of the last frame shown with a region
         self._pending: dict[int, tuple[str, bool]] = {}  # job id -> (view key, ruler click)
         self._ruler_a = None  # first Measurement of a ruler pair
         self._bar_state = None
@@ -152,6 +159,39 @@ class LiveTab(QWidget):
         self.fit_button.clicked.connect(self.fit_views)
         self.export_button = self.exports.make_export_button()
         self.record_button = RecordButton(ctx)
+        self.region_button = QPushButton("Region")
+        self.region_button.setCheckable(True)
+        self.region_button.setToolTip("A box on the colour view: its nearest and median distance "
+                                      "every frame, and an alarm when anything in it is nearer")
+        self.region_button.toggled.connect(self._region_toggled)
+        self.alarm_spin = QDoubleSpinBox()
+        self.alarm_spin.setRange(0.0, 20.0)
+        self.alarm_spin.setDecimals(2)
+        self.alarm_spin.setSingleStep(0.05)
+        self.alarm_spin.setSuffix(" m")
+        self.alarm_spin.setPrefix("alarm < ")
+        self.alarm_spin.setSpecialValueText("no alarm")
+        self.alarm_spin.setToolTip("The region box turns red and the status bar says so when "
+                                   "anything in it is nearer than this")
+        self.alarm_spin.valueChanged.connect(lambda _v: self._apply_region())
+        self.alarm_spin.hide()
+        self._alarm_on = False
+        self.cloud_button = QPushButton("3D view")
+        self.cloud_button.setToolTip("The point cloud of the frame shown, in a window of its own "
+                                     "(drag to rotate, wheel to zoom), updated a few times a "
+                                     "second")
+        self.cloud_button.clicked.connect(self.show_cloud)
+        self.cloud_window: QWidget | None = None
+        self.cloud_view = None
+        self._cloud_jobs = JobRunner("cloud", self)  # its own thread: clicks do not wait on it
+        ctx.register_worker(self._cloud_jobs)
+        self._cloud_jobs.finished.connect(self._cloud_done)
+        self._cloud_jobs.failed.connect(self._cloud_failed)
+        self._cloud_job: int | None = None
+        self._cloud_of = None  # (output, colouring) the cloud shown was made from
+        self._cloud_timer = QTimer(self)
+        self._cloud_timer.setInterval(CLOUD_INTERVAL_MS)
+        self._cloud_timer.timeout.connect(self._update_cloud)
         self.params_button = QPushButton("Parameters")
         self.params_button.setCheckable(True)
         self.params_button.setChecked(True)
@@ -162,9 +202,9 @@ class LiveTab(QWidget):
         for c in self.view_checks.values():
             tools.addWidget(c)
         tools.add_stretch()
-        for b in (self.ruler_button, self.clear_button, self.fit_button, self.pause_button,
-                  self.snapshot_button, self.export_button, self.record_button,
-                  self.params_button):
+        for b in (self.ruler_button, self.region_button, self.alarm_spin, self.clear_button,
+                  self.fit_button, self.pause_button, self.snapshot_button, self.export_button,
+                  self.record_button, self.cloud_button, self.params_button):
             tools.addWidget(b)
         self.playback = PlaybackBar(ctx)
         self.playback.used.connect(lambda: self.set_paused(False))
@@ -176,6 +216,10 @@ class LiveTab(QWidget):
         self.readout.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
         self.legend = QLabel(LEGEND)
         self.legend.setStyleSheet("padding: 0px 4px;")
+        self.region_label = QLabel()
+        self.region_label.setTextFormat(Qt.TextFormat.PlainText)
+        self.region_label.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
+        self.region_label.hide()
         self.calib_note = QLabel()
         self.calib_note.setStyleSheet("background: #ffd54f; color: #3e2700; padding: 2px 6px;")
         self.calib_note.hide()
@@ -192,6 +236,7 @@ class LiveTab(QWidget):
         vcol.addWidget(self.scale_label)
         vcol.addWidget(self._grid_host, 1)
         vcol.addWidget(self.legend)
+        vcol.addWidget(self.region_label)
         vcol.addWidget(self.readout)
 
         self.no_calib = NoCalibrationPage()
@@ -215,9 +260,11 @@ class LiveTab(QWidget):
         outer.addWidget(splitter)
 
         self._layout_views()
+        self.panels[REGION_VIEW].regionChanged.connect(lambda _box: self._apply_region())
+        ctx.activeFitChanged.connect(lambda _fit: self._apply_region())
         ctx.calibrationChanged.connect(self._calibration_changed)
         ctx.frames.frameReady.connect(self._frame_ready)
-        ctx.frames.sourceChanged.connect(lambda _name: self._update_no_calib_page())
+        ctx.frames.sourceChanged.connect(self._source_changed)
         ctx.jobs.finished.connect(self._job_finished)
         ctx.jobs.failed.connect(self._job_failed)
         self._calibration_changed(ctx.calibration)
@@ -270,8 +317,10 @@ class LiveTab(QWidget):
             self.ctx.frames.set_processor(self._processor)
 
     def _calibration_changed(self, calib) -> None:
+        self.params_panel.set_calibration(calib)
         self._processor = (LiveProcessor(calib, self.params_panel.params())
                            if calib is not None else None)
+        self._apply_region()
         self._output = None
         self.clear_markers()
         self._install_processor()
@@ -281,6 +330,16 @@ class LiveTab(QWidget):
                                 "built with), not one you calibrated.")
         self.stack.setCurrentIndex(0 if calib is None else 1)
         self._update_no_calib_page()
+
+    def _source_changed(self, _name: str = "") -> None:
+        """A new source: the markers (and a ruler's first point) were of the old one's frames;
+        during playback the playback bar's Play/Pause is the one pause button."""
+        self.clear_markers()
+        self._update_no_calib_page()
+        playing_back = self.playback.source() is not None
+        if playing_back and self.pause_button.isChecked():
+            self.set_paused(False)
+        self.pause_button.setVisible(not playing_back)
 
     def _update_no_calib_page(self) -> None:
         self.no_calib.use_true.setVisible(self._sim_rig() is not None)
@@ -301,7 +360,7 @@ class LiveTab(QWidget):
     def _params_changed(self, params: MatcherParams) -> None:
         if self._processor is not None:
             self._processor.set_params(params)
-        if not params.name.endswith("(edited)"):
+        if not params.name.endswith(MODIFIED):
             self.ctx.update_settings(preset=params.name)
 
     # ---- drawing -----------------------------------------------------------------------------
@@ -328,6 +387,7 @@ class LiveTab(QWidget):
         self.panels["wls"].set_title(VIEWS["wls"] if wls else NO_WLS_TITLE)
         if self._hover is not None and time.monotonic() - self._hover_t >= HOVER_REFRESH_S:
             self._request_reading(*self._hover)  # a resting pointer reads the new frame too
+        self._show_region(out.region)
         if out.scale_note != self._scale_note:
             self._scale_note = out.scale_note
             self.scale_label.setText(out.scale_note)
@@ -349,6 +409,116 @@ class LiveTab(QWidget):
             return  # the ticks change only when the range does
         self._bar_state = state
         self.panels["wls"].color_bar.set_scale(COLORMAPS[out.result.params.colormap], scale)
+
+    # ---- the 3D point cloud -----------------------------------------------------------------
+    def show_cloud(self) -> QWidget:
+        """Open (or raise) the 3D view of the frame shown."""
+        from stereo_gui.qt.widgets.cloud_view import CloudView
+
+        if self.cloud_window is None:
+            win = QWidget(self, Qt.WindowType.Window)
+            win.setWindowTitle("Stereo GUI – 3D point cloud of the frame shown")
+            self.cloud_view = CloudView(win)
+            self.cloud_view.colouringChanged.connect(lambda _c: self._update_cloud())
+            lay = QVBoxLayout(win)
+            lay.setContentsMargins(0, 0, 0, 0)
+            lay.addWidget(self.cloud_view)
+            win.resize(720, 540)
+            self.cloud_window = win
+        self.cloud_window.show()
+        self.cloud_window.raise_()
+        self._cloud_timer.start()
+        self._update_cloud()
+        return self.cloud_window
+
+    def _update_cloud(self) -> None:
+        """A few times a second while the 3D window is open: the newest frame's cloud, made on
+        the cloud thread; one at a time (a frame that arrives meanwhile waits for the next)."""
+        win = self.cloud_window
+        if win is None or not win.isVisible():
+            self._cloud_timer.stop()
+            return
+        out = self._output
+        if out is None or self._cloud_job is not None or self.cloud_view.problem:
+            return
+        colouring = self.cloud_view.colouring
+        if self._cloud_of == (out, colouring):
+            return
+        from stereo_gui.pipeline.cloud import cloud_points
+
+        result = out.result
+        self._cloud_of = (out, colouring)
+        self._cloud_job = self._cloud_jobs.submit(lambda: cloud_points(result, colouring))
+
+    def _cloud_done(self, job_id: int, cloud) -> None:
+        if job_id != self._cloud_job:
+            return
+        self._cloud_job = None
+        if self.cloud_view is not None:
+            self.cloud_view.show_points(cloud)
+            self.cloudShown.emit(cloud)
+
+    def _cloud_failed(self, job_id: int, message: str) -> None:
+        if job_id == self._cloud_job:
+            self._cloud_job = None
+            if self.cloud_view is not None:
+                self.cloud_view.show_problem(f"No point cloud: {message}")
+
+    # ---- the watched region ------------------------------------------------------------------
+    def _region_toggled(self, on: bool) -> None:
+        panel = self.panels[REGION_VIEW]
+        if on:
+            if not self.view_checks[REGION_VIEW].isChecked():
+                self.view_checks[REGION_VIEW].setChecked(True)
+            w, h = panel.image_size() or (640, 480)
+            panel.show_region((w * 3 // 8, h * 3 // 8, w * 5 // 8, h * 5 // 8))
+        else:
+            panel.show_region(None)
+        self.alarm_spin.setVisible(on)
+        self.region_label.setVisible(on)
+        self._apply_region()
+
+    def set_region(self, box: tuple[int, int, int, int] | None,
+                   alarm_m: float | None = None) -> None:
+        """Watch the box (x0, y0, x1, y1) px of the colour view (None: stop), with an alarm
+        below `alarm_m` metres (None or 0: none)."""
+        if alarm_m is not None:
+            self.alarm_spin.setValue(alarm_m)
+        if box is None:
+            self.region_button.setChecked(False)
+            return
+        self.region_button.setChecked(True)
+        self.panels[REGION_VIEW].show_region(box)
+        self._apply_region()
+
+    def _apply_region(self) -> None:
+        """Hand the region, the alarm and the fit to the processor (from the next frame)."""
+        if self._processor is None:
+            return
+        box = self.panels[REGION_VIEW].region() if self.region_button.isChecked() else None
+        alarm_mm = 1000.0 * self.alarm_spin.value() or None
+        self._processor.set_region(None if box is None else Region(*box), alarm_mm,
+                                   self.ctx.active_fit)
+
+    def _show_region(self, stats) -> None:
+        if stats is None or not self.region_button.isChecked():
+            return
+        self.last_region = stats
+        if stats.note:
+            text = f"Region: {stats.note}"
+        else:
+            text = (f"Region: nearest {format_distance(stats.nearest_mm)}   median "
+                    f"{format_distance(stats.median_mm)}   {stats.valid_fraction:.0%} with depth")
+        if stats.alarm:
+            text += f"   ALARM: nearer than {format_distance(stats.alarm_mm)}"
+        self.region_label.setText(text)
+        self.region_label.setStyleSheet("background: #c62828; color: white; font-weight: bold;"
+                                        if stats.alarm else "")
+        self.panels[REGION_VIEW].set_region_alarm(stats.alarm)
+        if stats.alarm and not self._alarm_on:
+            self.ctx.show_status(f"ALARM: something at {format_distance(stats.nearest_mm)} in "
+                                 f"the region, nearer than {format_distance(stats.alarm_mm)}")
+        self._alarm_on = stats.alarm
 
     # ---- hover readout -----------------------------------------------------------------------
     def _hovered(self, key: str, x: float, y: float) -> None:
@@ -565,5 +735,8 @@ class LiveTab(QWidget):
 
     def shutdown(self) -> None:
         """Called by the main window on close."""
+        self._cloud_timer.stop()
+        if self.cloud_window is not None:
+            self.cloud_window.close()
         if self._processor is not None and self.ctx.frames.processor() is self._processor:
             self.ctx.frames.set_processor(None)

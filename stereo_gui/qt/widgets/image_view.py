@@ -274,6 +274,7 @@ class ImagePanel(pg.GraphicsLayoutWidget):
 
     hovered = Signal(str, float, float)  # view key, x, y px (NaN when left)
     doubleClicked = Signal(str, float, float)  # view key, x, y px
+    regionChanged = Signal(object)  # (x0, y0, x1, y1) px of the region box, after a drag
 
     def __init__(self, key: str, title: str, color_bar: bool = False, parent=None) -> None:
         super().__init__(parent)
@@ -293,6 +294,7 @@ class ImagePanel(pg.GraphicsLayoutWidget):
             self.addItem(self.color_bar, row=1, col=1)
         self._shape: tuple[int, int] | None = None
         self._markers: list[_Marker] = []
+        self.region_box: pg.RectROI | None = None
         self.item.hovered.connect(lambda x, y: self.hovered.emit(self.key, x, y))
         self.view.sigResized.connect(self._relayout_labels)
         self.view.sigRangeChanged.connect(self._relayout_labels)
@@ -366,6 +368,44 @@ class ImagePanel(pg.GraphicsLayoutWidget):
         """The scene rects of the labels drawn now."""
         return [self.label_rect(box) for m in self._markers for box in m.labels]
 
+    # ---- the watched region ---------------------------------------------------------------------
+    def show_region(self, box: tuple[int, int, int, int] | None) -> None:
+        """Show a box the user can drag and resize over pixels x0..x1-1, y0..y1-1 (None: none);
+        `regionChanged` reports where it was moved to."""
+        if box is None:
+            if self.region_box is not None:
+                self.view.removeItem(self.region_box)
+                self.region_box = None
+            return
+        x0, y0, x1, y1 = box
+        if self.region_box is None:
+            roi = pg.RectROI((x0, y0), (x1 - x0, y1 - y0), pen=pg.mkPen(REGION_OK, width=2),
+                             snapSize=1.0, translateSnap=True, scaleSnap=True, movable=True)
+            roi.setZValue(9)
+            roi.sigRegionChangeFinished.connect(self._region_moved)
+            self.view.addItem(roi)
+            self.region_box = roi
+        else:
+            self.region_box.setPos((x0, y0), finish=False)
+            self.region_box.setSize((x1 - x0, y1 - y0), finish=False)
+
+    def region(self) -> tuple[int, int, int, int] | None:
+        """(x0, y0, x1, y1) px of the region box, None without one."""
+        roi = self.region_box
+        if roi is None:
+            return None
+        (x, y), (w, h) = roi.pos(), roi.size()
+        return (int(round(x)), int(round(y)), int(round(x + w)), int(round(y + h)))
+
+    def set_region_alarm(self, alarm: bool) -> None:
+        if self.region_box is not None:
+            pen = pg.mkPen(REGION_ALARM if alarm else REGION_OK, width=3 if alarm else 2)
+            self.region_box.setPen(pen)
+            self.region_box.currentPen = pen  # what it draws until hovered
+
+    def _region_moved(self, *_args) -> None:
+        self.regionChanged.emit(self.region())
+
     def clear_markers(self) -> None:
         for m in self._markers:
             m.remove()
@@ -382,6 +422,10 @@ class ImagePanel(pg.GraphicsLayoutWidget):
     def widget_pos_of_pixel(self, x: float, y: float):
         """Widget (viewport) position of image pixel (x, y), a QPoint."""
         return self.mapFromScene(self.scene_pos_of_pixel(x, y))
+
+
+REGION_OK = "#69f0ae"
+REGION_ALARM = "#ff1744"
 
 
 def marker_color(valid: bool) -> str:

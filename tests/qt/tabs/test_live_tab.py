@@ -310,3 +310,30 @@ def test_every_view_shows_the_whole_image_filling_its_panel(
     assert fitted(live.panels["left"])  # zooming one view leaves the others alone
     live.fit_button.click()
     assert all(fitted(live.panels[k]) for k in live.visible_views())
+
+
+def test_region_box_watches_the_nearest_distance_and_alarms(qtbot, ctx, live, sim_rig,
+                                                            wall_pair, array_source):
+    from stereo_gui.qt.widgets.image_view import REGION_ALARM
+
+    _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
+    statuses = []
+    ctx.statusMessage.connect(statuses.append)
+    live.set_region((250, 180, 400, 300), alarm_m=1.0)  # the wall is at 1.5 m: no alarm
+    assert live.panels["wls"].region() == (250, 180, 400, 300)
+    qtbot.waitUntil(lambda: live.last_region is not None
+                    and live.last_region.region.x0 == 250, timeout=30000)
+    stats = live.last_region
+    assert stats.median_mm == pytest.approx(1500.0, rel=0.03) and not stats.alarm
+    assert "nearest" in live.region_label.text() and "ALARM" not in live.region_label.text()
+    live.alarm_spin.setValue(2.0)  # now anything nearer than 2 m: the wall
+    qtbot.waitUntil(lambda: live.last_region.alarm, timeout=30000)
+    assert "ALARM" in live.region_label.text()
+    assert any(s.startswith("ALARM") for s in statuses)
+    assert live.panels["wls"].region_box.pen.color().name() == REGION_ALARM
+    # dragged elsewhere (what the box reports when the user lets go)
+    live.panels["wls"].show_region((10, 10, 40, 40))
+    live.panels["wls"].regionChanged.emit((10, 10, 40, 40))
+    qtbot.waitUntil(lambda: live.last_region.region.x0 == 10, timeout=30000)
+    live.set_region(None)
+    assert live.panels["wls"].region_box is None and not live.region_label.isVisibleTo(live)
