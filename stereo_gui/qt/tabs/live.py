@@ -77,6 +77,19 @@ REGION_VIEW = "wls"  # the view that carries the region box
 HOVER_REFRESH_S = 0.25  # a resting pointer's reading follows new frames at most this often
 HOVER_HINT = "Point at a view to read the distance there; double-click to log it."
 TRUE_CALIBRATION_NOTE = "simulated rig's TRUE calibration"
+# marker labels stay short (the full reason is in the status bar and the log)
+_SHORT_REASONS = {"not seen by the right camera": "not seen", "no valid pixels": "no match",
+                  "outside the image": "outside", "out of disparity range": "out of fit range",
+                  "no metric scale": "no scale"}
+
+
+def short_reason(reason: str | None) -> str:
+    """A marker's few words for why a point has no distance."""
+    if not reason:
+        return "invalid"
+    return _SHORT_REASONS.get(reason, reason if len(reason) <= 16 else reason[:15] + "…")
+
+
 class LiveTab(QWidget):
     """The Live tab. `ctx` is the AppContext."""
 
@@ -197,7 +210,8 @@ class LiveTab(QWidget):
         self.params_button.setChecked(True)
         self.params_button.setToolTip("Show or hide the matcher parameters beside the views")
         # the toolbar wraps onto a second row on a narrow window instead of being cut off
-        tools = FlowLayout()
+        self.toolbar = QWidget()
+        tools = FlowLayout(self.toolbar)
         tools.addWidget(QLabel("Show:"))
         for c in self.view_checks.values():
             tools.addWidget(c)
@@ -230,7 +244,7 @@ class LiveTab(QWidget):
         views_page = QWidget()
         vcol = QVBoxLayout(views_page)
         vcol.setContentsMargins(4, 4, 4, 4)
-        vcol.addLayout(tools)
+        vcol.addWidget(self.toolbar)
         vcol.addWidget(self.playback)
         vcol.addWidget(self.calib_note)
         vcol.addWidget(self.scale_label)
@@ -604,7 +618,7 @@ class LiveTab(QWidget):
             return  # another tab's job
         _key, ruler = self._pending.pop(job_id)
         color = marker_color(m.valid)
-        label = format_distance(m.Z_mm) if m.valid else f"✕ {m.reason or 'invalid'}"
+        label = format_distance(m.Z_mm) if m.valid else f"✕ {short_reason(m.reason)}"
         line_to, line_text, ruler_record, status = None, "", None, self._status_text(m)
         if ruler:
             a = self._ruler_a

@@ -201,6 +201,8 @@ class RectifiedPairView(QWidget):
                 continue
             img.setImage(np.ascontiguousarray(arr), levels=(0, 255), autoLevels=False)
             lines.setData(xs, np.repeat(ys, 2))
+        # one image: the right column gives its room to it
+        self.glw.ci.layout.setColumnMaximumWidth(1, 1e6 if side else 0.0)
         what = "left | right" if side else RECT_MODES[self.mode].lower()
         self.title.setText(f"{self._title} ({what})")
 

@@ -83,7 +83,8 @@ class CloudView(QWidget):
         axes = gl.GLAxisItem()
         axes.setSize(0.3, 0.3, 0.3)  # the left camera: x right, y ahead, z up
         self.gl.addItem(axes)
-        self.scatter = gl.GLScatterPlotItem(size=2.0, pxMode=True)
+        # opaque: the default additive blending turns dense parts of the cloud white
+        self.scatter = gl.GLScatterPlotItem(size=2.0, pxMode=True, glOptions="opaque")
         self.gl.addItem(self.scatter)
         col.addWidget(self.gl, 1)
         self._centred = False

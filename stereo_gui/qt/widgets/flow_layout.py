@@ -1,5 +1,6 @@
 """A layout that places its widgets in a row and wraps them onto further rows when the row is
-too narrow (a toolbar that stays whole on a laptop screen instead of being cut off)."""
+too narrow (a toolbar that stays whole on a laptop screen instead of being cut off). Give it a
+widget of its own (`FlowLayout(widget)`): that widget then asks for the height its rows need."""
 
 from __future__ import annotations
 
@@ -51,7 +52,13 @@ class FlowLayout(QLayout):
 
     def setGeometry(self, rect: QRect) -> None:  # noqa: N802 - Qt API
         super().setGeometry(rect)
-        self._do_layout(rect, apply=True)
+        height = self._do_layout(rect, apply=True)
+        # the widget that holds the layout asks for the rows it needs at this width (a parent
+        # box layout does not ask a nested layout's heightForWidth, so the rows would overlap
+        # what is below them when the window is short)
+        host = self.parentWidget()
+        if host is not None and host.layout() is self and host.minimumHeight() != height:
+            host.setMinimumHeight(height)
 
     def sizeHint(self) -> QSize:  # noqa: N802 - Qt API
         """One row of everything (the width it would like)."""

@@ -99,39 +99,54 @@ def _label_item(text: str, color: str, x: float, y: float) -> QGraphicsRectItem:
 
 def label_offsets(w: float, h: float, centred: bool = False) -> list[tuple[float, float]]:
     """Where a label of w x h screen px may go relative to its point, in order of preference:
-    above-right, above-left, below-right, below-left, then further up and down (a ruler's
-    middle label: below, then above, centred)."""
+    above-right, above-left, below-right, below-left, then further up and down and sideways
+    (a ruler's middle label: below, then above, centred)."""
     g = _LABEL_GAP_PX
+    rows = [k * (h + 2) for k in range(4)]  # not far: a label must stay next to its point
     if centred:
-        base = [(-w / 2, g), (-w / 2, -h - g)]
-        return base + [(-w / 2, g + k * (h + 2)) for k in (1, 2)] + \
-            [(-w / 2, -h - g - k * (h + 2)) for k in (1, 2)]
+        out = []
+        for step in rows:
+            out += [(-w / 2, g + step), (-w / 2, -h - g - step)]
+        return out
     right, left, above, below = g + 2, -w - g - 2, -h - g, g
-    out = [(right, above), (left, above), (right, below), (left, below)]
-    for k in (1, 2, 3):
-        step = k * (h + 2)
-        out += [(right, above - step), (left, above - step), (right, below + step),
-                (left, below + step)]
+    out = []
+    for shift in (0.0, 0.5 * w):
+        for step in rows:
+            out += [(right + shift, above - step), (left - shift, above - step),
+                    (right + shift, below + step), (left - shift, below + step)]
     return out
+
+
+def _overlap(rect: QRectF, taken: list[QRectF]) -> float:
+    """How much of `rect` the `taken` rects cover (px², overlaps counted once each)."""
+    total = 0.0
+    for t in taken:
+        i = rect.intersected(t)
+        if not i.isEmpty():
+            total += i.width() * i.height()
+    return total
 
 
 def choose_offset(anchor: QPointF, size: tuple[float, float], bounds: QRectF | None,
                   taken: list[QRectF], centred: bool = False) -> tuple[float, float]:
     """The first offset of `label_offsets` whose label rect (screen px, at `anchor` + offset)
-    lies inside `bounds` and overlaps none of `taken`; else the first inside `bounds`; else
-    the first. `bounds` None: nothing known about the view (not laid out yet)."""
+    lies inside `bounds` and overlaps none of `taken`; when every one inside overlaps, the one
+    that overlaps least; the first when none fits (`bounds` None: the view is not laid out)."""
     w, h = size
     offsets = label_offsets(w, h, centred)
     if bounds is None or bounds.isEmpty():
         return offsets[0]
-    inside = []
+    best, best_overlap = None, math.inf
     for dx, dy in offsets:
         rect = QRectF(anchor.x() + dx, anchor.y() + dy, w, h)
-        if bounds.contains(rect):
-            if not any(rect.intersects(t) for t in taken):
-                return dx, dy
-            inside.append((dx, dy))
-    return inside[0] if inside else offsets[0]
+        if not bounds.contains(rect):
+            continue
+        covered = _overlap(rect, taken)
+        if covered == 0.0:
+            return dx, dy
+        if covered < best_overlap:
+            best, best_overlap = (dx, dy), covered
+    return best if best is not None else offsets[0]
 
 
 class _Marker:

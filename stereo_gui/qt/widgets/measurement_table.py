@@ -10,7 +10,7 @@ from dataclasses import replace
 from PySide6.QtCore import QAbstractTableModel, QModelIndex, Qt
 from PySide6.QtGui import QBrush, QColor
 
-from stereo_gui.files.spreadsheet import record_error
+from stereo_gui.files.spreadsheet import RULER_METHOD, record_error
 
 
 def _num(v, digits: int = 1) -> str:
@@ -31,6 +31,15 @@ def _short_time(iso: str) -> str:
     return t.astimezone().strftime("%H:%M:%S") if t.tzinfo else t.strftime("%H:%M:%S")
 
 
+def _is_ruler(r) -> bool:
+    return r.method.startswith(RULER_METHOD)
+
+
+def _xyz(v: float, r) -> str:
+    """X, Y or Z of a reading; of a ruler distance they are the components of B - A."""
+    return f"Δ {_num(v)}" if _is_ruler(r) else _num(v)
+
+
 # (header, how to show a record, tooltip); the true distance sits next to what it is compared with
 COLUMNS = (
     ("Time", lambda r: _short_time(r.time), "time of the reading"),
@@ -39,19 +48,20 @@ COLUMNS = (
     ("Disparity (px)", lambda r: _num(r.disparity_px, 3), "median disparity of the patch"),
     ("True distance (mm)", lambda r: _num(r.true_mm) if r.true_mm is not None else "",
      "double-click to enter the measured true distance: it makes the reading a regression sample"),
-    ("Z (mm)", lambda r: _num(r.Z_mm), "depth along the optical axis"),
+    ("Z (mm)", lambda r: _xyz(r.Z_mm, r), "depth along the optical axis (Δ: a ruler's B − A)"),
     ("Error (mm)", lambda r: _num(record_error(r)[0]),
      "Z − true distance, mm (empty until a true distance is entered)"),
     ("Error (%)", lambda r: _num(record_error(r)[1], 2),
      "(Z − true distance) / true distance, %"),
-    ("Range (mm)", lambda r: _num(r.range_mm), "distance from the left camera"),
+    ("Range (mm)", lambda r: _num(r.range_mm),
+     "distance from the left camera; of a ruler distance, the length A–B"),
     ("± (mm)", lambda r: _num(r.expected_error_mm),
      "95 % bound of the depth error: the true distance lies within Z ± this in 19 of 20 "
      "readings"),
     ("Valid", lambda r: "yes" if r.valid else f"no: {r.reason}" if r.reason else "no",
      "whether the reading is usable, and why not"),
-    ("X (mm)", lambda r: _num(r.X_mm), "left rectified camera frame"),
-    ("Y (mm)", lambda r: _num(r.Y_mm), "left rectified camera frame"),
+    ("X (mm)", lambda r: _xyz(r.X_mm, r), "left rectified camera frame"),
+    ("Y (mm)", lambda r: _xyz(r.Y_mm, r), "left rectified camera frame"),
     ("Method", lambda r: r.method, "triangulation or the fit used"),
 )
 TRUE_COL = 3

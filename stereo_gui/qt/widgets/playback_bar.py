@@ -102,7 +102,7 @@ class PlaybackBar(QWidget):
         self.slider.setToolTip("Position in the recording: click or drag to go to a frame")
         self.slider.setMinimum(0)
         self.label = QLabel("frame – of –")
-        widest = "frame 00000 of 00000 (end)   0000.000 s of 0000.0 s"
+        widest = "frame 00000 of 00000 (end)"  # the time after it may push the slider
         self.label.setMinimumWidth(self.label.fontMetrics().horizontalAdvance(widest))
         self.title = QLabel("Playback:")
         self.title.setStyleSheet("font-weight: bold")
