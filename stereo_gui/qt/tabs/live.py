@@ -539,6 +539,7 @@ class LiveTab(QWidget):
         self._hover = None if math.isnan(x) else (key, x, y)
         if self._hover is None:
             self._hover_next = None
+            self._hover_last = None  # back on the same pixel later: read it again
             self.readout.setText(HOVER_HINT)
         else:
             self._request_reading(key, x, y)
@@ -552,8 +553,10 @@ class LiveTab(QWidget):
             return
         fit = self.ctx.active_fit
         ask = (out, key if key not in MEASURABLE else "left", round(x), round(y), id(fit))
-        if ask == self._hover_last and self._hover_job is None:
-            return  # the same pixel of the same frame: the line already says it
+        if ask == self._hover_last:
+            if self._hover_job is not None:
+                self._hover_next = None  # the reading running is of this very pixel
+            return  # the same pixel of the same frame: the line says (or will say) it
         request = (out, key, x, y, fit, int(self.ctx.settings.patch_size),
                    getattr(self.shown_frame, "truth", None))
         if self._hover_job is not None:

@@ -157,6 +157,9 @@ def test_hover_reads_what_a_double_click_gives_at_that_pixel(qtbot, ctx, live, s
     assert "outside" in _hover(qtbot, live, "wls", 5000.0, 10.0).note
     live.panels["wls"].hovered.emit("wls", math.nan, math.nan)  # the pointer leaves
     assert "double-click" in live.readout_text()
+    # and comes back to the pixel it read last: read again, not left saying "Point at a view"
+    _hover(qtbot, live, "wls", 5000.0, 10.0)
+    assert "outside" in live.readout_text()
 
 
 def test_fast_pointer_moves_do_not_queue_readings(qtbot, ctx, live, sim_rig, wall_pair,
