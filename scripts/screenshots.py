@@ -9,7 +9,7 @@ recording of the live stream played back in the Live tab (paused, stepped, measu
     python scripts/screenshots.py [--out docs]
 
 Without a display it re-runs itself under `xvfb-run` (screen 1366x768x24) and captures the
-screen with ImageMagick's `import -window root`.
+screen with QScreen.grabWindow.
 """
 
 from __future__ import annotations
@@ -61,7 +61,9 @@ def _capture(app, window, path: Path) -> None:
     window.raise_()
     window.activateWindow()
     _pump(app, 0.8)
-    subprocess.run(["import", "-window", "root", str(path)], check=True)
+    # the X screen as a person sees it (Qt's own grab: ImageMagick's `import` is not everywhere)
+    if not app.primaryScreen().grabWindow(0).save(str(path), "PNG"):
+        raise SystemExit(f"screenshots: could not write {path}")
     log.warning("wrote %s", path)
 
 
