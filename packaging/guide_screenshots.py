@@ -1,6 +1,6 @@
 """Take the screenshots of docs/guide.md from the real application under Xvfb.
 
-    xvfb-run -a -s "-screen 0 1600x1000x24" python packaging/guide_screenshots.py [OUT_DIR]
+    xvfb-run -a -s "-screen 0 1366x768x24" python packaging/guide_screenshots.py [OUT_DIR]
 
 It starts the application window exactly as `stereo-gui` does (build_window on the automatic
 source, which is the simulated rig on a machine without cameras), drives it through the guide's
@@ -21,7 +21,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-WINDOW_SIZE = (1440, 920)
+WINDOW_SIZE = (1366, 768)  # a laptop screen (the window keeps within the screen it is on)
 
 
 def main(argv: list[str]) -> int:
@@ -32,6 +32,7 @@ def main(argv: list[str]) -> int:
     shutil.rmtree(work, ignore_errors=True)
     work.mkdir()
     os.environ["STEREO_GUI_CONFIG_DIR"] = str(work / "config")
+    os.environ["STEREO_GUI_DATA_DIR"] = str(work / "data")  # no measurement log of the user's
     os.environ.setdefault("QT_QPA_PLATFORM", "xcb")
 
     from PySide6.QtCore import QPoint

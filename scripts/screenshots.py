@@ -8,8 +8,8 @@ recording of the live stream played back in the Live tab (paused, stepped, measu
 
     python scripts/screenshots.py [--out docs]
 
-Without a display it re-runs itself under `xvfb-run` (screen 1400x900x24) and captures the
-screen with ImageMagick's `import -window root`.
+Without a display it re-runs itself under `xvfb-run` (screen 1366x768x24) and captures the
+screen with QScreen.grabWindow.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-SCREEN = (1400, 900)
+SCREEN = (1366, 768)  # a laptop screen
 log = logging.getLogger("screenshots")
 
 
@@ -61,7 +61,9 @@ def _capture(app, window, path: Path) -> None:
     window.raise_()
     window.activateWindow()
     _pump(app, 0.8)
-    subprocess.run(["import", "-window", "root", str(path)], check=True)
+    # the X screen as a person sees it (Qt's own grab: ImageMagick's `import` is not everywhere)
+    if not app.primaryScreen().grabWindow(0).save(str(path), "PNG"):
+        raise SystemExit(f"screenshots: could not write {path}")
     log.warning("wrote %s", path)
 
 
@@ -79,6 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix="stereo-gui-shots-"))
     os.environ["STEREO_GUI_CONFIG_DIR"] = str(work / "config")
+    os.environ["STEREO_GUI_DATA_DIR"] = str(work / "data")  # no measurement log of the user's
 
     from stereo_gui.sources.sim import Scene, write_calibration_set
 
@@ -135,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
         live.ruler_button.setChecked(True)
         for x, y in ((235, 392), (515, 128)):
             live.measure_at(x, y)
-        _wait(app, lambda: len(ctx.measurements) >= len(points) + 2, 60, "ruler")
+        _wait(app, lambda: len(ctx.measurements) >= len(points) + 3, 60, "ruler")
         live.ruler_button.setChecked(False)
         # the technician's tape-measure distances (here: the rig's truth) make regression samples
         rig = ctx.frames.source().rig
@@ -144,6 +147,7 @@ def main(argv: list[str] | None = None) -> int:
             if rec.valid and truth is not None:
                 ctx.update_measurement(i, dataclasses.replace(rec, true_mm=round(float(truth[2]), 0)))
         live._hovered("wls", 455.0, 180.0)  # the readout line as if the pointer were on the panel
+        _wait(app, lambda: live.last_reading is not None, 60, "the pointer's reading")
         _pump(app, 1.0)
         _capture(app, window, out / "screenshot-live.png")
 

@@ -69,6 +69,12 @@ class FitResult:
         return (min(ds), max(ds))
 
     @property
+    def exactly_determined(self) -> bool:
+        """True when there are no more samples than parameters: the curve passes through every
+        sample, so R^2 and the residuals say nothing about the model yet."""
+        return len(self.samples) <= len(self.coefficients)
+
+    @property
     def rms_mm(self) -> float:
         r = np.asarray(self.residuals_mm, np.float64)
         return float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
@@ -87,6 +93,12 @@ def _samples(samples, need: int, model: str) -> tuple[np.ndarray, np.ndarray, tu
         raise InputError("true distances must be positive (mm)")
     if len(np.unique(arr[:, 0])) < need:
         raise InputError(f"the {model} fit needs at least {need} different disparities")
+    # readings at fewer true distances than parameters fit exactly whatever the model: R^2 1
+    # and RMS 0 would say nothing about it
+    distinct = len(np.unique(arr[:, 1]))
+    if distinct < need:
+        raise InputError(f"the {model} fit needs true distances at {need} or more different "
+                         f"distances, got {distinct}")
     return arr[:, 0], arr[:, 1], tuple((float(d), float(z)) for d, z in arr)
 
 

@@ -78,7 +78,7 @@ class Recording:
 
     folder: Path
     size: tuple[int, int]  # (width, height) of one image, px
-    fps: float  # the source's nominal rate, frames per second
+    fps: float  # the rate recorded (from the frames' times), frames per second
     source_name: str
     created: str
     frames: tuple[RecordedFrame, ...]
@@ -142,6 +142,7 @@ class RecordingWriter:
         self.created = _now()
         self.size: tuple[int, int] | None = None
         self._count = 0
+        self._t_span: tuple[float, float] | None = None  # first and last frame time, s
         self._video = None
         self._video_tmp = self.folder / f".{VIDEO}.partial.avi"
         self._error: BaseException | None = None
@@ -274,8 +275,18 @@ class RecordingWriter:
         self._csv.writerow([self._count, repr(float(frame.t_left)), repr(float(frame.t_right)),
                             lrel, rrel])
         self._csv_file.flush()
+        t = float(frame.t_left)
+        self._t_span = (t, t) if self._t_span is None else (self._t_span[0], t)
         with self._lock:
             self._count += 1
+
+    def measured_fps(self) -> float | None:
+        """Frames per second as recorded (from the first and last frame's times), None before
+        two frames or without a time span."""
+        if self._t_span is None or self._count < 2:
+            return None
+        span = self._t_span[1] - self._t_span[0]
+        return (self._count - 1) / span if span > 0 and math.isfinite(span) else None
 
     def _write_video(self, left: np.ndarray, right: np.ndarray) -> None:
         import cv2
@@ -312,7 +323,10 @@ class RecordingWriter:
             "kind": KIND,
             "created": self.created,
             "source": self.source_name,
-            "fps": self.fps,
+            # what was recorded (a source meant for 30 fps may have delivered 10.7), and what
+            # the source said it would deliver
+            "fps": self.measured_fps() or self.fps,
+            "nominal_fps": self.fps,
             "size": list(self.size) if self.size else None,
             "frames": self._count,
             "images": "png" if self.images else None,

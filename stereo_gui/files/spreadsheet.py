@@ -116,6 +116,12 @@ COLUMNS: tuple[tuple[str, str, str, int], ...] = (
     ("calibration_rms_px", "Calibration RMS (px)", "0.000", 12),
 )
 HEADERS = tuple(c[1] for c in COLUMNS)
+# derived from each record and written after its columns (readers ignore them): how far Z is
+# from the true distance once one was entered
+ERROR_COLUMNS: tuple[tuple[str, str, int], ...] = (
+    ("Error Z - true (mm)", "0.0", 12), ("Error (%)", "0.00", 10))
+ERROR_HEADERS = tuple(c[0] for c in ERROR_COLUMNS)
+ERROR_FIELDS = ("error_mm", "error_pct")  # their names, for their units (csv_decimals)
 _FIELD_NAMES = tuple(f.name for f in fields(MeasurementRecord))
 assert tuple(c[0] for c in COLUMNS) == _FIELD_NAMES  # the layout covers every field, in order
 
@@ -123,7 +129,22 @@ assert tuple(c[0] for c in COLUMNS) == _FIELD_NAMES  # the layout covers every f
 XLSX_TIME_HEADER = "Time (UTC)"
 XLSX_TIME_FORMAT = "yyyy-mm-dd hh:mm:ss.000"
 XLSX_HEADERS = tuple(XLSX_TIME_HEADER if name == "time" else header
-                     for name, header, _, _ in COLUMNS)
+                     for name, header, _, _ in COLUMNS) + ERROR_HEADERS
+
+
+# a ruler distance in the log: the method starts so; X/Y/Z are the components of B - A and
+# Range its length
+RULER_METHOD = "ruler A–B"
+
+
+def record_error(rec: MeasurementRecord) -> tuple[float, float]:
+    """(measured - true distance in mm, the same in % of the true distance); NaN without a true
+    distance or a valid reading. Measured is Z, or the length for a ruler distance."""
+    measured = rec.range_mm if rec.method.startswith(RULER_METHOD) else rec.Z_mm
+    if rec.true_mm is None or not rec.valid or not math.isfinite(measured) or rec.true_mm <= 0:
+        return float("nan"), float("nan")
+    err = float(measured) - float(rec.true_mm)
+    return err, 100.0 * err / float(rec.true_mm)
 
 
 # ---- cell values ----------------------------------------------------------------------------
@@ -187,13 +208,14 @@ def _bold():
 
 
 def _row_values(rec: MeasurementRecord) -> list[Any]:
-    values = [_cell(v) for v in astuple(rec)]
+    values = [_cell(v) for v in astuple(rec) + record_error(rec)]
     values[0] = _time_cell(rec.time)
     return values
 
 
 def _formats() -> list[str]:
-    return [XLSX_TIME_FORMAT if name == "time" else fmt for name, _, fmt, _ in COLUMNS]
+    return ([XLSX_TIME_FORMAT if name == "time" else fmt for name, _, fmt, _ in COLUMNS]
+            + [c[1] for c in ERROR_COLUMNS])
 
 
 def _write_measurements_sheet(ws, records: Iterable[MeasurementRecord]) -> int:
@@ -201,8 +223,10 @@ def _write_measurements_sheet(ws, records: Iterable[MeasurementRecord]) -> int:
     from openpyxl.cell import WriteOnlyCell
     from openpyxl.utils import get_column_letter
 
-    for i, ((name, _, _, width), header) in enumerate(zip(COLUMNS, XLSX_HEADERS, strict=True),
-                                                      start=1):
+    widths = [c[3] for c in COLUMNS] + [c[2] for c in ERROR_COLUMNS]
+    names = [c[0] for c in COLUMNS] + list(ERROR_FIELDS)
+    for i, (name, header, width) in enumerate(zip(names, XLSX_HEADERS, widths, strict=True),
+                                              start=1):
         # wide enough for the bold header with its unit ("Expected error (mm)" was cut off)
         width = max(21 if name == "time" else width, round(1.1 * len(header) + 2))
         ws.column_dimensions[get_column_letter(i)].width = width
@@ -630,7 +654,8 @@ def _load_ours(path: Path):
     ws = wb[MEASUREMENTS_SHEET]
     header = tuple(c.value for c in next(ws.iter_rows(min_row=1, max_row=1)))
     # workbooks written before the time became a date-time cell head it "Time (ISO 8601)"
-    if header[: len(HEADERS)] not in (XLSX_HEADERS, HEADERS):
+    n = len(HEADERS)  # the error columns after them are derived; older workbooks lack them
+    if header[:n] not in (XLSX_HEADERS[:n], HEADERS):
         raise InputError(f"{path}: the {MEASUREMENTS_SHEET!r} sheet does not have the columns "
                          "stereo-gui writes; it was left untouched")
     return wb
@@ -715,11 +740,12 @@ def records_to_csv(records: Iterable[MeasurementRecord]) -> str:
     numbers rounded to what they mean (`csv_decimals`)."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(HEADERS)
-    decimals = [csv_decimals(name) for name in _FIELD_NAMES]
+    w.writerow(HEADERS + ERROR_HEADERS)
+    decimals = [csv_decimals(name) for name in _FIELD_NAMES] + [csv_decimals(name)
+                                                                 for name in ERROR_FIELDS]
     for rec in records:
         row = []
-        for v, dec in zip(astuple(rec), decimals, strict=True):
+        for v, dec in zip(astuple(rec) + record_error(rec), decimals, strict=True):
             v = _cell(v)
             if v is None:
                 row.append("")
@@ -737,6 +763,9 @@ def write_csv(path: str | os.PathLike, records: Iterable[MeasurementRecord]) -> 
 
 
 def read_csv(path: str | os.PathLike) -> list[MeasurementRecord]:
-    """Read a CSV file written by `write_csv`."""
-    rows = read_csv_rows(path, HEADERS, "a measurement CSV of stereo-gui")
+    """Read a CSV file written by `write_csv` (with the error columns or, older, without)."""
+    try:
+        rows = read_csv_rows(path, HEADERS + ERROR_HEADERS, "a measurement CSV of stereo-gui")
+    except InputError:
+        rows = read_csv_rows(path, HEADERS, "a measurement CSV of stereo-gui")
     return [_record_from_row(r, f"{path}, line {i}") for i, r in enumerate(rows, start=2) if r]

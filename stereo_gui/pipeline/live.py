@@ -15,6 +15,7 @@ import numpy as np
 
 from stereo_gui.core.matching import (NO_MATCH_BGR, NOT_SEEN_BGR, MatcherParams, PipelineResult,
                                      StereoPipeline, paint)
+from stereo_gui.pipeline.region import Region, RegionStats, region_stats
 from stereo_gui.sources.base import StereoFrame
 
 log = logging.getLogger(__name__)
@@ -33,6 +34,7 @@ class LiveOutput:
     result: PipelineResult
     images: dict[str, np.ndarray]
     scale_note: str = ""  # says so when the calibration was scaled to the source's frame size
+    region: RegionStats | None = None  # the watched region of this frame (set_region)
 
 
 def _gray_disparity(disp_px: np.ndarray, lo: float, hi: float,
@@ -66,12 +68,20 @@ class LiveProcessor:
         self._pipeline: StereoPipeline | None = None
         self._size: tuple[int, int] | None = None  # frame size the pipeline was built for
         self._note = ""
+        self._region: tuple[Region, float | None, object] | None = None
 
     def set_params(self, params: MatcherParams) -> None:
         with self._lock:
             self._params = params
             if self._pipeline is not None:
                 self._pipeline.set_params(params)
+
+    def set_region(self, region: Region | None, alarm_mm: float | None = None,
+                   fit=None) -> None:
+        """Watch `region` (None: no region) from the next frame on: its distances through
+        `fit` (a FitResult, None: triangulation) and an alarm below `alarm_mm` (any thread)."""
+        with self._lock:
+            self._region = None if region is None else (region, alarm_mm, fit)
 
     def __call__(self, frame: StereoFrame) -> LiveOutput:
         size = (int(frame.left.shape[1]), int(frame.left.shape[0]))
@@ -89,7 +99,7 @@ class LiveProcessor:
                               f"source's {size[0]}x{size[1]} px (same aspect ratio)")
                 if self._note:
                     log.info("%s", self._note)
-            pipeline, note = self._pipeline, self._note
+            pipeline, note, watched = self._pipeline, self._note, self._region
         r = pipeline.process(frame.left, frame.right)
         lo, hi = r.disparity_range_px
         images = {
@@ -99,7 +109,8 @@ class LiveProcessor:
             "closed": _gray_disparity(r.closed_px, lo, hi, r.not_seen),
             "wls": cv2.cvtColor(r.color_bgr, cv2.COLOR_BGR2RGB),  # (painted so by colorize)
         }
-        return LiveOutput(r, images, note)
+        stats = None if watched is None else region_stats(r, *watched)
+        return LiveOutput(r, images, note, stats)
 
     def close(self) -> None:
         with self._lock:

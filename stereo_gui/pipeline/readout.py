@@ -1,20 +1,40 @@
-"""What the Live tab says about a pixel, without Qt: the readout line for the pointer over a
-view, and distances formatted for labels."""
+"""What the Live tab says about a pixel, without Qt: the reading under the pointer (the same
+`core.measure.measure_point` a double-click runs, computed on the job thread), the true distance
+on the simulated rig, and distances formatted for labels.
+
+One rule for units everywhere in the live views: a distance is in metres to the millimetre
+("0.812 m", "3.014 m"), an uncertainty or an error in millimetres ("± 4.1 mm").
+"""
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from stereo_gui.core.matching import PipelineResult
+from stereo_gui.core.measure import Measurement, measure_point
+
+# views sharing the left image's pixel frame: a reading there is a reading of the left image
+MEASURABLE_VIEWS = ("left", "raw", "closed", "wls")
+TRUTH_LABEL = "TRUE (simulated scene)"
 
 
 def format_distance(mm: float) -> str:
-    """A distance for a label: metres with mm resolution from 1 m on, else millimetres."""
+    """A distance for a label: always metres with millimetre resolution ("0.812 m")."""
     if not math.isfinite(mm):
         return "–"
-    return f"{mm / 1000:.3f} m" if abs(mm) >= 1000 else f"{mm:.1f} mm"
+    return f"{mm / 1000:.3f} m"
+
+
+def format_error(mm: float) -> str:
+    """An uncertainty or an error for a label: always millimetres ("± 4.1 mm")."""
+    if math.isnan(mm):
+        return "± –"
+    if math.isinf(mm):
+        return "± ∞"
+    return f"± {mm:.1f} mm" if abs(mm) < 1000 else f"± {mm:.0f} mm"
 
 
 def disparity_of_view(result: PipelineResult | None, key: str) -> np.ndarray | None:
@@ -25,36 +45,61 @@ def disparity_of_view(result: PipelineResult | None, key: str) -> np.ndarray | N
     return {"raw": r.disparity_px, "closed": r.closed_px}.get(key, r.final_px)
 
 
-def pointer_readout(result: PipelineResult | None, key: str, x: float, y: float, fit=None) -> str:
-    """What the readout line says for the pointer at (x, y) px of view `key` of `result` (None:
-    no frame yet); `fit` is the active FitResult, which live readings use instead of
-    triangulation."""
-    disp = disparity_of_view(result, key)
-    if disp is None:
-        return "no frame yet"
-    h, w = disp.shape[:2]
-    xi, yi = int(round(x)), int(round(y))
-    if not (0 <= xi < w and 0 <= yi < h):
-        return f"x {xi}  y {yi}: outside the image"
-    if key == "right":
-        return f"x {xi}  y {yi} (right image: measure on the left or a disparity view)"
-    d = float(disp[yi, xi])
-    where = f"x {xi:4d}  y {yi:4d}   "
-    if not math.isfinite(d):
-        return where + "invalid: no match here (occluded, textureless or filtered out)"
-    from stereo_gui.core.measure import triangulate
+def true_point(truth, calibration, x: float, y: float) -> np.ndarray | None:
+    """The true (X, Y, Z) mm seen at rectified pixel (x, y) when the frame carries ground truth
+    that can say so (`StereoFrame.truth` of the simulated rig), else None."""
+    locate = getattr(truth, "point_rectified", None)
+    if locate is None or calibration is None:
+        return None
+    p = locate(calibration, x, y)
+    return None if p is None else np.asarray(p, np.float64)
 
-    lo, hi = result.disparity_range_px
-    txt = where + f"disparity {d:7.2f} px   "
-    if d >= hi - 1.0:
-        return txt + "invalid: too near for the disparity range"
-    xyz = triangulate(result.calibration, x, y, d)
-    if xyz is None:
-        return txt + "invalid: too far"
-    z, how = xyz[2], ""
-    if fit is not None:
-        lo_s, hi_s = fit.disparity_span
-        if not lo_s <= d <= hi_s:
-            return txt + f"invalid: outside the {fit.model} fit's disparity range"
-        z, how = float(fit.predict(d)), f" ({fit.model} fit)"
-    return txt + f"distance (Z) {format_distance(z)}{how}   valid"
+
+@dataclass(frozen=True)
+class PointerReading:
+    """What the readout line shows for the pointer at (x, y) px of view `key`.
+
+    `measurement` is what a double-click at that pixel of the same frame gives (None when the
+    pointer is outside the image or over the right image); `true_z_mm` is the rendered scene's
+    depth there on the simulated rig (None elsewhere); `note` says why there is no measurement.
+    """
+
+    key: str
+    x: float
+    y: float
+    measurement: Measurement | None = None
+    true_z_mm: float | None = None
+    note: str = ""
+
+
+def read_pointer(result: PipelineResult | None, key: str, x: float, y: float,
+                 patch: int, fit=None, truth=None) -> PointerReading:
+    """The reading for the pointer at (x, y) px of view `key` of `result` (None: no frame yet):
+    `measure_point` with the click's patch and fit, so hover and double-click agree. Runs the
+    matcher's refinement and scans: call it off the UI thread."""
+    if result is None:
+        return PointerReading(key, x, y, note="no frame yet")
+    h, w = result.disparity_px.shape[:2]
+    if not (0 <= round(x) < w and 0 <= round(y) < h):
+        return PointerReading(key, x, y, note="outside the image")
+    if key not in MEASURABLE_VIEWS:
+        return PointerReading(key, x, y, note="right image: measure on the left or a disparity "
+                                              "view")
+    m = measure_point(result, x, y, patch=patch, fit=fit)
+    t = true_point(truth, result.calibration, x, y)
+    return PointerReading(key, x, y, m, None if t is None else float(t[2]))
+
+
+def readout_line(r: PointerReading) -> str:
+    """The readout line of a pointer reading."""
+    where = f"x {round(r.x):4d}  y {round(r.y):4d}   "
+    m = r.measurement
+    if m is None:
+        return where + r.note
+    truth = ("" if r.true_z_mm is None else
+             f"   |  {TRUTH_LABEL}: Z {format_distance(r.true_z_mm)}")
+    if not m.valid:
+        return where + f"no distance: {m.reason or 'invalid'}{truth}"
+    how = "" if m.method == "triangulation" else f" ({m.method} fit)"
+    return (where + f"Z {format_distance(m.Z_mm)} {format_error(m.expected_error_mm)}{how}   "
+                    f"disparity {m.disparity_px:.2f} px   as a double-click reads it{truth}")

@@ -111,6 +111,10 @@ def build_window(source: str | None = None, calib: str | None = None):
                                                  settings.last_calibration)
     # opening takes seconds (devices, the simulated rig's ray maps): done off the UI thread
     window.open_source(SourceChoice(spec, size, settings.swap_lr), fallback_to_auto=not source)
+    from stereo_gui.files.measurement_log import default_log_path
+
+    # the log, the readings of the last Clear log and the active fit of the last run
+    warnings = [*warnings, *ctx.keep_log(default_log_path())]
     problems = [w for w in warnings] + ([calib_error] if calib_error else [])
     if problems:
         # keep what the tabs reported while they opened (a remembered session, ...)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-from PySide6.QtCore import QObject, Signal
+from PySide6.QtCore import QObject, QTimer, Signal
 
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.files.settings import Settings
@@ -19,13 +19,18 @@ from stereo_gui.qt.workers.recorder import Recorder
 
 log = logging.getLogger(__name__)
 
+LOG_SAVE_DELAY_MS = 300  # changes to the measurement log within this time are saved together
+
 
 class AppContext(QObject):
     """App-wide state: settings, calibration, measurement log, active fit, frame worker.
 
     `settings` is a frozen `stereo_gui.files.settings.Settings`; replace it with
     `update_settings(**changes)`. `measurements` is a list of
-    `stereo_gui.files.spreadsheet.MeasurementRecord`, oldest first.
+    `stereo_gui.files.spreadsheet.MeasurementRecord`, oldest first; `cleared_measurements`
+    the readings of the last Clear log, until the next reading (`undo_clear` brings them back).
+    With `keep_log(path)` the log, the cleared readings and the active fit are restored from
+    `path` and saved there (atomically) whenever they change.
     """
 
     calibrationChanged = Signal(object)  # StereoCalibration | None
@@ -46,7 +51,13 @@ class AppContext(QObject):
         self.calibration_path: Path | None = None
         self.calibration_note = ""
         self.measurements: list = []
+        self.cleared_measurements: list = []
         self.active_fit = None
+        self.log_path: Path | None = None  # where the log is kept (keep_log), None: nowhere
+        self._log_timer = QTimer(self)
+        self._log_timer.setSingleShot(True)
+        self._log_timer.setInterval(LOG_SAVE_DELAY_MS)
+        self._log_timer.timeout.connect(self.save_log)
         self.source_fell_back_to_sim = False  # True when auto found no cameras
         self.current_tab = ""
         self.frames = FrameWorker(self)
@@ -112,27 +123,92 @@ class AppContext(QObject):
         self.settingsChanged.emit(self.settings)
 
     def add_measurement(self, record) -> int:
-        """Append a record to the log; return its index."""
+        """Append a record to the log; return its index. A Clear log can no longer be undone."""
         self.measurements.append(record)
-        self.measurementsChanged.emit()
+        self.cleared_measurements = []
+        self._log_changed()
         return len(self.measurements) - 1
+
+    def add_measurements(self, records, replace: bool = False) -> None:
+        """Append `records` (an imported log) to the log, or replace the log with them."""
+        if replace:
+            self.measurements = list(records)
+        else:
+            self.measurements.extend(records)
+        self._log_changed()
 
     def update_measurement(self, index: int, record) -> None:
         self.measurements[index] = record
-        self.measurementsChanged.emit()
+        self._log_changed()
 
     def remove_measurement(self, index: int) -> None:
         del self.measurements[index]
-        self.measurementsChanged.emit()
+        self._log_changed()
 
     def clear_measurements(self) -> None:
-        self.measurements.clear()
-        self.measurementsChanged.emit()
+        """Empty the log; `undo_clear` brings the readings back until the next reading."""
+        if self.measurements:
+            self.cleared_measurements = list(self.measurements)
+        self.measurements = []
+        self._log_changed()
+
+    @property
+    def can_undo_clear(self) -> bool:
+        return bool(self.cleared_measurements)
+
+    def undo_clear(self) -> bool:
+        """Put the readings of the last Clear log back in front of the log; False if none."""
+        if not self.cleared_measurements:
+            return False
+        self.measurements = self.cleared_measurements + self.measurements
+        self.cleared_measurements = []
+        self._log_changed()
+        return True
 
     def set_active_fit(self, fit) -> None:
         """Make live readings use `fit` (a FitResult) instead of triangulation; None to undo."""
         self.active_fit = fit
         self.activeFitChanged.emit(fit)
+        self._schedule_log_save()
+
+    # ---- the log kept between runs -----------------------------------------------------------
+    def keep_log(self, path: str | Path) -> list[str]:
+        """Restore the log, the cleared readings and the active fit from `path` and save them
+        there from now on; returns warnings about what could not be restored."""
+        from stereo_gui.files.measurement_log import load_log
+
+        kept, warnings = load_log(path)
+        self.log_path = None  # restoring is no change to save
+        self.measurements = list(kept.records)
+        self.cleared_measurements = list(kept.cleared)
+        self.measurementsChanged.emit()
+        if kept.active_fit is not None:
+            self.set_active_fit(kept.active_fit)
+        self.log_path = Path(path)
+        return warnings
+
+    def _log_changed(self) -> None:
+        self.measurementsChanged.emit()
+        self._schedule_log_save()
+
+    def _schedule_log_save(self) -> None:
+        if self.log_path is not None:
+            self._log_timer.start()  # a burst of changes is written once
+
+    def save_log(self) -> bool:
+        """Write the kept log now (no-op without `keep_log`); False (reported) on failure."""
+        self._log_timer.stop()
+        if self.log_path is None:
+            return True
+        from stereo_gui.files.measurement_log import KeptLog, save_log
+
+        try:
+            save_log(KeptLog(tuple(self.measurements), tuple(self.cleared_measurements),
+                             self.active_fit), self.log_path)
+        except (StereoGuiError, OSError) as exc:
+            self.report_error(f"The measurement log could not be saved: {exc}")
+            return False
+        return True
 
     def update_settings(self, **changes) -> None:
         """Replace settings fields (unknown names raise TypeError, as dataclasses.replace does)."""
@@ -164,7 +240,10 @@ class AppContext(QObject):
             self._workers.remove(worker)
 
     def shutdown(self, timeout_ms: int = 2000) -> bool:
-        """Stop and join every worker (within `timeout_ms` in total); True if all ended."""
+        """Save the kept log if a change is pending, stop and join every worker (within
+        `timeout_ms` in total); True if all ended."""
+        if self._log_timer.isActive():
+            self.save_log()
         ok = True
         for w in [self.recorder, self.frames, self.jobs, *self._workers]:
             try:

@@ -12,12 +12,13 @@ from dataclasses import replace
 from pathlib import Path
 
 from PySide6.QtCore import QByteArray, Qt, QTimer, Signal
-from PySide6.QtGui import QAction, QCloseEvent, QKeySequence
+from PySide6.QtGui import QAction, QCloseEvent, QGuiApplication, QKeySequence, QShortcut
 from PySide6.QtWidgets import (
     QFileDialog,
     QHBoxLayout,
     QLabel,
     QMainWindow,
+    QMenu,
     QTabWidget,
     QToolButton,
     QWidget,
@@ -31,9 +32,23 @@ from stereo_gui.qt.tabs.capture import CaptureTab
 from stereo_gui.qt.tabs.live import LiveTab
 from stereo_gui.qt.tabs.measurements import MeasurementsTab
 from stereo_gui.qt.widgets.helpers import pane
+from stereo_gui.qt.widgets.playback_bar import playback_of
 from stereo_gui.qt.workers.job_runner import JobRunner
 
 log = logging.getLogger(__name__)
+
+DEFAULT_SIZE = (1366, 860)  # px, when the screen has room for it
+_FRAME_PX = 32  # room left for the window manager's title bar, px
+NARROW_SCREEN_PX = 1200  # below this width the Live tab starts with its parameters hidden
+
+
+def default_window_size(available) -> tuple[int, int]:
+    """(width, height) px of a new window: DEFAULT_SIZE, within `available` (a QRect of the
+    screen's usable area, None when unknown) less room for the title bar."""
+    w, h = DEFAULT_SIZE
+    if available is None:
+        return w, h
+    return min(w, available.width()), min(h, available.height() - _FRAME_PX)
 
 TAB_NAMES = ("capture", "calibration", "live", "measurements")
 CALIB_FILTER = "Calibration files (*.yaml *.yml *.xml *.json *.txt);;All files (*)"
@@ -47,6 +62,44 @@ def _close_source(source) -> None:
         source.close()
     except Exception:  # noqa: BLE001 - a broken device must not stop the window
         log.warning("closing an unused source failed", exc_info=True)
+
+
+SOURCE_SHORTCUT = "Ctrl+Shift+O"  # File > Choose source…
+
+
+def recent_entry(path: str) -> tuple[str, str, str]:
+    """(kind, path, menu text) of a recent file: kind is calibration, session, recording,
+    folder, video or missing."""
+    p = Path(path)
+    if not p.exists():
+        return "missing", path, f"{p.name} (missing)"
+    if p.is_dir():
+        from stereo_gui.files.recording import is_recording
+        from stereo_gui.files.session import MANIFEST
+
+        if (p / MANIFEST).is_file():
+            return "session", path, f"Session: {p.name}   ({p.parent})"
+        if is_recording(p):
+            return "recording", path, f"Recording: {p.name}   ({p.parent})"
+        return "folder", path, f"Folder of pairs: {p.name}   ({p.parent})"
+    from stereo_gui.sources.playback import VIDEO_EXTENSIONS
+
+    if p.suffix.lower() in VIDEO_EXTENSIONS:
+        return "video", path, f"Video: {p.name}   ({p.parent})"
+    return "calibration", path, f"Calibration: {p.name}   ({p.parent})"
+
+
+def _quietly(fn, default=False):
+    """fn() or `default` when it raises (a property of a source closed meanwhile)."""
+    try:
+        return fn()
+    except Exception:  # noqa: BLE001
+        return default
+
+
+def is_simulated(source) -> bool:
+    """Whether `source` renders the simulated rig (its frames are of no real scene)."""
+    return hasattr(getattr(source, "rig", None), "true_calibration")
 
 
 def _format_rms(value) -> str:
@@ -115,7 +168,7 @@ class MainWindow(QMainWindow):
         self._opener.failed.connect(self._source_failed)
         ctx.register_worker(self._opener)
         self.setWindowTitle("Stereo GUI")
-        self.resize(1280, 860)
+        self.resize(*default_window_size(self._available_geometry()))
 
         self.banner = _MessageBar(
             "background: #ffd54f; color: #3e2700; font-weight: bold;", closable=False)
@@ -141,8 +194,10 @@ class MainWindow(QMainWindow):
         col.addWidget(self.tabs, 1)
         self.setCentralWidget(central)
 
+        self._last_session_seen = ctx.settings.last_session
         self._build_menus()
         self._build_status_bar()
+        ctx.settingsChanged.connect(self._settings_changed)
 
         ctx.errorOccurred.disconnect(collect)
         ctx.errorOccurred.connect(self.show_error)
@@ -166,7 +221,10 @@ class MainWindow(QMainWindow):
     def _build_menus(self) -> None:
         file_menu = self.menuBar().addMenu("&File")
         self.act_source = QAction("Choose &source…", self)
+        self.act_source.setShortcut(QKeySequence(SOURCE_SHORTCUT))
         self.act_source.triggered.connect(self.choose_source)
+        self.recent_menu = QMenu("Open &recent", self)
+        self.recent_menu.aboutToShow.connect(self._fill_recent_menu)
         self.act_open = QAction("&Open calibration…", self)
         self.act_open.setShortcut(QKeySequence.StandardKey.Open)
         self.act_open.triggered.connect(lambda: self.open_calibration())
@@ -183,16 +241,85 @@ class MainWindow(QMainWindow):
         quit_act = QAction("&Quit", self)
         quit_act.setShortcut(QKeySequence.StandardKey.Quit)
         quit_act.triggered.connect(self.close)
-        for a in (self.act_source, None, self.act_open, self.act_save, None, self.act_import_ros,
-                  self.act_export_ros, None, quit_act):
+        for a in (self.act_source, None, self.act_open, self.recent_menu, self.act_save, None,
+                  self.act_import_ros, self.act_export_ros, None, quit_act):
             if a is None:
                 file_menu.addSeparator()
+            elif isinstance(a, QMenu):
+                file_menu.addMenu(a)
             else:
                 file_menu.addAction(a)
+        self._build_shortcuts()
         help_menu = self.menuBar().addMenu("&Help")
         about = QAction("&About Stereo GUI", self)
         about.triggered.connect(self.show_about)
         help_menu.addAction(about)
+
+    def _build_shortcuts(self) -> None:
+        """Ctrl+1..4 switch tabs; Space pauses the Live view (or the playback) while Live is
+        shown, and only then, so that Space keeps its meaning elsewhere."""
+        self.tab_shortcuts = []
+        for i, name in enumerate(TAB_NAMES):
+            sc = QShortcut(QKeySequence(f"Ctrl+{i + 1}"), self)
+            sc.activated.connect(lambda n=name: self.show_tab(n))
+            self.tab_shortcuts.append(sc)
+        self.pause_shortcut = QShortcut(QKeySequence(Qt.Key.Key_Space), self)
+        self.pause_shortcut.activated.connect(self.toggle_live_pause)
+        self.pause_shortcut.setEnabled(False)
+
+    def toggle_live_pause(self) -> None:
+        """Pause or resume what the Live tab shows: the playback when a recording plays, else
+        the live view."""
+        live = self.live_tab
+        if live.playback.source() is not None:
+            live.playback.toggle_play()
+        else:
+            live.set_paused(not live.pause_button.isChecked())
+
+    # ---- recent files ----------------------------------------------------------------------
+    def remember_recent(self, path: str | Path) -> None:
+        """Put `path` (a calibration, session, recording or video) first in File > Open recent."""
+        p = str(Path(path).expanduser().resolve())
+        if self.ctx.settings.recent_files[:1] != (p,):
+            self.ctx.settings = self.ctx.settings.with_recent(p)
+            self.ctx.settingsChanged.emit(self.ctx.settings)
+
+    def _settings_changed(self, settings) -> None:
+        session = settings.last_session
+        if session and session != self._last_session_seen:
+            self._last_session_seen = session
+            self.remember_recent(session)
+
+    def _fill_recent_menu(self) -> None:
+        self.recent_menu.clear()
+        entries = [recent_entry(p) for p in self.ctx.settings.recent_files]
+        if not entries:
+            none = self.recent_menu.addAction("(nothing yet)")
+            none.setEnabled(False)
+            return
+        for kind, path, label in entries:
+            act = self.recent_menu.addAction(label)
+            act.setToolTip(path)
+            act.setEnabled(kind != "missing")
+            act.triggered.connect(lambda _c=False, p=path: self.open_recent(p))
+
+    def open_recent(self, path: str) -> bool:
+        """Open a recent file as what it is: a calibration is loaded, a capture session opened
+        in the Capture tab, a recording, folder or video played as the source."""
+        kind, path, _label = recent_entry(path)
+        if kind == "missing":
+            self.ctx.report_error(f"{path} is no longer there.")
+            return False
+        if kind == "calibration":
+            return self.open_calibration(path)
+        if kind == "session":
+            self.show_tab("capture")
+            self.capture_tab.open_session(path)
+            return True
+        c = self.source_choice
+        self.open_source(SourceChoice(path, tuple(c.size), bool(c.swap)))
+        self.show_tab("live")
+        return True
 
     def _build_status_bar(self) -> None:
         sb = self.statusBar()
@@ -229,6 +356,7 @@ class MainWindow(QMainWindow):
         if hasattr(w, "set_active"):
             w.set_active(True)
         self.ctx.set_current_tab(self.current_tab_name())
+        self.pause_shortcut.setEnabled(self.current_tab_name() == "live")
 
     # ---- source ------------------------------------------------------------------------------
     def choose_source(self) -> None:
@@ -288,12 +416,18 @@ class MainWindow(QMainWindow):
         if fell_back_to_sim:
             why = (message or "no cameras were found").split(";")[0].strip()
             self.banner.show_text(SIM_BANNER.format(why=why))
+        elif is_simulated(source):  # chosen (--source sim, the source dialog): said all the same
+            self.banner.show_text(SIM_BANNER.format(why="it was chosen as the source"))
+            if message:
+                self.statusBar().showMessage(message, 8000)
         else:
             self.banner.hide()
             if message:
                 self.statusBar().showMessage(message, 8000)
         self.ctx.update_settings(source=choice.spec, resolution=tuple(choice.size),
                                  swap_lr=bool(choice.swap), cameras=tuple(cameras))
+        if Path(choice.spec).expanduser().exists():  # a recording, a folder or a video
+            self.remember_recent(choice.spec)
         self.ctx.frames.set_source(source)
         self.sourceOpened.emit(choice.spec)
 
@@ -316,6 +450,12 @@ class MainWindow(QMainWindow):
         if f.paused:
             self.camera_fps_label.setText("Camera: paused")
             self.processing_fps_label.setText("Processing: paused")
+            return
+        playback = playback_of(f.source())
+        if playback is not None and _quietly(lambda: bool(playback.paused)):
+            # the reader re-delivers the paused frame: its rate is no camera's
+            self.camera_fps_label.setText("Playback: paused")
+            self.processing_fps_label.setText(f"Processing: {f.fps_processing:.1f} fps")
             return
         self.camera_fps_label.setText(f"Camera: {f.fps_camera:.1f} fps")
         self.processing_fps_label.setText(f"Processing: {f.fps_processing:.1f} fps")
@@ -426,12 +566,28 @@ class MainWindow(QMainWindow):
         show_about(self)
 
     # ---- geometry and shutdown ---------------------------------------------------------------
+    def _available_geometry(self):
+        """The part of the screen a window may use (without panels and docks), or None."""
+        screen = self.screen() or QGuiApplication.primaryScreen()
+        return screen.availableGeometry() if screen is not None else None
+
     def _restore_geometry(self) -> None:
         s = self.ctx.settings
         if s.window_geometry:
             self.restoreGeometry(QByteArray.fromBase64(s.window_geometry.encode("ascii")))
         if s.window_state:
             self.restoreState(QByteArray.fromBase64(s.window_state.encode("ascii")))
+        avail = self._available_geometry()
+        if avail is not None:
+            # a window remembered from a larger screen starts within this one
+            g = self.geometry()
+            w, h = min(g.width(), avail.width()), min(g.height(), avail.height() - _FRAME_PX)
+            if (w, h) != (g.width(), g.height()):
+                self.resize(w, h)
+            if not avail.intersects(self.frameGeometry()):
+                self.move(avail.topLeft())
+            if avail.width() < NARROW_SCREEN_PX:
+                self.live_tab.params_button.setChecked(False)  # the views need the width
 
     def save_settings(self) -> None:
         """Store geometry (and whatever the tabs changed) in the settings file."""

@@ -191,6 +191,7 @@ class PlaybackSource:
         self._pos = 0  # the frame the next read() delivers
         self._last: int | None = None  # the frame the last read() delivered
         self._paused = False
+        self._speed = 1.0
         self._finished = False
         self._ended = False  # at_end="raise": the next read raises
         self._changed = False  # a pause/step/seek since the last delivery: deliver at once
@@ -235,6 +236,26 @@ class PlaybackSource:
     def timestamps(self, i: int) -> tuple[float, float]:
         """Recorded (t_left, t_right) of frame i, s."""
         return self._times[i]
+
+    def time_s(self, i: int) -> float:
+        """When frame i was recorded, s after the first frame (its place in the playback)."""
+        return float(self._schedule[min(max(int(i), 0), self.frame_count - 1)])
+
+    @property
+    def speed(self) -> float:
+        """Playback speed: 1 plays at the recorded pace, 2 twice as fast, 0.5 at half speed."""
+        with self._cond:
+            return self._speed
+
+    def set_speed(self, speed: float) -> None:
+        """Play at `speed` times the recorded pace from the next frame on (SourceError if it is
+        not a positive number)."""
+        if not (speed > 0 and math.isfinite(speed)):
+            raise SourceError(f"playback speed must be positive, not {speed}")
+        with self._cond:
+            self._speed = float(speed)
+            self._anchor = None  # the next frame is due at once, the ones after at the new pace
+            self._cond.notify_all()
 
     # ---- control (any thread) -----------------------------------------------------------
     def set_loop(self, loop: bool) -> None:
@@ -338,7 +359,7 @@ class PlaybackSource:
                 self._anchor = (i, now)
             elif wrapped:
                 prev_due = self._due(self._last)
-                self._anchor = (0, prev_due + self._frame_interval)
+                self._anchor = (0, prev_due + self._frame_interval / self._speed)
             due = self._due(i)
             if due - now > 0:
                 self._changed = False
@@ -368,7 +389,7 @@ class PlaybackSource:
 
     def _due(self, i: int) -> float:
         a, t0 = self._anchor
-        return t0 + float(self._schedule[i] - self._schedule[a])
+        return t0 + float(self._schedule[i] - self._schedule[a]) / self._speed
 
     def _load(self, i: int) -> tuple[np.ndarray, np.ndarray]:
         with self._store_lock:

@@ -60,7 +60,7 @@ def test_measure_appends_to_a_workbook(wall_pair, tmp_path, capsys):
         assert rec.calibration_file.endswith("calib.yaml")
         assert rec.Z_mm == pytest.approx(WALL_MM, rel=0.02)  # a wall at 1 m, seen at these points
     wb = openpyxl.load_workbook(book)
-    assert tuple(c.value for c in wb["Measurements"][1]) == XLSX_HEADERS
+    assert tuple(c.value for c in wb["Measurements"][1]) == XLSX_HEADERS  # with the errors
     figures = {r[0]: r[1] for r in wb["Calibration"].iter_rows(min_row=3, max_col=2,
                                                                  values_only=True) if r[0]}
     assert figures["Baseline (mm)"] == pytest.approx(110.0, rel=0.01)

@@ -76,6 +76,19 @@ def test_too_few_or_bad_samples():
         fit("quartic", inverse_samples())
 
 
+def test_fewer_true_distances_than_parameters_are_refused_not_fitted_exactly():
+    # two walls, two clicks each: four different disparities, but only two true distances; a
+    # cubic through them showed R^2 1.00000 and RMS 0.0 mm
+    two_walls = [(40.0, 1500.0), (40.6, 1500.0), (20.0, 3000.0), (20.3, 3000.0)]
+    with pytest.raises(InputError, match="4 or more different distances, got 2"):
+        fit_cubic(two_walls)
+    with pytest.raises(InputError, match="2 or more different distances, got 1"):
+        fit_inverse([(40.0, 1500.0), (40.6, 1500.0)])
+    f = fit_inverse(two_walls)  # two parameters, two distances: a fit, with residuals
+    assert not f.exactly_determined
+    assert fit_inverse([(40.0, 1500.0), (20.0, 3000.0)]).exactly_determined
+
+
 def test_dict_round_trip_and_errors_name_the_place():
     for f in (fit_inverse(inverse_samples(1.0)), fit_cubic(inverse_samples(1.0))):
         g = fit_from_dict(json.loads(json.dumps(fit_to_dict(f))), where="x")

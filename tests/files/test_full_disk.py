@@ -241,12 +241,23 @@ def _w_truth(root, version):
     write_json_atomic(root / "truth.json", {"scenes": list(range(5 + 3000 * version))})
 
 
+def _w_measurement_log(root, version):
+    from stereo_gui.files.measurement_log import KeptLog, save_log
+    from stereo_gui.files.spreadsheet import MeasurementRecord
+
+    recs = tuple(MeasurementRecord(time="2026-12-01T10:00:00+00:00", x_px=float(i), y_px=2.0,
+                                   disparity_px=40.0, X_mm=0.0, Y_mm=0.0, Z_mm=2000.0,
+                                   range_mm=2000.0, valid=True)
+                 for i in range(5 + 300 * version))
+    save_log(KeptLog(recs), root / "measurement-log.json")
+
+
 WRITERS = {
     "calibration": _w_calibration, "ros": _w_ros, "preset": _w_preset, "fit": _w_fit,
     "settings": _w_settings, "session-pair": _w_session, "session-exclude": _w_session_exclude,
     "xlsx": _w_xlsx, "xlsx-append": _w_xlsx_append, "csv": _w_csv, "png16": _w_png16,
     "depth-png16": _w_depth, "npy": _w_npy, "ply": _w_ply, "snapshot": _w_snapshot,
-    "json": _w_truth,
+    "json": _w_truth, "measurement-log": _w_measurement_log,
 }
 
 

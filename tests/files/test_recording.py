@@ -43,7 +43,8 @@ def test_recording_folder_holds_images_times_and_header(tmp_path, background):
     folder = tmp_path / "rec"
     header = json.loads((folder / "recording.json").read_text())
     assert header["format_version"] == rec_mod.FORMAT_VERSION
-    assert header["size"] == [W, H] and header["fps"] == 30.0
+    assert header["size"] == [W, H] and header["nominal_fps"] == 30.0
+    assert header["fps"] == pytest.approx(4 / (frames[-1].t_left - frames[0].t_left))
     assert header["source"] == "Simulated rig" and header["frames"] == 5 and header["complete"]
     rows = list(csv.reader((folder / "frames.csv").open()))
     assert rows[0] == ["index", "t_left", "t_right", "left", "right"]
@@ -57,6 +58,20 @@ def test_recording_folder_holds_images_times_and_header(tmp_path, background):
     assert open_recording(folder) == rec
     # the folder is also a plain folder of pairs
     assert len(discover_pairs(folder).pairs) == 5
+
+
+def test_header_says_the_rate_recorded_not_the_one_promised(tmp_path):
+    """A source meant for 30 fps that delivered 10.7: recording.json says 10.7."""
+    frames = _frames(12)
+    t0 = 50.0
+    frames = [StereoFrame(f.left, f.right, t0 + i / 10.7, t0 + i / 10.7, f.index)
+              for i, f in enumerate(frames)]
+    with RecordingWriter(tmp_path / "rec", fps=30.0, background=False) as w:
+        for f in frames:
+            w.write(f)
+    header = json.loads((tmp_path / "rec" / "recording.json").read_text())
+    assert header["fps"] == pytest.approx(10.7) and header["nominal_fps"] == 30.0
+    assert open_recording(tmp_path / "rec").fps == pytest.approx(10.7)
 
 
 def test_writer_copies_frames_before_returning(tmp_path):

@@ -102,13 +102,13 @@ def test_measurements_sheet_holds_what_was_written(tmp_path):
     ws = wb["Measurements"]
     header = [c.value for c in ws[1]]
     assert tuple(header) == ss.XLSX_HEADERS
-    assert header[0] == "Time (UTC)"
+    assert header[0] == "Time (UTC)" and header[-len(ss.ERROR_HEADERS):] == list(ss.ERROR_HEADERS)
     assert "Disparity (px)" in header and "Z (mm)" in header and "True distance (mm)" in header
     assert ws.max_row == 1 + len(recs)
     for row, rec in zip(ws.iter_rows(min_row=2, values_only=True), recs, strict=True):
         # the time is a real date-time cell (UTC, naive: Excel has no time zones)
         assert row[0] == _dt.datetime.fromisoformat(rec.time).replace(tzinfo=None)
-        for value, expected in zip(row[1:], astuple(rec)[1:], strict=True):
+        for value, expected in zip(row[1:len(HEADERS)], astuple(rec)[1:], strict=True):
             if isinstance(expected, float) and math.isnan(expected) or expected in ("", None):
                 assert value is None  # Excel has no NaN: an empty cell
             elif isinstance(expected, float):
@@ -428,8 +428,8 @@ def test_csv_numbers_are_rounded_to_their_meaning(tmp_path):
     write_csv(tmp_path / "log.csv", [rec])
     import csv
 
-    row = dict(zip(HEADERS, list(csv.reader((tmp_path / "log.csv").read_text().splitlines()))[1],
-                   strict=True))
+    lines = list(csv.reader((tmp_path / "log.csv").read_text().splitlines()))
+    row = dict(zip(lines[0], lines[1], strict=True))
     assert row["x (px)"] == "100.123"
     assert row["Disparity (px)"] == "47.123"
     assert row["Z (mm)"] == "1751.0"
@@ -437,6 +437,39 @@ def test_csv_numbers_are_rounded_to_their_meaning(tmp_path):
     assert row["Valid fraction"] == "0.877"
     assert row["Calibration RMS (px)"] == "0.213"
     assert row["Time (ISO 8601)"] == rec.time
+
+
+def test_error_columns_say_how_far_z_is_from_the_true_distance(tmp_path):
+    import csv
+
+    rec = _records(1)[0]
+    rec = ss.MeasurementRecord(**{**rec.__dict__, "Z_mm": 1512.0, "valid": True,
+                                  "true_mm": 1500.0})
+    assert ss.record_error(rec) == pytest.approx((12.0, 0.8))
+    blank = ss.MeasurementRecord(**{**rec.__dict__, "true_mm": None})
+    assert all(math.isnan(v) for v in ss.record_error(blank))
+    write_csv(tmp_path / "log.csv", [rec, blank])
+    rows = list(csv.reader((tmp_path / "log.csv").read_text(encoding="utf-8").splitlines()))
+    i = rows[0].index("Error Z - true (mm)")
+    assert float(rows[1][i]) == pytest.approx(12.0) and float(rows[1][i + 1]) == pytest.approx(0.8)
+    assert rows[2][i] == "" and rows[2][i + 1] == ""
+    assert len(read_csv(tmp_path / "log.csv")) == 2  # the derived columns are not read back
+    path = write_workbook(tmp_path / "log.xlsx", [rec, blank])
+    ws = openpyxl.load_workbook(path)["Measurements"]
+    header = [c.value for c in ws[1]]
+    j = header.index("Error (%)") + 1
+    assert ws.cell(row=2, column=j).value == pytest.approx(0.8)
+    assert ws.cell(row=3, column=j).value is None
+    assert len(read_measurements(path)) == 2
+
+
+def test_a_csv_written_before_the_error_columns_still_reads(tmp_path):
+    recs = _records(2)
+    text = ss.records_to_csv(recs).splitlines()
+    n = len(ss.ERROR_HEADERS)
+    old = "\n".join(",".join(line.split(",")[:-n]) for line in text) + "\n"
+    (tmp_path / "old.csv").write_text(old, encoding="utf-8")
+    assert len(read_csv(tmp_path / "old.csv")) == len(recs)
 
 
 def test_csv_of_something_else_is_refused(tmp_path):

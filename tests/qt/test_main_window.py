@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gc
 
+import numpy as np
 import pytest
 from PySide6.QtWidgets import QApplication
 
@@ -56,7 +57,8 @@ def test_open_source_runs_off_the_ui_thread(qtbot, ctx, window):
     with qtbot.waitSignal(window.sourceOpened, timeout=120000) as sig:
         window.open_source(SourceChoice("sim"))
     assert sig.args == ["sim"]
-    assert not window.banner.isVisibleTo(window)
+    # chosen, not fallen back to: the banner says SIMULATED all the same (issue 12, item 10)
+    assert window.banner.isVisibleTo(window) and "chosen" in window.banner.label.text()
 
 
 def test_a_failing_source_is_reported(qtbot, ctx, window, tmp_path):
@@ -197,3 +199,102 @@ def test_help_about_opens_the_about_dialog(window, qtbot):
                                 for w in window.findChildren(AboutDialog)), timeout=30000)
     dialog = window.findChildren(AboutDialog)[0]
     dialog.close()
+
+
+def test_a_chosen_simulated_rig_has_the_banner_too(qtbot, ctx, window, sim_rig, array_source):
+    """`--source sim` (or the rig chosen in the dialog) says SIMULATED as loudly as the
+    automatic fallback does; a real source takes the banner away."""
+    window.use_source(_sim_source(sim_rig), SourceChoice("sim"))
+    assert window.banner.isVisibleTo(window) and "SIMULATED" in window.banner.label.text()
+    assert "chosen" in window.banner.label.text()
+    window.use_source(array_source(), SourceChoice("cams:0,1"))
+    assert not window.banner.isVisibleTo(window)
+
+
+def test_the_window_fits_laptop_screens(qtbot, ctx, window, sim_rig):
+    """Usable at 1366x768 and 1280x720, reachable at 1024x768: no tab needs more room than a
+    1024x768 screen has, a new window starts within the screen and the Live toolbar wraps
+    instead of cutting buttons off."""
+    from PySide6.QtCore import QRect
+
+    from stereo_gui.qt.main_window import default_window_size
+
+    assert default_window_size(QRect(0, 0, 1280, 720)) == (1280, 720 - 32)
+    assert default_window_size(QRect(0, 0, 1366, 768)) == (1366, 768 - 32)
+    assert default_window_size(QRect(0, 0, 1920, 1080)) == (1366, 860)
+    for name in TAB_NAMES:
+        window.show_tab(name)
+        hint = window.minimumSizeHint()
+        assert hint.width() <= 1024 and hint.height() <= 768 - 32, (name, hint)
+    ctx.set_calibration(sim_rig.true_calibration())  # the Live tab shows its views
+    window.show_tab("live")
+    live = window.live_tab
+    window.banner.show_text("SIMULATED " * 40)  # a banner of two lines takes its room too
+    for width in (1280, 1024):
+        window.resize(width, 200)  # as short as the window can be: its minimum height
+        qtbot.waitUntil(lambda w=width: window.width() == w, timeout=5000)
+        QApplication.processEvents()
+        page = live.toolbar
+        for b in (live.ruler_button, live.pause_button, live.export_button, live.record_button,
+                  live.params_button, live.cloud_button, live.region_button):
+            assert page.rect().contains(b.geometry()), (width, b.text(), b.geometry())
+        # the wrapped rows get their height: nothing below the toolbar is drawn over
+        below = live._grid_host.geometry().top()
+        assert page.geometry().bottom() < below, (width, page.geometry(), below)
+    # the parameters give their room to the views
+    live.params_button.setChecked(False)
+    assert not live.params_scroll.isVisibleTo(live)
+    live.params_button.setChecked(True)
+    assert live.params_scroll.isVisibleTo(live)
+
+
+def test_open_recent_lists_calibrations_sessions_and_recordings(qtbot, ctx, window, sim_rig,
+                                                               tmp_path):
+    from stereo_gui.files.calibration_file import save_calibration
+    from stereo_gui.files.recording import RecordingWriter
+    from stereo_gui.files.session import MANIFEST
+    from stereo_gui.qt.main_window import recent_entry
+    from stereo_gui.sources.base import StereoFrame
+
+    calib = tmp_path / "rig.yaml"
+    save_calibration(sim_rig.true_calibration(), calib)
+    assert window.open_calibration(str(calib))
+    rng = np.random.default_rng(1)
+    with RecordingWriter(tmp_path / "rec", fps=10, background=False) as w:
+        for k in range(3):
+            img = rng.integers(0, 255, (24, 32, 3), dtype=np.uint8)
+            w.write(StereoFrame(img, img, 0.1 * k, 0.1 * k, k))
+    with qtbot.waitSignal(window.sourceOpened, timeout=60000):
+        window.open_source(SourceChoice(str(tmp_path / "rec")))
+    session = tmp_path / "session"
+    session.mkdir()
+    (session / MANIFEST).write_text("{}")
+    ctx.update_settings(last_session=str(session))  # what the Capture tab does
+    recent = ctx.settings.recent_files
+    assert recent[:3] == (str(session), str(tmp_path / "rec"), str(calib))
+    assert [recent_entry(p)[0] for p in recent[:3]] == ["session", "recording", "calibration"]
+    window._fill_recent_menu()
+    texts = [a.text() for a in window.recent_menu.actions()]
+    assert texts[0].startswith("Session: session") and texts[2].startswith("Calibration: rig")
+    ctx.set_calibration(None)
+    assert window.open_recent(str(calib)) and ctx.calibration is not None
+    assert recent_entry(str(tmp_path / "gone.yaml"))[0] == "missing"
+    assert not window.open_recent(str(tmp_path / "gone.yaml"))
+
+
+def test_shortcuts_switch_tabs_and_space_pauses_live_only(qtbot, ctx, window):
+    from PySide6.QtGui import QKeySequence
+
+    from stereo_gui.qt.main_window import SOURCE_SHORTCUT
+
+    assert window.act_source.shortcut() == QKeySequence(SOURCE_SHORTCUT)
+    for i, name in enumerate(TAB_NAMES):
+        assert window.tab_shortcuts[i].key() == QKeySequence(f"Ctrl+{i + 1}")
+        window.tab_shortcuts[i].activated.emit()
+        assert window.current_tab_name() == name
+        assert window.pause_shortcut.isEnabled() == (name == "live")
+    window.show_tab("live")
+    window.pause_shortcut.activated.emit()
+    assert window.live_tab.pause_button.isChecked() and ctx.frames.paused
+    window.pause_shortcut.activated.emit()
+    assert not window.live_tab.pause_button.isChecked() and not ctx.frames.paused

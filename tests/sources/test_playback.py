@@ -46,7 +46,10 @@ def test_plays_back_the_same_images_and_timestamps_then_loops(recorded):
     folder, frames = recorded
     src = PlaybackSource(folder, paced=False)
     assert isinstance(src, FrameSource)
-    assert src.frame_count == 5 and src.nominal_fps == 30.0 and src.name == "Playback of rec"
+    # the rate the frames were recorded at (recording.json), not the source's nominal 30 fps
+    recorded_fps = 4 / (frames[-1].t_left - frames[0].t_left)
+    assert src.frame_count == 5 and src.name == "Playback of rec"
+    assert src.nominal_fps == pytest.approx(recorded_fps)
     got = [src.read() for _ in range(7)]
     for k, g in enumerate(got):
         assert g.index == k % 5
@@ -260,3 +263,14 @@ def test_a_recorded_sequence_gives_the_same_distances_as_live(tmp_path):
             if a.valid:
                 assert b.Z_mm == a.Z_mm and b.range_mm == a.range_mm
                 assert b.disparity_px == a.disparity_px
+
+
+def test_speed_is_checked(recorded):
+    folder, _frames_ = recorded
+    src = PlaybackSource(folder, paced=False)
+    for bad in (0, -1, float("nan"), float("inf")):
+        with pytest.raises(SourceError, match="speed"):
+            src.set_speed(bad)
+    src.set_speed(0.5)
+    assert src.speed == 0.5 and src.time_s(0) == 0.0
+    src.close()

@@ -320,6 +320,12 @@ class CalibrationTab(QWidget):
     def _calibration_changed(self, calib) -> None:
         if self.run is not None and calib is not self.run.result.calibration:
             self.run = None  # a loaded file replaces the last run
+        elif self.run is not None and self.ctx.calibration_path is not None:
+            # the run just saved: "Not saved yet" would be stale
+            text = self.progress_label.text()
+            if "Not saved yet" in text:
+                self.progress_label.setText(text[:text.index("Not saved yet")]
+                                            + f"Saved as {self.ctx.calibration_path.name}.")
         self._show_calibration(calib)
 
     def _show_calibration(self, calib: StereoCalibration | None) -> None:

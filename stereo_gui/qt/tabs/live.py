@@ -6,8 +6,10 @@ Work is split by thread:
   uint8 image;
 - a double-click becomes a `measure_point` job on the context's job thread, run on the result
   that was on screen when the user clicked;
-- the UI thread only hands arrays to pyqtgraph, reads one pixel for the hover readout
-  (`stereo_gui.pipeline.readout`), and draws markers.
+- the pointer's readout is the same `measure_point` a double-click would run at that pixel of
+  the frame shown (`stereo_gui.pipeline.readout.read_pointer`), on the job thread too, coalesced:
+  while one hover reading runs, only the newest pointer position waits (no queue);
+- the UI thread only hands arrays to pyqtgraph, writes the readout line and draws markers.
 
 Snapshot and depth exports are `live_exports.LiveExports`; recording is the
 `RecordButton` widget.
@@ -18,16 +20,18 @@ from __future__ import annotations
 import datetime as _dt
 import logging
 import math
+import time
 from pathlib import Path
 
-from PySide6.QtCore import Qt, Signal
+from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtWidgets import (
     QCheckBox,
+    QDoubleSpinBox,
     QGridLayout,
-    QHBoxLayout,
     QLabel,
     QPushButton,
     QScrollArea,
+    QSizePolicy,
     QSplitter,
     QStackedWidget,
     QVBoxLayout,
@@ -36,14 +40,19 @@ from PySide6.QtWidgets import (
 
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.matching import COLORMAPS, MatcherParams
+from stereo_gui.files.spreadsheet import RULER_METHOD
 from stereo_gui.pipeline.live import LiveOutput, LiveProcessor
-from stereo_gui.pipeline.readout import format_distance, pointer_readout
+from stereo_gui.pipeline.region import Region
+from stereo_gui.pipeline.readout import (MEASURABLE_VIEWS, PointerReading, format_distance,
+                                         format_error, read_pointer, readout_line)
 from stereo_gui.qt.tabs.live_exports import EXPORTS, LiveExports
+from stereo_gui.qt.widgets.flow_layout import FlowLayout
 from stereo_gui.qt.widgets.image_view import ImagePanel, marker_color
 from stereo_gui.qt.widgets.no_calibration_page import NoCalibrationPage
-from stereo_gui.qt.widgets.params_panel import ParamsPanel, load_preset
+from stereo_gui.qt.widgets.params_panel import MODIFIED, ParamsPanel, load_preset
 from stereo_gui.qt.widgets.playback_bar import PlaybackBar
 from stereo_gui.qt.widgets.record_button import RecordButton
+from stereo_gui.qt.workers.job_runner import JobRunner
 from stereo_gui.sources.base import StereoFrame
 
 log = logging.getLogger(__name__)
@@ -52,16 +61,35 @@ log = logging.getLogger(__name__)
 VIEWS: dict[str, str] = {
     "left": "Rectified left",
     "right": "Rectified right",
-    "raw": "Raw disparity (SGBM), bright = near, dark red = no match, grey = not seen by the "
-           "right camera",
-    "closed": "After the closing filter, dark red = no match, grey = not seen",
-    "wls": "WLS filtered (confident pixels), colour = distance, dark red = no match, "
-           "grey = not seen",
+    "raw": "Raw disparity (SGBM), bright = near",
+    "closed": "After the closing filter",
+    "wls": "WLS filtered (confident pixels), colour = distance",
 }
+NO_WLS_TITLE = "Closed disparity (no WLS), colour = distance"
+# what the colours of pixels without depth mean, once under the views (not in every title)
+LEGEND = ("<span style='color:#6e1414'>■</span> dark red: no match &nbsp; "
+          "<span style='color:#606060'>■</span> grey: not seen by the right camera")
 SHORT_NAMES = {"left": "Left", "right": "Right", "raw": "Raw", "closed": "Closed", "wls": "WLS"}
 DEFAULT_VIEWS = ("left", "raw", "closed", "wls")
-MEASURABLE = ("left", "raw", "closed", "wls")  # views sharing the left image's pixel frame
+MEASURABLE = MEASURABLE_VIEWS  # views sharing the left image's pixel frame
+CLOUD_INTERVAL_MS = 400  # the 3D view follows the frames at most this often
+REGION_VIEW = "wls"  # the view that carries the region box
+HOVER_REFRESH_S = 0.25  # a resting pointer's reading follows new frames at most this often
+HOVER_HINT = "Point at a view to read the distance there; double-click to log it."
 TRUE_CALIBRATION_NOTE = "simulated rig's TRUE calibration"
+# marker labels stay short (the full reason is in the status bar and the log)
+_SHORT_REASONS = {"not seen by the right camera": "not seen", "no valid pixels": "no match",
+                  "outside the image": "outside", "out of disparity range": "out of fit range",
+                  "no metric scale": "no scale"}
+
+
+def short_reason(reason: str | None) -> str:
+    """A marker's few words for why a point has no distance."""
+    if not reason:
+        return "invalid"
+    return _SHORT_REASONS.get(reason, reason if len(reason) <= 16 else reason[:15] + "…")
+
+
 class LiveTab(QWidget):
     """The Live tab. `ctx` is the AppContext."""
 
@@ -69,6 +97,8 @@ class LiveTab(QWidget):
     loadCalibrationRequested = Signal()
     measured = Signal(object)  # Measurement, after its marker was drawn
     frameShown = Signal()  # a new frame was drawn (for tests and benchmarks)
+    hoverRead = Signal(object)  # PointerReading, after the readout line shows it
+    cloudShown = Signal(object)  # CloudPoints, after the 3D view drew them
 
     def __init__(self, ctx, parent: QWidget | None = None) -> None:
         super().__init__(parent)
@@ -77,6 +107,13 @@ class LiveTab(QWidget):
         self._processor: LiveProcessor | None = None
         self._output: LiveOutput | None = None
         self._hover: tuple[str, float, float] | None = None
+        self._hover_job: int | None = None  # id of the hover reading running on the job thread
+        self._hover_next: tuple | None = None  # the newest pointer request waiting for it
+        self._hover_last: tuple | None = None  # (output, key, pixel, fit) last asked for
+        self.hover_jobs_submitted = 0
+        self._hover_t = 0.0  # when the last hover reading was asked for, time.monotonic() s
+        self.last_reading: PointerReading | None = None
+        self.last_region = None  # RegionStats of the last frame shown with a region
         self._pending: dict[int, tuple[str, bool]] = {}  # job id -> (view key, ruler click)
         self._ruler_a = None  # first Measurement of a ruler pair
         self._bar_state = None
@@ -135,23 +172,68 @@ class LiveTab(QWidget):
         self.fit_button.clicked.connect(self.fit_views)
         self.export_button = self.exports.make_export_button()
         self.record_button = RecordButton(ctx)
-        tools = QHBoxLayout()
+        self.region_button = QPushButton("Region")
+        self.region_button.setCheckable(True)
+        self.region_button.setToolTip("A box on the colour view: its nearest and median distance "
+                                      "every frame, and an alarm when anything in it is nearer")
+        self.region_button.toggled.connect(self._region_toggled)
+        self.alarm_spin = QDoubleSpinBox()
+        self.alarm_spin.setRange(0.0, 20.0)
+        self.alarm_spin.setDecimals(2)
+        self.alarm_spin.setSingleStep(0.05)
+        self.alarm_spin.setSuffix(" m")
+        self.alarm_spin.setPrefix("alarm < ")
+        self.alarm_spin.setSpecialValueText("no alarm")
+        self.alarm_spin.setToolTip("The region box turns red and the status bar says so when "
+                                   "anything in it is nearer than this")
+        self.alarm_spin.valueChanged.connect(lambda _v: self._apply_region())
+        self.alarm_spin.hide()
+        self._alarm_on = False
+        self.cloud_button = QPushButton("3D view")
+        self.cloud_button.setToolTip("The point cloud of the frame shown, in a window of its own "
+                                     "(drag to rotate, wheel to zoom), updated a few times a "
+                                     "second")
+        self.cloud_button.clicked.connect(self.show_cloud)
+        self.cloud_window: QWidget | None = None
+        self.cloud_view = None
+        self._cloud_jobs = JobRunner("cloud", self)  # its own thread: clicks do not wait on it
+        ctx.register_worker(self._cloud_jobs)
+        self._cloud_jobs.finished.connect(self._cloud_done)
+        self._cloud_jobs.failed.connect(self._cloud_failed)
+        self._cloud_job: int | None = None
+        self._cloud_of = None  # (output, colouring) the cloud shown was made from
+        self._cloud_timer = QTimer(self)
+        self._cloud_timer.setInterval(CLOUD_INTERVAL_MS)
+        self._cloud_timer.timeout.connect(self._update_cloud)
+        self.params_button = QPushButton("Parameters")
+        self.params_button.setCheckable(True)
+        self.params_button.setChecked(True)
+        self.params_button.setToolTip("Show or hide the matcher parameters beside the views")
+        # the toolbar wraps onto a second row on a narrow window instead of being cut off
+        self.toolbar = QWidget()
+        tools = FlowLayout(self.toolbar)
         tools.addWidget(QLabel("Show:"))
         for c in self.view_checks.values():
             tools.addWidget(c)
-        tools.addStretch(1)
-        for b in (self.ruler_button, self.clear_button, self.fit_button, self.pause_button,
-                  self.snapshot_button, self.export_button, self.record_button):
+        tools.add_stretch()
+        for b in (self.ruler_button, self.region_button, self.alarm_spin, self.clear_button,
+                  self.fit_button, self.pause_button, self.snapshot_button, self.export_button,
+                  self.record_button, self.cloud_button, self.params_button):
             tools.addWidget(b)
-        for b in (self.export_button, self.record_button):  # as tall as the push buttons
-            b.setSizePolicy(b.sizePolicy().horizontalPolicy(),
-                            self.pause_button.sizePolicy().verticalPolicy())
         self.playback = PlaybackBar(ctx)
         self.playback.used.connect(lambda: self.set_paused(False))
 
-        self.readout = QLabel("Double-click a view to measure the distance there.")
+        self.readout = QLabel(HOVER_HINT)
         self.readout.setTextFormat(Qt.TextFormat.PlainText)
         self.readout.setStyleSheet("font-family: monospace; padding: 2px 4px;")
+        # a long reading must not make the window wider than a laptop screen
+        self.readout.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
+        self.legend = QLabel(LEGEND)
+        self.legend.setStyleSheet("padding: 0px 4px;")
+        self.region_label = QLabel()
+        self.region_label.setTextFormat(Qt.TextFormat.PlainText)
+        self.region_label.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
+        self.region_label.hide()
         self.calib_note = QLabel()
         self.calib_note.setStyleSheet("background: #ffd54f; color: #3e2700; padding: 2px 6px;")
         self.calib_note.hide()
@@ -162,11 +244,13 @@ class LiveTab(QWidget):
         views_page = QWidget()
         vcol = QVBoxLayout(views_page)
         vcol.setContentsMargins(4, 4, 4, 4)
-        vcol.addLayout(tools)
+        vcol.addWidget(self.toolbar)
         vcol.addWidget(self.playback)
         vcol.addWidget(self.calib_note)
         vcol.addWidget(self.scale_label)
         vcol.addWidget(self._grid_host, 1)
+        vcol.addWidget(self.legend)
+        vcol.addWidget(self.region_label)
         vcol.addWidget(self.readout)
 
         self.no_calib = NoCalibrationPage()
@@ -183,14 +267,18 @@ class LiveTab(QWidget):
         splitter.setStretchFactor(0, 1)
         splitter.setSizes([1000, scroll.minimumWidth()])
         splitter.setCollapsible(0, False)
+        self.params_scroll = scroll
+        self.params_button.toggled.connect(scroll.setVisible)
         outer = QVBoxLayout(self)
         outer.setContentsMargins(0, 0, 0, 0)
         outer.addWidget(splitter)
 
         self._layout_views()
+        self.panels[REGION_VIEW].regionChanged.connect(lambda _box: self._apply_region())
+        ctx.activeFitChanged.connect(lambda _fit: self._apply_region())
         ctx.calibrationChanged.connect(self._calibration_changed)
         ctx.frames.frameReady.connect(self._frame_ready)
-        ctx.frames.sourceChanged.connect(lambda _name: self._update_no_calib_page())
+        ctx.frames.sourceChanged.connect(self._source_changed)
         ctx.jobs.finished.connect(self._job_finished)
         ctx.jobs.failed.connect(self._job_failed)
         self._calibration_changed(ctx.calibration)
@@ -212,7 +300,9 @@ class LiveTab(QWidget):
         keys = [k for k in VIEWS if self.view_checks[k].isChecked()]
         cols = 1 if len(keys) == 1 else 2
         for i, key in enumerate(keys):
-            self._grid.addWidget(self.panels[key], i // cols, i % cols)
+            # an odd last view spans the row: no empty cell beside it (2-2-1 with Right on)
+            span = cols if i == len(keys) - 1 and len(keys) % cols else 1
+            self._grid.addWidget(self.panels[key], i // cols, i % cols, 1, span)
             self.panels[key].show()
         self.ctx.update_settings(visible_views=tuple(keys)) if self.ctx.settings else None
 
@@ -241,8 +331,10 @@ class LiveTab(QWidget):
             self.ctx.frames.set_processor(self._processor)
 
     def _calibration_changed(self, calib) -> None:
+        self.params_panel.set_calibration(calib)
         self._processor = (LiveProcessor(calib, self.params_panel.params())
                            if calib is not None else None)
+        self._apply_region()
         self._output = None
         self.clear_markers()
         self._install_processor()
@@ -252,6 +344,16 @@ class LiveTab(QWidget):
                                 "built with), not one you calibrated.")
         self.stack.setCurrentIndex(0 if calib is None else 1)
         self._update_no_calib_page()
+
+    def _source_changed(self, _name: str = "") -> None:
+        """A new source: the markers (and a ruler's first point) were of the old one's frames;
+        during playback the playback bar's Play/Pause is the one pause button."""
+        self.clear_markers()
+        self._update_no_calib_page()
+        playing_back = self.playback.source() is not None
+        if playing_back and self.pause_button.isChecked():
+            self.set_paused(False)
+        self.pause_button.setVisible(not playing_back)
 
     def _update_no_calib_page(self) -> None:
         self.no_calib.use_true.setVisible(self._sim_rig() is not None)
@@ -272,7 +374,7 @@ class LiveTab(QWidget):
     def _params_changed(self, params: MatcherParams) -> None:
         if self._processor is not None:
             self._processor.set_params(params)
-        if not params.name.endswith("(edited)"):
+        if not params.name.endswith(MODIFIED):
             self.ctx.update_settings(preset=params.name)
 
     # ---- drawing -----------------------------------------------------------------------------
@@ -296,11 +398,10 @@ class LiveTab(QWidget):
         if "wls" in self.visible_views():
             self._update_color_bar(out)
         wls = out.result.wls_px is not None
-        self.panels["wls"].set_title(VIEWS["wls"] if wls else
-                                     "Closed disparity (no WLS), colour = distance, "
-                                     "dark red = no match, grey = not seen")
-        if self._hover is not None:
-            self._show_readout(*self._hover)
+        self.panels["wls"].set_title(VIEWS["wls"] if wls else NO_WLS_TITLE)
+        if self._hover is not None and time.monotonic() - self._hover_t >= HOVER_REFRESH_S:
+            self._request_reading(*self._hover)  # a resting pointer reads the new frame too
+        self._show_region(out.region)
         if out.scale_note != self._scale_note:
             self._scale_note = out.scale_note
             self.scale_label.setText(out.scale_note)
@@ -323,21 +424,171 @@ class LiveTab(QWidget):
         self._bar_state = state
         self.panels["wls"].color_bar.set_scale(COLORMAPS[out.result.params.colormap], scale)
 
+    # ---- the 3D point cloud -----------------------------------------------------------------
+    def show_cloud(self) -> QWidget:
+        """Open (or raise) the 3D view of the frame shown."""
+        from stereo_gui.qt.widgets.cloud_view import CloudView
+
+        if self.cloud_window is None:
+            win = QWidget(self, Qt.WindowType.Window)
+            win.setWindowTitle("Stereo GUI – 3D point cloud of the frame shown")
+            self.cloud_view = CloudView(win)
+            self.cloud_view.colouringChanged.connect(lambda _c: self._update_cloud())
+            lay = QVBoxLayout(win)
+            lay.setContentsMargins(0, 0, 0, 0)
+            lay.addWidget(self.cloud_view)
+            win.resize(720, 540)
+            self.cloud_window = win
+        self.cloud_window.show()
+        self.cloud_window.raise_()
+        self._cloud_timer.start()
+        self._update_cloud()
+        return self.cloud_window
+
+    def _update_cloud(self) -> None:
+        """A few times a second while the 3D window is open: the newest frame's cloud, made on
+        the cloud thread; one at a time (a frame that arrives meanwhile waits for the next)."""
+        win = self.cloud_window
+        if win is None or not win.isVisible():
+            self._cloud_timer.stop()
+            return
+        out = self._output
+        if out is None or self._cloud_job is not None or self.cloud_view.problem:
+            return
+        colouring = self.cloud_view.colouring
+        if self._cloud_of == (out, colouring):
+            return
+        from stereo_gui.pipeline.cloud import cloud_points
+
+        result = out.result
+        self._cloud_of = (out, colouring)
+        self._cloud_job = self._cloud_jobs.submit(lambda: cloud_points(result, colouring))
+
+    def _cloud_done(self, job_id: int, cloud) -> None:
+        if job_id != self._cloud_job:
+            return
+        self._cloud_job = None
+        if self.cloud_view is not None:
+            self.cloud_view.show_points(cloud)
+            self.cloudShown.emit(cloud)
+
+    def _cloud_failed(self, job_id: int, message: str) -> None:
+        if job_id == self._cloud_job:
+            self._cloud_job = None
+            if self.cloud_view is not None:
+                self.cloud_view.show_problem(f"No point cloud: {message}")
+
+    # ---- the watched region ------------------------------------------------------------------
+    def _region_toggled(self, on: bool) -> None:
+        panel = self.panels[REGION_VIEW]
+        if on:
+            if not self.view_checks[REGION_VIEW].isChecked():
+                self.view_checks[REGION_VIEW].setChecked(True)
+            w, h = panel.image_size() or (640, 480)
+            panel.show_region((w * 3 // 8, h * 3 // 8, w * 5 // 8, h * 5 // 8))
+        else:
+            panel.show_region(None)
+        self.alarm_spin.setVisible(on)
+        self.region_label.setVisible(on)
+        self._apply_region()
+
+    def set_region(self, box: tuple[int, int, int, int] | None,
+                   alarm_m: float | None = None) -> None:
+        """Watch the box (x0, y0, x1, y1) px of the colour view (None: stop), with an alarm
+        below `alarm_m` metres (None or 0: none)."""
+        if alarm_m is not None:
+            self.alarm_spin.setValue(alarm_m)
+        if box is None:
+            self.region_button.setChecked(False)
+            return
+        self.region_button.setChecked(True)
+        self.panels[REGION_VIEW].show_region(box)
+        self._apply_region()
+
+    def _apply_region(self) -> None:
+        """Hand the region, the alarm and the fit to the processor (from the next frame)."""
+        if self._processor is None:
+            return
+        box = self.panels[REGION_VIEW].region() if self.region_button.isChecked() else None
+        alarm_mm = 1000.0 * self.alarm_spin.value() or None
+        self._processor.set_region(None if box is None else Region(*box), alarm_mm,
+                                   self.ctx.active_fit)
+
+    def _show_region(self, stats) -> None:
+        if stats is None or not self.region_button.isChecked():
+            return
+        self.last_region = stats
+        if stats.note:
+            text = f"Region: {stats.note}"
+        else:
+            text = (f"Region: nearest {format_distance(stats.nearest_mm)}   median "
+                    f"{format_distance(stats.median_mm)}   {stats.valid_fraction:.0%} with depth")
+        if stats.alarm:
+            text += f"   ALARM: nearer than {format_distance(stats.alarm_mm)}"
+        self.region_label.setText(text)
+        self.region_label.setStyleSheet("background: #c62828; color: white; font-weight: bold;"
+                                        if stats.alarm else "")
+        self.panels[REGION_VIEW].set_region_alarm(stats.alarm)
+        if stats.alarm and not self._alarm_on:
+            self.ctx.show_status(f"ALARM: something at {format_distance(stats.nearest_mm)} in "
+                                 f"the region, nearer than {format_distance(stats.alarm_mm)}")
+        self._alarm_on = stats.alarm
+
     # ---- hover readout -----------------------------------------------------------------------
     def _hovered(self, key: str, x: float, y: float) -> None:
         self._hover = None if math.isnan(x) else (key, x, y)
         if self._hover is None:
-            self.readout.setText("Double-click a view to measure the distance there.")
+            self._hover_next = None
+            self._hover_last = None  # back on the same pixel later: read it again
+            self.readout.setText(HOVER_HINT)
         else:
-            self._show_readout(key, x, y)
+            self._request_reading(key, x, y)
 
-    def _show_readout(self, key: str, x: float, y: float) -> None:
-        self.readout.setText(self.readout_text(key, x, y))
+    def _request_reading(self, key: str, x: float, y: float) -> None:
+        """Ask for the reading under the pointer on the frame shown: at once when no hover
+        reading runs, else as the one waiting (replacing an older wish: newest wins)."""
+        out = self._output
+        if out is None:
+            self.readout.setText(f"x {round(x):4d}  y {round(y):4d}   no frame yet")
+            return
+        fit = self.ctx.active_fit
+        ask = (out, key if key not in MEASURABLE else "left", round(x), round(y), id(fit))
+        if ask == self._hover_last:
+            if self._hover_job is not None:
+                self._hover_next = None  # the reading running is of this very pixel
+            return  # the same pixel of the same frame: the line says (or will say) it
+        request = (out, key, x, y, fit, int(self.ctx.settings.patch_size),
+                   getattr(self.shown_frame, "truth", None))
+        if self._hover_job is not None:
+            self._hover_next = request
+            return
+        self._submit_reading(request)
+        self._hover_last = ask
 
-    def readout_text(self, key: str, x: float, y: float) -> str:
-        """What the readout line says for the pointer at (x, y) px of view `key`."""
-        result = self._output.result if self._output is not None else None
-        return pointer_readout(result, key, x, y, self.ctx.active_fit)
+    def _submit_reading(self, request) -> None:
+        out, key, x, y, fit, patch, truth = request
+        self._hover_t = time.monotonic()
+        result = out.result
+        self._hover_job = self.ctx.jobs.submit(
+            lambda: read_pointer(result, key, x, y, patch, fit, truth))
+        self.hover_jobs_submitted += 1
+
+    def _hover_finished(self, reading) -> None:
+        self._hover_job = None
+        if self._hover is not None:
+            self.last_reading = reading
+            self.readout.setText(readout_line(reading))
+            self.hoverRead.emit(reading)
+        request, self._hover_next = self._hover_next, None
+        if request is not None and self._hover is not None:
+            out, key, x, y, fit = request[:5]
+            self._hover_last = (out, key if key not in MEASURABLE else "left", round(x),
+                                round(y), id(fit))
+            self._submit_reading(request)
+
+    def readout_text(self) -> str:
+        """What the readout line says now."""
+        return self.readout.text()
 
     # ---- measuring ---------------------------------------------------------------------------
     def _double_clicked(self, key: str, x: float, y: float) -> None:
@@ -363,33 +614,56 @@ class LiveTab(QWidget):
         return job
 
     def _job_finished(self, job_id: int, m) -> None:
+        if job_id == self._hover_job:
+            self._hover_finished(m)
+            return
         if job_id not in self._pending:
             return  # another tab's job
         _key, ruler = self._pending.pop(job_id)
         color = marker_color(m.valid)
-        label = format_distance(m.Z_mm) if m.valid else f"✕ {m.reason or 'invalid'}"
-        line_to, line_text = None, ""
+        label = format_distance(m.Z_mm) if m.valid else f"✕ {short_reason(m.reason)}"
+        line_to, line_text, ruler_record, status = None, "", None, self._status_text(m)
         if ruler:
-            if self._ruler_a is None or not self._ruler_a.valid:
-                self._ruler_a = m
-                label = "A: " + label
-            else:
-                a = self._ruler_a
-                self._ruler_a = None
+            a = self._ruler_a
+            if a is None:
                 if m.valid:
-                    dist = math.dist((a.X_mm, a.Y_mm, a.Z_mm), (m.X_mm, m.Y_mm, m.Z_mm))
-                    label = f"B: {label}"
-                    line_text = f"A–B {format_distance(dist)}"
-                    line_to = (a.x, a.y)
-                    color = "#40c4ff"
-                    self.last_ruler_mm = dist
+                    self._ruler_a = m
+                    label = "A: " + label
+                    status = f"Ruler: A at {status}; double-click the second point (B)."
+                else:
+                    label = "A? " + label
+                    status = (f"Ruler: the first point has no distance ({m.reason}); "
+                              f"double-click another first point (A).")
+            elif not m.valid:
+                label = "B? " + label  # A stays: only B is asked for again
+                status = (f"Ruler: the second point has no distance ({m.reason}); double-click "
+                          f"another second point (B).")
+            else:
+                self._ruler_a = None
+                dist = math.dist((a.X_mm, a.Y_mm, a.Z_mm), (m.X_mm, m.Y_mm, m.Z_mm))
+                bound = math.hypot(a.expected_error_mm, m.expected_error_mm)
+                label = f"B: {label}"
+                line_text = f"A–B {format_distance(dist)}"
+                line_to = (a.x, a.y)
+                color = "#40c4ff"
+                self.last_ruler_mm = dist
+                ruler_record = self._ruler_record(a, m, dist, bound)
+                status = (f"Ruler: A–B {format_distance(dist)} {format_error(bound)} "
+                          f"(logged)")
         for key in MEASURABLE:
             self.panels[key].add_marker(m.x, m.y, label, color, line_to, line_text)
         self.ctx.add_measurement(self._record(m))
-        self.ctx.show_status(self._status_text(m))
+        if ruler_record is not None:
+            self.ctx.add_measurement(ruler_record)
+        self.ctx.show_status(status)
         self.measured.emit(m)
 
     def _job_failed(self, job_id: int, message: str) -> None:
+        if job_id == self._hover_job:
+            log.warning("hover reading failed: %s", message)
+            key, x, y = self._hover or ("", 0.0, 0.0)
+            self._hover_finished(PointerReading(key, x, y, note=f"reading failed: {message}"))
+            return
         if self._pending.pop(job_id, None) is not None:
             self.ctx.report_error(f"Measurement failed: {message}")
 
@@ -397,7 +671,7 @@ class LiveTab(QWidget):
         if not m.valid:
             return f"({m.x:.0f}, {m.y:.0f}): no distance: {m.reason}"
         return (f"({m.x:.0f}, {m.y:.0f}): Z {format_distance(m.Z_mm)}, range "
-                f"{format_distance(m.range_mm)} ± {format_distance(m.expected_error_mm)}, "
+                f"{format_distance(m.range_mm)} {format_error(m.expected_error_mm)}, "
                 f"disparity {m.disparity_px:.2f} px, {m.valid_fraction:.0%} valid ({m.method})")
 
     def _record(self, m):
@@ -415,6 +689,19 @@ class LiveTab(QWidget):
             calibration_file=str(path) if path else self.ctx.calibration_note,
             calibration_rms_px=float(getattr(calib, "rms_stereo", float("nan"))),
         )
+
+    def _ruler_record(self, a, b, dist_mm: float, bound_mm: float):
+        """The log entry of a ruler distance: at B's pixel, X/Y/Z the components of B - A
+        (mm), Range the length |B - A|, ± the two points' bounds added in quadrature."""
+        from stereo_gui.files.spreadsheet import MeasurementRecord
+
+        rec = self._record(b)
+        return MeasurementRecord(**{
+            **rec.__dict__, "disparity_px": float("nan"), "X_mm": b.X_mm - a.X_mm,
+            "Y_mm": b.Y_mm - a.Y_mm, "Z_mm": b.Z_mm - a.Z_mm, "range_mm": float(dist_mm),
+            "valid_fraction": min(a.valid_fraction, b.valid_fraction),
+            "expected_error_mm": float(bound_mm),
+            "method": f"{RULER_METHOD} from ({a.x:.0f}, {a.y:.0f})"})
 
     def _ruler_toggled(self, on: bool) -> None:
         self._ruler_a = None
@@ -465,5 +752,8 @@ class LiveTab(QWidget):
 
     def shutdown(self) -> None:
         """Called by the main window on close."""
+        self._cloud_timer.stop()
+        if self.cloud_window is not None:
+            self.cloud_window.close()
         if self._processor is not None and self.ctx.frames.processor() is self._processor:
             self.ctx.frames.set_processor(None)

@@ -4,7 +4,9 @@ The log is `ctx.measurements` (MeasurementRecord). Entering the true distance of
 editable column) makes it a regression sample (disparity px, true distance mm); both models are
 fitted again at once: the report's cubic and Z = a / (d - d0). The plot shows samples, both
 curves and the residuals with R^2. The model chosen for live readings goes to
-`ctx.set_active_fit`. Exports: the log and regression to .xlsx (in a worker) and CSV.
+`ctx.set_active_fit`. Exports: the log and regression to .xlsx (in a worker) and CSV; Open
+log... brings back a log exported before (CSV or xlsx). Beside each fit, triangulation's own RMS
+against the same true distances shows whether the fit helps.
 """
 
 from __future__ import annotations
@@ -34,7 +36,8 @@ from PySide6.QtWidgets import (
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.pipeline.jobs import Progress
 from stereo_gui.qt.widgets.helpers import pane, wrapping_label
-from stereo_gui.qt.widgets.measurement_table import MeasurementModel, samples_from
+from stereo_gui.qt.widgets.measurement_table import (MeasurementModel, samples_from,
+                                                     triangulation_errors_mm)
 from stereo_gui.qt.widgets.regression_plot import MODELS, RegressionPlot
 from stereo_gui.qt.workers.job_worker import JobWorker
 
@@ -61,6 +64,8 @@ class MeasurementsTab(QWidget):
         self._export: JobWorker | None = None
         self._build()
         ctx.measurementsChanged.connect(self.refit)
+        ctx.measurementsChanged.connect(self._update_undo)
+        ctx.calibrationChanged.connect(lambda _c: self.refit())
         ctx.activeFitChanged.connect(self._active_fit_changed)
         ctx.currentTabChanged.connect(lambda name: self.set_active(name == "measurements"))
         self.refit()
@@ -72,7 +77,7 @@ class MeasurementsTab(QWidget):
         root.addWidget(split, 1)
 
         left, ll = pane()
-        self.count_label = QLabel("")
+        self.count_label = wrapping_label()
         ll.addWidget(self.count_label)
         self.model = MeasurementModel(self.ctx, self)
         self.table = QTableView()
@@ -92,13 +97,23 @@ class MeasurementsTab(QWidget):
         self.remove_button.clicked.connect(self._remove_selected)
         self.clear_button = QPushButton("Clear log")
         self.clear_button.clicked.connect(self._clear_log)
+        self.undo_button = QPushButton("Undo clear")
+        self.undo_button.setToolTip("Bring back the readings of the last Clear log (possible "
+                                    "until the next reading)")
+        self.undo_button.clicked.connect(self._undo_clear)
+        self.undo_button.hide()
+        self.open_button = QPushButton("Open log…")
+        self.open_button.setToolTip("Bring back a log exported before (.csv or .xlsx written by "
+                                    "Stereo GUI)")
+        self.open_button.clicked.connect(self._choose_open_log)
         self.xlsx_button = QPushButton("Export .xlsx…")
         self.xlsx_button.clicked.connect(self._choose_xlsx)
         self.csv_button = QPushButton("Export CSV…")
         self.csv_button.clicked.connect(self._choose_csv)
-        for b in (self.remove_button, self.clear_button):
+        for b in (self.remove_button, self.clear_button, self.undo_button):
             row.addWidget(b)
         row.addStretch(1)
+        row.addWidget(self.open_button)
         row.addWidget(self.xlsx_button)
         row.addWidget(self.csv_button)
         ll.addLayout(row)
@@ -109,6 +124,10 @@ class MeasurementsTab(QWidget):
         bl = QVBoxLayout(box)
         self.sample_label = wrapping_label()
         bl.addWidget(self.sample_label)
+        self.triangulation_label = wrapping_label()
+        self.triangulation_label.setTextInteractionFlags(
+            Qt.TextInteractionFlag.TextSelectableByMouse)
+        bl.addWidget(self.triangulation_label)
         self.r2_labels: dict[str, QLabel] = {}
         for m in MODELS:
             lab = wrapping_label()
@@ -168,14 +187,26 @@ class MeasurementsTab(QWidget):
             f"{len(samples)} samples (valid readings with a true distance)." if samples else
             "No samples yet: enter true distances in the log. The cubic needs at least 4 "
             "samples, the inverse model 2.")
+        tri = triangulation_errors_mm(recs, self.ctx.calibration)
+        tri_rms = float(np.sqrt(np.mean(np.square(tri)))) if tri else float("nan")
+        self.triangulation_rms_mm = tri_rms
+        self.triangulation_label.setText(
+            f"<b>triangulation</b> (the calibration alone): RMS {tri_rms:.1f} mm against the "
+            f"true distances of {len(tri)} readings" if tri else
+            "<b>triangulation</b> (the calibration alone): no reading with a true distance yet")
         for m in MODELS:
             fit = self.fits.get(m)
             lab = self.r2_labels[m]
             if fit is not None:
                 src = " (loaded from file)" if fit is self._loaded_fit else ""
-                lab.setText(f"<b>{m}</b>{src}: R² = {fit.r2:.5f}, "
-                            f"residual RMS {fit.rms_mm:.1f} mm, "
-                            f"{len(fit.samples)} samples<br>"
+                if fit.exactly_determined:
+                    quality = (f"passes exactly through its {len(fit.samples)} samples: R² and "
+                               f"residuals say nothing yet, add readings at other distances")
+                else:
+                    quality = (f"R² = {fit.r2:.5f}, residual RMS {fit.rms_mm:.1f} mm"
+                               + (f" (triangulation {tri_rms:.1f} mm)" if tri else "")
+                               + f", {len(fit.samples)} samples")
+                lab.setText(f"<b>{m}</b>{src}: {quality}<br>"
                             f"<span style='font-family: monospace'>{fit.formula()}</span>")
             else:
                 lab.setText(f"<b>{m}</b>: not fitted ({self.fit_errors.get(m, 'no samples')})")
@@ -226,6 +257,11 @@ class MeasurementsTab(QWidget):
 
     def _active_fit_changed(self, fit) -> None:
         key = "triangulation" if fit is None else getattr(fit, "model", "triangulation")
+        if fit is not None and key in MODELS and self.fits.get(key) != fit:
+            # a fit that the log does not give (loaded from a file, restored at start-up)
+            self._loaded_fit = fit
+            self.fits[key] = fit
+            self.refit()
         if key != self.model_combo.currentData():
             i = self.model_combo.findData(key)
             if i >= 0:
@@ -246,6 +282,57 @@ class MeasurementsTab(QWidget):
             "Readings not exported are lost.")
         if answer == QMessageBox.StandardButton.Yes:
             self.ctx.clear_measurements()
+            self.ctx.show_status(f"Cleared {n} readings (Undo clear brings them back until the "
+                                 f"next reading)")
+
+    def _undo_clear(self) -> None:
+        n = len(self.ctx.cleared_measurements)
+        if self.ctx.undo_clear():
+            self.ctx.show_status(f"{n} cleared readings are back in the log")
+
+    def _update_undo(self) -> None:
+        self.undo_button.setVisible(self.ctx.can_undo_clear)
+
+    # ---- a log exported before -----------------------------------------------------------------
+    def _choose_open_log(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(
+            self, "Open a measurement log", self._start_dir(),
+            "Measurement logs (*.csv *.xlsx);;All files (*)")
+        if not path:
+            return
+        replace = False
+        if self.ctx.measurements:
+            box = QMessageBox(QMessageBox.Icon.Question, "Open log",
+                              f"The log holds {len(self.ctx.measurements)} readings. Add the "
+                              f"readings of {Path(path).name} after them, or replace them?",
+                              parent=self)
+            add = box.addButton("Add", QMessageBox.ButtonRole.AcceptRole)
+            rep = box.addButton("Replace", QMessageBox.ButtonRole.DestructiveRole)
+            box.addButton(QMessageBox.StandardButton.Cancel)
+            box.exec()
+            if box.clickedButton() not in (add, rep):
+                return
+            replace = box.clickedButton() is rep
+        self.open_log(path, replace=replace)
+
+    def open_log(self, path, replace: bool = False) -> bool:
+        """Read a log exported by Stereo GUI (.csv or .xlsx) into the log (after the readings
+        there, or instead of them); False (with a message) when it cannot be read."""
+        from stereo_gui.files.spreadsheet import read_csv, read_measurements
+
+        path = Path(path)
+        reader = read_measurements if path.suffix.lower() == ".xlsx" else read_csv
+        try:
+            records = reader(path)
+        except (StereoGuiError, OSError) as exc:
+            self.ctx.report_error(f"Cannot open the log {path}: {exc}")
+            return False
+        if replace and self.ctx.measurements:
+            self.ctx.clear_measurements()  # undoable, like Clear log
+        self.ctx.add_measurements(records)
+        self._remember_dir(path)
+        self.ctx.show_status(f"Opened {len(records)} readings from {path}")
+        return True
 
     def _remove_selected(self) -> None:
         rows = sorted({i.row() for i in self.table.selectionModel().selectedRows()}, reverse=True)

@@ -7,6 +7,7 @@ from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QCheckBox, QDoubleSpinBox, QHBoxLayout, QLabel, QSpinBox, QWidget
 
 from stereo_gui.core.board import BoardSpec
+from stereo_gui.qt.widgets.flow_layout import FlowLayout
 
 
 class BoardRow(QWidget):
@@ -20,9 +21,8 @@ class BoardRow(QWidget):
 
     def __init__(self, auto_tooltip: str = "", parent: QWidget | None = None) -> None:
         super().__init__(parent)
-        board = QHBoxLayout(self)
-        board.setContentsMargins(0, 0, 0, 0)
-        board.addWidget(QLabel("Board inner corners:"))
+        # three groups that wrap onto a second row on a narrow window (a laptop screen)
+        board = FlowLayout(self, spacing=18)
         self.cols_spin = QSpinBox()
         self.cols_spin.setRange(2, 40)
         self.rows_spin = QSpinBox()
@@ -31,17 +31,17 @@ class BoardRow(QWidget):
         self.square_spin.setRange(0.5, 500.0)
         self.square_spin.setDecimals(2)
         self.square_spin.setSuffix(" mm")
-        board.addWidget(self.cols_spin)
-        board.addWidget(QLabel("×"))
-        board.addWidget(self.rows_spin)
-        board.addSpacing(12)
-        board.addWidget(QLabel("Square size:"))
-        board.addWidget(self.square_spin)
-        board.addSpacing(24)
         self.auto_check = QCheckBox("Automatic capture (steady board, new pose)")
         self.auto_check.setToolTip(auto_tooltip)
-        board.addWidget(self.auto_check)
-        board.addStretch(1)
+        for group in ((QLabel("Board inner corners:"), self.cols_spin, QLabel("×"),
+                       self.rows_spin),
+                      (QLabel("Square size:"), self.square_spin), (self.auto_check,)):
+            box = QWidget()
+            row = QHBoxLayout(box)
+            row.setContentsMargins(0, 0, 0, 0)
+            for w in group:
+                row.addWidget(w)
+            board.addWidget(box)
         for w in (self.cols_spin, self.rows_spin):
             w.valueChanged.connect(self.edited)
         self.square_spin.valueChanged.connect(self.edited)

@@ -1,15 +1,19 @@
 """The Calibration tab's charts: reprojection error per pair (click a bar to select the pair)
-and a rectified pair with horizontal lines to check the rectification by eye."""
+and a rectified pair with horizontal lines to check the rectification by eye: side by side with
+one zoom for both halves, as an anaglyph, or blended."""
 
 from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Signal
+from PySide6.QtWidgets import QComboBox, QHBoxLayout, QLabel, QVBoxLayout, QWidget
 
 LINE_EVERY_PX = 32  # rectification check: a horizontal line every this many rows
+LEGEND_HEADROOM = 1.5  # the error chart's y range over its tallest bar
 _BAR_LEFT = "#4f8fd6"
 _BAR_RIGHT = "#e08a3c"
 _BAR_SELECTED = "#f5e342"
@@ -51,7 +55,8 @@ class ErrorBarChart(pg.PlotWidget):
         ax.setTicks([[(i, _short(n)) for i, n in enumerate(names) if i % step == 0], []])
         top = max([*left, *right, 0.1])
         self.setXRange(-0.7, max(len(names) - 0.3, 0.5), padding=0)
-        self.setYRange(0, top * 1.15, padding=0)
+        # headroom above the tallest bar: the legend (top right) sits there, not on the bars
+        self.setYRange(0, top * LEGEND_HEADROOM, padding=0)
         self.select(self.selected if self.selected in self.names else None)
 
     def bar_count(self) -> int:
@@ -86,38 +91,125 @@ def _short(name: str) -> str:
     return digits if digits and len(name) > 6 else name
 
 
-class RectifiedPairView(pg.GraphicsLayoutWidget):
-    """A rectified pair side by side with horizontal lines: matching points sit on one line."""
+RECT_MODES = {
+    "side": "Side by side (one zoom)",
+    "anaglyph": "Anaglyph: left red, right cyan",
+    "blend": "Blend: left and right 50/50",
+}
+
+
+def anaglyph(left_bgr: np.ndarray, right_bgr: np.ndarray) -> np.ndarray:
+    """RGB image: the left image's grey in red, the right's in green and blue (cyan). Where
+    rectification is right, a point of the scene far away is grey, a near one a red-cyan pair
+    side by side on one row; a vertical offset shows as colour fringes above and below."""
+    lg = cv2.cvtColor(left_bgr, cv2.COLOR_BGR2GRAY) if left_bgr.ndim == 3 else left_bgr
+    rg = cv2.cvtColor(right_bgr, cv2.COLOR_BGR2GRAY) if right_bgr.ndim == 3 else right_bgr
+    return np.ascontiguousarray(np.dstack([lg, rg, rg]))
+
+
+def blend(left_bgr: np.ndarray, right_bgr: np.ndarray) -> np.ndarray:
+    """RGB image: the two images averaged."""
+    mix = cv2.addWeighted(left_bgr, 0.5, right_bgr, 0.5, 0.0)
+    return np.ascontiguousarray(mix[:, :, ::-1] if mix.ndim == 3 else
+                                np.dstack([mix, mix, mix]))
+
+
+class RectifiedPairView(QWidget):
+    """A rectified pair with horizontal lines: matching points sit on one line. Side by side
+    (both halves zoom and pan together), as an anaglyph or blended into one image."""
 
     def __init__(self, parent=None) -> None:
         super().__init__(parent)
-        self.setBackground("#202020")
+        self.mode_combo = QComboBox()
+        for key, text in RECT_MODES.items():
+            self.mode_combo.addItem(text, key)
+        self.mode_combo.setToolTip("How to look at the rectified pair")
+        self.mode_combo.currentIndexChanged.connect(lambda _i: self._draw())
+        self.glw = pg.GraphicsLayoutWidget()
+        self.glw.setBackground("#202020")
         self.title = pg.LabelItem("Rectification check: select a pair", color="w")
-        self.addItem(self.title, row=0, col=0)
-        self.vb = self.addViewBox(row=1, col=0, lockAspect=True, enableMouse=True)
-        self.vb.invertY(True)
-        self.image = pg.ImageItem(axisOrder="row-major")
-        self.vb.addItem(self.image)
-        self.lines = pg.PlotCurveItem(pen=pg.mkPen((80, 255, 80, 150), width=1), connect="pairs")
-        self.vb.addItem(self.lines)
+        self.glw.addItem(self.title, row=0, col=0, colspan=2)
+        self.views: list[pg.ViewBox] = []
+        self.images: list[pg.ImageItem] = []
+        self.line_items: list[pg.PlotCurveItem] = []
+        for col in (0, 1):
+            vb = self.glw.addViewBox(row=1, col=col, lockAspect=True, enableMouse=True)
+            vb.invertY(True)
+            img = pg.ImageItem(axisOrder="row-major")
+            vb.addItem(img)
+            lines = pg.PlotCurveItem(pen=pg.mkPen((80, 255, 80, 150), width=1),
+                                     connect="pairs")
+            vb.addItem(lines)
+            self.views.append(vb)
+            self.images.append(img)
+            self.line_items.append(lines)
+        # one zoom for both halves: a point stays on the same row and column in both
+        self.views[1].setXLink(self.views[0])
+        self.views[1].setYLink(self.views[0])
+        self.vb = self.views[0]
+        self.image = self.images[0]
+        self.lines = self.line_items[0]
+        row = QHBoxLayout()
+        row.setContentsMargins(0, 0, 0, 0)
+        row.addWidget(QLabel("Show:"))
+        row.addWidget(self.mode_combo)
+        row.addStretch(1)
+        col = QVBoxLayout(self)
+        col.setContentsMargins(0, 0, 0, 0)
+        col.addLayout(row)
+        col.addWidget(self.glw, 1)
         self.shown: str | None = None
+        self._pair: tuple[np.ndarray, np.ndarray] | None = None
+        self._title = ""
+
+    @property
+    def mode(self) -> str:
+        return str(self.mode_combo.currentData())
+
+    def set_mode(self, mode: str) -> None:
+        """"side", "anaglyph" or "blend"."""
+        self.mode_combo.setCurrentIndex(list(RECT_MODES).index(mode))
 
     def show_pair(self, name: str, left_rect: np.ndarray, right_rect: np.ndarray,
                   note: str = "") -> None:
-        h, w = left_rect.shape[:2]
-        gap = np.zeros((h, 6, 3), np.uint8)
-        both = np.ascontiguousarray(np.hstack([left_rect, gap, right_rect])[:, :, ::-1])
-        self.image.setImage(both, levels=(0, 255), autoLevels=False)
-        ys = np.arange(LINE_EVERY_PX // 2, h, LINE_EVERY_PX, dtype=float)
-        xs = np.tile([0.0, float(both.shape[1])], len(ys))
-        self.lines.setData(xs, np.repeat(ys, 2))
-        self.vb.setRange(xRange=(0, both.shape[1]), yRange=(0, h), padding=0.01)
-        self.title.setText(f"Rectified pair {name}: left | right. A point should lie on the same "
-                           f"row in both{note}")
+        self._pair = (left_rect, right_rect)
+        self._title = (f"Rectified pair {name}: a point should lie on the same row in both"
+                       f"{note}")
         self.shown = name
+        h, w = left_rect.shape[:2]
+        self._draw()
+        self.vb.setRange(xRange=(0, w), yRange=(0, h), padding=0.01)
+
+    def _draw(self) -> None:
+        if self._pair is None:
+            return
+        left, right = self._pair
+        h, w = left.shape[:2]
+        side = self.mode == "side"
+        if side:
+            shown = (left[:, :, ::-1], right[:, :, ::-1])
+        else:
+            shown = ((anaglyph if self.mode == "anaglyph" else blend)(left, right), None)
+        ys = np.arange(LINE_EVERY_PX // 2, h, LINE_EVERY_PX, dtype=float)
+        xs = np.tile([0.0, float(w)], len(ys))
+        for vb, img, lines, arr in zip(self.views, self.images, self.line_items, shown,
+                                       strict=True):
+            vb.setVisible(arr is not None)
+            if arr is None:
+                img.clear()
+                lines.setData([], [])
+                continue
+            img.setImage(np.ascontiguousarray(arr), levels=(0, 255), autoLevels=False)
+            lines.setData(xs, np.repeat(ys, 2))
+        # one image: the right column gives its room to it
+        self.glw.ci.layout.setColumnMaximumWidth(1, 1e6 if side else 0.0)
+        what = "left | right" if side else RECT_MODES[self.mode].lower()
+        self.title.setText(f"{self._title} ({what})")
 
     def clear_pair(self) -> None:
-        self.image.clear()
-        self.lines.setData([], [])
+        for img, lines in zip(self.images, self.line_items, strict=True):
+            img.clear()
+            lines.setData([], [])
+        self._pair = None
         self.title.setText("Rectification check: select a pair")
         self.shown = None

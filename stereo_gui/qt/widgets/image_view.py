@@ -70,9 +70,12 @@ class StereoImageItem(pg.ImageItem):
         self.setImage(np.ascontiguousarray(image), autoLevels=False, autoDownsample=False)
 
 
-def _label_item(text: str, color: str, x: float, y: float, left: bool = False,
-                centred: bool = False) -> QGraphicsRectItem:
-    """A text label with a dark box, constant size on screen, anchored above-right of (x, y).
+_LABEL_GAP_PX = 6  # between a point and its label, screen px
+
+
+def _label_item(text: str, color: str, x: float, y: float) -> QGraphicsRectItem:
+    """A text label with a dark box, constant size on screen, its top-left corner at (x, y);
+    `place_label` then moves it beside its point (the transform's offset, screen px).
 
     Plain Qt items: pyqtgraph's TextItem re-computes its transform on every paint through a
     signal, which crashes PySide6 6.12 (a reference-count error, "bool_dealloc").
@@ -91,43 +94,101 @@ def _label_item(text: str, color: str, x: float, y: float, left: bool = False,
     label.setPos(4, 2)
     box.setFlag(QGraphicsItem.GraphicsItemFlag.ItemIgnoresTransformations, True)
     box.setPos(x, y)
-    w, h = r.width() + 8, r.height() + 4
-    if centred:  # below the point (the middle of a ruler line), clear of its end labels
-        dx, dy = -w / 2, 6
-    else:
-        dx, dy = (-w - 8 if left else 8), -h - 6
-    box.setTransform(QTransform.fromTranslate(dx, dy))
     return box
+
+
+def label_offsets(w: float, h: float, centred: bool = False) -> list[tuple[float, float]]:
+    """Where a label of w x h screen px may go relative to its point, in order of preference:
+    above-right, above-left, below-right, below-left, then further up and down and sideways
+    (a ruler's middle label: below, then above, centred)."""
+    g = _LABEL_GAP_PX
+    rows = [k * (h + 2) for k in range(4)]  # not far: a label must stay next to its point
+    if centred:
+        out = []
+        for step in rows:
+            out += [(-w / 2, g + step), (-w / 2, -h - g - step)]
+        return out
+    right, left, above, below = g + 2, -w - g - 2, -h - g, g
+    out = []
+    for shift in (0.0, 0.5 * w):
+        for step in rows:
+            out += [(right + shift, above - step), (left - shift, above - step),
+                    (right + shift, below + step), (left - shift, below + step)]
+    return out
+
+
+def _overlap(rect: QRectF, taken: list[QRectF]) -> float:
+    """How much of `rect` the `taken` rects cover (px², overlaps counted once each)."""
+    total = 0.0
+    for t in taken:
+        i = rect.intersected(t)
+        if not i.isEmpty():
+            total += i.width() * i.height()
+    return total
+
+
+def choose_offset(anchor: QPointF, size: tuple[float, float], bounds: QRectF | None,
+                  taken: list[QRectF], centred: bool = False) -> tuple[float, float]:
+    """The first offset of `label_offsets` whose label rect (screen px, at `anchor` + offset)
+    lies inside `bounds` and overlaps none of `taken`; when every one inside overlaps, the one
+    that overlaps least; the first when none fits (`bounds` None: the view is not laid out)."""
+    w, h = size
+    offsets = label_offsets(w, h, centred)
+    if bounds is None or bounds.isEmpty():
+        return offsets[0]
+    best, best_overlap = None, math.inf
+    for dx, dy in offsets:
+        rect = QRectF(anchor.x() + dx, anchor.y() + dy, w, h)
+        if not bounds.contains(rect):
+            continue
+        covered = _overlap(rect, taken)
+        if covered == 0.0:
+            return dx, dy
+        if covered < best_overlap:
+            best, best_overlap = (dx, dy), covered
+    return best if best is not None else offsets[0]
 
 
 class _Marker:
     """A point with a label (and, for a ruler, a line to its partner) in one view."""
 
-    def __init__(self, view: pg.ViewBox, x: float, y: float, text: str, color: str,
-                 line_to: tuple[float, float] | None = None, line_text: str = "",
-                 label_left: bool = False) -> None:
-        self.view = view
+    def __init__(self, panel: ImagePanel, x: float, y: float, text: str, color: str,
+                 line_to: tuple[float, float] | None = None, line_text: str = "") -> None:
+        self.view = panel.view
         self.items = []
+        self.labels: list[QGraphicsRectItem] = []
+        self.centred: list[bool] = []  # per label: a ruler's middle label
         if line_to is not None:
             line = pg.PlotCurveItem([line_to[0] + 0.5, x + 0.5], [line_to[1] + 0.5, y + 0.5],
                                     pen=pg.mkPen(color, width=2, style=Qt.PenStyle.DashLine))
             self.items.append(line)
             if line_text:
                 mx, my = (line_to[0] + x) / 2 + 0.5, (line_to[1] + y) / 2 + 0.5
-                self.items.append(_label_item(line_text, color, mx, my, centred=True))
+                self._add_label(panel, line_text, color, mx, my, centred=True)
         dot = pg.ScatterPlotItem([x + 0.5], [y + 0.5], size=11, symbol="o",
                                  pen=pg.mkPen("k", width=1.5), brush=pg.mkBrush(color))
         self.items.append(dot)
         if text:
-            self.items.append(_label_item(text, color, x + 0.5, y + 0.5, left=label_left))
+            self._add_label(panel, text, color, x + 0.5, y + 0.5)
         for it in self.items:
             it.setZValue(10)
-            view.addItem(it)
+            self.view.addItem(it)
+
+    def _add_label(self, panel: ImagePanel, text: str, color: str, x: float, y: float,
+                   centred: bool = False) -> None:
+        box = _label_item(text, color, x, y)
+        taken = panel.label_rects() + [panel.label_rect(b) for b in self.labels]
+        panel.place_label(box, taken, centred)
+        self.items.append(box)
+        self.labels.append(box)
+        self.centred.append(centred)
 
     def remove(self) -> None:
         for it in self.items:
             self.view.removeItem(it)
         self.items.clear()
+        self.labels.clear()
+        self.centred.clear()
 
 
 def colormap_lut(colormap_id: int) -> np.ndarray:
@@ -143,7 +204,7 @@ def distance_ticks(scale: ColorScale, max_ticks: int = 7) -> list[tuple[float, s
     """Tick positions (0..255 colour level) labelled with distance for a colour bar.
 
     The levels come from `scale` (core.matching.ColorScale), the same mapping that made the
-    colour view. Labels are round distances in m (or mm when the whole range is below 1 m).
+    colour view. Labels are round distances in m (below 1 m too: one unit rule everywhere).
     """
     fb = scale.fb_mm_px
     if not (fb > 0 and scale.near != scale.far):
@@ -155,13 +216,10 @@ def distance_ticks(scale: ColorScale, max_ticks: int = 7) -> list[tuple[float, s
             return []
         z_near = fb / scale.near
         z_far = fb / scale.far if scale.far > 0 else math.inf
-    use_m = z_far >= 1000.0
     min_gap = 255.0 / (max_ticks + 1)
 
     def fmt(z: float, exact: bool = False) -> str:
-        if use_m:
-            return f"{z / 1000:.2f} m" if exact else f"{z / 1000:g} m"
-        return f"{z:.0f} mm" if exact else f"{z:g} mm"
+        return f"{z / 1000:.2f} m" if exact else f"{z / 1000:g} m"
 
     ticks: list[tuple[float, str]] = []
 
@@ -187,6 +245,9 @@ def distance_ticks(scale: ColorScale, max_ticks: int = 7) -> list[tuple[float, s
     return sorted(ticks)
 
 
+_BAR_END_ROOM = 14.0  # colour levels of room beyond each end of the colour bar's ramp
+
+
 class DistanceColorBar(pg.PlotItem):
     """A vertical colour bar whose axis is labelled in distance (near at the top)."""
 
@@ -205,8 +266,12 @@ class DistanceColorBar(pg.PlotItem):
         self.addItem(self._img)
         self._lut_id: int | None = None
         self.setXRange(0, 1, padding=0)
-        self.setYRange(0, 256, padding=0)
+        # room above and below the ramp: the end labels are centred on the ends (the bottom
+        # one was cut in half)
+        self.setYRange(-_BAR_END_ROOM, 256 + _BAR_END_ROOM, padding=0)
         self.getViewBox().invertY(False)
+        # no ticks until a frame gives the range (the axis' own 0..250 meant nothing)
+        self.getAxis("right").setTicks([[], []])
 
     def set_scale(self, colormap_id: int, scale: ColorScale) -> None:
         """Show the colour map with distance ticks placed as `scale` maps them."""
@@ -224,6 +289,7 @@ class ImagePanel(pg.GraphicsLayoutWidget):
 
     hovered = Signal(str, float, float)  # view key, x, y px (NaN when left)
     doubleClicked = Signal(str, float, float)  # view key, x, y px
+    regionChanged = Signal(object)  # (x0, y0, x1, y1) px of the region box, after a drag
 
     def __init__(self, key: str, title: str, color_bar: bool = False, parent=None) -> None:
         super().__init__(parent)
@@ -243,7 +309,10 @@ class ImagePanel(pg.GraphicsLayoutWidget):
             self.addItem(self.color_bar, row=1, col=1)
         self._shape: tuple[int, int] | None = None
         self._markers: list[_Marker] = []
+        self.region_box: pg.RectROI | None = None
         self.item.hovered.connect(lambda x, y: self.hovered.emit(self.key, x, y))
+        self.view.sigResized.connect(self._relayout_labels)
+        self.view.sigRangeChanged.connect(self._relayout_labels)
         self.item.doubleClicked.connect(lambda x, y: self.doubleClicked.emit(self.key, x, y))
 
     def set_title(self, text: str) -> None:
@@ -270,12 +339,87 @@ class ImagePanel(pg.GraphicsLayoutWidget):
     def add_marker(self, x: float, y: float, text: str, color: str = "#ffeb3b",
                    line_to: tuple[float, float] | None = None, line_text: str = "") -> None:
         """A point with a label at image pixel (x, y); with `line_to`, a dashed line from that
-        pixel labelled `line_text` at its middle (the ruler). Labels near the right edge are
-        drawn to the left of their point so they stay inside the view."""
-        size = self.image_size()
-        label_left = size is not None and x > 0.7 * size[0]
-        self._markers.append(_Marker(self.view, x, y, text, color, line_to, line_text,
-                                     label_left))
+        pixel labelled `line_text` at its middle (the ruler). Each label goes beside its point
+        where it stays inside the view and clear of the labels already there (as the view is
+        zoomed now)."""
+        self._markers.append(_Marker(self, x, y, text, color, line_to, line_text))
+
+    # ---- label placement (screen px of the view's scene) --------------------------------------
+    def screen_pos(self, x: float, y: float) -> QPointF:
+        """Where item coordinate (x, y) of the view (pixel corners at integers) is drawn,
+        in scene px (the frame of the labels' offsets)."""
+        self.view.updateMatrix()
+        return self.view.mapViewToScene(QPointF(x, y))
+
+    def view_rect(self) -> QRectF | None:
+        """The part of the scene showing the image (the view box), None before layout."""
+        r = self.view.sceneBoundingRect()
+        return None if r.width() < 2 or r.height() < 2 else r
+
+    def place_label(self, box: QGraphicsRectItem, taken: list[QRectF], centred: bool) -> None:
+        """Move `box` beside its point, inside the view and clear of the `taken` rects."""
+        r = box.rect()
+        dx, dy = choose_offset(self.screen_pos(box.pos().x(), box.pos().y()),
+                               (r.width(), r.height()), self.view_rect(), taken, centred)
+        box.setTransform(QTransform.fromTranslate(dx, dy))
+
+    def _relayout_labels(self, *_args) -> None:
+        """Place every label again, oldest first: labels keep their size on screen, so a zoom
+        or a resize of the view moves them relative to each other."""
+        taken: list[QRectF] = []
+        for m in self._markers:
+            for box, centred in zip(m.labels, m.centred, strict=True):
+                self.place_label(box, taken, centred)
+                taken.append(self.label_rect(box))
+
+    def label_rect(self, box: QGraphicsRectItem) -> QRectF:
+        """The scene rect of a marker's label as the view is zoomed now."""
+        t = box.transform()
+        p = self.screen_pos(box.pos().x(), box.pos().y())  # the point it labels
+        r = box.rect()
+        return QRectF(p.x() + t.dx(), p.y() + t.dy(), r.width(), r.height())
+
+    def label_rects(self) -> list[QRectF]:
+        """The scene rects of the labels drawn now."""
+        return [self.label_rect(box) for m in self._markers for box in m.labels]
+
+    # ---- the watched region ---------------------------------------------------------------------
+    def show_region(self, box: tuple[int, int, int, int] | None) -> None:
+        """Show a box the user can drag and resize over pixels x0..x1-1, y0..y1-1 (None: none);
+        `regionChanged` reports where it was moved to."""
+        if box is None:
+            if self.region_box is not None:
+                self.view.removeItem(self.region_box)
+                self.region_box = None
+            return
+        x0, y0, x1, y1 = box
+        if self.region_box is None:
+            roi = pg.RectROI((x0, y0), (x1 - x0, y1 - y0), pen=pg.mkPen(REGION_OK, width=2),
+                             snapSize=1.0, translateSnap=True, scaleSnap=True, movable=True)
+            roi.setZValue(9)
+            roi.sigRegionChangeFinished.connect(self._region_moved)
+            self.view.addItem(roi)
+            self.region_box = roi
+        else:
+            self.region_box.setPos((x0, y0), finish=False)
+            self.region_box.setSize((x1 - x0, y1 - y0), finish=False)
+
+    def region(self) -> tuple[int, int, int, int] | None:
+        """(x0, y0, x1, y1) px of the region box, None without one."""
+        roi = self.region_box
+        if roi is None:
+            return None
+        (x, y), (w, h) = roi.pos(), roi.size()
+        return (int(round(x)), int(round(y)), int(round(x + w)), int(round(y + h)))
+
+    def set_region_alarm(self, alarm: bool) -> None:
+        if self.region_box is not None:
+            pen = pg.mkPen(REGION_ALARM if alarm else REGION_OK, width=3 if alarm else 2)
+            self.region_box.setPen(pen)
+            self.region_box.currentPen = pen  # what it draws until hovered
+
+    def _region_moved(self, *_args) -> None:
+        self.regionChanged.emit(self.region())
 
     def clear_markers(self) -> None:
         for m in self._markers:
@@ -293,6 +437,10 @@ class ImagePanel(pg.GraphicsLayoutWidget):
     def widget_pos_of_pixel(self, x: float, y: float):
         """Widget (viewport) position of image pixel (x, y), a QPoint."""
         return self.mapFromScene(self.scene_pos_of_pixel(x, y))
+
+
+REGION_OK = "#69f0ae"
+REGION_ALARM = "#ff1744"
 
 
 def marker_color(valid: bool) -> str:

@@ -10,6 +10,8 @@ from dataclasses import replace
 from PySide6.QtCore import QAbstractTableModel, QModelIndex, Qt
 from PySide6.QtGui import QBrush, QColor
 
+from stereo_gui.files.spreadsheet import RULER_METHOD, record_error
+
 
 def _num(v, digits: int = 1) -> str:
     if v is None:
@@ -29,6 +31,15 @@ def _short_time(iso: str) -> str:
     return t.astimezone().strftime("%H:%M:%S") if t.tzinfo else t.strftime("%H:%M:%S")
 
 
+def _is_ruler(r) -> bool:
+    return r.method.startswith(RULER_METHOD)
+
+
+def _xyz(v: float, r) -> str:
+    """X, Y or Z of a reading; of a ruler distance they are the components of B - A."""
+    return f"Δ {_num(v)}" if _is_ruler(r) else _num(v)
+
+
 # (header, how to show a record, tooltip); the true distance sits next to what it is compared with
 COLUMNS = (
     ("Time", lambda r: _short_time(r.time), "time of the reading"),
@@ -37,18 +48,24 @@ COLUMNS = (
     ("Disparity (px)", lambda r: _num(r.disparity_px, 3), "median disparity of the patch"),
     ("True distance (mm)", lambda r: _num(r.true_mm) if r.true_mm is not None else "",
      "double-click to enter the measured true distance: it makes the reading a regression sample"),
-    ("Z (mm)", lambda r: _num(r.Z_mm), "depth along the optical axis"),
-    ("Range (mm)", lambda r: _num(r.range_mm), "distance from the left camera"),
+    ("Z (mm)", lambda r: _xyz(r.Z_mm, r), "depth along the optical axis (Δ: a ruler's B − A)"),
+    ("Error (mm)", lambda r: _num(record_error(r)[0]),
+     "Z − true distance, mm (empty until a true distance is entered)"),
+    ("Error (%)", lambda r: _num(record_error(r)[1], 2),
+     "(Z − true distance) / true distance, %"),
+    ("Range (mm)", lambda r: _num(r.range_mm),
+     "distance from the left camera; of a ruler distance, the length A–B"),
     ("± (mm)", lambda r: _num(r.expected_error_mm),
-     "expected depth error: Z² / (f·B) × the disparity uncertainty of the patch"),
+     "95 % bound of the depth error: the true distance lies within Z ± this in 19 of 20 "
+     "readings"),
     ("Valid", lambda r: "yes" if r.valid else f"no: {r.reason}" if r.reason else "no",
      "whether the reading is usable, and why not"),
-    ("X (mm)", lambda r: _num(r.X_mm), "left rectified camera frame"),
-    ("Y (mm)", lambda r: _num(r.Y_mm), "left rectified camera frame"),
+    ("X (mm)", lambda r: _xyz(r.X_mm, r), "left rectified camera frame"),
+    ("Y (mm)", lambda r: _xyz(r.Y_mm, r), "left rectified camera frame"),
     ("Method", lambda r: r.method, "triangulation or the fit used"),
 )
 TRUE_COL = 3
-VALID_COL = 7
+VALID_COL = 9
 _LEFT_ALIGNED = (0, VALID_COL, len(COLUMNS) - 1)
 
 
@@ -140,4 +157,27 @@ def samples_from(records) -> list[tuple[float, float]]:
     for r in records:
         if r.true_mm is not None and r.valid and math.isfinite(r.disparity_px):
             out.append((float(r.disparity_px), float(r.true_mm)))
+    return out
+
+
+def triangulation_errors_mm(records, calibration=None) -> list[float]:
+    """Z - true distance (mm) of triangulation for the valid readings with a true distance: the
+    logged Z where triangulation made it, else triangulated again through `calibration` (a
+    metric StereoCalibration) from the logged pixel and disparity; readings that cannot be
+    triangulated are left out."""
+    from stereo_gui.core.measure import triangulate
+
+    out = []
+    for r in records:
+        if r.true_mm is None or not r.valid or not math.isfinite(r.disparity_px):
+            continue
+        if r.method == "triangulation":
+            z = r.Z_mm
+        elif calibration is not None and getattr(calibration, "metric", False):
+            xyz = triangulate(calibration, r.x_px, r.y_px, r.disparity_px)
+            z = float("nan") if xyz is None else xyz[2]
+        else:
+            continue
+        if math.isfinite(z):
+            out.append(float(z) - float(r.true_mm))
     return out

@@ -32,6 +32,7 @@ from stereo_gui.core.matching import COLORMAPS, MODES, MatcherParams
 log = logging.getLogger(__name__)
 
 BUILTIN_PRESETS = ("seed", "live", "quality")
+MODIFIED = " (modified)"  # a preset's name after an edit: what runs is no longer the preset
 
 
 # ---- presets (stereo_gui.files.presets when present) -------------------------------------------
@@ -115,6 +116,7 @@ class ParamsPanel(QWidget):
     def __init__(self, params: MatcherParams | None = None, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self._params = params or MatcherParams()
+        self._calibration = None  # see set_calibration
         self._updating = False
         self.error_label = QLabel()
         self.error_label.setStyleSheet("color: #ff6e6e")
@@ -132,7 +134,7 @@ class ParamsPanel(QWidget):
         prow.addWidget(self.preset, 1)
         prow.addWidget(self.save_preset)
         self.reload_presets()
-        self.preset.activated.connect(lambda _i: self.apply_preset(self.preset.currentText()))
+        self.preset.activated.connect(self._preset_activated)
 
         # SGBM
         self.block_size = SliderSpin(1, 21)
@@ -264,6 +266,11 @@ class ParamsPanel(QWidget):
         self.preset.setCurrentText(current)
         self.preset.blockSignals(False)
 
+    def _preset_activated(self, _index: int) -> None:
+        name = self.preset.currentText()
+        if not name.endswith(MODIFIED):  # the parameters running now: nothing to apply
+            self.apply_preset(name)
+
     def apply_preset(self, name: str) -> bool:
         """Show and emit the named preset's parameters; False (and a message) if it fails."""
         try:
@@ -303,6 +310,51 @@ class ParamsPanel(QWidget):
         self._params = params
         self._show(params)
 
+    def set_calibration(self, calibration) -> None:
+        """The calibration the parameters apply to: a range from working distances is shown
+        as the min_disp / num_disp it gives (d = f·B/Z) with it."""
+        self._calibration = calibration
+        self._show_effective(self._params)
+
+    def _show_effective(self, p: MatcherParams) -> None:
+        """Show the values that run where the panel derives them: an odd window (SGBM's), the
+        P1/P2 that follow it, the disparity range from working distances, and "(modified)"
+        in the preset box after an edit."""
+        self._updating = True
+        try:
+            self.block_size.setValue(p.block_size)
+            if p.p1 is None and p.p2 is None:
+                self.p1.setValue(p.p1_value)
+                self.p2.setValue(p.p2_value)
+            if p.z_min_mm is not None and self._calibration is not None:
+                lo, num = p.disparity_range(self._calibration)
+                for spin, v in ((self.min_disparity, lo), (self.num_disparities, num)):
+                    if v > spin.spin.maximum():
+                        spin.spin.setMaximum(int(v))
+                        spin.slider.setMaximum(int(v) // spin._step)
+                    spin.setValue(int(v))
+                tip = (f"from the working distances: {lo} .. {lo + num - 1} px "
+                       f"for this calibration")
+            else:
+                tip = ""
+            for spin in (self.min_disparity, self.num_disparities):
+                spin.setToolTip(tip)
+            self._show_preset_name(p.name)
+        finally:
+            self._updating = False
+
+    def _show_preset_name(self, name: str) -> None:
+        """The preset box shows `name`; a modified preset's name is an entry of its own."""
+        self.preset.blockSignals(True)
+        for i in reversed(range(self.preset.count())):
+            if self.preset.itemText(i).endswith(MODIFIED) and self.preset.itemText(i) != name:
+                self.preset.removeItem(i)
+        if name and self.preset.findText(name) < 0:
+            self.preset.insertItem(0, name)
+        if name:
+            self.preset.setCurrentText(name)
+        self.preset.blockSignals(False)
+
     def _show(self, p: MatcherParams) -> None:
         self._updating = True
         try:
@@ -335,11 +387,10 @@ class ParamsPanel(QWidget):
             self.color_fixed.setChecked(p.color_range == "fixed")
             self.z_near.setValue(p.color_z_near_mm)
             self.z_far.setValue(p.color_z_far_mm)
-            if self.preset.findText(p.name) >= 0:
-                self.preset.setCurrentText(p.name)
             self._sync_enabled()
         finally:
             self._updating = False
+        self._show_effective(p)
         self.error_label.hide()
 
     def _sync_enabled(self) -> None:
@@ -361,8 +412,8 @@ class ParamsPanel(QWidget):
         if block % 2 == 0:
             block += 1  # SGBM needs an odd window
         return self._params.replace(
-            name=self._params.name if self._params.name.endswith("(edited)")
-            else f"{self._params.name} (edited)",
+            name=self._params.name if self._params.name.endswith(MODIFIED)
+            else f"{self._params.name}{MODIFIED}",
             block_size=block,
             min_disparity=self.min_disparity.value(),
             num_disparities=self.num_disparities.value(),
@@ -398,6 +449,8 @@ class ParamsPanel(QWidget):
             self._show_error(str(exc))
             return
         self.error_label.hide()
+        # what runs, even when the edit changed nothing (an even window runs as the odd one)
+        self._show_effective(params if params != self._params else self._params)
         if params != self._params:
             self._params = params
             self.paramsChanged.emit(params)

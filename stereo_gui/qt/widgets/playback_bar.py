@@ -1,5 +1,6 @@
 """Playback controls for a recorded source (a recording, a folder of pairs, a side-by-side video):
-play/pause, one frame back/forward, loop, and a position slider with "frame i of N".
+play/pause, one frame back/forward, loop, speed, and a position bar (a click goes to that place)
+with "frame i of N" and the recorded time.
 
 The bar shows itself only while the frame worker's source is a playback source. The controls
 call the source's thread-safe methods directly (they only set state under its lock; the reader
@@ -11,12 +12,52 @@ from __future__ import annotations
 import logging
 
 from PySide6.QtCore import Qt, QTimer, Signal
-from PySide6.QtWidgets import QCheckBox, QHBoxLayout, QLabel, QSlider, QToolButton, QWidget
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QHBoxLayout,
+    QLabel,
+    QSlider,
+    QStyle,
+    QStyleOptionSlider,
+    QToolButton,
+    QWidget,
+)
 
 log = logging.getLogger(__name__)
 
 _CONTROLS = ("frame_count", "position", "paused", "pause", "resume", "step", "seek", "set_loop")
 POLL_MS = 100
+SPEEDS = (0.25, 0.5, 1.0, 2.0, 4.0)  # playback speeds offered, times the recorded pace
+
+
+class SeekSlider(QSlider):
+    """A horizontal slider that goes to the place clicked (a plain QSlider only pages towards
+    it), then drags from there."""
+
+    def value_at(self, x: float) -> int:
+        """The value at widget x position `x` (px)."""
+        opt = QStyleOptionSlider()
+        self.initStyleOption(opt)
+        groove = self.style().subControlRect(QStyle.ComplexControl.CC_Slider, opt,
+                                             QStyle.SubControl.SC_SliderGroove, self)
+        handle = self.style().subControlRect(QStyle.ComplexControl.CC_Slider, opt,
+                                             QStyle.SubControl.SC_SliderHandle, self)
+        span = max(1, groove.width() - handle.width())
+        pos = int(round(x - groove.x() - handle.width() / 2))
+        return QStyle.sliderValueFromPosition(self.minimum(), self.maximum(), pos, span,
+                                              opt.upsideDown)
+
+    def mousePressEvent(self, ev) -> None:  # noqa: N802 - Qt API
+        if ev.button() == Qt.MouseButton.LeftButton:
+            opt = QStyleOptionSlider()
+            self.initStyleOption(opt)
+            on_handle = self.style().hitTestComplexControl(
+                QStyle.ComplexControl.CC_Slider, opt, ev.position().toPoint(), self) \
+                == QStyle.SubControl.SC_SliderHandle
+            if not on_handle:
+                self.setValue(self.value_at(ev.position().x()))
+        super().mousePressEvent(ev)
 
 
 def playback_of(source):
@@ -52,18 +93,23 @@ class PlaybackBar(QWidget):
         self.forward_button = button("1 ▶", "One frame forward (pauses)")
         self.loop_check = QCheckBox("Loop")
         self.loop_check.setToolTip("Start again at the first frame after the last one")
-        self.slider = QSlider(Qt.Orientation.Horizontal)
-        self.slider.setToolTip("Position in the recording: drag to go to a frame")
+        self.speed_combo = QComboBox()
+        for v in SPEEDS:
+            self.speed_combo.addItem(f"{v:g}×", v)
+        self.speed_combo.setCurrentIndex(SPEEDS.index(1.0))
+        self.speed_combo.setToolTip("Playback speed (times the recorded pace)")
+        self.slider = SeekSlider(Qt.Orientation.Horizontal)
+        self.slider.setToolTip("Position in the recording: click or drag to go to a frame")
         self.slider.setMinimum(0)
         self.label = QLabel("frame – of –")
-        widest = "frame 00000 of 00000 (end)"
+        widest = "frame 00000 of 00000 (end)"  # the time after it may push the slider
         self.label.setMinimumWidth(self.label.fontMetrics().horizontalAdvance(widest))
         self.title = QLabel("Playback:")
         self.title.setStyleSheet("font-weight: bold")
         row = QHBoxLayout(self)
         row.setContentsMargins(0, 0, 0, 0)
         for w in (self.title, self.play_button, self.back_button, self.forward_button,
-                  self.loop_check):
+                  self.loop_check, self.speed_combo):
             row.addWidget(w)
         row.addWidget(self.slider, 1)
         row.addWidget(self.label)
@@ -72,6 +118,7 @@ class PlaybackBar(QWidget):
         self.back_button.clicked.connect(lambda: self.step(-1))
         self.forward_button.clicked.connect(lambda: self.step(1))
         self.loop_check.toggled.connect(self._loop_toggled)
+        self.speed_combo.currentIndexChanged.connect(self._speed_chosen)
         self.slider.valueChanged.connect(self._slider_moved)
         self._timer = QTimer(self)
         self._timer.setInterval(POLL_MS)
@@ -97,6 +144,8 @@ class PlaybackBar(QWidget):
         self.loop_check.blockSignals(True)
         self.loop_check.setChecked(bool(getattr(self._source, "loop", True)))
         self.loop_check.blockSignals(False)
+        self.speed_combo.setEnabled(hasattr(self._source, "set_speed"))
+        self._speed_chosen()  # a new recording plays at the speed chosen
         self._timer.start()
         self.refresh()
 
@@ -135,6 +184,17 @@ class PlaybackBar(QWidget):
         if self._source is not None and value != self._source.position:
             self.seek(value)
 
+    def set_speed(self, speed: float) -> None:
+        """Play at `speed` (one of SPEEDS) times the recorded pace."""
+        i = self.speed_combo.findData(speed)
+        if i >= 0:
+            self.speed_combo.setCurrentIndex(i)
+
+    def _speed_chosen(self, *_args) -> None:
+        s = self._source
+        if s is not None and hasattr(s, "set_speed"):
+            s.set_speed(float(self.speed_combo.currentData()))
+
     def _loop_toggled(self, on: bool) -> None:
         if self._source is not None:
             self._source.set_loop(on)
@@ -151,7 +211,14 @@ class PlaybackBar(QWidget):
             return
         self.play_button.setText("Play" if paused else "Pause")
         end = " (end)" if finished else ""
-        self.label.setText(f"frame {pos + 1} of {n}{end}")
+        when = ""
+        if hasattr(s, "time_s"):
+            try:
+                when = (f"   {s.time_s(pos):.3f} s of "
+                        f"{s.time_s(n - 1):.1f} s" if n else "")
+            except Exception:  # noqa: BLE001 - the source may have been closed meanwhile
+                when = ""
+        self.label.setText(f"frame {pos + 1} of {n}{end}{when}")
         if not self.slider.isSliderDown() and self.slider.value() != pos:
             self.slider.blockSignals(True)
             self.slider.setValue(pos)

@@ -29,6 +29,48 @@ class SimFrameTruth:
     scene: Scene | None
     truth: RigTruth
 
+    def point_rectified(self, calib: StereoCalibration, x: float, y: float
+                        ) -> np.ndarray | None:
+        """True (X, Y, Z) mm in the left rectified frame of `calib` of what the left camera
+        sees at rectified pixel (x, y): the nearest of the board (when shown) and the scene's
+        objects, or None where the ray hits nothing (the plain background)."""
+        ray_rect = np.linalg.inv(np.asarray(calib.P1, np.float64)[:, :3]) @ np.array([x, y, 1.0])
+        R1 = np.asarray(calib.R1, np.float64)
+        ray = R1.T @ ray_rect
+        ray /= np.linalg.norm(ray)
+        hits = []
+        if self.scene is not None:
+            t = self.scene.depth_along_ray(np.zeros(3), ray)
+            if t is not None:
+                hits.append(t)
+        if self.pose is not None and self.truth.board is not None:
+            t = _board_hit(self.pose, self.truth.board, ray)
+            if t is not None:
+                hits.append(t)
+        return R1 @ (min(hits) * ray) if hits else None
+
+
+def _board_outline_mm(board) -> tuple[float, float, float, float]:
+    """The printed board (squares plus white border) on its plane: (a0, b0, a1, b1) mm."""
+    s = board.square_mm
+    return (-2.0 * s, -2.0 * s, (board.cols + 1) * s, (board.rows + 1) * s)
+
+
+def _board_hit(pose: BoardPose, board, ray: np.ndarray) -> float | None:
+    """Ray parameter (mm along the unit `ray` from the left camera) of its hit with the
+    printed board, or None."""
+    R, t = np.asarray(pose.R, np.float64), np.asarray(pose.t, np.float64).reshape(3)
+    n = R[:, 2]
+    denom = float(n @ ray)
+    if abs(denom) < 1e-12:
+        return None
+    s = float(n @ t) / denom
+    if s <= 0:
+        return None
+    a, b = R[:, :2].T @ (s * ray - t)
+    a0, b0, a1, b1 = _board_outline_mm(board)
+    return s if a0 <= a <= a1 and b0 <= b <= b1 else None
+
 
 @dataclass(frozen=True, eq=False)
 class _Plane:
@@ -81,9 +123,7 @@ class SimRig:
 
     def board_outline_mm(self) -> tuple[float, float, float, float]:
         """The printed board (squares plus white border) on its plane: (a0, b0, a1, b1) mm."""
-        b = self.config.board
-        s = b.square_mm
-        return (-2.0 * s, -2.0 * s, (b.cols + 1) * s, (b.rows + 1) * s)
+        return _board_outline_mm(self.config.board)
 
     def _board_visible(self, pose: BoardPose, margin_px: float = 8.0) -> bool:
         a0, b0, a1, b1 = self.board_outline_mm()

@@ -133,6 +133,9 @@ def test_save_and_load_calibration_file(tab, ctx, qtbot, session_folder, tmp_pat
     path = tmp_path / "calib.yaml"
     assert tab.save_calibration(path) and path.exists()
     assert ctx.calibration_path == path and "calib.yaml" in tab.figures.source_label.text()
+    # the run's line no longer says "Not saved yet" once it is saved (issue 12, item 9)
+    assert "Not saved yet" not in tab.progress_label.text()
+    assert "Saved as calib.yaml" in tab.progress_label.text()
     # the file saved here is the one loaded at the next start, as from the File menu
     assert ctx.settings.last_calibration == str(path.resolve())
     ctx.set_calibration(None)

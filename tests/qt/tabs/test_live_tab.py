@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from PySide6.QtCore import Qt
 
+from stereo_gui.pipeline.readout import format_distance
 from stereo_gui.qt.tabs.live import TRUE_CALIBRATION_NOTE, LiveOutput
 
 
@@ -94,15 +95,109 @@ def test_ruler_measures_3d_distance_between_two_points(
     ta = sim_rig.true_point_rectified(calib, scene, *a)
     tb = sim_rig.true_point_rectified(calib, scene, *b)
     assert live.last_ruler_mm == pytest.approx(float(np.linalg.norm(ta - tb)), rel=0.02)
+    # both points and the distance between them are in the log
+    assert len(ctx.measurements) == 3
+    rec = ctx.measurements[-1]
+    assert rec.method.startswith("ruler A–B") and rec.valid
+    assert rec.range_mm == pytest.approx(live.last_ruler_mm)
+    assert rec.expected_error_mm > 0 and math.isnan(rec.disparity_px)  # not a regression sample
 
 
-def test_hover_readout_shows_distance_and_validity(qtbot, ctx, live, sim_rig, wall_pair,
-                                                   array_source):
+def test_ruler_says_when_a_point_has_no_distance(qtbot, ctx, live, sim_rig, wall_pair,
+                                                 array_source):
     _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
-    text = live.readout_text("wls", 320, 240)
-    assert "disparity" in text and "distance" in text and "valid" in text
-    assert "m" in text.split("distance")[1]
-    assert "outside" in live.readout_text("wls", 5000, 10)
+    live.ruler_button.setChecked(True)
+    statuses = []
+    ctx.statusMessage.connect(statuses.append)
+    with qtbot.waitSignal(live.measured, timeout=30000):
+        live.measure_at(-5.0, 10.0)  # outside the image: no first point
+    assert "first point has no distance (outside the image)" in statuses[-1]
+    assert "another first point" in statuses[-1]
+    with qtbot.waitSignal(live.measured, timeout=30000):
+        live.measure_at(200.0, 240.0)  # A
+    assert "double-click the second point" in statuses[-1]
+    with qtbot.waitSignal(live.measured, timeout=30000):
+        live.measure_at(700.0, 240.0)  # no B: A stays
+    assert "second point has no distance" in statuses[-1]
+    with qtbot.waitSignal(live.measured, timeout=30000):
+        live.measure_at(440.0, 240.0)
+    assert "A–B" in statuses[-1] and "logged" in statuses[-1]
+    assert ctx.measurements[-1].method.startswith("ruler A–B")
+    assert ctx.measurements[-1].x_px == pytest.approx(440.0)
+
+
+def _hover(qtbot, live, key, x, y):
+    """Point at (x, y) of view `key` and wait for the readout of that position."""
+    with qtbot.waitSignal(live.hoverRead, timeout=30000,
+                          check_params_cb=lambda r: (r.x, r.y) == (x, y)) as sig:
+        live.panels[key].hovered.emit(key, x, y)
+    return sig.args[0]
+
+
+def test_hover_reads_what_a_double_click_gives_at_that_pixel(qtbot, ctx, live, sim_rig,
+                                                             wall_pair, array_source):
+    _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
+    live.set_paused(True)  # one frame for both
+    for key, (x, y) in (("wls", (320.0, 240.0)), ("raw", (101.0, 377.0)),
+                        ("left", (610.0, 30.0)), ("wls", (3.0, 200.0))):
+        reading = _hover(qtbot, live, key, x, y)
+        with qtbot.waitSignal(live.measured, timeout=30000) as sig:
+            live.measure_at(x, y, key)
+        click = sig.args[0]
+        hover = reading.measurement
+        assert hover.valid == click.valid and hover.reason == click.reason
+        if click.valid:
+            assert hover.Z_mm == click.Z_mm
+            assert hover.expected_error_mm == click.expected_error_mm
+            assert format_distance(click.Z_mm) in live.readout_text()
+            assert f"± {click.expected_error_mm:.1f} mm" in live.readout_text()
+        else:  # the click's reason, e.g. "not seen by the right camera" at the left edge
+            assert click.reason in live.readout_text()
+    assert "right image" in _hover(qtbot, live, "right", 320.0, 240.0).note
+    assert "outside" in _hover(qtbot, live, "wls", 5000.0, 10.0).note
+    live.panels["wls"].hovered.emit("wls", math.nan, math.nan)  # the pointer leaves
+    assert "double-click" in live.readout_text()
+    # and comes back to the pixel it read last: read again, not left saying "Point at a view"
+    _hover(qtbot, live, "wls", 5000.0, 10.0)
+    assert "outside" in live.readout_text()
+
+
+def test_fast_pointer_moves_do_not_queue_readings(qtbot, ctx, live, sim_rig, wall_pair,
+                                                  array_source):
+    _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
+    live.set_paused(True)
+    before = live.hover_jobs_submitted
+    panel = live.panels["wls"]
+    for i in range(60):  # faster than any reading: no event is processed in between
+        panel.hovered.emit("wls", 200.0 + i, 240.0)
+    assert live.hover_jobs_submitted - before == 1  # one runs, the newest position waits
+    reading = None
+    while reading is None or reading.x != 259.0:
+        with qtbot.waitSignal(live.hoverRead, timeout=30000) as sig:
+            pass
+        reading = sig.args[0]
+    assert live.hover_jobs_submitted - before == 2  # the first and the newest, nothing between
+    assert "x  259" in live.readout_text()
+    assert not ctx.jobs.is_busy()
+
+
+def test_hover_on_the_simulated_rig_shows_the_true_distance_labelled(
+        qtbot, ctx, live, sim_rig, wall_pair, array_source):
+    from stereo_gui.sources.sim.rig import SimFrameTruth
+
+    scene, left, right = wall_pair
+    calib = sim_rig.true_calibration()
+    ctx.set_calibration(calib, None, note=TRUE_CALIBRATION_NOTE)
+    ctx.frames.set_source(array_source(left, right, fps=30,
+                                       truth=SimFrameTruth(None, scene, sim_rig.truth)))
+    with qtbot.waitSignal(live.frameShown, timeout=30000):
+        pass
+    live.set_paused(True)
+    reading = _hover(qtbot, live, "wls", 320.0, 240.0)
+    truth = sim_rig.true_point_rectified(calib, scene, 320.0, 240.0)
+    assert reading.true_z_mm == pytest.approx(truth[2])
+    assert f"TRUE (simulated scene): Z {format_distance(truth[2])}" in live.readout_text()
+    assert reading.measurement.Z_mm == pytest.approx(truth[2], rel=0.01)
 
 
 def test_parameter_change_applies_to_next_frame(qtbot, ctx, live, sim_rig, wall_pair,
@@ -173,14 +268,6 @@ def test_pause_freezes_and_resume_continues(qtbot, ctx, live, sim_rig, wall_pair
     qtbot.waitUntil(lambda: live.frames_shown > n, timeout=30000)
 
 
-def test_format_distance():
-    from stereo_gui.qt.tabs.live import format_distance
-
-    assert format_distance(1503.2) == "1.503 m"
-    assert format_distance(850.04) == "850.0 mm"
-    assert format_distance(math.nan) == "–"
-
-
 def test_readings_use_the_active_fit(qtbot, ctx, live, sim_rig, wall_pair, array_source):
     from stereo_gui.core.regression import fit_inverse
 
@@ -197,7 +284,9 @@ def test_readings_use_the_active_fit(qtbot, ctx, live, sim_rig, wall_pair, array
     assert m.valid and m.method == fit.model
     assert m.Z_mm == pytest.approx(1.1 * 1500.0, rel=0.02)
     assert ctx.measurements[-1].method == fit.model
-    assert "fit" in live.readout_text("wls", 320, 240)
+    live.set_paused(True)
+    reading = _hover(qtbot, live, "wls", 320.0, 240.0)
+    assert reading.measurement.method == fit.model and "fit" in live.readout_text()
 
 
 def test_every_view_shows_the_whole_image_filling_its_panel(
@@ -224,3 +313,30 @@ def test_every_view_shows_the_whole_image_filling_its_panel(
     assert fitted(live.panels["left"])  # zooming one view leaves the others alone
     live.fit_button.click()
     assert all(fitted(live.panels[k]) for k in live.visible_views())
+
+
+def test_region_box_watches_the_nearest_distance_and_alarms(qtbot, ctx, live, sim_rig,
+                                                            wall_pair, array_source):
+    from stereo_gui.qt.widgets.image_view import REGION_ALARM
+
+    _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
+    statuses = []
+    ctx.statusMessage.connect(statuses.append)
+    live.set_region((250, 180, 400, 300), alarm_m=1.0)  # the wall is at 1.5 m: no alarm
+    assert live.panels["wls"].region() == (250, 180, 400, 300)
+    qtbot.waitUntil(lambda: live.last_region is not None
+                    and live.last_region.region.x0 == 250, timeout=30000)
+    stats = live.last_region
+    assert stats.median_mm == pytest.approx(1500.0, rel=0.03) and not stats.alarm
+    assert "nearest" in live.region_label.text() and "ALARM" not in live.region_label.text()
+    live.alarm_spin.setValue(2.0)  # now anything nearer than 2 m: the wall
+    qtbot.waitUntil(lambda: live.last_region.alarm, timeout=30000)
+    assert "ALARM" in live.region_label.text()
+    assert any(s.startswith("ALARM") for s in statuses)
+    assert live.panels["wls"].region_box.pen.color().name() == REGION_ALARM
+    # dragged elsewhere (what the box reports when the user lets go)
+    live.panels["wls"].show_region((10, 10, 40, 40))
+    live.panels["wls"].regionChanged.emit((10, 10, 40, 40))
+    qtbot.waitUntil(lambda: live.last_region.region.x0 == 10, timeout=30000)
+    live.set_region(None)
+    assert live.panels["wls"].region_box is None and not live.region_label.isVisibleTo(live)

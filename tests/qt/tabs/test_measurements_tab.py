@@ -9,7 +9,7 @@ from openpyxl import load_workbook
 
 from stereo_gui.files.spreadsheet import MeasurementRecord, read_csv
 from stereo_gui.qt.tabs.measurements import MeasurementsTab
-from stereo_gui.qt.widgets.measurement_table import TRUE_COL
+from stereo_gui.qt.widgets.measurement_table import COLUMNS, TRUE_COL, VALID_COL
 
 F_PX, B_MM = 750.0, 110.0
 
@@ -49,8 +49,8 @@ def test_log_table_shows_readings(tab, ctx):
     model = tab.table.model()
     assert model.rowCount() == 2
     assert model.index(0, 2).data() == "41.250"
-    assert model.index(0, 5).data() == f"{F_PX * B_MM / 41.25:.1f}"  # range
-    assert model.index(1, 7).data().startswith("no: no valid pixels")
+    assert model.index(0, 7).data() == f"{F_PX * B_MM / 41.25:.1f}"  # range
+    assert model.index(1, VALID_COL).data().startswith("no: no valid pixels")
     assert "2 readings, 0 with a true distance" in tab.count_label.text()
 
 
@@ -206,3 +206,125 @@ def test_clear_log_asks_first(tab, ctx, monkeypatch):
     monkeypatch.setattr(QMessageBox, "question", answer(QMessageBox.StandardButton.Yes))
     tab.clear_button.click()
     assert ctx.measurements == []
+
+
+def test_error_columns_and_triangulation_rms_beside_each_fit(tab, ctx):
+    _log_with_truth(ctx, tab, truth_offset_mm=15.0)
+    headers = [c[0] for c in COLUMNS]
+    model = tab.table.model()
+    err_mm, err_pct = headers.index("Error (mm)"), headers.index("Error (%)")
+    assert model.index(0, err_mm).data() == "-15.0"  # Z - true
+    true0 = F_PX * B_MM / 20.0 + 15.0
+    assert model.index(0, err_pct).data() == f"{-1500.0 / true0:.2f}"
+    assert model.index(len(DISPARITIES), err_mm).data() == "—"  # no true distance: no error
+    # every triangulated reading is 15 mm short: triangulation's RMS is 15 mm, the fits' less
+    assert tab.triangulation_rms_mm == pytest.approx(15.0, abs=0.06)
+    assert "RMS 15.0 mm" in tab.triangulation_label.text()
+    for m in ("cubic", "inverse"):
+        assert "(triangulation 15.0 mm)" in tab.r2_labels[m].text()
+
+
+def test_too_few_true_distances_say_so_instead_of_a_perfect_fit(tab, ctx):
+    model = tab.table.model()
+    for row, (d, true) in enumerate(((40.0, 2000.0), (40.5, 2000.0), (20.0, 4000.0),
+                                     (20.2, 4000.0))):
+        ctx.add_measurement(_record(d))
+        model.setData(model.index(row, TRUE_COL), f"{true}")
+    assert tab.r2("cubic") is None  # not R^2 1.00000 and RMS 0.0 mm
+    assert "4 or more different distances, got 2" in tab.r2_labels["cubic"].text()
+    assert tab.r2("inverse") is not None  # two parameters, two distances, four readings
+    ctx.clear_measurements()
+    for row, (d, true) in enumerate(((40.0, 2000.0), (20.0, 4000.0))):
+        ctx.add_measurement(_record(d))
+        model.setData(model.index(row, TRUE_COL), f"{true}")
+    assert "passes exactly through its 2 samples" in tab.r2_labels["inverse"].text()
+
+
+def test_clear_log_is_undoable_until_the_next_reading(tab, ctx, monkeypatch):
+    from PySide6.QtWidgets import QMessageBox
+
+    _log_with_truth(ctx, tab)
+    n = len(ctx.measurements)
+    monkeypatch.setattr(QMessageBox, "question",
+                        lambda *a, **k: QMessageBox.StandardButton.Yes)
+    tab.clear_button.click()
+    assert ctx.measurements == [] and tab.undo_button.isVisibleTo(tab)
+    tab.undo_button.click()
+    assert len(ctx.measurements) == n and not tab.undo_button.isVisibleTo(tab)
+    assert tab.r2("cubic") is not None  # the true distances came back with them
+    tab.clear_button.click()
+    ctx.add_measurement(_record(33.0))
+    assert not ctx.can_undo_clear and not tab.undo_button.isVisibleTo(tab)
+    assert not ctx.undo_clear() and len(ctx.measurements) == 1
+
+
+def test_open_log_brings_back_an_exported_csv_or_xlsx(tab, ctx, qtbot, tmp_path):
+    _log_with_truth(ctx, tab)
+    before = [(r.disparity_px, r.true_mm, r.valid) for r in ctx.measurements]
+    assert tab.export_csv(tmp_path / "log.csv")
+    with qtbot.waitSignal(tab.exportFinished, timeout=30000):
+        assert tab.export_xlsx(tmp_path / "log.xlsx")
+    for name in ("log.csv", "log.xlsx"):
+        assert tab.open_log(tmp_path / name, replace=True)
+        after = [(r.disparity_px, r.true_mm, r.valid) for r in ctx.measurements]
+        assert len(after) == len(before)
+        for a, b in zip(after, before, strict=True):
+            assert a[2] == b[2] and (a[1] is None) == (b[1] is None)
+            if b[2]:
+                assert a[0] == pytest.approx(b[0], abs=1e-3)
+            if b[1] is not None:
+                assert a[1] == pytest.approx(b[1], abs=0.05)
+        assert tab.r2("inverse") is not None
+    assert tab.open_log(tmp_path / "log.csv")  # added after the readings there
+    assert len(ctx.measurements) == 2 * len(before)
+    (tmp_path / "other.csv").write_text("a,b\n1,2\n")
+    assert not tab.open_log(tmp_path / "other.csv")
+    assert len(ctx.measurements) == 2 * len(before)
+
+
+def test_log_and_active_fit_survive_a_restart(qtbot, tmp_path):
+    """Quit and start again: the readings with their true distances, the fit live readings use
+    and an undoable Clear log are back (the log is saved as it changes, atomically)."""
+    from stereo_gui.qt.context import AppContext
+
+    path = tmp_path / "data" / "measurement-log.json"
+    ctx = AppContext()
+    assert ctx.keep_log(path) == []
+    tab = MeasurementsTab(ctx)
+    qtbot.addWidget(tab)
+    _log_with_truth(ctx, tab)
+    tab.use_model("inverse")
+    fit = ctx.active_fit
+    assert fit is not None and fit.model == "inverse"
+    qtbot.waitUntil(lambda: path.is_file() and "inverse" in path.read_text(), timeout=5000)
+    n = len(ctx.measurements)
+    assert ctx.shutdown(2000)
+
+    ctx2 = AppContext()
+    tab2 = MeasurementsTab(ctx2)
+    qtbot.addWidget(tab2)
+    assert ctx2.keep_log(path) == []
+    assert len(ctx2.measurements) == n
+    assert ctx2.measurements[0].true_mm == ctx.measurements[0].true_mm
+    assert ctx2.active_fit == fit
+    assert tab2.model_combo.currentData() == "inverse"
+    ctx2.clear_measurements()
+    assert ctx2.shutdown(2000)  # a pending save is written on the way out
+
+    ctx3 = AppContext()
+    assert ctx3.keep_log(path) == [] and ctx3.measurements == [] and ctx3.can_undo_clear
+    assert ctx3.undo_clear() and len(ctx3.measurements) == n
+    assert ctx3.shutdown(2000)
+
+
+def test_an_unreadable_kept_log_is_set_aside_and_said(qtbot, tmp_path):
+    from stereo_gui.qt.context import AppContext
+
+    path = tmp_path / "measurement-log.json"
+    path.write_text("{ half a log")
+    ctx = AppContext()
+    warnings = ctx.keep_log(path)
+    assert len(warnings) == 1 and "could not be restored" in warnings[0]
+    assert (tmp_path / "measurement-log.json.unreadable").read_text() == "{ half a log"
+    assert ctx.measurements == []
+    assert ctx.shutdown(2000)

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 from PySide6.QtCore import Qt
+from PySide6.QtWidgets import QApplication
 
 from stereo_gui.core.matching import ColorScale
 from stereo_gui.qt.widgets.image_view import ImagePanel, colormap_lut, distance_ticks
@@ -69,6 +70,61 @@ def test_markers_stay_until_cleared(panel):
     assert panel.marker_count() == 0
 
 
+def _image_panel(qtbot):
+    p = ImagePanel("wls", "test view")
+    qtbot.addWidget(p)
+    p.resize(660, 520)
+    p.show()
+    p.set_image(np.zeros((480, 640), np.uint8))
+    qtbot.waitExposed(p)
+    return p
+
+
+def test_labels_stay_inside_the_view_and_clear_of_each_other(qtbot):
+    p = _image_panel(qtbot)
+    bounds = p.view_rect()
+    # a point at the very top (its label above it was cut off), points close together, a
+    # point in the top-right corner and a ruler whose middle label sat on its end labels
+    for x, y, text in ((30, 4, "3.002 m"), (45, 14, "2.996 m"), (60, 8, "✕ no texture"),
+                       (632, 3, "1.234 m"), (300, 240, "A: 2.991 m")):
+        p.add_marker(x, y, text)
+    p.add_marker(330, 246, "B: 3.003 m", line_to=(300, 240), line_text="A–B 0.112 m")
+    _assert_apart(p.label_rects(), bounds, 7)
+    # a smaller view (the window resized, the toolbar wrapped) places them again
+    p.resize(430, 340)
+    qtbot.waitUntil(lambda: p.view_rect().width() < bounds.width() - 100, timeout=5000)
+    p.fit()
+    QApplication.processEvents()
+    _assert_apart(p.label_rects(), p.view_rect(), 7)
+
+
+def test_labels_are_placed_again_when_the_view_shrinks(qtbot):
+    p = _image_panel(qtbot)
+    p.add_marker(100, 200, "2.994 m")
+    p.add_marker(200, 200, "3.005 m")  # side by side, apart, at this size
+    _assert_apart(p.label_rects(), p.view_rect(), 2)
+    p.resize(330, 270)  # half the size: the points come closer, the labels do not shrink
+    qtbot.waitUntil(lambda: p.view_rect().width() < 400, timeout=5000)
+    p.fit()
+    QApplication.processEvents()
+    _assert_apart(p.label_rects(), p.view_rect(), 2)
+
+
+def _assert_apart(rects, bounds, n):
+    assert len(rects) == n
+    for i, r in enumerate(rects):
+        assert bounds.contains(r), (i, r, bounds)
+        for other in rects[i + 1:]:
+            assert not r.intersects(other), (r, other)
+
+
+def test_colour_bar_shows_no_placeholder_ticks_before_the_first_frame(panel):
+    axis = panel.color_bar.getAxis("right")
+    assert axis._tickLevels == [[], []]
+    lo, hi = panel.color_bar.getViewBox().viewRange()[1]
+    assert lo < 0 and hi > 256  # room for the end labels
+
+
 def test_distance_ticks_are_round_and_in_order():
     fb = 700.0 * 110.0  # f px * B mm
     for scale in (ColorScale("distance", 3000.0, 500.0, fb),
@@ -85,7 +141,9 @@ def test_distance_ticks_are_round_and_in_order():
     one = dict((s, t) for t, s in distance_ticks(ColorScale("distance", 3000.0, 500.0, fb)))
     assert one["1 m"] == pytest.approx(255 * 2000 / 2500, abs=1e-3)
     # near range only: millimetres
-    assert all(s.endswith("mm") for _t, s in distance_ticks(ColorScale("distance", 900, 300, fb)))
+    # one unit rule: metres below a metre too ("0.3 m", not "300 mm")
+    labels = [s for _t, s in distance_ticks(ColorScale("distance", 900, 300, fb))]
+    assert labels and all(s.endswith(" m") for s in labels) and "0.3 m" in labels
     # a min-max range down to zero disparity reaches infinity
     assert distance_ticks(ColorScale("disparity", 0.0, fb / 500.0, fb))[0][1] == "∞"
     assert distance_ticks(ColorScale("disparity", 5.0, 5.0, fb)) == []

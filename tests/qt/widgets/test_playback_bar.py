@@ -4,6 +4,8 @@ the frame that was measured live, measure the same point: the same distance."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
+from PySide6.QtCore import QPoint, Qt
 
 from stereo_gui.qt.dialogs.source_dialog import SourceChoice
 
@@ -52,10 +54,20 @@ def test_record_play_back_step_and_measure_the_same_distance(qtbot, ctx, window,
     assert window.capture_tab.playback.source() is bar.source()
     bar.toggle_play()  # pause (it also resumes the paused Live view)
     assert bar.source().paused and bar.play_button.text() == "Play" and not ctx.frames.paused
+    # one pause button during playback; the live source's marker went with it; a paused
+    # playback shows no camera rate (issue 12, item 9)
+    assert not live.pause_button.isVisibleTo(window)
+    assert live.panels["wls"].marker_count() == 0
+    window._update_fps()
+    assert window.camera_fps_label.text() == "Playback: paused"
     start = i - 1 if i > 0 else 1
     bar.seek(start)
     assert bar.step(i - start) == i  # one frame forward (or back)
-    assert bar.label.text() == f"frame {i + 1} of {n}"
+    src = bar.source()
+    # the recorded time of the frame shown, from the first frame
+    assert bar.label.text() == (f"frame {i + 1} of {n}   {src.time_s(i):.3f} s of "
+                                f"{src.time_s(n - 1):.1f} s")
+    assert src.time_s(i) == pytest.approx(times[i] - times[0])
     assert bar.slider.value() == i
     qtbot.waitUntil(lambda: live.shown_frame is not None and live.shown_frame.index == i
                     and live.shown_frame.t_left == t_measured, timeout=60000)
@@ -75,9 +87,9 @@ def test_record_play_back_step_and_measure_the_same_distance(qtbot, ctx, window,
     bar.toggle_play()  # play from the last frame: it ends there
     qtbot.waitUntil(lambda: bar.source().finished, timeout=30000)
     bar.refresh()
-    assert bar.label.text() == f"frame {n} of {n} (end)"
+    assert bar.label.text().startswith(f"frame {n} of {n} (end)   ")
     assert bar.step(-1) == n - 2
-    assert bar.label.text() == f"frame {n - 1} of {n}"
+    assert bar.label.text().startswith(f"frame {n - 1} of {n}   ")
     # a source without playback hides the bar again
     window.use_source(SimSource(rig=sim_rig, mode="scene", fps=15), SourceChoice("sim:scene"))
     assert not bar.isVisibleTo(window)
@@ -119,7 +131,40 @@ def test_source_dir_on_the_command_line_plays_the_recording_with_controls(qtbot,
     try:
         qtbot.waitUntil(lambda: window.live_tab.playback.source() is not None, timeout=30000)
         bar = window.live_tab.playback
-        assert bar.slider.maximum() == 2 and bar.label.text().endswith("of 3")
+        assert bar.slider.maximum() == 2 and "of 3" in bar.label.text()
         assert ctx.settings.source == str(tmp_path / "rec")
     finally:
         window.close()
+
+
+def test_speed_and_a_click_on_the_position_bar(qtbot, ctx, tmp_path):
+    """Playback speed reaches the source and paces it; a click on the bar goes to the frame
+    there (a plain slider only paged towards it)."""
+    from stereo_gui.files.recording import RecordingWriter
+    from stereo_gui.qt.widgets.playback_bar import PlaybackBar
+    from stereo_gui.sources.base import StereoFrame
+    from stereo_gui.sources.playback import PlaybackSource
+
+    rng = np.random.default_rng(4)
+    with RecordingWriter(tmp_path / "rec", fps=10, background=False) as w:
+        for k in range(40):
+            img = rng.integers(0, 255, (24, 32, 3), dtype=np.uint8)
+            w.write(StereoFrame(img, img, 0.1 * k, 0.1 * k, k))
+    bar = PlaybackBar(ctx)
+    qtbot.addWidget(bar)
+    bar.resize(900, 40)
+    bar.show()
+    source = PlaybackSource(tmp_path / "rec")
+    ctx.frames.set_source(source)
+    assert bar.source() is source and source.speed == 1.0
+    bar.set_speed(4.0)
+    assert source.speed == 4.0
+    source._anchor = (0, 100.0)  # frame 0 due at t = 100 s: frame 10 (1 s later) at 100.25 s
+    assert source._due(10) == pytest.approx(100.25)
+    bar.toggle_play()  # pause, so that the position is the one clicked
+    slider = bar.slider
+    x = int(slider.width() * 0.75)
+    target = slider.value_at(x)
+    assert 25 <= target <= 32
+    qtbot.mouseClick(slider, Qt.MouseButton.LeftButton, pos=QPoint(x, slider.height() // 2))
+    assert source.position == target and slider.value() == target

@@ -1,0 +1,161 @@
+"""The measurement log kept between runs: the readings, the readings last cleared (so Clear log
+can be undone until the next reading, across a restart too) and the fit live readings use.
+
+One JSON file, written atomically every time the log changes. Loading never raises: a file
+that cannot be used is reported as a warning (and set aside as `<name>.unreadable`, so the next
+save does not overwrite what a person may still want), and the log starts empty.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+
+from stereo_gui.core.errors import InputError
+from stereo_gui.core.regression import FitResult, fit_from_dict, fit_to_dict
+from stereo_gui.files.atomic import write_text_atomic
+from stereo_gui.files.spreadsheet import MeasurementRecord
+
+log = logging.getLogger(__name__)
+
+FORMAT_VERSION = 1
+LOG_FILE = "measurement-log.json"
+APP_NAME = "stereo-gui"
+
+
+@dataclass(frozen=True)
+class KeptLog:
+    """What the log file holds: readings oldest first, the readings of the last Clear log
+    (empty once a reading followed it) and the fit live readings use (None: triangulation)."""
+
+    records: tuple[MeasurementRecord, ...] = ()
+    cleared: tuple[MeasurementRecord, ...] = ()
+    active_fit: FitResult | None = None
+
+
+def data_dir() -> Path:
+    """The application's data folder: `$STEREO_GUI_DATA_DIR` when set, else the platform's."""
+    env = os.environ.get("STEREO_GUI_DATA_DIR")
+    if env:
+        return Path(env)
+    import platformdirs
+
+    return Path(platformdirs.user_data_dir(APP_NAME, appauthor=False))
+
+
+def default_log_path() -> Path:
+    return data_dir() / LOG_FILE
+
+
+def _record_to_json(r: MeasurementRecord) -> dict:
+    def value(v):
+        return None if isinstance(v, float) and not math.isfinite(v) else v
+
+    return {k: value(v) for k, v in asdict(r).items()}
+
+
+_FLOAT_FIELDS = {f.name for f in fields(MeasurementRecord) if "float" in str(f.type)}
+_TEXT_FIELDS = {"time", "reason", "method", "calibration_file"}
+
+
+def _record_from_json(doc, where: str) -> MeasurementRecord:
+    if not isinstance(doc, dict):
+        raise InputError(f"{where}: a reading is not a JSON object")
+    kw = {}
+    for f in fields(MeasurementRecord):
+        if f.name not in doc:
+            continue
+        v = doc[f.name]
+        if f.name == "valid":
+            if not isinstance(v, bool):
+                raise InputError(f"{where}: 'valid' must be true or false, not {v!r}")
+        elif f.name in _TEXT_FIELDS:
+            if not isinstance(v, str):
+                raise InputError(f"{where}: {f.name!r} must be text, not {v!r}")
+        elif f.name == "true_mm":
+            if v is not None and (isinstance(v, bool) or not isinstance(v, int | float)
+                                  or not math.isfinite(v) or v <= 0):
+                raise InputError(f"{where}: 'true_mm' must be a positive number, not {v!r}")
+            v = None if v is None else float(v)
+        elif f.name in _FLOAT_FIELDS:
+            if v is None:
+                v = float("nan")
+            elif isinstance(v, bool) or not isinstance(v, int | float):
+                raise InputError(f"{where}: {f.name!r} must be a number, not {v!r}")
+            v = float(v)
+        kw[f.name] = v
+    missing = {"time", "x_px", "y_px", "disparity_px", "X_mm", "Y_mm", "Z_mm", "range_mm",
+               "valid"} - set(kw)
+    if missing:
+        raise InputError(f"{where}: a reading lacks {', '.join(sorted(missing))}")
+    return MeasurementRecord(**kw)
+
+
+def log_to_json(kept: KeptLog) -> str:
+    doc = {"format_version": FORMAT_VERSION,
+           "records": [_record_to_json(r) for r in kept.records],
+           "cleared": [_record_to_json(r) for r in kept.cleared],
+           "active_fit": None if kept.active_fit is None else fit_to_dict(kept.active_fit)}
+    return json.dumps(doc, indent=1, allow_nan=False) + "\n"
+
+
+def log_from_json(text: str, where: str) -> KeptLog:
+    """The kept log in `text`; InputError naming `where` when it cannot be used."""
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{where} is not valid JSON: {exc}") from exc
+    if not isinstance(doc, dict):
+        raise InputError(f"{where} does not hold a JSON object")
+    version = doc.get("format_version")
+    if not isinstance(version, int) or isinstance(version, bool) or not 1 <= version <= FORMAT_VERSION:
+        raise InputError(f"{where} has format version {version!r}; this version reads "
+                         f"{FORMAT_VERSION}")
+    lists = []
+    for key in ("records", "cleared"):
+        items = doc.get(key, [])
+        if not isinstance(items, list):
+            raise InputError(f"{where}: {key!r} is not a list")
+        lists.append(tuple(_record_from_json(d, f"{where}, {key}[{i}]")
+                           for i, d in enumerate(items)))
+    fit_doc = doc.get("active_fit")
+    fit = None if fit_doc is None else fit_from_dict(fit_doc, f"{where}, active fit")
+    return KeptLog(lists[0], lists[1], fit)
+
+
+def save_log(kept: KeptLog, path: str | os.PathLike | None = None) -> Path:
+    """Write the log atomically (creating the folder); InputError if it cannot."""
+    path = Path(path) if path is not None else default_log_path()
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create folder {path.parent}: {exc.strerror or exc}") from exc
+    return write_text_atomic(path, log_to_json(kept))
+
+
+def load_log(path: str | os.PathLike | None = None) -> tuple[KeptLog, list[str]]:
+    """The kept log and warnings about what could not be used (never raises).
+
+    A missing file is an empty log. A file that cannot be read or used is renamed to
+    `<name>.unreadable` (replacing an older one) and reported.
+    """
+    path = Path(path) if path is not None else default_log_path()
+    if not path.exists():
+        return KeptLog(), []
+    try:
+        kept = log_from_json(path.read_text(encoding="utf-8"), f"measurement log {path}")
+    except (OSError, UnicodeDecodeError, InputError) as exc:
+        aside = path.with_name(path.name + ".unreadable")
+        try:
+            os.replace(path, aside)
+            where = f"; it was kept as {aside.name}"
+        except OSError:
+            where = ""
+        text = f"the measurement log could not be restored: {exc}{where}"
+        log.warning("%s", text)
+        return KeptLog(), [text]
+    return kept, []

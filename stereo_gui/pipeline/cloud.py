@@ -1,0 +1,76 @@
+"""The point cloud of a frame for the 3D view, without Qt: every `step`-th pixel of the final
+(confident) disparity reprojected through Q, coloured from the image or by distance.
+
+Display coordinates: metres, x = X (right), y = Z (ahead), z = -Y (up), so that the view's
+"up" is the scene's up and the camera sits at the origin looking along +y.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from stereo_gui.core.errors import InputError
+from stereo_gui.core.matching import COLORMAPS, PipelineResult
+
+COLOURINGS = ("image", "distance")
+MAX_POINTS = 120_000  # what the view draws at interactive rates on a small machine
+
+
+@dataclass(frozen=True, eq=False)
+class CloudPoints:
+    """Points (N x 3 float32, m, display coordinates: see the module docstring) with colours
+    (N x 4 float32 RGBA, 0..1), and the depth range they span (m)."""
+
+    xyz_m: np.ndarray
+    rgba: np.ndarray
+    z_near_m: float
+    z_far_m: float
+
+    @property
+    def count(self) -> int:
+        return int(self.xyz_m.shape[0])
+
+
+def cloud_points(result: PipelineResult, colouring: str = "image", step: int = 2
+                 ) -> CloudPoints:
+    """The frame's point cloud (InputError for a calibration without metric scale)."""
+    if colouring not in COLOURINGS:
+        raise InputError(f"colouring must be one of {', '.join(COLOURINGS)}, not {colouring!r}")
+    calib = result.calibration
+    if calib is None or not calib.metric:
+        raise InputError("a point cloud in metres needs a calibration with a metric scale")
+    step = max(1, int(step))
+    disp = result.final_px
+    h, w = disp.shape[:2]
+    while (h // step) * (w // step) > MAX_POINTS:
+        step += 1
+    d = np.ascontiguousarray(disp[::step, ::step], np.float32)
+    ys, xs = np.mgrid[0:h:step, 0:w:step]
+    q = np.asarray(calib.Q, np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        hom = (q @ np.stack([xs.ravel(), ys.ravel(), d.ravel().astype(np.float64),
+                             np.ones(d.size)]))
+        xyz = (hom[:3] / hom[3]).T
+    good = np.isfinite(d.ravel()) & np.all(np.isfinite(xyz), axis=1) & (xyz[:, 2] > 0)
+    xyz = xyz[good] / 1000.0
+    pts = np.column_stack([xyz[:, 0], xyz[:, 2], -xyz[:, 1]]).astype(np.float32)
+    z = xyz[:, 2]
+    near, far = (float(np.percentile(z, 1)), float(np.percentile(z, 99))) if z.size else \
+        (0.0, 0.0)
+    if colouring == "image":
+        img = result.rectified_left[::step, ::step]
+        if img.ndim == 2:
+            img = np.repeat(img[..., None], 3, axis=2)
+        rgb = img.reshape(-1, img.shape[2])[good][:, 2::-1]
+    else:  # near bright, as the colour view shows distance
+        span = max(far - near, 1e-6)
+        level = np.clip(255.0 * (far - z) / span, 0, 255).astype(np.uint8).reshape(-1, 1)
+        cmap = COLORMAPS.get(result.params.colormap, cv2.COLORMAP_OCEAN)
+        rgb = cv2.applyColorMap(level, cmap).reshape(-1, 3)[:, ::-1]
+    rgba = np.empty((pts.shape[0], 4), np.float32)
+    rgba[:, :3] = rgb.astype(np.float32) / 255.0
+    rgba[:, 3] = 1.0
+    return CloudPoints(pts, rgba, near, far)

@@ -1,0 +1,93 @@
+"""The measurement log kept between runs: round trip, a full disk, files that cannot be used."""
+
+from __future__ import annotations
+
+import errno
+import json
+import math
+import os
+
+import pytest
+from disk_faults import STEPS, install
+
+from stereo_gui.core.errors import InputError
+from stereo_gui.core.regression import fit_inverse
+from stereo_gui.files import measurement_log as ml
+from stereo_gui.files.spreadsheet import MeasurementRecord
+
+
+def _rec(d: float, true_mm=None, valid=True) -> MeasurementRecord:
+    z = 82500.0 / d if valid else float("nan")
+    return MeasurementRecord(time="2026-01-02T10:11:12+00:00", x_px=320.5, y_px=240.25,
+                             disparity_px=d if valid else float("nan"), X_mm=-1.5, Y_mm=2.0,
+                             Z_mm=z, range_mm=z, valid=valid,
+                             reason="" if valid else "not seen by the right camera",
+                             valid_fraction=0.875, expected_error_mm=3.25, true_mm=true_mm,
+                             calibration_file="/x/calib.yaml", calibration_rms_px=0.21)
+
+
+def _same(a: MeasurementRecord, b: MeasurementRecord) -> bool:
+    for x, y in zip(vars(a).values(), vars(b).values(), strict=True):
+        if isinstance(x, float) and math.isnan(x):
+            if not (isinstance(y, float) and math.isnan(y)):
+                return False
+        elif x != y:
+            return False
+    return True
+
+
+def test_round_trip_keeps_every_field_and_the_fit(tmp_path):
+    recs = (_rec(40.0, 2050.0), _rec(20.0), _rec(0.0, valid=False))
+    fit = fit_inverse([(40.0, 2050.0), (20.0, 4100.0), (30.0, 2760.0)])
+    kept = ml.KeptLog(recs, (_rec(55.5, 1500.0),), fit)
+    path = ml.save_log(kept, tmp_path / "sub" / "log.json")  # the folder is made
+    back, warnings = ml.load_log(path)
+    assert warnings == []
+    assert len(back.records) == 3 and all(map(_same, back.records, recs))
+    assert len(back.cleared) == 1 and _same(back.cleared[0], kept.cleared[0])
+    assert back.active_fit == fit
+    json.loads(path.read_text())  # strict JSON: NaN is written as null
+
+
+def test_missing_file_is_an_empty_log(tmp_path):
+    assert ml.load_log(tmp_path / "none.json") == (ml.KeptLog(), [])
+
+
+def test_default_path_is_in_the_data_folder(monkeypatch, tmp_path):
+    monkeypatch.setenv("STEREO_GUI_DATA_DIR", str(tmp_path))
+    assert ml.default_log_path() == tmp_path / ml.LOG_FILE
+
+
+@pytest.mark.parametrize("step", STEPS)
+def test_a_full_disk_leaves_the_earlier_log_byte_for_byte(tmp_path, monkeypatch, step):
+    path = ml.save_log(ml.KeptLog((_rec(40.0, 2000.0),)), tmp_path / "log.json")
+    before = path.read_bytes()
+    install(monkeypatch, step)
+    with pytest.raises(InputError, match="cannot write"):
+        ml.save_log(ml.KeptLog((_rec(40.0), _rec(20.0))), path)
+    monkeypatch.undo()
+    assert path.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["log.json"]  # no temporary file left
+
+
+@pytest.mark.parametrize("text", [
+    "", "[]", "{", '{"format_version": 2, "records": []}', '{"format_version": "1"}',
+    '{"format_version": 1, "records": {}}', '{"format_version": 1, "records": [3]}',
+    '{"format_version": 1, "records": [{"time": "t"}]}',
+    '{"format_version": 1, "records": [], "active_fit": {"model": "quartic"}}',
+])
+def test_a_log_that_cannot_be_used_is_set_aside_and_reported(tmp_path, text):
+    path = tmp_path / "log.json"
+    path.write_text(text)
+    kept, warnings = ml.load_log(path)
+    assert kept == ml.KeptLog() and len(warnings) == 1 and "log.json" in warnings[0]
+    assert (tmp_path / "log.json.unreadable").read_text() == text and not path.exists()
+
+
+def test_wrong_types_in_a_reading_are_named(tmp_path):
+    doc = json.loads(ml.log_to_json(ml.KeptLog((_rec(40.0),))))
+    for field, value in (("valid", "yes"), ("Z_mm", "far"), ("true_mm", -3), ("time", 5)):
+        bad = json.loads(json.dumps(doc))
+        bad["records"][0][field] = value
+        with pytest.raises(InputError, match=field):
+            ml.log_from_json(json.dumps(bad), "log")

@@ -1,0 +1,43 @@
+"""The point cloud of a frame for the 3D view: where the points are, their colours, limits."""
+
+import numpy as np
+import pytest
+
+from stereo_gui.core.errors import InputError
+from stereo_gui.core.matching import MatcherParams, StereoPipeline
+from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.pipeline.cloud import MAX_POINTS, cloud_points
+
+
+def _plane(shift=10, w=160, h=120):
+    rng = np.random.default_rng(1)
+    big = (rng.random((h, w + shift, 3)) * 200 + 20).astype(np.uint8)
+    left, right = np.ascontiguousarray(big[:, :w]), np.ascontiguousarray(big[:, shift:shift + w])
+    calib = StereoCalibration.identity((w, h), 300.0, 100.0)  # Z = 30000 / d mm
+    with StereoPipeline(calib, MatcherParams(num_disparities=32, block_size=5, wls=False)) as p:
+        return p.process(left, right)
+
+
+def test_a_plane_at_3_m_is_a_wall_of_points_ahead():
+    r = _plane()
+    c = cloud_points(r, "image", step=2)
+    assert 0 < c.count <= (160 // 2) * (120 // 2)
+    assert c.xyz_m.dtype == np.float32 and c.xyz_m.shape == (c.count, 3)
+    # display coordinates: y is the depth ahead (3 m), z is up
+    assert np.median(c.xyz_m[:, 1]) == pytest.approx(3.0, rel=0.01)
+    assert c.z_near_m == pytest.approx(3.0, rel=0.02) and c.z_far_m == pytest.approx(3.0, rel=0.02)
+    top = c.xyz_m[:, 2].max()
+    assert top > 0 and c.xyz_m[:, 2].min() < 0  # image rows above the centre are up
+    assert c.rgba.shape == (c.count, 4) and 0 <= c.rgba.min() and c.rgba.max() <= 1
+    d = cloud_points(r, "distance")
+    assert d.count >= c.count and np.all(d.rgba[:, 3] == 1.0)
+
+
+def test_big_frames_are_thinned_and_bad_requests_refused():
+    r = _plane(w=640, h=480)
+    assert cloud_points(r, step=1).count <= MAX_POINTS
+    with pytest.raises(InputError, match="colouring"):
+        cloud_points(r, "rainbow")
+    hartley = r.__class__(**{**r.__dict__, "calibration": None})
+    with pytest.raises(InputError, match="metric"):
+        cloud_points(hartley)

@@ -1,0 +1,57 @@
+"""The matcher parameter panel shows the values that run: an odd window, P1/P2 following it,
+the disparity range working distances give, and a modified preset said so."""
+
+from __future__ import annotations
+
+import pytest
+
+from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.qt.widgets.params_panel import MODIFIED, ParamsPanel, load_preset
+
+
+@pytest.fixture
+def panel(qtbot):
+    p = ParamsPanel(load_preset("live").replace(name="live"))
+    qtbot.addWidget(p)
+    return p
+
+
+def test_an_even_window_shows_the_odd_one_that_runs(panel):
+    got = []
+    panel.paramsChanged.connect(got.append)
+    panel.block_size.setValue(12)
+    assert panel.params().block_size == 13 and panel.block_size.value() == 13
+    panel.block_size.setValue(12)  # again: nothing new runs, the box still shows 13
+    assert panel.block_size.value() == 13
+    assert all(p.block_size % 2 for p in got)
+
+
+def test_p1_p2_follow_the_window_while_automatic(panel):
+    panel.p_auto.setChecked(True)
+    panel.block_size.setValue(7)
+    assert (panel.p1.value(), panel.p2.value()) == (8 * 3 * 49, 32 * 3 * 49)
+    assert (panel.p1.value(), panel.p2.value()) == (panel.params().p1_value,
+                                                    panel.params().p2_value)
+
+
+def test_range_from_working_distances_shows_the_range_it_gives(panel):
+    calib = StereoCalibration.identity((640, 480), 700.0, 110.0)  # f*B = 77000 px*mm
+    panel.set_calibration(calib)
+    panel.range_from_z.setChecked(True)
+    panel.z_min.setValue(450.0)
+    panel.z_max.setValue(0.0)  # infinity
+    lo, num = panel.params().disparity_range(calib)
+    assert lo == 0 and num >= 77000 / 450  # about 0 .. 192, not the 2 / 128 of the seed
+    assert (panel.min_disparity.value(), panel.num_disparities.value()) == (lo, num)
+    assert "from the working distances" in panel.num_disparities.toolTip()
+
+
+def test_an_edited_preset_says_modified_and_choosing_it_again_restores_it(panel):
+    assert panel.preset.currentText() == "live"
+    panel.uniqueness.setValue(panel.uniqueness.value() + 3)
+    assert panel.preset.currentText() == "live" + MODIFIED
+    assert panel.params().name == "live" + MODIFIED
+    assert panel.apply_preset("live")
+    assert panel.preset.currentText() == "live"
+    assert panel.preset.findText("live" + MODIFIED) < 0  # the modified entry is gone
+    assert panel.params() == load_preset("live").replace(name="live")
