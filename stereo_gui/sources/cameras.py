@@ -24,6 +24,9 @@ log = logging.getLogger(__name__)
 SYSFS_VIDEO = Path("/sys/class/video4linux")
 # consecutive failed grabs before a camera counts as gone (a single dropped frame is normal)
 MAX_FAILED_GRABS = 5
+# a grab waits at most this long where the backend honours CAP_PROP_READ_TIMEOUT_MSEC, so that
+# a camera that stops answering fails the read instead of blocking the reader for ever
+READ_TIMEOUT_MS = 1500
 
 
 class EndOfSource(SourceError):
@@ -111,6 +114,10 @@ def _open_camera(index: int, size: tuple[int, int], role: str):
     cap.set(cv2.CAP_PROP_FRAME_WIDTH, int(size[0]))
     cap.set(cv2.CAP_PROP_FRAME_HEIGHT, int(size[1]))
     cap.set(cv2.CAP_PROP_BUFFERSIZE, 1)  # keep the newest frame, not a backlog
+    # only some backends take a read timeout (set() says whether); it cannot be given to the
+    # constructor: a backend that does not know a parameter of open() refuses to open at all
+    if not cap.set(cv2.CAP_PROP_READ_TIMEOUT_MSEC, READ_TIMEOUT_MS):
+        log.debug("%s camera %s: the backend has no read timeout", role, index)
     return cap
 
 
