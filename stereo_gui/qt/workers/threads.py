@@ -11,11 +11,11 @@ window waits at closing. So:
   left to end on its own (it ends when its blocked call returns and it sees it was asked to stop);
 - at interpreter exit PySide deletes the QObjects Python owns, running threads included, which
   would abort. `_at_exit` runs before that (an `atexit` handler; PySide cleans up later, from
-  Py_AtExit): it asks every live thread to stop, waits up to EXIT_WAIT_MS for all of them, and
-  if one is still stuck it ends the process at once with os._exit (after flushing the logs and
-  the standard streams), with status 1 if an uncaught exception ended the program, else 0.
-  `stereo_gui.qt.app.run_app` leaves with os._exit itself (and its own status) in that case, so
-  this is the safety net for scripts and tests.
+  Py_AtExit): it asks every live thread to stop and waits up to EXIT_WAIT_MS for them; one
+  still blocked then is handed over to C++ (parented to a pair of keeper objects that parent
+  each other, so nothing ever deletes them, nor the thread) and the process ends with it, with
+  its own exit status. `stereo_gui.qt.app.run_app` does not wait for that: it leaves with
+  os._exit when its workers did not stop.
 
 Threads run at a lower priority on Linux (niceness WORKER_NICE, per thread): under CPU load the
 UI thread wins, and OpenCV's own pool threads inherit it.
@@ -141,18 +141,29 @@ def _at_exit() -> None:
     deadline = time.monotonic() + EXIT_WAIT_MS / 1000.0
     stuck = [t for t in threads
              if not t.join(max(1, int((deadline - time.monotonic()) * 1000)))]
-    if not stuck:
-        return
-    status = 1 if getattr(sys, "last_value", None) is not None else 0
-    log.warning("leaving with %s still blocked (a device or OpenCV call that cannot be "
-                "interrupted); exit status %d", ", ".join(t.objectName() for t in stuck), status)
-    logging.shutdown()
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except Exception:  # noqa: BLE001 - a closed stream: nothing more to flush
-            pass
-    os._exit(status)
+    if stuck:
+        log.warning("exiting with %s still blocked (a device or OpenCV call that cannot be "
+                    "interrupted); it ends with the process",
+                    ", ".join(t.objectName() for t in stuck))
+        keep_until_exit(stuck)
+
+
+_keepers: list[QObject] = []
+
+
+def keep_until_exit(threads: list[WorkerThread]) -> None:
+    """Make running `threads` undeletable: PySide deletes at exit only what Python owns, so
+    give them to C++ as children of two keepers that are each other's parent (a root nobody
+    owns, deletes or reaches)."""
+    if not _keepers:
+        a, b = QObject(), QObject()
+        a.setObjectName("thread-keeper")
+        b.setObjectName("thread-keeper")
+        b.setParent(a)
+        a.setParent(b)
+        _keepers.extend((a, b))
+    for t in threads:
+        t.setParent(_keepers[0])
 
 
 atexit.register(_at_exit)

@@ -181,10 +181,11 @@ def test_exit_while_a_read_blocks_does_not_abort(tmp_path):
         "assert entered.wait(10)\n"
         "assert w.stop(200) is False\n"
         "print('stopped-late')\n"
+        "raise SystemExit(3)\n"  # the script's own status survives the blocked thread
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=60, env={**__import__("os").environ,
                                            "QT_QPA_PLATFORM": "offscreen"})
-    assert proc.returncode == 0, proc.stderr
+    assert proc.returncode == 3, proc.stderr
     assert "stopped-late" in proc.stdout
     assert "QThread: Destroyed" not in proc.stderr and "Abort" not in proc.stderr
