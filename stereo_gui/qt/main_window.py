@@ -7,7 +7,9 @@ the user sees (a red bar above the tabs, also written to the status bar).
 
 from __future__ import annotations
 
+import inspect
 import logging
+import time
 from pathlib import Path
 
 from PySide6.QtCore import QByteArray, Qt, QTimer, Signal
@@ -34,6 +36,7 @@ from stereo_gui.qt.workers.job_runner import JobRunner
 
 log = logging.getLogger(__name__)
 
+CLOSE_TIMEOUT_MS = 2000  # closing waits at most this long for the workers, all together
 TAB_NAMES = ("capture", "calibration", "live", "measurements")
 CALIB_FILTER = "Calibration files (*.yaml *.yml *.xml *.json);;All files (*)"
 SIM_BANNER = ("Running on the SIMULATED stereo rig: {why}. Distances are of the rendered scene, "
@@ -432,14 +435,23 @@ class MainWindow(QMainWindow):
         if not self._closing:
             self._closing = True
             self._fps_timer.stop()
+            # one deadline for everything: a blocked worker never makes closing take longer
+            deadline = time.monotonic() + CLOSE_TIMEOUT_MS / 1000.0
+
+            def left_ms() -> int:
+                return max(1, int((deadline - time.monotonic()) * 1000))
+
             for i in range(self.tabs.count()):
                 w = self.tabs.widget(i)
                 if hasattr(w, "shutdown"):
                     try:
-                        w.shutdown()
+                        if "timeout_ms" in inspect.signature(w.shutdown).parameters:
+                            w.shutdown(timeout_ms=left_ms())
+                        else:
+                            w.shutdown()
                     except Exception:  # noqa: BLE001 - a tab's failure must not block closing
                         log.warning("shutting down a tab failed", exc_info=True)
             self.save_settings()
-            if not self.ctx.shutdown(2000):
-                log.warning("some workers did not stop within 2 s")
+            if not self.ctx.shutdown(left_ms()):
+                log.warning("some workers did not stop within %d ms", CLOSE_TIMEOUT_MS)
         super().closeEvent(event)

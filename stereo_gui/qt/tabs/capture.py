@@ -519,7 +519,8 @@ class CaptureTab(QWidget):
             self.save_button.setDefault(True)
 
     def shutdown(self) -> None:
+        """Cancel a session scan; the context joins its thread (it is registered there)."""
         if self._scan is not None:
-            self._scan.stop()
+            self._scan.cancel()
             self._scan = None
 

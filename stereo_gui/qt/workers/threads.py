@@ -72,6 +72,7 @@ class WorkerThread(QThread):
         self._loop = loop
         self._request_stop = request_stop
         self._low_priority = low_priority
+        self._given_up = False  # a join already waited its time in vain: later ones only look
         self.finished.connect(_reaper.reap)  # queued: the reaper lives in the main thread
 
     def start(self, *args) -> None:  # noqa: D102 - QThread.start, plus the bookkeeping
@@ -94,13 +95,18 @@ class WorkerThread(QThread):
 
     def join(self, timeout_ms: int) -> bool:
         """Wait at most `timeout_ms` for the thread to end; True if it has ended (or never
-        started). A thread still running stays referenced here until it ends."""
+        started). A thread still running stays referenced here until it ends.
+
+        A thread waited for in vain once is blocked: later joins return at once (closing the
+        window and then leaving the application must not wait for it twice).
+        """
         if not self.isRunning():
             _forget(self)
             return True
-        if self.wait(max(0, int(timeout_ms))):
+        if not self._given_up and self.wait(max(0, int(timeout_ms))):
             _forget(self)
             return True
+        self._given_up = True
         return False
 
 

@@ -152,15 +152,24 @@ from PySide6.QtCore import QTimer
 from PySide6.QtWidgets import QApplication
 from stereo_gui.qt.app import run_app
 
+def stuck_job(control):
+    yield from ()
+    threading.Event().wait()  # an OpenCV call that does not return
+
 def close_when_blocked():
     if not entered.is_set():
         QTimer.singleShot(20, close_when_blocked)
         return
-    time.sleep(0.2)  # well inside the read
+    from stereo_gui.qt.workers.job_worker import JobWorker
+
+    window = next(w for w in QApplication.topLevelWidgets() if hasattr(w, "ctx"))
+    window.ctx.jobs.submit(lambda: threading.Event().wait())  # a click's job that hangs too
+    worker = JobWorker(stuck_job, "stuck")  # and a calibration stuck in one call
+    window.ctx.register_worker(worker)
+    worker.start()
+    time.sleep(0.2)  # well inside the read and the jobs
     print("closing at", time.time(), flush=True)
-    for w in QApplication.topLevelWidgets():
-        if w.isWindow() and w.isVisible():
-            w.close()
+    window.close()
 
 QTimer.singleShot(0, close_when_blocked)
 sys.exit(run_app(source="sim"))
@@ -168,6 +177,8 @@ sys.exit(run_app(source="sim"))
 
 
 def test_closing_during_a_blocked_read_exits_0_within_3_s(tmp_path):
+    """A read, a job and a generator job that never return: closing shares one 2 s deadline
+    among them and leaves; no abort, exit status 0."""
     env = {**os.environ, "QT_QPA_PLATFORM": "offscreen",
            "STEREO_GUI_CONFIG_DIR": str(tmp_path / "cfg")}
     proc = subprocess.Popen([sys.executable, "-c", CLOSE_WHILE_BLOCKED], env=env,
