@@ -5,6 +5,8 @@ session's saved pairs back for coverage and thumbnails. No Qt here."""
 from __future__ import annotations
 
 import logging
+from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -12,11 +14,13 @@ import numpy as np
 
 from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.detect import (
+    NEW_POSE_DISTANCE,
     Detection,
     PairDetection,
     PoseDescriptor,
     detect_board,
     detect_pair,
+    is_new_pose,
     pair_pose,
 )
 from stereo_gui.core.errors import StereoGuiError
@@ -26,6 +30,9 @@ from stereo_gui.pipeline.jobs import Progress
 from stereo_gui.sources.base import StereoFrame
 
 log = logging.getLogger(__name__)
+
+STEADY_FRAMES = 4  # automatic capture: the board must hold still over this many frames
+STEADY_PX = 2.0  # ... moving its corners less than this, px
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,3 +115,75 @@ def session_scan_job(pairs, board: BoardSpec, thumb_size: tuple[int, int]):
         return out
 
     return job
+
+
+@dataclass(frozen=True)
+class CaptureStep:
+    """What the Capture tab does with a live frame: `action` "show" (go on showing live frames),
+    "freeze" (hold the pair for review) or "save" (take it: automatic capture); `prompt` is what
+    the tab says to the technician ("" for "freeze": the review prompt says it)."""
+
+    action: str
+    prompt: str
+
+
+def live_hint(det: PairDetection) -> str:
+    """What to do when the board is not in both views."""
+    if det.left is None and det.right is None:
+        return "Hold the chessboard so that both cameras see all of it"
+    side = "right" if det.right is None else "left"
+    return f"Only the {'left' if side == 'right' else 'right'} camera sees the board: " \
+           f"move it into the {side} camera's view"
+
+
+class CaptureRules:
+    """When a live frame becomes a pair (the Capture tab's rules, without Qt).
+
+    Manual capture freezes a pair that both cameras see, unless its pose is close to the one
+    reviewed last (until the board leaves a view). Automatic capture takes a pair once the board
+    has held still (corners moving less than STEADY_PX over STEADY_FRAMES frames) in a pose that
+    differs from those saved.
+    """
+
+    def __init__(self) -> None:
+        self.recent_corners: deque[np.ndarray] = deque(maxlen=STEADY_FRAMES)
+        self.last_reviewed_pose: PoseDescriptor | None = None
+
+    def reset_steadiness(self) -> None:
+        """Forget the recent corners (the board, the mode or the view changed)."""
+        self.recent_corners.clear()
+
+    def step(self, out: CaptureOutput, auto: bool,
+             saved_poses: Callable[[], list[PoseDescriptor]], have_session: bool) -> CaptureStep:
+        """The step for live frame `out`; `saved_poses()` gives the poses of the saved pairs."""
+        det = out.detection
+        if not det.found:
+            self.recent_corners.clear()
+            if det.left is None or det.right is None:
+                self.last_reviewed_pose = None  # the board left a view: the next pose is new
+            return CaptureStep("show", live_hint(det))
+        pose = out.pose
+        if auto:
+            return self._auto_step(out, pose, saved_poses(), have_session)
+        if (self.last_reviewed_pose is not None and pose is not None
+                and pose.distance(self.last_reviewed_pose) < NEW_POSE_DISTANCE / 2):
+            return CaptureStep("show", "Move the board to a new pose (or out of view and back)")
+        self.last_reviewed_pose = pose
+        return CaptureStep("freeze", "")
+
+    def _auto_step(self, out: CaptureOutput, pose: PoseDescriptor | None,
+                   saved: list[PoseDescriptor], have_session: bool) -> CaptureStep:
+        corners = out.detection.left.corners.reshape(-1, 2)  # type: ignore[union-attr]
+        self.recent_corners.append(corners)
+        steady = len(self.recent_corners) == STEADY_FRAMES and max(
+            float(np.abs(c - corners).max()) for c in self.recent_corners) < STEADY_PX
+        new = is_new_pose(pose, saved)
+        if not new:
+            return CaptureStep("show",
+                               "Pose already captured: move or tilt the board somewhere new")
+        if not steady:
+            return CaptureStep("show", "New pose: hold the board still…")
+        if not have_session:
+            return CaptureStep("show", "Automatic capture needs a session: choose New session…")
+        self.recent_corners.clear()
+        return CaptureStep("save", "Pair taken. Move the board to the next pose")

@@ -7,6 +7,7 @@ they change state only through its methods, so every change is announced exactly
 from __future__ import annotations
 
 import logging
+import time
 from pathlib import Path
 
 from PySide6.QtCore import QObject, QTimer, Signal
@@ -240,14 +241,21 @@ class AppContext(QObject):
             self._workers.remove(worker)
 
     def shutdown(self, timeout_ms: int = 2000) -> bool:
-        """Save the kept log if a change is pending, stop and join every worker (within
-        `timeout_ms` in total); True if all ended."""
+        """Save the kept log if a change is pending, then stop and join every worker within
+        `timeout_ms` in total; True if all ended.
+
+        Every worker is asked to stop, each waiting only for what is left of the time: a
+        blocked one never makes closing take longer than `timeout_ms` (it is left to end on
+        its own; see workers/threads.py).
+        """
         if self._log_timer.isActive():
             self.save_log()
         ok = True
+        deadline = time.monotonic() + timeout_ms / 1000.0
         for w in [self.recorder, self.frames, self.jobs, *self._workers]:
+            left_ms = max(1, int((deadline - time.monotonic()) * 1000))
             try:
-                ok = bool(_stop(w, timeout_ms)) and ok
+                ok = bool(_stop(w, left_ms)) and ok
             except Exception:  # noqa: BLE001 - one broken worker must not keep others running
                 log.warning("stopping %r failed", w, exc_info=True)
                 ok = False

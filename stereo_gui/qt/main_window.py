@@ -7,7 +7,9 @@ the user sees (a red bar above the tabs, also written to the status bar).
 
 from __future__ import annotations
 
+import inspect
 import logging
+import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -50,6 +52,8 @@ def default_window_size(available) -> tuple[int, int]:
         return w, h
     return min(w, available.width()), min(h, available.height() - _FRAME_PX)
 
+
+CLOSE_TIMEOUT_MS = 2000  # closing waits at most this long for the workers, all together
 TAB_NAMES = ("capture", "calibration", "live", "measurements")
 CALIB_FILTER = "Calibration files (*.yaml *.yml *.xml *.json *.txt);;All files (*)"
 SIM_BANNER = ("Running on the SIMULATED stereo rig: {why}. Distances are of the rendered scene, "
@@ -606,14 +610,23 @@ class MainWindow(QMainWindow):
         if not self._closing:
             self._closing = True
             self._fps_timer.stop()
+            # one deadline for everything: a blocked worker never makes closing take longer
+            deadline = time.monotonic() + CLOSE_TIMEOUT_MS / 1000.0
+
+            def left_ms() -> int:
+                return max(1, int((deadline - time.monotonic()) * 1000))
+
             for i in range(self.tabs.count()):
                 w = self.tabs.widget(i)
                 if hasattr(w, "shutdown"):
                     try:
-                        w.shutdown()
+                        if "timeout_ms" in inspect.signature(w.shutdown).parameters:
+                            w.shutdown(timeout_ms=left_ms())
+                        else:
+                            w.shutdown()
                     except Exception:  # noqa: BLE001 - a tab's failure must not block closing
                         log.warning("shutting down a tab failed", exc_info=True)
             self.save_settings()
-            if not self.ctx.shutdown(2000):
-                log.warning("some workers did not stop within 2 s")
+            if not self.ctx.shutdown(left_ms()):
+                log.warning("some workers did not stop within %d ms", CLOSE_TIMEOUT_MS)
         super().closeEvent(event)

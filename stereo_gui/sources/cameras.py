@@ -32,6 +32,9 @@ _BACKEND_ORDER = (cv2.CAP_V4L2, cv2.CAP_MSMF, cv2.CAP_DSHOW, cv2.CAP_AVFOUNDATIO
                   cv2.CAP_GSTREAMER)
 BACKEND_NAMES = {cv2.CAP_V4L2: "V4L2", cv2.CAP_MSMF: "MSMF", cv2.CAP_DSHOW: "DirectShow",
                  cv2.CAP_AVFOUNDATION: "AVFoundation", cv2.CAP_GSTREAMER: "GStreamer"}
+# a grab waits at most this long where the backend honours CAP_PROP_READ_TIMEOUT_MSEC, so that
+# a camera that stops answering fails the read instead of blocking the reader for ever
+READ_TIMEOUT_MS = 1500
 
 
 class EndOfSource(SourceError):
@@ -204,6 +207,10 @@ def _open_camera(index: int, size: tuple[int, int], role: str, backend: int | No
     cap.set(cv2.CAP_PROP_FRAME_WIDTH, int(size[0]))
     cap.set(cv2.CAP_PROP_FRAME_HEIGHT, int(size[1]))
     cap.set(cv2.CAP_PROP_BUFFERSIZE, 1)  # keep the newest frame, not a backlog
+    # only some backends take a read timeout (set() says whether); it cannot be given to the
+    # constructor: a backend that does not know a parameter of open() refuses to open at all
+    if not cap.set(cv2.CAP_PROP_READ_TIMEOUT_MSEC, READ_TIMEOUT_MS):
+        log.debug("%s camera %s: the backend has no read timeout", role, index)
     return cap
 
 

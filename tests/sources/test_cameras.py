@@ -82,6 +82,8 @@ def test_two_cameras_grab_both_then_retrieve(fake_cams):
     # the requested size (and MJPG) was asked of both devices
     cap = src._caps[0]
     assert cap.props[cv2.CAP_PROP_FRAME_WIDTH] == 64 and cap.props[cv2.CAP_PROP_FRAME_HEIGHT] == 48
+    # a grab of a camera that stops answering fails after a while instead of blocking for ever
+    assert cap.props[cv2.CAP_PROP_READ_TIMEOUT_MSEC] == cameras.READ_TIMEOUT_MS
     src.close()
     src.close()
     assert all(c == ("release", i) for c, i in zip(fake_cams.log[-2:], (0, 1)))

@@ -11,10 +11,8 @@ steady and its pose is new. Detection runs in the frame worker's thread (the pro
 from __future__ import annotations
 
 import logging
-from collections import deque
 from pathlib import Path
 
-import numpy as np
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (
     QFileDialog,
@@ -28,17 +26,18 @@ from PySide6.QtWidgets import (
 
 from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.detect import (
-    NEW_POSE_DISTANCE,
     PairDetection,
     PoseDescriptor,
     coverage,
-    is_new_pose,
     pair_pose,
 )
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.files.pairs import load_image
 from stereo_gui.pipeline.capture import (
+    STEADY_FRAMES,
+    STEADY_PX,
     CaptureOutput,
+    CaptureRules,
     display_rgb,
     make_capture_processor,
     session_scan_job,
@@ -57,8 +56,6 @@ from stereo_gui.sources.base import StereoFrame
 
 log = logging.getLogger(__name__)
 
-STEADY_FRAMES = 4  # automatic capture: the board must hold still over this many frames
-STEADY_PX = 2.0  # ... moving its corners less than this, px
 
 
 # ---- the tab -------------------------------------------------------------------------------------
@@ -77,8 +74,7 @@ class CaptureTab(QWidget):
         self._frozen_frame: StereoFrame | None = None
         self._active = False
         self._last_output: CaptureOutput | None = None
-        self._last_reviewed_pose: PoseDescriptor | None = None
-        self._recent_corners: deque[np.ndarray] = deque(maxlen=STEADY_FRAMES)
+        self.rules = CaptureRules()  # when a live frame becomes a pair
         self._saved: dict[str, SavedPairInfo] = {}
         self._scan: JobWorker | None = None
         self._build()
@@ -185,13 +181,13 @@ class CaptureTab(QWidget):
         board = self.board
         self.ctx.update_settings(board_cols=board.cols, board_rows=board.rows,
                                  square_mm=board.square_mm)
-        self._recent_corners.clear()
+        self.rules.reset_steadiness()
         if self.state == "live":
             self._set_processing(True)
 
     def _auto_toggled(self, on: bool) -> None:
         self.ctx.update_settings(auto_capture=bool(on))
-        self._recent_corners.clear()
+        self.rules.reset_steadiness()
         if on and self.state == "review":
             self.cancel_frozen()
         self._update_controls()
@@ -242,36 +238,20 @@ class CaptureTab(QWidget):
         self._last_output = out
         self.view.show_pair(out.left_rgb, out.right_rgb)
         self.view.show_detection(out.detection)
-        det = out.detection
-        if not det.found:
-            self._recent_corners.clear()
-            if det.left is None or det.right is None:
-                self._last_reviewed_pose = None  # the board left a view: the next pose is new
-            self.prompt.setText(self._live_hint(det))
+        step = self.rules.step(out, self.auto_check.isChecked(), self._saved_poses,
+                               self.session is not None)
+        if step.action == "freeze":
+            self._freeze(out, frame)
             return
-        pose = out.pose
-        if self.auto_check.isChecked():
-            self._auto_capture(out, frame, pose)
-            return
-        if (self._last_reviewed_pose is not None and pose is not None
-                and pose.distance(self._last_reviewed_pose) < NEW_POSE_DISTANCE / 2):
-            self.prompt.setText("Move the board to a new pose (or out of view and back)")
-            return
-        self._freeze(out, frame)
-
-    def _live_hint(self, det: PairDetection) -> str:
-        if det.left is None and det.right is None:
-            return "Hold the chessboard so that both cameras see all of it"
-        side = "right" if det.right is None else "left"
-        return f"Only the {'left' if side == 'right' else 'right'} camera sees the board: " \
-               f"move it into the {side} camera's view"
+        if step.action == "save":
+            self._save_pair(frame, out.detection)
+        self.prompt.setText(step.prompt)
 
     # ---- review --------------------------------------------------------------------------------
     def _freeze(self, out: CaptureOutput, frame: StereoFrame) -> None:
         self.state = "review"
         self.frozen = out
         self._frozen_frame = frame
-        self._last_reviewed_pose = out.pose
         self._show_review_prompt()
         self._set_processing(False)  # nothing to detect while a pair is under review
         self._update_controls()
@@ -302,7 +282,7 @@ class CaptureTab(QWidget):
         self.state = "live"
         self.frozen = None
         self._frozen_frame = None
-        self._recent_corners.clear()
+        self.rules.reset_steadiness()
         self.pair_list.clearSelection()
         self.prompt.setText("Live")
         self._update_controls()
@@ -322,23 +302,6 @@ class CaptureTab(QWidget):
         self.ctx.show_status(f"Saved pair {name} to {self.session.folder}")
         self.pairSaved.emit(name)
         return name
-
-    def _auto_capture(self, out: CaptureOutput, frame: StereoFrame, pose: PoseDescriptor) -> None:
-        corners = out.detection.left.corners.reshape(-1, 2)  # type: ignore[union-attr]
-        self._recent_corners.append(corners)
-        steady = len(self._recent_corners) == STEADY_FRAMES and max(
-            float(np.abs(c - corners).max()) for c in self._recent_corners) < STEADY_PX
-        new = is_new_pose(pose, self._saved_poses())
-        if not new:
-            self.prompt.setText("Pose already captured: move or tilt the board somewhere new")
-        elif not steady:
-            self.prompt.setText("New pose: hold the board still…")
-        elif self.session is None:
-            self.prompt.setText("Automatic capture needs a session: choose New session…")
-        else:
-            self._save_pair(frame, out.detection)
-            self._recent_corners.clear()
-            self.prompt.setText("Pair taken. Move the board to the next pose")
 
     # ---- sessions --------------------------------------------------------------------------------
     def _choose_new_session(self) -> bool:
@@ -556,7 +519,8 @@ class CaptureTab(QWidget):
             self.save_button.setDefault(True)
 
     def shutdown(self) -> None:
+        """Cancel a session scan; the context joins its thread (it is registered there)."""
         if self._scan is not None:
-            self._scan.stop()
+            self._scan.cancel()
             self._scan = None
 

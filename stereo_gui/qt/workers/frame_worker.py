@@ -1,26 +1,32 @@
 """The frame worker: reads the current source and runs the current processor off the UI thread.
 
-Two daemon threads, joined by a slot of size one (newest frame wins, as in ROS camera_calibration):
+Two QThreads (`threads.WorkerThread`), joined by a slot of size one (newest frame wins, as in ROS
+camera_calibration):
 - the reader calls `source.read()` as fast as the source delivers, so a camera never backs up;
 - the processor takes the newest frame, runs the processor function on it (all heavy OpenCV work
   happens here) and keeps the newest `ProcessedFrame`.
 
-The UI never receives a backlog: `frameReady` is emitted at most once until `latest()` is called,
-and `latest()` returns only the newest result.
+The UI never receives a backlog: `frameReady` (queued to the UI thread) is emitted at most once
+until `latest()` is called, and `latest()` returns only the newest result.
+
+A read that does not return (a camera that stopped answering) cannot be interrupted. A watchdog
+in the UI thread says so once it has blocked for READ_STALL_S; choosing another source then
+leaves the blocked reader behind and starts a new one; `stop()` waits at most its timeout and
+leaves a blocked thread to end on its own (threads.py keeps it alive until then, so closing never
+aborts).
 """
 
 from __future__ import annotations
 
 import logging
-import os
-import sys
 import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from PySide6.QtCore import QObject, Signal
+from PySide6.QtCore import QObject, QTimer, Signal
 
+from stereo_gui.qt.workers.threads import WorkerThread
 from stereo_gui.sources.base import FrameSource, StereoFrame
 
 log = logging.getLogger(__name__)
@@ -28,6 +34,8 @@ log = logging.getLogger(__name__)
 Processor = Callable[[StereoFrame], object]
 
 _JOIN_TIMEOUT_MS = 2000
+READ_STALL_S = 3.0  # a read blocked this long is reported (the device stopped answering)
+_WATCHDOG_MS = 500
 _FPS_SMOOTHING = 0.1  # weight of the newest interval in the running frame-rate estimate
 
 
@@ -69,43 +77,6 @@ class _RateMeter:
         return 0.0 if not self._interval_s else 1.0 / self._interval_s
 
 
-WORKER_NICE = 10  # Linux niceness of frame threads: under CPU load the UI thread wins
-
-
-def _lower_thread_priority() -> None:
-    """Make the calling thread yield to the UI thread when CPUs are busy.
-
-    On Linux niceness is per thread (and inherited by threads it starts, e.g. OpenCV's pool),
-    while thread priorities do nothing under the default scheduler. Elsewhere the threads run
-    at normal priority.
-    """
-    if hasattr(os, "setpriority") and sys.platform.startswith("linux"):
-        try:
-            tid = threading.get_native_id()
-            current = os.getpriority(os.PRIO_PROCESS, tid)
-            os.setpriority(os.PRIO_PROCESS, tid, max(current, WORKER_NICE))
-        except OSError as exc:
-            log.debug("could not lower the frame thread's priority: %s", exc)
-
-
-class _LoopThread(threading.Thread):
-    """A daemon thread running a plain Python loop function until asked to stop.
-
-    Not a QThread on purpose: a source read can block for longer than the 2 s the window waits
-    at closing (a camera being opened, the rig building its textures on a loaded machine). A
-    QThread destroyed while running aborts the process; a daemon thread is simply left behind
-    and ends with it.
-    """
-
-    def __init__(self, loop: Callable[[], None], name: str) -> None:
-        super().__init__(name=name, daemon=True)
-        self._loop = loop
-
-    def run(self) -> None:  # runs in the new thread
-        _lower_thread_priority()
-        self._loop()
-
-
 class FrameWorker(QObject):
     """Reads frames from a FrameSource and processes them off the UI thread (see module doc)."""
 
@@ -132,8 +103,15 @@ class FrameWorker(QObject):
         self._last_error = ""
         self._frames_read = 0
         self._frames_processed = 0
-        self._reader: _LoopThread | None = None
-        self._worker: _LoopThread | None = None
+        self._read_started: float | None = None  # monotonic time the current read began
+        self._stall_reported = False
+        self._reader_gen = 0  # a reader loop of an older generation ends after its read
+        self._reader: WorkerThread | None = None
+        self._worker: WorkerThread | None = None
+        self._left_behind: list[WorkerThread] = []  # blocked threads stop() could not join
+        self._watchdog = QTimer(self)
+        self._watchdog.setInterval(_WATCHDOG_MS)
+        self._watchdog.timeout.connect(self._check_read)
 
     # ---- control (UI thread) -----------------------------------------------------------------
     def set_source(self, source: FrameSource | None) -> None:
@@ -148,6 +126,7 @@ class FrameWorker(QObject):
             self._proc_rate.reset()
             self._cond.notify_all()
         self.sourceChanged.emit(getattr(source, "name", "") if source is not None else "")
+        self._replace_blocked_reader()
         self._ensure_started()
 
     def source(self) -> FrameSource | None:
@@ -226,19 +205,37 @@ class FrameWorker(QObject):
             return self._frames_processed
 
     def is_running(self) -> bool:
-        return any(t is not None and t.is_alive() for t in (self._reader, self._worker))
+        """True while one of its threads runs (a blocked one left behind included)."""
+        return any(t is not None and t.isRunning()
+                   for t in (self._reader, self._worker, *self._left_behind))
+
+    @property
+    def pending_frames(self) -> int:
+        """Frames read and waiting to be processed: 0 or 1, never a queue."""
+        with self._cond:
+            return 0 if self._frame is None else 1
+
+    def threads(self) -> list[WorkerThread]:
+        """The reader and processor threads (for tests and diagnostics)."""
+        return [t for t in (self._reader, self._worker) if t is not None]
 
     def stop(self, timeout_ms: int = _JOIN_TIMEOUT_MS) -> bool:
-        """Ask both threads to end, join them, close the source; True if they ended in time."""
+        """Ask both threads to end, join them, close the source; True if they ended in time.
+
+        Waits at most `timeout_ms` in all. A thread still blocked then (in a source read that
+        does not return) is left to end on its own and the source is not closed under it; a
+        later stop() returns False at once while it is still blocked.
+        """
+        self._watchdog.stop()
         with self._cond:
             self._stopping = True
             self._cond.notify_all()
-        ok = True
         deadline = time.monotonic() + timeout_ms / 1000.0
         for t in (self._reader, self._worker):
-            if t is not None:
-                t.join(max(0.001, deadline - time.monotonic()))
-                ok = not t.is_alive() and ok
+            if t is not None and not t.join(max(1, int((deadline - time.monotonic()) * 1000))):
+                self._left_behind.append(t)
+        self._left_behind = [t for t in self._left_behind if t.isRunning()]
+        ok = not self._left_behind
         if not ok:
             log.warning("frame worker did not stop within %d ms (a source read is blocking)",
                         timeout_ms)
@@ -248,23 +245,69 @@ class FrameWorker(QObject):
                 self._source = None
                 self._pending_source = None
                 self._source_pending = False
+        self._reader = None
+        self._worker = None
         if ok:
             for s in sources:
                 close_quietly(s)
-            self._reader = None
-            self._worker = None
             with self._cond:
                 self._stopping = False
         return ok
 
     # ---- threads -----------------------------------------------------------------------------
+    def _request_stop(self) -> None:
+        with self._cond:
+            self._stopping = True
+            self._cond.notify_all()
+
     def _ensure_started(self) -> None:
+        with self._cond:
+            if self._stopping:
+                return  # a stop() left a blocked thread behind: this worker is done
+            gen = self._reader_gen
         if self._reader is None:
-            self._reader = _LoopThread(self._read_loop, "frame-reader")
+            self._reader = WorkerThread(lambda: self._read_loop(gen), "frame-reader",
+                                        self._request_stop)
             self._reader.start()
         if self._worker is None:
-            self._worker = _LoopThread(self._process_loop, "frame-processor")
+            self._worker = WorkerThread(self._process_loop, "frame-processor",
+                                        self._request_stop)
             self._worker.start()
+        self._watchdog.start()
+
+    def _blocked_for(self) -> float:
+        """Seconds the current read has been blocked (0 when none is under way)."""
+        with self._cond:
+            t0 = self._read_started
+        return 0.0 if t0 is None else time.monotonic() - t0
+
+    def _check_read(self) -> None:
+        """Watchdog (UI thread): say once when a read has been blocked for READ_STALL_S."""
+        stalled = self._blocked_for()
+        if stalled < READ_STALL_S:
+            self._stall_reported = False
+            return
+        if not self._stall_reported:
+            self._stall_reported = True
+            with self._cond:
+                name = getattr(self._source, "name", "the source")
+            self.errorOccurred.emit(f"{name}: no frame for {stalled:.0f} s; the device is not "
+                                    "answering (unplugged, or in use by another program?)")
+            log.warning("%s: a read has been blocked for %.1f s", name, stalled)
+
+    def _replace_blocked_reader(self) -> None:
+        """A new source must not wait for a read of the old one that does not return: leave
+        such a reader behind (it ends after its read) and let a new one start."""
+        if self._reader is None or self._blocked_for() < READ_STALL_S:
+            return
+        with self._cond:
+            self._reader_gen += 1
+            old = self._source
+            self._source = None  # closed by nobody while its read is under way
+        log.warning("leaving a reader blocked in %s behind", getattr(old, "name", "a source"))
+        self._left_behind.append(self._reader)
+        self._reader = None
+        self._stall_reported = False
 
     def _report(self, text: str) -> None:
         """Emit an error once (a failing source or processor would otherwise repeat it per frame)."""
@@ -275,13 +318,13 @@ class FrameWorker(QObject):
         log.warning("%s", text)
         self.errorOccurred.emit(text)
 
-    def _read_loop(self) -> None:
+    def _read_loop(self, gen: int) -> None:
         while True:
             with self._cond:
-                while not self._stopping and (self._paused or (
+                while not self._stopping and gen == self._reader_gen and (self._paused or (
                         self._source is None and not self._source_pending)):
                     self._cond.wait()
-                if self._stopping:
+                if self._stopping or gen != self._reader_gen:
                     return
                 old = None
                 if self._source_pending:
@@ -293,9 +336,18 @@ class FrameWorker(QObject):
                 close_quietly(old)
             if source is None:
                 continue
+            with self._cond:
+                self._read_started = time.monotonic()
             try:
                 frame = source.read()
             except Exception as exc:  # noqa: BLE001 - any failure of a device becomes a message
+                with self._cond:
+                    left_behind = gen != self._reader_gen
+                    if not left_behind:
+                        self._read_started = None
+                if left_behind:  # the source is no longer used: close it now its read is over
+                    close_quietly(source)
+                    return
                 self._report(f"{getattr(source, 'name', 'source')}: {exc}")
                 with self._cond:
                     # stop reading a failed source; a new set_source() starts again
@@ -304,6 +356,13 @@ class FrameWorker(QObject):
                         self._camera_rate.reset()
                 close_quietly(source)
                 continue
+            with self._cond:
+                left_behind = gen != self._reader_gen
+                if not left_behind:
+                    self._read_started = None
+            if left_behind:  # drop the frame, close the source no longer used, end
+                close_quietly(source)
+                return
             with self._cond:
                 if self._source is not source or self._source_pending:
                     continue  # a frame of the previous source: drop it

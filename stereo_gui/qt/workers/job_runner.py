@@ -1,5 +1,6 @@
-"""The job runner: one background thread for occasional requests (a click's measurement, an
-export, a snapshot), results delivered by signal with the request's id."""
+"""The job runner: one background QThread for occasional requests (a click's measurement, an
+export, a snapshot, opening a source), results delivered by queued signal with the request's
+id."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from collections.abc import Callable
 from PySide6.QtCore import QObject, Signal
 
 from stereo_gui.qt.workers.frame_worker import close_quietly
+from stereo_gui.qt.workers.threads import WorkerThread
 
 log = logging.getLogger(__name__)
 
@@ -20,8 +22,8 @@ class JobRunner(QObject):
     """One background thread for occasional jobs; `finished(id, result)` / `failed(id, message)`.
 
     Jobs run in order; `submit` returns the job's id so a caller can drop a stale answer. The
-    thread is a daemon Python thread (not a QThread): a job that cannot be interrupted (opening
-    a device) and outlives `stop()` is abandoned at exit instead of aborting Qt.
+    thread is a `threads.WorkerThread`: a job that cannot be interrupted (opening a device) and
+    outlives `stop()` is left to end on its own; it is never deleted while it runs.
     """
 
     finished = Signal(int, object)
@@ -35,7 +37,7 @@ class JobRunner(QObject):
         self._stopping = False
         self._busy = False
         self._name = name
-        self._thread: threading.Thread | None = None
+        self._thread: WorkerThread | None = None
 
     def submit(self, fn: Callable[[], object]) -> int:
         with self._cond:
@@ -43,14 +45,28 @@ class JobRunner(QObject):
             self._next_id += 1
             self._jobs.append((job_id, fn))
             self._cond.notify_all()
-            if self._thread is None or not self._thread.is_alive():
+            start = self._thread is None or not self._thread.isRunning()
+            if start:
                 self._stopping = False
-                self._thread = threading.Thread(target=self._loop, name=self._name, daemon=True)
-                self._thread.start()
+                self._thread = WorkerThread(self._loop, self._name, self._request_stop,
+                                            low_priority=False)
+            thread = self._thread
+        if start:
+            thread.start()
         return job_id
 
+    def _request_stop(self) -> None:
+        with self._cond:
+            self._stopping = True
+            self._jobs.clear()
+            self._cond.notify_all()
+
     def is_running(self) -> bool:
-        return self._thread is not None and self._thread.is_alive()
+        return self._thread is not None and self._thread.isRunning()
+
+    def worker_thread(self) -> WorkerThread | None:
+        """The QThread the jobs run in (None before the first job)."""
+        return self._thread
 
     def is_busy(self) -> bool:
         """True while a job is queued or running."""
@@ -66,9 +82,8 @@ class JobRunner(QObject):
             thread = self._thread
         if thread is None:
             return True
-        thread.join(timeout_ms / 1000.0)
-        if thread.is_alive():
-            log.warning("%s: a job is still running; it is abandoned", self._name)
+        if not thread.join(timeout_ms):
+            log.warning("%s: a job is still running; it is left to end on its own", self._name)
             return False
         with self._cond:
             if self._thread is thread:

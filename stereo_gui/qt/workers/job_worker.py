@@ -16,12 +16,12 @@ cancelled is emitted per run, then done().
 from __future__ import annotations
 
 import logging
-import threading
 
 from PySide6.QtCore import QObject, Signal
 
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.pipeline.jobs import Job, JobCancelled, JobControl, Progress
+from stereo_gui.qt.workers.threads import WorkerThread
 
 __all__ = ["Job", "JobCancelled", "JobControl", "JobWorker", "Progress"]
 
@@ -31,9 +31,9 @@ log = logging.getLogger(__name__)
 class JobWorker(QObject):
     """Runs one generator job in its own thread; see the module docstring for the signals.
 
-    The thread is a daemon Python thread, not a QThread: one OpenCV call of a job cannot be
-    interrupted, and a QThread destroyed while still running aborts the whole process when the
-    window closes; a daemon thread left behind simply ends with it.
+    The thread is a `threads.WorkerThread` (a QThread): one OpenCV call of a job cannot be
+    interrupted, so `stop()` waits at most its timeout and a job still running then is left to
+    end on its own; it is never deleted while it runs.
     """
 
     progress = Signal(object)  # Progress
@@ -48,23 +48,26 @@ class JobWorker(QObject):
         self._cancel = JobControl(self.progress.emit)
         self.job_name = name
         self.setObjectName(f"JobWorker-{name}")
-        self._thread: threading.Thread | None = None
+        self._thread: WorkerThread | None = None
 
     def start(self) -> None:
         """Run the job in a new thread (once)."""
         if self._thread is not None:
             raise RuntimeError(f"{self.job_name} was already started")
-        self._thread = threading.Thread(target=self.run, name=f"job-{self.job_name}", daemon=True)
+        self._thread = WorkerThread(self.run, f"job-{self.job_name}", self.cancel,
+                                    low_priority=False)
         self._thread.start()
 
+    def worker_thread(self) -> WorkerThread | None:
+        """The QThread the job runs in (None before `start`)."""
+        return self._thread
+
     def isRunning(self) -> bool:  # noqa: N802 - the name QThread used, kept for callers
-        return self._thread is not None and self._thread.is_alive()
+        return self._thread is not None and self._thread.isRunning()
 
     def wait(self, timeout_ms: int) -> bool:
         """Join the thread for at most `timeout_ms`; True if it has ended (or never started)."""
-        if self._thread is not None:
-            self._thread.join(max(0, timeout_ms) / 1000.0)
-        return not self.isRunning()
+        return self._thread is None or self._thread.join(timeout_ms)
 
     def cancel(self) -> None:
         """Ask the job to stop at its next step (returns at once)."""

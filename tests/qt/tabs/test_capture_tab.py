@@ -193,7 +193,7 @@ def test_keys_s_and_c_save_and_cancel(tab, tmp_path, qtbot):
     assert tab.state == "review"
     qtbot.keyClick(tab, Qt.Key.Key_C)
     qtbot.waitUntil(lambda: tab.state == "live", timeout=3000)  # a shortcut animates the click
-    tab._last_reviewed_pose = None  # as if the board had left the view in between
+    tab.rules.last_reviewed_pose = None  # as if the board had left the view in between
     tab.show_output(out, frame)
     assert tab.state == "review"
     with qtbot.waitSignal(tab.pairSaved, timeout=30000):

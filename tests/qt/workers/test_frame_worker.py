@@ -122,9 +122,46 @@ def test_stop_joins_quickly_and_can_restart(qtbot, worker, array_source):
     qtbot.waitUntil(lambda: worker.frames_processed > 2, timeout=30000)
 
 
+def test_a_blocked_read_is_reported_and_a_new_source_does_not_wait_for_it(
+        qtbot, array_source, monkeypatch):
+    import stereo_gui.qt.workers.frame_worker as fw
+    from stereo_gui.core.errors import SourceError
+
+    monkeypatch.setattr(fw, "READ_STALL_S", 0.2)
+    release = threading.Event()
+
+    class Stuck:
+        name = "stuck camera"
+        nominal_fps = 30.0
+        closed = False
+
+        def read(self):
+            release.wait(30)  # a camera that stopped answering, until the test lets it go
+            raise SourceError("gone")
+
+        def close(self):
+            self.closed = True
+
+    w = FrameWorker()
+    stuck = Stuck()
+    try:
+        with qtbot.waitSignal(w.errorOccurred, timeout=10000) as sig:
+            w.set_source(stuck)
+        assert "stuck camera" in sig.args[0] and "not answering" in sig.args[0]
+        w.set_source(array_source())
+        qtbot.waitUntil(lambda: w.frames_read >= 3, timeout=30000)  # read by a new reader
+        assert not stuck.closed  # never closed under its own blocked read
+        release.set()
+        qtbot.waitUntil(lambda: stuck.closed, timeout=10000)  # by the reader left behind
+    finally:
+        release.set()
+        assert w.stop(2000)
+
+
 def test_exit_while_a_read_blocks_does_not_abort(tmp_path):
     """A source stuck in read() past the stop timeout must not crash the process at exit
-    (a QThread destroyed while running aborts it; our frame threads are daemon threads)."""
+    (a QThread destroyed while running aborts it; workers/threads.py keeps ours alive and leaves
+    the process before PySide would delete them)."""
     import subprocess
     import sys
 
@@ -144,10 +181,11 @@ def test_exit_while_a_read_blocks_does_not_abort(tmp_path):
         "assert entered.wait(10)\n"
         "assert w.stop(200) is False\n"
         "print('stopped-late')\n"
+        "raise SystemExit(3)\n"  # the script's own status survives the blocked thread
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=60, env={**__import__("os").environ,
                                            "QT_QPA_PLATFORM": "offscreen"})
-    assert proc.returncode == 0, proc.stderr
+    assert proc.returncode == 3, proc.stderr
     assert "stopped-late" in proc.stdout
     assert "QThread: Destroyed" not in proc.stderr and "Abort" not in proc.stderr
