@@ -115,12 +115,14 @@ def _time(step, frames: int, warmup: int = 2) -> dict:
 
 
 def bench_preset(calib, params, left, right, frames: int, warmup: int = 2) -> dict:
-    """Time one preset as the Live tab runs it (pipeline and display conversion)."""
-    from stereo_gui.pipeline.live import LiveProcessor
+    """Time one preset as the Live tab runs it with its default views (pipeline and display
+    conversion)."""
+    from stereo_gui.pipeline.live import DEFAULT_VIEWS, LiveProcessor
     from stereo_gui.sources.base import StereoFrame
 
     frame = StereoFrame(left, right, 0.0, 0.0, 0)
     proc = LiveProcessor(calib, params)
+    proc.set_views(DEFAULT_VIEWS)  # as the Live tab starts
     try:
         def step():
             t0 = time.perf_counter()

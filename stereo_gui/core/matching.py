@@ -470,8 +470,11 @@ class StereoPipeline:
             self._build()
 
     # ---- processing ----------------------------------------------------------------------
-    def rectify(self, left_bgr: np.ndarray, right_bgr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Both raw images remapped into the rectified frame (identity calibrations: unchanged)."""
+    def rectify(self, left_bgr: np.ndarray, right_bgr: np.ndarray, right_colour: bool = True
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """Both raw images remapped into the rectified frame (identity calibrations: unchanged).
+        With `right_colour` False the right one is remapped as gray (a third of the work: the
+        matcher needs no more, and only a view of the right image needs its colours)."""
         w, h = self.calibration.image_size
         for name, img in (("left", left_bgr), ("right", right_bgr)):
             if img is None or img.ndim not in (2, 3):
@@ -480,6 +483,8 @@ class StereoPipeline:
                 raise InputError(
                     f"the {name} image is {img.shape[1]}x{img.shape[0]} but the calibration is for "
                     f"{w}x{h}")
+        if not right_colour:
+            right_bgr = to_gray(right_bgr)
         if self._maps is None:
             return left_bgr, right_bgr
         m = self._maps
@@ -513,8 +518,9 @@ class StereoPipeline:
             d16_right = compute_padded(self._right, mr, ml, pad, "right")
         return d16, d16_right
 
-    def process(self, left_bgr: np.ndarray, right_bgr: np.ndarray) -> PipelineResult:
-        """Run every stage on one raw stereo pair."""
+    def process(self, left_bgr: np.ndarray, right_bgr: np.ndarray, right_colour: bool = True
+                ) -> PipelineResult:
+        """Run every stage on one raw stereo pair (`right_colour`: see `rectify`)."""
         self._apply_pending()
         p = self._params
         t = {}
@@ -527,7 +533,7 @@ class StereoPipeline:
             t0 = now
 
         start = t0
-        rl, rr = self.rectify(left_bgr, right_bgr)
+        rl, rr = self.rectify(left_bgr, right_bgr, right_colour)
         gl, gr = to_gray(rl), to_gray(rr)
         lap("rectify")
         if p.bilateral:

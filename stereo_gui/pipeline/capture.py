@@ -26,6 +26,7 @@ from stereo_gui.core.detect import (
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.util import to_gray
 from stereo_gui.files.pairs import load_image
+from stereo_gui.pipeline.images import display_rgb
 from stereo_gui.pipeline.jobs import Progress
 from stereo_gui.sources.base import StereoFrame
 
@@ -81,13 +82,6 @@ def make_capture_processor(board: BoardSpec):
     def process(frame: StereoFrame) -> CaptureOutput:
         return detect_live(frame, board)
     return process
-
-
-def display_rgb(bgr: np.ndarray) -> np.ndarray:
-    """A BGR (or gray) image as C-contiguous RGB uint8 for pyqtgraph."""
-    if bgr.ndim == 2:
-        return np.ascontiguousarray(np.repeat(bgr[:, :, None], 3, axis=2))
-    return np.ascontiguousarray(bgr[:, :, 2::-1])
 
 
 def session_scan_job(pairs, board: BoardSpec, thumb_size: tuple[int, int]):

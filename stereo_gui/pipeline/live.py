@@ -15,6 +15,7 @@ import numpy as np
 
 from stereo_gui.core.matching import (NO_MATCH_BGR, NOT_SEEN_BGR, MatcherParams, PipelineResult,
                                      StereoPipeline, paint)
+from stereo_gui.pipeline.images import display_rgb
 from stereo_gui.pipeline.region import Region, RegionStats, region_stats
 from stereo_gui.sources.base import StereoFrame
 
@@ -35,6 +36,10 @@ class LiveOutput:
     images: dict[str, np.ndarray]
     scale_note: str = ""  # says so when the calibration was scaled to the source's frame size
     region: RegionStats | None = None  # the watched region of this frame (set_region)
+
+
+VIEW_KEYS = ("left", "right", "raw", "closed", "wls")  # the images a LiveOutput can hold
+DEFAULT_VIEWS = ("left", "raw", "closed", "wls")  # what the Live tab shows at first
 
 
 def _gray_disparity(disp_px: np.ndarray, lo: float, hi: float,
@@ -69,6 +74,15 @@ class LiveProcessor:
         self._size: tuple[int, int] | None = None  # frame size the pipeline was built for
         self._note = ""
         self._region: tuple[Region, float | None, object] | None = None
+        self._views: frozenset[str] = frozenset(VIEW_KEYS)
+
+    def set_views(self, keys) -> None:
+        """Make display images only of the views in `keys` (any thread; the next frame): the
+        others cost time and nobody sees them. The right image is rectified in colour only
+        when its view is shown (gray is all the matcher needs)."""
+        keys = frozenset(keys) & frozenset(VIEW_KEYS)
+        with self._lock:
+            self._views = keys
 
     def set_params(self, params: MatcherParams) -> None:
         with self._lock:
@@ -100,15 +114,17 @@ class LiveProcessor:
                 if self._note:
                     log.info("%s", self._note)
             pipeline, note, watched = self._pipeline, self._note, self._region
-        r = pipeline.process(frame.left, frame.right)
+            views = self._views
+        r = pipeline.process(frame.left, frame.right, right_colour="right" in views)
         lo, hi = r.disparity_range_px
-        images = {
-            "left": cv2.cvtColor(r.rectified_left, cv2.COLOR_BGR2RGB),
-            "right": cv2.cvtColor(r.rectified_right, cv2.COLOR_BGR2RGB),
-            "raw": _gray_disparity(r.disparity_px, lo, hi, r.not_seen),
-            "closed": _gray_disparity(r.closed_px, lo, hi, r.not_seen),
-            "wls": cv2.cvtColor(r.color_bgr, cv2.COLOR_BGR2RGB),  # (painted so by colorize)
+        make = {
+            "left": lambda: display_rgb(r.rectified_left),
+            "right": lambda: display_rgb(r.rectified_right),
+            "raw": lambda: _gray_disparity(r.disparity_px, lo, hi, r.not_seen),
+            "closed": lambda: _gray_disparity(r.closed_px, lo, hi, r.not_seen),
+            "wls": lambda: cv2.cvtColor(r.color_bgr, cv2.COLOR_BGR2RGB),  # (painted by colorize)
         }
+        images = {key: make[key]() for key in VIEW_KEYS if key in views}
         stats = None if watched is None else region_stats(r, *watched)
         return LiveOutput(r, images, note, stats)
 

@@ -70,3 +70,19 @@ def test_new_parameters_apply_to_the_next_frame():
         assert proc(_frame()).result.params.block_size == 7
     finally:
         proc.close()
+
+
+def test_only_the_views_shown_are_made_and_the_right_image_is_gray_unless_shown():
+    proc = _processor()
+    try:
+        proc.set_views(["left", "wls"])
+        out = proc(_frame())
+        assert set(out.images) == {"left", "wls"}
+        assert out.result.rectified_right.ndim == 2  # the matcher needs no colour
+        proc.set_views(["right", "raw", "nonsense"])
+        out = proc(_frame())
+        assert set(out.images) == {"right", "raw"}
+        assert out.result.rectified_right.ndim == 3
+        assert out.images["right"].shape == (H, W, 3)
+    finally:
+        proc.close()

@@ -38,10 +38,10 @@ from stereo_gui.pipeline.capture import (
     STEADY_PX,
     CaptureOutput,
     CaptureRules,
-    display_rgb,
     make_capture_processor,
     session_scan_job,
 )
+from stereo_gui.pipeline.images import display_rgb
 from stereo_gui.qt.widgets.board_row import BoardRow
 from stereo_gui.qt.widgets.helpers import pane, wrapping_label
 from stereo_gui.qt.widgets.saved_pairs import (

@@ -41,7 +41,7 @@ from PySide6.QtWidgets import (
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.matching import COLORMAPS, MatcherParams
 from stereo_gui.files.spreadsheet import RULER_METHOD
-from stereo_gui.pipeline.live import LiveOutput, LiveProcessor
+from stereo_gui.pipeline.live import DEFAULT_VIEWS, LiveOutput, LiveProcessor
 from stereo_gui.pipeline.region import Region
 from stereo_gui.pipeline.readout import (MEASURABLE_VIEWS, PointerReading, format_distance,
                                          format_error, read_pointer, readout_line)
@@ -70,7 +70,6 @@ NO_WLS_TITLE = "Closed disparity (no WLS), colour = distance"
 LEGEND = ("<span style='color:#6e1414'>■</span> dark red: no match &nbsp; "
           "<span style='color:#606060'>■</span> grey: not seen by the right camera")
 SHORT_NAMES = {"left": "Left", "right": "Right", "raw": "Raw", "closed": "Closed", "wls": "WLS"}
-DEFAULT_VIEWS = ("left", "raw", "closed", "wls")
 MEASURABLE = MEASURABLE_VIEWS  # views sharing the left image's pixel frame
 CLOUD_INTERVAL_MS = 400  # the 3D view follows the frames at most this often
 REGION_VIEW = "wls"  # the view that carries the region box
@@ -305,9 +304,15 @@ class LiveTab(QWidget):
             self._grid.addWidget(self.panels[key], i // cols, i % cols, 1, span)
             self.panels[key].show()
         self.ctx.update_settings(visible_views=tuple(keys)) if self.ctx.settings else None
+        if self._processor is not None:
+            self._processor.set_views(self._processed_views())
 
     def visible_views(self) -> list[str]:
         return [k for k in VIEWS if self.view_checks[k].isChecked()]
+
+    def _processed_views(self) -> list[str]:
+        """The views the processor makes images of: those shown (the snapshot saves those)."""
+        return self.visible_views()
 
     def set_visible_views(self, keys) -> None:
         for k, c in self.view_checks.items():
@@ -334,6 +339,8 @@ class LiveTab(QWidget):
         self.params_panel.set_calibration(calib)
         self._processor = (LiveProcessor(calib, self.params_panel.params())
                            if calib is not None else None)
+        if self._processor is not None:
+            self._processor.set_views(self._processed_views())
         self._apply_region()
         self._output = None
         self.clear_markers()
@@ -394,7 +401,8 @@ class LiveTab(QWidget):
         """Draw one processed frame (UI thread: array hand-over only)."""
         self._output = out
         for key in self.visible_views():
-            self.panels[key].set_image(out.images[key])
+            if key in out.images:  # (a view ticked after this frame was made: the next has it)
+                self.panels[key].set_image(out.images[key])
         if "wls" in self.visible_views():
             self._update_color_bar(out)
         wls = out.result.wls_px is not None

@@ -91,7 +91,7 @@ class LiveExports(QObject):
             return None
         folder = Path(folder)
         stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S-%f")[:-3]
-        images = {k: out.images[k] for k in self._views()}
+        images = {k: out.images[k] for k in self._views() if k in out.images}
 
         def write() -> list[Path]:
             from stereo_gui.files.atomic import write_bytes_atomic
