@@ -8,27 +8,14 @@ import cv2
 import numpy as np
 import pytest
 
-from stereo_gui.core.board import BoardSpec
-from stereo_gui.core.detect import detect_board
+from corners import detect_corners, match_order
+
 from stereo_gui.sources.sim import (
     BoardPose,
     RigTruth,
     SimRig,
     write_calibration_set,
 )
-
-
-def _detect(img: np.ndarray, board: BoardSpec) -> np.ndarray | None:
-    """(N, 2) corners found by the application's own detector, or None."""
-    found = detect_board(img, board)
-    return None if found is None else found.corners
-
-
-def _match_order(found: np.ndarray, truth: np.ndarray) -> np.ndarray:
-    """OpenCV may report the corners in reverse order; compare in the order that fits."""
-    fwd = np.sqrt(np.mean(np.sum((found - truth) ** 2, 1)))
-    rev = np.sqrt(np.mean(np.sum((found[::-1] - truth) ** 2, 1)))
-    return found if fwd <= rev else found[::-1]
 
 
 def test_write_calibration_set(tmp_path):
@@ -45,6 +32,6 @@ def test_write_calibration_set(tmp_path):
     assert img.shape == (480, 640, 3)
     # the written image is the rig's rendering of the recorded pose
     pose = BoardPose(np.array(data["pairs"][0]["R_left_board"]), np.array(data["pairs"][0]["t_left_board_mm"]))
-    found = _detect(img, truth.board)
+    found = detect_corners(img, truth.board)
     truth_px = SimRig(seed=4).project(pose.corners_left_mm(truth.board), 0)
-    assert np.abs(_match_order(found, truth_px) - truth_px).max() < 0.5
+    assert np.abs(match_order(found, truth_px) - truth_px).max() < 0.5

@@ -6,26 +6,13 @@ import cv2
 import numpy as np
 import pytest
 
-from stereo_gui.core.board import BoardSpec
-from stereo_gui.core.detect import detect_board
+from corners import detect_corners, match_order
+
 from stereo_gui.sources.sim import (
     RigConfig,
     Scene,
     SimRig,
 )
-
-
-def _detect(img: np.ndarray, board: BoardSpec) -> np.ndarray | None:
-    """(N, 2) corners found by the application's own detector, or None."""
-    found = detect_board(img, board)
-    return None if found is None else found.corners
-
-
-def _match_order(found: np.ndarray, truth: np.ndarray) -> np.ndarray:
-    """OpenCV may report the corners in reverse order; compare in the order that fits."""
-    fwd = np.sqrt(np.mean(np.sum((found - truth) ** 2, 1)))
-    rev = np.sqrt(np.mean(np.sum((found[::-1] - truth) ** 2, 1)))
-    return found if fwd <= rev else found[::-1]
 
 
 def test_board_poses_are_varied_and_fully_visible(rig):
@@ -61,10 +48,10 @@ def test_rendered_corners_agree_with_projectpoints(rig):
         left, right = rig.render_board_pair(pose, rng)
         assert left.shape == (480, 640, 3) and left.dtype == np.uint8
         for cam, img in ((0, left), (1, right)):
-            found = _detect(img, board)
+            found = detect_corners(img, board)
             assert found is not None, "the rendered board was not detected"
             truth = rig.project(pose.corners_left_mm(board), cam)
-            found = _match_order(found, truth)
+            found = match_order(found, truth)
             errors.append(np.sum((found - truth) ** 2, 1))
     rms = float(np.sqrt(np.mean(np.concatenate(errors))))
     assert rms < 0.1, rms
@@ -77,7 +64,7 @@ def test_calibration_on_rendered_pairs_recovers_the_rig():
     board = rig.config.board
     obj, img_l, img_r = [], [], []
     for left, right in rig.calibration_set(14):
-        cl, cr = _detect(left, board), _detect(right, board)
+        cl, cr = detect_corners(left, board), detect_corners(right, board)
         if cl is None or cr is None:
             continue
         if np.linalg.norm(cl[0] - cl[-1]) > 0 and np.dot(cl[-1] - cl[0], cr[-1] - cr[0]) < 0:
@@ -183,7 +170,7 @@ def test_board_in_front_of_a_scene_is_depth_tested():
     shown, _ = rig.render_board_pair(pose, scene=far)
     only_wall, _ = rig.render_scene(near)
     np.testing.assert_array_equal(hidden, only_wall)
-    assert _detect(shown, rig.config.board) is not None
+    assert detect_corners(shown, rig.config.board) is not None
     assert corner_px is not None
 
 
