@@ -8,8 +8,10 @@ corners) and the centre (the inner 3 x 3 cells). A region is covered when every 
 holds at least MIN_POINTS_PER_CELL points of the kept views, in that camera's image.
 
 "Ready to calibrate" follows from coverage, not a count of pairs: every region of both images
-covered, the board tilted enough (ROS camera_calibration's skew) and seen at a spread of
-distances (its size), with at least MIN_PAIRS pairs.
+covered (except, if need be, the far side of each image, FAR_SIDE: the left image's left edge and
+the right image's right edge, which both cameras see only from far away), the board tilted
+enough (ROS camera_calibration's skew) and seen at a spread of distances (its size), with at
+least MIN_PAIRS pairs.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ GRID = 5  # cells across and down each image
 MIN_POINTS_PER_CELL = 3
 MIN_PAIRS = 10  # fewest pairs for a stable solve, however well they cover the images
 TILT_NEEDED = 0.5  # largest skew (ROS's 0..1 measure) the views must reach
-SIZE_SPREAD_NEEDED = 0.2  # spread of the board's size (sqrt of area share) the views must reach
+SIZE_SPREAD_NEEDED = 0.15  # spread of the board's size (sqrt of its area share) the views must reach
 
 SIDES = ("left", "right")
 # region name -> its cells (row, col) of the 5 x 5 grid
@@ -39,6 +41,10 @@ REGIONS: dict[str, tuple[tuple[int, int], ...]] = {
     "bottom-right corner": ((4, 4),),
 }
 CORNERS = ("top-left corner", "top-right corner", "bottom-left corner", "bottom-right corner")
+# the side of each image the other camera does not share: a board there is seen by both cameras
+# only from far away (or, a ChArUco board, partly), so readiness asks for it but does not wait
+FAR_SIDE = {"left": ("top-left corner", "left edge", "bottom-left corner"),
+            "right": ("top-right corner", "right edge", "bottom-right corner")}
 
 
 def cell_counts(points_px: Sequence[np.ndarray], image_size: tuple[int, int]) -> np.ndarray:
@@ -120,8 +126,19 @@ class Readiness:
         return {side: empty_regions(self.counts[side]) for side in SIDES}
 
     @property
+    def required_empty(self) -> dict[str, list[str]]:
+        """Empty regions readiness waits for (the far sides excepted)."""
+        return {side: [r for r in regs if r not in FAR_SIDE[side]]
+                for side, regs in self.empty.items()}
+
+    @property
+    def far_empty(self) -> dict[str, list[str]]:
+        return {side: [r for r in regs if r in FAR_SIDE[side]]
+                for side, regs in self.empty.items()}
+
+    @property
     def regions_covered(self) -> bool:
-        return not any(self.empty.values())
+        return not any(self.required_empty.values())
 
     @property
     def tilt_ok(self) -> bool:
@@ -143,7 +160,7 @@ class Readiness:
     def missing(self) -> list[str]:
         """What to do next, in words a person can follow (empty when ready)."""
         out = []
-        words = regions_in_words(self.empty)
+        words = regions_in_words(self.required_empty)
         if words:
             out.append(f"Move the board to {words} (still empty)")
         if not self.tilt_ok:
@@ -154,12 +171,23 @@ class Readiness:
             out.append(f"take at least {MIN_PAIRS - self.pairs} more pairs")
         return out
 
+    def advice(self) -> str:
+        """What would still help once ready: the far sides, in words ('' when covered)."""
+        words = regions_in_words(self.far_empty)
+        if not words:
+            return ""
+        return (f"Also still empty: {words}. Both cameras see the board there only when it is "
+                "far away (or, a ChArUco board, partly in view).")
+
     def summary(self) -> str:
-        """One sentence for the Capture tab."""
+        """One or two sentences for the Capture tab."""
         if self.ready:
-            return (f"Ready to calibrate: {self.pairs} pairs cover every region of both images, "
-                    "with tilt and distance spread")
-        return "Not ready yet: " + "; ".join(self.missing()) + "."
+            text = (f"Ready to calibrate: {self.pairs} pairs cover the images both cameras "
+                    "share, with tilt and distance spread.")
+        else:
+            text = "Not ready yet: " + "; ".join(self.missing()) + "."
+        extra = self.advice()
+        return f"{text} {extra}" if extra else text
 
 
 def readiness(pairs, board, image_size: tuple[int, int]) -> Readiness:

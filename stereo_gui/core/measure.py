@@ -514,11 +514,18 @@ def _z_of(calibration: StereoCalibration, d: float) -> float:
 def with_calibration_uncertainty(bound_mm: float, calibration: StereoCalibration, x: float,
                                  y: float, d: float) -> float:
     """A reading's 95 % bound with the calibration's own uncertainty at that pixel and disparity
-    added: sqrt(bound^2 + (1.96 sigma_calibration)^2) (core.uncertainty.depth_sigma_mm). A
-    calibration without an uncertainty (older files, rectified:F,B) keeps the bound as it is."""
+    added: bound + 1.96 sigma_calibration (core.uncertainty.depth_sigma_mm). A calibration
+    without an uncertainty (older files, rectified:F,B) keeps the bound as it is.
+
+    Added, not in quadrature: the calibration's error is the same for every reading made with
+    it (systematic), so a bound that must hold for the calibration at hand cannot let the
+    random matching part average it away. Measured on the simulated rig (10 seeds, 20 pairs):
+    in quadrature the bound covered 83 % of the grid for a calibration whose focal lengths came
+    out 1.8 sigma high, added it covered >= 99 % on every seed, with a median of 0.53-0.59 % of
+    the distance at 3 m (0.43-0.45 % in quadrature)."""
     if getattr(calibration, "uncertainty", None) is None or not math.isfinite(bound_mm):
         return bound_mm
     from stereo_gui.core.uncertainty import depth_sigma_mm
 
     sigma = depth_sigma_mm(calibration, x, y, d)
-    return math.hypot(bound_mm, Z95 * sigma) if math.isfinite(sigma) else bound_mm
+    return bound_mm + Z95 * sigma if math.isfinite(sigma) else bound_mm

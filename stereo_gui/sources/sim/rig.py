@@ -465,8 +465,9 @@ class SimRig:
         """The calibration a perfect calibration would find (Bouguet rectification)."""
         t = self.truth
         size = tuple(int(v) for v in t.image_size)
-        R1, R2, P1, P2, Q, _, _ = cv2.stereoRectify(t.M1, t.D1, t.M2, t.D2, size, t.R, t.T,
-                                                    flags=cv2.CALIB_ZERO_DISPARITY, alpha=alpha)
+        from stereo_gui.core.lens import stereo_rectify
+
+        R1, R2, P1, P2, Q = stereo_rectify(t.model, t.M1, t.D1, t.M2, t.D2, size, t.R, t.T, alpha)
         tx = t.T.reshape(3)
         Tx = np.array([[0, -tx[2], tx[1]], [tx[2], 0, -tx[0]], [-tx[1], tx[0], 0]], np.float64)
         E = Tx @ t.R
@@ -475,7 +476,8 @@ class SimRig:
         return StereoCalibration(size, t.M1.copy(), t.D1.copy(), t.M2.copy(), t.D2.copy(),
                                  t.R.copy(), t.T.copy(), E, F, R1, R2, P1, P2, Q, board=t.board,
                                  rms_left=0.0, rms_right=0.0, rms_stereo=0.0,
-                                 epipolar_error_px=0.0, method="bouguet", alpha=float(alpha))
+                                 epipolar_error_px=0.0, method="bouguet", alpha=float(alpha),
+                                 model=t.model, origin="the simulated rig's truth")
 
     def true_point_rectified(self, calib: StereoCalibration, scene: Scene, x: float, y: float
                              ) -> np.ndarray | None:
