@@ -140,7 +140,7 @@ class BoardSpec:
             return (-s, -s, self.cols * s, self.rows * s)
         if self.target == "acircles":
             return (-s, -s, 2.0 * self.cols * s, self.rows * s)
-        m = 0.5 * s  # ChArUco: the squares reach the board's edge; half a square of white around
+        m = 0.25 * s  # ChArUco: the squares reach the board's edge; a quarter square of white
         return (-m, -m, self.cols * s + m, self.rows * s + m)
 
     def label(self) -> str:

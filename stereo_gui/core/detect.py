@@ -116,12 +116,12 @@ def _subpix_radius(corners: np.ndarray, board: BoardSpec) -> int:
     return int(min(11, max(2, math.ceil(0.5 * min(dx, dy)))))
 
 
-def _blob_detector() -> cv2.SimpleBlobDetector:
+def _blob_detector(min_distance_px: float = 2.0) -> cv2.SimpleBlobDetector:
     """Dark round blobs from a few pixels (far boards) up to large ones (near boards)."""
     params = cv2.SimpleBlobDetector_Params()
     params.minArea = 8.0
     params.maxArea = 40000.0
-    params.minDistBetweenBlobs = 2.0
+    params.minDistBetweenBlobs = float(min_distance_px)
     params.filterByConvexity = True
     params.minConvexity = 0.8
     params.filterByInertia = True
@@ -129,10 +129,30 @@ def _blob_detector() -> cv2.SimpleBlobDetector:
     return cv2.SimpleBlobDetector_create(params)
 
 
+CIRCLE_GRID_ATTEMPTS = 3  # random starts of findCirclesGrid per blob setting
+
+
 def _detect_circles(gray: np.ndarray, board: BoardSpec, size) -> Detection | None:
+    """Small far circles need blobs close together; clutter (letters, noise) near large circles
+    is merged away with a larger distance. findCirclesGrid's grid search starts from OpenCV's
+    random number generator (k-means), so that one image is found or not by chance: its seed is
+    set for each of a few attempts, so the answer is the same every time. The first found wins."""
+    for min_distance in (2.0, 10.0):
+        blobs = _blob_detector(min_distance)
+        if len(blobs.detect(gray)) < board.point_count:
+            continue
+        for seed in range(CIRCLE_GRID_ATTEMPTS):
+            det = _detect_circles_with(gray, board, size, blobs, seed)
+            if det is not None:
+                return det
+    return None
+
+
+def _detect_circles_with(gray: np.ndarray, board: BoardSpec, size, blobs,
+                         seed: int) -> Detection | None:
     flags = cv2.CALIB_CB_ASYMMETRIC_GRID if board.target == "acircles" else cv2.CALIB_CB_SYMMETRIC_GRID
-    ok, centers = cv2.findCirclesGrid(gray, board.pattern_size, flags=flags,
-                                      blobDetector=_blob_detector())
+    cv2.setRNGSeed(seed)
+    ok, centers = cv2.findCirclesGrid(gray, board.pattern_size, flags=flags, blobDetector=blobs)
     if not ok or centers is None or len(centers) != board.point_count:
         return None
     centers = centers.reshape(-1, 2).astype(np.float64)
