@@ -67,6 +67,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="do not drop pairs whose error is far above the median")
     p.add_argument("--detector", choices=DETECTORS, default="classic",
                    help="chessboard detector (default classic: findChessboardCorners + cornerSubPix)")
+    p.add_argument("--swap", action="store_true",
+                   help="exchange the left and right images (the cameras are swapped; a capture "
+                        "session that says so is exchanged without it)")
     p.add_argument("--ros-dir", metavar="DIR", default=None,
                    help="also write ROS camera_info files left.yaml and right.yaml into DIR")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of a summary")
@@ -215,6 +218,13 @@ def _excluded_in_session(folder: Path) -> set[str]:
     return {p.name for p in CaptureSession.open(folder).pairs if p.excluded}
 
 
+def _swapped_session(folder: Path) -> bool:
+    """True when a capture session in `folder` says its cameras are swapped."""
+    from stereo_gui.files.session import MANIFEST, CaptureSession
+
+    return (folder / MANIFEST).is_file() and bool(CaptureSession.open(folder).swapped)
+
+
 def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     board = parse_board(args.board or ("7x5" if args.target == "charuco" else "9x6"),
@@ -237,8 +247,10 @@ def run(args: argparse.Namespace) -> int:
     pairs = [p for p in found.pairs if p.name not in excluded]
     if found.pairs and not pairs:
         raise InputError(f"every pair in {args.folder} is excluded in its capture session")
-    items = [PairInput(p.name, (lambda f=p.left: load_image(f)), (lambda f=p.right: load_image(f)),
-                       p.left.name, p.right.name) for p in pairs]
+    swap = bool(args.swap) or _swapped_session(Path(args.folder))
+    sides = [(p.right, p.left) if swap else (p.left, p.right) for p in pairs]
+    items = [PairInput(p.name, (lambda f=a: load_image(f)), (lambda f=b: load_image(f)),
+                       a.name, b.name) for p, (a, b) in zip(pairs, sides)]
     progress = _StderrProgress(force_lines=args.progress)
     try:
         detections = detect_pairs(items, board, method=args.detector,
@@ -250,14 +262,18 @@ def run(args: argparse.Namespace) -> int:
             sys.stderr.write("stereo-gui: warning: no chessboard found; rectifying from "
                              "matched scene features (Hartley, no metric scale, no undistortion)\n")
             result = calibrate_hartley_features(
-                [(p.name, load_image(p.left), load_image(p.right)) for p in pairs],
+                [(p.name, load_image(a), load_image(b)) for p, (a, b) in zip(pairs, sides)],
                 progress=lambda d, t, text: progress(d, t, "matching features"))
         else:
             result = calibrate_stereo(
                 detections, board, size, alpha=args.alpha, method=args.method,
                 progress=lambda d, t, text: progress(d, t, "calibrating"),
                 min_pairs=args.min_pairs, reject_outliers=not args.keep_outliers,
-                model=args.model, fix_k3=args.fix_k3)
+                model=args.model, fix_k3=args.fix_k3,
+                origin=f"{args.folder}" + (" with left and right exchanged" if swap else ""))
+            if swap:
+                result = replace(result, calibration=result.calibration.with_updates(
+                    swapped_inputs=True))
     finally:
         progress.clear()
     skipped = [RejectedPair(p.name, "excluded in the capture session")

@@ -267,6 +267,7 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
     pinhole, rational, fisheye); `fix_k3` holds k3 and the higher terms at zero. Pairs with an
     error above max(outlier_factor x median, outlier_floor_px) are dropped once and the solve
     is repeated. The result carries the parameters' uncertainty and warnings (core.uncertainty).
+    `origin` names where the pairs came from (recorded in the calibration's origin).
     Raises CalibrationError when no target was found or too few pairs are usable.
     """
     if method not in METHODS:
@@ -343,8 +344,8 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
         rms_left=sol.rms_left, rms_right=sol.rms_right, rms_stereo=sol.rms_stereo,
         epipolar_error_px=epi, per_pair=per_pair, method="bouguet", alpha=float(alpha),
         optimal_M1=opt1, optimal_M2=opt2, model=model, uncertainty=unc,
-        origin=origin or f"calibrated from {len(usable)} pairs ({board.label()}, {model} model"
-                         f"{', k3 fixed' if fix_k3 else ''})")
+        origin=f"calibrated from {len(usable)} pairs{' in ' + origin if origin else ''} "
+               f"({board.label()}, {model} model{', k3 fixed' if fix_k3 else ''})")
     regions = uncovered_regions(usable, image_size)
     warnings = calibration_warnings(calib, regions, fix_k3)
     calib = calib.with_updates(warnings=warnings)

@@ -77,6 +77,13 @@ class StereoCalibration:
     uncertainty: object | None = None  # core.uncertainty.CalibrationUncertainty (1 sigma)
     origin: str = ""  # how it was made ("calibrated from 20 pairs ...", "refined from the scene ...")
     warnings: tuple = ()  # core.uncertainty.CalibrationWarning found when it was made
+    # made from pairs whose left and right images were exchanged (the cameras were found
+    # swapped): frames from the same source must be exchanged before they are rectified
+    swapped_inputs: bool = False
+
+    def ordered(self, left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A source's (left, right) images in the order this calibration expects."""
+        return (right, left) if self.swapped_inputs else (left, right)
 
     # ---- derived figures -------------------------------------------------------------------
     @property

@@ -238,6 +238,8 @@ def _write_lens_and_uncertainty(fs, calib: StereoCalibration) -> None:
     """The lens model, where the calibration came from, its warnings and its 1-sigma covariance
     (names in order, then the matrix)."""
     fs.write("lens_model", calib.model)
+    if calib.swapped_inputs:
+        fs.write("swapped_inputs", 1)
     if calib.origin:
         fs.write("origin", calib.origin)
     if calib.warnings:
@@ -277,7 +279,8 @@ def _read_lens_and_uncertainty(fs, where: str, mats: dict) -> dict:
                                    f"coefficients per camera, found {d} and {mats['D2'].size}")
     if model != "fisheye" and d < DIST_COUNT["pinhole"] - 1:
         raise CalibrationFileError(f"{where}: distortion D1 has too few coefficients ({d})")
-    out: dict = {"model": model, "origin": _string(fs, "origin", "")}
+    out: dict = {"model": model, "origin": _string(fs, "origin", ""),
+                 "swapped_inputs": _real(fs, "swapped_inputs", where, 0.0) != 0.0}
     warnings = []
     wn = fs.getNode("warnings")
     if not wn.empty() and wn.isSeq():

@@ -96,6 +96,9 @@ class CaptureSession:
         self.has_manifest = has_manifest
         self.warnings = list(warnings or [])  # what opening had to tolerate
         self._unreadable_manifest = False  # an unreadable session.json is moved aside, not lost
+        # the pairs' left and right images are to be exchanged when calibrating (the cameras
+        # were found swapped); the saved images stay as they were taken
+        self.swapped = False
         self._lock = threading.RLock()
 
     # ---- creating and opening ---------------------------------------------------------------
@@ -149,7 +152,7 @@ class CaptureSession:
         if not isinstance(version, int) or version > FORMAT_VERSION:
             raise ValueError(f"format version {version!r} is not one this version reads")
         b = data.get("board")
-        board = BoardSpec(int(b["cols"]), int(b["rows"]), float(b["square_mm"])) if b else None
+        board = BoardSpec.from_json(b) if b else None
         res = data.get("resolution")
         resolution = (int(res[0]), int(res[1])) if res else None
         cams = data.get("cameras") or {}
@@ -177,8 +180,10 @@ class CaptureSession:
             pairs.append(e)
         for w in warnings:
             log.warning("%s", w)
-        return cls(folder, board, resolution, cameras, str(data.get("created", "")), pairs,
-                   has_manifest=True, warnings=warnings)
+        s = cls(folder, board, resolution, cameras, str(data.get("created", "")), pairs,
+                has_manifest=True, warnings=warnings)
+        s.swapped = bool(data.get("swapped", False))
+        return s
 
     # ---- reading ----------------------------------------------------------------------------
     @property
@@ -287,6 +292,16 @@ class CaptureSession:
                 raise
             return new
 
+    def set_swapped(self, swapped: bool) -> None:
+        """Remember that the cameras are swapped (calibrations exchange left and right)."""
+        with self._lock:
+            old, self.swapped = self.swapped, bool(swapped)
+            try:
+                self._write_manifest()
+            except BaseException:
+                self.swapped = old
+                raise
+
     def set_board(self, board: BoardSpec) -> None:
         with self._lock:
             old, self.board = self.board, board
@@ -309,12 +324,13 @@ class CaptureSession:
         return {
             "format_version": FORMAT_VERSION,
             "created": self.created or _now(),
-            "board": {"cols": b.cols, "rows": b.rows, "square_mm": b.square_mm} if b else None,
+            "board": b.to_json() if b else None,
             "resolution": list(self.resolution) if self.resolution else None,
             "cameras": {"left": self.cameras.left, "right": self.cameras.right},
             "pairs": [{"name": p.name, "number": p.number, "left": rel(p.left),
                        "right": rel(p.right), "time": p.time} for p in self._pairs],
             "excluded": [p.name for p in self._pairs if p.excluded],
+            **({"swapped": True} if self.swapped else {}),
         }
 
     def _unreadable_backup(self) -> Path:

@@ -37,9 +37,14 @@ class Settings:
     source: str = "auto"  # as --source takes it: auto, sim, cams:L,R, sbs:N, a folder or a video
     resolution: tuple[int, int] = (640, 480)  # (width, height), px
     swap_lr: bool = False
-    board_cols: int = 9  # inner corners
+    board_cols: int = 9  # inner corners (chessboard), circles, or squares (ChArUco)
     board_rows: int = 6
     square_mm: float = 25.0
+    board_target: str = "chessboard"  # core.board.TARGETS
+    marker_mm: float = 0.0  # ChArUco marker side / circle diameter; 0: the target's default
+    board_dictionary: str = "DICT_4X4_50"  # ChArUco's ArUco dictionary
+    lens_model: str = "pinhole"  # core.lens.LENS_MODELS, the Calibration tab's choice
+    fix_k3: bool = False
     nominal_baseline_mm: float = 110.0
     preset: str = "live"  # matcher preset name
     last_calibration: str | None = None  # path of the calibration loaded at start-up
@@ -57,11 +62,19 @@ class Settings:
 
     @property
     def board(self) -> BoardSpec:
-        return BoardSpec(self.board_cols, self.board_rows, self.square_mm)
+        """The target these settings describe (a chessboard of the same size when the target
+        fields do not make a valid one)."""
+        try:
+            return BoardSpec(self.board_cols, self.board_rows, self.square_mm, self.board_target,
+                             self.marker_mm, self.board_dictionary)
+        except InputError as exc:
+            log.warning("settings: %s; using a chessboard", exc)
+            return BoardSpec(self.board_cols, self.board_rows, self.square_mm)
 
     def with_board(self, board: BoardSpec) -> Settings:
         return replace(self, board_cols=board.cols, board_rows=board.rows,
-                       square_mm=board.square_mm)
+                       square_mm=board.square_mm, board_target=board.target,
+                       marker_mm=board.marker_mm, board_dictionary=board.dictionary)
 
     def with_recent(self, path: str | os.PathLike, limit: int = RECENT_LIMIT) -> Settings:
         """These settings with `path` first in the recent files (no duplicates, at most `limit`)."""
@@ -92,6 +105,10 @@ def settings_path() -> Path:
 _CHECKS: dict[str, tuple[typing.Callable[[object], bool], str]] = {
     "resolution": (lambda v: v[0] > 0 and v[1] > 0, "two positive integers"),
     "board_cols": (lambda v: v >= 2, "an integer of at least 2"),
+    "board_target": (lambda v: v in ("chessboard", "circles", "acircles", "charuco"),
+                     "chessboard, circles, acircles or charuco"),
+    "marker_mm": (lambda v: math.isfinite(v) and v >= 0, "a number of at least 0"),
+    "lens_model": (lambda v: v in ("pinhole", "rational", "fisheye"), "pinhole, rational or fisheye"),
     "board_rows": (lambda v: v >= 2, "an integer of at least 2"),
     "square_mm": (lambda v: math.isfinite(v) and v > 0, "a positive number"),
     "nominal_baseline_mm": (lambda v: math.isfinite(v) and v > 0, "a positive number"),

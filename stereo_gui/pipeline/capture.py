@@ -17,6 +17,7 @@ from stereo_gui.core.detect import (
     PoseDescriptor,
     detect_board,
     detect_pair,
+    make_pair,
     pair_pose,
 )
 from stereo_gui.core.errors import StereoGuiError
@@ -43,8 +44,11 @@ class CaptureOutput:
 
 
 def _maybe_board(gray: np.ndarray, board: BoardSpec) -> bool:
-    """A fast test whether a board may be in the image (a full search without a board takes
-    a few hundred ms; this quick check a few ms), so live frames without a board stay cheap."""
+    """A fast test whether a chessboard may be in the image (a full search without a board takes
+    a few hundred ms; this quick check a few ms), so live frames without a board stay cheap.
+    The other targets' detectors are quick to say no by themselves."""
+    if board.target != "chessboard":
+        return True
     ok, _ = cv2.findChessboardCorners(
         gray, board.pattern_size,
         flags=cv2.CALIB_CB_FAST_CHECK | cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
@@ -52,20 +56,16 @@ def _maybe_board(gray: np.ndarray, board: BoardSpec) -> bool:
 
 
 def detect_live(frame: StereoFrame, board: BoardSpec) -> CaptureOutput:
-    """Detect the board in both images of a live frame (subpixel where found)."""
+    """Detect the target in both images of a live frame (subpixel where found)."""
     size = frame.size
     dets: list[Detection | None] = []
     for img in (frame.left, frame.right):
         gray = to_gray(img)
         dets.append(detect_board(gray, board) if _maybe_board(gray, board) else None)
     left, right = dets
-    if left is not None and right is not None:
-        # same rule as core.detect_pair: both cameras must number the grid from the same end
-        dl = left.corners[-1] - left.corners[0]
-        dr = right.corners[-1] - right.corners[0]
-        if float(np.dot(dl, dr)) < 0:
-            right = right.reversed()
-    pair = PairDetection(f"frame {frame.index}", left, right, size)
+    # same rules as core.detect_pair: both cameras number the grid from the same end, and a
+    # partly visible target counts when they share enough of its points
+    pair = make_pair(f"frame {frame.index}", left, right, size, board)
     return CaptureOutput(display_rgb(frame.left), display_rgb(frame.right), pair, board)
 
 

@@ -90,7 +90,7 @@ class LiveProcessor:
                 if self._note:
                     log.info("%s", self._note)
             pipeline, note = self._pipeline, self._note
-        r = pipeline.process(frame.left, frame.right)
+        r = pipeline.process(*self.calibration.ordered(frame.left, frame.right))
         lo, hi = r.disparity_range_px
         images = {
             "left": cv2.cvtColor(r.rectified_left, cv2.COLOR_BGR2RGB),

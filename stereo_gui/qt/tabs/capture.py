@@ -1,5 +1,6 @@
-"""The Capture tab: take chessboard pairs for calibration (the report's
-Take_images_for_calibration, with buttons).
+"""The Capture tab: take target pairs for calibration (the report's
+Take_images_for_calibration, with buttons), with coverage by image region (core.coverage) that
+says in words what is still missing, and Print a target... for printing one at true scale.
 
 Both cameras live side by side with the board's corners drawn where found. When both see the
 board the pair freezes for review: Save (S) writes both raw images to the session folder,
@@ -26,7 +27,8 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.board import TARGET_NAMES, BoardSpec
+from stereo_gui.core.coverage import cell_counts, readiness, regions_filled, regions_in_words
 from stereo_gui.core.detect import (
     NEW_POSE_DISTANCE,
     PairDetection,
@@ -63,7 +65,7 @@ STEADY_PX = 2.0  # ... moving its corners less than this, px
 
 # ---- the tab -------------------------------------------------------------------------------------
 class CaptureTab(QWidget):
-    """Capture chessboard pairs into a session folder, with review, auto-capture and coverage."""
+    """Capture target pairs into a session folder, with review, auto-capture and coverage."""
 
     sessionChanged = Signal(object)  # the CaptureSession now open, or None
     pairSaved = Signal(str)  # name of the pair just written
@@ -121,6 +123,7 @@ class CaptureTab(QWidget):
         ml.addWidget(row)
         row.edited.connect(self._board_edited)
         row.auto_check.toggled.connect(self._auto_toggled)
+        row.printRequested.connect(self.open_target_dialog)
 
         from stereo_gui.qt.widgets.playback_bar import PlaybackBar
 
@@ -184,10 +187,33 @@ class CaptureTab(QWidget):
     def _board_edited(self) -> None:
         board = self.board
         self.ctx.update_settings(board_cols=board.cols, board_rows=board.rows,
-                                 square_mm=board.square_mm)
+                                 square_mm=board.square_mm, board_target=board.target,
+                                 marker_mm=board.marker_mm, board_dictionary=board.dictionary)
         self._recent_corners.clear()
+        self._show_board_on_sim(board)
         if self.state == "live":
             self._set_processing(True)
+        if self.session is not None and getattr(self.session, "board", None) != board:
+            try:  # the session records the target its pairs show
+                self.session.set_board(board)
+            except (StereoGuiError, OSError) as exc:
+                self.ctx.report_error(f"could not record the board in the session: {exc}")
+
+    def _show_board_on_sim(self, board: BoardSpec) -> None:
+        """On the simulated rig, show the target chosen (it renders every target)."""
+        src = self.ctx.frames.source()
+        rig = getattr(src, "rig", None) if src is not None else None
+        if rig is not None and hasattr(rig, "set_board") and rig.config.board != board:
+            rig.set_board(board)
+
+    def open_target_dialog(self) -> None:
+        """Print a target...: write the current target as PDF, SVG or PNG at true scale."""
+        from stereo_gui.qt.widgets.target_dialog import TargetDialog
+
+        start = (self.session.folder if self.session is not None else Path.home())
+        dlg = TargetDialog(self.board, Path(start), self)
+        dlg.written.connect(lambda path: self.ctx.show_status(f"Wrote the target to {path}"))
+        dlg.exec()
 
     def _auto_toggled(self, on: bool) -> None:
         self.ctx.update_settings(auto_capture=bool(on))
@@ -203,6 +229,7 @@ class CaptureTab(QWidget):
             return
         self._active = active
         if active:
+            self._show_board_on_sim(self.board)
             self._set_processing(self.state == "live")
             self._reload_session()
 
@@ -260,8 +287,12 @@ class CaptureTab(QWidget):
         self._freeze(out, frame)
 
     def _live_hint(self, det: PairDetection) -> str:
+        if det.left is not None and det.right is not None:  # a partial view, too little shared
+            return f"Both cameras see part of the board: {det.reason}"
         if det.left is None and det.right is None:
-            return "Hold the chessboard so that both cameras see all of it"
+            if self.board.partial:
+                return "Hold the ChArUco board so that both cameras see a good part of it"
+            return f"Hold the {TARGET_NAMES[self.board.target]} so that both cameras see all of it"
         side = "right" if det.right is None else "left"
         return f"Only the {'left' if side == 'right' else 'right'} camera sees the board: " \
                f"move it into the {side} camera's view"
@@ -278,6 +309,9 @@ class CaptureTab(QWidget):
 
     def _show_review_prompt(self) -> None:
         text = "Both cameras see the board. Save this pair (S) or Cancel (C)?"
+        fills = self._fills(self.frozen.detection) if self.frozen is not None else {}
+        if any(fills.values()):
+            text += f"  It reaches {regions_in_words(fills)} (still empty)."
         if self.session is None:
             text += "  (Save asks for a session folder first.)"
         self.prompt.setText(text)
@@ -328,11 +362,24 @@ class CaptureTab(QWidget):
         self._recent_corners.append(corners)
         steady = len(self._recent_corners) == STEADY_FRAMES and max(
             float(np.abs(c - corners).max()) for c in self._recent_corners) < STEADY_PX
-        new = is_new_pose(pose, self._saved_poses())
+        # a pose that reaches an empty region is wanted even when it is near one already kept
+        # (not the very same view, though)
+        kept = self._saved_poses()
+        fills = self._fills(out.detection)
+        new = ((any(fills.values()) and is_new_pose(pose, kept, NEW_POSE_DISTANCE / 4))
+               or is_new_pose(pose, kept))
+        if not (new and is_new_pose(pose, kept, NEW_POSE_DISTANCE / 4)):
+            fills = {}
         if not new:
-            self.prompt.setText("Pose already captured: move or tilt the board somewhere new")
+            empty = self._readiness().required_empty
+            where = regions_in_words(empty)
+            self.prompt.setText("Pose already captured: " + (
+                f"move the board to {where} (still empty)" if where
+                else "move or tilt the board somewhere new"))
         elif not steady:
-            self.prompt.setText("New pose: hold the board still…")
+            self.prompt.setText("New pose" + (f" reaching {regions_in_words(fills)}"
+                                              if any(fills.values()) else "")
+                                + ": hold the board still…")
         elif self.session is None:
             self.prompt.setText("Automatic capture needs a session: choose New session…")
         else:
@@ -472,8 +519,27 @@ class CaptureTab(QWidget):
         return [pair_pose(i.detection, self.board) for i in self._saved.values()
                 if i.detection is not None and i.detection.found]
 
+    def _kept_detections(self) -> list[PairDetection]:
+        return [i.detection for i in self._saved.values()
+                if i.detection is not None and i.detection.found]
+
+    def _readiness(self):
+        return readiness(self._kept_detections(), self.board, self._image_size())
+
+    def _fills(self, det: PairDetection) -> dict[str, list[str]]:
+        """The empty regions of each image that the detection's points would reach."""
+        size = det.image_size
+        out = {}
+        for side in ("left", "right"):
+            d = getattr(det, side)
+            kept = [getattr(k, side).corners for k in self._kept_detections()]
+            out[side] = ([] if d is None else
+                         regions_filled(d.corners, cell_counts(kept, size), size))
+        return out
+
     def _update_coverage(self) -> None:
         self.coverage.set_coverage(coverage(self._saved_poses()))
+        self.coverage.set_readiness(self._readiness())
 
     def saved_names(self) -> list[str]:
         return self.saved_panel.names()

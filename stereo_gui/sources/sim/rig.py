@@ -66,6 +66,15 @@ class SimRig:
         self._noise: dict[int, np.ndarray] = {}
         self._lock = threading.Lock()
 
+    def set_board(self, board) -> None:
+        """Show another target from the next frame on (the Capture tab's choice, for demos);
+        the truth's board follows."""
+        from dataclasses import replace
+
+        with self._lock:
+            self.config = replace(self.config, board=board)
+            self.truth = replace(self.truth, board=board)
+
     # ---- geometry -------------------------------------------------------------------------
     def _to_camera(self, cam: int, p: np.ndarray) -> np.ndarray:
         """Points (..., 3) in the left frame -> camera `cam` (0 left, 1 right) frame."""
