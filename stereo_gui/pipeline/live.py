@@ -15,6 +15,8 @@ import numpy as np
 
 from stereo_gui.core.matching import (NO_MATCH_BGR, NOT_SEEN_BGR, MatcherParams, PipelineResult,
                                      StereoPipeline)
+from stereo_gui.core.health import CalibrationHealth
+from stereo_gui.pipeline.health import HealthMonitor
 from stereo_gui.sources.base import StereoFrame
 
 log = logging.getLogger(__name__)
@@ -33,6 +35,7 @@ class LiveOutput:
     result: PipelineResult
     images: dict[str, np.ndarray]
     scale_note: str = ""  # says so when the calibration was scaled to the source's frame size
+    health: CalibrationHealth | None = None  # the newest calibration-health figure (pipeline.health)
 
 
 def _gray_disparity(disp_px: np.ndarray, lo: float, hi: float,
@@ -66,6 +69,7 @@ class LiveProcessor:
         self._pipeline: StereoPipeline | None = None
         self._size: tuple[int, int] | None = None  # frame size the pipeline was built for
         self._note = ""
+        self.health = HealthMonitor()  # about once a second, in a thread of its own
 
     def set_params(self, params: MatcherParams) -> None:
         with self._lock:
@@ -99,9 +103,12 @@ class LiveProcessor:
             "closed": _gray_disparity(r.closed_px, lo, hi, r.not_seen),
             "wls": cv2.cvtColor(r.color_bgr, cv2.COLOR_BGR2RGB),  # (painted so by colorize)
         }
-        return LiveOutput(r, images, note)
+        if r.rectified_left is not None and r.rectified_right is not None:
+            self.health.offer(r.rectified_left, r.rectified_right)
+        return LiveOutput(r, images, note, self.health.latest())
 
     def close(self) -> None:
+        self.health.close()
         with self._lock:
             if self._pipeline is not None:
                 self._pipeline.close()

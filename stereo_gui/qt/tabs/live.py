@@ -37,6 +37,7 @@ from PySide6.QtWidgets import (
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.matching import COLORMAPS, MatcherParams
 from stereo_gui.pipeline.live import LiveOutput, LiveProcessor
+from stereo_gui.qt.widgets.calibration_health import CalibrationHealthPanel
 from stereo_gui.pipeline.readout import format_distance, pointer_readout
 from stereo_gui.qt.tabs.live_exports import EXPORTS, LiveExports
 from stereo_gui.qt.widgets.image_view import ImagePanel, marker_color
@@ -168,6 +169,8 @@ class LiveTab(QWidget):
         vcol.addWidget(self.scale_label)
         vcol.addWidget(self._grid_host, 1)
         vcol.addWidget(self.readout)
+        self.health = CalibrationHealthPanel(ctx)  # issue 10: drift figure and refinement
+        vcol.addWidget(self.health)
 
         self.no_calib = NoCalibrationPage()
         self.no_calib.calibrate.clicked.connect(self.calibrateRequested)
@@ -307,6 +310,7 @@ class LiveTab(QWidget):
             self.scale_label.setVisible(bool(out.scale_note))
             if out.scale_note:
                 self.ctx.show_status(out.scale_note)
+        self.health.show_output(out, self.shown_frame)
         self.frames_shown += 1
         self.frameShown.emit()
 
@@ -465,5 +469,6 @@ class LiveTab(QWidget):
 
     def shutdown(self) -> None:
         """Called by the main window on close."""
+        self.health.shutdown()
         if self._processor is not None and self.ctx.frames.processor() is self._processor:
             self.ctx.frames.set_processor(None)

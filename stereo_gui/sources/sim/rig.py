@@ -65,6 +65,7 @@ class SimRig:
         self._scene_cache: dict[tuple, tuple] = {}
         self._noise: dict[int, np.ndarray] = {}
         self._lock = threading.Lock()
+        self._untouched: RigTruth | None = None  # the truth before turn_right_camera
 
     def set_board(self, board) -> None:
         """Show another target from the next frame on (the Capture tab's choice, for demos);
@@ -74,6 +75,42 @@ class SimRig:
         with self._lock:
             self.config = replace(self.config, board=board)
             self.truth = replace(self.truth, board=board)
+
+    TURN_AXES = {"tilt": 0, "pan": 1, "roll": 2}  # about the right camera's x, y, z axes
+
+    def turn_right_camera(self, angle_deg: float, axis: str = "tilt") -> None:
+        """Turn the right camera about its own centre by `angle_deg` (tilt: about its x axis,
+        pan: y, roll: z), as a webcam head that moved after calibration; the truth follows
+        (R' = dR R, T' = dR T: the camera's centre stays). Cumulative; reset_turn() undoes."""
+        from dataclasses import replace
+
+        if axis not in self.TURN_AXES:
+            raise ValueError(f"axis must be one of {', '.join(self.TURN_AXES)}, not {axis!r}")
+        v = np.zeros(3)
+        v[self.TURN_AXES[axis]] = math.radians(float(angle_deg))
+        dR = cv2.Rodrigues(v.reshape(3, 1))[0]
+        with self._lock:
+            if self._untouched is None:
+                self._untouched = self.truth
+            t = self.truth
+            self.truth = replace(t, R=dR @ t.R, T=dR @ t.T)
+            self._scene_cache.clear()  # the right camera's view of the scene changed
+
+    def reset_turn(self) -> None:
+        """Put the right camera back where the rig was built."""
+        with self._lock:
+            if self._untouched is not None:
+                self.truth = self._untouched
+                self._untouched = None
+                self._scene_cache.clear()
+
+    @property
+    def turned_deg(self) -> float:
+        """How far the right camera is turned from where the rig was built, degrees."""
+        if self._untouched is None:
+            return 0.0
+        d = self.truth.R @ self._untouched.R.T
+        return float(np.degrees(np.linalg.norm(cv2.Rodrigues(d)[0])))
 
     # ---- geometry -------------------------------------------------------------------------
     def _to_camera(self, cam: int, p: np.ndarray) -> np.ndarray:
