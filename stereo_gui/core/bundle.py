@@ -73,6 +73,15 @@ def _unpack_camera(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return M, x[4:].copy()
 
 
+# The rational model's numerator and denominator (k1..k3 and k4..k6) can grow together and
+# describe the same lens: its cost has a flat valley along which the solve drifts wherever
+# rounding leads it (measured: the same detections gave cx 322.66 or 321.90 px from run to run).
+# A weak prior at zero (1 sigma = RATIONAL_PRIOR, costing what PRIOR_PX of image error would)
+# makes the minimum unique without moving the lens it describes.
+RATIONAL_PRIOR = 1.0
+PRIOR_PX = 0.1
+
+
 def refine_stereo(views: Sequence[View], model: str, M1, D1, M2, D2, R, T,
                   rvecs: Sequence[np.ndarray], tvecs: Sequence[np.ndarray],
                   fixed: Sequence[str] = (), max_iterations: int = 60,
@@ -101,11 +110,20 @@ def refine_stereo(views: Sequence[View], model: str, M1, D1, M2, D2, R, T,
            for r, t in zip(rvecs, tvecs)])
     n_cam = 2 * nc + 6
     free = np.concatenate([cam_free, cam_free, np.ones(6 + 6 * nv, bool)])
-    m = sum(2 * (len(v.img_left) + len(v.img_right)) for v in views)
+    m_obs = sum(2 * (len(v.img_left) + len(v.img_right)) for v in views)
+    # prior rows: the rational model's k1..k6 of both cameras (see RATIONAL_PRIOR)
+    prior_cols = []
+    if model == "rational":
+        for cam in (0, 1):
+            for name in ("k1", "k2", "k3", "k4", "k5", "k6"):
+                col = cam * nc + 4 + dist_names.index(name)
+                if free[col]:
+                    prior_cols.append(col)
+    m = m_obs + len(prior_cols)
     p = int(free.sum())
-    if m <= p:
-        raise CalibrationError(f"too few points ({m // 2}) for the {p} parameters of the stereo "
-                               "calibration")
+    if m_obs <= p:
+        raise CalibrationError(f"too few points ({m_obs // 2}) for the {p} parameters of the "
+                               "stereo calibration")
 
     def residuals(x: np.ndarray, want_j: bool):
         Ml, Dl = _unpack_camera(x[:nc])
@@ -144,6 +162,12 @@ def refine_stereo(views: Sequence[View], model: str, M1, D1, M2, D2, R, T,
                     uv = project_points(model, v.obj_right, r3, t3, Mr, Dr)
                 res[row:row + n2] = (uv - v.img_right).reshape(-1)
                 row += n2
+        w = PRIOR_PX / RATIONAL_PRIOR
+        for col in prior_cols:
+            res[row] = w * x[col]
+            if want_j:
+                J[row, col] = w
+            row += 1
         return res, J
 
     x = x0.copy()
@@ -183,8 +207,8 @@ def refine_stereo(views: Sequence[View], model: str, M1, D1, M2, D2, R, T,
 
     Jf = J[:, free]
     A = Jf.T @ Jf
-    dof = m - p
-    sigma2 = cost / dof
+    dof = m_obs - p
+    sigma2 = float(r[:m_obs] @ r[:m_obs]) / dof
     try:
         cov_free = np.linalg.inv(A) * sigma2
     except np.linalg.LinAlgError as exc:
@@ -214,7 +238,8 @@ def refine_stereo(views: Sequence[View], model: str, M1, D1, M2, D2, R, T,
             e.append(float(np.sqrt(np.mean(np.sum(d * d, axis=1)))))
             row += n2
         errors.append((e[0], e[1]))
-    rms = float(np.sqrt(cost / (m / 2)))
+    obs = r[:m_obs]
+    rms = float(np.sqrt(float(obs @ obs) / (m_obs / 2)))
     rv = tuple(x[n_cam + 6 * k:n_cam + 6 * k + 3].copy() for k in range(nv))
     tv = tuple(x[n_cam + 6 * k + 3:n_cam + 6 * k + 6].copy() for k in range(nv))
     log.debug("stereo refinement: %d iterations, rms %.4f px", it, rms)

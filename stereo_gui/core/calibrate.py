@@ -150,7 +150,15 @@ def _mono_flags(model: str, fix_k3: bool) -> int:
 
 
 def _calibrate_mono(objs, imgs, image_size, model: str, fix_k3: bool):
-    """One camera: (rms, M, D (1xN), rvecs, tvecs, standard deviations of the intrinsics or None)."""
+    """One camera: (rms, M, D (1xN), rvecs, tvecs, standard deviations of the intrinsics or None).
+
+    The rational model starts from the pinhole solution with k4..k6 at zero: OpenCV's own
+    rational calibration wanders along the model's flat valley (very different coefficients
+    for the same lens, different from run to run), and the joint refinement takes it from
+    there (core.bundle)."""
+    if model == "rational":
+        rms, M, D, rv, tv, _ = _calibrate_mono(objs, imgs, image_size, "pinhole", fix_k3)
+        return rms, M, np.concatenate([D.reshape(1, -1), np.zeros((1, 3))], axis=1), rv, tv, None
     flags = _mono_flags(model, fix_k3)
     try:
         if model == "fisheye":
@@ -228,7 +236,7 @@ def _solve(pairs: list[PairDetection], board: BoardSpec, image_size: tuple[int, 
     views = [View(ol[k], il[k].reshape(-1, 2), orr[k], ir[k].reshape(-1, 2)) for k in range(len(pairs))]
     fixed = HIGHER_TERMS[model] if fix_k3 else ()
     bundle = refine_stereo(views, model, M1, D1, M2, D2, R, T, rv1, tv1, fixed=fixed,
-                           max_iterations=60 if joint else 0)
+                           max_iterations=100 if joint else 0)
     if joint:
         M1, D1, M2, D2, R, T = bundle.M1, bundle.D1, bundle.M2, bundle.D2, bundle.R, bundle.T
     errors = list(bundle.errors)

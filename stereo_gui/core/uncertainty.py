@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from stereo_gui.core.coverage import CORNERS, regions_in_words
+from stereo_gui.core.coverage import CORNERS, FAR_SIDE, regions_in_words
 from stereo_gui.core.lens import HIGHER_TERMS, distortion_names, project_points, stereo_rectify, \
     undistort_points
 
@@ -270,11 +270,15 @@ def calibration_warnings(calib, uncovered: dict[str, list[str]] | None = None,
                 "capture"))
     if any(uncovered.values()):
         corners = any(r in CORNERS for regs in uncovered.values() for r in regs)
+        far_only = all(r in FAR_SIDE[side] for side, regs in uncovered.items() for r in regs)
+        remedy = (" Both cameras see the board there only when it is far away: hold it farther "
+                  "off for those pairs, or use a ChArUco board, which counts when partly in view."
+                  if far_only else " Capture pairs with the board there.")
         out.append(CalibrationWarning(
             "uncovered", f"The board never reached {regions_in_words(uncovered)}: the lens model "
             "is extrapolated there, so readings there are less certain"
             + (" (the corners are where the distortion is largest)" if corners else "")
-            + ". Capture pairs with the board there.", "capture"))
+            + "." + remedy, "capture"))
     return tuple(out)
 
 

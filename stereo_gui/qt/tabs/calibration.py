@@ -176,7 +176,7 @@ class CalibrationTab(QWidget):
         self.warnings.actionRequested.connect(self.apply_remedy)
         ll.addWidget(self.warnings)
         self.rejected_list = QListWidget()
-        self.rejected_list.setMaximumHeight(80)
+        self.rejected_list.setMaximumHeight(56)
         self.rejected_list.setToolTip(
             "Click a pair to look at it (and include an excluded one again)")
         self.rejected_list.itemClicked.connect(
@@ -187,6 +187,7 @@ class CalibrationTab(QWidget):
         self.matrices_text.setReadOnly(True)
         self.matrices_text.setFont(_MONO)
         self.matrices_text.setLineWrapMode(QPlainTextEdit.LineWrapMode.NoWrap)
+        self.matrices_text.setMinimumHeight(48)
         ll.addWidget(QLabel("Camera matrices (px) and distortion:"))
         ll.addWidget(self.matrices_text, 1)
         files = QHBoxLayout()

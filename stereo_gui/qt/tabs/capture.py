@@ -493,6 +493,8 @@ class CaptureTab(QWidget):
                 self.saved_panel.add_coverage(det)
         self._refill_list()
         self._update_coverage()
+        if self.state == "review":  # what a frozen pair adds is known now
+            self._show_review_prompt()
 
     def scanning(self) -> bool:
         return self._scan is not None

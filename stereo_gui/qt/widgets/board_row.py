@@ -12,6 +12,7 @@ from PySide6.QtWidgets import (
     QLabel,
     QPushButton,
     QSpinBox,
+    QVBoxLayout,
     QWidget,
 )
 
@@ -41,8 +42,13 @@ class BoardRow(QWidget):
     def __init__(self, auto_tooltip: str = "", parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self._board = BoardSpec()
-        row = QHBoxLayout(self)
-        row.setContentsMargins(0, 0, 0, 0)
+        rows = QVBoxLayout(self)  # two lines, so the tab fits a 1280 px wide screen
+        rows.setContentsMargins(0, 0, 0, 0)
+        rows.setSpacing(2)
+        row = QHBoxLayout()
+        second = QHBoxLayout()
+        rows.addLayout(row)
+        rows.addLayout(second)
         self.target_combo = QComboBox()
         for t in TARGETS:
             self.target_combo.addItem(TARGET_NAMES[t].capitalize().replace("Charuco", "ChArUco"), t)
@@ -84,15 +90,17 @@ class BoardRow(QWidget):
         self.print_button = QPushButton("Print a target…")
         self.print_button.setToolTip("Write this target as a PDF, SVG or PNG to print at true scale")
         self.print_button.clicked.connect(self.printRequested)
-        row.addWidget(self.print_button)
-        row.addSpacing(12)
-        self.auto_check = QCheckBox("Automatic capture")
+        row.addStretch(1)
+        second.addWidget(self.print_button)
+        second.addSpacing(12)
+        self.auto_check = QCheckBox("Automatic capture (steady board, new pose or a region "
+                                    "still empty)")
         self.auto_check.setToolTip(auto_tooltip)
-        row.addWidget(self.auto_check)
+        second.addWidget(self.auto_check)
         self.error_label = QLabel("")
         self.error_label.setStyleSheet("color: #b03a2e")
-        row.addWidget(self.error_label)
-        row.addStretch(1)
+        second.addWidget(self.error_label, 1)
+        second.addStretch(1)
         self.target_combo.currentIndexChanged.connect(self._fields_edited)
         self.dict_combo.currentIndexChanged.connect(self._fields_edited)
         for w in (self.cols_spin, self.rows_spin):

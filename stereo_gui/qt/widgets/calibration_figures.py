@@ -29,9 +29,12 @@ class CalibrationFigures(QGroupBox):
         self.epipolar_label = QLabel()
         self.baseline_label = QLabel()
         self.rotation_label = QLabel()
-        self.model_label = wrapping_label()
-        self.left_label = wrapping_label()
-        self.right_label = wrapping_label()
+        self.model_label = QLabel()
+        self.left_label = QLabel()
+        self.right_label = QLabel()
+        self.corners_label = QLabel()
+        self.corners_label.setToolTip("How uncertain each camera's lens model is at the image "
+                                      "corners (1 sigma, px): large where the board never went")
         for lab in (self.left_label, self.right_label):
             lab.setToolTip("Focal lengths and principal point, px, each ± its 1-sigma uncertainty "
                            "(one standard deviation); 'corners' is how uncertain the lens model "
@@ -47,15 +50,21 @@ class CalibrationFigures(QGroupBox):
         form.addRow("Lens model:", self.model_label)
         form.addRow("Left camera:", self.left_label)
         form.addRow("Right camera:", self.right_label)
+        form.addRow("Lens at the corners:", self.corners_label)
         form.addRow("Pairs:", self.pairs_label)
         self.note_label = wrapping_label()
         self.note_label.setStyleSheet("color: #b03a2e; font-weight: bold")
         form.addRow(self.note_label)
+        from PySide6.QtWidgets import QSizePolicy
+
+        # every row stays readable: the matrices below give way instead
+        self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Minimum)
 
     def show_none(self) -> None:
         for lab in (self.rms_left_label, self.rms_right_label, self.rms_stereo_label,
                     self.epipolar_label, self.baseline_label, self.rotation_label,
-                    self.model_label, self.left_label, self.right_label, self.pairs_label):
+                    self.model_label, self.left_label, self.right_label, self.corners_label,
+                    self.pairs_label):
             lab.setText("—")
         self.source_label.setText("none yet: calibrate, or load a calibration file")
         self.note_label.setText("")
@@ -91,36 +100,38 @@ class CalibrationFigures(QGroupBox):
         self.model_label.setText(_model_text(c))
         self.left_label.setText(camera_text(c, "left"))
         self.right_label.setText(camera_text(c, "right"))
+        self.corners_label.setText(corners_text(c))
         self.pairs_label.setText(pairs)
 
 
-_MODEL_NAMES = {"pinhole": "pinhole, 5 coefficients (k1 k2 p1 p2 k3)",
-                "rational": "rational, 8 coefficients (k1 k2 p1 p2 k3 k4 k5 k6)",
-                "fisheye": "fisheye (equidistant), 4 coefficients (k1 k2 k3 k4)"}
+_MODEL_NAMES = {"pinhole": "pinhole, 5 coefficients", "rational": "rational, 8 coefficients",
+                "fisheye": "fisheye (equidistant), 4 coefficients"}
 
 
 def _model_text(c) -> str:
     text = _MODEL_NAMES.get(c.model, c.model)
-    if c.uncertainty is not None:
-        text += "; ± values are 1 sigma (one standard deviation)"
-    else:
-        text += "; no uncertainty recorded (an older file)"
+    text += "; ± is 1 sigma" if c.uncertainty is not None else "; no uncertainty recorded"
     if c.swapped_inputs:
-        text += "; left and right images exchanged"
+        text += "; left and right exchanged"
     return text
 
 
 def camera_text(c, side: str) -> str:
-    """'fx 752.08 ± 0.35  fy ...  cx ...  cy ... px, corners ± 0.4 px' of one camera."""
-    from stereo_gui.core.uncertainty import corner_sigma_px
-
+    """'fx 752.08±0.35  fy ...  cx ...  cy ... px' of one camera (± 1 sigma)."""
     M = c.M1 if side == "left" else c.M2
     u = c.uncertainty
     parts = []
     for k, (i, j) in zip(("fx", "fy", "cx", "cy"), ((0, 0), (1, 1), (0, 2), (1, 2))):
-        pm = f" ± {u.sigma(f'{side}.{k}'):.2f}" if u is not None else ""
+        pm = f"±{u.sigma(f'{side}.{k}'):.2f}" if u is not None else ""
         parts.append(f"{k} {M[i, j]:.2f}{pm}")
-    text = "  ".join(parts) + " px"
-    if u is not None:
-        text += f"; lens model at the corners ± {corner_sigma_px(c, side):.2f} px"
-    return text
+    return "  ".join(parts) + " px"
+
+
+def corners_text(c) -> str:
+    """How uncertain the lens models are at the image corners (1 sigma)."""
+    if c.uncertainty is None:
+        return "—"
+    from stereo_gui.core.uncertainty import corner_sigma_px
+
+    return (f"±{corner_sigma_px(c, 'left'):.2f} px left, ±{corner_sigma_px(c, 'right'):.2f} px "
+            "right")

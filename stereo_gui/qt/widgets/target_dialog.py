@@ -27,7 +27,7 @@ from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.target_sheet import PAGES_MM, describe, layout
 from stereo_gui.files.target_sheet import png_image, write_target
 
-_PREVIEW_DPI = 24.0
+_PREVIEW_DPI = 42.0
 
 
 class TargetDialog(QDialog):

@@ -268,7 +268,7 @@ class SimRig:
         # whole board meant for the left or right edge reach farther; a ChArUco board reaches
         # them partly outside the other image, and must stay near enough to read its corners
         if b.partial:
-            z_lo, z_hi = 350.0, 900.0
+            z_lo, z_hi = 300.0, 1000.0
         elif where is not None and where[0] in (0.0, 1.0):
             z_lo, z_hi = 700.0, 1600.0
         else:

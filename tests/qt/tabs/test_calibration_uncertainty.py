@@ -51,7 +51,8 @@ def test_values_show_their_uncertainty_and_the_model(make_tab, qtbot, calib_set,
     assert "±" in f.baseline_label.text() and "±" in f.rotation_label.text()
     assert "fx" in f.left_label.text() and "±" in f.left_label.text()
     sigma = c.uncertainty.sigma("left.fx")
-    assert f"± {sigma:.2f}" in f.left_label.text()
+    assert f"±{sigma:.2f}" in f.left_label.text()
+    assert "px left" in f.corners_label.text()
     assert "1 sigma" in f.model_label.text() and "pinhole" in f.model_label.text()
     assert "± 1 sigma" in tab.matrices_text.toPlainText()
     assert "swapped" not in [w.code for w in run.result.report.warnings]
