@@ -186,3 +186,20 @@ def test_the_real_set_with_left_and_right_exchanged_warns_swapped(shared_data):
     straight = [PairInput(p.name, p.right, p.left) for p in pairs]
     result = calibrate_stereo(detect_pairs(straight, board), board)
     assert "swapped" not in {w.code for w in result.report.warnings}
+
+
+def test_joint_sigmas_agree_with_and_improve_on_opencvs_per_camera_ones(good):
+    """calibrateCameraExtended's standard deviations describe each camera calibrated alone; the
+    joint solve (both cameras, the shared board poses) determines them better, never worse."""
+    from stereo_gui.core import calibrate as C
+
+    rig, _ = good
+    images = rig.calibration_set(16)
+    dets = detect_pairs([(f"{i + 1}", l, r) for i, (l, r) in enumerate(images)], rig.config.board)
+    sol = C._solve([d for d in dets if d.found], rig.config.board, (640, 480), True, None, None,
+                   0, 8)
+    u = C.uncertainty_from_bundle(sol.bundle, "pinhole")
+    for side, std in zip(("left", "right"), sol.mono_sigmas):
+        for i, n in enumerate(("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")):
+            ratio = u.sigma(f"{side}.{n}") / std[i]
+            assert 0.2 < ratio <= 1.05, (side, n, ratio)
