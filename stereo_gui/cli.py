@@ -17,11 +17,12 @@ from stereo_gui.core.errors import StereoGuiError
 
 # name -> (module, one-line help)
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
-    "calibrate": ("stereo_gui.commands.calibrate", "calibrate a stereo rig from chessboard pairs"),
+    "calibrate": ("stereo_gui.commands.calibrate", "calibrate a stereo rig from target pairs"),
     "measure": ("stereo_gui.commands.measure", "measure distances at pixels of a stereo pair"),
     "disparity": ("stereo_gui.commands.disparity", "write the disparity map of a stereo pair"),
     "bench": ("stereo_gui.commands.bench", "measure the speed of the live pipeline"),
     "simulate": ("stereo_gui.commands.simulate", "write images from the simulated stereo rig"),
+    "target": ("stereo_gui.commands.target", "write a printable calibration target (PDF, SVG, PNG)"),
 }
 
 

@@ -141,14 +141,13 @@ class WallTruth:
     """True depth and visibility of rectified pixels of `calib` for a wall rendered by `rig`."""
 
     def __init__(self, rig, calib: StereoCalibration, wall_mm: float) -> None:
-        from stereo_gui.sources.sim import undistort_normalized
+        from stereo_gui.core.lens import rectify_map
 
-        self._undistort = undistort_normalized
         self.rig = rig
         self.calib = calib
         self.wall_mm = float(wall_mm)
         w, h = calib.image_size
-        self._maps = [cv2.initUndistortRectifyMap(M, D, R, P, (w, h), cv2.CV_32FC1)
+        self._maps = [rectify_map(calib.model, M, D, R, P, (w, h), cv2.CV_32FC1)
                       for M, D, R, P in ((calib.M1, calib.D1, calib.R1, calib.P1),
                                          (calib.M2, calib.D2, calib.R2, calib.P2))]
 
@@ -167,8 +166,10 @@ class WallTruth:
         u, v = self._raw(0, x, y)
         if not (0 <= u <= w - 1 and 0 <= v <= h - 1):
             return float("nan"), False
-        xn, yn = self._undistort(np.array([u]), np.array([v]), t.M1, t.D1)
-        ray = np.array([xn[0], yn[0], 1.0])
+        from stereo_gui.core.lens import undistort_points
+
+        xn, yn = undistort_points(t.model, np.array([[u, v]]), t.M1, t.D1)[0]
+        ray = np.array([xn, yn, 1.0])
         p_left = ray * (self.wall_mm / ray[2])  # the wall is the plane Z = wall_mm
         p_rect = np.asarray(self.calib.R1, np.float64) @ p_left
         # where the calibration's rectified right camera sees that point

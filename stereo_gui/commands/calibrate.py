@@ -15,7 +15,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from stereo_gui.core.board import parse_board
+from stereo_gui.core.board import DEFAULT_DICTIONARY, DICTIONARIES, TARGET_NAMES, TARGETS, parse_board
 from stereo_gui.core.calibrate import (
     DEFAULT_MIN_PAIRS,
     CalibrationResult,
@@ -26,6 +26,7 @@ from stereo_gui.core.calibrate import (
 from stereo_gui.core.detect import METHODS as DETECTORS
 from stereo_gui.core.detect import PairInput, detect_pairs
 from stereo_gui.core.errors import InputError
+from stereo_gui.core.lens import LENS_MODELS, distortion_names
 from stereo_gui.files.calibration_file import export_ros, save_calibration
 from stereo_gui.files.pairs import check_same_size, discover_pairs, load_image
 
@@ -33,9 +34,27 @@ from stereo_gui.files.pairs import check_same_size, discover_pairs, load_image
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("folder", metavar="DIR", help="folder of chessboard pairs (chessboard-L1/-R1, "
                    "left1/right1, or left/ and right/ subfolders)")
-    p.add_argument("--board", default="9x6", help="inner corners COLSxROWS (default 9x6)")
+    p.add_argument("--target", choices=TARGETS, default="chessboard",
+                   help="calibration target: chessboard (default), circles (symmetric circle "
+                        "grid), acircles (asymmetric circle grid) or charuco (ChArUco board, "
+                        "which counts when partly visible)")
+    p.add_argument("--board", default=None,
+                   help="COLSxROWS: inner corners of a chessboard (default 9x6), circles of a "
+                        "circle grid, squares of a ChArUco board (default 7x5)")
     p.add_argument("--square-mm", type=float, default=25.0,
-                   help="side of one chessboard square in millimetres (default 25)")
+                   help="side of one square in millimetres, or the circle spacing of a circle "
+                        "grid (default 25)")
+    p.add_argument("--marker-mm", type=float, default=0.0,
+                   help="ChArUco: side of the ArUco markers (default 0.75 x square); circle "
+                        "grids: circle diameter (not needed to detect them)")
+    p.add_argument("--dict", default=DEFAULT_DICTIONARY, choices=DICTIONARIES, metavar="NAME",
+                   help=f"ChArUco: the ArUco dictionary (default {DEFAULT_DICTIONARY})")
+    p.add_argument("--model", choices=LENS_MODELS, default="pinhole",
+                   help="lens model: pinhole (5 coefficients, default), rational (8) or fisheye "
+                        "(cv2.fisheye, for wide-angle webcams)")
+    p.add_argument("--fix-k3", action="store_true",
+                   help="hold k3 (and the higher terms) at zero, when the pairs cannot determine "
+                        "them (the warnings say when)")
     p.add_argument("-o", "--output", required=True, metavar="FILE",
                    help="calibration file to write (OpenCV FileStorage YAML)")
     p.add_argument("--alpha", type=float, default=0.0,
@@ -48,6 +67,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="do not drop pairs whose error is far above the median")
     p.add_argument("--detector", choices=DETECTORS, default="classic",
                    help="chessboard detector (default classic: findChessboardCorners + cornerSubPix)")
+    p.add_argument("--swap", action="store_true",
+                   help="exchange the left and right images (the cameras are swapped; a capture "
+                        "session that says so is exchanged without it)")
     p.add_argument("--ros-dir", metavar="DIR", default=None,
                    help="also write ROS camera_info files left.yaml and right.yaml into DIR")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of a summary")
@@ -92,9 +114,10 @@ def _finite(x: float) -> float | None:
     return float(x) if x is not None and math.isfinite(x) else None
 
 
-def _camera(M, D) -> dict:
-    d = [float(v) for v in D.reshape(-1)[:5]]
-    d += [0.0] * (5 - len(d))
+def _camera(M, D, model: str = "pinhole") -> dict:
+    d = [float(v) for v in D.reshape(-1)]
+    if model == "pinhole":
+        d = d[:5] + [0.0] * (5 - len(d[:5]))
     return {"fx": float(M[0, 0]), "fy": float(M[1, 1]), "cx": float(M[0, 2]),
             "cy": float(M[1, 2]), "dist": d}
 
@@ -112,8 +135,14 @@ def result_json(result: CalibrationResult, output: Path | None = None) -> dict:
         "rms_stereo": _finite(r.rms_stereo),
         "epipolar_error_px": _finite(r.epipolar_error_px),
         "baseline_mm": _finite(r.baseline_mm),
-        "left": _camera(c.M1, c.D1),
-        "right": _camera(c.M2, c.D2),
+        "left": _camera(c.M1, c.D1, c.model),
+        "right": _camera(c.M2, c.D2, c.model),
+        "model": c.model,
+        "distortion_names": list(distortion_names(c.model, c.D1.size)),
+        "board": c.board.to_json() if c.board is not None else None,
+        "uncertainty": c.uncertainty.to_json(c) if c.uncertainty is not None else None,
+        "warnings": [w.to_json() for w in r.warnings],
+        "origin": c.origin,
         "per_pair": [{"name": p.name, "error_left": p.error_left, "error_right": p.error_right}
                      for p in c.per_pair],
         "relative_rotation_deg": _finite(r.relative_rotation_deg),
@@ -130,13 +159,25 @@ def result_json(result: CalibrationResult, output: Path | None = None) -> dict:
 def summary_text(result: CalibrationResult, output: Path, seconds: float) -> str:
     c, r = result.calibration, result.report
     lines = [f"calibrated from {r.pairs_used} of {r.pairs_found} pairs in {seconds:.1f} s "
-             f"({c.width}x{c.height}, board {c.board.label() if c.board else '-'}, {c.method})"]
+             f"({c.width}x{c.height}, board {c.board.label() if c.board else '-'}, {c.method}, "
+             f"{c.model} lens model)"]
     for x in r.rejected:
         lines.append(f"  rejected {x.name}: {x.reason}")
-    for side, M, D in (("left ", c.M1, c.D1), ("right", c.M2, c.D2)):
-        d = " ".join(f"{v:+.4f}" for v in D.reshape(-1)[:5])
-        lines.append(f"{side}: fx {M[0, 0]:.2f}  fy {M[1, 1]:.2f}  cx {M[0, 2]:.2f}  "
-                     f"cy {M[1, 2]:.2f} px   dist {d}")
+    u = c.uncertainty
+    names = distortion_names(c.model, c.D1.size)
+
+    def pm(side: str, name: str, v: float, digits: int) -> str:
+        if u is None:
+            return f"{v:.{digits}f}"
+        return f"{v:.{digits}f} ± {u.sigma(f'{side}.{name}'):.{digits}f}"
+
+    for side, M, D in (("left", c.M1, c.D1), ("right", c.M2, c.D2)):
+        d = "  ".join(f"{n} {pm(side, n, v, 4)}" for n, v in zip(names, D.reshape(-1)))
+        lines.append(f"{side:5}: fx {pm(side, 'fx', M[0, 0], 2)}  fy {pm(side, 'fy', M[1, 1], 2)}  "
+                     f"cx {pm(side, 'cx', M[0, 2], 2)}  cy {pm(side, 'cy', M[1, 2], 2)} px")
+        lines.append(f"       dist {d}")
+    if u is not None:
+        lines.append("(± is 1 sigma, one standard deviation)")
     if c.optimal_M1 is not None and c.optimal_M2 is not None:
         for side, M in (("left ", c.optimal_M1), ("right", c.optimal_M2)):
             lines.append(f"optimal new camera matrix {side} (alpha 1): fx {M[0, 0]:.2f}  "
@@ -147,7 +188,11 @@ def summary_text(result: CalibrationResult, output: Path, seconds: float) -> str
     lines.append(f"RMS reprojection error: left {px(r.rms_left)}, right {px(r.rms_right)}, "
                  f"stereo {px(r.rms_stereo)}")
     lines.append(f"epipolar error after rectification: {r.epipolar_error_px:.3f} px")
-    if c.metric:
+    if c.metric and u is not None:
+        lines.append(f"baseline {r.baseline_mm:.2f} ± {u.baseline_sigma_mm(c.T):.2f} mm, relative "
+                     f"rotation {r.relative_rotation_deg:.3f} ± {u.rotation_sigma_deg(c.R):.3f} "
+                     f"deg (1 sigma), rectified focal {c.focal_px:.1f} px")
+    elif c.metric:
         lines.append(f"baseline {r.baseline_mm:.2f} mm, relative rotation "
                      f"{r.relative_rotation_deg:.3f} deg, rectified focal {c.focal_px:.1f} px")
     else:
@@ -158,6 +203,8 @@ def summary_text(result: CalibrationResult, output: Path, seconds: float) -> str
             f"{p.name} ({p.error_left:.2f}/{p.error_right:.2f} px)" for p in worst))
     for note in r.notes:
         lines.append(f"NOTE: {note}")
+    for w in r.warnings:
+        lines.append(f"WARNING ({w.code}): {w.message}")
     lines.append(f"wrote {output}")
     return "\n".join(lines)
 
@@ -171,9 +218,17 @@ def _excluded_in_session(folder: Path) -> set[str]:
     return {p.name for p in CaptureSession.open(folder).pairs if p.excluded}
 
 
+def _swapped_session(folder: Path) -> bool:
+    """True when a capture session in `folder` says its cameras are swapped."""
+    from stereo_gui.files.session import MANIFEST, CaptureSession
+
+    return (folder / MANIFEST).is_file() and bool(CaptureSession.open(folder).swapped)
+
+
 def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
-    board = parse_board(args.board, args.square_mm)
+    board = parse_board(args.board or ("7x5" if args.target == "charuco" else "9x6"),
+                        args.square_mm, args.target, args.marker_mm, args.dict)
     if not math.isfinite(args.alpha) or not (0.0 <= args.alpha <= 1.0 or args.alpha == -1.0):
         raise InputError(f"--alpha must be between 0 and 1, not {args.alpha:g}")
     if args.min_pairs < 1:
@@ -192,25 +247,33 @@ def run(args: argparse.Namespace) -> int:
     pairs = [p for p in found.pairs if p.name not in excluded]
     if found.pairs and not pairs:
         raise InputError(f"every pair in {args.folder} is excluded in its capture session")
-    items = [PairInput(p.name, (lambda f=p.left: load_image(f)), (lambda f=p.right: load_image(f)),
-                       p.left.name, p.right.name) for p in pairs]
+    swap = bool(args.swap) or _swapped_session(Path(args.folder))
+    sides = [(p.right, p.left) if swap else (p.left, p.right) for p in pairs]
+    items = [PairInput(p.name, (lambda f=a: load_image(f)), (lambda f=b: load_image(f)),
+                       a.name, b.name) for p, (a, b) in zip(pairs, sides)]
     progress = _StderrProgress(force_lines=args.progress)
     try:
         detections = detect_pairs(items, board, method=args.detector,
-                                  progress=lambda d, t, _: progress(d, t, "detecting chessboards"))
+                                  progress=lambda d, t, _: progress(
+                                      d, t, f"detecting {TARGET_NAMES[board.target]}s"))
         size = check_same_size([(d.left_file, d.image_size) for d in detections])
         if args.method == "hartley" and not any(d.found for d in detections):
             # no board anywhere: Hartley can still work from features matched in the scene
             sys.stderr.write("stereo-gui: warning: no chessboard found; rectifying from "
                              "matched scene features (Hartley, no metric scale, no undistortion)\n")
             result = calibrate_hartley_features(
-                [(p.name, load_image(p.left), load_image(p.right)) for p in pairs],
+                [(p.name, load_image(a), load_image(b)) for p, (a, b) in zip(pairs, sides)],
                 progress=lambda d, t, text: progress(d, t, "matching features"))
         else:
             result = calibrate_stereo(
                 detections, board, size, alpha=args.alpha, method=args.method,
                 progress=lambda d, t, text: progress(d, t, "calibrating"),
-                min_pairs=args.min_pairs, reject_outliers=not args.keep_outliers)
+                min_pairs=args.min_pairs, reject_outliers=not args.keep_outliers,
+                model=args.model, fix_k3=args.fix_k3,
+                origin=f"{args.folder}" + (" with left and right exchanged" if swap else ""))
+            if swap:
+                result = replace(result, calibration=result.calibration.with_updates(
+                    swapped_inputs=True))
     finally:
         progress.clear()
     skipped = [RejectedPair(p.name, "excluded in the capture session")

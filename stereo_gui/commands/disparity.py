@@ -85,7 +85,8 @@ def run_pipeline(args) -> tuple[StereoCalibration, PipelineResult]:
     params = load_params(args.preset)
     left, right = read_pair(args.left, args.right, calib)
     with StereoPipeline(calib, params) as pipe:
-        return calib, pipe.process(left, right)
+        # a calibration made with the cameras found swapped takes its images exchanged
+        return calib, pipe.process(*calib.ordered(left, right))
 
 
 def add_pair_arguments(parser: argparse.ArgumentParser) -> None:

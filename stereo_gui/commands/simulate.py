@@ -1,5 +1,6 @@
-"""`stereo-gui simulate OUT_DIR [--pairs N] [--scene] [--seed S]`: write images of the simulated
-rig (a calibration set in the report's naming, optional scene pairs) with its truth.json."""
+"""`stereo-gui simulate OUT_DIR [--pairs N] [--scene] [--seed S] [--target T --board CxR ...]
+[--lens pinhole|fisheye]`: write images of the simulated rig (a calibration set in the report's
+naming, optional scene pairs) with its truth.json."""
 
 from __future__ import annotations
 
@@ -10,8 +11,9 @@ import sys
 from pathlib import Path
 
 
+from stereo_gui.core.board import TARGETS, parse_board
 from stereo_gui.core.errors import InputError
-from stereo_gui.sources.sim import (SCENE_FOLDER, SimRig, calibration_set_names,
+from stereo_gui.sources.sim import (SCENE_FOLDER, RigConfig, SimRig, calibration_set_names,
                                     write_calibration_set)
 
 # files of an earlier simulated set: replaced or removed with --overwrite
@@ -39,6 +41,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="random seed of the board poses and noise (default 0)")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace a simulated set already in OUT_DIR")
+    parser.add_argument("--target", choices=TARGETS, default="chessboard",
+                        help="the target the rig shows (default chessboard)")
+    parser.add_argument("--board", default=None,
+                        help="COLSxROWS as `calibrate --board` counts them (default 9x6, 7x5 for "
+                             "charuco)")
+    parser.add_argument("--square-mm", type=float, default=None,
+                        help="square side or circle spacing, mm (default 25, 30 for charuco)")
+    parser.add_argument("--marker-mm", type=float, default=0.0,
+                        help="ChArUco marker side or circle diameter, mm (default: the target's)")
+    parser.add_argument("--lens", choices=("pinhole", "fisheye"), default="pinhole",
+                        help="the rig's cameras: webcams (default) or wide-angle fisheye webcams")
 
 
 def _prepare(out: Path, overwrite: bool) -> list[Path]:
@@ -65,6 +78,11 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--pairs must be at least 1, not {args.pairs}")
     if args.pairs > 10000:
         raise InputError(f"--pairs {args.pairs} is more than anyone needs; give at most 10000")
+    charuco = args.target == "charuco"
+    board = parse_board(args.board or ("7x5" if charuco else "9x6"),
+                        args.square_mm or (30.0 if charuco else 25.0), args.target,
+                        args.marker_mm or (22.0 if charuco else 0.0))
+    config = (RigConfig.fisheye(board=board) if args.lens == "fisheye" else RigConfig(board=board))
     out = Path(args.out_dir)
     earlier = _prepare(out, args.overwrite)
     interactive = sys.stderr.isatty()
@@ -75,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
             sys.stderr.flush()
 
     write_calibration_set(out, n_pairs=args.pairs, seed=args.seed, scene=args.scene,
-                          progress=progress)
+                          config=config, progress=progress)
     if interactive:
         sys.stderr.write("\n")
     # a smaller set over an earlier larger one would leave pairs that truth.json does not describe
@@ -84,8 +102,8 @@ def run(args: argparse.Namespace) -> int:
     for p in stale:
         p.unlink(missing_ok=True)
 
-    truth = SimRig(seed=args.seed).truth
-    print(f"wrote {args.pairs} chessboard pairs (chessboard-L1.png/chessboard-R1.png .. "
+    truth = SimRig(config, seed=args.seed).truth
+    print(f"wrote {args.pairs} {args.target} pairs (chessboard-L1.png/chessboard-R1.png .. "
           f"chessboard-L{args.pairs}.png/chessboard-R{args.pairs}.png) to {out}")
     if args.scene:
         print(f"wrote 6 scene pairs to {out / SCENE_FOLDER} (scene-L1.png/scene-R1.png .. "
@@ -95,5 +113,5 @@ def run(args: argparse.Namespace) -> int:
         print(f"removed {len(stale)} files of an earlier simulated set")
     print(f"wrote {out / 'truth.json'}: board {truth.board.label()}, image {truth.image_size[0]}x"
           f"{truth.image_size[1]}, fx {truth.M1[0, 0]:.1f}/{truth.M2[0, 0]:.1f} px, baseline "
-          f"{truth.baseline_mm:.1f} mm, seed {args.seed}")
+          f"{truth.baseline_mm:.1f} mm, {truth.model} lenses, seed {args.seed}")
     return 0

@@ -1,8 +1,10 @@
-"""Stereo calibration from chessboard detections (Bouguet) or matched points (Hartley).
+"""Stereo calibration from target detections (Bouguet) or matched points (Hartley).
 
-The Bouguet flow is the report's: `calibrateCamera` per camera, `getOptimalNewCameraMatrix`
-(alpha 1, kept as optimal_M1/2 and shown as in the report), `stereoCalibrate` with fixed
-intrinsics, then a joint refinement of all parameters started from that solution, and
+The Bouguet flow is the report's: `calibrateCamera` per camera (calibrateCameraExtended, or
+cv2.fisheye.calibrate for the fisheye model), `getOptimalNewCameraMatrix` (alpha 1, kept as
+optimal_M1/2 and shown as in the report), `stereoCalibrate` with fixed intrinsics, then a joint
+refinement of all parameters started from that solution (core.bundle: every point each camera
+saw, also the ChArUco corners only one camera saw, and the covariance of the result), and
 `stereoRectify` (CALIB_ZERO_DISPARITY, alpha configurable). The joint step is measured to help
 (scripts/bench_calibration.py, 50 rig pairs): relative rotation error 0.042 -> 0.008 deg, worst
 principal point error 0.23 % -> 0.03 %; on tuning seeds with 25 pairs the worst intrinsic error
@@ -22,10 +24,25 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.board import TARGET_NAMES, BoardSpec
+from stereo_gui.core.bundle import BundleResult, View, refine_stereo
 from stereo_gui.core.detect import Cancel, PairDetection, Progress, check_cancel
 from stereo_gui.core.errors import CalibrationError
+from stereo_gui.core.lens import (
+    DIST_COUNT,
+    HIGHER_TERMS,
+    LENS_MODELS,
+    optimal_new_camera,
+    stereo_rectify,
+    undistort_points,
+)
 from stereo_gui.core.stereo_calibration import PairError, StereoCalibration
+from stereo_gui.core.coverage import uncovered_regions
+from stereo_gui.core.uncertainty import (
+    CalibrationWarning,
+    calibration_warnings,
+    uncertainty_from_bundle,
+)
 
 log = logging.getLogger(__name__)
 
@@ -63,6 +80,7 @@ class CalibrationReport:
     method: str
     notes: tuple[str, ...] = ()
     rms_stereo_fixed_intrinsics: float = float("nan")  # the report's step, before joint refinement
+    warnings: tuple[CalibrationWarning, ...] = ()  # what a person should know (core.uncertainty)
 
 
 @dataclass(frozen=True)
@@ -78,21 +96,21 @@ def _progress(progress: Progress | None, step: int, total: int, text: str) -> No
 
 
 def _view_errors(obj: np.ndarray, img: np.ndarray, rvec, tvec, M, D) -> float:
-    """RMS reprojection error of one view, px."""
+    """RMS reprojection error of one view (pinhole models), px."""
     proj, _ = cv2.projectPoints(obj, rvec, tvec, M, D)
     d = proj.reshape(-1, 2) - img.reshape(-1, 2)
     return float(np.sqrt(np.mean(np.sum(d * d, axis=1))))
 
 
 def epipolar_error_px(left_pts: Sequence[np.ndarray], right_pts: Sequence[np.ndarray],
-                      M1, D1, R1, P1, M2, D2, R2, P2) -> float:
+                      M1, D1, R1, P1, M2, D2, R2, P2, model: str = "pinhole") -> float:
     """Mean |y_left - y_right| of corresponding points after rectification, px."""
     if not left_pts:
         return float("nan")
-    a = np.concatenate([np.asarray(p, np.float64).reshape(-1, 1, 2) for p in left_pts])
-    b = np.concatenate([np.asarray(p, np.float64).reshape(-1, 1, 2) for p in right_pts])
-    ra = cv2.undistortPoints(a, M1, D1, R=R1, P=P1).reshape(-1, 2)
-    rb = cv2.undistortPoints(b, M2, D2, R=R2, P=P2).reshape(-1, 2)
+    a = np.concatenate([np.asarray(p, np.float64).reshape(-1, 2) for p in left_pts])
+    b = np.concatenate([np.asarray(p, np.float64).reshape(-1, 2) for p in right_pts])
+    ra = undistort_points(model, a, M1, D1, R=R1, P=P1)
+    rb = undistort_points(model, b, M2, D2, R=R2, P=P2)
     return float(np.mean(np.abs(ra[:, 1] - rb[:, 1])))
 
 
@@ -112,50 +130,126 @@ class _Solve:
     rms_stereo: float
     rms_stereo_fixed: float
     errors: list[tuple[float, float]]  # per pair (left, right) RMS px, from the final model
+    bundle: BundleResult
+    mono_sigmas: tuple[np.ndarray | None, np.ndarray | None]  # calibrateCameraExtended's
+
+
+def _mono_flags(model: str, fix_k3: bool) -> int:
+    flags = 0
+    if model == "rational":
+        flags |= cv2.CALIB_RATIONAL_MODEL
+    if model == "fisheye":
+        flags |= cv2.CALIB_RECOMPUTE_EXTRINSIC | cv2.CALIB_FIX_SKEW
+    if fix_k3:
+        flags |= cv2.CALIB_FIX_K3
+        if model == "rational":
+            flags |= cv2.CALIB_FIX_K4 | cv2.CALIB_FIX_K5 | cv2.CALIB_FIX_K6
+        if model == "fisheye":
+            flags |= cv2.CALIB_FIX_K4
+    return flags
+
+
+def _calibrate_mono(objs, imgs, image_size, model: str, fix_k3: bool):
+    """One camera: (rms, M, D (1xN), rvecs, tvecs, standard deviations of the intrinsics or None).
+
+    The rational model starts from the pinhole solution with k4..k6 at zero: OpenCV's own
+    rational calibration wanders along the model's flat valley (very different coefficients
+    for the same lens, different from run to run), and the joint refinement takes it from
+    there (core.bundle)."""
+    if model == "rational":
+        rms, M, D, rv, tv, _ = _calibrate_mono(objs, imgs, image_size, "pinhole", fix_k3)
+        return rms, M, np.concatenate([D.reshape(1, -1), np.zeros((1, 3))], axis=1), rv, tv, None
+    flags = _mono_flags(model, fix_k3)
+    try:
+        if model == "fisheye":
+            # (cv2.fisheye wants each view as a 1xN row of points)
+            rms, M, D, rv, tv = cv2.fisheye.calibrate(
+                [o.reshape(1, -1, 3).astype(np.float64) for o in objs],
+                [i.reshape(1, -1, 2).astype(np.float64) for i in imgs], image_size, None, None,
+                flags=flags, criteria=_CRITERIA)
+            return float(rms), M, np.asarray(D).reshape(1, -1), rv, tv, None
+        rms, M, D, rv, tv, std, _, _ = cv2.calibrateCameraExtended(
+            [o.astype(np.float32) for o in objs], [i.reshape(-1, 1, 2).astype(np.float32) for i in imgs],
+            image_size, None, None, flags=flags, criteria=_CRITERIA)
+    except cv2.error as exc:
+        raise CalibrationError(f"the {model} camera calibration failed: "
+                               f"{str(exc).strip().splitlines()[-1]}") from None
+    nd = DIST_COUNT[model]
+    D = np.asarray(D, np.float64).reshape(-1)[:nd].reshape(1, -1)
+    return float(rms), M, D, rv, tv, np.asarray(std, np.float64).reshape(-1)
+
+
+def _relative_pose(rv_l, tv_l, rv_r, tv_r) -> tuple[np.ndarray, np.ndarray]:
+    """R_right_left, T_right_left from the board poses both cameras saw (the mean over views)."""
+    rs, ts = [], []
+    for a, b, c, d in zip(rv_l, tv_l, rv_r, tv_r):
+        Rl, Rr = cv2.Rodrigues(np.asarray(a, np.float64))[0], cv2.Rodrigues(np.asarray(c, np.float64))[0]
+        Rk = Rr @ Rl.T
+        rs.append(cv2.Rodrigues(Rk)[0].reshape(3))
+        ts.append(np.asarray(d, np.float64).reshape(3) - Rk @ np.asarray(b, np.float64).reshape(3))
+    R = cv2.Rodrigues(np.median(np.array(rs), axis=0).reshape(3, 1))[0]
+    return R, np.median(np.array(ts), axis=0).reshape(3, 1)
 
 
 def _solve(pairs: list[PairDetection], board: BoardSpec, image_size: tuple[int, int],
            joint: bool, progress: Progress | None, cancel: Cancel, step0: int,
-           total: int) -> _Solve:
-    obj = board.object_points_mm()
-    objs = [obj] * len(pairs)
-    L = [p.left.corners_cv for p in pairs]  # type: ignore[union-attr]
-    R_ = [p.right.corners_cv for p in pairs]  # type: ignore[union-attr]
+           total: int, model: str = "pinhole", fix_k3: bool = False) -> _Solve:
+    obj_all = board.object_points_mm()
+    ol = [p.left.object_points(board) for p in pairs]  # type: ignore[union-attr]
+    il = [p.left.corners for p in pairs]  # type: ignore[union-attr]
+    orr = [p.right.object_points(board) for p in pairs]  # type: ignore[union-attr]
+    ir = [p.right.corners for p in pairs]  # type: ignore[union-attr]
+    common = [p.common() for p in pairs]
+    oc = [obj_all[c[0]] for c in common]
     _progress(progress, step0, total, "calibrating the left camera")
-    rms1, M1, D1, _, _ = cv2.calibrateCamera(objs, L, image_size, None, None, criteria=_CRITERIA)
+    _, M1, D1, rv1, tv1, std1 = _calibrate_mono(ol, il, image_size, model, fix_k3)
     check_cancel(cancel)
     _progress(progress, step0 + 1, total, "calibrating the right camera")
-    rms2, M2, D2, _, _ = cv2.calibrateCamera(objs, R_, image_size, None, None, criteria=_CRITERIA)
+    _, M2, D2, rv2, tv2, std2 = _calibrate_mono(orr, ir, image_size, model, fix_k3)
     check_cancel(cancel)
     _progress(progress, step0 + 2, total, "calibrating the pair")
-    out = cv2.stereoCalibrateExtended(
-        objs, L, R_, M1, D1, M2, D2, image_size, None, None,
-        flags=cv2.CALIB_FIX_INTRINSIC, criteria=_CRITERIA)
-    rms_fixed = float(out[0])
+    # the report's step: the relative pose with both cameras' intrinsics fixed
+    rms_fixed = float("nan")
+    R, T = _relative_pose(rv1, tv1, rv2, tv2)
+    try:
+        if model == "fisheye":
+            out = cv2.fisheye.stereoCalibrate(
+                [o.reshape(1, -1, 3).astype(np.float64) for o in oc],
+                [c[1].reshape(1, -1, 2).astype(np.float64) for c in common],
+                [c[2].reshape(1, -1, 2).astype(np.float64) for c in common],
+                M1, D1.reshape(4, 1), M2, D2.reshape(4, 1), image_size,
+                flags=cv2.CALIB_FIX_INTRINSIC, criteria=_CRITERIA)
+            rms_fixed, R, T = float(out[0]), out[5], np.asarray(out[6]).reshape(3, 1)
+        else:
+            flags = cv2.CALIB_FIX_INTRINSIC | (cv2.CALIB_RATIONAL_MODEL if model == "rational" else 0)
+            out = cv2.stereoCalibrateExtended(
+                [o.astype(np.float32) for o in oc],
+                [c[1].reshape(-1, 1, 2).astype(np.float32) for c in common],
+                [c[2].reshape(-1, 1, 2).astype(np.float32) for c in common],
+                M1, D1, M2, D2, image_size, None, None, flags=flags, criteria=_CRITERIA)
+            rms_fixed, R, T = float(out[0]), out[5], out[6].reshape(3, 1)
+    except cv2.error as exc:
+        log.info("stereo calibration with fixed intrinsics failed (%s); starting the joint "
+                    "refinement from the board poses", str(exc).strip().splitlines()[-1])
+    check_cancel(cancel)
+    # every point each camera saw, the left camera's board poses as the start
+    views = [View(ol[k], il[k].reshape(-1, 2), orr[k], ir[k].reshape(-1, 2)) for k in range(len(pairs))]
+    fixed = HIGHER_TERMS[model] if fix_k3 else ()
+    bundle = refine_stereo(views, model, M1, D1, M2, D2, R, T, rv1, tv1, fixed=fixed,
+                           max_iterations=100 if joint else 0)
     if joint:
-        # All parameters at once from the fixed-intrinsics solution: the stereo constraint
-        # helps the intrinsics too (measured on the simulated rig, see bench_calibration.py).
-        check_cancel(cancel)
-        out = cv2.stereoCalibrateExtended(
-            objs, L, R_, out[1], out[2], out[3], out[4], image_size, out[5], out[6],
-            flags=cv2.CALIB_USE_INTRINSIC_GUESS | cv2.CALIB_USE_EXTRINSIC_GUESS,
-            criteria=_CRITERIA)
-    rms, M1, D1, M2, D2, R, T, E, F, rvecs, tvecs, _ = out
-    errors = []
-    for i in range(len(pairs)):
-        el = _view_errors(obj, L[i], rvecs[i], tvecs[i], M1, D1)
-        Rl, _ = cv2.Rodrigues(rvecs[i])
-        rv2, _ = cv2.Rodrigues(R @ Rl)
-        tv2 = R @ np.asarray(tvecs[i]).reshape(3, 1) + T.reshape(3, 1)
-        er = _view_errors(obj, R_[i], rv2, tv2, M2, D2)
-        errors.append((el, er))
-    # per-camera RMS from the final model, so they match the matrices that are saved
-    rl = float(np.sqrt(np.mean([e[0] ** 2 for e in errors])))
-    rr = float(np.sqrt(np.mean([e[1] ** 2 for e in errors])))
-    if not joint:
-        rl, rr = float(rms1), float(rms2)
+        M1, D1, M2, D2, R, T = bundle.M1, bundle.D1, bundle.M2, bundle.D2, bundle.R, bundle.T
+    errors = list(bundle.errors)
+    rl = float(np.sqrt(np.nanmean([e[0] ** 2 for e in errors])))
+    rr = float(np.sqrt(np.nanmean([e[1] ** 2 for e in errors])))
+    tx = np.asarray(T, np.float64).reshape(3)
+    Tx = np.array([[0, -tx[2], tx[1]], [tx[2], 0, -tx[0]], [-tx[1], tx[0], 0]], np.float64)
+    E = Tx @ R
+    F = np.linalg.inv(M2).T @ E @ np.linalg.inv(M1)
+    F = F / F[2, 2] if abs(F[2, 2]) > 1e-12 else F
     return _Solve([p.name for p in pairs], M1, D1.reshape(1, -1), M2, D2.reshape(1, -1), R,
-                  T.reshape(3, 1), E, F, rl, rr, float(rms), rms_fixed, errors)
+                  T.reshape(3, 1), E, F, rl, rr, float(bundle.rms), rms_fixed, errors, bundle,
+                  (std1, std2))
 
 
 def _outliers(errors: list[tuple[float, float]], factor: float, floor_px: float) -> list[int]:
@@ -171,17 +265,23 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
                      method: str = "bouguet", progress: Progress | None = None,
                      cancel: Cancel = None, min_pairs: int = DEFAULT_MIN_PAIRS,
                      reject_outliers: bool = True, outlier_factor: float = 3.0,
-                     outlier_floor_px: float = 1.0, joint_refinement: bool = True
+                     outlier_floor_px: float = 1.0, joint_refinement: bool = True,
+                     model: str = "pinhole", fix_k3: bool = False, origin: str = ""
                      ) -> CalibrationResult:
-    """Calibrate a stereo rig from chessboard detections of pairs.
+    """Calibrate a stereo rig from target detections of pairs.
 
     `method` "bouguet" gives a metric calibration (mm); "hartley" rectifies from the same corners
-    without metric scale (see calibrate_hartley). Pairs with an error above
-    max(outlier_factor x median, outlier_floor_px) are dropped once and the solve is repeated.
-    Raises CalibrationError when no board was found or too few pairs are usable.
+    without metric scale (see calibrate_hartley). `model` is the lens model (core.lens:
+    pinhole, rational, fisheye); `fix_k3` holds k3 and the higher terms at zero. Pairs with an
+    error above max(outlier_factor x median, outlier_floor_px) are dropped once and the solve
+    is repeated. The result carries the parameters' uncertainty and warnings (core.uncertainty).
+    `origin` names where the pairs came from (recorded in the calibration's origin).
+    Raises CalibrationError when no target was found or too few pairs are usable.
     """
     if method not in METHODS:
         raise CalibrationError(f"unknown calibration method {method!r}; use bouguet or hartley")
+    if model not in LENS_MODELS:
+        raise CalibrationError(f"unknown lens model {model!r}; use one of {', '.join(LENS_MODELS)}")
     if not 0.0 <= alpha <= 1.0 and alpha != -1.0:
         raise CalibrationError(f"alpha must be between 0 and 1 (or -1 for OpenCV's default), not {alpha}")
     detections = list(detections)
@@ -203,7 +303,10 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
         else:
             usable.append(p)
     if not usable:
-        raise CalibrationError(f"no chessboard ({board.cols}x{board.rows} inner corners) found in "
+        rows, cols = board.grid_shape
+        what = (f"{board.cols}x{board.rows} inner corners" if board.target == "chessboard" else
+                board.label())
+        raise CalibrationError(f"no {TARGET_NAMES[board.target]} ({what}) found in "
                                f"any of {n} pair{'s' if n != 1 else ''}")
     if len(usable) < min_pairs:
         raise CalibrationError(f"only {len(usable)} usable pair{'s' if len(usable) != 1 else ''} "
@@ -214,7 +317,8 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
 
     total = 8
     check_cancel(cancel)
-    sol = _solve(usable, board, image_size, joint_refinement, progress, cancel, 0, total)
+    sol = _solve(usable, board, image_size, joint_refinement, progress, cancel, 0, total,
+                 model, fix_k3)
     if reject_outliers and len(usable) > min_pairs:
         bad = _outliers(sol.errors, outlier_factor, outlier_floor_px)
         # never drop below the minimum: keep the best of the bad ones if needed
@@ -228,24 +332,31 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
                                     f"median {med:.2f} px (outlier)"))
             usable = [p for i, p in enumerate(usable) if i not in set(bad)]
             log.info("dropped %d outlier pairs, calibrating again", len(bad))
-            sol = _solve(usable, board, image_size, joint_refinement, progress, cancel, 3, total)
+            sol = _solve(usable, board, image_size, joint_refinement, progress, cancel, 3, total,
+                         model, fix_k3)
     check_cancel(cancel)
     _progress(progress, 6, total, "rectifying")
-    R1, R2, P1, P2, Q, _, _ = cv2.stereoRectify(
-        sol.M1, sol.D1, sol.M2, sol.D2, image_size, sol.R, sol.T,
-        flags=cv2.CALIB_ZERO_DISPARITY, alpha=alpha)
-    opt1, _ = cv2.getOptimalNewCameraMatrix(sol.M1, sol.D1, image_size, 1, image_size)
-    opt2, _ = cv2.getOptimalNewCameraMatrix(sol.M2, sol.D2, image_size, 1, image_size)
-    epi = epipolar_error_px([p.left.corners for p in usable], [p.right.corners for p in usable],
-                            sol.M1, sol.D1, R1, P1, sol.M2, sol.D2, R2, P2)
+    R1, R2, P1, P2, Q = stereo_rectify(model, sol.M1, sol.D1, sol.M2, sol.D2, image_size, sol.R,
+                                       sol.T, alpha)
+    opt1 = optimal_new_camera(model, sol.M1, sol.D1, image_size)
+    opt2 = optimal_new_camera(model, sol.M2, sol.D2, image_size)
+    commons = [p.common() for p in usable]
+    epi = epipolar_error_px([c[1] for c in commons], [c[2] for c in commons],
+                            sol.M1, sol.D1, R1, P1, sol.M2, sol.D2, R2, P2, model)
     per_pair = tuple(PairError(name, float(el), float(er))
                      for name, (el, er) in zip(sol.names, sol.errors))
+    unc = uncertainty_from_bundle(sol.bundle, model, fix_k3, sol.mono_sigmas)
     calib = StereoCalibration(
         image_size=image_size, M1=sol.M1, D1=sol.D1, M2=sol.M2, D2=sol.D2, R=sol.R, T=sol.T,
         E=sol.E, F=sol.F, R1=R1, R2=R2, P1=P1, P2=P2, Q=Q, board=board,
         rms_left=sol.rms_left, rms_right=sol.rms_right, rms_stereo=sol.rms_stereo,
         epipolar_error_px=epi, per_pair=per_pair, method="bouguet", alpha=float(alpha),
-        optimal_M1=opt1, optimal_M2=opt2)
+        optimal_M1=opt1, optimal_M2=opt2, model=model, uncertainty=unc,
+        origin=f"calibrated from {len(usable)} pairs{' in ' + origin if origin else ''} "
+               f"({board.label()}, {model} model{', k3 fixed' if fix_k3 else ''})")
+    regions = uncovered_regions(usable, image_size)
+    warnings = calibration_warnings(calib, regions, fix_k3)
+    calib = calib.with_updates(warnings=warnings)
     _progress(progress, total, total, "done")
     order = {p.name: i for i, p in enumerate(detections)}
     report = CalibrationReport(
@@ -254,7 +365,7 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
         rms_left=sol.rms_left, rms_right=sol.rms_right, rms_stereo=sol.rms_stereo,
         epipolar_error_px=epi, baseline_mm=calib.baseline_mm,
         relative_rotation_deg=calib.relative_rotation_deg, method="bouguet",
-        rms_stereo_fixed_intrinsics=sol.rms_stereo_fixed)
+        rms_stereo_fixed_intrinsics=sol.rms_stereo_fixed, warnings=warnings)
     return CalibrationResult(calib, report)
 
 
@@ -309,26 +420,28 @@ def calibrate_hartley(pairs: Sequence[PairDetection], board: BoardSpec | None,
     comes only from the point matches through the fundamental matrix.
     """
     pairs = [p for p in pairs if p.found]
-    obj = board.object_points_mm() if board is not None else None
+    ol = [p.left.object_points(board) for p in pairs]  # type: ignore[union-attr]
+    orr = [p.right.object_points(board) for p in pairs]  # type: ignore[union-attr]
     L = [p.left.corners_cv for p in pairs]  # type: ignore[union-attr]
     Rt = [p.right.corners_cv for p in pairs]  # type: ignore[union-attr]
     _progress(progress, 0, 4, "calibrating the left camera")
-    rms1, M1, D1, rv1, tv1 = cv2.calibrateCamera([obj] * len(pairs), L, image_size, None, None)
+    rms1, M1, D1, rv1, tv1 = cv2.calibrateCamera(ol, L, image_size, None, None)
     check_cancel(cancel)
     _progress(progress, 1, 4, "calibrating the right camera")
-    rms2, M2, D2, rv2, tv2 = cv2.calibrateCamera([obj] * len(pairs), Rt, image_size, None, None)
+    rms2, M2, D2, rv2, tv2 = cv2.calibrateCamera(orr, Rt, image_size, None, None)
     check_cancel(cancel)
     _progress(progress, 2, 4, "rectifying (Hartley)")
     D1, D2 = D1.reshape(1, -1), D2.reshape(1, -1)
-    pl = np.concatenate([c.reshape(-1, 2) for c in L])
-    pr = np.concatenate([c.reshape(-1, 2) for c in Rt])
+    commons = [p.common() for p in pairs]
+    pl = np.concatenate([c[1].reshape(-1, 2) for c in commons])
+    pr = np.concatenate([c[2].reshape(-1, 2) for c in commons])
     h = _hartley_from_points(pl, pr, image_size, M1, D1, M2, D2, alpha)
-    epi = epipolar_error_px([c for c in L], [c for c in Rt], M1, D1, h["R1"], h["P1"],
-                            M2, D2, h["R2"], h["P2"])
+    epi = epipolar_error_px([c[1] for c in commons], [c[2] for c in commons], M1, D1, h["R1"],
+                            h["P1"], M2, D2, h["R2"], h["P2"])
     per_pair = []
     for i, p in enumerate(pairs):
-        el = _view_errors(obj, L[i], rv1[i], tv1[i], M1, D1)
-        er = _view_errors(obj, Rt[i], rv2[i], tv2[i], M2, D2)
+        el = _view_errors(ol[i], L[i], rv1[i], tv1[i], M1, D1)
+        er = _view_errors(orr[i], Rt[i], rv2[i], tv2[i], M2, D2)
         per_pair.append(PairError(p.name, el, er))
     opt1, _ = cv2.getOptimalNewCameraMatrix(M1, D1, image_size, 1, image_size)
     opt2, _ = cv2.getOptimalNewCameraMatrix(M2, D2, image_size, 1, image_size)

@@ -1,6 +1,10 @@
-"""Chessboard detection in single images, stereo pairs and many pairs at once, plus pose coverage.
+"""Target detection in single images, stereo pairs and many pairs at once, plus pose coverage.
 
-Detection defaults to OpenCV's classic detector (`findChessboardCorners`) followed by
+Targets (core.board): chessboards, symmetric and asymmetric circle grids (`findCirclesGrid`),
+and ChArUco boards (`cv2.aruco.CharucoDetector`), of which a view may show any part: every
+point found carries its id, and a pair uses the corners both cameras found, matched by id.
+
+Chessboard detection defaults to OpenCV's classic detector (`findChessboardCorners`) followed by
 `cornerSubPix`; `findChessboardCornersSB` is offered as `method="sb"`. Measured
 (scripts/bench_calibration.py): on 50 simulated-rig pairs the classic detector gives a stereo
 RMS of 0.053 px against 0.108 px for SB (EXHAUSTIVE|ACCURACY), and takes 0.44 s against 12.8 s;
@@ -26,7 +30,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.board import TARGET_NAMES, BoardSpec
 from stereo_gui.core.errors import InputError, StereoGuiError
 from stereo_gui.core.util import to_gray
 
@@ -65,26 +69,37 @@ def check_cancel(cancel: Cancel) -> None:
 # ---- single images ---------------------------------------------------------------------------
 @dataclass(frozen=True, eq=False)
 class Detection:
-    """The inner corners of a chessboard found in one image.
+    """The points of a target found in one image.
 
-    `corners` is (rows*cols, 2) float32 in pixels, row by row as OpenCV orders them.
+    `corners` is (N, 2) float32 in pixels; `ids` (N,) int32 says which of the board's object
+    points each one is (None: all of them, in order, as for chessboards and circle grids).
     """
 
     corners: np.ndarray
     image_size: tuple[int, int]  # (width, height), px
-    method: str  # "classic" or "sb"
+    method: str  # "classic", "sb", "circles" or "charuco"
+    ids: np.ndarray | None = None
 
     @property
     def corners_cv(self) -> np.ndarray:
         """The corners shaped (N, 1, 2) float32, as OpenCV's calibration functions take them."""
         return self.corners.reshape(-1, 1, 2).astype(np.float32, copy=False)
 
+    @property
+    def point_ids(self) -> np.ndarray:
+        """Ids of the points, (N,) int."""
+        return np.arange(len(self.corners)) if self.ids is None else self.ids
+
+    def object_points(self, board: BoardSpec) -> np.ndarray:
+        """The board positions (mm, Z = 0) of the points found, (N, 3) float32."""
+        return board.object_points_mm()[self.point_ids]
+
     def reversed(self) -> Detection:
         """The same corners in the opposite order (the board turned by 180 degrees)."""
         return Detection(self.corners[::-1].copy(), self.image_size, self.method)
 
     def pose(self, board: BoardSpec) -> PoseDescriptor:
-        return pose_descriptor(self.corners, board, self.image_size)
+        return pose_descriptor(self.corners, board, self.image_size, self.ids)
 
 
 _SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 40, 0.001)
@@ -101,8 +116,153 @@ def _subpix_radius(corners: np.ndarray, board: BoardSpec) -> int:
     return int(min(11, max(2, math.ceil(0.5 * min(dx, dy)))))
 
 
+def _blob_detector(min_distance_px: float = 2.0) -> cv2.SimpleBlobDetector:
+    """Dark round blobs from a few pixels (far boards) up to large ones (near boards)."""
+    params = cv2.SimpleBlobDetector_Params()
+    params.minArea = 8.0
+    params.maxArea = 40000.0
+    params.minDistBetweenBlobs = float(min_distance_px)
+    params.filterByConvexity = True
+    params.minConvexity = 0.8
+    params.filterByInertia = True
+    params.minInertiaRatio = 0.05  # tilted boards make ellipses
+    return cv2.SimpleBlobDetector_create(params)
+
+
+CIRCLE_GRID_ATTEMPTS = 3  # random starts of findCirclesGrid per blob setting
+
+
+def _detect_circles(gray: np.ndarray, board: BoardSpec, size) -> Detection | None:
+    """Small far circles need blobs close together; clutter (letters, noise) near large circles
+    is merged away with a larger distance. findCirclesGrid's grid search starts from OpenCV's
+    random number generator (k-means), so that one image is found or not by chance: its seed is
+    set for each of a few attempts, so the answer is the same every time. The first found wins."""
+    for min_distance in (2.0, 10.0):
+        blobs = _blob_detector(min_distance)
+        if len(blobs.detect(gray)) < board.point_count:
+            continue
+        for seed in range(CIRCLE_GRID_ATTEMPTS):
+            det = _detect_circles_with(gray, board, size, blobs, seed)
+            if det is not None:
+                return det
+    return None
+
+
+def _detect_circles_with(gray: np.ndarray, board: BoardSpec, size, blobs,
+                         seed: int) -> Detection | None:
+    flags = cv2.CALIB_CB_ASYMMETRIC_GRID if board.target == "acircles" else cv2.CALIB_CB_SYMMETRIC_GRID
+    cv2.setRNGSeed(seed)
+    ok, centers = cv2.findCirclesGrid(gray, board.pattern_size, flags=flags, blobDetector=blobs)
+    if not ok or centers is None or len(centers) != board.point_count:
+        return None
+    centers = centers.reshape(-1, 2).astype(np.float64)
+    # findCirclesGrid's blob centres average many thresholds, and a threshold near the paper's
+    # white merges noise into the blobs (OpenCV 5.0 then put an outer point of an asymmetric
+    # grid 15 px off): the grid gives where each circle is, a local centroid says where exactly
+    obj = board.object_points_mm()[:, :2].astype(np.float64)
+    H, _ = cv2.findHomography(obj, centers, cv2.RANSAC, 3.0)
+    if H is None:
+        return None
+    guess = cv2.perspectiveTransform(obj.reshape(-1, 1, 2), H).reshape(-1, 2)
+    nn = np.linalg.norm(guess[:, None, :] - guess[None, :, :], axis=2)
+    np.fill_diagonal(nn, np.inf)
+    out = np.empty_like(guess)
+    for k, (c, d) in enumerate(zip(guess, nn.min(axis=1))):
+        got = _circle_centroid(gray, c, 0.5 * d)
+        if got is None:
+            return None
+        out[k] = got
+    fit = cv2.perspectiveTransform(obj.reshape(-1, 1, 2), H).reshape(-1, 2)
+    if np.linalg.norm(fit - out, axis=1).max() > 0.3 * float(nn.min()):
+        return None  # not that grid in that order
+    return Detection(out.astype(np.float32), size, "circles")
+
+
+def _circle_centroid(gray: np.ndarray, c: np.ndarray, half: float) -> np.ndarray | None:
+    """Centre of the dark disc nearest to `c` within a window of half-size `half` px: the
+    darkness-weighted centroid of its connected region (anti-aliased edges count by share)."""
+    h, w = gray.shape[:2]
+    r = max(2, int(math.ceil(half)))
+    x0, y0 = int(round(c[0])) - r, int(round(c[1])) - r
+    x1, y1 = x0 + 2 * r + 1, y0 + 2 * r + 1
+    if x0 < 0 or y0 < 0 or x1 > w or y1 > h:
+        return None
+    win = gray[y0:y1, x0:x1].astype(np.float32)
+    thr, mask = cv2.threshold(win.astype(np.uint8), 0, 255, cv2.THRESH_BINARY_INV | cv2.THRESH_OTSU)
+    n, labels, stats, cents = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    if n < 2:
+        return None
+    k = 1 + int(np.argmin(np.linalg.norm(cents[1:] - (c - (x0, y0)), axis=1)))
+    region = cv2.dilate((labels == k).astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    if region[0, :].any() or region[-1, :].any() or region[:, 0].any() or region[:, -1].any():
+        return None  # the disc runs out of the window: not a clean circle
+    dark = float(np.percentile(win[labels == k], 10))
+    light = float(np.percentile(win[~region], 90)) if (~region).any() else 255.0
+    if light - dark < 20:
+        return None
+    wgt = np.clip((light - win) / (light - dark), 0.0, 1.0) * region
+    total = float(wgt.sum())
+    if total <= 0:
+        return None
+    ys, xs = np.mgrid[0:win.shape[0], 0:win.shape[1]]
+    return np.array([x0 + float((wgt * xs).sum()) / total, y0 + float((wgt * ys).sum()) / total])
+
+
+# the white gap between a ChArUco corner and its markers must span this many pixels
+CHARUCO_MIN_GAP_PX = 2.5
+
+
+def _charuco_detector(board: BoardSpec):
+    det = cv2.aruco.CharucoDetector(board.aruco_board())
+    params = det.getDetectorParameters()
+    params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+    det.setDetectorParameters(params)
+    cp = det.getCharucoParameters()
+    cp.tryRefineMarkers = True
+    det.setCharucoParameters(cp)
+    return det
+
+
+def _detect_charuco(gray: np.ndarray, board: BoardSpec, size) -> Detection | None:
+    corners, ids, _, _ = _charuco_detector(board).detectBoard(gray)
+    if corners is None or ids is None or len(ids) < board.min_points:
+        return None
+    ids = ids.reshape(-1).astype(np.int32)
+    corners = corners.reshape(-1, 2).astype(np.float32)
+    order = np.argsort(ids)
+    ids, corners = ids[order], corners[order]
+    rows, cols = board.grid_shape
+    # points on one line cannot fix a camera's pose: ask for two rows and two columns
+    if np.unique(ids // cols).size < 2 or np.unique(ids % cols).size < 2:
+        return None
+    # refine on the image with a window that stays inside the white gap between a corner and
+    # the markers next to it (their edges would pull the corner off)
+    gap_px = (board.square_mm - board.marker_mm) / (2.0 * board.square_mm) * \
+        _spacing_px(corners, ids, cols)
+    if gap_px < CHARUCO_MIN_GAP_PX:
+        return None  # too small in the image to place its corners to a fraction of a pixel
+    r = max(2, int(math.floor(0.9 * gap_px)))
+    corners = cv2.cornerSubPix(gray, corners.reshape(-1, 1, 2), (r, r), (-1, -1),
+                               _SUBPIX_CRITERIA).reshape(-1, 2)
+    return Detection(corners.astype(np.float32), size, "charuco", ids)
+
+
+def _spacing_px(corners: np.ndarray, ids: np.ndarray, cols: int) -> float:
+    """The smallest distance between neighbouring ChArUco corners found, px."""
+    pos = {int(i): c for i, c in zip(ids, corners)}
+    best = math.inf
+    for i, c in pos.items():
+        for j in ((i + 1) if (i + 1) % cols else None, i + cols):
+            if j is not None and j in pos:
+                best = min(best, float(np.linalg.norm(pos[j] - c)))
+    return best if math.isfinite(best) else 10.0
+
+
 def detect_board(image: np.ndarray, board: BoardSpec, method: str = "classic") -> Detection | None:
-    """Find the chessboard's inner corners in one image with subpixel accuracy, or None."""
+    """Find the target's points in one image with subpixel accuracy, or None.
+
+    `method` chooses the chessboard detector (classic or sb); the other targets have one each.
+    """
     if method not in METHODS:
         raise ValueError(f"unknown detection method {method!r}; use one of {METHODS}")
     gray = to_gray(image)
@@ -110,6 +270,10 @@ def detect_board(image: np.ndarray, board: BoardSpec, method: str = "classic") -
     # a board needs a few pixels a square; OpenCV's detectors assert on smaller images
     if size[0] < 4 * (board.cols + 1) or size[1] < 4 * (board.rows + 1):
         return None
+    if board.target in ("circles", "acircles"):
+        return _detect_circles(gray, board, size)
+    if board.target == "charuco":
+        return _detect_charuco(gray, board, size)
     if method == "sb":
         ok, corners = cv2.findChessboardCornersSB(gray, board.pattern_size, flags=_SB_FLAGS)
         if not ok:
@@ -127,7 +291,8 @@ def detect_board(image: np.ndarray, board: BoardSpec, method: str = "classic") -
 @dataclass(frozen=True, eq=False)
 class PairDetection:
     """Detection result of one stereo pair. It counts for calibration only when both sides have
-    the board (`found`); otherwise `reason` says which side lacks it."""
+    the target, with enough points in common for a partly visible one (`found`); otherwise
+    `reason` says what is missing."""
 
     name: str
     left: Detection | None
@@ -135,10 +300,33 @@ class PairDetection:
     image_size: tuple[int, int]  # (width, height), px, of both images
     left_file: str = ""  # file names, for messages; empty for frames from a live source
     right_file: str = ""
+    target: str = "chessboard"  # what was looked for (core.board.TARGETS), for messages
+    min_common: int = 0  # points both cameras must share (partly visible targets)
 
     @property
     def found(self) -> bool:
-        return self.left is not None and self.right is not None
+        if self.left is None or self.right is None:
+            return False
+        return self.min_common <= 0 or len(self.common_ids()) >= self.min_common
+
+    def common_ids(self) -> np.ndarray:
+        """Ids of the points both cameras found (sorted), (K,) int."""
+        if self.left is None or self.right is None:
+            return np.zeros(0, int)
+        if self.left.ids is None and self.right.ids is None:
+            return self.left.point_ids
+        return np.intersect1d(self.left.point_ids, self.right.point_ids)
+
+    def common(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(ids (K,), left points (K, 2), right points (K, 2)) of the points both cameras found."""
+        ids = self.common_ids()
+        if self.left is None or self.right is None:
+            return ids, np.zeros((0, 2), np.float32), np.zeros((0, 2), np.float32)
+        if self.left.ids is None and self.right.ids is None:
+            return ids, self.left.corners, self.right.corners
+        li = np.searchsorted(self.left.point_ids, ids)
+        ri = np.searchsorted(self.right.point_ids, ids)
+        return ids, self.left.corners[li], self.right.corners[ri]
 
     @property
     def reason(self) -> str:
@@ -146,9 +334,13 @@ class PairDetection:
         missing = [f"{side} image{f' ({f})' if f else ''}"
                    for side, det, f in (("left", self.left, self.left_file),
                                         ("right", self.right, self.right_file)) if det is None]
-        if not missing:
-            return ""
-        return "chessboard not found in the " + " and the ".join(missing)
+        if missing:
+            return f"{TARGET_NAMES.get(self.target, self.target)} not found in the " + \
+                " and the ".join(missing)
+        if not self.found:
+            return (f"the cameras share only {len(self.common_ids())} corners of the board "
+                    f"(at least {self.min_common} are needed)")
+        return ""
 
 
 def _consistent_order(left: Detection, right: Detection) -> Detection:
@@ -156,7 +348,10 @@ def _consistent_order(left: Detection, right: Detection) -> Detection:
 
     The corner grid looks the same after a 180 degree turn, so a detector may number it from
     either end. Both cameras look the same way, so the first-to-last corner direction must agree.
+    Points that carry ids (ChArUco) need no such care.
     """
+    if left.ids is not None or right.ids is not None:
+        return right
     dl = left.corners[-1] - left.corners[0]
     dr = right.corners[-1] - right.corners[0]
     return right.reversed() if float(np.dot(dl, dr)) < 0 else right
@@ -172,10 +367,18 @@ def detect_pair(name: str, left: np.ndarray, right: np.ndarray, board: BoardSpec
             f"{right.shape[1]}x{right.shape[0]}")
     dl = detect_board(left, board, method)
     dr = detect_board(right, board, method)
-    if dl is not None and dr is not None:
-        dr = _consistent_order(dl, dr)
-    size = (int(left.shape[1]), int(left.shape[0]))
-    return PairDetection(name, dl, dr, size, left_file, right_file)
+    return make_pair(name, dl, dr, (int(left.shape[1]), int(left.shape[0])), board, left_file,
+                     right_file)
+
+
+def make_pair(name: str, left: Detection | None, right: Detection | None,
+              image_size: tuple[int, int], board: BoardSpec, left_file: str = "",
+              right_file: str = "") -> PairDetection:
+    """A PairDetection of two single-image detections (orders the right one like the left)."""
+    if left is not None and right is not None:
+        right = _consistent_order(left, right)
+    return PairDetection(name, left, right, image_size, left_file, right_file, board.target,
+                         board.min_points if board.partial else 0)
 
 
 @dataclass(frozen=True)
@@ -272,17 +475,29 @@ class PoseDescriptor:
         return float(sum(abs(a - b) for a, b in zip(self.as_tuple(), other.as_tuple())))
 
 
-def _outside_corners(corners: np.ndarray, board: BoardSpec) -> tuple[np.ndarray, ...]:
+def _outside_corners(corners: np.ndarray, board: BoardSpec,
+                     ids: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
+    """The four outermost points of the target's grid: up-left, up-right, down-right, down-left.
+    For a partial view they are where the board's plane puts them (a homography of the points
+    found), so a board half out of the image reads as the large board it is."""
     c = corners.reshape(-1, 2).astype(np.float64)
-    cols = board.cols
-    return c[0], c[cols - 1], c[-1], c[-cols]  # up-left, up-right, down-right, down-left
+    rows, cols = board.grid_shape
+    if ids is None:
+        return c[0], c[cols - 1], c[-1], c[-cols]
+    obj = board.object_points_mm()[:, :2].astype(np.float64)
+    H, _ = cv2.findHomography(obj[ids], c, 0)
+    if H is None:
+        return c[0], c[0], c[0], c[0]
+    outer = obj[[0, cols - 1, rows * cols - 1, (rows - 1) * cols]].reshape(-1, 1, 2)
+    q = cv2.perspectiveTransform(outer, H).reshape(-1, 2)
+    return q[0], q[1], q[2], q[3]
 
 
-def pose_descriptor(corners: np.ndarray, board: BoardSpec,
-                    image_size: tuple[int, int]) -> PoseDescriptor:
+def pose_descriptor(corners: np.ndarray, board: BoardSpec, image_size: tuple[int, int],
+                    ids: np.ndarray | None = None) -> PoseDescriptor:
     """ROS camera_calibration's (x, y, size, skew) of one detection, each clipped to 0..1."""
     w, h = image_size
-    ul, ur, dr, dl = _outside_corners(corners, board)
+    ul, ur, dr, dl = _outside_corners(corners, board, ids)
     # quadrilateral area from its two diagonals
     p, q = dr - ul, dl - ur
     area = abs(p[0] * q[1] - p[1] * q[0]) / 2.0
@@ -292,7 +507,7 @@ def pose_descriptor(corners: np.ndarray, board: BoardSpec,
     angle = math.acos(max(-1.0, min(1.0, cosang)))
     skew = min(1.0, 2.0 * abs(math.pi / 2.0 - angle))
     border = math.sqrt(area)
-    c = corners.reshape(-1, 2)
+    c = corners.reshape(-1, 2) if ids is None else np.array([ul, ur, dr, dl])
     px = min(1.0, max(0.0, (float(c[:, 0].mean()) - border / 2) / max(w - border, 1e-9)))
     py = min(1.0, max(0.0, (float(c[:, 1].mean()) - border / 2) / max(h - border, 1e-9)))
     size = min(1.0, math.sqrt(area / (w * h)))

@@ -62,12 +62,13 @@ class ReportLoop:
     def __init__(self, calibration: StereoCalibration) -> None:
         self.calibration = calibration
         size = calibration.image_size
-        self._left_map = cv2.initUndistortRectifyMap(calibration.M1, calibration.D1,
-                                                     calibration.R1, calibration.P1, size,
-                                                     cv2.CV_16SC2)
-        self._right_map = cv2.initUndistortRectifyMap(calibration.M2, calibration.D2,
-                                                      calibration.R2, calibration.P2, size,
-                                                      cv2.CV_16SC2)
+        # initUndistortRectifyMap as the report did, for the calibration's own lens model
+        from stereo_gui.core.lens import rectify_map
+
+        self._left_map = rectify_map(calibration.model, calibration.M1, calibration.D1,
+                                     calibration.R1, calibration.P1, size, cv2.CV_16SC2)
+        self._right_map = rectify_map(calibration.model, calibration.M2, calibration.D2,
+                                      calibration.R2, calibration.P2, size, cv2.CV_16SC2)
         self._stereo = report_matcher()
         self._stereo_r = cv2.ximgproc.createRightMatcher(self._stereo)
         self._wls = cv2.ximgproc.createDisparityWLSFilter(matcher_left=self._stereo)

@@ -73,6 +73,17 @@ class StereoCalibration:
     # (width, height) the calibration was made at when it was scaled to image_size by scaled_to();
     # the RMS figures and per-pair errors stay in pixels of that original size
     scaled_from: tuple[int, int] | None = None
+    model: str = "pinhole"  # lens model of both cameras (core.lens): pinhole, rational, fisheye
+    uncertainty: object | None = None  # core.uncertainty.CalibrationUncertainty (1 sigma)
+    origin: str = ""  # how it was made ("calibrated from 20 pairs ...", "refined from the scene ...")
+    warnings: tuple = ()  # core.uncertainty.CalibrationWarning found when it was made
+    # made from pairs whose left and right images were exchanged (the cameras were found
+    # swapped): frames from the same source must be exchanged before they are rectified
+    swapped_inputs: bool = False
+
+    def ordered(self, left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A source's (left, right) images in the order this calibration expects."""
+        return (right, left) if self.swapped_inputs else (left, right)
 
     # ---- derived figures -------------------------------------------------------------------
     @property
@@ -112,10 +123,20 @@ class StereoCalibration:
     # ---- use -------------------------------------------------------------------------------
     def rectify_maps(self) -> RectifyMaps:
         """Rectification maps for both cameras at the calibration's image size."""
+        from stereo_gui.core.lens import rectify_map
+
         size = (self.width, self.height)
-        lx, ly = cv2.initUndistortRectifyMap(self.M1, self.D1, self.R1, self.P1, size, cv2.CV_16SC2)
-        rx, ry = cv2.initUndistortRectifyMap(self.M2, self.D2, self.R2, self.P2, size, cv2.CV_16SC2)
+        lx, ly = rectify_map(self.model, self.M1, self.D1, self.R1, self.P1, size, cv2.CV_16SC2)
+        rx, ry = rectify_map(self.model, self.M2, self.D2, self.R2, self.P2, size, cv2.CV_16SC2)
         return RectifyMaps(lx, ly, rx, ry, size)
+
+    def rectify_points(self, side: str, pts: np.ndarray) -> np.ndarray:
+        """Raw pixels (N, 2) of one camera ("left" or "right") -> rectified pixels (N, 2)."""
+        from stereo_gui.core.lens import undistort_points
+
+        M, D, R, P = ((self.M1, self.D1, self.R1, self.P1) if side == "left"
+                      else (self.M2, self.D2, self.R2, self.P2))
+        return undistort_points(self.model, pts, M, D, R=R, P=P)
 
     def with_updates(self, **changes) -> StereoCalibration:
         return replace(self, **changes)
@@ -169,7 +190,8 @@ class StereoCalibration:
         S_inv = np.linalg.inv(np.array([[s, 0, o], [0, s, o], [0, 0, 1.0]]))
         F = S_inv.T @ np.asarray(self.F, np.float64) @ S_inv
         original = self.scaled_from or (w, h)
-        return replace(self, image_size=(nw, nh), M1=cam(self.M1), M2=cam(self.M2),
+        unc = self.uncertainty.scaled(s) if self.uncertainty is not None else None
+        return replace(self, image_size=(nw, nh), M1=cam(self.M1), M2=cam(self.M2), uncertainty=unc,
                        P1=proj(self.P1), P2=proj(self.P2), Q=Q, F=F,
                        optimal_M1=cam(self.optimal_M1), optimal_M2=cam(self.optimal_M2),
                        scaled_from=None if original == (nw, nh) else original)

@@ -4,8 +4,13 @@ Our file uses the names of OpenCV's stereo sample (M1 D1 M2 D2 R T E F R1 R2 P1 
 tools read it with cv2::FileStorage, plus image size, board, quality figures, per-pair errors,
 method, alpha, creation time and `format_version`. T and the P2/Q translation terms are in mm.
 
+The file also records the lens model (`lens_model`), how the calibration was made (`origin`),
+the warnings found then, and the parameters' 1-sigma covariance (`uncertainty_names`,
+`uncertainty_covariance`); files without them load as before (no uncertainty).
+
 ROS camera_info files (left.yaml, right.yaml) follow ROS's layout ({rows, cols, data} matrices,
-distortion_model plumb_bob) and ROS's unit for the projection's translation term: METRES.
+distortion_model plumb_bob, rational_polynomial or equidistant for fisheye lenses) and ROS's unit
+for the projection's translation term: METRES.
 """
 
 from __future__ import annotations
@@ -32,6 +37,9 @@ from stereo_gui.files.atomic import os_error_text, write_many_atomic, write_text
 log = logging.getLogger(__name__)
 
 FORMAT_VERSION = 1
+# ROS camera_info's distortion_model of each lens model (core.lens)
+ROS_DISTORTION_MODELS = {"pinhole": "plumb_bob", "rational": "rational_polynomial",
+                         "fisheye": "equidistant"}
 MATRIX_NAMES = ("M1", "D1", "M2", "D2", "R", "T", "E", "F", "R1", "R2", "P1", "P2", "Q")
 
 
@@ -61,6 +69,12 @@ def calibration_text(calib: StereoCalibration) -> str:
         fs.write("board_cols", int(calib.board.cols))
         fs.write("board_rows", int(calib.board.rows))
         fs.write("square_mm", float(calib.board.square_mm))
+        if calib.board.target != "chessboard":
+            fs.write("board_target", calib.board.target)
+            fs.write("marker_mm", float(calib.board.marker_mm))
+        if calib.board.target == "charuco":
+            fs.write("board_dictionary", calib.board.dictionary)
+    _write_lens_and_uncertainty(fs, calib)
     fs.write("rms_left", float(calib.rms_left))
     fs.write("rms_right", float(calib.rms_right))
     fs.write("rms_stereo", float(calib.rms_stereo))
@@ -200,7 +214,7 @@ def _string(fs, name: str, default: str) -> str:
     return node.string() if node.isString() else default
 
 
-def _mat(fs, name: str, where: str) -> np.ndarray | None:
+def _mat(fs, name: str, where: str, max_side: int = 16) -> np.ndarray | None:
     node = fs.getNode(name)
     if node.empty() or node.isNone():
         return None
@@ -209,9 +223,10 @@ def _mat(fs, name: str, where: str) -> np.ndarray | None:
     rows, cols, dt, data = (node.getNode(k) for k in ("rows", "cols", "dt", "data"))
     if not node.isMap() or rows.empty() or cols.empty() or data.empty():
         raise CalibrationFileError(f"{where}: {name} is not a matrix")
-    if not (rows.isInt() and cols.isInt() and 1 <= rows.real() <= 16
-            and 1 <= cols.real() <= 16):
-        raise CalibrationFileError(f"{where}: matrix {name} should have 1 to 16 rows and columns")
+    if not (rows.isInt() and cols.isInt() and 1 <= rows.real() <= max_side
+            and 1 <= cols.real() <= max_side):
+        raise CalibrationFileError(f"{where}: matrix {name} should have 1 to {max_side} rows and "
+                                   "columns")
     if not (dt.isString() and dt.string() in ("d", "f", "i", "u", "s", "c", "w")):
         raise CalibrationFileError(f"{where}: matrix {name} has an unknown element type")
     if not data.isSeq() or data.size() != int(rows.real()) * int(cols.real()):
@@ -232,6 +247,7 @@ MAX_IMAGE_SIDE_PX = 100_000  # larger images are not made by any camera: the fil
 MAX_FOCAL_PX = 1e7
 MAX_BASELINE_MM = 1e7
 MAX_DISTORTION = 1e6
+MAX_UNCERTAINTY_PARAMETERS = 128  # both cameras' intrinsics and distortion, rotation, translation
 
 
 def _fail(where: str, text: str) -> None:
@@ -403,13 +419,17 @@ def _read_calibration(fs, where: str) -> StereoCalibration:
     if not fs.getNode("board_cols").empty():
         try:
             board = BoardSpec(_int(fs, "board_cols", where), _int(fs, "board_rows", where),
-                              _real(fs, "square_mm", where))
+                              _real(fs, "square_mm", where),
+                              _string(fs, "board_target", "chessboard"),
+                              _real(fs, "marker_mm", where, 0.0),
+                              _string(fs, "board_dictionary", "DICT_4X4_50"))
         except InputError as exc:
             raise CalibrationFileError(f"{where}: {exc}") from None
     per_pair = _per_pair(fs, where)
     method = _string(fs, "method", "bouguet")
     if method not in ("bouguet", "hartley", "identity"):
         raise CalibrationFileError(f"{where}: unknown method {method!r}")
+    extra = _read_lens_and_uncertainty(fs, where, mats)
     nan = float("nan")
     return StereoCalibration(
         image_size=(w, h),
@@ -421,7 +441,81 @@ def _read_calibration(fs, where: str) -> StereoCalibration:
         epipolar_error_px=_real(fs, "epipolar_error_px", where, nan),
         per_pair=tuple(per_pair), method=method, alpha=_real(fs, "alpha", where, 0.0),
         optimal_M1=opt["optimal_M1"], optimal_M2=opt["optimal_M2"],
-        created=_string(fs, "created", ""), scaled_from=_scaled_from(fs, where))
+        created=_string(fs, "created", ""), scaled_from=_scaled_from(fs, where), **extra)
+
+
+# ---- lens model, uncertainty, origin and warnings (issue 10) ---------------------------------
+def _write_lens_and_uncertainty(fs, calib: StereoCalibration) -> None:
+    """The lens model, where the calibration came from, its warnings and its 1-sigma covariance
+    (names in order, then the matrix)."""
+    fs.write("lens_model", calib.model)
+    if calib.swapped_inputs:
+        fs.write("swapped_inputs", 1)
+    if calib.origin:
+        fs.write("origin", calib.origin)
+    if calib.warnings:
+        fs.startWriteStruct("warnings", cv2.FileNode_SEQ)
+        for w in calib.warnings:
+            fs.startWriteStruct("", cv2.FileNode_MAP)
+            fs.write("code", w.code)
+            fs.write("message", w.message)
+            fs.write("proposal", w.proposal)
+            fs.endWriteStruct()
+        fs.endWriteStruct()
+    u = calib.uncertainty
+    if u is not None:
+        fs.write("uncertainty_level", "1 sigma")
+        fs.write("uncertainty_method", u.method)
+        fs.write("uncertainty_corner_px", float(u.sigma_px))
+        fs.startWriteStruct("uncertainty_names", cv2.FileNode_SEQ)
+        for n in u.names:
+            fs.write("", n)
+        fs.endWriteStruct()
+        fs.write("uncertainty_covariance", np.asarray(u.covariance, np.float64))
+
+
+def _read_lens_and_uncertainty(fs, where: str, mats: dict) -> dict:
+    from stereo_gui.core.lens import DIST_COUNT, LENS_MODELS
+    from stereo_gui.core.uncertainty import CalibrationUncertainty, CalibrationWarning
+
+    model = _string(fs, "lens_model", "")
+    d = mats["D1"].size
+    if not model:  # files before lens models: the coefficient count says which pinhole model
+        model = "rational" if d > 5 else "pinhole"
+    if model not in LENS_MODELS:
+        raise CalibrationFileError(f"{where}: unknown lens_model {model!r} (use one of "
+                                   f"{', '.join(LENS_MODELS)})")
+    if model == "fisheye" and (d != 4 or mats["D2"].size != 4):
+        raise CalibrationFileError(f"{where}: a fisheye calibration needs 4 distortion "
+                                   f"coefficients per camera, found {d} and {mats['D2'].size}")
+    if model != "fisheye" and d < DIST_COUNT["pinhole"] - 1:
+        raise CalibrationFileError(f"{where}: distortion D1 has too few coefficients ({d})")
+    out: dict = {"model": model, "origin": _string(fs, "origin", ""),
+                 "swapped_inputs": _real(fs, "swapped_inputs", where, 0.0) != 0.0}
+    warnings = []
+    wn = fs.getNode("warnings")
+    if not wn.empty() and wn.isSeq():
+        for i in range(wn.size()):
+            item = wn.at(i)
+            code, msg = item.getNode("code"), item.getNode("message")
+            if item.isMap() and code.isString() and msg.isString():
+                prop = item.getNode("proposal")
+                warnings.append(CalibrationWarning(code.string(), msg.string(),
+                                                   prop.string() if prop.isString() else ""))
+    out["warnings"] = tuple(warnings)
+    nn = fs.getNode("uncertainty_names")
+    if not nn.empty() and not nn.isNone():
+        if not nn.isSeq():
+            raise CalibrationFileError(f"{where}: uncertainty_names should be a sequence")
+        names = tuple(nn.at(i).string() for i in range(nn.size()))
+        cov = _mat(fs, "uncertainty_covariance", where, max_side=MAX_UNCERTAINTY_PARAMETERS)
+        if cov is None or cov.shape != (len(names), len(names)) or not np.all(np.isfinite(cov)):
+            raise CalibrationFileError(f"{where}: uncertainty_covariance should be a finite "
+                                       f"{len(names)}x{len(names)} matrix")
+        out["uncertainty"] = CalibrationUncertainty(
+            names, cov, _real(fs, "uncertainty_corner_px", where, float("nan")),
+            _string(fs, "uncertainty_method", "jacobian"), model)
+    return out
 
 
 def load_calibration_for_size(path: str | Path, image_size: tuple[int, int]) -> StereoCalibration:
@@ -454,8 +548,8 @@ def ros_camera_info_text(calib: StereoCalibration, side: str, camera_name: str |
     M, D, R, P = ((calib.M1, calib.D1, calib.R1, calib.P1) if side == "left"
                   else (calib.M2, calib.D2, calib.R2, calib.P2))
     D = np.asarray(D, np.float64).reshape(-1)
-    model = "plumb_bob" if D.size <= 5 else "rational_polynomial"
-    if D.size < 5:
+    model = ROS_DISTORTION_MODELS[calib.model]
+    if calib.model != "fisheye" and D.size < 5:
         D = np.concatenate([D, np.zeros(5 - D.size)])
     P = np.array(P, np.float64)
     P[:, 3] /= 1000.0  # mm -> m
@@ -502,9 +596,10 @@ def _ros_read(path: Path) -> dict:
             out[key] = int(n.real())
         _check_size(out["image_width"], out["image_height"], where)
         out["distortion_model"] = _string(fs, "distortion_model", "plumb_bob")
-        if out["distortion_model"] not in ("plumb_bob", "rational_polynomial"):
+        if out["distortion_model"] not in ROS_DISTORTION_MODELS.values():
             raise CalibrationFileError(f"{where}: distortion model {out['distortion_model']!r} is "
-                                       "not supported (plumb_bob or rational_polynomial)")
+                                       "not supported (plumb_bob, rational_polynomial or "
+                                       "equidistant)")
         shapes = {"camera_matrix": (3, 3), "distortion_coefficients": None,
                   "rectification_matrix": (3, 3), "projection_matrix": (3, 4)}
         for key, shape in shapes.items():
@@ -580,8 +675,17 @@ def import_ros(left_path: str | Path, right_path: str | Path) -> StereoCalibrati
     F = np.linalg.inv(M2).T @ E @ np.linalg.inv(M1)
     F = F / F[2, 2] if abs(F[2, 2]) > 1e-12 else F
     Q = q_from_projections(P1, P2)
+    models = {v: k for k, v in ROS_DISTORTION_MODELS.items()}
+    if left["distortion_model"] != right["distortion_model"]:
+        raise CalibrationFileError(f"{lp} and {rp} have different distortion models "
+                                   f"({left['distortion_model']}, {right['distortion_model']})")
+    model = models[left["distortion_model"]]
+    if model == "fisheye" and (D1.size != 4 or D2.size != 4):
+        raise CalibrationFileError(f"{lp} + {rp}: equidistant distortion needs 4 coefficients")
+    if model != "fisheye":
+        model = "rational" if D1.size > 5 else "pinhole"
     calib = StereoCalibration(image_size=size, M1=M1, D1=D1, M2=M2, D2=D2, R=R, T=T, E=E, F=F,
-                              R1=R1, R2=R2, P1=P1, P2=P2, Q=Q, method="bouguet",
+                              R1=R1, R2=R2, P1=P1, P2=P2, Q=Q, method="bouguet", model=model,
                               created=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"))
     check_calibration(calib, f"{lp} + {rp}")
     return calib

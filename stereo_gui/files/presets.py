@@ -7,7 +7,6 @@ A built-in name cannot be overwritten by a user preset.
 
 from __future__ import annotations
 
-import json
 import logging
 import os
 import re

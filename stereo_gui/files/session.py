@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.board import DEFAULT_DICTIONARY, BoardSpec
 from stereo_gui.core.errors import InputError, StereoGuiError
 from stereo_gui.files.atomic import write_bytes_atomic, write_json_atomic
 
@@ -140,6 +140,9 @@ class CaptureSession:
         self.has_manifest = has_manifest
         self.warnings = list(warnings or [])  # what opening had to tolerate
         self._unreadable_manifest = False  # an unreadable session.json is moved aside, not lost
+        # the pairs' left and right images are to be exchanged when calibrating (the cameras
+        # were found swapped); the saved images stay as they were taken
+        self.swapped = False
         self._lock = threading.RLock()
 
     # ---- creating and opening ---------------------------------------------------------------
@@ -206,10 +209,15 @@ class CaptureSession:
         if b is not None:
             if not isinstance(b, dict):
                 raise ValueError("board should be an object")
+            target = b.get("target", "chessboard")
+            dictionary = b.get("dictionary", DEFAULT_DICTIONARY)
+            if not (isinstance(target, str) and isinstance(dictionary, str)):
+                raise ValueError("board target and dictionary should be text")
             try:
                 board = BoardSpec(_whole(b.get("cols"), "board cols"),
                                   _whole(b.get("rows"), "board rows"),
-                                  _number(b.get("square_mm"), "board square_mm"))
+                                  _number(b.get("square_mm"), "board square_mm"), target,
+                                  _number(b.get("marker_mm", 0.0), "board marker_mm"), dictionary)
             except InputError as exc:
                 raise ValueError(f"board: {exc}") from None
         res = data.get("resolution")
@@ -271,8 +279,13 @@ class CaptureSession:
             pairs.append(e)
         for w in warnings:
             log.warning("%s", w)
-        return cls(folder, board, resolution, cameras, _text(data.get("created", ""), "created"),
-                   pairs, has_manifest=True, warnings=warnings)
+        s = cls(folder, board, resolution, cameras, _text(data.get("created", ""), "created"),
+                pairs, has_manifest=True, warnings=warnings)
+        swapped = data.get("swapped", False)
+        if not isinstance(swapped, bool):
+            raise ValueError("swapped should be true or false")
+        s.swapped = swapped
+        return s
 
     # ---- reading ----------------------------------------------------------------------------
     @property
@@ -386,6 +399,16 @@ class CaptureSession:
                 raise
             return new
 
+    def set_swapped(self, swapped: bool) -> None:
+        """Remember that the cameras are swapped (calibrations exchange left and right)."""
+        with self._lock:
+            old, self.swapped = self.swapped, bool(swapped)
+            try:
+                self._write_manifest()
+            except BaseException:
+                self.swapped = old
+                raise
+
     def set_board(self, board: BoardSpec) -> None:
         with self._lock:
             old, self.board = self.board, board
@@ -408,12 +431,13 @@ class CaptureSession:
         return {
             "format_version": FORMAT_VERSION,
             "created": self.created or _now(),
-            "board": {"cols": b.cols, "rows": b.rows, "square_mm": b.square_mm} if b else None,
+            "board": b.to_json() if b else None,
             "resolution": list(self.resolution) if self.resolution else None,
             "cameras": {"left": self.cameras.left, "right": self.cameras.right},
             "pairs": [{"name": p.name, "number": p.number, "left": rel(p.left),
                        "right": rel(p.right), "time": p.time} for p in self._pairs],
             "excluded": [p.name for p in self._pairs if p.excluded],
+            **({"swapped": True} if self.swapped else {}),
         }
 
     def _unreadable_backup(self) -> Path:

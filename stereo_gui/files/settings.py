@@ -21,7 +21,6 @@ from pathlib import Path
 from stereo_gui.core.board import (
     MAX_BOARD_CORNERS,
     MAX_SQUARE_MM,
-    MIN_BOARD_CORNERS,
     MIN_SQUARE_MM,
     BoardSpec,
 )
@@ -47,9 +46,14 @@ class Settings:
     cameras: tuple[str, ...] = ()
     resolution: tuple[int, int] = (640, 480)  # (width, height), px
     swap_lr: bool = False
-    board_cols: int = 9  # inner corners
+    board_cols: int = 9  # inner corners (chessboard), circles, or squares (ChArUco)
     board_rows: int = 6
     square_mm: float = 25.0
+    board_target: str = "chessboard"  # core.board.TARGETS
+    marker_mm: float = 0.0  # ChArUco marker side / circle diameter; 0: the target's default
+    board_dictionary: str = "DICT_4X4_50"  # ChArUco's ArUco dictionary
+    lens_model: str = "pinhole"  # core.lens.LENS_MODELS, the Calibration tab's choice
+    fix_k3: bool = False
     nominal_baseline_mm: float = 110.0
     preset: str = "live"  # matcher preset name
     last_calibration: str | None = None  # path of the calibration loaded at start-up
@@ -67,11 +71,19 @@ class Settings:
 
     @property
     def board(self) -> BoardSpec:
-        return BoardSpec(self.board_cols, self.board_rows, self.square_mm)
+        """The target these settings describe (a chessboard of the same size when the target
+        fields do not make a valid one)."""
+        try:
+            return BoardSpec(self.board_cols, self.board_rows, self.square_mm, self.board_target,
+                             self.marker_mm, self.board_dictionary)
+        except InputError as exc:
+            log.warning("settings: %s; using a chessboard", exc)
+            return BoardSpec(self.board_cols, self.board_rows, self.square_mm)
 
     def with_board(self, board: BoardSpec) -> Settings:
         return replace(self, board_cols=board.cols, board_rows=board.rows,
-                       square_mm=board.square_mm)
+                       square_mm=board.square_mm, board_target=board.target,
+                       marker_mm=board.marker_mm, board_dictionary=board.dictionary)
 
     def with_recent(self, path: str | os.PathLike, limit: int = RECENT_LIMIT) -> Settings:
         """These settings with `path` first in the recent files (no duplicates, at most `limit`)."""
@@ -111,10 +123,16 @@ def _text_ok(v) -> bool:
 _CHECKS: dict[str, tuple[typing.Callable[[object], bool], str]] = {
     "resolution": (lambda v: 0 < v[0] <= 100_000 and 0 < v[1] <= 100_000,
                    "two positive integers up to 100000"),
-    "board_cols": (lambda v: MIN_BOARD_CORNERS <= v <= MAX_BOARD_CORNERS,
-                   f"an integer from {MIN_BOARD_CORNERS} to {MAX_BOARD_CORNERS}"),
-    "board_rows": (lambda v: MIN_BOARD_CORNERS <= v <= MAX_BOARD_CORNERS,
-                   f"an integer from {MIN_BOARD_CORNERS} to {MAX_BOARD_CORNERS}"),
+    # circle grids can have 2 a side (BoardSpec checks each target's own least)
+    "board_cols": (lambda v: 2 <= v <= MAX_BOARD_CORNERS,
+                   f"an integer from 2 to {MAX_BOARD_CORNERS}"),
+    "board_rows": (lambda v: 2 <= v <= MAX_BOARD_CORNERS,
+                   f"an integer from 2 to {MAX_BOARD_CORNERS}"),
+    "board_target": (lambda v: v in ("chessboard", "circles", "acircles", "charuco"),
+                     "chessboard, circles, acircles or charuco"),
+    "marker_mm": (lambda v: math.isfinite(v) and 0 <= v <= MAX_SQUARE_MM,
+                  f"a number of millimetres from 0 to {MAX_SQUARE_MM:g}"),
+    "lens_model": (lambda v: v in ("pinhole", "rational", "fisheye"), "pinhole, rational or fisheye"),
     "square_mm": (lambda v: MIN_SQUARE_MM <= v <= MAX_SQUARE_MM,
                   f"a number of millimetres from {MIN_SQUARE_MM:g} to {MAX_SQUARE_MM:g}"),
     "nominal_baseline_mm": (lambda v: math.isfinite(v) and 0 < v <= 1e5,

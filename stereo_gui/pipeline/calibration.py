@@ -4,7 +4,7 @@ and the camera matrices as the report shows them."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import cv2
@@ -38,8 +38,10 @@ def read_image(path: str) -> np.ndarray:
     return img
 
 
-def calibration_job(folder: Path, board: BoardSpec, alpha: float, method: str):
-    """A JobWorker job: detect the board in the session's included pairs and calibrate."""
+def calibration_job(folder: Path, board: BoardSpec, alpha: float, method: str,
+                    model: str = "pinhole", fix_k3: bool = False):
+    """A JobWorker job: detect the board in the session's included pairs and calibrate (with
+    left and right exchanged when the session says the cameras are swapped)."""
 
     def job(control: JobControl):
         from stereo_gui.files.session import CaptureSession
@@ -48,13 +50,14 @@ def calibration_job(folder: Path, board: BoardSpec, alpha: float, method: str):
         session = CaptureSession.open(folder)
         included = list(session.included_pairs())
         excluded = tuple(p.name for p in session.pairs if p.excluded)
+        swapped = bool(getattr(session, "swapped", False))
         if not included:
             raise InputError(f"{folder} has no image pairs to calibrate from"
                              + (f" ({len(excluded)} excluded)" if excluded else ""))
-        files = {p.name: (str(p.left), str(p.right)) for p in included}
-        inputs = [PairInput(p.name, (lambda f=p.left: read_image(f)),
-                            (lambda f=p.right: read_image(f)),
-                            Path(p.left).name, Path(p.right).name) for p in included]
+        sides = [(p.right, p.left) if swapped else (p.left, p.right) for p in included]
+        files = {p.name: (str(a), str(b)) for p, (a, b) in zip(included, sides)}
+        inputs = [PairInput(p.name, (lambda f=a: read_image(f)), (lambda f=b: read_image(f)),
+                            Path(a).name, Path(b).name) for p, (a, b) in zip(included, sides)]
         n = len(inputs)
         total = n + 10
         yield Progress(0, total, f"finding the board in {n} pairs")
@@ -63,8 +66,11 @@ def calibration_job(folder: Path, board: BoardSpec, alpha: float, method: str):
             progress=lambda d, t, s: control.report(d, total, f"finding the board: {s}"))
         yield Progress(n, total, "calibrating")
         result = calibrate_stereo(
-            dets, board, alpha=alpha, method=method, cancel=control,
-            progress=lambda d, t, s: control.report(n + round(9 * d / max(t, 1)), total, s))
+            dets, board, alpha=alpha, method=method, cancel=control, model=model, fix_k3=fix_k3,
+            progress=lambda d, t, s: control.report(n + round(9 * d / max(t, 1)), total, s),
+            origin=f"{folder}" + (" with left and right exchanged" if swapped else ""))
+        if swapped:
+            result = replace(result, calibration=result.calibration.with_updates(swapped_inputs=True))
         control.check()
         yield Progress(n + 9, total, "computing rectification maps")
         maps = result.calibration.rectify_maps()
@@ -83,10 +89,15 @@ def _fmt_matrix(m: np.ndarray | None, digits: int = 3) -> str:
     return "\n".join("  [ " + "  ".join(c.rjust(width) for c in row) + " ]" for row in cells)
 
 
-def _dist_text(d: np.ndarray) -> str:
+def _dist_text(d: np.ndarray, model: str = "pinhole", sigmas=None) -> str:
+    from stereo_gui.core.lens import distortion_names
+
     d = np.asarray(d, np.float64).reshape(-1)
-    names = ["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4", "tx", "ty"]
-    return "  " + "  ".join(f"{n}={v:+.5f}" for n, v in zip(names, d, strict=False))
+    names = distortion_names(model, d.size)
+    if sigmas is None:
+        return "  " + "  ".join(f"{n}={v:+.5f}" for n, v in zip(names, d, strict=False))
+    return "  " + "  ".join(f"{n}={v:+.5f}" + ("" if s is None else f" ±{s:.5f}")
+                            for n, v, s in zip(names, d, sigmas, strict=False))
 
 
 def matrices_text(calib: StereoCalibration) -> str:
@@ -101,8 +112,10 @@ def matrices_text(calib: StereoCalibration) -> str:
             _fmt_matrix(opt, 2),
             f"Rectified projection {'P1' if side == 'left' else 'P2'} ({side}, used for depth):",
             _fmt_matrix(P, 2),
-            f"Distortion {'D1' if side == 'left' else 'D2'} ({side}):",
-            _dist_text(D),
+            f"Distortion {'D1' if side == 'left' else 'D2'} ({side}, {calib.model} model"
+            + (", ± 1 sigma" if calib.uncertainty is not None else "") + "):",
+            _dist_text(D, calib.model, None if calib.uncertainty is None else
+                       calib.uncertainty.camera(side, np.asarray(D).size)["dist"]),
             "",
         ]
     parts += ["Rotation R (left camera frame -> right camera frame):", _fmt_matrix(calib.R, 5),

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.board import TARGET_NAMES, BoardSpec
+from stereo_gui.core.coverage import regions_in_words
 from stereo_gui.core.detect import (
     NEW_POSE_DISTANCE,
     Detection,
@@ -21,6 +22,7 @@ from stereo_gui.core.detect import (
     detect_board,
     detect_pair,
     is_new_pose,
+    make_pair,
     pair_pose,
 )
 from stereo_gui.core.errors import StereoGuiError
@@ -51,8 +53,11 @@ class CaptureOutput:
 
 
 def _maybe_board(gray: np.ndarray, board: BoardSpec) -> bool:
-    """A fast test whether a board may be in the image (a full search without a board takes
-    a few hundred ms; this quick check a few ms), so live frames without a board stay cheap."""
+    """A fast test whether a chessboard may be in the image (a full search without a board takes
+    a few hundred ms; this quick check a few ms), so live frames without a board stay cheap.
+    The other targets' detectors are quick to say no by themselves."""
+    if board.target != "chessboard":
+        return True
     ok, _ = cv2.findChessboardCorners(
         gray, board.pattern_size,
         flags=cv2.CALIB_CB_FAST_CHECK | cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
@@ -60,20 +65,16 @@ def _maybe_board(gray: np.ndarray, board: BoardSpec) -> bool:
 
 
 def detect_live(frame: StereoFrame, board: BoardSpec) -> CaptureOutput:
-    """Detect the board in both images of a live frame (subpixel where found)."""
+    """Detect the target in both images of a live frame (subpixel where found)."""
     size = frame.size
     dets: list[Detection | None] = []
     for img in (frame.left, frame.right):
         gray = to_gray(img)
         dets.append(detect_board(gray, board) if _maybe_board(gray, board) else None)
     left, right = dets
-    if left is not None and right is not None:
-        # same rule as core.detect_pair: both cameras must number the grid from the same end
-        dl = left.corners[-1] - left.corners[0]
-        dr = right.corners[-1] - right.corners[0]
-        if float(np.dot(dl, dr)) < 0:
-            right = right.reversed()
-    pair = PairDetection(f"frame {frame.index}", left, right, size)
+    # same rules as core.detect_pair: both cameras number the grid from the same end, and a
+    # partly visible target counts when they share enough of its points
+    pair = make_pair(f"frame {frame.index}", left, right, size, board)
     return CaptureOutput(display_rgb(frame.left), display_rgb(frame.right), pair, board)
 
 
@@ -121,10 +122,15 @@ class CaptureStep:
     prompt: str
 
 
-def live_hint(det: PairDetection) -> str:
-    """What to do when the board is not in both views."""
+def live_hint(det: PairDetection, board: BoardSpec | None = None) -> str:
+    """What to do when the board is not in both views (or too little of it is shared)."""
+    if det.left is not None and det.right is not None:  # a partial view, too little shared
+        return f"Both cameras see part of the board: {det.reason}"
     if det.left is None and det.right is None:
-        return "Hold the chessboard so that both cameras see all of it"
+        if board is not None and board.partial:
+            return "Hold the ChArUco board so that both cameras see a good part of it"
+        what = TARGET_NAMES[board.target] if board is not None else "chessboard"
+        return f"Hold the {what} so that both cameras see all of it"
     side = "right" if det.right is None else "left"
     return f"Only the {'left' if side == 'right' else 'right'} camera sees the board: " \
            f"move it into the {side} camera's view"
@@ -136,7 +142,8 @@ class CaptureRules:
     Manual capture freezes a pair that both cameras see, unless its pose is close to the one
     reviewed last (until the board leaves a view). Automatic capture takes a pair once the board
     has held still (corners moving less than STEADY_PX over STEADY_FRAMES frames) in a pose that
-    differs from those saved.
+    differs from those saved, or that reaches an image region still empty (then a smaller
+    difference will do, though not the very same view).
     """
 
     def __init__(self) -> None:
@@ -148,17 +155,24 @@ class CaptureRules:
         self.recent_corners.clear()
 
     def step(self, out: CaptureOutput, auto: bool,
-             saved_poses: Callable[[], list[PoseDescriptor]], have_session: bool) -> CaptureStep:
-        """The step for live frame `out`; `saved_poses()` gives the poses of the saved pairs."""
+             saved_poses: Callable[[], list[PoseDescriptor]], have_session: bool,
+             board: BoardSpec | None = None,
+             fills: Callable[[PairDetection], dict[str, list[str]]] | None = None,
+             empty_regions: Callable[[], dict[str, list[str]]] | None = None) -> CaptureStep:
+        """The step for live frame `out`; `saved_poses()` gives the poses of the saved pairs,
+        `fills(detection)` the regions (per camera) still empty that the detection reaches and
+        `empty_regions()` those still empty (core.coverage's readiness)."""
         det = out.detection
         if not det.found:
             self.recent_corners.clear()
             if det.left is None or det.right is None:
                 self.last_reviewed_pose = None  # the board left a view: the next pose is new
-            return CaptureStep("show", live_hint(det))
+            return CaptureStep("show", live_hint(det, board))
         pose = out.pose
         if auto:
-            return self._auto_step(out, pose, saved_poses(), have_session)
+            return self._auto_step(out, pose, saved_poses(), have_session,
+                                   fills(det) if fills is not None else {},
+                                   empty_regions if empty_regions is not None else dict)
         if (self.last_reviewed_pose is not None and pose is not None
                 and pose.distance(self.last_reviewed_pose) < NEW_POSE_DISTANCE / 2):
             return CaptureStep("show", "Move the board to a new pose (or out of view and back)")
@@ -166,17 +180,24 @@ class CaptureRules:
         return CaptureStep("freeze", "")
 
     def _auto_step(self, out: CaptureOutput, pose: PoseDescriptor | None,
-                   saved: list[PoseDescriptor], have_session: bool) -> CaptureStep:
+                   saved: list[PoseDescriptor], have_session: bool,
+                   fills: dict[str, list[str]], empty_regions) -> CaptureStep:
         corners = out.detection.left.corners.reshape(-1, 2)  # type: ignore[union-attr]
         self.recent_corners.append(corners)
         steady = len(self.recent_corners) == STEADY_FRAMES and max(
             float(np.abs(c - corners).max()) for c in self.recent_corners) < STEADY_PX
-        new = is_new_pose(pose, saved)
+        distinct = is_new_pose(pose, saved, NEW_POSE_DISTANCE / 4)  # not the very same view
+        new = (any(fills.values()) and distinct) or is_new_pose(pose, saved)
+        if not (new and distinct):
+            fills = {}
         if not new:
-            return CaptureStep("show",
-                               "Pose already captured: move or tilt the board somewhere new")
+            where = regions_in_words(empty_regions())
+            return CaptureStep("show", "Pose already captured: " + (
+                f"move the board to {where} (still empty)" if where
+                else "move or tilt the board somewhere new"))
         if not steady:
-            return CaptureStep("show", "New pose: hold the board still…")
+            reach = f" reaching {regions_in_words(fills)}" if any(fills.values()) else ""
+            return CaptureStep("show", f"New pose{reach}: hold the board still…")
         if not have_session:
             return CaptureStep("show", "Automatic capture needs a session: choose New session…")
         self.recent_corners.clear()

@@ -15,6 +15,8 @@ import numpy as np
 
 from stereo_gui.core.matching import (NO_MATCH_BGR, NOT_SEEN_BGR, MatcherParams, PipelineResult,
                                      StereoPipeline, paint)
+from stereo_gui.core.health import CalibrationHealth
+from stereo_gui.pipeline.health import HealthMonitor
 from stereo_gui.pipeline.images import display_rgb
 from stereo_gui.pipeline.region import Region, RegionStats, region_stats
 from stereo_gui.sources.base import StereoFrame
@@ -36,6 +38,7 @@ class LiveOutput:
     images: dict[str, np.ndarray]
     scale_note: str = ""  # says so when the calibration was scaled to the source's frame size
     region: RegionStats | None = None  # the watched region of this frame (set_region)
+    health: CalibrationHealth | None = None  # the newest calibration-health figure (pipeline.health)
 
 
 VIEW_KEYS = ("left", "right", "raw", "closed", "wls")  # the images a LiveOutput can hold
@@ -75,6 +78,7 @@ class LiveProcessor:
         self._note = ""
         self._region: tuple[Region, float | None, object] | None = None
         self._views: frozenset[str] = frozenset(VIEW_KEYS)
+        self.health = HealthMonitor()  # about once a second, in a thread of its own
 
     def set_views(self, keys) -> None:
         """Make display images only of the views in `keys` (any thread; the next frame): the
@@ -115,7 +119,8 @@ class LiveProcessor:
                     log.info("%s", self._note)
             pipeline, note, watched = self._pipeline, self._note, self._region
             views = self._views
-        r = pipeline.process(frame.left, frame.right, right_colour="right" in views)
+        r = pipeline.process(*self.calibration.ordered(frame.left, frame.right),
+                             right_colour="right" in views)
         lo, hi = r.disparity_range_px
         make = {
             "left": lambda: display_rgb(r.rectified_left),
@@ -126,9 +131,12 @@ class LiveProcessor:
         }
         images = {key: make[key]() for key in VIEW_KEYS if key in views}
         stats = None if watched is None else region_stats(r, *watched)
-        return LiveOutput(r, images, note, stats)
+        if r.rectified_left is not None and r.rectified_right is not None:
+            self.health.offer(r.rectified_left, r.rectified_right)
+        return LiveOutput(r, images, note, stats, self.health.latest())
 
     def close(self) -> None:
+        self.health.close()
         with self._lock:
             if self._pipeline is not None:
                 self._pipeline.close()

@@ -56,3 +56,30 @@ def test_points_the_right_camera_cannot_see_say_so(reports):
         assert unseen  # the walls at 0.5-1 m leave a strip of 80-165 px at the left edge
         assert not any(g.read for g in unseen)
         assert sum(g.reason == NOT_SEEN for g in unseen) >= 0.9 * len(unseen)
+
+
+@pytest.fixture(scope="module")
+def computed_reports():
+    """The same grid with a calibration computed the way the application does it, from 20
+    rendered board pairs, on a seed nothing was tuned on."""
+    from stereo_gui.commands.accuracy import computed_calibration
+
+    seed = 977
+    rig = SimRig(seed=seed)
+    calib = computed_calibration(rig, 20, seed)
+    return calib, [evaluate_wall(rig, calib, "quality", z, seed) for z in WALLS_MM]
+
+
+@pytest.mark.slow
+def test_a_computed_calibration_reads_the_whole_frame_with_an_honest_bound(computed_reports):
+    """Issue 10: with a calibration from 20 pairs, RMS <= 0.6 % on every wall; the +- (95 %,
+    matching and calibration together) covers the true error at >= 90 % of the points, with a
+    median <= 1 % of the distance at 3 m."""
+    calib, reps = computed_reports
+    assert calib.uncertainty is not None
+    for r in reps:
+        assert r.rms_pct <= 0.6, format_table("computed", reps)
+    read = [g for r in reps for g in r.seen if g.read]
+    assert len(read) >= 0.95 * sum(len(r.seen) for r in reps), format_table("computed", reps)
+    assert np.mean([g.covered for g in read]) >= 0.90, format_table("computed", reps)
+    assert reps[-1].wall_mm == 3000.0 and reps[-1].median_bound_pct <= 1.0

@@ -18,6 +18,7 @@ import cv2
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QFont
 from PySide6.QtWidgets import (
+    QCheckBox,
     QComboBox,
     QDoubleSpinBox,
     QFileDialog,
@@ -47,6 +48,8 @@ from stereo_gui.pipeline.calibration import (
 from stereo_gui.pipeline.jobs import Progress
 from stereo_gui.qt.widgets.calibration_charts import ErrorBarChart, RectifiedPairView
 from stereo_gui.qt.widgets.calibration_figures import CalibrationFigures, format_px
+from stereo_gui.qt.widgets.calibration_warnings import CalibrationWarnings
+from stereo_gui.qt.widgets.flow_layout import FlowLayout
 from stereo_gui.qt.widgets.helpers import pane
 from stereo_gui.qt.workers.job_worker import JobWorker
 
@@ -73,6 +76,9 @@ class CalibrationTab(QWidget):
         self._build()
         s = ctx.settings
         self.baseline_spin.setValue(float(s.nominal_baseline_mm))
+        self.model_combo.setCurrentIndex(max(0, self.model_combo.findData(s.lens_model)))
+        self.fix_k3_check.setChecked(bool(s.fix_k3))
+        self.folder_edit.textChanged.connect(self._show_session_swap)
         if s.last_session:
             self.folder_edit.setText(str(s.last_session))
         ctx.calibrationChanged.connect(self._calibration_changed)
@@ -98,43 +104,67 @@ class CalibrationTab(QWidget):
         row.addWidget(browse)
         root.addLayout(row)
 
-        row = QHBoxLayout()
-        row.addWidget(QLabel("Method:"))
+        # groups that wrap onto a second row on a narrow window (a laptop screen)
+        options = QWidget()
+        flow = FlowLayout(options, spacing=14)
+
+        def group(*widgets) -> None:
+            box = QWidget()
+            row = QHBoxLayout(box)
+            row.setContentsMargins(0, 0, 0, 0)
+            for w in widgets:
+                row.addWidget(w)
+            flow.addWidget(box)
+
         self.method_combo = QComboBox()
         self.method_combo.addItem("Bouguet (metric, from the board)", "bouguet")
         self.method_combo.addItem("Hartley (no metric scale)", "hartley")
         self.method_combo.setToolTip(HARTLEY_NOTE)
-        row.addWidget(self.method_combo)
-        row.addWidget(QLabel("Alpha:"))
+        group(QLabel("Method:"), self.method_combo)
+        self.model_combo = QComboBox()
+        self.model_combo.addItem("Pinhole (5)", "pinhole")
+        self.model_combo.addItem("Rational (8)", "rational")
+        self.model_combo.addItem("Fisheye", "fisheye")
+        self.model_combo.setToolTip("Lens model: pinhole with 5 distortion coefficients (usual "
+                                    "webcams), rational with 8, or fisheye for wide-angle webcams")
+        self.model_combo.currentIndexChanged.connect(
+            lambda: self.ctx.update_settings(lens_model=self.model_combo.currentData()))
+        self.fix_k3_check = QCheckBox("Fix k3")
+        self.fix_k3_check.setToolTip("Hold k3 (and the higher terms) at zero when the pairs cannot "
+                                     "determine them; the warnings say when")
+        self.fix_k3_check.toggled.connect(lambda on: self.ctx.update_settings(fix_k3=bool(on)))
+        group(QLabel("Lens:"), self.model_combo, self.fix_k3_check)
+        self.swap_check = QCheckBox("Swap L/R")
+        self.swap_check.setToolTip("The cameras are swapped: exchange the left and right images "
+                                   "of the session's pairs (the session remembers; the images stay "
+                                   "as they were taken)")
+        self.swap_check.toggled.connect(self._swap_toggled)
         self.alpha_spin = QDoubleSpinBox()
         self.alpha_spin.setRange(0.0, 1.0)
         self.alpha_spin.setSingleStep(0.1)
         self.alpha_spin.setValue(0.0)
         self.alpha_spin.setToolTip("stereoRectify alpha: 0 keeps only valid pixels (zoomed in), "
                                    "1 keeps every source pixel (black borders)")
-        row.addWidget(self.alpha_spin)
-        row.addWidget(QLabel("Nominal baseline:"))
+        group(self.swap_check, QLabel("Alpha:"), self.alpha_spin)
         self.baseline_spin = QDoubleSpinBox()
         self.baseline_spin.setRange(1.0, 5000.0)
         self.baseline_spin.setDecimals(1)
         self.baseline_spin.setSuffix(" mm")
         self.baseline_spin.setValue(110.0)
         self.baseline_spin.valueChanged.connect(self._baseline_edited)
-        row.addWidget(self.baseline_spin)
-        row.addSpacing(16)
+        group(QLabel("Nominal baseline:"), self.baseline_spin)
         self.calibrate_button = QPushButton("Calibrate")
         self.calibrate_button.clicked.connect(self.start_calibration)
         self.cancel_button = QPushButton("Cancel")
         self.cancel_button.clicked.connect(self.cancel_calibration)
         self.cancel_button.setEnabled(False)
-        row.addWidget(self.calibrate_button)
-        row.addWidget(self.cancel_button)
         self.progress = QProgressBar()
         self.progress.setRange(0, 100)
         self.progress.setValue(0)
         self.progress.setFormat("%p%")
-        row.addWidget(self.progress, 1)
-        root.addLayout(row)
+        self.progress.setMinimumWidth(160)
+        group(self.calibrate_button, self.cancel_button, self.progress)
+        root.addWidget(options)
         self.progress_label = QLabel("")
         self.progress_label.setStyleSheet("color: gray")
         root.addWidget(self.progress_label)
@@ -146,8 +176,11 @@ class CalibrationTab(QWidget):
         left, ll = pane()
         self.figures = CalibrationFigures()
         ll.addWidget(self.figures)
+        self.warnings = CalibrationWarnings()
+        self.warnings.actionRequested.connect(self.apply_remedy)
+        ll.addWidget(self.warnings)
         self.rejected_list = QListWidget()
-        self.rejected_list.setMaximumHeight(80)
+        self.rejected_list.setMaximumHeight(56)
         self.rejected_list.setToolTip(
             "Click a pair to look at it (and include an excluded one again)")
         self.rejected_list.itemClicked.connect(
@@ -158,6 +191,7 @@ class CalibrationTab(QWidget):
         self.matrices_text.setReadOnly(True)
         self.matrices_text.setFont(_MONO)
         self.matrices_text.setLineWrapMode(QPlainTextEdit.LineWrapMode.NoWrap)
+        self.matrices_text.setMinimumHeight(48)
         ll.addWidget(QLabel("Camera matrices (px) and distortion:"))
         ll.addWidget(self.matrices_text, 1)
         files = QHBoxLayout()
@@ -238,7 +272,8 @@ class CalibrationTab(QWidget):
             return False
         board = self._folder_board(folder) or self.board
         job = calibration_job(folder, board, float(self.alpha_spin.value()),
-                              self.method_combo.currentData())
+                              self.method_combo.currentData(), self.model_combo.currentData(),
+                              self.fix_k3_check.isChecked())
         w = JobWorker(job, "calibration")
         w.progress.connect(self._progress)
         w.finished_ok.connect(self._finished)
@@ -334,6 +369,7 @@ class CalibrationTab(QWidget):
             self._maps = None
             self._maps_for = None
         self._show_figures()
+        self.warnings.show_warnings(self._warnings_of(calib))
         if calib is None:
             self.matrices_text.setPlainText("")
             self.chart.set_errors([], [], [])
@@ -391,6 +427,52 @@ class CalibrationTab(QWidget):
         else:
             txt = f"{len(c.per_pair)} used"
         self.figures.show_calibration(c, src, nominal, txt)
+
+    def _warnings_of(self, calib):
+        if calib is None:
+            return ()
+        if self.run is not None and self.run.result.calibration is calib:
+            return self.run.result.report.warnings
+        return tuple(getattr(calib, "warnings", ()))
+
+    # ---- remedies and the swapped cameras ------------------------------------------------------
+    def apply_remedy(self, proposal: str) -> bool:
+        """One click: "fix_k3" holds k3 and recalibrates; "swap" exchanges left and right in the
+        session (it remembers) and recalibrates. False if it could not start."""
+        if proposal == "fix_k3":
+            self.fix_k3_check.setChecked(True)
+            return self.start_calibration()
+        if proposal == "swap":
+            self.swap_check.setChecked(not self.swap_check.isChecked())
+            if self._session_swapped() != self.swap_check.isChecked():
+                return False  # the session could not record it (the error is shown)
+            return self.start_calibration()
+        return False
+
+    def _session_swapped(self) -> bool | None:
+        try:
+            return bool(getattr(self._session(), "swapped", False))
+        except (StereoGuiError, OSError):
+            return None
+
+    def _show_session_swap(self) -> None:
+        swapped = self._session_swapped() if self.folder_edit.text().strip() else None
+        self.swap_check.blockSignals(True)
+        self.swap_check.setChecked(bool(swapped))
+        self.swap_check.blockSignals(False)
+        self.swap_check.setEnabled(swapped is not None)
+
+    def _swap_toggled(self, on: bool) -> None:
+        try:
+            session = self._session()
+            if bool(getattr(session, "swapped", False)) != on:
+                session.set_swapped(on)
+        except (StereoGuiError, OSError) as exc:
+            self.ctx.report_error(f"could not record the swap in the session: {exc}")
+            self._show_session_swap()
+            return
+        self.ctx.show_status("The session now exchanges left and right: press Recalibrate" if on
+                             else "The session takes left and right as they are: press Recalibrate")
 
     # ---- pairs: select, rectification check, exclude --------------------------------------------
     def select_pair(self, name: str) -> None:

@@ -1,5 +1,6 @@
-"""The Capture tab: take chessboard pairs for calibration (the report's
-Take_images_for_calibration, with buttons).
+"""The Capture tab: take target pairs for calibration (the report's
+Take_images_for_calibration, with buttons), with coverage by image region (core.coverage) that
+says in words what is still missing, and Print a target... for printing one at true scale.
 
 Both cameras live side by side with the board's corners drawn where found. When both see the
 board the pair freezes for review: Save (S) writes both raw images to the session folder,
@@ -25,6 +26,7 @@ from PySide6.QtWidgets import (
 )
 
 from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.coverage import cell_counts, readiness, regions_filled, regions_in_words
 from stereo_gui.core.detect import (
     PairDetection,
     PoseDescriptor,
@@ -60,7 +62,7 @@ log = logging.getLogger(__name__)
 
 # ---- the tab -------------------------------------------------------------------------------------
 class CaptureTab(QWidget):
-    """Capture chessboard pairs into a session folder, with review, auto-capture and coverage."""
+    """Capture target pairs into a session folder, with review, auto-capture and coverage."""
 
     sessionChanged = Signal(object)  # the CaptureSession now open, or None
     pairSaved = Signal(str)  # name of the pair just written
@@ -117,6 +119,7 @@ class CaptureTab(QWidget):
         ml.addWidget(row)
         row.edited.connect(self._board_edited)
         row.auto_check.toggled.connect(self._auto_toggled)
+        row.printRequested.connect(self.open_target_dialog)
 
         from stereo_gui.qt.widgets.playback_bar import PlaybackBar
 
@@ -180,10 +183,33 @@ class CaptureTab(QWidget):
     def _board_edited(self) -> None:
         board = self.board
         self.ctx.update_settings(board_cols=board.cols, board_rows=board.rows,
-                                 square_mm=board.square_mm)
+                                 square_mm=board.square_mm, board_target=board.target,
+                                 marker_mm=board.marker_mm, board_dictionary=board.dictionary)
         self.rules.reset_steadiness()
+        self._show_board_on_sim(board)
         if self.state == "live":
             self._set_processing(True)
+        if self.session is not None and getattr(self.session, "board", None) != board:
+            try:  # the session records the target its pairs show
+                self.session.set_board(board)
+            except (StereoGuiError, OSError) as exc:
+                self.ctx.report_error(f"could not record the board in the session: {exc}")
+
+    def _show_board_on_sim(self, board: BoardSpec) -> None:
+        """On the simulated rig, show the target chosen (it renders every target)."""
+        src = self.ctx.frames.source()
+        rig = getattr(src, "rig", None) if src is not None else None
+        if rig is not None and hasattr(rig, "set_board") and rig.config.board != board:
+            rig.set_board(board)
+
+    def open_target_dialog(self) -> None:
+        """Print a target...: write the current target as PDF, SVG or PNG at true scale."""
+        from stereo_gui.qt.widgets.target_dialog import TargetDialog
+
+        start = (self.session.folder if self.session is not None else Path.home())
+        dlg = TargetDialog(self.board, Path(start), self)
+        dlg.written.connect(lambda path: self.ctx.show_status(f"Wrote the target to {path}"))
+        dlg.exec()
 
     def _auto_toggled(self, on: bool) -> None:
         self.ctx.update_settings(auto_capture=bool(on))
@@ -199,6 +225,7 @@ class CaptureTab(QWidget):
             return
         self._active = active
         if active:
+            self._show_board_on_sim(self.board)
             self._set_processing(self.state == "live")
             self._reload_session()
 
@@ -239,7 +266,8 @@ class CaptureTab(QWidget):
         self.view.show_pair(out.left_rgb, out.right_rgb)
         self.view.show_detection(out.detection)
         step = self.rules.step(out, self.auto_check.isChecked(), self._saved_poses,
-                               self.session is not None)
+                               self.session is not None, board=self.board, fills=self._fills,
+                               empty_regions=lambda: self._readiness().required_empty)
         if step.action == "freeze":
             self._freeze(out, frame)
             return
@@ -258,6 +286,9 @@ class CaptureTab(QWidget):
 
     def _show_review_prompt(self) -> None:
         text = "Both cameras see the board. Save this pair (S) or Cancel (C)?"
+        fills = self._fills(self.frozen.detection) if self.frozen is not None else {}
+        if any(fills.values()):
+            text += f"  It reaches {regions_in_words(fills)} (still empty)."
         if self.session is None:
             text += "  (Save asks for a session folder first.)"
         self.prompt.setText(text)
@@ -409,6 +440,8 @@ class CaptureTab(QWidget):
                 self.saved_panel.add_coverage(det)
         self._refill_list()
         self._update_coverage()
+        if self.state == "review":  # what a frozen pair adds is known now
+            self._show_review_prompt()
 
     def scanning(self) -> bool:
         return self._scan is not None
@@ -435,8 +468,27 @@ class CaptureTab(QWidget):
         return [pair_pose(i.detection, self.board) for i in self._saved.values()
                 if i.detection is not None and i.detection.found]
 
+    def _kept_detections(self) -> list[PairDetection]:
+        return [i.detection for i in self._saved.values()
+                if i.detection is not None and i.detection.found]
+
+    def _readiness(self):
+        return readiness(self._kept_detections(), self.board, self._image_size())
+
+    def _fills(self, det: PairDetection) -> dict[str, list[str]]:
+        """The empty regions of each image that the detection's points would reach."""
+        size = det.image_size
+        out = {}
+        for side in ("left", "right"):
+            d = getattr(det, side)
+            kept = [getattr(k, side).corners for k in self._kept_detections()]
+            out[side] = ([] if d is None else
+                         regions_filled(d.corners, cell_counts(kept, size), size))
+        return out
+
     def _update_coverage(self) -> None:
         self.coverage.set_coverage(coverage(self._saved_poses()))
+        self.coverage.set_readiness(self._readiness())
 
     def saved_names(self) -> list[str]:
         return self.saved_panel.names()

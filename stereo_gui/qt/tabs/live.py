@@ -42,9 +42,10 @@ from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.matching import COLORMAPS, MatcherParams
 from stereo_gui.files.spreadsheet import RULER_METHOD
 from stereo_gui.pipeline.live import DEFAULT_VIEWS, LiveOutput, LiveProcessor
-from stereo_gui.pipeline.region import Region
 from stereo_gui.pipeline.readout import (MEASURABLE_VIEWS, PointerReading, format_distance,
                                          format_error, read_pointer, readout_line)
+from stereo_gui.pipeline.region import Region
+from stereo_gui.qt.widgets.calibration_health import CalibrationHealthPanel
 from stereo_gui.qt.tabs.live_exports import EXPORTS, LiveExports
 from stereo_gui.qt.widgets.flow_layout import FlowLayout
 from stereo_gui.qt.widgets.image_view import ImagePanel, marker_color
@@ -251,6 +252,8 @@ class LiveTab(QWidget):
         vcol.addWidget(self.legend)
         vcol.addWidget(self.region_label)
         vcol.addWidget(self.readout)
+        self.health = CalibrationHealthPanel(ctx)  # issue 10: drift figure and refinement
+        vcol.addWidget(self.health)
 
         self.no_calib = NoCalibrationPage()
         self.no_calib.calibrate.clicked.connect(self.calibrateRequested)
@@ -416,6 +419,7 @@ class LiveTab(QWidget):
             self.scale_label.setVisible(bool(out.scale_note))
             if out.scale_note:
                 self.ctx.show_status(out.scale_note)
+        self.health.show_output(out, self.shown_frame)
         self.frames_shown += 1
         self.frameShown.emit()
 
@@ -763,5 +767,6 @@ class LiveTab(QWidget):
         self._cloud_timer.stop()
         if self.cloud_window is not None:
             self.cloud_window.close()
+        self.health.shutdown()
         if self._processor is not None and self.ctx.frames.processor() is self._processor:
             self.ctx.frames.set_processor(None)

@@ -1,5 +1,6 @@
 """The Calibration tab's figures a person can check: RMS per camera and stereo, epipolar error,
-baseline against the nominal one, rotation between the cameras, pairs used."""
+baseline against the nominal one, rotation between the cameras, each camera's intrinsics, pairs
+used; each value with its 1-sigma uncertainty beside it when the calibration has one."""
 
 from __future__ import annotations
 
@@ -28,6 +29,16 @@ class CalibrationFigures(QGroupBox):
         self.epipolar_label = QLabel()
         self.baseline_label = QLabel()
         self.rotation_label = QLabel()
+        self.model_label = QLabel()
+        self.left_label = QLabel()
+        self.right_label = QLabel()
+        self.corners_label = QLabel()
+        self.corners_label.setToolTip("How uncertain each camera's lens model is at the image "
+                                      "corners (1 sigma, px): large where the board never went")
+        for lab in (self.left_label, self.right_label):
+            lab.setToolTip("Focal lengths and principal point, px, each ± its 1-sigma uncertainty "
+                           "(one standard deviation); 'corners' is how uncertain the lens model "
+                           "is at the image corners")
         self.pairs_label = wrapping_label()
         form.addRow("Calibration:", self.source_label)
         form.addRow("RMS left camera:", self.rms_left_label)
@@ -36,14 +47,23 @@ class CalibrationFigures(QGroupBox):
         form.addRow("Epipolar error:", self.epipolar_label)
         form.addRow("Baseline:", self.baseline_label)
         form.addRow("Rotation between cameras:", self.rotation_label)
+        form.addRow("Lens model:", self.model_label)
+        form.addRow("Left camera:", self.left_label)
+        form.addRow("Right camera:", self.right_label)
+        form.addRow("Lens at the corners:", self.corners_label)
         form.addRow("Pairs:", self.pairs_label)
         self.note_label = wrapping_label()
         self.note_label.setStyleSheet("color: #b03a2e; font-weight: bold")
         form.addRow(self.note_label)
+        from PySide6.QtWidgets import QSizePolicy
+
+        # every row stays readable: the matrices below give way instead
+        self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Minimum)
 
     def show_none(self) -> None:
         for lab in (self.rms_left_label, self.rms_right_label, self.rms_stereo_label,
                     self.epipolar_label, self.baseline_label, self.rotation_label,
+                    self.model_label, self.left_label, self.right_label, self.corners_label,
                     self.pairs_label):
             lab.setText("—")
         self.source_label.setText("none yet: calibrate, or load a calibration file")
@@ -61,17 +81,57 @@ class CalibrationFigures(QGroupBox):
                                       else "— (no stereo solve in Hartley's method)")
         self.epipolar_label.setText(f"{format_px(c.epipolar_error_px)} mean |y left − y right| "
                                     f"of the corners after rectification")
+        u = c.uncertainty
         if c.metric:
             b = c.baseline_mm
             diff = b - nominal + 0.0  # + 0.0: no "-0.00"
             if abs(diff) < 0.005:
                 diff = 0.0
+            pm = f" ± {u.baseline_sigma_mm(c.T):.2f}" if u is not None else ""
             self.baseline_label.setText(
-                f"{b:.2f} mm (nominal {nominal:.1f} mm, difference {diff:+.2f} mm, "
+                f"{b:.2f}{pm} mm (nominal {nominal:.1f} mm, difference {diff:+.2f} mm, "
                 f"{100 * diff / nominal:+.2f} %)")
             self.note_label.setText("")
         else:
             self.baseline_label.setText("no metric scale (Hartley): distances are not in mm")
             self.note_label.setText(HARTLEY_NOTE)
-        self.rotation_label.setText(f"{c.relative_rotation_deg:.3f}°")
+        pm = f" ± {u.rotation_sigma_deg(c.R):.3f}" if u is not None else ""
+        self.rotation_label.setText(f"{c.relative_rotation_deg:.3f}{pm}°")
+        self.model_label.setText(_model_text(c))
+        self.left_label.setText(camera_text(c, "left"))
+        self.right_label.setText(camera_text(c, "right"))
+        self.corners_label.setText(corners_text(c))
         self.pairs_label.setText(pairs)
+
+
+_MODEL_NAMES = {"pinhole": "pinhole, 5 coefficients", "rational": "rational, 8 coefficients",
+                "fisheye": "fisheye (equidistant), 4 coefficients"}
+
+
+def _model_text(c) -> str:
+    text = _MODEL_NAMES.get(c.model, c.model)
+    text += "; ± is 1 sigma" if c.uncertainty is not None else "; no uncertainty recorded"
+    if c.swapped_inputs:
+        text += "; left and right exchanged"
+    return text
+
+
+def camera_text(c, side: str) -> str:
+    """'fx 752.08±0.35  fy ...  cx ...  cy ... px' of one camera (± 1 sigma)."""
+    M = c.M1 if side == "left" else c.M2
+    u = c.uncertainty
+    parts = []
+    for k, (i, j) in zip(("fx", "fy", "cx", "cy"), ((0, 0), (1, 1), (0, 2), (1, 2))):
+        pm = f"±{u.sigma(f'{side}.{k}'):.2f}" if u is not None else ""
+        parts.append(f"{k} {M[i, j]:.2f}{pm}")
+    return "  ".join(parts) + " px"
+
+
+def corners_text(c) -> str:
+    """How uncertain the lens models are at the image corners (1 sigma)."""
+    if c.uncertainty is None:
+        return "—"
+    from stereo_gui.core.uncertainty import corner_sigma_px
+
+    return (f"±{corner_sigma_px(c, 'left'):.2f} px left, ±{corner_sigma_px(c, 'right'):.2f} px "
+            "right")

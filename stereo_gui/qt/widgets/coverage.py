@@ -1,10 +1,12 @@
-"""Coverage guidance for capture: where corners have been seen, and which poses are still missing.
+"""Coverage guidance for capture: which regions of each image the target has reached, and what
+is still missing, in words.
 
-Two small maps (left and right image) count the chessboard corners of the kept pairs in a coarse
-grid, so empty corners of the image stand out; four bars show how much of the range of
-horizontal / vertical position, size and tilt the kept poses span (as ROS camera_calibration
-does), with the number of pairs against a recommended count. The widget only draws: the numbers
-come from the capture tab (which gets them from the core's coverage summary).
+Two small maps (left and right image) count the target's points of the kept pairs in the 5 x 5
+cells of core.coverage (red: fewer than it needs), so empty corners and edges stand out; below
+them the readiness (core.coverage.Readiness) says in words which regions are still empty and
+whether tilt and distance vary enough; four bars show how much of the range of horizontal /
+vertical position, size and tilt the kept poses span (as ROS camera_calibration does). The widget
+only draws: the numbers come from the capture tab (which gets them from the core).
 """
 
 from __future__ import annotations
@@ -25,8 +27,10 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-GRID_COLS = 16  # cells across the image in a corner map
-GRID_ROWS = 12
+from stereo_gui.core.coverage import GRID, MIN_POINTS_PER_CELL
+
+GRID_COLS = GRID  # cells across the image in a corner map: the regions' cells
+GRID_ROWS = GRID
 
 
 @dataclass(frozen=True)
@@ -39,9 +43,10 @@ class CoverageBar:
 
 
 def _map_lut() -> np.ndarray:
-    """0 corners: dark red (missing); more corners: from dim to bright green."""
+    """0: dark red (missing); 1: amber (too few points yet); more: from dim to bright green."""
     lut = np.zeros((256, 3), np.uint8)
-    lut[0] = (90, 20, 20)
+    lut[0] = (120, 24, 24)
+    lut[1] = (170, 120, 20)
     ramp = np.linspace(0, 1, 255)
     lut[1:, 0] = (20 + 30 * ramp).astype(np.uint8)
     lut[1:, 1] = (90 + 165 * ramp).astype(np.uint8)
@@ -65,8 +70,8 @@ class CornerMap(pg.GraphicsLayoutWidget):
         self.title = title
         self.setMinimumSize(140, 105)
         self.setMaximumHeight(125)  # a glance, not a picture: leave the height to the pair list
-        self.setToolTip(f"{title}: where board corners have been seen in the kept pairs "
-                        "(red = none yet; move the board there)")
+        self.setToolTip(f"{title}: where the target's points have been seen in the kept pairs "
+                        "(red = none yet, amber = too few; move the board there)")
         self._redraw()
 
     def reset(self, image_size: tuple[int, int]) -> None:
@@ -84,14 +89,16 @@ class CornerMap(pg.GraphicsLayoutWidget):
         self._redraw()
 
     def covered_fraction(self) -> float:
-        """Share of grid cells with at least one corner."""
-        return float(np.count_nonzero(self.counts)) / self.counts.size
+        """Share of grid cells with enough points."""
+        return float(np.count_nonzero(self.counts >= MIN_POINTS_PER_CELL)) / self.counts.size
 
     def _redraw(self) -> None:
         c = self.counts.astype(np.float64)
         top = c.max()
-        # cells with corners map to 1..255 (log-like so one pose does not wash out the rest)
-        img = np.where(c > 0, 1 + np.round(254 * np.sqrt(c / top)) if top > 0 else 0, 0)
+        # cells with enough points map to 2..255 (log-like so one pose does not wash out the
+        # rest), too few to 1
+        full = 2 + np.round(253 * np.sqrt(c / top)) if top > 0 else np.zeros_like(c)
+        img = np.where(c >= MIN_POINTS_PER_CELL, full, np.where(c > 0, 1, 0))
         self.item.setImage(img.astype(np.uint8), levels=(0, 255), autoLevels=False)
         self.item.setRect(0, 0, GRID_COLS, GRID_ROWS)
 
@@ -138,6 +145,9 @@ class CoverageWidget(QWidget):
         self.count_label = QLabel("0 pairs")
         self.count_label.setWordWrap(True)
         layout.addWidget(self.count_label)
+        self.readiness_label = QLabel("")
+        self.readiness_label.setWordWrap(True)
+        layout.addWidget(self.readiness_label)
         self.set_bars([])
         self.set_count(0, 20)
 
@@ -174,13 +184,17 @@ class CoverageWidget(QWidget):
         missing = cov.missing()
         self.count_label.setToolTip("; ".join(missing) if missing else "coverage is complete")
 
+    def set_readiness(self, r) -> None:
+        """Show a core.coverage.Readiness: ready or not, and what is missing in words."""
+        self.readiness_label.setText(r.summary())
+        self.readiness_label.setStyleSheet(
+            "color: #1e7b34; font-weight: bold" if r.ready else "color: #9a5b00")
+        self.count_label.setText(f"{r.pairs} pairs kept" + ("" if r.ready else
+                                 " (not yet enough coverage to calibrate)"))
+
     def bar_values(self) -> dict[str, int]:
         """Percent shown on each bar (for tests and screenshots)."""
         return {name: bar.value() for name, (bar, _) in self._bars.items()}
 
     def set_count(self, n_pairs: int, recommended: int) -> None:
-        if n_pairs >= recommended:
-            text = f"{n_pairs} pairs kept (recommended {recommended}): enough to calibrate"
-        else:
-            text = f"{n_pairs} pairs kept, {recommended} recommended"
-        self.count_label.setText(text)
+        self.count_label.setText(f"{n_pairs} pairs kept (usually {recommended} or more)")

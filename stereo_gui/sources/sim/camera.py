@@ -17,14 +17,23 @@ TRUTH_FORMAT_VERSION = 1
 
 @dataclass(frozen=True, eq=False)
 class CameraTruth:
-    """One camera's true intrinsics: M (3x3 float64, px) and D (1x5 float64: k1 k2 p1 p2 k3)."""
+    """One camera's true intrinsics: M (3x3 float64, px) and D (1xN float64) of lens `model`
+    (core.lens: "pinhole" k1 k2 p1 p2 k3, "rational" 8 coefficients, "fisheye" k1..k4)."""
 
     M: np.ndarray
     D: np.ndarray
+    model: str = "pinhole"
 
     def __post_init__(self) -> None:
+        from stereo_gui.core.lens import DIST_COUNT, check_model
+
+        check_model(self.model)
         object.__setattr__(self, "M", np.asarray(self.M, np.float64).reshape(3, 3))
-        object.__setattr__(self, "D", np.asarray(self.D, np.float64).reshape(1, 5))
+        D = np.asarray(self.D, np.float64).reshape(1, -1)
+        if D.shape[1] != DIST_COUNT[self.model]:
+            raise InputError(f"a {self.model} camera needs {DIST_COUNT[self.model]} distortion "
+                             f"coefficients, not {D.shape[1]}")
+        object.__setattr__(self, "D", D)
 
     @staticmethod
     def make(fx: float, fy: float, cx: float, cy: float,
@@ -32,6 +41,12 @@ class CameraTruth:
              k3: float = 0.0) -> CameraTruth:
         M = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
         return CameraTruth(M, np.array([[k1, k2, p1, p2, k3]]))
+
+    @staticmethod
+    def make_fisheye(fx: float, fy: float, cx: float, cy: float, k1: float = 0.0,
+                     k2: float = 0.0, k3: float = 0.0, k4: float = 0.0) -> CameraTruth:
+        M = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+        return CameraTruth(M, np.array([[k1, k2, k3, k4]]), "fisheye")
 
 
 def _default_left() -> CameraTruth:
@@ -42,6 +57,17 @@ def _default_left() -> CameraTruth:
 def _default_right() -> CameraTruth:
     return CameraTruth.make(745.3, 742.8, 316.1, 243.4, k1=-0.214, k2=0.083, p1=-7.5e-4,
                             p2=1.25e-3, k3=-0.021)
+
+
+def _fisheye_left() -> CameraTruth:
+    # a wide-angle webcam: about 100 degrees across the 640 px width
+    return CameraTruth.make_fisheye(368.0, 367.1, 322.4, 238.3, k1=0.021, k2=-0.013, k3=0.004,
+                                    k4=-0.0011)
+
+
+def _fisheye_right() -> CameraTruth:
+    return CameraTruth.make_fisheye(365.6, 364.9, 317.2, 242.6, k1=0.017, k2=-0.009, k3=0.0028,
+                                    k4=-0.0008)
 
 
 @dataclass(frozen=True)
@@ -61,6 +87,20 @@ class RigConfig:
     board: BoardSpec = field(default_factory=BoardSpec)
     supersample: int = 3  # samples per pixel along each axis (anti-aliasing)
 
+    @property
+    def model(self) -> str:
+        """The lens model of both cameras."""
+        return self.left.model
+
+    def __post_init__(self) -> None:
+        if self.left.model != self.right.model:
+            raise InputError("both cameras of the simulated rig need the same lens model")
+
+    @staticmethod
+    def fisheye(**changes) -> RigConfig:
+        """A rig of two wide-angle (fisheye) webcams, 110 mm apart."""
+        return RigConfig(left=_fisheye_left(), right=_fisheye_right(), **changes)
+
     @staticmethod
     def for_size(size: tuple[int, int]) -> RigConfig:
         """The default rig at another resolution: the same horizontal field of view (camera
@@ -79,7 +119,7 @@ class RigConfig:
             M[:2, :2] *= k
             M[0, 2] = (M[0, 2] - (base.image_size[0] - 1) / 2) * k + (w - 1) / 2
             M[1, 2] = (M[1, 2] - (base.image_size[1] - 1) / 2) * k + (h - 1) / 2
-            return CameraTruth(M, cam.D.copy())
+            return CameraTruth(M, cam.D.copy(), cam.model)
 
         return RigConfig(image_size=(w, h), left=scaled(base.left), right=scaled(base.right),
                          supersample=3 if w * h <= 640 * 480 else 2)
@@ -97,6 +137,7 @@ class RigTruth:
     R: np.ndarray  # R_right_left
     T: np.ndarray  # T_right_left, 3x1, mm
     board: BoardSpec
+    model: str = "pinhole"  # lens model of both cameras (core.lens)
 
     @property
     def baseline_mm(self) -> float:
@@ -116,8 +157,8 @@ class RigTruth:
             "R": self.R.tolist(), "T": self.T.reshape(-1).tolist(),
             "baseline_mm": self.baseline_mm,
             "relative_rotation_deg": self.relative_rotation_deg,
-            "board": {"cols": self.board.cols, "rows": self.board.rows,
-                      "square_mm": self.board.square_mm},
+            "board": self.board.to_json(),
+            "model": self.model,
         }
 
     @staticmethod
@@ -172,12 +213,21 @@ class RigTruth:
                 and not isinstance(rows, bool) and isinstance(sq, int | float)
                 and not isinstance(sq, bool)):
             raise bad("board cols and rows should be whole numbers and square_mm a number")
+        target = b.get("target", "chessboard")
+        marker = b.get("marker_mm", 0.0)
+        dictionary = b.get("dictionary", BoardSpec().dictionary)
+        if not (isinstance(target, str) and isinstance(dictionary, str)
+                and isinstance(marker, int | float) and not isinstance(marker, bool)):
+            raise bad("board target and dictionary should be text and marker_mm a number")
         try:
-            board = BoardSpec(cols, rows, float(sq))
+            board = BoardSpec(cols, rows, float(sq), target, float(marker), dictionary)
         except InputError as exc:
             raise bad(f"board: {exc}") from None
+        model = data.get("model", "pinhole")
+        if model not in ("pinhole", "rational", "fisheye"):
+            raise bad(f"model should be pinhole, rational or fisheye, not {model!r:.40}")
         return RigTruth(image_size=(size[0], size[1]), M1=M1, D1=D["D1"], M2=M2, D2=D["D2"],
-                        R=R, T=T, board=board)
+                        R=R, T=T, board=board, model=model)
 
 
 def load_truth(path: str | Path) -> RigTruth:

@@ -1,6 +1,6 @@
 """Ray maps (cached: they are the expensive, per-rig part): for every supersample of every
 output pixel, the normalised undistorted ray (x, y, 1) obtained by inverting OpenCV's
-distortion model (checked against cv2.projectPoints)."""
+distortion model of the camera's lens model (checked against its projection)."""
 
 from __future__ import annotations
 
@@ -77,9 +77,11 @@ _RAY_GRID_PX = 4
 
 
 @functools.lru_cache(maxsize=8)
-def _ray_map_cached(M_bytes: bytes, D_bytes: bytes, w: int, h: int, s: int) -> RayMap:
+def _ray_map_cached(M_bytes: bytes, D_bytes: bytes, model: str, w: int, h: int, s: int) -> RayMap:
+    from stereo_gui.core.lens import project_points, undistort_points
+
     M = np.frombuffer(M_bytes, np.float64).reshape(3, 3)
-    D = np.frombuffer(D_bytes, np.float64).reshape(1, 5)
+    D = np.frombuffer(D_bytes, np.float64).reshape(1, -1)
     # Exact inversion (OpenCV's iterative undistortion, tight criteria) on a grid every
     # _RAY_GRID_PX pixels with a margin, then cubic Lagrange interpolation to the supersample
     # positions: the inverse is so smooth at that spacing that interpolation adds < 1e-4 px
@@ -90,8 +92,11 @@ def _ray_map_cached(M_bytes: bytes, D_bytes: bytes, w: int, h: int, s: int) -> R
     gx = np.arange(-margin, w + margin + 1, g, dtype=np.float64)
     gy = np.arange(-margin, h + margin + 1, g, dtype=np.float64)
     gu, gv = np.meshgrid(gx, gy)
-    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-14)
-    grid = cv2.undistortPoints(np.stack([gu, gv], -1).reshape(-1, 1, 2), M, D, criteria=crit)
+    if model == "fisheye":
+        grid = undistort_points(model, np.stack([gu, gv], -1).reshape(-1, 2), M, D)
+    else:
+        crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-14)
+        grid = cv2.undistortPoints(np.stack([gu, gv], -1).reshape(-1, 1, 2), M, D, criteria=crit)
     grid = grid.reshape(len(gy), len(gx), 2)
     offs = (np.arange(s) + 0.5) / s - 0.5  # sample positions inside a pixel (centre = integer)
     us = (np.arange(w)[:, None] + offs[None, :]).reshape(-1)
@@ -102,8 +107,8 @@ def _ray_map_cached(M_bytes: bytes, D_bytes: bytes, w: int, h: int, s: int) -> R
     uu, vv = np.meshgrid(us[sel[1]], vs[sel[0]])
     sub = xy[sel].reshape(-1, 2).astype(np.float64)
     pts = np.concatenate([sub, np.ones((len(sub), 1))], 1)
-    proj, _ = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), M, D)
-    err = np.hypot(proj[:, 0, 0] - uu.ravel(), proj[:, 0, 1] - vv.ravel())
+    proj = project_points(model, pts, np.zeros(3), np.zeros(3), M, D)
+    err = np.hypot(proj[:, 0] - uu.ravel(), proj[:, 1] - vv.ravel())
     max_err = float(err.max())
     if max_err > 1e-3:
         raise RuntimeError(f"distortion inversion failed: round trip error {max_err:.2e} px")
@@ -113,5 +118,5 @@ def _ray_map_cached(M_bytes: bytes, D_bytes: bytes, w: int, h: int, s: int) -> R
 def ray_map(cam: CameraTruth, image_size: tuple[int, int], supersample: int) -> RayMap:
     """The (cached) ray map of one camera."""
     return _ray_map_cached(np.ascontiguousarray(cam.M).tobytes(),
-                           np.ascontiguousarray(cam.D.reshape(1, 5)).tobytes(),
+                           np.ascontiguousarray(cam.D.reshape(1, -1)).tobytes(), cam.model,
                            int(image_size[0]), int(image_size[1]), int(supersample))

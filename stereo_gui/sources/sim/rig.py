@@ -17,6 +17,9 @@ from stereo_gui.sources.sim.rays import ray_map
 from stereo_gui.sources.sim.scene import BoardPose, Scene, SceneObject
 from stereo_gui.sources.sim.textures import _board_texture, _texture
 
+# the rig shows the target no smaller than this (neighbouring points this far apart), as a
+# careful technician would: smaller, its points cannot be placed to a tenth of a pixel
+MIN_POINT_SPACING_PX = 9.0
 _BOARD_BACKGROUND = 118.0  # plain grey behind the board when no scene is shown
 _NOISE_PAD = 64  # the noise bank is this much larger than an image (random crops)
 
@@ -50,12 +53,6 @@ class SimFrameTruth:
         return R1 @ (min(hits) * ray) if hits else None
 
 
-def _board_outline_mm(board) -> tuple[float, float, float, float]:
-    """The printed board (squares plus white border) on its plane: (a0, b0, a1, b1) mm."""
-    s = board.square_mm
-    return (-2.0 * s, -2.0 * s, (board.cols + 1) * s, (board.rows + 1) * s)
-
-
 def _board_hit(pose: BoardPose, board, ray: np.ndarray) -> float | None:
     """Ray parameter (mm along the unit `ray` from the left camera) of its hit with the
     printed board, or None."""
@@ -68,7 +65,7 @@ def _board_hit(pose: BoardPose, board, ray: np.ndarray) -> float | None:
     if s <= 0:
         return None
     a, b = R[:, :2].T @ (s * ray - t)
-    a0, b0, a1, b1 = _board_outline_mm(board)
+    a0, b0, a1, b1 = board.outline_mm()
     return s if a0 <= a <= a1 and b0 <= b <= b1 else None
 
 
@@ -95,12 +92,61 @@ class SimRig:
         tdir = np.asarray(c.t_direction, np.float64).reshape(3)
         T = (tdir / np.linalg.norm(tdir) * c.baseline_mm).reshape(3, 1)
         self.truth = RigTruth(tuple(c.image_size), c.left.M.copy(), c.left.D.copy(),
-                              c.right.M.copy(), c.right.D.copy(), R, T, c.board)
+                              c.right.M.copy(), c.right.D.copy(), R, T, c.board, c.model)
+        # rays beyond this tangent of the off-axis angle are not trusted: the pinhole models'
+        # polynomials fold back beyond about 50 degrees; the fisheye model holds further out
+        self._max_tan = 0.9 if c.model != "fisheye" else 2.5
         self._rays = (ray_map(c.left, c.image_size, c.supersample),
                       ray_map(c.right, c.image_size, c.supersample))
         self._scene_cache: dict[tuple, tuple] = {}
         self._noise: dict[int, np.ndarray] = {}
         self._lock = threading.Lock()
+        self._untouched: RigTruth | None = None  # the truth before turn_right_camera
+
+    def set_board(self, board) -> None:
+        """Show another target from the next frame on (the Capture tab's choice, for demos);
+        the truth's board follows."""
+        from dataclasses import replace
+
+        with self._lock:
+            self.config = replace(self.config, board=board)
+            self.truth = replace(self.truth, board=board)
+
+    TURN_AXES = {"tilt": 0, "pan": 1, "roll": 2}  # about the right camera's x, y, z axes
+
+    def turn_right_camera(self, angle_deg: float, axis: str = "tilt") -> None:
+        """Turn the right camera about its own centre by `angle_deg` (tilt: about its x axis,
+        pan: y, roll: z), as a webcam head that moved after calibration; the truth follows
+        (R' = dR R, T' = dR T: the camera's centre stays). Cumulative; reset_turn() undoes."""
+        from dataclasses import replace
+
+        if axis not in self.TURN_AXES:
+            raise ValueError(f"axis must be one of {', '.join(self.TURN_AXES)}, not {axis!r}")
+        v = np.zeros(3)
+        v[self.TURN_AXES[axis]] = math.radians(float(angle_deg))
+        dR = cv2.Rodrigues(v.reshape(3, 1))[0]
+        with self._lock:
+            if self._untouched is None:
+                self._untouched = self.truth
+            t = self.truth
+            self.truth = replace(t, R=dR @ t.R, T=dR @ t.T)
+            self._scene_cache.clear()  # the right camera's view of the scene changed
+
+    def reset_turn(self) -> None:
+        """Put the right camera back where the rig was built."""
+        with self._lock:
+            if self._untouched is not None:
+                self.truth = self._untouched
+                self._untouched = None
+                self._scene_cache.clear()
+
+    @property
+    def turned_deg(self) -> float:
+        """How far the right camera is turned from where the rig was built, degrees."""
+        if self._untouched is None:
+            return 0.0
+        d = self.truth.R @ self._untouched.R.T
+        return float(np.degrees(np.linalg.norm(cv2.Rodrigues(d)[0])))
 
     # ---- geometry -------------------------------------------------------------------------
     def _to_camera(self, cam: int, p: np.ndarray) -> np.ndarray:
@@ -114,18 +160,28 @@ class SimRig:
 
     def project(self, points_left_mm: np.ndarray, cam: int) -> np.ndarray:
         """Project (N, 3) left-frame points (mm) into camera `cam`'s image, (N, 2) px."""
-        M, D = (self.truth.M1, self.truth.D1) if cam == 0 else (self.truth.M2, self.truth.D2)
-        rvec = np.zeros(3) if cam == 0 else cv2.Rodrigues(self.truth.R)[0]
-        tvec = np.zeros(3) if cam == 0 else self.truth.T.reshape(3)
-        pts, _ = cv2.projectPoints(np.asarray(points_left_mm, np.float64).reshape(-1, 1, 3),
-                                   rvec, tvec, M, D)
-        return pts.reshape(-1, 2)
+        from stereo_gui.core.lens import project_points
+
+        t = self.truth
+        M, D = (t.M1, t.D1) if cam == 0 else (t.M2, t.D2)
+        rvec = np.zeros(3) if cam == 0 else cv2.Rodrigues(t.R)[0]
+        tvec = np.zeros(3) if cam == 0 else t.T.reshape(3)
+        return project_points(t.model, points_left_mm, rvec, tvec, M, D)
 
     def board_outline_mm(self) -> tuple[float, float, float, float]:
-        """The printed board (squares plus white border) on its plane: (a0, b0, a1, b1) mm."""
-        return _board_outline_mm(self.config.board)
+        """The printed target (pattern plus white border) on its plane: (a0, b0, a1, b1) mm."""
+        return self.config.board.outline_mm()
 
     def _board_visible(self, pose: BoardPose, margin_px: float = 8.0) -> bool:
+        """Whether both cameras see the board at `pose` well enough for a calibration view: all
+        of it inside both images by `margin_px` (targets that must be seen whole), or, for a
+        ChArUco board, enough of its corners in both (the rest may lie outside the images)."""
+        least = MIN_POINT_SPACING_PX * (1.5 if self.config.board.target in ("circles", "acircles")
+                                        else 1.0)  # circles shrink to a few pixels sooner
+        if self._point_spacing_px(pose) < least:
+            return False  # too small to place its points to a fraction of a pixel
+        if self.config.board.partial:
+            return self._enough_corners_visible(pose, margin_px)
         a0, b0, a1, b1 = self.board_outline_mm()
         # densely sample the outline: the distorted image of a straight edge is curved
         k = np.linspace(0.0, 1.0, 17)
@@ -141,7 +197,7 @@ class SimRig:
             if np.any(pc[:, 2] < 100.0):
                 return False
             # beyond about 50 degrees off-axis the distortion polynomial is not meaningful
-            if np.any(np.hypot(pc[:, 0], pc[:, 1]) / pc[:, 2] > 0.9):
+            if np.any(np.hypot(pc[:, 0], pc[:, 1]) / pc[:, 2] > self._max_tan):
                 return False
             uv = self.project(pts, cam)
             if (uv[:, 0].min() < margin_px or uv[:, 1].min() < margin_px
@@ -149,22 +205,116 @@ class SimRig:
                 return False
         return True
 
-    def random_board_pose(self, rng: np.random.Generator, max_tries: int = 2000) -> BoardPose:
-        """One random board pose fully visible in both images (0.4-1.2 m, tilts up to 40 deg).
+    def _point_spacing_px(self, pose: BoardPose) -> float:
+        """The smallest distance between neighbouring points of the target that a camera sees
+        (both inside its image), in either image, px."""
+        b = self.config.board
+        rows, cols = b.grid_shape
+        pts = pose.corners_left_mm(b)
+        best = np.inf
+        for cam in (0, 1):
+            if np.any(self._to_camera(cam, pts)[:, 2] < 50.0):
+                return 0.0
+            seen = np.zeros(rows * cols, bool)
+            seen[self.visible_point_ids(pose, cam)] = True
+            seen = seen.reshape(rows, cols)
+            uv = self.project(pts, cam).reshape(rows, cols, 2)
+            for axis in (0, 1):
+                both = np.logical_and(*(np.take(seen, range(0, seen.shape[axis] - 1), axis),
+                                        np.take(seen, range(1, seen.shape[axis]), axis)))
+                if both.any():
+                    d = np.linalg.norm(np.diff(uv, axis=axis), axis=2)[both]
+                    best = min(best, float(d.min()))
+        return best
 
-        Depth and tilt are drawn first; the position is then drawn uniformly over the room the
-        board leaves in both images, so that poses reach the image edges (needed to see the
-        distortion) as often as the centre.
+    def visible_point_ids(self, pose: BoardPose, cam: int, margin_px: float = 0.0) -> np.ndarray:
+        """Ids of the target's points that camera `cam` sees inside its image (by `margin_px`)."""
+        b = self.config.board
+        pts = pose.corners_left_mm(b)
+        pc = self._to_camera(cam, pts)
+        ok = (pc[:, 2] > 100.0) & (np.hypot(pc[:, 0], pc[:, 1]) / np.maximum(pc[:, 2], 1e-9)
+                                   < self._max_tan)
+        uv = self.project(pts, cam)
+        w, h = self.config.image_size
+        ok &= ((uv[:, 0] >= margin_px) & (uv[:, 1] >= margin_px)
+               & (uv[:, 0] <= w - 1 - margin_px) & (uv[:, 1] <= h - 1 - margin_px))
+        return np.flatnonzero(ok)
+
+    def _enough_corners_visible(self, pose: BoardPose, margin_px: float) -> bool:
+        a0, b0, a1, b1 = self.board_outline_mm()
+        outline = np.array([[a0, b0, 0], [a1, b0, 0], [a1, b1, 0], [a0, b1, 0]], np.float64)
+        pts = outline @ pose.R.T + pose.t
+        for cam in (0, 1):
+            if np.any(self._to_camera(cam, pts)[:, 2] < 100.0):
+                return False
+        b = self.config.board
+        from stereo_gui.core.detect import CHARUCO_MIN_GAP_PX
+
+        # the gap between corners and markers must stay large enough to place the corners
+        gap = (b.square_mm - b.marker_mm) / (2.0 * b.square_mm)
+        if self._point_spacing_px(pose) * gap < 1.3 * CHARUCO_MIN_GAP_PX:
+            return False
+        # a corner is found only next to whole markers: keep a square's width inside the images
+        m = margin_px + 1.1 * self._square_px(pose)
+        common = np.intersect1d(self.visible_point_ids(pose, 0, m), self.visible_point_ids(pose, 1, m))
+        r, c = b.grid_shape
+        rows, cols = np.unique(common // c), np.unique(common % c)
+        return common.size >= max(b.min_points + 4, 0.3 * b.point_count) and rows.size >= 2 \
+            and cols.size >= 2
+
+    def _square_px(self, pose: BoardPose) -> float:
+        """About how many pixels a square spans at `pose` (for margins)."""
+        b = self.config.board
+        z = float((pose.R @ b.object_points_mm().astype(np.float64).mean(0) + pose.t)[2])
+        return float(self.truth.M1[0, 0]) * b.square_mm / max(z, 100.0)
+
+    # the places the poses of a calibration set visit in turn: corners first, then edges and
+    # the centre, as fractions of the room the board leaves in the images (0 left/top, 1
+    # right/bottom); the image corners are where the distortion shows most
+    PLACES = ((0.0, 0.0), (1.0, 1.0), (1.0, 0.0), (0.0, 1.0), (0.5, 0.5), (0.5, 0.0),
+              (0.0, 0.5), (1.0, 0.5), (0.5, 1.0))
+
+    def random_board_pose(self, rng: np.random.Generator, max_tries: int = 2000,
+                          where: tuple[float, float] | None = None) -> BoardPose:
+        """One random board pose seen by both cameras (0.4-1.2 m, up to 1.6 m for the left and
+        right edges; tilts up to 40 deg).
+
+        Depth and tilt are drawn first; the position is then drawn over the room the board
+        leaves in both images: near `where` (fractions of that room, 0 = left/top edge, 1 =
+        right/bottom edge), or anywhere with a bias towards the edges and corners (which
+        a calibration needs to see the distortion). A board that must be seen whole (chessboard,
+        circle grids) stays inside both images by a few pixels; a ChArUco board may reach out
+        of them by a good part of its size, as long as both cameras see enough of its corners.
         """
         b = self.config.board
         w, h = self.config.image_size
-        margin = 10.0
-        centre_board = np.array([(b.cols - 1) * b.square_mm / 2, (b.rows - 1) * b.square_mm / 2, 0])
+        margin = 4.0
+        centre_board = b.object_points_mm().astype(np.float64).mean(0)
+        centre_board[2] = 0.0
         a0, b0, a1, b1 = self.board_outline_mm()
-        outline = np.array([[a0, b0, 0], [a1, b0, 0], [a1, b1, 0], [a0, b1, 0]], np.float64)
+        k = np.linspace(0.0, 1.0, 9)  # the outline's image is curved: sample its edges
+        outline = np.concatenate([
+            np.stack([a0 + (a1 - a0) * k, np.full_like(k, b0), 0 * k], 1),
+            np.stack([a0 + (a1 - a0) * k, np.full_like(k, b1), 0 * k], 1),
+            np.stack([np.full_like(k, a0), b0 + (b1 - b0) * k, 0 * k], 1),
+            np.stack([np.full_like(k, a1), b0 + (b1 - b0) * k, 0 * k], 1)])
         f = float(self.truth.M1[0, 0])
+        # (see below) the outer edges of the left image and of the right one are seen by both cameras only
+        # when the board is far (the other camera sees it shifted by the disparity): poses of a
+        # whole board meant for the left or right edge reach farther; a ChArUco board reaches
+        # them partly outside the other image, and must stay near enough to read its corners
+        if b.partial:
+            z_lo, z_hi = 300.0, 1000.0
+        elif where is not None and where[0] in (0.0, 1.0):
+            z_lo, z_hi = 700.0, 1600.0
+        else:
+            z_lo, z_hi = 400.0, 1200.0
+        # distances are for the default webcams (750 px focal length): a wide-angle camera
+        # sees the board as large from nearer
+        zoom = f / 750.0
+        z_lo, z_hi = z_lo * zoom, z_hi * zoom
         for _ in range(max_tries):
-            z = rng.uniform(400.0, 1200.0)
+            z = rng.uniform(z_lo, z_hi)
             tilt_x = math.radians(rng.uniform(-40, 40))
             tilt_y = math.radians(rng.uniform(-40, 40))
             if math.hypot(tilt_x, tilt_y) > math.radians(45):
@@ -175,26 +325,55 @@ class SimRig:
                  @ cv2.Rodrigues(np.array([0.0, 0.0, spin]))[0])
             t0 = np.array([0.0, 0.0, z]) - R @ centre_board
             pts = outline @ R.T + t0
-            if np.any(pts[:, 2] < 150.0):
+            if np.any(pts[:, 2] < 150.0 * zoom):
                 continue
-            lo, hi = np.array([-np.inf, -np.inf]), np.array([np.inf, np.inf])
-            for cam in (0, 1):
-                uv = self.project(pts, cam)
-                lo = np.maximum(lo, [margin - uv[:, 0].min(), margin - uv[:, 1].min()])
-                hi = np.minimum(hi, [w - 1 - margin - uv[:, 0].max(), h - 1 - margin - uv[:, 1].max()])
-            if np.any(hi <= lo):
+            if where is None:
+                frac = rng.beta(0.5, 0.5, 2)
+            else:
+                frac = np.clip(np.asarray(where, np.float64) + rng.normal(0.0, 0.08, 2), 0, 1)
+            # place the board at `frac` of the room it leaves: a few corrections, because the
+            # distortion does not move it in the image as far as it moves in space
+            shift = np.zeros(2)
+            for _ in range(6):
+                moved = pts + np.array([shift[0] * z / f, shift[1] * z / f, 0.0])
+                lo_room, hi_room = np.full(2, np.inf), np.full(2, np.inf)
+                for cam in (0, 1):
+                    uv = self.project(moved, cam)
+                    out = 0.5 * np.ptp(uv, axis=0) if b.partial else np.zeros(2)
+                    lo_room = np.minimum(lo_room, uv.min(0) - margin + out)
+                    hi_room = np.minimum(hi_room, np.array([w - 1.0, h - 1.0]) - margin
+                                         - uv.max(0) + out)
+                room = lo_room + hi_room
+                if np.any(room <= 0):
+                    break
+                step = frac * room - lo_room
+                shift += step
+                if np.all(np.abs(step) < 0.5):
+                    break
+            if np.any(room <= 0):
                 continue
-            shift_px = rng.uniform(lo, hi)
-            pose = BoardPose(R, t0 + np.array([shift_px[0] * z / f, shift_px[1] * z / f, 0.0]))
+            pose = BoardPose(R, t0 + np.array([shift[0] * z / f, shift[1] * z / f, 0.0]))
             if self._board_visible(pose, margin_px=margin - 2.0):
                 return pose
         raise RuntimeError("could not find a board pose visible in both cameras")
 
     def board_poses(self, n: int, seed: int | None = None) -> list[BoardPose]:
-        """`n` varied board poses (0.4-1.2 m, tilts up to 40 deg, positions covering the image),
-        each with the whole board visible in both images with a margin."""
+        """`n` varied board poses (0.4-1.2 m, tilts up to 40 deg) that visit the image corners,
+        edges and centre in turn (PLACES), each seen by both cameras (see random_board_pose)."""
         rng = np.random.default_rng(self.seed * 7919 + 17 if seed is None else seed)
-        return [self.random_board_pose(rng) for _ in range(int(n))]
+        poses = []
+        for i in range(int(n)):
+            where = np.array(self.PLACES[i % len(self.PLACES)])
+            for pull in (0.0, 0.25, 0.5):  # a place out of reach: a little nearer the centre
+                try:
+                    poses.append(self.random_board_pose(
+                        rng, max_tries=2000 if pull == 0.5 else 400,
+                        where=tuple(where + pull * (0.5 - where))))
+                    break
+                except RuntimeError:
+                    if pull == 0.5:
+                        raise
+        return poses
 
     # ---- rendering ------------------------------------------------------------------------
     def _plane_in_camera(self, cam: int, origin, u, v, width: float, height: float) -> _Plane:
@@ -217,7 +396,7 @@ class SimRig:
         if np.all(pc[:, 2] <= 0):
             return None
         rad = np.hypot(pc[:, 0], pc[:, 1]) / np.maximum(pc[:, 2], 1e-9)
-        if np.any(pc[:, 2] <= 1.0) or np.any(rad > 0.9):
+        if np.any(pc[:, 2] <= 1.0) or np.any(rad > self._max_tan):
             return (0, 0, w * s, h * s)  # partly behind or far off-axis: test every ray
         uv = self.project(pts, cam)
         x0 = int(math.floor((uv[:, 0].min() - 3) * s))
@@ -331,8 +510,7 @@ class SimRig:
                 x1, y1 = min(w * s, -(-box[2] // s) * s), min(h * s, -(-box[3] // s) * s)
                 crop = bg[y0:y1, x0:x1].copy()
                 zcrop = zb[y0:y1, x0:x1].copy() if scene is not None else None
-                tex, texel = _board_texture(*self.config.board.pattern_size,
-                                            float(self.config.board.square_mm))
+                tex, texel = _board_texture(self.config.board)
                 self._draw_plane(cam, plane, tex, texel, crop, zcrop, box0=(x0, y0))
                 part = crop if s == 1 else cv2.resize(crop, ((x1 - x0) // s, (y1 - y0) // s),
                                                       interpolation=cv2.INTER_AREA)
@@ -369,8 +547,9 @@ class SimRig:
         """The calibration a perfect calibration would find (Bouguet rectification)."""
         t = self.truth
         size = tuple(int(v) for v in t.image_size)
-        R1, R2, P1, P2, Q, _, _ = cv2.stereoRectify(t.M1, t.D1, t.M2, t.D2, size, t.R, t.T,
-                                                    flags=cv2.CALIB_ZERO_DISPARITY, alpha=alpha)
+        from stereo_gui.core.lens import stereo_rectify
+
+        R1, R2, P1, P2, Q = stereo_rectify(t.model, t.M1, t.D1, t.M2, t.D2, size, t.R, t.T, alpha)
         tx = t.T.reshape(3)
         Tx = np.array([[0, -tx[2], tx[1]], [tx[2], 0, -tx[0]], [-tx[1], tx[0], 0]], np.float64)
         E = Tx @ t.R
@@ -379,7 +558,8 @@ class SimRig:
         return StereoCalibration(size, t.M1.copy(), t.D1.copy(), t.M2.copy(), t.D2.copy(),
                                  t.R.copy(), t.T.copy(), E, F, R1, R2, P1, P2, Q, board=t.board,
                                  rms_left=0.0, rms_right=0.0, rms_stereo=0.0,
-                                 epipolar_error_px=0.0, method="bouguet", alpha=float(alpha))
+                                 epipolar_error_px=0.0, method="bouguet", alpha=float(alpha),
+                                 model=t.model, origin="the simulated rig's truth")
 
     def true_point_rectified(self, calib: StereoCalibration, scene: Scene, x: float, y: float
                              ) -> np.ndarray | None:

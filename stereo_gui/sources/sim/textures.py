@@ -1,4 +1,4 @@
-"""Textures of the simulated world (cached): the printed chessboard and the multi-scale noise
+"""Textures of the simulated world (cached): the printed target and the multi-scale noise
 of object surfaces, so that the matcher finds detail at every distance."""
 
 from __future__ import annotations
@@ -47,20 +47,57 @@ def _texture(seed: int, width_mm: float, height_mm: float) -> tuple[np.ndarray, 
 
 
 @functools.lru_cache(maxsize=8)
-def _board_texture(cols: int, rows: int, square_mm: float) -> tuple[np.ndarray, float]:
-    """The printed board (BGRA uint8) over its outline, and its texel size in mm.
+def _board_texture(board) -> tuple[np.ndarray, float]:
+    """The printed target (BGRA uint8) over its outline (BoardSpec.outline_mm), and its texel
+    size in mm: texel (i, j) has its centre at outline origin + (j + 0.5, i + 0.5) * texel.
 
-    Squares are exact in texels (TEXELS_PER_SQUARE each), the black corner square at (-1, -1)
-    as OpenCV expects, a white border of one square around them.
+    Chessboard and ChArUco squares are exact in texels (TEXELS_PER_SQUARE each); circles are
+    drawn with an anti-aliased edge (the texel's covered share).
     """
     n = _TEXELS_PER_SQUARE
-    qa = (np.arange((cols + 3) * n) + 0.5) / n - 2.0  # texel centres in squares from corner 0
-    qb = (np.arange((rows + 3) * n) + 0.5) / n - 2.0
-    ia, ib = np.floor(qa).astype(int), np.floor(qb).astype(int)
-    in_a = (ia >= -1) & (ia < cols)
-    in_b = (ib >= -1) & (ib < rows)
-    black = in_b[:, None] & in_a[None, :] & (((ib[:, None] + ia[None, :]) & 1) == 0)
-    tex = np.empty((len(qb), len(qa), 4), np.uint8)
-    tex[..., :3] = np.where(black, np.uint8(_BLACK), np.uint8(_WHITE))[..., None]
+    texel = float(board.square_mm) / n
+    a0, b0, a1, b1 = board.outline_mm()
+    tw, th = int(round((a1 - a0) / texel)), int(round((b1 - b0) / texel))
+    if board.target == "charuco":
+        margin = int(round(-a0 / texel))
+        img = board.aruco_board().generateImage((tw, th), marginSize=margin, borderBits=1)
+        grey = np.where(img > 127, np.uint8(_WHITE), np.uint8(_BLACK))
+    elif board.target == "chessboard":
+        cols, rows = board.pattern_size
+        qa = (np.arange(tw) + 0.5) / n - 2.0  # texel centres in squares from corner 0
+        qb = (np.arange(th) + 0.5) / n - 2.0
+        ia, ib = np.floor(qa).astype(int), np.floor(qb).astype(int)
+        in_a = (ia >= -1) & (ia < cols)
+        in_b = (ib >= -1) & (ib < rows)
+        black = in_b[:, None] & in_a[None, :] & (((ib[:, None] + ia[None, :]) & 1) == 0)
+        grey = np.where(black, np.uint8(_BLACK), np.uint8(_WHITE))
+    else:
+        a = a0 + (np.arange(tw) + 0.5) * texel
+        b = b0 + (np.arange(th) + 0.5) * texel
+        dist = _circle_distance(board, a, b)
+        cover = np.clip(0.5 * board.marker_mm - dist + 0.5 * texel, 0.0, texel) / texel
+        grey = np.round(_WHITE + (_BLACK - _WHITE) * cover).astype(np.uint8)
+    tex = np.empty((th, tw, 4), np.uint8)
+    tex[..., :3] = grey[..., None]
     tex[..., 3] = 255
-    return tex, square_mm / n
+    return tex, texel
+
+
+def _circle_distance(board, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance (mm) from each (b, a) texel centre to the nearest circle centre of a grid."""
+    s = float(board.square_mm)
+    cols, rows = board.pattern_size
+    A, B = np.meshgrid(a, b)
+    best = np.full(A.shape, np.inf)
+    i0 = np.clip(np.round(B / s), 0, rows - 1)
+    for di in (-1, 0, 1):
+        i = np.clip(i0 + di, 0, rows - 1)
+        if board.target == "acircles":
+            shift = i % 2
+            j = np.clip(np.round((A / s - shift) / 2.0), 0, cols - 1)
+            cx = (2 * j + shift) * s
+        else:
+            j = np.clip(np.round(A / s), 0, cols - 1)
+            cx = j * s
+        best = np.minimum(best, np.hypot(A - cx, B - i * s))
+    return best

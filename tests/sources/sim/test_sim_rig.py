@@ -19,15 +19,23 @@ def test_board_poses_are_varied_and_fully_visible(rig):
     poses = rig.board_poses(12)
     assert len(poses) == 12
     w, h = rig.config.image_size
-    centres = []
+    centres, reach = [], []
     for pose in poses:
         corners = pose.corners_left_mm(rig.config.board)
-        assert 300 < corners[:, 2].mean() < 1300
+        assert 300 < corners[:, 2].mean() < 1700
         for cam in (0, 1):
             uv = rig.project(corners, cam)
             assert uv[:, 0].min() > 10 and uv[:, 1].min() > 10
             assert uv[:, 0].max() < w - 10 and uv[:, 1].max() < h - 10
+            reach.append(uv)
         centres.append(rig.project(corners, 0).mean(0))
+    # the poses visit the image corners (where the distortion shows): each corner's cell of a
+    # 5 x 5 grid holds corners of some pose in one of the images
+    pts = np.concatenate(reach)
+    for cx, cy in ((0, 0), (1, 0), (0, 1), (1, 1)):
+        in_cell = ((pts[:, 0] < w / 5) if cx == 0 else (pts[:, 0] > 4 * w / 5)) & \
+                  ((pts[:, 1] < h / 5) if cy == 0 else (pts[:, 1] > 4 * h / 5))
+        assert in_cell.sum() >= 3, (cx, cy)
         np.testing.assert_allclose(pose.R @ pose.R.T, np.eye(3), atol=1e-9)
     centres = np.array(centres)
     # positions spread over the image, and tilts vary

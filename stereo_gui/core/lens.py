@@ -1,0 +1,138 @@
+"""Lens models, in one place: projection (with its Jacobian), undistortion, rectification maps.
+
+- "pinhole": OpenCV's standard model with 5 coefficients (k1 k2 p1 p2 k3), as the report used.
+- "rational": the rational model, 8 coefficients (k1 k2 p1 p2 k3 k4 k5 k6; CALIB_RATIONAL_MODEL).
+- "fisheye": OpenCV's fisheye (equidistant) model, 4 coefficients (k1 k2 k3 k4), for wide-angle
+  webcams; its functions live in cv2.fisheye.
+
+A distortion vector of 4 coefficients means different things in the pinhole and fisheye models,
+so nothing may pass D to an OpenCV function without knowing the model: everything that does goes
+through here.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from stereo_gui.core.errors import InputError
+
+LENS_MODELS = ("pinhole", "rational", "fisheye")
+DIST_COUNT = {"pinhole": 5, "rational": 8, "fisheye": 4}
+_PINHOLE_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4", "tx", "ty")
+_FISHEYE_NAMES = ("k1", "k2", "k3", "k4")
+# the coefficients that "fix k3 and higher terms" holds at zero, per model
+HIGHER_TERMS = {"pinhole": ("k3",), "rational": ("k3", "k4", "k5", "k6"),
+                "fisheye": ("k3", "k4")}
+_UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-12)
+
+
+def check_model(model: str) -> str:
+    if model not in LENS_MODELS:
+        raise InputError(f"unknown lens model {model!r}: use one of {', '.join(LENS_MODELS)}")
+    return model
+
+
+def model_for(model: str, D: np.ndarray) -> str:
+    """The model a distortion vector belongs to (a pinhole model with more than 5 coefficients
+    is the rational one)."""
+    if model == "fisheye":
+        return model
+    return "rational" if np.asarray(D).size > 5 else "pinhole"
+
+
+def distortion_names(model: str, count: int | None = None) -> tuple[str, ...]:
+    names = _FISHEYE_NAMES if model == "fisheye" else _PINHOLE_NAMES
+    return names[: DIST_COUNT[model] if count is None else count]
+
+
+def _fisheye_d(D: np.ndarray) -> np.ndarray:
+    return np.asarray(D, np.float64).reshape(4, 1)
+
+
+def project_points(model: str, obj: np.ndarray, rvec, tvec, M: np.ndarray, D: np.ndarray,
+                   jacobian: bool = False):
+    """Project (N, 3) points (mm) seen from pose (rvec, tvec) into pixels, (N, 2) float64.
+
+    With `jacobian`, also returns d(pixels)/d(params) as (2N, 10 + len(D)) in OpenCV's pinhole
+    column order for every model: rvec (3), tvec (3), fx fy, cx cy, distortion.
+    """
+    obj = np.asarray(obj, np.float64).reshape(-1, 1, 3)
+    rvec = np.asarray(rvec, np.float64).reshape(3, 1)
+    tvec = np.asarray(tvec, np.float64).reshape(3, 1)
+    M = np.asarray(M, np.float64)
+    if model == "fisheye":
+        pts, J = cv2.fisheye.projectPoints(obj, rvec, tvec, M, _fisheye_d(D))
+        pts = pts.reshape(-1, 2)
+        if not jacobian:
+            return pts
+        # fisheye order: f (2), c (2), k (4), rvec (3), tvec (3), alpha (1)
+        J = np.asarray(J, np.float64)
+        return pts, np.hstack([J[:, 8:11], J[:, 11:14], J[:, 0:2], J[:, 2:4], J[:, 4:8]])
+    D = np.asarray(D, np.float64).reshape(-1)
+    pts, J = cv2.projectPoints(obj, rvec, tvec, M, D)
+    pts = pts.reshape(-1, 2)
+    return (pts, np.asarray(J, np.float64)) if jacobian else pts
+
+
+def undistort_points(model: str, pts: np.ndarray, M: np.ndarray, D: np.ndarray,
+                     R: np.ndarray | None = None, P: np.ndarray | None = None) -> np.ndarray:
+    """Raw pixels (N, 2) -> undistorted points: normalised coordinates, or pixels of P when
+    given, after rotation R when given; (N, 2) float64."""
+    p = np.asarray(pts, np.float64).reshape(-1, 1, 2)
+    if p.shape[0] == 0:
+        return np.zeros((0, 2))
+    M = np.asarray(M, np.float64)
+    R = None if R is None else np.asarray(R, np.float64)
+    P = None if P is None else np.asarray(P, np.float64)
+    if model == "fisheye":
+        out = cv2.fisheye.undistortPoints(p, M, _fisheye_d(D), R=R if R is not None else np.eye(3),
+                                          P=P if P is not None else np.eye(3),
+                                          criteria=_UNDISTORT_CRITERIA)
+    else:
+        out = cv2.undistortPoints(p, M, np.asarray(D, np.float64).reshape(1, -1), R=R, P=P,
+                                  criteria=_UNDISTORT_CRITERIA)
+    return out.reshape(-1, 2)
+
+
+def rectify_map(model: str, M, D, R, P, size: tuple[int, int], m1type=cv2.CV_16SC2):
+    """cv2.remap maps of one camera into its rectified image (size = (w, h))."""
+    size = (int(size[0]), int(size[1]))
+    if model == "fisheye":
+        return cv2.fisheye.initUndistortRectifyMap(np.asarray(M, np.float64), _fisheye_d(D),
+                                                   np.asarray(R, np.float64),
+                                                   np.asarray(P, np.float64), size, m1type)
+    return cv2.initUndistortRectifyMap(M, np.asarray(D, np.float64).reshape(1, -1), R, P, size,
+                                       m1type)
+
+
+def stereo_rectify(model: str, M1, D1, M2, D2, size: tuple[int, int], R, T, alpha: float):
+    """Bouguet rectification (CALIB_ZERO_DISPARITY): R1, R2, P1, P2, Q.
+
+    For the fisheye model `alpha` is the balance between the smallest and the largest focal
+    length (cv2.fisheye.stereoRectify); -1 means OpenCV's default for the pinhole models.
+    """
+    size = (int(size[0]), int(size[1]))
+    R = np.asarray(R, np.float64)
+    T = np.asarray(T, np.float64).reshape(3, 1)
+    if model == "fisheye":
+        R1, R2, P1, P2, Q = cv2.fisheye.stereoRectify(
+            np.asarray(M1, np.float64), _fisheye_d(D1), np.asarray(M2, np.float64),
+            _fisheye_d(D2), size, R, T, cv2.CALIB_ZERO_DISPARITY,
+            balance=float(max(alpha, 0.0)), fov_scale=1.0)
+        return R1, R2, P1, P2, Q
+    R1, R2, P1, P2, Q, _, _ = cv2.stereoRectify(
+        M1, np.asarray(D1, np.float64).reshape(1, -1), M2, np.asarray(D2, np.float64).reshape(1, -1),
+        size, R, T, flags=cv2.CALIB_ZERO_DISPARITY, alpha=alpha)
+    return R1, R2, P1, P2, Q
+
+
+def optimal_new_camera(model: str, M, D, size: tuple[int, int]) -> np.ndarray:
+    """The report's getOptimalNewCameraMatrix(alpha=1) (for fisheye: balance 1)."""
+    size = (int(size[0]), int(size[1]))
+    if model == "fisheye":
+        return cv2.fisheye.estimateNewCameraMatrixForUndistortRectify(
+            np.asarray(M, np.float64), _fisheye_d(D), size, np.eye(3), balance=1.0)
+    opt, _ = cv2.getOptimalNewCameraMatrix(M, np.asarray(D, np.float64).reshape(1, -1), size, 1,
+                                           size)
+    return opt

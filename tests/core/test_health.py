@@ -1,0 +1,85 @@
+"""Calibration health and drift: a turned right camera is found from the scene and the rotation
+refined back, keeping intrinsics and baseline; swapped cameras show as negative disparities."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from stereo_gui.core.errors import CalibrationError
+from stereo_gui.core.health import DRIFT_WARN_PX, calibration_health, refine_rotation
+from stereo_gui.sources.sim import Scene, SimRig
+
+SEED = 17  # not used while tuning
+
+
+@pytest.fixture(scope="module")
+def rig_and_calib():
+    rig = SimRig(seed=SEED)
+    return rig, rig.true_calibration()
+
+
+def _rectified(calib, left, right):
+    m = calib.rectify_maps()
+    return (cv2.remap(left, m.left_x, m.left_y, cv2.INTER_LINEAR),
+            cv2.remap(right, m.right_x, m.right_y, cv2.INTER_LINEAR))
+
+
+def _health(rig, calib, seed=0):
+    left, right = rig.render_scene(Scene.demo(), np.random.default_rng(seed))
+    return calibration_health(*_rectified(calib, left, right)), left, right
+
+
+def test_a_fresh_calibration_is_healthy(rig_and_calib):
+    rig, calib = rig_and_calib
+    h, _, _ = _health(rig, calib)
+    assert h.measured and not h.drifted and not h.swapped
+    assert h.vertical_px < 0.25 and h.matches > 200
+    assert "OK" in h.text()
+
+
+def test_a_turned_right_camera_is_detected_and_refined_back(rig_and_calib):
+    """Issue 10: a 0.3 degree turn of the right camera is detected and refined back to an
+    epipolar error below 0.2 px, intrinsics and baseline kept."""
+    rig, calib = rig_and_calib
+    rig.turn_right_camera(0.3, "tilt")
+    try:
+        h, left, right = _health(rig, calib, 1)
+        assert h.drifted and h.vertical_px > DRIFT_WARN_PX
+        assert "moved since calibration" in h.text()
+        ref = refine_rotation(calib, left, right, "a test frame")
+        new = ref.calibration
+        assert ref.before_px > DRIFT_WARN_PX and ref.after_px < 0.2
+        # a new frame, rectified with the refined calibration
+        h2, _, _ = _health(rig, new, 2)
+        assert h2.vertical_px < 0.2 and not h2.drifted
+        # metric: intrinsics and the baseline as calibrated; the rotation as the rig's now
+        for name in ("M1", "D1", "M2", "D2"):
+            assert np.array_equal(getattr(new, name), getattr(calib, name))
+        assert new.baseline_mm == pytest.approx(calib.baseline_mm, rel=1e-12)
+        err = np.degrees(np.linalg.norm(cv2.Rodrigues(new.R @ rig.truth.R.T)[0]))
+        assert err < 0.02
+        assert ref.turn_deg[0] == pytest.approx(0.3, abs=0.02)
+        assert "refined from the scene" in new.origin and "a test frame" in new.origin
+        assert new.created != calib.created
+    finally:
+        rig.reset_turn()
+    assert rig.turned_deg == 0.0
+
+
+def test_swapped_cameras_show_as_negative_disparities(rig_and_calib):
+    rig, calib = rig_and_calib
+    left, right = rig.render_scene(Scene.demo(), np.random.default_rng(4))
+    a, b = _rectified(calib, left, right)
+    h = calibration_health(b, a)
+    assert h.swapped and "swapped" in h.text()
+
+
+def test_a_scene_without_texture_cannot_refine(rig_and_calib):
+    _, calib = rig_and_calib
+    flat = np.full((480, 640, 3), 120, np.uint8)
+    with pytest.raises(CalibrationError, match="feature matches"):
+        refine_rotation(calib, flat, flat)
+    h = calibration_health(flat, flat)
+    assert not h.measured and "too few feature matches" in h.text()
