@@ -285,7 +285,10 @@ class RecordingWriter:
         if self._t_span is None or self._count < 2:
             return None
         span = self._t_span[1] - self._t_span[0]
-        return (self._count - 1) / span if span > 0 and math.isfinite(span) else None
+        rate = (self._count - 1) / span if span > 0 and math.isfinite(span) else None
+        # frames made faster than any camera (an unpaced source, a replay at full speed): the
+        # header cannot hold that rate (the reader refuses one above MAX_FPS); the nominal one goes
+        return rate if rate is not None and rate <= MAX_FPS else None
 
     def _write_video(self, left: np.ndarray, right: np.ndarray) -> None:
         import cv2

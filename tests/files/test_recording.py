@@ -74,6 +74,18 @@ def test_header_says_the_rate_recorded_not_the_one_promised(tmp_path):
     assert open_recording(tmp_path / "rec").fps == pytest.approx(10.7)
 
 
+def test_frames_made_faster_than_any_camera_record_the_nominal_rate(tmp_path):
+    """An unpaced source (frames 0.2 ms apart): the header keeps the nominal rate, and the
+    recording opens (a rate above what the reader accepts made it unreadable)."""
+    frames = [StereoFrame(f.left, f.right, 5.0 + i * 2e-4, 5.0 + i * 2e-4, f.index)
+              for i, f in enumerate(_frames(6))]
+    with RecordingWriter(tmp_path / "rec", fps=30.0, background=False) as w:
+        for f in frames:
+            w.write(f)
+    assert json.loads((tmp_path / "rec" / "recording.json").read_text())["fps"] == 30.0
+    assert open_recording(tmp_path / "rec").fps == 30.0
+
+
 def test_writer_copies_frames_before_returning(tmp_path):
     f = _frames(1)[0]
     expected = f.left.copy()
