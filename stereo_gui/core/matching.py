@@ -64,7 +64,7 @@ _ALIASES = {"window_size": "block_size", "minDisparity": "min_disparity",
 # (smallest, largest) value of each number of MatcherParams; wider than the parameter panel's
 _RANGES: dict[str, tuple[float, float]] = {
     "block_size": (1, 51), "min_disparity": (-1024, 1024), "num_disparities": (16, 2048),
-    "z_min_mm": (1.0, 1e6), "z_max_mm": (1.0, 1e7), "uniqueness_ratio": (0, 100),
+    "z_min_mm": (1.0, 1e6), "max_match_width": (64, 100_000), "z_max_mm": (1.0, 1e7), "uniqueness_ratio": (0, 100),
     "speckle_window_size": (0, 10_000), "speckle_range": (0, 1000), "disp12_max_diff": (-1, 1000),
     "p1": (0, 10_000_000), "p2": (0, 10_000_000), "pre_filter_cap": (0, 63),
     "closing_kernel": (0, 51), "wls_lambda": (0.0, 1e7), "wls_sigma": (0.0, 100.0),
@@ -74,7 +74,7 @@ _RANGES: dict[str, tuple[float, float]] = {
 }
 
 
-_OPTIONAL = ("z_min_mm", "z_max_mm", "p1", "p2", "cv_threads")  # None means "not set"
+_OPTIONAL = ("z_min_mm", "z_max_mm", "p1", "p2", "cv_threads", "max_match_width")  # None means "not set"
 
 
 @dataclass(frozen=True)
@@ -123,6 +123,9 @@ class MatcherParams:
     bilateral_sigma_color: float = 25.0
     bilateral_sigma_space: float = 5.0
     scale: float = 1.0  # 1.0 = full resolution; 0.5 = match on INTER_AREA-halved images
+    # match on images at most this wide: a larger camera frame lowers the scale further, so a
+    # preset keeps its speed at 1280x720 (None: `scale` alone)
+    max_match_width: int | None = None
     colormap: str = "ocean"
     color_range: str = "minmax"  # "minmax" per frame (the report) or "fixed" distance range
     color_z_near_mm: float = 500.0  # fixed colour range: this distance gets the top colour
@@ -178,6 +181,13 @@ class MatcherParams:
     def p2_value(self) -> int:
         return int(self.p2) if self.p2 is not None else 32 * 3 * self.block_size**2
 
+    def effective_scale(self, width_px: int) -> float:
+        """The scale frames `width_px` wide are matched at (`scale`, lowered to keep the matched
+        image at most `max_match_width` px wide)."""
+        if self.max_match_width is None or width_px <= 0:
+            return self.scale
+        return min(self.scale, max(0.1, self.max_match_width / float(width_px)))
+
     def disparity_limits(self, calibration: StereoCalibration) -> tuple[float, float]:
         """(smallest, largest) disparity the preset must find, full-resolution px."""
         if self.z_min_mm is None:
@@ -230,7 +240,7 @@ class MatcherParams:
                 raise InputError(f"{where}: {key} must be a number, not {v!r}")
         for key in ("block_size", "min_disparity", "num_disparities", "uniqueness_ratio",
                     "speckle_window_size", "speckle_range", "disp12_max_diff", "closing_kernel",
-                    "bilateral_d", "pre_filter_cap"):
+                    "bilateral_d", "pre_filter_cap", "max_match_width"):
             v = kwargs.get(key)
             if isinstance(v, float):
                 if not v.is_integer():
@@ -272,6 +282,7 @@ class PipelineResult:
     # pixels the right camera cannot see (their match fell outside the right image, or they lie
     # in the strip at the left edge): None when the preset keeps the report's dead band
     not_seen: np.ndarray | None = None
+    match_scale: float = 1.0  # the scale the images were matched at (MatcherParams.effective_scale)
 
 
 def fixed_to_px(disp16: np.ndarray, min_disparity: float, factor: float = 1.0) -> np.ndarray:
@@ -426,8 +437,8 @@ class StereoPipeline:
         p = self._params
         if p.cv_threads is not None:
             cv2.setNumThreads(int(p.cv_threads))
-        s = p.scale
-        self._min_s, self._num_s = p.matcher_range(self.calibration)
+        s = self._scale = p.effective_scale(self.calibration.width)
+        self._min_s, self._num_s = p.matcher_range(self.calibration, s)
         self._range_full = (self._min_s / s, (self._min_s + self._num_s - 1) / s)
         def sgbm():
             return cv2.StereoSGBM_create(
@@ -460,7 +471,7 @@ class StereoPipeline:
     def edge_margin_px(self) -> float:
         """Matches closer than this to the right image's left edge are not trusted (the matching
         block reaches into the padding), full-resolution px."""
-        return (self._params.block_size // 2 + 1) / self._params.scale
+        return (self._params.block_size // 2 + 1) / self._scale
 
     def _apply_pending(self) -> None:
         with self._lock:
@@ -541,8 +552,9 @@ class StereoPipeline:
             gr = cv2.bilateralFilter(gr, p.bilateral_d, p.bilateral_sigma_color, p.bilateral_sigma_space)
             lap("bilateral")
         h, w = gl.shape[:2]
-        if p.scale < 1.0:
-            size_s = (max(1, round(w * p.scale)), max(1, round(h * p.scale)))
+        scale = self._scale
+        if scale < 1.0:
+            size_s = (max(1, round(w * scale)), max(1, round(h * scale)))
             ml = cv2.resize(gl, size_s, interpolation=cv2.INTER_AREA)
             mr = cv2.resize(gr, size_s, interpolation=cv2.INTER_AREA)
             lap("resize")
@@ -558,10 +570,10 @@ class StereoPipeline:
         closed16 = (cv2.morphologyEx(d16, cv2.MORPH_CLOSE, self._kernel)
                     if self._kernel is not None else d16)
         lap("closing")
-        factor = 1.0 / p.scale
+        factor = 1.0 / scale
         raw = fixed_to_px(d16, self._min_s, factor)
         closed = fixed_to_px(closed16, self._min_s, factor) if closed16 is not d16 else raw
-        if p.scale < 1.0:
+        if scale < 1.0:
             raw = cv2.resize(raw, (w, h), interpolation=cv2.INTER_NEAREST)
             closed = (cv2.resize(closed, (w, h), interpolation=cv2.INTER_NEAREST)
                       if closed16 is not d16 else raw)
@@ -616,16 +628,16 @@ class StereoPipeline:
             not_seen = into_padding | unseen_strip(final, edge)
             for m in {id(a): a for a in (raw, closed, wls_px, final) if a is not None}.values():
                 m[not_seen] = np.nan
-        scale = color_scale(final, p, self.calibration)
-        color = colorize(final, scale, p.colormap, not_seen)
+        colours = color_scale(final, p, self.calibration)
+        color = colorize(final, colours, p.colormap, not_seen)
         lap("colormap")
         t["total"] = (time.perf_counter() - start) * 1000.0
         return PipelineResult(
             rectified_left=rl, rectified_right=rr, disparity_px=raw, closed_px=closed,
             wls_px=wls_px, final_px=final, color_bgr=color, valid=valid, timings_ms=t,
             size=(w, h), params=p, disparity_range_px=self._range_full,
-            calibration=self.calibration, color_scale=scale, wls_confidence=confidence,
-            not_seen=not_seen)
+            calibration=self.calibration, color_scale=colours, wls_confidence=confidence,
+            not_seen=not_seen, match_scale=scale)
 
 
 def compute_padded(matcher, reference: np.ndarray, other: np.ndarray, pad: int, side: str

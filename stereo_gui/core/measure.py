@@ -363,7 +363,7 @@ def _why_nothing(result: PipelineResult | None, x: int, y: int, half: int) -> st
     scan = best_match_disparity(gl, to_gray(result.rectified_right), x, y, max(half, 5))
     if scan is not None:
         d_lo, d_hi = result.disparity_range_px
-        step = 1.0 / result.params.scale
+        step = 1.0 / result.match_scale
         if scan[0] > d_hi + step:
             return "too near"
         if scan[0] < d_lo - step:
@@ -438,7 +438,7 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
     if result is not None and not has_texture(to_gray(result.rectified_left), xi, yi, half):
         return invalid("no texture")  # whatever matched there matched noise
 
-    scaled = result is not None and result.params.scale < 1.0
+    scaled = result is not None and result.match_scale < 1.0
     if mode == "point":
         window = disp[y0:y1, x0:x1]
         usable = np.isfinite(window)
@@ -452,7 +452,7 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
                 # (left-right checked) match to within its resolution
                 band = band[:, x0:x1]
                 with np.errstate(invalid="ignore"):
-                    usable &= np.abs(band - window) <= 2.0 / result.params.scale
+                    usable &= np.abs(band - window) <= 2.0 / result.match_scale
                 window = band
                 usable &= np.isfinite(window)
         values = window[usable]
@@ -495,7 +495,7 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
     # the range than at the estimate. (Only clearly: on a repeating pattern, a chessboard say,
     # the pattern's period gives peaks nearly as high as the true one, and a wrong match inside
     # the range is what the left-right check is for.)
-    step = 1.0 if result is None else 1.0 / result.params.scale
+    step = 1.0 if result is None else 1.0 / result.match_scale
     if result is not None and mode == "point":
         scan = best_match_disparity(gl, gr, xi, yi, max(half, 5))
         if scan is not None:

@@ -159,7 +159,7 @@ class ParamsPanel(QWidget):
         self.speckle_window = SliderSpin(0, 300)
         self.speckle_range = SliderSpin(0, 64)
         self.disp12 = SliderSpin(-1, 50)
-        self.pre_filter_cap = SliderSpin(1, 63)
+        self.pre_filter_cap = SliderSpin(0, 63)
         self.p_auto = QCheckBox("P1 = 8·3·w², P2 = 32·3·w²")
         self.p_auto.setToolTip("the report's smoothness penalties, from window_size w")
         self.p1 = QSpinBox()
@@ -190,6 +190,10 @@ class ParamsPanel(QWidget):
         sgbm.addRow("P2", self.p2)
         sgbm.addRow("mode", self.mode)
         sgbm.addRow("match at scale", self.scale)
+        self.scale_note = QLabel("")  # the scale that runs when a large frame lowers it
+        self.scale_note.setStyleSheet("color: gray")
+        self.scale_note.hide()
+        sgbm.addRow("", self.scale_note)
         sgbm.addRow(self.parallel)
         sgbm_box = QGroupBox("SGBM matcher")
         sgbm_box.setLayout(sgbm)
@@ -339,6 +343,11 @@ class ParamsPanel(QWidget):
                 tip = ""
             for spin in (self.min_disparity, self.num_disparities):
                 spin.setToolTip(tip)
+            width = self._calibration.width if self._calibration is not None else 0
+            runs = p.effective_scale(width)
+            self.scale_note.setText(f"runs at {runs:g}: {width} px frames are matched at most "
+                                    f"{p.max_match_width} px wide" if runs != p.scale else "")
+            self.scale_note.setVisible(runs != p.scale)
             self._show_preset_name(p.name)
         finally:
             self._updating = False
