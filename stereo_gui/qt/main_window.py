@@ -210,6 +210,8 @@ class MainWindow(QMainWindow):
         ctx.statusMessage.connect(lambda text: self.statusBar().showMessage(text, 8000))
         ctx.calibrationChanged.connect(self._update_calibration_label)
         ctx.frames.sourceChanged.connect(self._update_source_label)
+        ctx.frames.streamStatus.connect(self._stream_status)
+        self._stream_error = ""  # the error bar's text about the stream, while it is wrong
         ctx.recorder.started.connect(lambda _f: self._update_recording_label())
         ctx.recorder.stopped.connect(lambda _r: self._update_recording_label())
         self._update_calibration_label()
@@ -438,6 +440,28 @@ class MainWindow(QMainWindow):
     def _update_source_label(self, name: str) -> None:
         self.source_label.setText(f"Source: {name or 'none'}")
 
+    def _stream_status(self, status) -> None:
+        """The frame worker's StreamStatus: the source label says a camera is being
+        reconnected or the source stopped; once frames come again the error bar about the
+        stream goes (a newer error stays) and the status bar says the frames are back."""
+        if status.state == "ok":
+            text = self.error_bar.label.text()
+            if self._stream_error and self.error_bar.isVisibleTo(self) and text == \
+                    self._stream_error:
+                self.error_bar.hide()
+            self._stream_error = ""
+            self._update_source_label(status.source_name)
+            if status.message:
+                self.statusBar().showMessage(status.message, 8000)
+            return
+        self._stream_error = status.message
+        if status.state == "reconnecting":
+            self.source_label.setText(f"Source: {status.source_name} (reconnecting…)")
+        elif status.state == "stalled":
+            self.source_label.setText(f"Source: {status.source_name} (not answering)")
+        elif status.state == "failed":
+            self.source_label.setText(f"Source: none ({status.source_name} stopped)")
+
     def _update_recording_label(self) -> None:
         rec = self.ctx.recorder
         if rec.is_recording:
@@ -461,7 +485,11 @@ class MainWindow(QMainWindow):
             self.camera_fps_label.setText("Playback: paused")
             self.processing_fps_label.setText(f"Processing: {f.fps_processing:.1f} fps")
             return
-        self.camera_fps_label.setText(f"Camera: {f.fps_camera:.1f} fps")
+        skipped = f.skipped_frames
+        self.camera_fps_label.setText(f"Camera: {f.fps_camera:.1f} fps" + (
+            f", {skipped} bad frame{'s' if skipped != 1 else ''} skipped" if skipped else ""))
+        self.camera_fps_label.setToolTip("Frames that could not be decoded are left out"
+                                         if skipped else "")
         self.processing_fps_label.setText(f"Processing: {f.fps_processing:.1f} fps")
 
     # ---- calibration files -------------------------------------------------------------------
