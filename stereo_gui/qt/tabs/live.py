@@ -742,6 +742,13 @@ class LiveTab(QWidget):
         """Files written by the last finished export."""
         return self.exports.last_export
 
+    def unfinished_work(self) -> list[str]:
+        """Exports and snapshots closing now would cut short (see LiveExports)."""
+        return self.exports.unfinished_work()
+
+    def cancel_unfinished_work(self, timeout_ms: int = 2000) -> list[str]:
+        return self.exports.cancel_unfinished_work(timeout_ms)
+
     # ---- recording -----------------------------------------------------------------------------
     def start_recording(self, folder: str | Path | None = None) -> Path | None:
         """Record the source's raw frames (see RecordButton.start_recording)."""
