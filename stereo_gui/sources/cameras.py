@@ -289,8 +289,8 @@ class _CameraSource:
 
     def _reconnecting_text(self) -> str:
         lost = " and ".join(c.describe() for c in self._cams if not c.present)
-        return (f"Reconnecting to {lost}…: {self._lost_reason}; trying again every "
-                f"{self.reconnect_interval_s:.0f} s")
+        return (f"Reconnecting to {lost}… it {self._lost_reason}; trying again every "
+                f"{self.reconnect_interval_s:g} s")
 
     def _lose(self, cams: list[_Camera], why: str) -> None:
         """Release `cams` (they stopped delivering frames) and raise SourceUnavailable."""
@@ -410,7 +410,7 @@ class TwoCameraSource(_CameraSource):
             failures += 1
             if failures >= MAX_FAILED_GRABS:
                 self._lose([c for c, ok in ((left, ok_l), (right, ok_r)) if not ok],
-                           "it stopped delivering frames (unplugged, or the USB bus is "
+                           "stopped delivering frames (unplugged, or the USB bus is "
                            "overloaded?)")
 
     def read(self) -> StereoFrame:
@@ -429,7 +429,7 @@ class TwoCameraSource(_CameraSource):
             log.debug("%s: %s delivered a frame that could not be decoded", self.name,
                       bad[0].describe())
         else:
-            self._lose(bad, "it delivers frames that cannot be decoded")
+            self._lose(bad, "delivers frames that cannot be decoded")
         left, right = _as_bgr(left), _as_bgr(right)
         if left.shape != right.shape:
             raise SourceError(
@@ -507,7 +507,7 @@ class SideBySideSource(_CameraSource, _SideBySideCapture):
                     break
                 self.skipped_frames += 1
         else:
-            self._lose([cam], "it stopped delivering frames (unplugged?)")
+            self._lose([cam], "stopped delivering frames (unplugged?)")
         self._check_shape(frame)
         return self._stereo_frame(frame, t)
 
