@@ -23,3 +23,8 @@ class CalibrationFileError(StereoGuiError):
 
 class SourceError(StereoGuiError):
     """A frame source could not be opened or stopped delivering frames."""
+
+
+class SourceUnavailable(SourceError):
+    """A source has no frame for now but expects to again (a camera that vanished is being
+    opened again): read again later. The message says what is going on, for the user."""

@@ -36,6 +36,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from stereo_gui.core.detect import check_cancel
 from stereo_gui.core.errors import InputError
 from stereo_gui.files.atomic import atomic_path, os_error_text, write_text_atomic
 from stereo_gui.files.readers import read_csv_rows
@@ -218,8 +219,15 @@ def _formats() -> list[str]:
             + [c[1] for c in ERROR_COLUMNS])
 
 
-def _write_measurements_sheet(ws, records: Iterable[MeasurementRecord]) -> int:
-    """Stream the header and one row per record into a write-only sheet; return the count."""
+_CANCEL_EVERY_ROWS = 500  # a streamed export looks at its cancel flag and reports this often
+
+
+def _write_measurements_sheet(ws, records: Sequence[MeasurementRecord], cancel=None,
+                              progress=None) -> int:
+    """Stream the header and one row per record into a write-only sheet; return the count.
+
+    `cancel` (see core.detect.Cancel) is looked at and `progress(done, total, text)` called
+    every _CANCEL_EVERY_ROWS rows."""
     from openpyxl.cell import WriteOnlyCell
     from openpyxl.utils import get_column_letter
 
@@ -248,6 +256,10 @@ def _write_measurements_sheet(ws, records: Iterable[MeasurementRecord]) -> int:
             row.append(c)
         ws.append(row)
         n += 1
+        if n % _CANCEL_EVERY_ROWS == 0:
+            check_cancel(cancel)
+            if progress is not None:
+                progress(n, len(records), f"{n:,} of {len(records):,} rows")
     return n
 
 
@@ -558,14 +570,16 @@ def _check_xlsx_name(path: Path) -> None:
         raise InputError(f"{path}: a workbook file name must end in .xlsx")
 
 
-def _new_workbook(records, fits, calibration, calibration_file, target: Path):
+def _new_workbook(records, fits, calibration, calibration_file, target: Path, cancel=None,
+                  progress=None):
     from openpyxl import Workbook
 
     wb = Workbook(write_only=True)  # streamed: linear in the rows
     try:
         # write-only sheets stream their rows into temporary files as they are appended, so a
         # full disk already shows here
-        _write_measurements_sheet(wb.create_sheet(MEASUREMENTS_SHEET), records)
+        _write_measurements_sheet(wb.create_sheet(MEASUREMENTS_SHEET), records, cancel,
+                                  progress)
         fits = tuple(fits or ())
         _write_regression_sheet(wb.create_sheet(REGRESSION_SHEET), _samples(records, fits), fits)
         _write_calibration_sheet(wb.create_sheet(CALIBRATION_SHEET), calibration,
@@ -575,6 +589,9 @@ def _new_workbook(records, fits, calibration, calibration_file, target: Path):
         raise InputError(f"cannot write {target}: {os_error_text(exc)}; "
                          f"{'it was left untouched' if target.exists() else 'nothing was written'}"
                          ) from exc
+    except BaseException:  # cancelled: the streamed rows' temporary files go too
+        _discard_write_only(wb)
+        raise
     wb.properties.keywords = WORKBOOK_KEYWORDS
     wb.properties.creator = "stereo-gui"
     wb.properties.title = "Stereo GUI measurements"
@@ -620,17 +637,27 @@ def _discard_write_only(wb) -> None:
 
 def write_workbook(path: str | os.PathLike, records: Iterable[MeasurementRecord],
                    fits: Sequence = (), calibration: StereoCalibration | None = None,
-                   calibration_file: str | os.PathLike | None = None) -> Path:
+                   calibration_file: str | os.PathLike | None = None, cancel=None,
+                   progress=None) -> Path:
     """Write a new workbook (replacing `path` atomically) with the three sheets and the chart.
 
     `fits` are `stereo_gui.core.regression.FitResult`s; `calibration_file` names the file the
-    calibration was loaded from (shown in the Calibration sheet).
+    calibration was loaded from (shown in the Calibration sheet). `cancel` (an Event or a
+    callable, see core.detect.Cancel) stops the export between rows with Cancelled: nothing is
+    written, no temporary file is left, `path` stays as it was. `progress(done, total, text)`
+    is told the rows written.
     """
     path = Path(path)
     _check_xlsx_name(path)
     records = list(records)
     wb = _new_workbook(records, fits, calibration,
-                       None if calibration_file is None else str(calibration_file), path)
+                       None if calibration_file is None else str(calibration_file), path,
+                       cancel, progress)
+    try:
+        check_cancel(cancel)
+    except BaseException:
+        _discard_write_only(wb)
+        raise
     _save(wb, path)
     log.info("wrote %d measurements to %s", len(records), path)
     return path

@@ -21,6 +21,7 @@ from PySide6.QtWidgets import (
     QLabel,
     QMainWindow,
     QMenu,
+    QMessageBox,
     QTabWidget,
     QToolButton,
     QWidget,
@@ -165,6 +166,9 @@ class MainWindow(QMainWindow):
         ctx.errorOccurred.connect(collect)
         self.source_choice = self._choice_from_settings()
         self._closing = False
+        self._close_waiter = None  # the CloseWaiter while closing waits for exports
+        self._calibration_answered = False  # "Discard" said once for this close
+        self._work_settled = False  # exports were cancelled for this close: do not wait again
         self._opening: tuple[SourceChoice, bool] = (self.source_choice, False)
         self._opening_id = 0
         self._opener = JobRunner("source-opener", self)
@@ -210,6 +214,8 @@ class MainWindow(QMainWindow):
         ctx.statusMessage.connect(lambda text: self.statusBar().showMessage(text, 8000))
         ctx.calibrationChanged.connect(self._update_calibration_label)
         ctx.frames.sourceChanged.connect(self._update_source_label)
+        ctx.frames.streamStatus.connect(self._stream_status)
+        self._stream_error = ""  # the error bar's text about the stream, while it is wrong
         ctx.recorder.started.connect(lambda _f: self._update_recording_label())
         ctx.recorder.stopped.connect(lambda _r: self._update_recording_label())
         self._update_calibration_label()
@@ -438,6 +444,28 @@ class MainWindow(QMainWindow):
     def _update_source_label(self, name: str) -> None:
         self.source_label.setText(f"Source: {name or 'none'}")
 
+    def _stream_status(self, status) -> None:
+        """The frame worker's StreamStatus: the source label says a camera is being
+        reconnected or the source stopped; once frames come again the error bar about the
+        stream goes (a newer error stays) and the status bar says the frames are back."""
+        if status.state == "ok":
+            text = self.error_bar.label.text()
+            if self._stream_error and self.error_bar.isVisibleTo(self) and text == \
+                    self._stream_error:
+                self.error_bar.hide()
+            self._stream_error = ""
+            self._update_source_label(status.source_name)
+            if status.message:
+                self.statusBar().showMessage(status.message, 8000)
+            return
+        self._stream_error = status.message
+        if status.state == "reconnecting":
+            self.source_label.setText(f"Source: {status.source_name} (reconnecting…)")
+        elif status.state == "stalled":
+            self.source_label.setText(f"Source: {status.source_name} (not answering)")
+        elif status.state == "failed":
+            self.source_label.setText(f"Source: none ({status.source_name} stopped)")
+
     def _update_recording_label(self) -> None:
         rec = self.ctx.recorder
         if rec.is_recording:
@@ -461,7 +489,11 @@ class MainWindow(QMainWindow):
             self.camera_fps_label.setText("Playback: paused")
             self.processing_fps_label.setText(f"Processing: {f.fps_processing:.1f} fps")
             return
-        self.camera_fps_label.setText(f"Camera: {f.fps_camera:.1f} fps")
+        skipped = f.skipped_frames
+        self.camera_fps_label.setText(f"Camera: {f.fps_camera:.1f} fps" + (
+            f", {skipped} bad frame{'s' if skipped != 1 else ''} skipped" if skipped else ""))
+        self.camera_fps_label.setToolTip("Frames that could not be decoded are left out"
+                                         if skipped else "")
         self.processing_fps_label.setText(f"Processing: {f.fps_processing:.1f} fps")
 
     # ---- calibration files -------------------------------------------------------------------
@@ -606,7 +638,89 @@ class MainWindow(QMainWindow):
         except (StereoGuiError, OSError) as exc:
             log.warning("settings not saved: %s", exc)
 
+    # ---- closing without losing work ---------------------------------------------------------
+    def unfinished_work(self) -> list[str]:
+        """What closing now would cut short (the tabs' running exports), for a person."""
+        work: list[str] = []
+        for i in range(self.tabs.count()):
+            w = self.tabs.widget(i)
+            if hasattr(w, "unfinished_work"):
+                work.extend(w.unfinished_work())
+        return work
+
+    def _keep_or_save_calibration(self) -> bool:
+        """Ask Save / Discard / Cancel for a computed calibration not saved; False to stay open
+        (Cancel, or Save that was not done)."""
+        what = self.calibration_tab.unsaved_calibration()
+        if not what or self._calibration_answered:
+            return True
+        from stereo_gui.qt.dialogs.closing import ask_unsaved_calibration
+
+        answer = ask_unsaved_calibration(self, what)
+        if answer == QMessageBox.StandardButton.Save:
+            return self.save_calibration()
+        if answer == QMessageBox.StandardButton.Discard:
+            self._calibration_answered = True
+            log.info("closing: the unsaved calibration (%s) was discarded", what)
+            return True
+        return False
+
+    def _wait_for_work(self) -> bool:
+        """With exports still running: show the CloseWaiter and close when they are done (or
+        cancel them, see `_cancel_work_and_close`); False when nothing runs."""
+        if self._work_settled or not self.unfinished_work():
+            return False
+        from stereo_gui.qt.dialogs.closing import CloseWaiter
+
+        waiter = CloseWaiter(self, self.unfinished_work)
+        waiter.done.connect(self._work_done_close)
+        waiter.cancelRequested.connect(self._cancel_work_and_close)
+        waiter.aborted.connect(self._close_aborted)
+        self._close_waiter = waiter
+        self.statusBar().showMessage("Closing as soon as the export is written…")
+        waiter.open()
+        return True
+
+    def _work_done_close(self) -> None:
+        self._close_waiter = None
+        self._work_settled = True
+        self.close()
+
+    def _close_aborted(self) -> None:
+        self._close_waiter = None
+        self._calibration_answered = False
+        self.statusBar().showMessage("Not closed: the export goes on", 8000)
+
+    def _cancel_work_and_close(self, timed_out: bool) -> None:
+        from stereo_gui.qt.dialogs.closing import tell_cancelled
+
+        waited_s = self._close_waiter.wait_s if self._close_waiter is not None else None
+        self._close_waiter = None
+        deadline = time.monotonic() + CLOSE_TIMEOUT_MS / 1000.0
+        said: list[str] = []
+        for i in range(self.tabs.count()):
+            w = self.tabs.widget(i)
+            if hasattr(w, "cancel_unfinished_work"):
+                left = max(1, int((deadline - time.monotonic()) * 1000))
+                said.extend(w.cancel_unfinished_work(timeout_ms=left))
+        for line in said:
+            log.warning("closing: %s", line)
+        self._work_settled = True
+        tell_cancelled(self, said, waited_s if timed_out else None)
+        self.close()
+
     def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802 - Qt API
+        if not self._closing:
+            # a true distance still being typed belongs in the log that is kept
+            self.measurements_tab.commit_edits()
+            if self._close_waiter is not None:  # closed again while waiting: the user insists
+                event.ignore()
+                # after this event: a close() from within closeEvent would be refused
+                QTimer.singleShot(0, self._close_waiter.insist)
+                return
+            if not self._keep_or_save_calibration() or self._wait_for_work():
+                event.ignore()
+                return
         if not self._closing:
             self._closing = True
             self._fps_timer.stop()

@@ -18,7 +18,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from stereo_gui.core.errors import SourceError
+from stereo_gui.core.errors import SourceError, SourceUnavailable
 from stereo_gui.sources.base import FramePacer, StereoFrame
 
 log = logging.getLogger(__name__)
@@ -35,6 +35,8 @@ BACKEND_NAMES = {cv2.CAP_V4L2: "V4L2", cv2.CAP_MSMF: "MSMF", cv2.CAP_DSHOW: "Dir
 # a grab waits at most this long where the backend honours CAP_PROP_READ_TIMEOUT_MSEC, so that
 # a camera that stops answering fails the read instead of blocking the reader for ever
 READ_TIMEOUT_MS = 1500
+RECONNECT_INTERVAL_S = 3.0  # a camera that vanished is looked for again this often
+UNAVAILABLE_WAIT_S = 0.25  # while it is missing, a read returns (SourceUnavailable) this soon
 
 
 class EndOfSource(SourceError):
@@ -222,75 +224,221 @@ def _fps(cap, default: float = 30.0) -> float:
     return fps if 1.0 <= fps <= 240.0 else default
 
 
-class TwoCameraSource:
+class _Camera:
+    """One device of a camera source: its capture while it is there (`cap`, None after it
+    vanished), and what it takes to open it again at the same size: its index, backend and
+    identity (name and USB ids, `CameraInfo.identity`, "" when not known)."""
+
+    def __init__(self, role: str, index: int, size: tuple[int, int], backend: int | None = None,
+                 identity: str = "") -> None:
+        self.role, self.index, self.size = role, int(index), size
+        self.backend, self.identity = backend, identity
+        self.cap = _open_camera(self.index, size, role, backend)
+
+    @property
+    def present(self) -> bool:
+        return self.cap is not None
+
+    def describe(self) -> str:
+        """'right camera 2 (HD Webcam C270 [046d:0825])', for messages."""
+        return f"{self.role} camera {self.index}" + (f" ({self.identity})" if self.identity else "")
+
+    def reopen(self, index: int, backend: int | None) -> None:
+        """Open the device again (at `index` now) at the size it had; SourceError if it fails."""
+        self.cap = _open_camera(int(index), self.size, self.role, backend)
+        self.index, self.backend = int(index), backend
+
+    def release(self) -> None:
+        cap, self.cap = self.cap, None
+        if cap is not None:
+            try:
+                cap.release()
+            except Exception:  # noqa: BLE001 - releasing a vanished device may fail; nothing to do
+                pass
+
+
+class _CameraSource:
+    """What the camera sources share: bad frames skipped and counted, and cameras that come back.
+
+    A frame that cannot be decoded is skipped (`skipped_frames` counts them) and the next one
+    read. A camera that fails MAX_FAILED_GRABS times in a row is released and looked for again
+    every `reconnect_interval_s` (by its identity in the camera listing, `find_cameras_again`, so
+    that it is found under another index too) and opened at the size it had. Meanwhile read()
+    raises SourceUnavailable ("Reconnecting to right camera 2…") after waiting at most
+    UNAVAILABLE_WAIT_S, and frames go on by themselves once it is back. A camera that comes back
+    delivering another image size raises SourceError: the calibration would not fit it.
+    """
+
+    _cams: list[_Camera]
+    name: str
+    reconnect_interval_s: float = 0.0
+
+    def _init_faults(self) -> None:
+        self.skipped_frames = 0  # frames that could not be decoded and were left out
+        self.reconnects = 0  # times a vanished camera was opened again
+        self.reconnect_interval_s = RECONNECT_INTERVAL_S
+        self._lost_reason = ""
+        self._next_attempt = 0.0  # time.monotonic() of the next look for a vanished camera
+        self._shape: tuple[int, ...] | None = None  # of the first frame delivered
+        self._wake = threading.Event()  # set by close(): a waiting read returns at once
+        self._closed = False
+
+    @property
+    def _caps(self) -> list:
+        return [c.cap for c in self._cams if c.cap is not None]
+
+    def _reconnecting_text(self) -> str:
+        lost = " and ".join(c.describe() for c in self._cams if not c.present)
+        return (f"Reconnecting to {lost}… it {self._lost_reason}; trying again every "
+                f"{self.reconnect_interval_s:g} s")
+
+    def _lose(self, cams: list[_Camera], why: str) -> None:
+        """Release `cams` (they stopped delivering frames) and raise SourceUnavailable."""
+        for c in cams:
+            c.release()
+        self._lost_reason = why
+        self._next_attempt = time.monotonic() + self.reconnect_interval_s
+        text = self._reconnecting_text()
+        log.warning("%s: %s", self.name, text)
+        raise SourceUnavailable(text)
+
+    def _ensure_present(self) -> None:
+        """Open vanished cameras again when it is time to look; SourceUnavailable while one
+        is still missing (after waiting at most UNAVAILABLE_WAIT_S)."""
+        if all(c.present for c in self._cams):
+            return
+        now = time.monotonic()
+        if now < self._next_attempt:
+            self._wake.wait(min(self._next_attempt - now, UNAVAILABLE_WAIT_S))
+            if self._closed:
+                raise SourceError(f"{self.name}: the source was closed")
+            if time.monotonic() < self._next_attempt:
+                raise SourceUnavailable(self._reconnecting_text())
+        self._next_attempt = time.monotonic() + self.reconnect_interval_s
+        listed = list_cameras()
+        # all the source's cameras take part, so that a twin still at its index is not taken
+        indices, _notes = find_cameras_again(tuple(c.index for c in self._cams),
+                                             tuple(c.identity for c in self._cams), listed)
+        for cam, index in zip(self._cams, indices, strict=True):
+            if cam.present:
+                continue
+            info = find_camera(index, listed)
+            if cam.identity and (info is None or info.identity != cam.identity):
+                continue  # not listed again yet, or another device is at its index now
+            try:
+                cam.reopen(index, info.backend if info is not None else cam.backend)
+            except SourceError as exc:
+                log.info("%s: %s", self.name, exc)
+        if not all(c.present for c in self._cams):
+            raise SourceUnavailable(self._reconnecting_text())
+        self.reconnects += 1
+        self._renamed()
+        log.warning("%s: the camera is back; frames go on", self.name)
+
+    def _renamed(self) -> None:
+        """Update `name` after a camera came back under another index."""
+
+    def _check_shape(self, image: np.ndarray) -> None:
+        if self._shape is None:
+            self._shape = image.shape
+        elif image.shape != self._shape:
+            h, w = image.shape[:2]
+            h0, w0 = self._shape[:2]
+            raise SourceError(f"{self.name} delivers {w}x{h} px images now, not {w0}x{h0} as "
+                              "before: the calibration does not fit them; choose the source "
+                              "again")
+
+    def close(self) -> None:
+        self._closed = True
+        self._wake.set()
+        for cam in self._cams:
+            cam.release()
+
+
+class TwoCameraSource(_CameraSource):
     """Two cameras, left and right. Both are grabbed first and then decoded, so that the two
-    exposures are as close in time as the devices allow."""
+    exposures are as close in time as the devices allow. A bad frame is skipped, a camera that
+    vanishes is reconnected (see _CameraSource); `identities` (in the order of the indices given,
+    as `OpenedSource.cameras`) let it be found under another index."""
 
     def __init__(self, left_index: int, right_index: int, size: tuple[int, int] = (640, 480),
-                 swap: bool = False, backends: tuple[int | None, int | None] = (None, None)):
+                 swap: bool = False, backends: tuple[int | None, int | None] = (None, None),
+                 identities: tuple[str, ...] = ()):
         if left_index == right_index:
             raise SourceError(f"left and right camera are the same device ({left_index}): "
                               "choose two different cameras")
+        idents = tuple(identities) if len(identities) == 2 else ("", "")
         if swap:
             left_index, right_index = right_index, left_index
             backends = (backends[1], backends[0])
-        self.left_index, self.right_index = int(left_index), int(right_index)
+            idents = (idents[1], idents[0])
         self.size = (int(size[0]), int(size[1]))
-        self.name = f"Cameras {self.left_index}, {self.right_index}"
-        self._caps: list = []
+        self._init_faults()
+        self._cams: list[_Camera] = []
         self._index = 0
-        self._closed = False
         try:
-            self._caps.append(_open_camera(self.left_index, self.size, "left", backends[0]))
-            self._caps.append(_open_camera(self.right_index, self.size, "right", backends[1]))
+            for role, i, backend, ident in (("left", left_index, backends[0], idents[0]),
+                                            ("right", right_index, backends[1], idents[1])):
+                self._cams.append(_Camera(role, i, self.size, backend, ident))
         except BaseException:
             self.close()
             raise
-        self.nominal_fps = min(_fps(c) for c in self._caps)
+        self._renamed()
+        self.nominal_fps = min(_fps(c.cap) for c in self._cams)
+
+    @property
+    def left_index(self) -> int:
+        return self._cams[0].index
+
+    @property
+    def right_index(self) -> int:
+        return self._cams[1].index
+
+    def _renamed(self) -> None:
+        self.name = f"Cameras {self.left_index}, {self.right_index}"
 
     def _grab_both(self) -> tuple[float, float]:
         failures = 0
+        left, right = self._cams
         while True:
-            ok_l = self._caps[0].grab()
+            ok_l = left.cap.grab()
             t_l = time.monotonic()
-            ok_r = self._caps[1].grab()
+            ok_r = right.cap.grab()
             t_r = time.monotonic()
             if ok_l and ok_r:
                 return t_l, t_r
             failures += 1
             if failures >= MAX_FAILED_GRABS:
-                which = [f"{role} camera {i}" for role, i, ok in
-                         (("left", self.left_index, ok_l), ("right", self.right_index, ok_r))
-                         if not ok]
-                raise SourceError(f"{' and '.join(which)} stopped delivering frames "
-                                  "(unplugged, or the USB bus is overloaded?)")
+                self._lose([c for c, ok in ((left, ok_l), (right, ok_r)) if not ok],
+                           "stopped delivering frames (unplugged, or the USB bus is "
+                           "overloaded?)")
 
     def read(self) -> StereoFrame:
         if self._closed:
             raise SourceError(f"{self.name}: the source was closed")
-        t_l, t_r = self._grab_both()
-        ok_l, left = self._caps[0].retrieve()
-        ok_r, right = self._caps[1].retrieve()
-        if not ok_l or left is None or not ok_r or right is None:
-            bad = self.left_index if not ok_l or left is None else self.right_index
-            raise SourceError(f"camera {bad} delivered a frame that could not be decoded")
+        self._ensure_present()
+        for _ in range(MAX_FAILED_GRABS):
+            t_l, t_r = self._grab_both()
+            ok_l, left = self._cams[0].cap.retrieve()
+            ok_r, right = self._cams[1].cap.retrieve()
+            bad = [c for c, ok, img in ((self._cams[0], ok_l, left), (self._cams[1], ok_r, right))
+                   if not ok or img is None]
+            if not bad:
+                break
+            self.skipped_frames += 1  # one undecodable frame: skip it, read the next pair
+            log.debug("%s: %s delivered a frame that could not be decoded", self.name,
+                      bad[0].describe())
+        else:
+            self._lose(bad, "delivers frames that cannot be decoded")
         left, right = _as_bgr(left), _as_bgr(right)
         if left.shape != right.shape:
             raise SourceError(
                 f"the cameras deliver different image sizes ({left.shape[1]}x{left.shape[0]} and "
                 f"{right.shape[1]}x{right.shape[0]}): choose a resolution both support")
+        self._check_shape(left)
         frame = StereoFrame(left, right, t_l, t_r, self._index)
         self._index += 1
         return frame
-
-    def close(self) -> None:
-        self._closed = True
-        for cap in self._caps:
-            try:
-                cap.release()
-            except Exception:  # noqa: BLE001 - releasing a vanished device may fail; nothing to do
-                pass
-        self._caps = []
 
 
 def split_side_by_side(frame: np.ndarray, swap: bool = False) -> tuple[np.ndarray, np.ndarray]:
@@ -325,30 +473,45 @@ class _SideBySideCapture:
             self._cap.release()
 
 
-class SideBySideSource(_SideBySideCapture):
-    """One stereo camera that delivers both images side by side in one frame."""
+class SideBySideSource(_CameraSource, _SideBySideCapture):
+    """One stereo camera that delivers both images side by side in one frame; a bad frame is
+    skipped and a camera that vanishes is reconnected (see _CameraSource)."""
 
     def __init__(self, index: int, size: tuple[int, int] = (1280, 480), swap: bool = False,
-                 backend: int | None = None):
-        self.index = int(index)
+                 backend: int | None = None, identity: str = ""):
         self.size = (int(size[0]), int(size[1]))  # the whole frame, both halves
         self.swap = bool(swap)
-        self.name = f"Side-by-side camera {self.index}"
-        self._cap = _open_camera(self.index, self.size, "side-by-side", backend)
-        self.nominal_fps = _fps(self._cap)
+        self._init_faults()
+        self._cams = [_Camera("side-by-side", index, self.size, backend, identity)]
+        self._renamed()
+        self.nominal_fps = _fps(self._cams[0].cap)
         self._index = 0
-        self._closed = False
+
+    @property
+    def index(self) -> int:
+        return self._cams[0].index
+
+    def _renamed(self) -> None:
+        self.name = f"Side-by-side camera {self.index}"
 
     def read(self) -> StereoFrame:
         if self._closed:
             raise SourceError(f"{self.name}: the source was closed")
+        self._ensure_present()
+        cam = self._cams[0]
         for _ in range(MAX_FAILED_GRABS):
-            ok, frame = self._cap.read()
-            if ok and frame is not None:
-                break
+            if cam.cap.grab():
+                t = time.monotonic()
+                ok, frame = cam.cap.retrieve()
+                if ok and frame is not None:
+                    break
+                self.skipped_frames += 1
         else:
-            raise SourceError(f"camera {self.index} stopped delivering frames (unplugged?)")
-        return self._stereo_frame(frame, time.monotonic())
+            self._lose([cam], "stopped delivering frames (unplugged?)")
+        self._check_shape(frame)
+        return self._stereo_frame(frame, t)
+
+    close = _CameraSource.close
 
 
 class VideoFileSource(_SideBySideCapture):

@@ -116,7 +116,8 @@ def _auto(size: tuple[int, int], swap: bool) -> OpenedSource:
     if len(cams) >= 2:
         try:
             src = TwoCameraSource(cams[0].index, cams[1].index, size=size, swap=swap,
-                                  backends=(cams[0].backend, cams[1].backend))
+                                  backends=(cams[0].backend, cams[1].backend),
+                                  identities=(cams[0].identity, cams[1].identity))
             return OpenedSource(src, False, f"using cameras {cams[0].label()} and {cams[1].label()}",
                                 cameras=(cams[0].identity, cams[1].identity))
         except SourceError as exc:
@@ -195,14 +196,16 @@ def open_source(spec: str | None, size: tuple[int, int] = (640, 480), swap: bool
         from stereo_gui.sources.cameras import TwoCameraSource
 
         (left, right), backends, idents, notes = _cameras(s.indices, remembered_cameras)
-        src = TwoCameraSource(left, right, size=size, swap=swap, backends=backends)
+        src = TwoCameraSource(left, right, size=size, swap=swap, backends=backends,
+                              identities=idents)
         return OpenedSource(src, False, "; ".join([src.name, *notes]),
                             spec=f"cams:{left},{right}", cameras=idents)
     if s.kind == "sbs":
         from stereo_gui.sources.cameras import SideBySideSource
 
         (index,), (backend,), idents, notes = _cameras(s.indices, remembered_cameras)
-        src = SideBySideSource(index, size=(2 * size[0], size[1]), swap=swap, backend=backend)
+        src = SideBySideSource(index, size=(2 * size[0], size[1]), swap=swap, backend=backend,
+                               identity=idents[0] if idents else "")
         return OpenedSource(src, False, "; ".join([src.name, *notes]), spec=f"sbs:{index}",
                             cameras=idents)
     # a folder of pairs, a recording, or a side-by-side video: all play back like a recording

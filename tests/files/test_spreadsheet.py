@@ -485,3 +485,24 @@ def test_a_hand_edited_cell_that_is_not_a_number_is_named(tmp_path):
     wb.save(path)
     with pytest.raises(InputError, match=r"row 2: column 'Z \(mm\)'"):
         read_measurements(path)
+
+
+def test_a_cancelled_export_writes_nothing_and_leaves_no_temporary_file(tmp_path):
+    from stereo_gui.core.detect import Cancelled
+
+    path = tmp_path / "log.xlsx"
+    path.write_bytes(b"the earlier export")
+    records = [_record(i) for i in range(1200)]
+    seen = []
+
+    def progress(done, total, text):
+        seen.append((done, total, text))
+
+    with pytest.raises(Cancelled):
+        write_workbook(path, records, cancel=lambda: len(seen) >= 2, progress=progress)
+    assert seen == [(500, 1200, "500 of 1,200 rows"), (1000, 1200, "1,000 of 1,200 rows")]
+    assert path.read_bytes() == b"the earlier export"
+    assert _no_temp_files(tmp_path) and sorted(p.name for p in tmp_path.iterdir()) == ["log.xlsx"]
+    # not cancelled: the same rows are written
+    write_workbook(path, records, cancel=lambda: False, progress=progress)
+    assert len(read_measurements(path)) == 1200

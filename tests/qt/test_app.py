@@ -207,3 +207,34 @@ def test_the_application_starts_with_bad_remembered_files(tmp_path, sim_rig):
                           text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+QUITS = 6  # each quit crashed with a chance of about 1 in 6 before the fix
+
+
+@pytest.mark.slow
+def test_quitting_with_only_the_left_view_shown_never_crashes(tmp_path, sim_rig):
+    """The issue's probe: with `"visible_views": ["left"]` about 1 quit in 6 ended in a segfault
+    (exit 139) while the interpreter tore down: a hidden view, a top-level widget of its own,
+    was destroyed from inside its own image item's destructor. Quits from the Live tab with a
+    calibration loaded, N times; every one exits 0."""
+    import json
+
+    from stereo_gui.files.calibration_file import save_calibration
+
+    calib = tmp_path / "calib.yaml"
+    save_calibration(sim_rig.true_calibration(), calib)
+    for i in range(QUITS):
+        cfg = tmp_path / f"cfg{i}"
+        cfg.mkdir()
+        (cfg / "settings.json").write_text(json.dumps(
+            {"format_version": 1, "source": "sim", "visible_views": ["left"]}))
+        proc = subprocess.run(
+            [sys.executable, "-X", "faulthandler", "-m", "stereo_gui", "--source", "sim",
+             "--calib", str(calib)],
+            env=_env(tmp_path, STEREO_GUI_CONFIG_DIR=str(cfg),
+                     STEREO_GUI_DATA_DIR=str(tmp_path / f"data{i}"), STEREO_GUI_QUIT_AFTER="2"),
+            capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 0, f"quit {i + 1} of {QUITS}: exit {proc.returncode}\n" \
+                                     f"{proc.stderr[-3000:]}"
+        assert "Fatal Python error" not in proc.stderr

@@ -7,57 +7,14 @@ import numpy as np
 import pytest
 
 import stereo_gui.sources.cameras as cameras
-from stereo_gui.core.errors import SourceError
+from stereo_gui.core.errors import SourceError, SourceUnavailable
 from stereo_gui.sources.base import FrameSource
 from stereo_gui.sources.cameras import (
     CameraInfo, EndOfSource, SideBySideSource, TwoCameraSource, VideoFileSource, list_cameras,
     split_side_by_side,
 )
 
-
-class FakeCapture:
-    """Stands in for cv2.VideoCapture(index): devices and their behaviour live in `devices`."""
-
-    devices: dict = {}
-    log: list = []
-
-    def __init__(self, index, *args):
-        self.index = index
-        self.dev = FakeCapture.devices.get(index)
-        self.props = {}
-        self.grabs = 0
-        self.released = False
-
-    def isOpened(self):
-        return self.dev is not None
-
-    def set(self, prop, value):
-        self.props[prop] = value
-        return True
-
-    def get(self, prop):
-        return 25.0 if prop == cv2.CAP_PROP_FPS else 0.0
-
-    def grab(self):
-        FakeCapture.log.append(("grab", self.index))
-        self.grabs += 1
-        dead_after = self.dev.get("dead_after")
-        if dead_after is not None and self.grabs > dead_after:
-            return False
-        return self.grabs not in self.dev.get("drop", ())
-
-    def retrieve(self):
-        FakeCapture.log.append(("retrieve", self.index))
-        w, h = self.dev.get("size", (64, 48))
-        shape = (h, w) if self.dev.get("gray") else (h, w, 3)
-        return True, np.full(shape, self.dev["value"] + self.grabs, np.uint8)
-
-    def read(self):
-        return (self.grab() and self.retrieve()) or (False, None)
-
-    def release(self):
-        FakeCapture.log.append(("release", self.index))
-        self.released = True
+from fake_cameras import FakeCapture, unplug  # tests/fake_cameras.py
 
 
 @pytest.fixture
@@ -104,12 +61,147 @@ def test_a_dropped_frame_is_retried(fake_cams):
     assert f.right[0, 0, 0] == 102  # the second grab
 
 
-def test_camera_that_disappears_raises(fake_cams):
+def test_camera_that_disappears_says_it_is_reconnecting(fake_cams, monkeypatch):
+    monkeypatch.setattr(cameras, "list_cameras", lambda: [])
     fake_cams.devices[1]["dead_after"] = 2
     src = TwoCameraSource(0, 1)
     src.read()
     src.read()
-    with pytest.raises(SourceError, match="right camera 1 stopped delivering frames"):
+    with pytest.raises(SourceUnavailable, match=r"Reconnecting to right camera 1….*stopped "
+                                                r"delivering frames.*every 3 s"):
+        src.read()
+    assert src._cams[1].cap is None and fake_cams.log[-1] == ("release", 1)
+
+
+class Clock:
+    """time.monotonic and Event.wait of the camera module, moved by hand (no test waits)."""
+
+    def __init__(self, monkeypatch):
+        self.t = 100.0
+        monkeypatch.setattr(cameras.time, "monotonic", lambda: self.t)
+        monkeypatch.setattr(cameras, "UNAVAILABLE_WAIT_S", 0.0)
+
+
+def listing(*cams):
+    """A list_cameras() stand-in over (index, name) pairs, counting its calls."""
+    def list_fn():
+        list_fn.calls += 1
+        return [CameraInfo(i, name, f"/dev/video{i}", None, 0x046D, 0x0825)
+                for i, name in list_fn.present]
+
+    list_fn.calls = 0
+    list_fn.present = list(cams)
+    return list_fn
+
+
+def test_one_undecodable_frame_is_skipped_and_counted(fake_cams):
+    fake_cams.devices[1]["undecodable"] = (2,)
+    src = TwoCameraSource(0, 1)
+    frames = [src.read() for _ in range(3)]
+    assert [f.index for f in frames] == [0, 1, 2]
+    # the second pair was left out: the frames read are grabs 1, 3 and 4 of both cameras
+    assert [int(f.right[0, 0, 0]) for f in frames] == [101, 103, 104]
+    assert [int(f.left[0, 0, 0]) for f in frames] == [11, 13, 14]
+    assert src.skipped_frames == 1 and src.reconnects == 0
+
+
+def test_a_camera_that_only_delivers_undecodable_frames_is_reconnected(fake_cams, monkeypatch):
+    monkeypatch.setattr(cameras, "list_cameras", lambda: [])
+    fake_cams.devices[0]["undecodable"] = range(1, 100)
+    src = TwoCameraSource(0, 1)
+    with pytest.raises(SourceUnavailable, match="left camera 0.*cannot be decoded"):
+        src.read()
+    assert src.skipped_frames == cameras.MAX_FAILED_GRABS
+
+
+def test_a_vanished_camera_is_looked_for_every_few_seconds_and_resumes(fake_cams, monkeypatch):
+    clock = Clock(monkeypatch)
+    c270 = "HD Webcam C270 [046d:0825]"
+    cams = listing((0, "HD Webcam C270"), (1, "HD Webcam C270"))
+    monkeypatch.setattr(cameras, "list_cameras", cams)
+    for dev in fake_cams.devices.values():
+        dev["size"] = (80, 60)
+    src = TwoCameraSource(0, 1, size=(80, 60), identities=(c270, c270))
+    assert src.read().right.shape == (60, 80, 3)
+    unplug(fake_cams.devices, 1)
+    cams.present = [(0, "HD Webcam C270")]
+    with pytest.raises(SourceUnavailable, match=r"Reconnecting to right camera 1 \(HD Webcam"):
+        src.read()
+    # before RECONNECT_INTERVAL_S nothing is looked for: reads return at once, saying so
+    clock.t += cameras.RECONNECT_INTERVAL_S - 0.5
+    with pytest.raises(SourceUnavailable, match="Reconnecting to right camera 1"):
+        src.read()
+    assert cams.calls == 0
+    clock.t += 1.0  # time to look: not listed yet, so not opened
+    with pytest.raises(SourceUnavailable):
+        src.read()
+    assert cams.calls == 1
+    # plugged in again: found at the next look, opened at the size it had, frames go on
+    fake_cams.devices[1] = {"value": 200, "size": (80, 60)}
+    cams.present = [(0, "HD Webcam C270"), (1, "HD Webcam C270")]
+    with pytest.raises(SourceUnavailable):
+        src.read()  # still within the interval
+    clock.t += cameras.RECONNECT_INTERVAL_S
+    f = src.read()
+    assert cams.calls == 2 and src.reconnects == 1
+    assert f.right.shape == (60, 80, 3) and f.right[0, 0, 0] == 201 and f.index == 1
+    cap = src._cams[1].cap
+    assert (cap.props[cv2.CAP_PROP_FRAME_WIDTH], cap.props[cv2.CAP_PROP_FRAME_HEIGHT]) == (80, 60)
+    assert src.name == "Cameras 0, 1"
+
+
+def test_a_camera_back_under_another_index_is_found_by_name_not_its_twin(fake_cams, monkeypatch):
+    """Two identical webcams: the right one comes back at index 4, and the left one, still at
+    0 with the same name and USB ids, is not taken for it."""
+    clock = Clock(monkeypatch)
+    c270 = "HD Webcam C270 [046d:0825]"
+    cams = listing((0, "HD Webcam C270"), (2, "HD Webcam C270"))
+    monkeypatch.setattr(cameras, "list_cameras", cams)
+    fake_cams.devices[2] = fake_cams.devices.pop(1)
+    src = TwoCameraSource(0, 2, identities=(c270, c270))
+    src.read()
+    unplug(fake_cams.devices, 2)
+    cams.present = [(0, "HD Webcam C270"), (3, "Other camera")]
+    fake_cams.devices[3] = {"value": 30}
+    with pytest.raises(SourceUnavailable):
+        src.read()
+    clock.t += cameras.RECONNECT_INTERVAL_S
+    with pytest.raises(SourceUnavailable):
+        src.read()  # another camera is listed; it is not opened in its place
+    assert [c.index for c in src._cams] == [0, 2]
+    fake_cams.devices[4] = {"value": 150}
+    cams.present = [(0, "HD Webcam C270"), (3, "Other camera"), (4, "HD Webcam C270")]
+    clock.t += cameras.RECONNECT_INTERVAL_S
+    f = src.read()
+    assert f.left[0, 0, 0] > 10 and f.right[0, 0, 0] == 151
+    assert src.name == "Cameras 0, 4" and src.right_index == 4
+
+
+def test_a_camera_back_with_another_image_size_stops_the_source(fake_cams, monkeypatch):
+    clock = Clock(monkeypatch)
+    cams = listing((0, "A"), (1, "B"))
+    monkeypatch.setattr(cameras, "list_cameras", cams)
+    src = TwoCameraSource(0, 1, identities=("A [046d:0825]", "B [046d:0825]"))
+    src.read()
+    for i in (0, 1):
+        unplug(fake_cams.devices, i)
+    with pytest.raises(SourceUnavailable, match="left camera 0 .*and right camera 1"):
+        src.read()
+    fake_cams.devices.update({0: {"value": 1, "size": (32, 24)}, 1: {"value": 2, "size": (32, 24)}})
+    clock.t += cameras.RECONNECT_INTERVAL_S
+    with pytest.raises(SourceError, match="32x24 px images now, not 64x48") as err:
+        src.read()
+    assert not isinstance(err.value, SourceUnavailable)
+
+
+def test_closing_ends_a_reconnecting_source(fake_cams, monkeypatch):
+    monkeypatch.setattr(cameras, "list_cameras", lambda: [])
+    src = TwoCameraSource(0, 1)
+    unplug(fake_cams.devices, 0)
+    with pytest.raises(SourceUnavailable):
+        src.read()
+    src.close()
+    with pytest.raises(SourceError, match="closed"):
         src.read()
 
 
@@ -153,15 +245,26 @@ def test_split_side_by_side():
         split_side_by_side(np.zeros((4, 1, 3), np.uint8))
 
 
-def test_side_by_side_camera(fake_cams):
+def test_side_by_side_camera(fake_cams, monkeypatch):
     fake_cams.devices[3] = {"value": 50, "size": (128, 48)}
     src = SideBySideSource(3, size=(128, 48))
     f = src.read()
     assert f.left.shape == f.right.shape == (48, 64, 3)
     assert src.name == "Side-by-side camera 3" and f.t_left == f.t_right
-    fake_cams.devices[3]["dead_after"] = 1
-    with pytest.raises(SourceError, match="stopped delivering"):
+    fake_cams.devices[3]["undecodable"] = (2,)
+    assert src.read().index == 1 and src.skipped_frames == 1  # the bad one left out
+    clock = Clock(monkeypatch)
+    cams = listing((3, "Stereo cam"))
+    monkeypatch.setattr(cameras, "list_cameras", cams)
+    src._cams[0].identity = "Stereo cam [046d:0825]"
+    unplug(fake_cams.devices, 3)
+    with pytest.raises(SourceUnavailable, match="Reconnecting to side-by-side camera 3.*stopped "
+                                                "delivering"):
         src.read()
+    fake_cams.devices[3] = {"value": 60, "size": (128, 48)}
+    clock.t += cameras.RECONNECT_INTERVAL_S
+    f = src.read()
+    assert f.left[0, 0, 0] == 61 and src.reconnects == 1 and f.index == 2
     src.close()
 
 

@@ -306,6 +306,19 @@ class CalibrationTab(QWidget):
     def is_running(self) -> bool:
         return self.worker is not None
 
+    def unsaved_calibration(self) -> str:
+        """What closing now would lose: the calibration this tab computed, in use and not saved
+        to a file ("" when there is none), e.g. "calibrated from /x/session (stereo RMS
+        0.312 px)"."""
+        run = self.run
+        if run is None or self.ctx.calibration is not run.result.calibration \
+                or self.ctx.calibration_path is not None:
+            return ""
+        rep = run.result.report
+        quality = (f"stereo RMS {format_px(rep.rms_stereo)}" if rep.method != "hartley" else
+                   f"epipolar error {format_px(rep.epipolar_error_px)}")
+        return f"calibrated from {run.folder} ({rep.pairs_used} pairs, {quality})"
+
     def _progress(self, p: Progress) -> None:
         self.progress.setValue(p.percent)
         if p.text:

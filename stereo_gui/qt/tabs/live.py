@@ -136,8 +136,12 @@ class LiveTab(QWidget):
         self.view_checks: dict[str, QCheckBox] = {}
         shown = tuple(v for v in (ctx.settings.visible_views or DEFAULT_VIEWS)
                       if v in VIEWS) or DEFAULT_VIEWS
+        # every panel, shown or not, is a child of the views' grid: a hidden one is deleted with
+        # the window, never left to the interpreter's exit as a top-level widget of its own
+        self._grid_host = QWidget()
         for key, title in VIEWS.items():
-            panel = ImagePanel(key, title, color_bar=(key == "wls"))
+            panel = ImagePanel(key, title, color_bar=(key == "wls"), parent=self._grid_host)
+            panel.hide()
             panel.hovered.connect(self._hovered)
             panel.doubleClicked.connect(self._double_clicked)
             self.panels[key] = panel
@@ -146,7 +150,6 @@ class LiveTab(QWidget):
             check.setChecked(key in shown)
             check.toggled.connect(self._layout_views)
             self.view_checks[key] = check
-        self._grid_host = QWidget()
         self._grid = QGridLayout(self._grid_host)
         self._grid.setContentsMargins(0, 0, 0, 0)
         self._grid.setSpacing(4)
@@ -753,6 +756,13 @@ class LiveTab(QWidget):
     def last_export(self) -> list[Path]:
         """Files written by the last finished export."""
         return self.exports.last_export
+
+    def unfinished_work(self) -> list[str]:
+        """Exports and snapshots closing now would cut short (see LiveExports)."""
+        return self.exports.unfinished_work()
+
+    def cancel_unfinished_work(self, timeout_ms: int = 2000) -> list[str]:
+        return self.exports.cancel_unfinished_work(timeout_ms)
 
     # ---- recording -----------------------------------------------------------------------------
     def start_recording(self, folder: str | Path | None = None) -> Path | None:

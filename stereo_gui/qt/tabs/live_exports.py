@@ -4,6 +4,7 @@ the context's job runner), every file atomically."""
 from __future__ import annotations
 
 import datetime as _dt
+import threading
 from pathlib import Path
 
 import cv2
@@ -41,6 +42,7 @@ class LiveExports(QObject):
         self._views = views
         self._exports: dict[int, str] = {}  # job id -> what is being exported
         self._snapshots: set[int] = set()
+        self._runs: dict[int, _Run] = {}  # job id -> how its writing goes (exports, snapshots)
         self.last_export: list[Path] = []  # files written by the last finished export
         ctx.jobs.finished.connect(self._job_finished)
         ctx.jobs.failed.connect(self._job_failed)
@@ -61,11 +63,58 @@ class LiveExports(QObject):
         button.setMenu(export_menu)
         return button
 
+    def _submit(self, write, where: str) -> int:
+        """Run `write()` on the job thread, followed for closing (`unfinished_work`)."""
+        run = _Run(where)
+
+        def job():
+            try:
+                out = write()
+                run.ok = True
+                return out
+            finally:
+                run.ended.set()
+
+        job_id = self.ctx.jobs.submit(job)
+        self._runs[job_id] = run
+        return job_id
+
+    # ---- closing -------------------------------------------------------------------------------
+    def unfinished_work(self) -> list[str]:
+        """What closing now would cut short: exports and snapshots not written yet."""
+        return [run.where for run in self._runs.values() if not run.ended.is_set()]
+
+    def cancel_unfinished_work(self, timeout_ms: int = 2000) -> list[str]:
+        """Drop the exports not started yet and wait at most `timeout_ms` for the one being
+        written (a frame's files take well under a second); says what became of each."""
+        import time
+
+        deadline = time.monotonic() + timeout_ms / 1000.0
+        said = []
+        for job_id, run in list(self._runs.items()):
+            if run.ended.is_set():
+                continue
+            if self.ctx.jobs.cancel(job_id):
+                self._runs.pop(job_id, None)
+                self._exports.pop(job_id, None)
+                self._snapshots.discard(job_id)
+                said.append(f"{run.where[0].upper()}{run.where[1:]} was cancelled: nothing was "
+                            "written.")
+            elif run.ended.wait(max(0.0, deadline - time.monotonic())):
+                said.append(f"{run.where[0].upper()}{run.where[1:]} "
+                            f"{'was written' if run.ok else 'failed'}.")
+            else:
+                said.append(f"{run.where[0].upper()}{run.where[1:]} was still being written when "
+                            "the window closed: each file is written whole or not at all.")
+        return said
+
     def _job_finished(self, job_id: int, result) -> None:
+        self._runs.pop(job_id, None)
         if not self._snapshot_done(job_id, result):
             self._export_done(job_id, result)
 
     def _job_failed(self, job_id: int, message: str) -> None:
+        self._runs.pop(job_id, None)
         if job_id in self._exports:
             what = self._exports.pop(job_id)
             self.ctx.report_error(f"Export of the {what} failed: {message}")
@@ -106,7 +155,7 @@ class LiveExports(QObject):
                                                   buf.tobytes()))
             return written
 
-        job = self.ctx.jobs.submit(write)
+        job = self._submit(write, f"the snapshot into {folder}")
         self._snapshots.add(job)
         return job
 
@@ -188,8 +237,9 @@ class LiveExports(QObject):
                 done.append((kind, Path(path), note))
             return done
 
-        job = self.ctx.jobs.submit(write)
-        self._exports[job] = ("frame's depth" if len(kinds) > 1 else EXPORTS[kinds[0]][2])
+        what = "frame's depth" if len(kinds) > 1 else EXPORTS[kinds[0]][2]
+        job = self._submit(write, f"the export of the {what} to {target}")
+        self._exports[job] = what
         return job
 
     def _export_done(self, job_id: int, done) -> bool:
@@ -205,3 +255,13 @@ class LiveExports(QObject):
             self.ctx.show_status(f"Exported the frame's depth: {len(done)} files in "
                                  f"{done[0][1].parent} (disparity PNG and .npy, depth PNG, PLY)")
         return True
+
+
+class _Run:
+    """How the writing of one export or snapshot goes: `ended` is set in the job thread when it
+    is over (`ok` if written), so that closing knows without the queued signals."""
+
+    def __init__(self, where: str) -> None:
+        self.where = where  # "the export of the ... to PATH", for messages
+        self.ended = threading.Event()
+        self.ok = False

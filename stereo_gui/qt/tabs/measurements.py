@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (
+    QAbstractItemDelegate,
     QAbstractItemView,
     QComboBox,
     QFileDialog,
@@ -62,6 +63,8 @@ class MeasurementsTab(QWidget):
         self.fit_errors: dict[str, str] = {}
         self._loaded_fit = None  # a fit loaded from a file (not refitted from the log)
         self._export: JobWorker | None = None
+        self._export_path: Path | None = None
+        self._export_progress = ""  # "12,000 of 20,000 rows"
         self._build()
         ctx.measurementsChanged.connect(self.refit)
         ctx.measurementsChanged.connect(self._update_undo)
@@ -422,19 +425,29 @@ class MeasurementsTab(QWidget):
 
         def job(control):
             yield Progress(0, 1, f"writing {path.name}")
-            return write_workbook(path, records, fits, calib, calib_path)
+            return write_workbook(path, records, fits, calib, calib_path, cancel=control,
+                                  progress=control.report)
 
         w = JobWorker(job, "export")
         w.finished_ok.connect(lambda p: self._export_done(str(p)))
         w.failed.connect(lambda msg: self.ctx.report_error(f"export to {path} failed: {msg}"))
+        w.cancelled.connect(lambda: self.ctx.show_status(
+            f"Export to {path} cancelled: nothing was written"))
+        w.progress.connect(self._export_progressed)
         w.done.connect(self._export_ended)
         self.ctx.register_worker(w)
         self._export = w
+        self._export_path = path
+        self._export_progress = f"{len(records):,} rows"
         self.xlsx_button.setEnabled(False)
         self.ctx.show_status(f"Exporting {len(records)} readings to {path}…")
         w.start()
         self._remember_dir(path)
         return True
+
+    def _export_progressed(self, p: Progress) -> None:
+        if p.total > 1:
+            self._export_progress = p.text
 
     def _export_done(self, path: str) -> None:
         self.ctx.show_status(f"Exported to {path}")
@@ -442,6 +455,7 @@ class MeasurementsTab(QWidget):
 
     def _export_ended(self) -> None:
         w, self._export = self._export, None
+        self._export_path = None
         if w is not None:
             self.ctx.unregister_worker(w)
             w.wait(2000)
@@ -469,7 +483,45 @@ class MeasurementsTab(QWidget):
         self.ctx.show_status(f"Exported {len(self.ctx.measurements)} readings to {path}")
         return True
 
+    # ---- closing -------------------------------------------------------------------------------
+    def commit_edits(self) -> None:
+        """Put a true distance still being typed in its cell (the window closes, or the log
+        is exported) into the log."""
+        from PySide6.QtWidgets import QApplication
+
+        editor = QApplication.focusWidget()
+        if (self.table.state() == QAbstractItemView.State.EditingState and editor is not None
+                and self.table.isAncestorOf(editor)):
+            self.table.commitData(editor)
+            self.table.closeEditor(editor, QAbstractItemDelegate.EndEditHint.NoHint)
+
+    def unfinished_work(self) -> list[str]:
+        """What closing now would cut short: the xlsx export running, if any."""
+        w = self._export
+        if w is None or w.outcome or not w.isRunning() or self._export_path is None:
+            return []  # none, or settled (written, failed or cancelled) and only ending
+        return [f"the export of the measurement log to {self._export_path.name} "
+                f"({self._export_progress})"]
+
+    def cancel_unfinished_work(self, timeout_ms: int = 2000) -> list[str]:
+        """Cancel the running export and wait for it at most `timeout_ms`; says what became of
+        it ("" entries left out)."""
+        w, path = self._export, self._export_path
+        if w is None or path is None:
+            return []
+        w.cancel()
+        if not w.wait(timeout_ms):
+            return [f"The export to {path} was still being cancelled when the window closed: "
+                    f"it is written whole or not at all."]
+        if w.outcome == "finished":
+            return [f"The export to {path} finished before it could be cancelled."]
+        if w.outcome == "cancelled":
+            return [f"The export to {path} was cancelled: nothing was written"
+                    + (f" ({path.name} was left as it was)." if path.exists() else ".")]
+        return [f"The export to {path} failed."]
+
     def shutdown(self, timeout_ms: int = 2000) -> bool:
+        self.commit_edits()
         if self._export is not None:
             return self._export.stop(timeout_ms)
         return True

@@ -310,10 +310,21 @@ class ImagePanel(pg.GraphicsLayoutWidget):
         self._shape: tuple[int, int] | None = None
         self._markers: list[_Marker] = []
         self.region_box: pg.RectROI | None = None
-        self.item.hovered.connect(lambda x, y: self.hovered.emit(self.key, x, y))
+        # bound methods, never lambdas that hold `self`: a connection to a child's signal owning
+        # the panel kept it alive until the child was destroyed, and a panel without a parent
+        # was then destroyed from inside its own image item's destructor (at interpreter exit,
+        # while PySide deletes what Python owns): its scene was cleared under the item being
+        # destroyed, and the process ended with a segfault (exit 139) in about 1 of 6 quits
+        self.item.hovered.connect(self._item_hovered)
         self.view.sigResized.connect(self._relayout_labels)
         self.view.sigRangeChanged.connect(self._relayout_labels)
-        self.item.doubleClicked.connect(lambda x, y: self.doubleClicked.emit(self.key, x, y))
+        self.item.doubleClicked.connect(self._item_double_clicked)
+
+    def _item_hovered(self, x: float, y: float) -> None:
+        self.hovered.emit(self.key, x, y)
+
+    def _item_double_clicked(self, x: float, y: float) -> None:
+        self.doubleClicked.emit(self.key, x, y)
 
     def set_title(self, text: str) -> None:
         self.title.setText(text)

@@ -9,6 +9,11 @@ camera_calibration):
 The UI never receives a backlog: `frameReady` (queued to the UI thread) is emitted at most once
 until `latest()` is called, and `latest()` returns only the newest result.
 
+A source that raises SourceUnavailable (a camera source opening a vanished camera again) is
+kept and read again: the message is shown once, and `streamStatus` says "reconnecting" and later
+"ok" when frames come again. Any other read error drops the source ("failed"; `sourceChanged("")`).
+The rates shown fall to 0 when no frame arrives.
+
 A read that does not return (a camera that stopped answering) cannot be interrupted. A watchdog
 in the UI thread says so once it has blocked for READ_STALL_S; choosing another source then
 leaves the blocked reader behind and starts a new one; `stop()` waits at most its timeout and
@@ -26,6 +31,7 @@ from dataclasses import dataclass
 
 from PySide6.QtCore import QObject, QTimer, Signal
 
+from stereo_gui.core.errors import SourceUnavailable
 from stereo_gui.qt.workers.threads import WorkerThread
 from stereo_gui.sources.base import FrameSource, StereoFrame
 
@@ -37,6 +43,8 @@ _JOIN_TIMEOUT_MS = 2000
 READ_STALL_S = 3.0  # a read blocked this long is reported (the device stopped answering)
 _WATCHDOG_MS = 500
 _FPS_SMOOTHING = 0.1  # weight of the newest interval in the running frame-rate estimate
+RATE_STALE_S = 2.0  # no event for this long (or 3 intervals, if longer): the rate is 0
+_UNAVAILABLE_PAUSE_S = 0.1  # after SourceUnavailable, the reader asks again this soon
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,7 +82,26 @@ class _RateMeter:
 
     @property
     def fps(self) -> float:
-        return 0.0 if not self._interval_s else 1.0 / self._interval_s
+        """The smoothed rate, never more than the time since the last event allows, and 0
+        once nothing came for RATE_STALE_S (a stuck read must not keep showing 29.4 fps)."""
+        if not self._interval_s or self._last is None:
+            return 0.0
+        waited = time.monotonic() - self._last
+        if waited > max(RATE_STALE_S, 3.0 * self._interval_s):
+            return 0.0
+        return 1.0 / max(self._interval_s, waited)
+
+
+@dataclass(frozen=True)
+class StreamStatus:
+    """How the frames of the source in use come: `state` is "ok" (frames arrive again after a
+    problem; `message` is then "" or says so), "reconnecting" (the source opens a vanished camera
+    again), "stalled" (a read has not returned for READ_STALL_S) or "failed" (the source stopped
+    and was dropped). `message` is what the user was told; `source_name` the source's name."""
+
+    state: str
+    message: str
+    source_name: str
 
 
 class FrameWorker(QObject):
@@ -83,6 +110,7 @@ class FrameWorker(QObject):
     frameReady = Signal()  # a new ProcessedFrame is available; at most once until latest()
     errorOccurred = Signal(str)  # a message for the user (source or processor failure)
     sourceChanged = Signal(str)  # the name of the new source ("" when none)
+    streamStatus = Signal(object)  # StreamStatus, when the stream's state changes
 
     def __init__(self, parent: QObject | None = None) -> None:
         super().__init__(parent)
@@ -105,6 +133,8 @@ class FrameWorker(QObject):
         self._frames_processed = 0
         self._read_started: float | None = None  # monotonic time the current read began
         self._stall_reported = False
+        self._stream_state = "ok"  # StreamStatus.state of the stream now
+        self._stream_source: FrameSource | None = None  # the source a problem was about
         self._reader_gen = 0  # a reader loop of an older generation ends after its read
         self._reader: WorkerThread | None = None
         self._worker: WorkerThread | None = None
@@ -193,6 +223,17 @@ class FrameWorker(QObject):
         """Processed frames per second (0 when idle)."""
         with self._cond:
             return self._proc_rate.fps
+
+    @property
+    def skipped_frames(self) -> int:
+        """Frames the source in use could not decode and left out (0 if it does not count)."""
+        return int(getattr(self.source(), "skipped_frames", 0) or 0)
+
+    @property
+    def stream_state(self) -> str:
+        """The StreamStatus.state now: ok, reconnecting, stalled or failed."""
+        with self._cond:
+            return self._stream_state
 
     @property
     def frames_read(self) -> int:
@@ -291,9 +332,11 @@ class FrameWorker(QObject):
             self._stall_reported = True
             with self._cond:
                 name = getattr(self._source, "name", "the source")
-            self.errorOccurred.emit(f"{name}: no frame for {stalled:.0f} s; the device is not "
-                                    "answering (unplugged, or in use by another program?)")
+            text = (f"{name}: no frame for {stalled:.0f} s; the device is not answering "
+                    "(unplugged, or in use by another program?)")
+            self.errorOccurred.emit(text)
             log.warning("%s: a read has been blocked for %.1f s", name, stalled)
+            self._set_stream("stalled", text)
 
     def _replace_blocked_reader(self) -> None:
         """A new source must not wait for a read of the old one that does not return: leave
@@ -308,6 +351,30 @@ class FrameWorker(QObject):
         self._left_behind.append(self._reader)
         self._reader = None
         self._stall_reported = False
+
+    def _set_stream(self, state: str, message: str, source: FrameSource | None = None) -> None:
+        """Enter stream `state` (not "ok") and say so once."""
+        with self._cond:
+            if state == self._stream_state and source is self._stream_source:
+                return
+            self._stream_state = state
+            if source is not None or state == "stalled":
+                self._stream_source = source if source is not None else self._source
+            name = getattr(self._stream_source, "name", "")
+        self.streamStatus.emit(StreamStatus(state, message, name))
+
+    def _stream_ok(self, source: FrameSource) -> None:
+        """A frame of `source` arrived: a problem before it is over (reader thread)."""
+        with self._cond:
+            if self._stream_state == "ok":
+                return
+            same = source is self._stream_source
+            self._stream_state = "ok"
+            self._stream_source = None
+            self._last_error = ""  # the same problem again is said again
+        name = getattr(source, "name", "source")
+        self.streamStatus.emit(StreamStatus(
+            "ok", f"{name}: frames again" if same else "", name))
 
     def _report(self, text: str) -> None:
         """Emit an error once (a failing source or processor would otherwise repeat it per frame)."""
@@ -340,6 +407,21 @@ class FrameWorker(QObject):
                 self._read_started = time.monotonic()
             try:
                 frame = source.read()
+            except SourceUnavailable as exc:  # a camera being reconnected: keep the source
+                with self._cond:
+                    left_behind = gen != self._reader_gen
+                    if not left_behind:
+                        self._read_started = None
+                if left_behind:
+                    close_quietly(source)
+                    return
+                text = f"{getattr(source, 'name', 'source')}: {exc}"
+                self._report(text)
+                self._set_stream("reconnecting", text, source)
+                with self._cond:  # not a busy loop, whatever the source does
+                    if not self._stopping and not self._source_pending:
+                        self._cond.wait(_UNAVAILABLE_PAUSE_S)
+                continue
             except Exception as exc:  # noqa: BLE001 - any failure of a device becomes a message
                 with self._cond:
                     left_behind = gen != self._reader_gen
@@ -348,13 +430,19 @@ class FrameWorker(QObject):
                 if left_behind:  # the source is no longer used: close it now its read is over
                     close_quietly(source)
                     return
-                self._report(f"{getattr(source, 'name', 'source')}: {exc}")
+                text = f"{getattr(source, 'name', 'source')}: {exc}"
+                self._report(text)
                 with self._cond:
                     # stop reading a failed source; a new set_source() starts again
+                    dropped = self._source is source and not self._source_pending
                     if self._source is source:
                         self._source = None
                         self._camera_rate.reset()
+                        self._proc_rate.reset()
                 close_quietly(source)
+                if dropped:  # the status bar must not keep the dead source's name
+                    self.sourceChanged.emit("")
+                    self._set_stream("failed", text, source)
                 continue
             with self._cond:
                 left_behind = gen != self._reader_gen
@@ -371,6 +459,7 @@ class FrameWorker(QObject):
                 self._camera_rate.tick(time.monotonic())
                 self._cond.notify_all()
                 tap = self._tap
+            self._stream_ok(source)
             if tap is not None:
                 try:
                     tap(frame)

@@ -61,6 +61,15 @@ class JobRunner(QObject):
             self._jobs.clear()
             self._cond.notify_all()
 
+    def cancel(self, job_id: int) -> bool:
+        """Drop job `job_id` if it has not started yet; True if it was dropped (it then never
+        runs and neither signal comes for it)."""
+        with self._cond:
+            kept = [j for j in self._jobs if j[0] != job_id]
+            dropped = len(kept) != len(self._jobs)
+            self._jobs = kept
+            return dropped
+
     def is_running(self) -> bool:
         return self._thread is not None and self._thread.isRunning()
 

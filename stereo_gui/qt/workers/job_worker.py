@@ -49,6 +49,9 @@ class JobWorker(QObject):
         self.job_name = name
         self.setObjectName(f"JobWorker-{name}")
         self._thread: WorkerThread | None = None
+        # how the run ended, set before its signal is emitted (readable once the thread has
+        # ended, without the queued signals): "", "finished", "failed" or "cancelled"
+        self.outcome = ""
 
     def start(self) -> None:
         """Run the job in a new thread (once)."""
@@ -100,17 +103,22 @@ class JobWorker(QObject):
             if self._cancel.is_set():
                 raise JobCancelled()
         except JobCancelled:
+            self.outcome = "cancelled"
             self.cancelled.emit()
         except StereoGuiError as exc:
             # the core's own Cancelled (raised by its cancel checks) is a StereoGuiError too
             if self._cancel.is_set():
+                self.outcome = "cancelled"
                 self.cancelled.emit()
             else:
+                self.outcome = "failed"
                 self.failed.emit(str(exc))
         except Exception as exc:  # a bug or an OpenCV error: the user still gets a message
             log.exception("%s failed", self.job_name)
+            self.outcome = "failed"
             self.failed.emit(f"{self.job_name} failed: {type(exc).__name__}: {exc}")
         else:
+            self.outcome = "finished"
             self.finished_ok.emit(result)
         finally:
             self.done.emit()

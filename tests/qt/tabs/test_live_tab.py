@@ -340,3 +340,21 @@ def test_region_box_watches_the_nearest_distance_and_alarms(qtbot, ctx, live, si
     qtbot.waitUntil(lambda: live.last_region.region.x0 == 10, timeout=30000)
     live.set_region(None)
     assert live.panels["wls"].region_box is None and not live.region_label.isVisibleTo(live)
+
+
+def test_hidden_views_belong_to_the_window_too(qtbot, ctx):
+    """A view not shown is still a child of the views' grid (deleted with the window, never a
+    top-level widget left to the interpreter's exit)."""
+    from stereo_gui.qt.tabs.live import LiveTab
+
+    ctx.update_settings(visible_views=("left",))
+    tab = LiveTab(ctx)
+    qtbot.addWidget(tab)
+    tab.show()
+    assert tab.visible_views() == ["left"]
+    for key, panel in tab.panels.items():
+        assert panel.parent() is tab._grid_host, key
+        assert panel.isVisibleTo(tab._grid_host) == (key == "left"), key
+        assert panel.isWindow() is False
+    tab.set_visible_views(["left", "wls"])
+    assert [k for k, p in tab.panels.items() if p.isVisibleTo(tab._grid_host)] == ["left", "wls"]

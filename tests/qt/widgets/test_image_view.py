@@ -158,3 +158,20 @@ def test_color_bar_matches_opencv_colormap(panel):
     panel.color_bar.set_scale(cv2.COLORMAP_OCEAN, ColorScale("disparity", 20.0, 150.0, 77000.0))
     ticks = panel.color_bar.getAxis("right")._tickLevels[0]
     assert ticks and not any(math.isnan(t) for t, _s in ticks)
+
+
+def test_a_panel_is_freed_when_its_last_reference_goes(qtbot):
+    """Its own image item's signals must not keep it alive: a panel held only by a connection of
+    its child was destroyed from inside the child's destructor at exit (a segfault)."""
+    import gc
+    import weakref
+
+    panel = ImagePanel("left", "Rectified left")
+    seen = []
+    panel.hovered.connect(lambda *args: seen.append(args))
+    panel.item.hovered.emit(3.0, 4.0)  # still forwarded, with the panel's key
+    assert seen == [("left", 3.0, 4.0)]
+    ref = weakref.ref(panel)
+    del panel
+    gc.collect()
+    assert ref() is None

@@ -189,3 +189,87 @@ def test_exit_while_a_read_blocks_does_not_abort(tmp_path):
     assert proc.returncode == 3, proc.stderr
     assert "stopped-late" in proc.stdout
     assert "QThread: Destroyed" not in proc.stderr and "Abort" not in proc.stderr
+
+
+class FlakySource:
+    """Frames, then SourceUnavailable while `unavailable` is set (a camera being reconnected),
+    then frames again; `fail` makes the next read raise a plain SourceError."""
+
+    name = "flaky cameras"
+    nominal_fps = 200.0
+
+    def __init__(self, array_source):
+        self._inner = array_source()
+        self.unavailable = threading.Event()
+        self.fail = threading.Event()
+        self.unavailable_reads = 0
+        self.closed = self._inner.closed
+
+    def read(self):
+        from stereo_gui.core.errors import SourceError, SourceUnavailable
+
+        if self.fail.is_set():
+            raise SourceError("the device is gone for good")
+        if self.unavailable.is_set():
+            self.unavailable_reads += 1
+            raise SourceUnavailable("Reconnecting to right camera 2…")
+        return self._inner.read()
+
+    def close(self):
+        self._inner.close()
+
+
+def test_a_reconnecting_source_is_kept_said_once_and_resumes(qtbot, worker, array_source):
+    src = FlakySource(array_source)
+    errors, states = [], []
+    worker.errorOccurred.connect(errors.append)
+    worker.streamStatus.connect(states.append)
+    worker.set_source(src)
+    qtbot.waitUntil(lambda: worker.frames_read > 2, timeout=30000)
+    with qtbot.waitSignal(worker.streamStatus, timeout=30000) as sig:
+        src.unavailable.set()
+    assert (sig.args[0].state, sig.args[0].source_name) == ("reconnecting", "flaky cameras")
+    assert "Reconnecting to right camera 2" in sig.args[0].message
+    qtbot.waitUntil(lambda: src.unavailable_reads >= 5, timeout=30000)
+    assert worker.source() is src and not src.closed.is_set()  # kept, read again
+    assert errors == ["flaky cameras: Reconnecting to right camera 2…"]  # said once
+    n = worker.frames_read
+    with qtbot.waitSignal(worker.streamStatus, timeout=30000) as sig:
+        src.unavailable.clear()
+    assert (sig.args[0].state, sig.args[0].message) == ("ok", "flaky cameras: frames again")
+    qtbot.waitUntil(lambda: worker.frames_read > n + 2, timeout=30000)
+    assert [s.state for s in states] == ["reconnecting", "ok"] and len(errors) == 1
+
+
+def test_a_source_that_fails_is_dropped_by_name(qtbot, worker, array_source):
+    src = FlakySource(array_source)
+    names, states = [], []
+    worker.sourceChanged.connect(names.append)
+    worker.streamStatus.connect(states.append)
+    worker.set_source(src)
+    qtbot.waitUntil(lambda: worker.frames_read > 0, timeout=30000)
+    with qtbot.waitSignal(worker.streamStatus, timeout=30000) as sig:
+        src.fail.set()
+    assert sig.args[0].state == "failed" and "gone for good" in sig.args[0].message
+    assert names == ["flaky cameras", ""] and worker.source() is None
+    assert src.closed.is_set() and worker.stream_state == "failed"
+    # another source: its first frame ends the failed state (no "frames again" for it)
+    with qtbot.waitSignal(worker.streamStatus, timeout=30000) as sig:
+        worker.set_source(array_source())
+    assert (sig.args[0].state, sig.args[0].message) == ("ok", "")
+
+
+def test_the_rate_falls_to_zero_when_no_frame_arrives(monkeypatch):
+    import stereo_gui.qt.workers.frame_worker as fw
+
+    clock = {"t": 10.0}
+    monkeypatch.setattr(fw.time, "monotonic", lambda: clock["t"])
+    meter = fw._RateMeter()
+    for _ in range(30):
+        meter.tick(clock["t"])
+        clock["t"] += 1 / 30
+    assert meter.fps == pytest.approx(30.0, rel=0.01)
+    clock["t"] += 0.5  # a read stuck for half a second: at most 2 frames a second
+    assert meter.fps == pytest.approx(1 / (0.5 + 1 / 30), rel=0.01)
+    clock["t"] += fw.RATE_STALE_S
+    assert meter.fps == 0.0

@@ -16,3 +16,26 @@ def test_job_runner_delivers_results_with_ids(qtbot):
         assert sig.args[0] == bad_id and "division" in sig.args[1]
     finally:
         assert jobs.stop(2000)
+
+
+def test_a_queued_job_can_be_cancelled_a_running_one_not(qtbot):
+    import threading
+
+    jobs = JobRunner()
+    gate = threading.Event()
+    ran = []
+    try:
+        first = jobs.submit(lambda: gate.wait(30))
+        qtbot.waitUntil(lambda: jobs.is_busy() and not jobs._jobs, timeout=30000)
+        second = jobs.submit(lambda: ran.append("second"))
+        assert not jobs.cancel(first)  # running: it goes on
+        assert jobs.cancel(second) and not jobs.cancel(second)
+        done = []
+        jobs.finished.connect(lambda job_id, result: done.append((job_id, result)))
+        third = jobs.submit(lambda: 3)
+        gate.set()
+        qtbot.waitUntil(lambda: len(done) == 2, timeout=30000)
+        assert done == [(first, True), (third, 3)] and ran == []
+    finally:
+        gate.set()
+        assert jobs.stop(2000)
