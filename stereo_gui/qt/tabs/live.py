@@ -4,11 +4,9 @@ Work is split by thread:
 - the frame worker runs `stereo_gui.pipeline.live.LiveProcessor` on every frame: the pipeline
   (rectify, SGBM, closing, WLS, colour map) and the conversion of each view into a displayable
   uint8 image;
-- a double-click becomes a `measure_point` job on the context's job thread, run on the result
-  that was on screen when the user clicked;
-- the pointer's readout is the same `measure_point` a double-click would run at that pixel of
-  the frame shown (`stereo_gui.pipeline.readout.read_pointer`), on the job thread too, coalesced:
-  while one hover reading runs, only the newest pointer position waits (no queue);
+- the pointer's readout and double-click measurements (`live_readings.LiveReadings`) are
+  `measure_point` jobs on the context's job thread;
+- the 3D point cloud (`live_cloud.LiveCloud`) is made on a thread of its own;
 - the UI thread only hands arrays to pyqtgraph, writes the readout line and draws markers.
 
 Snapshot and depth exports are `live_exports.LiveExports`; recording is the
@@ -17,13 +15,10 @@ Snapshot and depth exports are `live_exports.LiveExports`; recording is the
 
 from __future__ import annotations
 
-import datetime as _dt
 import logging
-import math
-import time
 from pathlib import Path
 
-from PySide6.QtCore import Qt, QTimer, Signal
+from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (
     QCheckBox,
     QDoubleSpinBox,
@@ -40,20 +35,19 @@ from PySide6.QtWidgets import (
 
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.matching import COLORMAPS, MatcherParams
-from stereo_gui.files.spreadsheet import RULER_METHOD
 from stereo_gui.pipeline.live import DEFAULT_VIEWS, LiveOutput, LiveProcessor
-from stereo_gui.pipeline.readout import (MEASURABLE_VIEWS, PointerReading, format_distance,
-                                         format_error, read_pointer, readout_line)
+from stereo_gui.pipeline.readout import format_distance
 from stereo_gui.pipeline.region import Region
-from stereo_gui.qt.widgets.calibration_health import CalibrationHealthPanel
+from stereo_gui.qt.tabs.live_cloud import LiveCloud
 from stereo_gui.qt.tabs.live_exports import EXPORTS, LiveExports
+from stereo_gui.qt.tabs.live_readings import HOVER_HINT, LiveReadings
+from stereo_gui.qt.widgets.calibration_health import CalibrationHealthPanel
 from stereo_gui.qt.widgets.flow_layout import FlowLayout
-from stereo_gui.qt.widgets.image_view import ImagePanel, marker_color
+from stereo_gui.qt.widgets.image_view import ImagePanel
 from stereo_gui.qt.widgets.no_calibration_page import NoCalibrationPage
 from stereo_gui.qt.widgets.params_panel import MODIFIED, ParamsPanel, load_preset
 from stereo_gui.qt.widgets.playback_bar import PlaybackBar
 from stereo_gui.qt.widgets.record_button import RecordButton
-from stereo_gui.qt.workers.job_runner import JobRunner
 from stereo_gui.sources.base import StereoFrame
 
 log = logging.getLogger(__name__)
@@ -71,23 +65,8 @@ NO_WLS_TITLE = "Closed disparity (no WLS), colour = distance"
 LEGEND = ("<span style='color:#6e1414'>■</span> dark red: no match &nbsp; "
           "<span style='color:#606060'>■</span> grey: not seen by the right camera")
 SHORT_NAMES = {"left": "Left", "right": "Right", "raw": "Raw", "closed": "Closed", "wls": "WLS"}
-MEASURABLE = MEASURABLE_VIEWS  # views sharing the left image's pixel frame
-CLOUD_INTERVAL_MS = 400  # the 3D view follows the frames at most this often
 REGION_VIEW = "wls"  # the view that carries the region box
-HOVER_REFRESH_S = 0.25  # a resting pointer's reading follows new frames at most this often
-HOVER_HINT = "Point at a view to read the distance there; double-click to log it."
 TRUE_CALIBRATION_NOTE = "simulated rig's TRUE calibration"
-# marker labels stay short (the full reason is in the status bar and the log)
-_SHORT_REASONS = {"not seen by the right camera": "not seen", "no valid pixels": "no match",
-                  "outside the image": "outside", "out of disparity range": "out of fit range",
-                  "no metric scale": "no scale"}
-
-
-def short_reason(reason: str | None) -> str:
-    """A marker's few words for why a point has no distance."""
-    if not reason:
-        return "invalid"
-    return _SHORT_REASONS.get(reason, reason if len(reason) <= 16 else reason[:15] + "…")
 
 
 class LiveTab(QWidget):
@@ -106,16 +85,10 @@ class LiveTab(QWidget):
         self._active = False
         self._processor: LiveProcessor | None = None
         self._output: LiveOutput | None = None
-        self._hover: tuple[str, float, float] | None = None
-        self._hover_job: int | None = None  # id of the hover reading running on the job thread
-        self._hover_next: tuple | None = None  # the newest pointer request waiting for it
-        self._hover_last: tuple | None = None  # (output, key, pixel, fit) last asked for
-        self.hover_jobs_submitted = 0
-        self._hover_t = 0.0  # when the last hover reading was asked for, time.monotonic() s
-        self.last_reading: PointerReading | None = None
         self.last_region = None  # RegionStats of the last frame shown with a region
-        self._pending: dict[int, tuple[str, bool]] = {}  # job id -> (view key, ruler click)
-        self._ruler_a = None  # first Measurement of a ruler pair
+        self.readings = LiveReadings(ctx, self)  # hover readout, double-clicks and the ruler
+        self.readings.measured.connect(self.measured)
+        self.readings.hoverRead.connect(self.hoverRead)
         self._bar_state = None
         self._scale_note = ""
         self.shown_frame: StereoFrame | None = None  # the raw frame of the result shown
@@ -142,8 +115,8 @@ class LiveTab(QWidget):
         for key, title in VIEWS.items():
             panel = ImagePanel(key, title, color_bar=(key == "wls"), parent=self._grid_host)
             panel.hide()
-            panel.hovered.connect(self._hovered)
-            panel.doubleClicked.connect(self._double_clicked)
+            panel.hovered.connect(self.readings.hovered)
+            panel.doubleClicked.connect(self.readings.double_clicked)
             self.panels[key] = panel
             check = QCheckBox(SHORT_NAMES[key])
             check.setToolTip(title)
@@ -165,7 +138,7 @@ class LiveTab(QWidget):
         self.ruler_button = QPushButton("Ruler")
         self.ruler_button.setCheckable(True)
         self.ruler_button.setToolTip("Double-click two points to measure the 3D distance between them")
-        self.ruler_button.toggled.connect(self._ruler_toggled)
+        self.ruler_button.toggled.connect(self.readings.ruler_toggled)
         self.clear_button = QPushButton("Clear")
         self.clear_button.setToolTip("Remove all distance markers")
         self.clear_button.clicked.connect(self.clear_markers)
@@ -197,17 +170,8 @@ class LiveTab(QWidget):
                                      "(drag to rotate, wheel to zoom), updated a few times a "
                                      "second")
         self.cloud_button.clicked.connect(self.show_cloud)
-        self.cloud_window: QWidget | None = None
-        self.cloud_view = None
-        self._cloud_jobs = JobRunner("cloud", self)  # its own thread: clicks do not wait on it
-        ctx.register_worker(self._cloud_jobs)
-        self._cloud_jobs.finished.connect(self._cloud_done)
-        self._cloud_jobs.failed.connect(self._cloud_failed)
-        self._cloud_job: int | None = None
-        self._cloud_of = None  # (output, colouring) the cloud shown was made from
-        self._cloud_timer = QTimer(self)
-        self._cloud_timer.setInterval(CLOUD_INTERVAL_MS)
-        self._cloud_timer.timeout.connect(self._update_cloud)
+        self.cloud = LiveCloud(ctx, self, lambda: self._output)
+        self.cloud.shown.connect(self.cloudShown)
         self.params_button = QPushButton("Parameters")
         self.params_button.setCheckable(True)
         self.params_button.setChecked(True)
@@ -284,8 +248,6 @@ class LiveTab(QWidget):
         ctx.calibrationChanged.connect(self._calibration_changed)
         ctx.frames.frameReady.connect(self._frame_ready)
         ctx.frames.sourceChanged.connect(self._source_changed)
-        ctx.jobs.finished.connect(self._job_finished)
-        ctx.jobs.failed.connect(self._job_failed)
         self._calibration_changed(ctx.calibration)
 
     # ---- set-up ------------------------------------------------------------------------------
@@ -413,8 +375,7 @@ class LiveTab(QWidget):
             self._update_color_bar(out)
         wls = out.result.wls_px is not None
         self.panels["wls"].set_title(VIEWS["wls"] if wls else NO_WLS_TITLE)
-        if self._hover is not None and time.monotonic() - self._hover_t >= HOVER_REFRESH_S:
-            self._request_reading(*self._hover)  # a resting pointer reads the new frame too
+        self.readings.frame_shown()
         self._show_region(out.region)
         if out.scale_note != self._scale_note:
             self._scale_note = out.scale_note
@@ -442,56 +403,15 @@ class LiveTab(QWidget):
     # ---- the 3D point cloud -----------------------------------------------------------------
     def show_cloud(self) -> QWidget:
         """Open (or raise) the 3D view of the frame shown."""
-        from stereo_gui.qt.widgets.cloud_view import CloudView
+        return self.cloud.show()
 
-        if self.cloud_window is None:
-            win = QWidget(self, Qt.WindowType.Window)
-            win.setWindowTitle("Stereo GUI – 3D point cloud of the frame shown")
-            self.cloud_view = CloudView(win)
-            self.cloud_view.colouringChanged.connect(lambda _c: self._update_cloud())
-            lay = QVBoxLayout(win)
-            lay.setContentsMargins(0, 0, 0, 0)
-            lay.addWidget(self.cloud_view)
-            win.resize(720, 540)
-            self.cloud_window = win
-        self.cloud_window.show()
-        self.cloud_window.raise_()
-        self._cloud_timer.start()
-        self._update_cloud()
-        return self.cloud_window
+    @property
+    def cloud_window(self) -> QWidget | None:
+        return self.cloud.window
 
-    def _update_cloud(self) -> None:
-        """A few times a second while the 3D window is open: the newest frame's cloud, made on
-        the cloud thread; one at a time (a frame that arrives meanwhile waits for the next)."""
-        win = self.cloud_window
-        if win is None or not win.isVisible():
-            self._cloud_timer.stop()
-            return
-        out = self._output
-        if out is None or self._cloud_job is not None or self.cloud_view.problem:
-            return
-        colouring = self.cloud_view.colouring
-        if self._cloud_of == (out, colouring):
-            return
-        from stereo_gui.pipeline.cloud import cloud_points
-
-        result = out.result
-        self._cloud_of = (out, colouring)
-        self._cloud_job = self._cloud_jobs.submit(lambda: cloud_points(result, colouring))
-
-    def _cloud_done(self, job_id: int, cloud) -> None:
-        if job_id != self._cloud_job:
-            return
-        self._cloud_job = None
-        if self.cloud_view is not None:
-            self.cloud_view.show_points(cloud)
-            self.cloudShown.emit(cloud)
-
-    def _cloud_failed(self, job_id: int, message: str) -> None:
-        if job_id == self._cloud_job:
-            self._cloud_job = None
-            if self.cloud_view is not None:
-                self.cloud_view.show_problem(f"No point cloud: {message}")
+    @property
+    def cloud_view(self):
+        return self.cloud.view
 
     # ---- the watched region ------------------------------------------------------------------
     def _region_toggled(self, on: bool) -> None:
@@ -550,181 +470,30 @@ class LiveTab(QWidget):
         self._alarm_on = stats.alarm
 
     # ---- hover readout -----------------------------------------------------------------------
-    def _hovered(self, key: str, x: float, y: float) -> None:
-        self._hover = None if math.isnan(x) else (key, x, y)
-        if self._hover is None:
-            self._hover_next = None
-            self._hover_last = None  # back on the same pixel later: read it again
-            self.readout.setText(HOVER_HINT)
-        else:
-            self._request_reading(key, x, y)
 
-    def _request_reading(self, key: str, x: float, y: float) -> None:
-        """Ask for the reading under the pointer on the frame shown: at once when no hover
-        reading runs, else as the one waiting (replacing an older wish: newest wins)."""
-        out = self._output
-        if out is None:
-            self.readout.setText(f"x {round(x):4d}  y {round(y):4d}   no frame yet")
-            return
-        fit = self.ctx.active_fit
-        ask = (out, key if key not in MEASURABLE else "left", round(x), round(y), id(fit))
-        if ask == self._hover_last:
-            if self._hover_job is not None:
-                self._hover_next = None  # the reading running is of this very pixel
-            return  # the same pixel of the same frame: the line says (or will say) it
-        request = (out, key, x, y, fit, int(self.ctx.settings.patch_size),
-                   getattr(self.shown_frame, "truth", None))
-        if self._hover_job is not None:
-            self._hover_next = request
-            return
-        self._submit_reading(request)
-        self._hover_last = ask
-
-    def _submit_reading(self, request) -> None:
-        out, key, x, y, fit, patch, truth = request
-        self._hover_t = time.monotonic()
-        result = out.result
-        self._hover_job = self.ctx.jobs.submit(
-            lambda: read_pointer(result, key, x, y, patch, fit, truth))
-        self.hover_jobs_submitted += 1
-
-    def _hover_finished(self, reading) -> None:
-        self._hover_job = None
-        if self._hover is not None:
-            self.last_reading = reading
-            self.readout.setText(readout_line(reading))
-            self.hoverRead.emit(reading)
-        request, self._hover_next = self._hover_next, None
-        if request is not None and self._hover is not None:
-            out, key, x, y, fit = request[:5]
-            self._hover_last = (out, key if key not in MEASURABLE else "left", round(x),
-                                round(y), id(fit))
-            self._submit_reading(request)
+    # ---- readings (see LiveReadings) ---------------------------------------------------------
+    def measure_at(self, x: float, y: float, key: str = "wls") -> int | None:
+        """Measure at rectified-left pixel (x, y) on the frame now shown; returns the job id."""
+        return self.readings.measure_at(x, y, key)
 
     def readout_text(self) -> str:
         """What the readout line says now."""
         return self.readout.text()
 
-    # ---- measuring ---------------------------------------------------------------------------
-    def _double_clicked(self, key: str, x: float, y: float) -> None:
-        if key not in MEASURABLE:
-            self.ctx.show_status("Measure on the left image or a disparity view: the right "
-                                 "image has other pixel coordinates.")
-            return
-        self.measure_at(x, y, key)
+    @property
+    def last_reading(self):
+        return self.readings.last_reading
 
-    def measure_at(self, x: float, y: float, key: str = "wls") -> int | None:
-        """Measure at rectified-left pixel (x, y) on the frame now shown; returns the job id."""
-        out = self._output
-        if out is None:
-            self.ctx.report_error("No frame to measure on yet.")
-            return None
-        from stereo_gui.core.measure import measure_point
+    @property
+    def last_ruler_mm(self) -> float | None:
+        return self.readings.last_ruler_mm
 
-        patch = int(self.ctx.settings.patch_size)
-        fit = self.ctx.active_fit
-        result = out.result
-        job = self.ctx.jobs.submit(lambda: measure_point(result, x, y, patch=patch, fit=fit))
-        self._pending[job] = (key, self.ruler_button.isChecked())
-        return job
-
-    def _job_finished(self, job_id: int, m) -> None:
-        if job_id == self._hover_job:
-            self._hover_finished(m)
-            return
-        if job_id not in self._pending:
-            return  # another tab's job
-        _key, ruler = self._pending.pop(job_id)
-        color = marker_color(m.valid)
-        label = format_distance(m.Z_mm) if m.valid else f"✕ {short_reason(m.reason)}"
-        line_to, line_text, ruler_record, status = None, "", None, self._status_text(m)
-        if ruler:
-            a = self._ruler_a
-            if a is None:
-                if m.valid:
-                    self._ruler_a = m
-                    label = "A: " + label
-                    status = f"Ruler: A at {status}; double-click the second point (B)."
-                else:
-                    label = "A? " + label
-                    status = (f"Ruler: the first point has no distance ({m.reason}); "
-                              f"double-click another first point (A).")
-            elif not m.valid:
-                label = "B? " + label  # A stays: only B is asked for again
-                status = (f"Ruler: the second point has no distance ({m.reason}); double-click "
-                          f"another second point (B).")
-            else:
-                self._ruler_a = None
-                dist = math.dist((a.X_mm, a.Y_mm, a.Z_mm), (m.X_mm, m.Y_mm, m.Z_mm))
-                bound = math.hypot(a.expected_error_mm, m.expected_error_mm)
-                label = f"B: {label}"
-                line_text = f"A–B {format_distance(dist)}"
-                line_to = (a.x, a.y)
-                color = "#40c4ff"
-                self.last_ruler_mm = dist
-                ruler_record = self._ruler_record(a, m, dist, bound)
-                status = (f"Ruler: A–B {format_distance(dist)} {format_error(bound)} "
-                          f"(logged)")
-        for key in MEASURABLE:
-            self.panels[key].add_marker(m.x, m.y, label, color, line_to, line_text)
-        self.ctx.add_measurement(self._record(m))
-        if ruler_record is not None:
-            self.ctx.add_measurement(ruler_record)
-        self.ctx.show_status(status)
-        self.measured.emit(m)
-
-    def _job_failed(self, job_id: int, message: str) -> None:
-        if job_id == self._hover_job:
-            log.warning("hover reading failed: %s", message)
-            key, x, y = self._hover or ("", 0.0, 0.0)
-            self._hover_finished(PointerReading(key, x, y, note=f"reading failed: {message}"))
-            return
-        if self._pending.pop(job_id, None) is not None:
-            self.ctx.report_error(f"Measurement failed: {message}")
-
-    def _status_text(self, m) -> str:
-        if not m.valid:
-            return f"({m.x:.0f}, {m.y:.0f}): no distance: {m.reason}"
-        return (f"({m.x:.0f}, {m.y:.0f}): Z {format_distance(m.Z_mm)}, range "
-                f"{format_distance(m.range_mm)} {format_error(m.expected_error_mm)}, "
-                f"disparity {m.disparity_px:.2f} px, {m.valid_fraction:.0%} valid ({m.method})")
-
-    def _record(self, m):
-        from stereo_gui.files.spreadsheet import MeasurementRecord
-
-        calib = self.ctx.calibration
-        path = self.ctx.calibration_path
-        return MeasurementRecord(
-            time=_dt.datetime.now().astimezone().isoformat(timespec="seconds"),
-            x_px=float(m.x), y_px=float(m.y), disparity_px=float(m.disparity_px),
-            X_mm=float(m.X_mm), Y_mm=float(m.Y_mm), Z_mm=float(m.Z_mm),
-            range_mm=float(m.range_mm), valid=bool(m.valid), reason=m.reason or "",
-            valid_fraction=float(m.valid_fraction), expected_error_mm=float(m.expected_error_mm),
-            method=m.method,
-            calibration_file=str(path) if path else self.ctx.calibration_note,
-            calibration_rms_px=float(getattr(calib, "rms_stereo", float("nan"))),
-        )
-
-    def _ruler_record(self, a, b, dist_mm: float, bound_mm: float):
-        """The log entry of a ruler distance: at B's pixel, X/Y/Z the components of B - A
-        (mm), Range the length |B - A|, ± the two points' bounds added in quadrature."""
-        from stereo_gui.files.spreadsheet import MeasurementRecord
-
-        rec = self._record(b)
-        return MeasurementRecord(**{
-            **rec.__dict__, "disparity_px": float("nan"), "X_mm": b.X_mm - a.X_mm,
-            "Y_mm": b.Y_mm - a.Y_mm, "Z_mm": b.Z_mm - a.Z_mm, "range_mm": float(dist_mm),
-            "valid_fraction": min(a.valid_fraction, b.valid_fraction),
-            "expected_error_mm": float(bound_mm),
-            "method": f"{RULER_METHOD} from ({a.x:.0f}, {a.y:.0f})"})
-
-    def _ruler_toggled(self, on: bool) -> None:
-        self._ruler_a = None
-        if on:
-            self.ctx.show_status("Ruler: double-click the first point, then the second.")
+    @property
+    def hover_jobs_submitted(self) -> int:
+        return self.readings.hover_jobs_submitted
 
     def clear_markers(self) -> None:
-        self._ruler_a = None
+        self.readings.forget_ruler_point()
         for p in self.panels.values():
             p.clear_markers()
 
@@ -774,9 +543,7 @@ class LiveTab(QWidget):
 
     def shutdown(self) -> None:
         """Called by the main window on close."""
-        self._cloud_timer.stop()
-        if self.cloud_window is not None:
-            self.cloud_window.close()
+        self.cloud.shutdown()
         self.health.shutdown()
         if self._processor is not None and self.ctx.frames.processor() is self._processor:
             self.ctx.frames.set_processor(None)

@@ -1,0 +1,249 @@
+"""What the Live tab reads: the pointer's readout and double-click measurements (with the ruler).
+
+- the pointer's readout is the same `measure_point` a double-click would run at that pixel of the
+  frame shown (`stereo_gui.pipeline.readout.read_pointer`), on the job thread, coalesced: while one
+  hover reading runs, only the newest pointer position waits (no queue);
+- a double-click becomes a `measure_point` job on the job thread, run on the result that was on
+  screen when the user clicked; its marker goes on every view in the left image's frame and its
+  record into the measurement log (a ruler's A-B distance too).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import logging
+import math
+import time
+
+from PySide6.QtCore import QObject, Signal
+
+from stereo_gui.files.spreadsheet import RULER_METHOD
+from stereo_gui.pipeline.readout import (
+    MEASURABLE_VIEWS,
+    PointerReading,
+    format_distance,
+    format_error,
+    read_pointer,
+    readout_line,
+)
+from stereo_gui.qt.widgets.image_view import marker_color
+
+log = logging.getLogger(__name__)
+
+MEASURABLE = MEASURABLE_VIEWS  # views sharing the left image's pixel frame
+HOVER_REFRESH_S = 0.25  # a resting pointer's reading follows new frames at most this often
+HOVER_HINT = "Point at a view to read the distance there; double-click to log it."
+# marker labels stay short (the full reason is in the status bar and the log)
+_SHORT_REASONS = {"not seen by the right camera": "not seen", "no valid pixels": "no match",
+                  "outside the image": "outside", "out of disparity range": "out of fit range",
+                  "no metric scale": "no scale"}
+
+
+def short_reason(reason: str | None) -> str:
+    """A marker's few words for why a point has no distance."""
+    if not reason:
+        return "invalid"
+    return _SHORT_REASONS.get(reason, reason if len(reason) <= 16 else reason[:15] + "…")
+
+
+class LiveReadings(QObject):
+    """The readings of one LiveTab (`tab`: its panels, readout line, ruler button and the output
+    shown); `ctx` is the AppContext, whose job thread runs every reading."""
+
+    measured = Signal(object)  # Measurement, after its marker was drawn
+    hoverRead = Signal(object)  # PointerReading, after the readout line shows it
+
+    def __init__(self, ctx, tab) -> None:
+        super().__init__(tab)
+        self.ctx = ctx
+        self._tab = tab
+        self._hover: tuple[str, float, float] | None = None
+        self._hover_job: int | None = None  # id of the hover reading running on the job thread
+        self._hover_next: tuple | None = None  # the newest pointer request waiting for it
+        self._hover_last: tuple | None = None  # (output, key, pixel, fit) last asked for
+        self.hover_jobs_submitted = 0
+        self._hover_t = 0.0  # when the last hover reading was asked for, time.monotonic() s
+        self.last_reading: PointerReading | None = None
+        self._pending: dict[int, tuple[str, bool]] = {}  # job id -> (view key, ruler click)
+        self._ruler_a = None  # first Measurement of a ruler pair
+        self.last_ruler_mm: float | None = None
+        ctx.jobs.finished.connect(self._job_finished)
+        ctx.jobs.failed.connect(self._job_failed)
+
+    def frame_shown(self) -> None:
+        """A new frame is on screen: a resting pointer reads it too (at most every
+        HOVER_REFRESH_S)."""
+        if self._hover is not None and time.monotonic() - self._hover_t >= HOVER_REFRESH_S:
+            self._request_reading(*self._hover)
+
+    def forget_ruler_point(self) -> None:
+        self._ruler_a = None
+
+    def hovered(self, key: str, x: float, y: float) -> None:
+        self._hover = None if math.isnan(x) else (key, x, y)
+        if self._hover is None:
+            self._hover_next = None
+            self._hover_last = None  # back on the same pixel later: read it again
+            self._tab.readout.setText(HOVER_HINT)
+        else:
+            self._request_reading(key, x, y)
+
+    def _request_reading(self, key: str, x: float, y: float) -> None:
+        """Ask for the reading under the pointer on the frame shown: at once when no hover
+        reading runs, else as the one waiting (replacing an older wish: newest wins)."""
+        out = self._tab._output
+        if out is None:
+            self._tab.readout.setText(f"x {round(x):4d}  y {round(y):4d}   no frame yet")
+            return
+        fit = self.ctx.active_fit
+        ask = (out, key if key not in MEASURABLE else "left", round(x), round(y), id(fit))
+        if ask == self._hover_last:
+            if self._hover_job is not None:
+                self._hover_next = None  # the reading running is of this very pixel
+            return  # the same pixel of the same frame: the line says (or will say) it
+        request = (out, key, x, y, fit, int(self.ctx.settings.patch_size),
+                   getattr(self._tab.shown_frame, "truth", None))
+        if self._hover_job is not None:
+            self._hover_next = request
+            return
+        self._submit_reading(request)
+        self._hover_last = ask
+
+    def _submit_reading(self, request) -> None:
+        out, key, x, y, fit, patch, truth = request
+        self._hover_t = time.monotonic()
+        result = out.result
+        self._hover_job = self.ctx.jobs.submit(
+            lambda: read_pointer(result, key, x, y, patch, fit, truth))
+        self.hover_jobs_submitted += 1
+
+    def _hover_finished(self, reading) -> None:
+        self._hover_job = None
+        if self._hover is not None:
+            self.last_reading = reading
+            self._tab.readout.setText(readout_line(reading))
+            self.hoverRead.emit(reading)
+        request, self._hover_next = self._hover_next, None
+        if request is not None and self._hover is not None:
+            out, key, x, y, fit = request[:5]
+            self._hover_last = (out, key if key not in MEASURABLE else "left", round(x),
+                                round(y), id(fit))
+            self._submit_reading(request)
+
+    # ---- measuring ---------------------------------------------------------------------------
+    def double_clicked(self, key: str, x: float, y: float) -> None:
+        if key not in MEASURABLE:
+            self.ctx.show_status("Measure on the left image or a disparity view: the right "
+                                 "image has other pixel coordinates.")
+            return
+        self.measure_at(x, y, key)
+
+    def measure_at(self, x: float, y: float, key: str = "wls") -> int | None:
+        """Measure at rectified-left pixel (x, y) on the frame now shown; returns the job id."""
+        out = self._tab._output
+        if out is None:
+            self.ctx.report_error("No frame to measure on yet.")
+            return None
+        from stereo_gui.core.measure import measure_point
+
+        patch = int(self.ctx.settings.patch_size)
+        fit = self.ctx.active_fit
+        result = out.result
+        job = self.ctx.jobs.submit(lambda: measure_point(result, x, y, patch=patch, fit=fit))
+        self._pending[job] = (key, self._tab.ruler_button.isChecked())
+        return job
+
+    def _job_finished(self, job_id: int, m) -> None:
+        if job_id == self._hover_job:
+            self._hover_finished(m)
+            return
+        if job_id not in self._pending:
+            return  # another tab's job
+        _key, ruler = self._pending.pop(job_id)
+        color = marker_color(m.valid)
+        label = format_distance(m.Z_mm) if m.valid else f"✕ {short_reason(m.reason)}"
+        line_to, line_text, ruler_record, status = None, "", None, self._status_text(m)
+        if ruler:
+            a = self._ruler_a
+            if a is None:
+                if m.valid:
+                    self._ruler_a = m
+                    label = "A: " + label
+                    status = f"Ruler: A at {status}; double-click the second point (B)."
+                else:
+                    label = "A? " + label
+                    status = (f"Ruler: the first point has no distance ({m.reason}); "
+                              f"double-click another first point (A).")
+            elif not m.valid:
+                label = "B? " + label  # A stays: only B is asked for again
+                status = (f"Ruler: the second point has no distance ({m.reason}); double-click "
+                          f"another second point (B).")
+            else:
+                self._ruler_a = None
+                dist = math.dist((a.X_mm, a.Y_mm, a.Z_mm), (m.X_mm, m.Y_mm, m.Z_mm))
+                bound = math.hypot(a.expected_error_mm, m.expected_error_mm)
+                label = f"B: {label}"
+                line_text = f"A–B {format_distance(dist)}"
+                line_to = (a.x, a.y)
+                color = "#40c4ff"
+                self.last_ruler_mm = dist
+                ruler_record = self._ruler_record(a, m, dist, bound)
+                status = (f"Ruler: A–B {format_distance(dist)} {format_error(bound)} "
+                          f"(logged)")
+        for key in MEASURABLE:
+            self._tab.panels[key].add_marker(m.x, m.y, label, color, line_to, line_text)
+        self.ctx.add_measurement(self._record(m))
+        if ruler_record is not None:
+            self.ctx.add_measurement(ruler_record)
+        self.ctx.show_status(status)
+        self.measured.emit(m)
+
+    def _job_failed(self, job_id: int, message: str) -> None:
+        if job_id == self._hover_job:
+            log.warning("hover reading failed: %s", message)
+            key, x, y = self._hover or ("", 0.0, 0.0)
+            self._hover_finished(PointerReading(key, x, y, note=f"reading failed: {message}"))
+            return
+        if self._pending.pop(job_id, None) is not None:
+            self.ctx.report_error(f"Measurement failed: {message}")
+
+    def _status_text(self, m) -> str:
+        if not m.valid:
+            return f"({m.x:.0f}, {m.y:.0f}): no distance: {m.reason}"
+        return (f"({m.x:.0f}, {m.y:.0f}): Z {format_distance(m.Z_mm)}, range "
+                f"{format_distance(m.range_mm)} {format_error(m.expected_error_mm)}, "
+                f"disparity {m.disparity_px:.2f} px, {m.valid_fraction:.0%} valid ({m.method})")
+
+    def _record(self, m):
+        from stereo_gui.files.spreadsheet import MeasurementRecord
+
+        calib = self.ctx.calibration
+        path = self.ctx.calibration_path
+        return MeasurementRecord(
+            time=_dt.datetime.now().astimezone().isoformat(timespec="seconds"),
+            x_px=float(m.x), y_px=float(m.y), disparity_px=float(m.disparity_px),
+            X_mm=float(m.X_mm), Y_mm=float(m.Y_mm), Z_mm=float(m.Z_mm),
+            range_mm=float(m.range_mm), valid=bool(m.valid), reason=m.reason or "",
+            valid_fraction=float(m.valid_fraction), expected_error_mm=float(m.expected_error_mm),
+            method=m.method,
+            calibration_file=str(path) if path else self.ctx.calibration_note,
+            calibration_rms_px=float(getattr(calib, "rms_stereo", float("nan"))),
+        )
+
+    def _ruler_record(self, a, b, dist_mm: float, bound_mm: float):
+        """The log entry of a ruler distance: at B's pixel, X/Y/Z the components of B - A
+        (mm), Range the length |B - A|, ± the two points' bounds added in quadrature."""
+        from stereo_gui.files.spreadsheet import MeasurementRecord
+
+        rec = self._record(b)
+        return MeasurementRecord(**{
+            **rec.__dict__, "disparity_px": float("nan"), "X_mm": b.X_mm - a.X_mm,
+            "Y_mm": b.Y_mm - a.Y_mm, "Z_mm": b.Z_mm - a.Z_mm, "range_mm": float(dist_mm),
+            "valid_fraction": min(a.valid_fraction, b.valid_fraction),
+            "expected_error_mm": float(bound_mm),
+            "method": f"{RULER_METHOD} from ({a.x:.0f}, {a.y:.0f})"})
+
+    def ruler_toggled(self, on: bool) -> None:
+        self._ruler_a = None
+        if on:
+            self.ctx.show_status("Ruler: double-click the first point, then the second.")
