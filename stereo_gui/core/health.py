@@ -30,6 +30,10 @@ from stereo_gui.core.util import to_gray
 
 DRIFT_WARN_PX = 0.5  # above this median vertical disparity the cameras moved since calibration
 MIN_MATCHES = 30
+# the live check finds its features on half-size images (SIFT on 640x480: about 0.5 s of CPU a
+# check, 0.15 s at half size) and places them on the full-size ones; the figure is the same to a
+# few hundredths of a pixel (tests/core/test_health.py)
+HEALTH_DETECT_SCALE = 0.5
 _LK = dict(winSize=(15, 15), maxLevel=2,
            criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.005))
 
@@ -73,14 +77,22 @@ class CalibrationHealth:
 
 
 def feature_matches(left: np.ndarray, right: np.ndarray, max_features: int = 1500,
-                    ratio: float = 0.75) -> tuple[np.ndarray, np.ndarray]:
+                    ratio: float = 0.75, detect_scale: float = 1.0
+                    ) -> tuple[np.ndarray, np.ndarray]:
     """Matched points of two images, (N, 2) px each: SIFT with Lowe's ratio test and a mutual
     check, each match then placed to a fraction of a pixel by Lucas-Kanade from the left
-    image to the right one (SIFT's own positions are good to a few tenths only)."""
+    image to the right one (SIFT's own positions are good to a few tenths only). With
+    `detect_scale` < 1 SIFT runs on images shrunk by that factor (about 1/scale^2 less work);
+    Lucas-Kanade still places every match on the full-resolution images."""
     gl, gr = to_gray(left), to_gray(right)
+    sl, sr = gl, gr
+    if detect_scale < 1.0:
+        size = (max(1, round(gl.shape[1] * detect_scale)), max(1, round(gl.shape[0] * detect_scale)))
+        sl = cv2.resize(gl, size, interpolation=cv2.INTER_AREA)
+        sr = cv2.resize(gr, size, interpolation=cv2.INTER_AREA)
     sift = cv2.SIFT_create(nfeatures=max_features)
-    kl, dl = sift.detectAndCompute(gl, None)
-    kr, dr = sift.detectAndCompute(gr, None)
+    kl, dl = sift.detectAndCompute(sl, None)
+    kr, dr = sift.detectAndCompute(sr, None)
     if dl is None or dr is None or len(kl) < 2 or len(kr) < 2:
         return np.zeros((0, 2)), np.zeros((0, 2))
     matcher = cv2.BFMatcher(cv2.NORM_L2)
@@ -90,13 +102,15 @@ def feature_matches(left: np.ndarray, right: np.ndarray, max_features: int = 150
             if m.distance < ratio * n2.distance and back.get(m.trainIdx) == m.queryIdx]
     if not good:
         return np.zeros((0, 2)), np.zeros((0, 2))
-    pl = np.float32([kl[m.queryIdx].pt for m in good]).reshape(-1, 1, 2)
-    pr = np.float32([kr[m.trainIdx].pt for m in good]).reshape(-1, 1, 2)
+    up = np.float32(1.0 / detect_scale) if detect_scale < 1.0 else np.float32(1.0)
+    # (a shrunk image's pixel centres: x_full + 0.5 = (x_small + 0.5) / scale)
+    pl = ((np.float32([kl[m.queryIdx].pt for m in good]) + 0.5) * up - 0.5).reshape(-1, 1, 2)
+    pr = ((np.float32([kr[m.trainIdx].pt for m in good]) + 0.5) * up - 0.5).reshape(-1, 1, 2)
     refined, st, _ = cv2.calcOpticalFlowPyrLK(gl, gr, pl, pr.copy(),
                                               flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **_LK)
     ok = st.reshape(-1).astype(bool)
     moved = np.linalg.norm(refined.reshape(-1, 2) - pr.reshape(-1, 2), axis=1)
-    ok &= moved < 1.5  # LK must confirm the SIFT match, not wander off to another one
+    ok &= moved < 1.5 * up  # LK must confirm the SIFT match, not wander off to another one
     return pl.reshape(-1, 2)[ok].astype(np.float64), refined.reshape(-1, 2)[ok].astype(np.float64)
 
 
@@ -107,9 +121,11 @@ def _robust(dy: np.ndarray) -> np.ndarray:
     return np.abs(dy - med) <= max(3.0 * mad, 1.0)
 
 
-def calibration_health(left_rect: np.ndarray, right_rect: np.ndarray) -> CalibrationHealth:
-    """The health figure of a rectified pair (see the module docstring)."""
-    pl, pr = feature_matches(left_rect, right_rect)
+def calibration_health(left_rect: np.ndarray, right_rect: np.ndarray,
+                       detect_scale: float = 1.0) -> CalibrationHealth:
+    """The health figure of a rectified pair (see the module docstring); `detect_scale`: see
+    `feature_matches` (the live check uses HEALTH_DETECT_SCALE)."""
+    pl, pr = feature_matches(left_rect, right_rect, detect_scale=detect_scale)
     if len(pl) < 8:
         return CalibrationHealth(float("nan"), len(pl), 0.0)
     # rectified matches lie near one row: a match many rows off is a mismatch, not drift

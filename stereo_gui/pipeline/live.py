@@ -78,7 +78,7 @@ class LiveProcessor:
         self._note = ""
         self._region: tuple[Region, float | None, object] | None = None
         self._views: frozenset[str] = frozenset(VIEW_KEYS)
-        self.health = HealthMonitor()  # every few seconds, in a thread of its own
+        self.health = HealthMonitor()  # about once a second, in a thread of its own
 
     def set_views(self, keys) -> None:
         """Make display images only of the views in `keys` (any thread; the next frame): the

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from stereo_gui.core.errors import CalibrationError
-from stereo_gui.core.health import DRIFT_WARN_PX, calibration_health, refine_rotation
+from stereo_gui.core.health import (DRIFT_WARN_PX, HEALTH_DETECT_SCALE, calibration_health,
+                                    refine_rotation)
 from stereo_gui.sources.sim import Scene, SimRig
 
 SEED = 17  # not used while tuning
@@ -66,6 +67,24 @@ def test_a_turned_right_camera_is_detected_and_refined_back(rig_and_calib):
     finally:
         rig.reset_turn()
     assert rig.turned_deg == 0.0
+
+
+@pytest.mark.parametrize("turn_deg", [0.0, 0.3])
+def test_the_live_check_on_half_size_features_gives_the_same_figure(rig_and_calib, turn_deg):
+    """The live check finds its features at HEALTH_DETECT_SCALE and places them at full size:
+    the figure agrees with the full-size one to 0.06 px, fresh and with a turned camera."""
+    rig, calib = rig_and_calib
+    rig.turn_right_camera(turn_deg, "tilt") if turn_deg else None
+    try:
+        left, right = rig.render_scene(Scene.demo(), np.random.default_rng(3))
+        rl, rr = _rectified(calib, left, right)
+        full = calibration_health(rl, rr)
+        live = calibration_health(rl, rr, HEALTH_DETECT_SCALE)
+    finally:
+        rig.reset_turn()
+    assert HEALTH_DETECT_SCALE < 1.0 and live.matches > 200
+    assert live.vertical_px == pytest.approx(full.vertical_px, abs=0.06)
+    assert live.drifted == full.drifted == (turn_deg > 0)
 
 
 def test_swapped_cameras_show_as_negative_disparities(rig_and_calib):

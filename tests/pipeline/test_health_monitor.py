@@ -1,5 +1,5 @@
 """The calibration-health monitor: off the frame path, at most one check at a time and about
-every few seconds; the Live processor's output carries the newest figure."""
+once a second; the Live processor's output carries the newest figure."""
 
 from __future__ import annotations
 
