@@ -6,8 +6,8 @@ run exits 0 and says what it saw; the test judges it. The checks go through the 
 user does (buttons, not private calls), so they need what the bundle ships and nothing of the
 test environment.
 
-- `cloud-view`: the main window on the simulated rig, the Live tab, "Use the rig's true
-  calibration", "3D view"; then either the view's note where no OpenGL context can be made
+- `cloud-view`: the main window on the simulated rig, the Live tab, "Use the simulated rig's
+  true calibration", "3D view"; then either the view's note where no OpenGL context can be made
   (`problem`), or the drawn point cloud (`points`, and what the frame buffer holds).
 """
 
