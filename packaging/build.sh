@@ -33,10 +33,9 @@ echo "build.sh: installing '.[package]' into $VENV"
 "$VENV/bin/python" -m pip install --quiet --upgrade pip
 "$VENV/bin/python" -m pip install --quiet "$ROOT[package]"
 
-# The PNG icons are committed; re-render them only if the SVG is newer (needs no display).
-if [[ "$ROOT/resources/icons/stereo-gui.svg" -nt "$ROOT/resources/icons/stereo-gui-256.png" ]]; then
-    "$VENV/bin/python" "$ROOT/packaging/make_icons.py"
-fi
+# The PNG icons are committed and bundled as they are: after editing stereo-gui.svg, run
+# packaging/make_icons.py and commit the PNGs. (Comparing file times here re-rendered them in a
+# fresh clone, whose checkout order decides which file is newer, and left the clone modified.)
 
 echo "build.sh: running PyInstaller"
 "$VENV/bin/python" -m PyInstaller --noconfirm --clean --log-level WARN \

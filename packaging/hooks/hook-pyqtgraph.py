@@ -1,19 +1,12 @@
 # Replaces the pyqtgraph hook of pyinstaller-hooks-contrib (hooks in the spec's hookspath take
-# precedence). It does what that hook does, except that it does not look into the subpackages
-# that cannot be imported here: pyqtgraph.jupyter (needs jupyter_rfb, never used by us) and, while
-# PyOpenGL is not installed, pyqtgraph.opengl. The contrib hook imports them to list their
-# modules and warns "Failed to collect submodules for 'pyqtgraph.opengl'" on every build.
-# The spec excludes pyqtgraph.opengl under the same condition (WITH_OPENGL), so the two stay in
-# step: installing PyOpenGL (the 3D view of issue 12 would need it) brings pyqtgraph.opengl back.
-
-import importlib.util
+# precedence). It does what that hook does, except that it does not look into
+# pyqtgraph.jupyter (needs jupyter_rfb, never used by us): the contrib hook imports it to list its
+# modules and warns "Failed to collect submodules for 'pyqtgraph.jupyter'" on every build.
+# pyqtgraph.opengl (the Live tab's 3D view, with PyOpenGL) is found by the import scan.
 
 from PyInstaller.utils.hooks import collect_data_files, collect_submodules
 
-WITH_OPENGL = importlib.util.find_spec("OpenGL") is not None
 _SKIPPED = {"pyqtgraph.examples", "pyqtgraph.jupyter"}
-if not WITH_OPENGL:
-    _SKIPPED.add("pyqtgraph.opengl")
 
 datas = collect_data_files("pyqtgraph", excludes=["**/examples/*"])
 
