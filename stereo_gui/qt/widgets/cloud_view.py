@@ -18,8 +18,28 @@ log = logging.getLogger(__name__)
 COLOUR_TEXT = {"image": "colour from the image", "distance": "colour by distance"}
 
 
+MIN_GL_VERSION = (2, 1)  # what pyqtgraph's GLViewWidget checks for
+
+
+def _match_pyopengl_to_qt() -> None:
+    """PyOpenGL chooses GLX or EGL when it is first imported, from the session (EGL when
+    WAYLAND_DISPLAY is set); Qt on X11 (xcb, also under XWayland) makes GLX contexts unless told
+    otherwise. Where they would disagree, PyOpenGL is told Qt's choice (the view stayed empty)."""
+    import os
+    import sys
+
+    from PySide6.QtGui import QGuiApplication
+
+    if "OpenGL" in sys.modules or "PYOPENGL_PLATFORM" in os.environ:
+        return
+    if QGuiApplication.platformName() == "xcb":
+        egl = os.environ.get("QT_XCB_GL_INTEGRATION", "") == "xcb_egl"
+        os.environ["PYOPENGL_PLATFORM"] = "egl" if egl else "glx"
+
+
 def opengl_problem() -> str:
     """Why no OpenGL view can be made here ("" when it can): PyOpenGL missing, or no context."""
+    _match_pyopengl_to_qt()
     try:
         import OpenGL.GL  # noqa: F401 - what pyqtgraph.opengl needs
     except ImportError as exc:
@@ -31,6 +51,12 @@ def opengl_problem() -> str:
     ctx = QOpenGLContext()
     if not ctx.create():
         return "no OpenGL context can be made on this display"
+    version = ctx.format().version()
+    if not ctx.isOpenGLES() and version < MIN_GL_VERSION:
+        # (offscreen Qt with an X display present makes a 2.0 context, which pyqtgraph refuses:
+        # the view stayed black or the process crashed)
+        return (f"the 3D view needs OpenGL {MIN_GL_VERSION[0]}.{MIN_GL_VERSION[1]}; this display "
+                f"gives {version[0]}.{version[1]}")
     surface = QOffscreenSurface()
     surface.setFormat(ctx.format())
     surface.create()

@@ -44,3 +44,35 @@ def test_the_live_tab_draws_the_frames_cloud(qtbot, ctx, live, sim_rig, wall_pai
     assert image.width() > 0 and len({image.pixel(x, image.height() // 2)
                                       for x in range(0, image.width(), 7)}) > 3
     win.close()
+
+
+def test_a_context_too_old_for_pyqtgraph_is_refused(tmp_path):
+    """Offscreen Qt with an X display present makes an OpenGL 2.0 context, which pyqtgraph's
+    view refuses (it stayed black or crashed): the check says so instead. Needs xvfb-run."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+
+    if shutil.which("xvfb-run") is None:
+        pytest.skip("xvfb-run is not installed")
+    script = tmp_path / "check.py"
+    script.write_text("from PySide6.QtWidgets import QApplication\napp = QApplication([])\n"
+                      "from PySide6.QtGui import QOpenGLContext\n"
+                      "c = QOpenGLContext()\n"
+                      "v = c.format().version() if c.create() else (0, 0)\n"
+                      "print('VERSION=%d.%d' % tuple(v))\n"
+                      "from stereo_gui.qt.widgets.cloud_view import opengl_problem\n"
+                      "print('PROBLEM=' + opengl_problem())\n")
+    env = {**os.environ, "QT_QPA_PLATFORM": "offscreen"}
+    done = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 640x480x24", sys.executable,
+                           str(script)], env=env, capture_output=True, text=True, timeout=120)
+    line = next((ln for ln in done.stdout.splitlines() if ln.startswith("PROBLEM=")), None)
+    assert line is not None, done.stderr[-2000:]
+    problem = line[len("PROBLEM="):]
+    if problem.startswith("no OpenGL context"):
+        pytest.skip(problem)
+    version = next(ln for ln in done.stdout.splitlines() if ln.startswith("VERSION="))
+    major, minor = map(int, version[len("VERSION="):].split("."))
+    # a context below 2.1 must be refused; one at or above it accepted
+    assert ("needs OpenGL 2.1" in problem) == ((major, minor) < (2, 1)), (version, problem)
