@@ -76,6 +76,8 @@ class CaptureTab(QWidget):
         self._frozen_frame: StereoFrame | None = None
         self._active = False
         self._last_output: CaptureOutput | None = None
+        self.frames_shown = 0  # live frames drawn (for the status and tests)
+        self.shown_frame: StereoFrame | None = None  # the live frame drawn last
         self.rules = CaptureRules()  # when a live frame becomes a pair
         self._saved: dict[str, SavedPairInfo] = {}
         self._scan: JobWorker | None = None
@@ -265,6 +267,8 @@ class CaptureTab(QWidget):
         self._last_output = out
         self.view.show_pair(out.left_rgb, out.right_rgb)
         self.view.show_detection(out.detection)
+        self.frames_shown += 1
+        self.shown_frame = frame
         step = self.rules.step(out, self.auto_check.isChecked(), self._saved_poses,
                                self.session is not None, board=self.board, fills=self._fills,
                                empty_regions=lambda: self._readiness().required_empty)

@@ -7,7 +7,10 @@ camera_calibration):
   happens here) and keeps the newest `ProcessedFrame`.
 
 The UI never receives a backlog: `frameReady` (queued to the UI thread) is emitted at most once
-until `latest()` is called, and `latest()` returns only the newest result.
+until the UI thread has received it (or `latest()` was called), and `latest()` returns only the
+newest result. It is re-armed where it is received, not only by `latest()`: a notification that
+reached no reader (the tab shown draws no frames) must not silence the worker for the tab shown
+next (issue 12: the Capture view froze after a visit to the Calibration tab).
 
 A read that does not return (a camera that stopped answering) cannot be interrupted. A watchdog
 in the UI thread says so once it has blocked for READ_STALL_S; choosing another source then
@@ -80,7 +83,7 @@ class _RateMeter:
 class FrameWorker(QObject):
     """Reads frames from a FrameSource and processes them off the UI thread (see module doc)."""
 
-    frameReady = Signal()  # a new ProcessedFrame is available; at most once until latest()
+    frameReady = Signal()  # a new ProcessedFrame is available; at most one pending at a time
     errorOccurred = Signal(str)  # a message for the user (source or processor failure)
     sourceChanged = Signal(str)  # the name of the new source ("" when none)
 
@@ -112,6 +115,8 @@ class FrameWorker(QObject):
         self._watchdog = QTimer(self)
         self._watchdog.setInterval(_WATCHDOG_MS)
         self._watchdog.timeout.connect(self._check_read)
+        # connected first, so it runs before the readers' slots (see the module docstring)
+        self.frameReady.connect(self._frame_delivered)
 
     # ---- control (UI thread) -----------------------------------------------------------------
     def set_source(self, source: FrameSource | None) -> None:
@@ -163,6 +168,11 @@ class FrameWorker(QObject):
         with self._cond:
             self._notified = False
             return self._latest
+
+    def _frame_delivered(self) -> None:
+        """UI thread: a frameReady has arrived; the next result may notify again."""
+        with self._cond:
+            self._notified = False
 
     def pause(self) -> None:
         """Stop reading and processing until `resume()`; the last result stays available."""

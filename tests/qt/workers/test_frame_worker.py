@@ -6,6 +6,7 @@ import threading
 
 import numpy as np
 import pytest
+from PySide6.QtWidgets import QApplication
 
 from stereo_gui.qt.workers.frame_worker import FrameWorker, ProcessedFrame
 
@@ -38,18 +39,35 @@ def test_delivers_processed_frames_off_the_ui_thread(qtbot, worker, array_source
     qtbot.waitUntil(lambda: worker.fps_camera > 0 and worker.fps_processing > 0, timeout=30000)
 
 
-def test_frame_ready_is_coalesced_until_latest_is_taken(qtbot, worker, array_source):
+def test_frame_ready_is_coalesced_while_the_ui_thread_is_busy(qtbot, worker, array_source):
+    """However many results are made while the UI thread handles no events, one notification
+    waits for it, not a backlog; and one that nobody answered with latest() (the tab shown draws
+    no frames) does not silence the worker for the tab shown next (issue 12, item 1)."""
     count = []
     worker.frameReady.connect(lambda: count.append(1))
+    calls = []
+    published = threading.Event()
+    gate = threading.Event()  # holds the 21st call, so no result arrives while we count
+
+    def proc(frame):
+        calls.append(frame.index)
+        if len(calls) == 21:  # the 20th result was published before this call
+            published.set()
+            gate.wait(30)
+        return frame.index
+
+    worker.set_processor(proc)
     worker.set_source(array_source(fps=500))
-    qtbot.waitUntil(lambda: worker.frames_processed >= 20, timeout=30000)
-    qtbot.wait(1)  # deliver queued signals
-    # nobody called latest(): only one notification however many frames were processed
-    assert len(count) == 1
+    try:
+        assert published.wait(30)  # the UI thread (this one) handled no events meanwhile
+        QApplication.processEvents()
+        assert len(count) == 1
+    finally:
+        gate.set()
+    # nobody called latest(): the notifications go on all the same
+    qtbot.waitUntil(lambda: len(count) >= 3, timeout=30000)
     first = worker.latest()
-    qtbot.waitUntil(lambda: len(count) == 2, timeout=30000)
-    second = worker.latest()
-    assert second.frame.index > first.frame.index
+    qtbot.waitUntil(lambda: worker.latest().frame.index > first.frame.index, timeout=30000)
 
 
 def test_processor_change_applies_to_next_frame(qtbot, worker, array_source):
