@@ -84,6 +84,7 @@ class CaptureTab(QWidget):
         self._build()
         self._load_board_settings()
         ctx.frames.frameReady.connect(self._on_frame_ready)
+        ctx.frames.sourceChanged.connect(self._source_changed)
         ctx.currentTabChanged.connect(lambda name: self.set_active(name == "capture"))
         last = ctx.settings.last_session
         if last and Path(last).is_dir():
@@ -246,6 +247,21 @@ class CaptureTab(QWidget):
         self._refill_list()
         if name is not None:
             self.saved_panel.select(name)
+
+    def _source_changed(self, name: str) -> None:
+        """Another source: a pair frozen from the previous one is no pair of this one (issue 12:
+        a folder without a board still offered the old pair with Save enabled), and what is on
+        screen until its first frame is not this source's picture."""
+        self.rules.reset_steadiness()
+        self.rules.last_reviewed_pose = None
+        self._last_output = None
+        if self.state == "saved":
+            return  # a saved pair of the session stays in review
+        if self.state == "review":
+            self.go_live()
+        self.view.clear(f"waiting for {name}…" if name else "no source")
+        self.prompt.setText(f"Live: waiting for the first frame of {name}" if name
+                            else "No source: choose one with File > Choose source…")
 
     def _set_processing(self, on: bool) -> None:
         """Detect in live frames only while live frames are shown (saves CPU while reviewing)."""

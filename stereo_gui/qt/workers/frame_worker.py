@@ -99,6 +99,7 @@ class FrameWorker(QObject):
         self._frame: StereoFrame | None = None  # newest frame not yet processed
         self._latest: ProcessedFrame | None = None
         self._notified = False
+        self._source_gen = 0  # set_source() counts up: a result of an older source is dropped
         self._paused = False
         self._stopping = False
         self._camera_rate = _RateMeter()
@@ -124,6 +125,7 @@ class FrameWorker(QObject):
         with self._cond:
             self._pending_source = source
             self._source_pending = True
+            self._source_gen += 1
             self._frame = None
             self._latest = None
             self._last_error = ""
@@ -400,6 +402,7 @@ class FrameWorker(QObject):
                     return
                 frame, self._frame = self._frame, None
                 fn = self._processor
+                gen = self._source_gen
             t0 = time.perf_counter()
             output = None
             if fn is not None:
@@ -413,6 +416,8 @@ class FrameWorker(QObject):
             with self._cond:
                 if self._processor is not fn:
                     continue  # made for a processor that has since been replaced
+                if self._source_gen != gen:
+                    continue  # a frame of the previous source (issue 12: a stale frozen pair)
                 self._proc_rate.tick(time.monotonic())
                 self._frames_processed += 1
                 self._latest = ProcessedFrame(frame, output, self._camera_rate.fps,

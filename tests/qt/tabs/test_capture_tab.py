@@ -211,3 +211,32 @@ def test_list_follows_exclusions_made_elsewhere(tab, tmp_path, qtbot):
     tab.set_active(True)
     assert "(excluded)" in tab.pair_list.item(1).text()
     assert "(excluded)" not in tab.pair_list.item(0).text()
+
+
+def test_a_new_source_without_a_board_drops_the_frozen_pair(tab, ctx, qtbot, tmp_path, sim_rig):
+    """Issue 12, item 4: a pair frozen from the previous source is not offered (Save enabled)
+    once the source is a folder whose pairs show no board; the view shows the new frames."""
+    from stereo_gui.sources.playback import PlaybackSource
+    from stereo_gui.sources.sim import Scene
+
+    rng = np.random.default_rng(5)
+    folder = tmp_path / "no-board"
+    folder.mkdir()
+    for k in (1, 2):
+        left, right = sim_rig.render_scene(Scene.wall(1200.0 + 300 * k), rng)
+        cv2.imwrite(str(folder / f"left{k}.png"), left)
+        cv2.imwrite(str(folder / f"right{k}.png"), right)
+    tab.set_active(True)
+    ctx.frames.set_source(SimSource(rig=sim_rig, mode="board", paced=False, frames_per_move=8))
+    qtbot.waitUntil(lambda: tab.state == "review", timeout=30000)
+    assert tab.save_button.isEnabled()
+    ctx.frames.set_source(PlaybackSource(folder, fps=20))
+    assert tab.state == "live" and tab.frozen is None
+    assert not tab.save_button.isEnabled()
+    assert tab.view.images[0].image is None  # not the old picture while the new one comes
+    n = tab.frames_shown
+    qtbot.waitUntil(lambda: tab.frames_shown >= n + 3, timeout=30000)
+    assert tab.state == "live" and not tab.save_button.isEnabled()
+    shown = tab.shown_frame.left
+    assert any(np.array_equal(shown, cv2.imread(str(folder / f"left{k}.png"))) for k in (1, 2))
+    assert "Hold the" in tab.prompt.text()

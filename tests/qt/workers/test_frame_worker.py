@@ -70,6 +70,40 @@ def test_frame_ready_is_coalesced_while_the_ui_thread_is_busy(qtbot, worker, arr
     qtbot.waitUntil(lambda: worker.latest().frame.index > first.frame.index, timeout=30000)
 
 
+def test_a_frame_of_the_previous_source_in_processing_is_not_published(qtbot, worker,
+                                                                       array_source):
+    """A frame of source A still being processed when source B is chosen must not become the
+    newest result (issue 12, item 4: Capture froze a stale pair of the old source)."""
+    a = array_source(left=np.zeros((48, 64, 3), np.uint8))
+    b = array_source(left=np.full((48, 64, 3), 200, np.uint8))
+    inside_a, inside_b = threading.Event(), threading.Event()
+    gate_a, gate_b = threading.Event(), threading.Event()
+
+    def proc(frame):
+        mean = float(frame.left.mean())
+        if mean == 0.0 and not inside_a.is_set():
+            inside_a.set()
+            gate_a.wait(30)  # held in processing while the source changes
+        elif mean == 200.0 and not inside_b.is_set():
+            inside_b.set()  # the one processor thread is done with A's frame
+            gate_b.wait(30)
+        return mean
+
+    worker.set_processor(proc)
+    worker.set_source(a)
+    try:
+        assert inside_a.wait(30)
+        worker.set_source(b)
+        gate_a.set()
+        assert inside_b.wait(30)
+        assert worker.latest() is None  # A's result was dropped
+    finally:
+        gate_a.set()
+        gate_b.set()
+    qtbot.waitUntil(lambda: worker.latest() is not None, timeout=30000)
+    assert worker.latest().output == 200.0
+
+
 def test_processor_change_applies_to_next_frame(qtbot, worker, array_source):
     worker.set_processor(lambda f: "a")
     worker.set_source(array_source())
