@@ -73,6 +73,7 @@ class CaptureTab(QWidget):
         self.session = None  # files.session.CaptureSession
         self.state = "live"  # "live", "review" (frozen live pair) or "saved" (showing a saved pair)
         self.frozen: CaptureOutput | None = None
+        self.shown_pair: str | None = None  # the saved pair on screen (state "saved")
         self._frozen_frame: StereoFrame | None = None
         self._active = False
         self._last_output: CaptureOutput | None = None
@@ -243,10 +244,9 @@ class CaptureTab(QWidget):
         except StereoGuiError as exc:
             self.ctx.report_error(str(exc))
             return
-        name = self.saved_panel.current_name()
         self._refill_list()
-        if name is not None:
-            self.saved_panel.select(name)
+        if self.shown_pair is not None:
+            self.saved_panel.select(self.shown_pair)
 
     def _source_changed(self, name: str) -> None:
         """Another source: a pair frozen from the previous one is no pair of this one (issue 12:
@@ -333,8 +333,9 @@ class CaptureTab(QWidget):
         self.state = "live"
         self.frozen = None
         self._frozen_frame = None
+        self.shown_pair = None
         self.rules.reset_steadiness()
-        self.pair_list.clearSelection()
+        self.saved_panel.clear_selection()  # no saved pair is shown, none is selected
         self.prompt.setText("Live")
         self._update_controls()
 
@@ -414,7 +415,8 @@ class CaptureTab(QWidget):
         if self.state == "review":  # the prompt no longer needs to warn that Save asks for one
             self._show_review_prompt()
         self._saved.clear()
-        self.pair_list.clear()
+        self.shown_pair = None
+        self.saved_panel.clear()
         self.coverage.reset(self._image_size())
         self._update_coverage()
         self.sessionChanged.emit(session)
@@ -467,7 +469,7 @@ class CaptureTab(QWidget):
         return self._scan is not None
 
     def _refill_list(self) -> None:
-        self.pair_list.clear()
+        self.saved_panel.clear()
         order = [p.name for p in self.session.pairs] if self.session is not None else []
         for name in order:
             info = self._saved.get(name) or SavedPairInfo(name, None, None)
@@ -515,18 +517,24 @@ class CaptureTab(QWidget):
 
     # ---- saved pairs -----------------------------------------------------------------------------
     def show_saved_pair(self, name: str) -> None:
-        """Show a saved pair (with its corners) instead of the live view."""
+        """Show a saved pair (with its corners) instead of the live view; it is the pair
+        selected in the list (and the one Delete pair deletes)."""
         if self.session is None:
             return
         pair = next((p for p in self.session.pairs if p.name == name), None)
-        if pair is None:
-            return
         try:
+            if pair is None:
+                raise StereoGuiError(f"pair {name} is no longer in the session")
             left, right = load_image(pair.left), load_image(pair.right)
         except StereoGuiError as exc:
             self.ctx.report_error(str(exc))
+            if self.shown_pair is not None:  # the list goes back to what is on screen
+                self.saved_panel.select(self.shown_pair)
+            else:
+                self.saved_panel.clear_selection()
             return
         self.state = "saved"
+        self.shown_pair = name
         self._set_processing(False)
         self.frozen = None
         self._frozen_frame = None
@@ -547,7 +555,8 @@ class CaptureTab(QWidget):
         self._update_controls()
 
     def _delete_selected(self) -> None:
-        name = self.saved_panel.current_name()
+        """Delete pair: the pair on screen (asks first)."""
+        name = self.shown_pair if self.state == "saved" else None
         if name is None:
             return
         answer = QMessageBox.question(  # the files go, not only the list entry
@@ -574,8 +583,10 @@ class CaptureTab(QWidget):
         self._refill_list()
         self._update_coverage()
         self.ctx.show_status(f"Deleted pair {name}")
-        if self.state == "saved":
+        if self.state == "saved" and self.shown_pair == name:
             self.go_live()
+        elif self.shown_pair is not None:
+            self.saved_panel.select(self.shown_pair)
 
     # ---- controls --------------------------------------------------------------------------------
     def _update_controls(self) -> None:
@@ -586,7 +597,8 @@ class CaptureTab(QWidget):
         self.save_button.setEnabled(review)
         self.cancel_button.setEnabled(review)
         self.live_button.setEnabled(self.state == "saved")
-        self.delete_button.setEnabled(self.session is not None and self.pair_list.count() > 0)
+        # Delete pair deletes the saved pair on screen: with none shown there is nothing to delete
+        self.delete_button.setEnabled(self.session is not None and self.state == "saved")
         if review:
             self.save_button.setDefault(True)
 

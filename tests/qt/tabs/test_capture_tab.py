@@ -111,13 +111,14 @@ def test_open_session_lists_pairs_with_coverage_and_delete(tab, tmp_path, qtbot)
     tab.open_session(folder)
     qtbot.waitUntil(lambda: not tab.scanning(), timeout=20000)
     assert len(tab.saved_names()) == 4
-    assert tab.delete_button.isEnabled()  # once the pairs are listed, not only after a click
+    # Delete pair deletes the pair on screen: none yet (live), so there is nothing to delete
+    assert not tab.delete_button.isEnabled()
     assert tab.pair_list.item(0).icon() is not None and not tab.pair_list.item(0).icon().isNull()
     assert tab.coverage.left_map.covered_fraction() > 0
     assert sum(tab.coverage.bar_values().values()) > 0
     first = tab.saved_names()[0]
     tab.show_saved_pair(first)
-    assert tab.state == "saved" and tab.live_button.isEnabled()
+    assert tab.state == "saved" and tab.live_button.isEnabled() and tab.delete_button.isEnabled()
     files = CaptureSession.open(folder).pair(first)
     tab.delete_pair(first)
     assert first not in tab.saved_names() and len(tab.saved_names()) == 3
@@ -240,3 +241,38 @@ def test_a_new_source_without_a_board_drops_the_frozen_pair(tab, ctx, qtbot, tmp
     shown = tab.shown_frame.left
     assert any(np.array_equal(shown, cv2.imread(str(folder / f"left{k}.png"))) for k in (1, 2))
     assert "Hold the" in tab.prompt.text()
+
+
+def test_keyboard_selection_shows_the_pair_and_delete_deletes_what_is_shown(
+        tab, tmp_path, qtbot, monkeypatch):
+    """Issue 12, item 5: moving through the saved pairs with the keyboard shows each pair, and
+    Delete pair asks about (and deletes) the pair on screen, never another one."""
+    from PySide6.QtCore import Qt
+    from PySide6.QtWidgets import QMessageBox
+
+    (tmp_path / "set").mkdir()
+    folder = write_calibration_set(tmp_path / "set", n_pairs=4, seed=3)
+    tab.open_session(folder)
+    qtbot.waitUntil(lambda: not tab.scanning(), timeout=20000)
+    names = tab.saved_names()
+    tab.show()
+    tab.pair_list.setFocus()
+    tab.show_saved_pair(names[0])  # as a click
+    assert tab.shown_pair == names[0]
+    qtbot.keyClick(tab.pair_list, Qt.Key.Key_Down)
+    qtbot.keyClick(tab.pair_list, Qt.Key.Key_Down)
+    assert tab.state == "saved" and tab.shown_pair == names[2]
+    assert tab.saved_panel.current_name() == names[2]
+    assert f"saved pair {names[2]}" in tab.view.titles[0].text
+    asked = []
+
+    def question(_parent, _title, text, *a, **k):
+        asked.append(text)
+        return QMessageBox.StandardButton.Yes
+
+    monkeypatch.setattr(QMessageBox, "question", question)
+    qtbot.keyClick(tab.pair_list, Qt.Key.Key_Delete)  # the Del key in the list: Delete pair
+    assert asked and f"pair {names[2]}?" in asked[0]
+    assert tab.saved_names() == [names[0], names[1], names[3]]
+    assert tab.state == "live" and tab.saved_panel.current_name() is None
+    assert not tab.delete_button.isEnabled()  # nothing on screen to delete
