@@ -360,7 +360,7 @@ class CaptureTab(QWidget):
         last = self.ctx.settings.last_session
         start = str(Path(last).parent) if last else str(Path.home())
         folder = QFileDialog.getExistingDirectory(self, "Folder for the new capture session", start)
-        if not folder:
+        if not folder or not self._confirm_session_folder(Path(folder)):
             return False
         try:
             self.new_session(folder)
@@ -368,6 +368,45 @@ class CaptureTab(QWidget):
             self.ctx.report_error(str(exc))
             return False
         return True
+
+    def _confirm_session_folder(self, folder: Path) -> bool:
+        """New session…: a folder that already holds files but no session is written into only
+        when the technician says so (issue 12: session.json appeared in a folder without a
+        word); a folder that holds a session is offered for opening instead."""
+        from stereo_gui.files.session import MANIFEST, CaptureSession
+
+        if (folder / MANIFEST).exists():
+            answer = QMessageBox.question(
+                self, "New session", f"{folder} already holds a capture session. Open it to "
+                "go on capturing into it?")
+            if answer == QMessageBox.StandardButton.Yes:
+                try:
+                    self.open_session(folder)
+                except StereoGuiError as exc:
+                    self.ctx.report_error(str(exc))
+            return False
+        try:
+            entries = [p for p in folder.iterdir() if not p.name.startswith(".")]
+        except OSError:
+            return True  # (it may not exist yet: creating the session says what goes wrong)
+        if not entries:
+            return True
+        try:
+            pairs = len(CaptureSession.open(folder).pairs)
+        except StereoGuiError:
+            pairs = 0
+        what = (f"{len(entries)} file{'s' if len(entries) != 1 else ''} or folder"
+                f"{'s' if len(entries) != 1 else ''}")
+        kept = (f", among them {pairs} image pair{'s' if pairs != 1 else ''} that the session "
+                "will list as saved pairs" if pairs else "")
+        answer = QMessageBox.question(
+            self, "New session in a folder that is not empty",
+            f"{folder} is not empty: it holds {what}{kept}.\n\nStart the capture session "
+            f"here anyway? Its manifest ({MANIFEST}) and the new pairs are written into this "
+            "folder; nothing in it is changed or removed.",
+            QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No,
+            QMessageBox.StandardButton.No)
+        return answer == QMessageBox.StandardButton.Yes
 
     def _choose_open_session(self) -> None:
         start = self.ctx.settings.last_session or str(Path.home())

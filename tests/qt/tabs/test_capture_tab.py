@@ -276,3 +276,53 @@ def test_keyboard_selection_shows_the_pair_and_delete_deletes_what_is_shown(
     assert tab.saved_names() == [names[0], names[1], names[3]]
     assert tab.state == "live" and tab.saved_panel.current_name() is None
     assert not tab.delete_button.isEnabled()  # nothing on screen to delete
+
+
+def test_new_session_in_a_folder_with_files_asks_before_writing_into_it(
+        tab, tmp_path, monkeypatch):
+    """Issue 12, item 10: New session… in a non-empty folder without a session asks first; No
+    writes nothing there, Yes starts the session (the pairs there are listed)."""
+    from PySide6.QtWidgets import QFileDialog, QMessageBox
+
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    write_calibration_set(folder, n_pairs=2, seed=3)
+    (folder / "notes.txt").write_text("holiday")
+    before = sorted(p.name for p in folder.iterdir())
+    monkeypatch.setattr(QFileDialog, "getExistingDirectory", lambda *a, **k: str(folder))
+    asked = []
+
+    def answer(reply):
+        def question(_parent, _title, text, *a, **k):
+            asked.append(text)
+            return reply
+        return question
+
+    monkeypatch.setattr(QMessageBox, "question", answer(QMessageBox.StandardButton.No))
+    tab.new_button.click()
+    assert asked and "not empty" in asked[0] and "2 image pairs" in asked[0]
+    assert tab.session is None
+    assert sorted(p.name for p in folder.iterdir()) == before  # no session.json
+    monkeypatch.setattr(QMessageBox, "question", answer(QMessageBox.StandardButton.Yes))
+    tab.new_button.click()
+    assert tab.session is not None and (folder / "session.json").exists()
+    assert len(tab.session.pairs) == 2
+    # an empty folder is not asked about
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    monkeypatch.setattr(QFileDialog, "getExistingDirectory", lambda *a, **k: str(empty))
+    asked.clear()
+    tab.new_button.click()
+    assert not asked and (empty / "session.json").exists()
+
+
+def test_new_session_in_a_session_folder_offers_to_open_it(tab, tmp_path, monkeypatch, qtbot):
+    from PySide6.QtWidgets import QFileDialog, QMessageBox
+
+    folder = tmp_path / "s"
+    CaptureSession.create(folder, BoardSpec(), (640, 480))
+    monkeypatch.setattr(QFileDialog, "getExistingDirectory", lambda *a, **k: str(folder))
+    monkeypatch.setattr(QMessageBox, "question",
+                        lambda *a, **k: QMessageBox.StandardButton.Yes)
+    tab.new_button.click()
+    assert tab.session is not None and tab.session.folder == folder
