@@ -79,6 +79,7 @@ class CalibrationTab(QWidget):
         self.model_combo.setCurrentIndex(max(0, self.model_combo.findData(s.lens_model)))
         self.fix_k3_check.setChecked(bool(s.fix_k3))
         self.folder_edit.textChanged.connect(self._show_session_swap)
+        self.folder_edit.textChanged.connect(self._folder_changed)
         if s.last_session:
             self.folder_edit.setText(str(s.last_session))
         ctx.calibrationChanged.connect(self._calibration_changed)
@@ -381,19 +382,7 @@ class CalibrationTab(QWidget):
         names = [p.name for p in calib.per_pair]
         self.chart.set_errors(names, [p.error_left for p in calib.per_pair],
                               [p.error_right for p in calib.per_pair])
-        self.rejected_list.clear()
-        if self.run is not None:
-            entries = [(r.name, f"{r.name}: {r.reason}") for r in self.run.result.report.rejected]
-            entries += [(n, f"{n}: excluded by you") for n in self.run.excluded]
-            for name, text in entries:
-                item = QListWidgetItem(text)
-                item.setData(Qt.ItemDataRole.UserRole, name)
-                item.setToolTip(text)
-                self.rejected_list.addItem(item)
-        if self.rejected_list.count() == 0:
-            item = QListWidgetItem("none")
-            item.setFlags(Qt.ItemFlag.NoItemFlags)
-            self.rejected_list.addItem(item)
+        self._show_exclusions()
         if names and self.run is not None:
             keep = self.selected_pair
             if keep is not None and (keep in names or keep in self.run.excluded):
@@ -403,6 +392,50 @@ class CalibrationTab(QWidget):
         else:
             self.rect_view.clear_pair()
         self._update_buttons()
+
+    def _session_excluded(self) -> list[str]:
+        """The pairs excluded in the session now (those of the Pairs folder without a run)."""
+        if self.run is None and not self.folder_edit.text().strip():
+            return []
+        try:
+            return [p.name for p in self._session().pairs if getattr(p, "excluded", False)]
+        except (StereoGuiError, OSError):
+            return []
+
+    def _show_exclusions(self) -> None:
+        """The rejected/excluded list and the chart's excluded bars, from the run and the
+        session as it is now: after a restart (no run) the session's exclusions are listed, not
+        "none", and a pair excluded since the calibration is marked before Recalibrate."""
+        excluded_now = self._session_excluded()
+        self.chart.set_excluded(excluded_now)
+        entries = []
+        if self.run is not None:
+            entries += [(r.name, f"{r.name}: {r.reason}") for r in self.run.result.report.rejected]
+            entries += [(n, f"{n}: excluded by you") for n in self.run.excluded
+                        if n in excluded_now]
+        in_calibration = set(self.chart.names)
+        for n in excluded_now:
+            if self.run is not None and n in self.run.excluded:
+                continue
+            entries.append((n, f"{n}: excluded (Recalibrate leaves it out)" if n in in_calibration
+                            else f"{n}: excluded in the session"))
+        if self.run is not None:  # included again since the run: used at the next Recalibrate
+            entries += [(n, f"{n}: included again (Recalibrate uses it)")
+                        for n in self.run.excluded if n not in excluded_now]
+        self.rejected_list.clear()
+        for name, text in entries:
+            item = QListWidgetItem(text)
+            item.setData(Qt.ItemDataRole.UserRole, name)
+            item.setToolTip(text)
+            self.rejected_list.addItem(item)
+        if self.rejected_list.count() == 0:
+            item = QListWidgetItem("none")
+            item.setFlags(Qt.ItemFlag.NoItemFlags)
+            self.rejected_list.addItem(item)
+
+    def _folder_changed(self) -> None:
+        if self.calibration is not None and self.run is None:
+            self._show_exclusions()  # the exclusions of the session now named
 
     def _show_figures(self) -> None:
         c = self.calibration
@@ -533,6 +566,14 @@ class CalibrationTab(QWidget):
         folder = self.run.folder if self.run is not None else Path(self.folder_edit.text())
         return CaptureSession.open(folder)
 
+    def _in_session(self, name: str) -> bool:
+        if not self.folder_edit.text().strip():
+            return False
+        try:
+            return any(p.name == name for p in self._session().pairs)
+        except (StereoGuiError, OSError):
+            return False
+
     def _is_excluded(self, name: str) -> bool:
         try:
             s = self._session()
@@ -557,6 +598,7 @@ class CalibrationTab(QWidget):
                              f"press Recalibrate")
         self.pair_label.setText(f"Pair {name} {'excluded' if excluded else 'included'}: press "
                                 f"Recalibrate")
+        self._show_exclusions()
         self._update_buttons()
 
     # ---- files ---------------------------------------------------------------------------------
@@ -593,8 +635,10 @@ class CalibrationTab(QWidget):
         self.save_button.setEnabled(self.calibration is not None and not running)
         self.load_button.setEnabled(not running)
         sel = self.selected_pair
-        self.exclude_button.setEnabled(not running and sel is not None and self.run is not None)
-        if sel is not None and self.run is not None:
+        # after a restart (no run) a pair of the session can still be excluded or included
+        known = sel is not None and (self.run is not None or self._in_session(sel))
+        self.exclude_button.setEnabled(not running and known)
+        if known:
             self.exclude_button.setText("Include pair again" if self._is_excluded(sel)
                                         else "Exclude pair")
 

@@ -9,7 +9,7 @@ import math
 import cv2
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import Signal
+from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import QComboBox, QHBoxLayout, QLabel, QVBoxLayout, QWidget
 
 LINE_EVERY_PX = 32  # rectification check: a horizontal line every this many rows
@@ -17,6 +17,7 @@ LEGEND_HEADROOM = 1.5  # the error chart's y range over its tallest bar
 _BAR_LEFT = "#4f8fd6"
 _BAR_RIGHT = "#e08a3c"
 _BAR_SELECTED = "#f5e342"
+_BAR_EXCLUDED = "#8a8a8a"  # a pair excluded since this calibration: hatched grey
 
 
 class ErrorBarChart(pg.PlotWidget):
@@ -36,11 +37,16 @@ class ErrorBarChart(pg.PlotWidget):
         self.addLegend(offset=(-10, 10))
         self.names: list[str] = []
         self.selected: str | None = None
+        self.excluded: set[str] = set()  # pairs excluded in the session (shown hatched)
         self._left = pg.BarGraphItem(x=[], height=[], width=0.38, brush=_BAR_LEFT, name="left")
         self._right = pg.BarGraphItem(x=[], height=[], width=0.38, brush=_BAR_RIGHT, name="right")
         self._mark = pg.BarGraphItem(x=[], height=[], width=0.9, brush=pg.mkBrush(245, 227, 66, 90),
                                      pen=pg.mkPen(_BAR_SELECTED, width=2))
-        for it in (self._mark, self._left, self._right):
+        self._excluded = pg.BarGraphItem(
+            x=[], height=[], width=0.82, pen=pg.mkPen(_BAR_EXCLUDED, width=1),
+            brush=pg.mkBrush(_BAR_EXCLUDED, style=Qt.BrushStyle.BDiagPattern))
+        self._excluded_in_legend = False
+        for it in (self._mark, self._left, self._right, self._excluded):
             self.addItem(it)
         self.scene().sigMouseClicked.connect(self._clicked)
         self.setToolTip("Click a bar to look at that pair (and exclude it if it is bad)")
@@ -58,6 +64,27 @@ class ErrorBarChart(pg.PlotWidget):
         # headroom above the tallest bar: the legend (top right) sits there, not on the bars
         self.setYRange(0, top * LEGEND_HEADROOM, padding=0)
         self.select(self.selected if self.selected in self.names else None)
+        self.set_excluded(self.excluded)
+
+    def set_excluded(self, names) -> None:
+        """Hatch the bars of the pairs excluded in the session: they are still part of this
+        calibration until Recalibrate (issue 12: they were not marked until then)."""
+        self.excluded = set(names)
+        idx = [i for i, n in enumerate(self.names) if n in self.excluded]
+        lh, rh = self.heights()
+        self._excluded.setOpts(x=np.asarray(idx, float),
+                               height=[float(max(lh[i], rh[i])) for i in idx])
+        legend = self.plotItem.legend
+        if idx and not self._excluded_in_legend:
+            legend.addItem(self._excluded, "excluded: Recalibrate")
+        elif not idx and self._excluded_in_legend:
+            legend.removeItem(self._excluded)
+        self._excluded_in_legend = bool(idx)
+
+    def excluded_bars(self) -> list[str]:
+        """Names of the pairs whose bars are marked excluded (for tests)."""
+        xs = self._excluded.opts["x"]
+        return [self.names[int(round(x))] for x in (xs if xs is not None else [])]
 
     def bar_count(self) -> int:
         return len(self.names)

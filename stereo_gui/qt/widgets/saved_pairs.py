@@ -108,6 +108,12 @@ class SavedPairsPanel(QWidget):
             self._quiet -= 1
         self.update_label()
 
+    def show_newest(self) -> None:
+        """Scroll the list to its last pair (the one just saved)."""
+        n = self.pair_list.count()
+        if n:
+            self.pair_list.scrollToItem(self.pair_list.item(n - 1))
+
     def clear(self) -> None:
         """Empty the list (no pairClicked)."""
         self._quiet += 1

@@ -182,3 +182,32 @@ def test_empty_error_chart_axis_reads_pair_without_an_si_prefix(qtbot):
     axis.updateAutoSIPrefix()
     label = axis.labelString()
     assert "pair" in label and "x0.001" not in label and "(m" not in label
+
+
+def test_exclusions_are_shown_before_recalibration_and_after_a_restart(
+        tab, ctx, qtbot, make_tab, session_folder, tmp_path):
+    """Issue 12, item 9: a pair excluded is marked on the chart at once (not only after
+    Recalibrate), and after a restart the list names the session's excluded pairs, not "none"."""
+    tab.folder_edit.setText(str(session_folder))
+    _calibrate(tab, qtbot)
+    assert tab.rejected_lines() == ["none"] and tab.chart.excluded_bars() == []
+    name = tab.chart.names[2]
+    tab.select_pair(name)
+    tab.exclude_button.click()
+    assert tab.chart.excluded_bars() == [name]
+    assert f"{name}: excluded (Recalibrate leaves it out)" in tab.rejected_lines()
+    assert tab.save_calibration(tmp_path / "calib.yaml")
+    # a restart: a new tab, the calibration loaded from its file, no run
+    ctx.set_calibration(None)
+    assert ctx.open_calibration_file(tmp_path / "calib.yaml")
+    again = make_tab(CalibrationTab)
+    again.folder_edit.setText(str(session_folder))
+    assert again.run is None
+    assert f"{name}: excluded (Recalibrate leaves it out)" in again.rejected_lines()
+    assert again.chart.excluded_bars() == [name]
+    again.select_pair(name)  # it can be included again without calibrating first
+    assert again.exclude_button.isEnabled()
+    assert again.exclude_button.text() == "Include pair again"
+    again.exclude_button.click()
+    assert not CaptureSession.open(session_folder).pair(name).excluded
+    assert again.rejected_lines() == ["none"] and again.chart.excluded_bars() == []

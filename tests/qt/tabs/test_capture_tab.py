@@ -54,7 +54,7 @@ def test_both_sides_found_freezes_and_save_writes_both_images(tab, tmp_path, qtb
     assert np.array_equal(left, frame.left) and np.array_equal(right, frame.right)
     assert tab.saved_names() == [name]
     assert tab.coverage.bar_values()["X"] >= 0
-    assert "1 pairs kept" in tab.coverage.count_label.text()
+    assert tab.coverage.count_label.text().startswith("1 pair kept")  # not "1 pairs"
 
 
 def test_cancel_discards_and_same_pose_does_not_freeze_again(tab, tmp_path):
@@ -326,3 +326,32 @@ def test_new_session_in_a_session_folder_offers_to_open_it(tab, tmp_path, monkey
                         lambda *a, **k: QMessageBox.StandardButton.Yes)
     tab.new_button.click()
     assert tab.session is not None and tab.session.folder == folder
+
+
+def test_a_saved_pair_is_scrolled_into_view_and_counted_in_words(tab, tmp_path, qtbot):
+    """Issue 12, item 9: the saved-pairs list shows the pair just saved (not the top of a long
+    list); "1 pair kept", "2 pairs kept"."""
+    from PySide6.QtCore import Qt
+
+    (tmp_path / "set").mkdir()
+    folder = write_calibration_set(tmp_path / "set", n_pairs=12, seed=3)
+    tab.open_session(folder)
+    qtbot.waitUntil(lambda: not tab.scanning(), timeout=20000)
+    tab.resize(1000, 600)
+    tab.show()
+    qtbot.waitExposed(tab)
+    lst = tab.pair_list
+    lst.scrollToTop()
+    out, frame = _board_frames()[0]
+    tab.show_output(out, frame)
+    with qtbot.waitSignal(tab.pairSaved, timeout=30000) as blocker:
+        tab.save_button.click()
+    last = lst.item(lst.count() - 1)
+    assert last.data(Qt.ItemDataRole.UserRole) == blocker.args[0]
+    assert lst.viewport().rect().intersects(lst.visualItemRect(last))
+    assert not lst.viewport().rect().intersects(lst.visualItemRect(lst.item(0)))
+    assert "13 pairs kept" in tab.coverage.count_label.text()
+    from stereo_gui.qt.widgets.coverage import pairs_kept
+
+    assert (pairs_kept(1), pairs_kept(2), pairs_kept(0)) == (
+        "1 pair kept", "2 pairs kept", "0 pairs kept")
