@@ -22,6 +22,7 @@ from PySide6.QtWidgets import (
     QComboBox,
     QDoubleSpinBox,
     QFileDialog,
+    QFrame,
     QHBoxLayout,
     QLabel,
     QLineEdit,
@@ -30,6 +31,7 @@ from PySide6.QtWidgets import (
     QPlainTextEdit,
     QProgressBar,
     QPushButton,
+    QScrollArea,
     QSplitter,
     QVBoxLayout,
     QWidget,
@@ -46,7 +48,11 @@ from stereo_gui.pipeline.calibration import (
     read_image,
 )
 from stereo_gui.pipeline.jobs import Progress
-from stereo_gui.qt.widgets.calibration_charts import ErrorBarChart, RectifiedPairView
+from stereo_gui.qt.widgets.calibration_charts import (
+    ErrorBarChart,
+    RectifiedPairView,
+    error_scale,
+)
 from stereo_gui.qt.widgets.calibration_figures import CalibrationFigures, format_px
 from stereo_gui.qt.widgets.calibration_warnings import CalibrationWarnings
 from stereo_gui.qt.widgets.flow_layout import FlowLayout
@@ -57,6 +63,21 @@ log = logging.getLogger(__name__)
 
 _MONO = QFont("Monospace")
 _MONO.setStyleHint(QFont.StyleHint.TypeWriter)
+
+
+class _VerticalScroll(QScrollArea):
+    """Scrolls up and down only: as wide as its widget needs, as low as one likes."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+
+    def minimumSizeHint(self):
+        w = self.widget()
+        hint = super().minimumSizeHint()
+        if w is not None:
+            hint.setWidth(w.minimumSizeHint().width() + self.verticalScrollBar().sizeHint().width())
+        return hint
 
 
 class CalibrationTab(QWidget):
@@ -204,7 +225,13 @@ class CalibrationTab(QWidget):
         files.addWidget(self.save_button)
         files.addStretch(1)
         ll.addLayout(files)
-        split.addWidget(left)
+        # scrolls rather than making the window taller than a laptop screen (1280x720: the
+        # figures and the warnings alone are taller than the room left)
+        left_scroll = _VerticalScroll()
+        left_scroll.setWidgetResizable(True)
+        left_scroll.setFrameShape(QFrame.Shape.NoFrame)
+        left_scroll.setWidget(left)
+        split.addWidget(left_scroll)
 
         # right: chart and rectification check
         right = QSplitter(Qt.Orientation.Vertical)
@@ -223,6 +250,24 @@ class CalibrationTab(QWidget):
         pair_row.addWidget(self.exclude_button)
         pair_row.addWidget(self.recalibrate_button)
         cl.addLayout(pair_row)
+        above_row = QHBoxLayout()
+        above_row.addWidget(QLabel("Threshold (red line, drag it):"))
+        self.threshold_spin = QDoubleSpinBox()
+        self.threshold_spin.setRange(0.0, 100.0)
+        self.threshold_spin.setDecimals(3)
+        self.threshold_spin.setSingleStep(0.01)
+        self.threshold_spin.setSuffix(" px")
+        self.threshold_spin.setToolTip("Pairs whose error in either camera is above this can be "
+                                       "excluded at once")
+        self.threshold_spin.valueChanged.connect(self._threshold_edited)
+        self.chart.thresholdMoved.connect(self.threshold_spin.setValue)
+        self.exclude_above_button = QPushButton("Exclude pairs above")
+        self.exclude_above_button.clicked.connect(
+            lambda: self.exclude_above(self.threshold_spin.value()))
+        above_row.addWidget(self.threshold_spin)
+        above_row.addWidget(self.exclude_above_button)
+        above_row.addStretch(1)
+        cl.addLayout(above_row)
         right.addWidget(chart_box)
         self.rect_view = RectifiedPairView()
         right.addWidget(self.rect_view)
@@ -382,6 +427,8 @@ class CalibrationTab(QWidget):
         names = [p.name for p in calib.per_pair]
         self.chart.set_errors(names, [p.error_left for p in calib.per_pair],
                               [p.error_right for p in calib.per_pair])
+        if self.chart.mean_px is not None:  # a start: twice the mean error
+            self.threshold_spin.setValue(round(2.0 * self.chart.mean_px, 3))
         self._show_exclusions()
         if names and self.run is not None:
             keep = self.selected_pair
@@ -432,6 +479,40 @@ class CalibrationTab(QWidget):
             item = QListWidgetItem("none")
             item.setFlags(Qt.ItemFlag.NoItemFlags)
             self.rejected_list.addItem(item)
+
+    # ---- exclude above a threshold ---------------------------------------------------------------
+    def pairs_above(self, px: float) -> list[str]:
+        """Pairs of the calibration shown whose error in either camera is above `px`, not yet
+        excluded."""
+        c = self.calibration
+        if c is None:
+            return []
+        excluded = set(self._session_excluded())
+        return [p.name for p in c.per_pair
+                if max(p.error_left, p.error_right) > px and p.name not in excluded]
+
+    def _threshold_edited(self, px: float) -> None:
+        self.chart.set_threshold(px)
+        self._update_buttons()
+
+    def exclude_above(self, px: float) -> list[str]:
+        """Exclude in the session every pair above `px` (see pairs_above); their names."""
+        names = self.pairs_above(px)
+        if not names:
+            return []
+        try:
+            session = self._session()
+            for name in names:
+                session.set_excluded(name, True)
+        except (StereoGuiError, OSError) as exc:
+            self.ctx.report_error(f"could not exclude the pairs: {exc}")
+            names = []
+        if names:
+            self.ctx.show_status(f"Excluded {len(names)} pair{'s' if len(names) != 1 else ''} "
+                                 f"above {px:.3f} px ({', '.join(names)}): press Recalibrate")
+        self._show_exclusions()
+        self._update_buttons()
+        return names
 
     def _folder_changed(self) -> None:
         if self.calibration is not None and self.run is None:
@@ -537,7 +618,20 @@ class CalibrationTab(QWidget):
         lr = cv2.remap(left, maps.left_x, maps.left_y, cv2.INTER_LINEAR)
         rr = cv2.remap(right, maps.right_x, maps.right_y, cv2.INTER_LINEAR)
         note = " (Hartley: row-aligned, no metric scale)" if not c.metric else ""
-        self.rect_view.show_pair(name, lr, rr, note)
+        self.rect_view.show_pair(name, lr, rr, note, self._rectified_corners(name, c),
+                                 error_scale(self.chart.mean_px))
+
+    def _rectified_corners(self, name: str, c: StereoCalibration):
+        """The pair's detected and reprojected corners in rectified pixels (None when this
+        calibration's run did not reproject it: a loaded file, an excluded pair)."""
+        rp = (self.run.reprojections.get(name)
+              if self.run is not None and self.run.result.calibration is c else None)
+        if rp is None:
+            return None
+        return ((c.rectify_points("left", rp.detected_left),
+                 c.rectify_points("left", rp.reprojected_left)),
+                (c.rectify_points("right", rp.detected_right),
+                 c.rectify_points("right", rp.reprojected_right)))
 
     def _rectify_maps(self, c: StereoCalibration) -> RectifyMaps:
         if self._maps is None or self._maps_for is not c:
@@ -638,6 +732,10 @@ class CalibrationTab(QWidget):
         # after a restart (no run) a pair of the session can still be excluded or included
         known = sel is not None and (self.run is not None or self._in_session(sel))
         self.exclude_button.setEnabled(not running and known)
+        n_above = len(self.pairs_above(self.threshold_spin.value())) if not running else 0
+        self.exclude_above_button.setText(
+            f"Exclude {n_above} pair{'s' if n_above != 1 else ''} above")
+        self.exclude_above_button.setEnabled(n_above > 0)
         if known:
             self.exclude_button.setText("Include pair again" if self._is_excluded(sel)
                                         else "Exclude pair")
