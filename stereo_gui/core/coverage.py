@@ -168,7 +168,8 @@ class Readiness:
         if not self.distance_ok:
             out.append("hold it nearer and farther")
         if self.pairs < MIN_PAIRS:
-            out.append(f"take at least {MIN_PAIRS - self.pairs} more pairs")
+            more = MIN_PAIRS - self.pairs
+            out.append(f"take at least {more} more pair{'' if more == 1 else 's'}")
         return out
 
     def advice(self) -> str:

@@ -1,10 +1,12 @@
 """The Calibration tab's job and texts, without Qt: detect the board in a session's included
 pairs and calibrate the rig (run by a JobWorker off the UI thread, with progress and cancel),
-and the camera matrices as the report shows them."""
+each used pair's corners reprojected through the result (for the review), and the camera
+matrices as the report shows them."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+import logging
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import cv2
@@ -14,8 +16,106 @@ from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.calibrate import CalibrationResult, calibrate_stereo
 from stereo_gui.core.detect import PairDetection, PairInput, detect_pairs
 from stereo_gui.core.errors import InputError
+from stereo_gui.core.lens import project_points, undistort_points
 from stereo_gui.core.stereo_calibration import RectifyMaps, StereoCalibration
 from stereo_gui.pipeline.jobs import JobControl, Progress
+
+log = logging.getLogger(__name__)
+
+_POSE_ITERATIONS = 30
+
+
+@dataclass(frozen=True, eq=False)
+class PairReprojection:
+    """One pair's corners as detected and as the calibration reprojects them, raw image pixels.
+
+    The board pose is fitted to both images' corners at once (the cameras and R, T fixed: what
+    the calibration's joint refinement did for this pair), so `rms_left_px`/`rms_right_px` are
+    the pair's reprojection errors (root mean square over its points, px) as the chart shows.
+    """
+
+    name: str
+    detected_left: np.ndarray  # (N, 2) px
+    reprojected_left: np.ndarray  # (N, 2) px
+    detected_right: np.ndarray  # (M, 2) px
+    reprojected_right: np.ndarray  # (M, 2) px
+    rms_left_px: float
+    rms_right_px: float
+
+
+def _rms(a: np.ndarray, b: np.ndarray) -> float:
+    d = np.asarray(a, np.float64) - np.asarray(b, np.float64)
+    return float(np.sqrt(np.mean(np.sum(d * d, axis=1)))) if len(d) else float("nan")
+
+
+def reproject_pair(calib: StereoCalibration, det: PairDetection,
+                   board: BoardSpec) -> PairReprojection | None:
+    """The pair's corners reprojected through `calib` (see PairReprojection); None when the
+    calibration has no metric R, T (Hartley) or the pair has no corners in both images."""
+    if not calib.metric or det.left is None or det.right is None:
+        return None
+    model = calib.model
+    obj_l = np.asarray(det.left.object_points(board), np.float64)
+    obj_r = np.asarray(det.right.object_points(board), np.float64)
+    img_l = np.asarray(det.left.corners, np.float64).reshape(-1, 2)
+    img_r = np.asarray(det.right.corners, np.float64).reshape(-1, 2)
+    if len(img_l) < 4:
+        return None
+    # start: the left camera's view of the board alone
+    norm = undistort_points(model, img_l, calib.M1, calib.D1)
+    ok, rb, tb = cv2.solvePnP(obj_l.reshape(-1, 1, 3), norm.reshape(-1, 1, 2), np.eye(3), None)
+    if not ok:
+        return None
+    rb, tb = rb.reshape(3, 1).astype(np.float64), tb.reshape(3, 1).astype(np.float64)
+    r_lr = cv2.Rodrigues(np.asarray(calib.R, np.float64))[0]
+    t_lr = np.asarray(calib.T, np.float64).reshape(3, 1)
+
+    def residuals(rb, tb):
+        pl, jl = project_points(model, obj_l, rb, tb, calib.M1, calib.D1, jacobian=True)
+        r2, t2, dr3dr1, dr3dt1, _, _, dt3dr1, dt3dt1, _, _ = cv2.composeRT(rb, tb, r_lr, t_lr)
+        pr, jr = project_points(model, obj_r, r2, t2, calib.M2, calib.D2, jacobian=True)
+        jr_b = jr[:, 0:3] @ np.hstack([dr3dr1, dr3dt1]) + jr[:, 3:6] @ np.hstack([dt3dr1, dt3dt1])
+        res = np.concatenate([(pl - img_l).reshape(-1), (pr - img_r).reshape(-1)])
+        return res, np.vstack([jl[:, 0:6], jr_b]), pl, pr
+
+    lam = 1e-3
+    res, J, pl, pr = residuals(rb, tb)
+    cost = float(res @ res)
+    for _ in range(_POSE_ITERATIONS):  # Levenberg-Marquardt over the six pose parameters
+        A = J.T @ J
+        step = np.linalg.solve(A + lam * np.diag(np.diag(A) + 1e-12), -J.T @ res)
+        rn, tn = rb + step[:3].reshape(3, 1), tb + step[3:].reshape(3, 1)
+        res_n, J_n, pl_n, pr_n = residuals(rn, tn)
+        cost_n = float(res_n @ res_n)
+        if cost_n < cost:
+            done = (cost - cost_n) <= 1e-12 * max(cost, 1e-300)
+            rb, tb, res, J, pl, pr, cost = rn, tn, res_n, J_n, pl_n, pr_n, cost_n
+            lam = max(lam / 10.0, 1e-12)
+            if done:
+                break
+        else:
+            lam *= 10.0
+            if lam > 1e8:
+                break
+    return PairReprojection(det.name, img_l, pl, img_r, pr, _rms(pl, img_l), _rms(pr, img_r))
+
+
+def reproject_pairs(calib: StereoCalibration, detections, board: BoardSpec,
+                    names) -> dict[str, PairReprojection]:
+    """`reproject_pair` for each named pair whose detection is known (failures are logged)."""
+    out = {}
+    for name in names:
+        det = detections.get(name)
+        if det is None:
+            continue
+        try:
+            rp = reproject_pair(calib, det, board)
+        except (cv2.error, np.linalg.LinAlgError) as exc:
+            log.warning("pair %s: reprojection failed: %s", name, exc)
+            continue
+        if rp is not None:
+            out[name] = rp
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -28,6 +128,7 @@ class CalibrationRun:
     maps: RectifyMaps
     folder: Path
     excluded: tuple[str, ...]  # pairs left out by the user (session exclusions)
+    reprojections: dict[str, PairReprojection] = field(default_factory=dict)  # used pairs
 
 
 def read_image(path: str) -> np.ndarray:
@@ -74,8 +175,12 @@ def calibration_job(folder: Path, board: BoardSpec, alpha: float, method: str,
         control.check()
         yield Progress(n + 9, total, "computing rectification maps")
         maps = result.calibration.rectify_maps()
-        return CalibrationRun(result, {d.name: d for d in dets}, files, maps, Path(folder),
-                              excluded)
+        by_name = {d.name: d for d in dets}
+        control.check()
+        reprojections = reproject_pairs(result.calibration, by_name, board,
+                                        [p.name for p in result.calibration.per_pair])
+        return CalibrationRun(result, by_name, files, maps, Path(folder), excluded,
+                              reprojections)
 
     return job
 

@@ -22,6 +22,7 @@ from PySide6.QtWidgets import (
     QComboBox,
     QDoubleSpinBox,
     QFileDialog,
+    QFrame,
     QHBoxLayout,
     QLabel,
     QLineEdit,
@@ -30,6 +31,7 @@ from PySide6.QtWidgets import (
     QPlainTextEdit,
     QProgressBar,
     QPushButton,
+    QScrollArea,
     QSplitter,
     QVBoxLayout,
     QWidget,
@@ -46,7 +48,11 @@ from stereo_gui.pipeline.calibration import (
     read_image,
 )
 from stereo_gui.pipeline.jobs import Progress
-from stereo_gui.qt.widgets.calibration_charts import ErrorBarChart, RectifiedPairView
+from stereo_gui.qt.widgets.calibration_charts import (
+    ErrorBarChart,
+    RectifiedPairView,
+    error_scale,
+)
 from stereo_gui.qt.widgets.calibration_figures import CalibrationFigures, format_px
 from stereo_gui.qt.widgets.calibration_warnings import CalibrationWarnings
 from stereo_gui.qt.widgets.flow_layout import FlowLayout
@@ -57,6 +63,21 @@ log = logging.getLogger(__name__)
 
 _MONO = QFont("Monospace")
 _MONO.setStyleHint(QFont.StyleHint.TypeWriter)
+
+
+class _VerticalScroll(QScrollArea):
+    """Scrolls up and down only: as wide as its widget needs, as low as one likes."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+
+    def minimumSizeHint(self):
+        w = self.widget()
+        hint = super().minimumSizeHint()
+        if w is not None:
+            hint.setWidth(w.minimumSizeHint().width() + self.verticalScrollBar().sizeHint().width())
+        return hint
 
 
 class CalibrationTab(QWidget):
@@ -79,6 +100,7 @@ class CalibrationTab(QWidget):
         self.model_combo.setCurrentIndex(max(0, self.model_combo.findData(s.lens_model)))
         self.fix_k3_check.setChecked(bool(s.fix_k3))
         self.folder_edit.textChanged.connect(self._show_session_swap)
+        self.folder_edit.textChanged.connect(self._folder_changed)
         if s.last_session:
             self.folder_edit.setText(str(s.last_session))
         ctx.calibrationChanged.connect(self._calibration_changed)
@@ -203,7 +225,13 @@ class CalibrationTab(QWidget):
         files.addWidget(self.save_button)
         files.addStretch(1)
         ll.addLayout(files)
-        split.addWidget(left)
+        # scrolls rather than making the window taller than a laptop screen (1280x720: the
+        # figures and the warnings alone are taller than the room left)
+        left_scroll = _VerticalScroll()
+        left_scroll.setWidgetResizable(True)
+        left_scroll.setFrameShape(QFrame.Shape.NoFrame)
+        left_scroll.setWidget(left)
+        split.addWidget(left_scroll)
 
         # right: chart and rectification check
         right = QSplitter(Qt.Orientation.Vertical)
@@ -222,6 +250,24 @@ class CalibrationTab(QWidget):
         pair_row.addWidget(self.exclude_button)
         pair_row.addWidget(self.recalibrate_button)
         cl.addLayout(pair_row)
+        above_row = QHBoxLayout()
+        above_row.addWidget(QLabel("Threshold (red line, drag it):"))
+        self.threshold_spin = QDoubleSpinBox()
+        self.threshold_spin.setRange(0.0, 100.0)
+        self.threshold_spin.setDecimals(3)
+        self.threshold_spin.setSingleStep(0.01)
+        self.threshold_spin.setSuffix(" px")
+        self.threshold_spin.setToolTip("Pairs whose error in either camera is above this can be "
+                                       "excluded at once")
+        self.threshold_spin.valueChanged.connect(self._threshold_edited)
+        self.chart.thresholdMoved.connect(self.threshold_spin.setValue)
+        self.exclude_above_button = QPushButton("Exclude pairs above")
+        self.exclude_above_button.clicked.connect(
+            lambda: self.exclude_above(self.threshold_spin.value()))
+        above_row.addWidget(self.threshold_spin)
+        above_row.addWidget(self.exclude_above_button)
+        above_row.addStretch(1)
+        cl.addLayout(above_row)
         right.addWidget(chart_box)
         self.rect_view = RectifiedPairView()
         right.addWidget(self.rect_view)
@@ -394,19 +440,9 @@ class CalibrationTab(QWidget):
         names = [p.name for p in calib.per_pair]
         self.chart.set_errors(names, [p.error_left for p in calib.per_pair],
                               [p.error_right for p in calib.per_pair])
-        self.rejected_list.clear()
-        if self.run is not None:
-            entries = [(r.name, f"{r.name}: {r.reason}") for r in self.run.result.report.rejected]
-            entries += [(n, f"{n}: excluded by you") for n in self.run.excluded]
-            for name, text in entries:
-                item = QListWidgetItem(text)
-                item.setData(Qt.ItemDataRole.UserRole, name)
-                item.setToolTip(text)
-                self.rejected_list.addItem(item)
-        if self.rejected_list.count() == 0:
-            item = QListWidgetItem("none")
-            item.setFlags(Qt.ItemFlag.NoItemFlags)
-            self.rejected_list.addItem(item)
+        if self.chart.mean_px is not None:  # a start: twice the mean error
+            self.threshold_spin.setValue(round(2.0 * self.chart.mean_px, 3))
+        self._show_exclusions()
         if names and self.run is not None:
             keep = self.selected_pair
             if keep is not None and (keep in names or keep in self.run.excluded):
@@ -416,6 +452,84 @@ class CalibrationTab(QWidget):
         else:
             self.rect_view.clear_pair()
         self._update_buttons()
+
+    def _session_excluded(self) -> list[str]:
+        """The pairs excluded in the session now (those of the Pairs folder without a run)."""
+        if self.run is None and not self.folder_edit.text().strip():
+            return []
+        try:
+            return [p.name for p in self._session().pairs if getattr(p, "excluded", False)]
+        except (StereoGuiError, OSError):
+            return []
+
+    def _show_exclusions(self) -> None:
+        """The rejected/excluded list and the chart's excluded bars, from the run and the
+        session as it is now: after a restart (no run) the session's exclusions are listed, not
+        "none", and a pair excluded since the calibration is marked before Recalibrate."""
+        excluded_now = self._session_excluded()
+        self.chart.set_excluded(excluded_now)
+        entries = []
+        if self.run is not None:
+            entries += [(r.name, f"{r.name}: {r.reason}") for r in self.run.result.report.rejected]
+            entries += [(n, f"{n}: excluded by you") for n in self.run.excluded
+                        if n in excluded_now]
+        in_calibration = set(self.chart.names)
+        for n in excluded_now:
+            if self.run is not None and n in self.run.excluded:
+                continue
+            entries.append((n, f"{n}: excluded (Recalibrate leaves it out)" if n in in_calibration
+                            else f"{n}: excluded in the session"))
+        if self.run is not None:  # included again since the run: used at the next Recalibrate
+            entries += [(n, f"{n}: included again (Recalibrate uses it)")
+                        for n in self.run.excluded if n not in excluded_now]
+        self.rejected_list.clear()
+        for name, text in entries:
+            item = QListWidgetItem(text)
+            item.setData(Qt.ItemDataRole.UserRole, name)
+            item.setToolTip(text)
+            self.rejected_list.addItem(item)
+        if self.rejected_list.count() == 0:
+            item = QListWidgetItem("none")
+            item.setFlags(Qt.ItemFlag.NoItemFlags)
+            self.rejected_list.addItem(item)
+
+    # ---- exclude above a threshold ---------------------------------------------------------------
+    def pairs_above(self, px: float) -> list[str]:
+        """Pairs of the calibration shown whose error in either camera is above `px`, not yet
+        excluded."""
+        c = self.calibration
+        if c is None:
+            return []
+        excluded = set(self._session_excluded())
+        return [p.name for p in c.per_pair
+                if max(p.error_left, p.error_right) > px and p.name not in excluded]
+
+    def _threshold_edited(self, px: float) -> None:
+        self.chart.set_threshold(px)
+        self._update_buttons()
+
+    def exclude_above(self, px: float) -> list[str]:
+        """Exclude in the session every pair above `px` (see pairs_above); their names."""
+        names = self.pairs_above(px)
+        if not names:
+            return []
+        try:
+            session = self._session()
+            for name in names:
+                session.set_excluded(name, True)
+        except (StereoGuiError, OSError) as exc:
+            self.ctx.report_error(f"could not exclude the pairs: {exc}")
+            names = []
+        if names:
+            self.ctx.show_status(f"Excluded {len(names)} pair{'s' if len(names) != 1 else ''} "
+                                 f"above {px:.3f} px ({', '.join(names)}): press Recalibrate")
+        self._show_exclusions()
+        self._update_buttons()
+        return names
+
+    def _folder_changed(self) -> None:
+        if self.calibration is not None and self.run is None:
+            self._show_exclusions()  # the exclusions of the session now named
 
     def _show_figures(self) -> None:
         c = self.calibration
@@ -517,7 +631,20 @@ class CalibrationTab(QWidget):
         lr = cv2.remap(left, maps.left_x, maps.left_y, cv2.INTER_LINEAR)
         rr = cv2.remap(right, maps.right_x, maps.right_y, cv2.INTER_LINEAR)
         note = " (Hartley: row-aligned, no metric scale)" if not c.metric else ""
-        self.rect_view.show_pair(name, lr, rr, note)
+        self.rect_view.show_pair(name, lr, rr, note, self._rectified_corners(name, c),
+                                 error_scale(self.chart.mean_px))
+
+    def _rectified_corners(self, name: str, c: StereoCalibration):
+        """The pair's detected and reprojected corners in rectified pixels (None when this
+        calibration's run did not reproject it: a loaded file, an excluded pair)."""
+        rp = (self.run.reprojections.get(name)
+              if self.run is not None and self.run.result.calibration is c else None)
+        if rp is None:
+            return None
+        return ((c.rectify_points("left", rp.detected_left),
+                 c.rectify_points("left", rp.reprojected_left)),
+                (c.rectify_points("right", rp.detected_right),
+                 c.rectify_points("right", rp.reprojected_right)))
 
     def _rectify_maps(self, c: StereoCalibration) -> RectifyMaps:
         if self._maps is None or self._maps_for is not c:
@@ -546,6 +673,14 @@ class CalibrationTab(QWidget):
         folder = self.run.folder if self.run is not None else Path(self.folder_edit.text())
         return CaptureSession.open(folder)
 
+    def _in_session(self, name: str) -> bool:
+        if not self.folder_edit.text().strip():
+            return False
+        try:
+            return any(p.name == name for p in self._session().pairs)
+        except (StereoGuiError, OSError):
+            return False
+
     def _is_excluded(self, name: str) -> bool:
         try:
             s = self._session()
@@ -570,6 +705,7 @@ class CalibrationTab(QWidget):
                              f"press Recalibrate")
         self.pair_label.setText(f"Pair {name} {'excluded' if excluded else 'included'}: press "
                                 f"Recalibrate")
+        self._show_exclusions()
         self._update_buttons()
 
     # ---- files ---------------------------------------------------------------------------------
@@ -606,8 +742,14 @@ class CalibrationTab(QWidget):
         self.save_button.setEnabled(self.calibration is not None and not running)
         self.load_button.setEnabled(not running)
         sel = self.selected_pair
-        self.exclude_button.setEnabled(not running and sel is not None and self.run is not None)
-        if sel is not None and self.run is not None:
+        # after a restart (no run) a pair of the session can still be excluded or included
+        known = sel is not None and (self.run is not None or self._in_session(sel))
+        self.exclude_button.setEnabled(not running and known)
+        n_above = len(self.pairs_above(self.threshold_spin.value())) if not running else 0
+        self.exclude_above_button.setText(
+            f"Exclude {n_above} pair{'s' if n_above != 1 else ''} above")
+        self.exclude_above_button.setEnabled(n_above > 0)
+        if known:
             self.exclude_button.setText("Include pair again" if self._is_excluded(sel)
                                         else "Exclude pair")
 

@@ -73,15 +73,19 @@ class CaptureTab(QWidget):
         self.session = None  # files.session.CaptureSession
         self.state = "live"  # "live", "review" (frozen live pair) or "saved" (showing a saved pair)
         self.frozen: CaptureOutput | None = None
+        self.shown_pair: str | None = None  # the saved pair on screen (state "saved")
         self._frozen_frame: StereoFrame | None = None
         self._active = False
         self._last_output: CaptureOutput | None = None
+        self.frames_shown = 0  # live frames drawn (for the status and tests)
+        self.shown_frame: StereoFrame | None = None  # the live frame drawn last
         self.rules = CaptureRules()  # when a live frame becomes a pair
         self._saved: dict[str, SavedPairInfo] = {}
         self._scan: JobWorker | None = None
         self._build()
         self._load_board_settings()
         ctx.frames.frameReady.connect(self._on_frame_ready)
+        ctx.frames.sourceChanged.connect(self._source_changed)
         ctx.currentTabChanged.connect(lambda name: self.set_active(name == "capture"))
         last = ctx.settings.last_session
         if last and Path(last).is_dir():
@@ -240,10 +244,24 @@ class CaptureTab(QWidget):
         except StereoGuiError as exc:
             self.ctx.report_error(str(exc))
             return
-        name = self.saved_panel.current_name()
         self._refill_list()
-        if name is not None:
-            self.saved_panel.select(name)
+        if self.shown_pair is not None:
+            self.saved_panel.select(self.shown_pair)
+
+    def _source_changed(self, name: str) -> None:
+        """Another source: a pair frozen from the previous one is no pair of this one (issue 12:
+        a folder without a board still offered the old pair with Save enabled), and what is on
+        screen until its first frame is not this source's picture."""
+        self.rules.reset_steadiness()
+        self.rules.last_reviewed_pose = None
+        self._last_output = None
+        if self.state == "saved":
+            return  # a saved pair of the session stays in review
+        if self.state == "review":
+            self.go_live()
+        self.view.clear(f"waiting for {name}…" if name else "no source")
+        self.prompt.setText(f"Live: waiting for the first frame of {name}" if name
+                            else "No source: choose one with File > Choose source…")
 
     def _set_processing(self, on: bool) -> None:
         """Detect in live frames only while live frames are shown (saves CPU while reviewing)."""
@@ -265,6 +283,8 @@ class CaptureTab(QWidget):
         self._last_output = out
         self.view.show_pair(out.left_rgb, out.right_rgb)
         self.view.show_detection(out.detection)
+        self.frames_shown += 1
+        self.shown_frame = frame
         step = self.rules.step(out, self.auto_check.isChecked(), self._saved_poses,
                                self.session is not None, board=self.board, fills=self._fills,
                                empty_regions=lambda: self._readiness().required_empty)
@@ -313,8 +333,9 @@ class CaptureTab(QWidget):
         self.state = "live"
         self.frozen = None
         self._frozen_frame = None
+        self.shown_pair = None
         self.rules.reset_steadiness()
-        self.pair_list.clearSelection()
+        self.saved_panel.clear_selection()  # no saved pair is shown, none is selected
         self.prompt.setText("Live")
         self._update_controls()
 
@@ -328,6 +349,7 @@ class CaptureTab(QWidget):
         info = SavedPairInfo(name, det, pair_thumbnail(frame.left, frame.right))
         self._saved[name] = info
         self._add_list_item(info)
+        self.saved_panel.show_newest()  # the pair just taken is in view, however long the list
         self.saved_panel.add_coverage(det)
         self._update_coverage()
         self.ctx.show_status(f"Saved pair {name} to {self.session.folder}")
@@ -339,7 +361,7 @@ class CaptureTab(QWidget):
         last = self.ctx.settings.last_session
         start = str(Path(last).parent) if last else str(Path.home())
         folder = QFileDialog.getExistingDirectory(self, "Folder for the new capture session", start)
-        if not folder:
+        if not folder or not self._confirm_session_folder(Path(folder)):
             return False
         try:
             self.new_session(folder)
@@ -347,6 +369,45 @@ class CaptureTab(QWidget):
             self.ctx.report_error(str(exc))
             return False
         return True
+
+    def _confirm_session_folder(self, folder: Path) -> bool:
+        """New session…: a folder that already holds files but no session is written into only
+        when the technician says so (issue 12: session.json appeared in a folder without a
+        word); a folder that holds a session is offered for opening instead."""
+        from stereo_gui.files.session import MANIFEST, CaptureSession
+
+        if (folder / MANIFEST).exists():
+            answer = QMessageBox.question(
+                self, "New session", f"{folder} already holds a capture session. Open it to "
+                "go on capturing into it?")
+            if answer == QMessageBox.StandardButton.Yes:
+                try:
+                    self.open_session(folder)
+                except StereoGuiError as exc:
+                    self.ctx.report_error(str(exc))
+            return False
+        try:
+            entries = [p for p in folder.iterdir() if not p.name.startswith(".")]
+        except OSError:
+            return True  # (it may not exist yet: creating the session says what goes wrong)
+        if not entries:
+            return True
+        try:
+            pairs = len(CaptureSession.open(folder).pairs)
+        except StereoGuiError:
+            pairs = 0
+        what = (f"{len(entries)} file{'s' if len(entries) != 1 else ''} or folder"
+                f"{'s' if len(entries) != 1 else ''}")
+        kept = (f", among them {pairs} image pair{'s' if pairs != 1 else ''} that the session "
+                "will list as saved pairs" if pairs else "")
+        answer = QMessageBox.question(
+            self, "New session in a folder that is not empty",
+            f"{folder} is not empty: it holds {what}{kept}.\n\nStart the capture session "
+            f"here anyway? Its manifest ({MANIFEST}) and the new pairs are written into this "
+            "folder; nothing in it is changed or removed.",
+            QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No,
+            QMessageBox.StandardButton.No)
+        return answer == QMessageBox.StandardButton.Yes
 
     def _choose_open_session(self) -> None:
         start = self.ctx.settings.last_session or str(Path.home())
@@ -394,7 +455,8 @@ class CaptureTab(QWidget):
         if self.state == "review":  # the prompt no longer needs to warn that Save asks for one
             self._show_review_prompt()
         self._saved.clear()
-        self.pair_list.clear()
+        self.shown_pair = None
+        self.saved_panel.clear()
         self.coverage.reset(self._image_size())
         self._update_coverage()
         self.sessionChanged.emit(session)
@@ -447,7 +509,7 @@ class CaptureTab(QWidget):
         return self._scan is not None
 
     def _refill_list(self) -> None:
-        self.pair_list.clear()
+        self.saved_panel.clear()
         order = [p.name for p in self.session.pairs] if self.session is not None else []
         for name in order:
             info = self._saved.get(name) or SavedPairInfo(name, None, None)
@@ -495,18 +557,24 @@ class CaptureTab(QWidget):
 
     # ---- saved pairs -----------------------------------------------------------------------------
     def show_saved_pair(self, name: str) -> None:
-        """Show a saved pair (with its corners) instead of the live view."""
+        """Show a saved pair (with its corners) instead of the live view; it is the pair
+        selected in the list (and the one Delete pair deletes)."""
         if self.session is None:
             return
         pair = next((p for p in self.session.pairs if p.name == name), None)
-        if pair is None:
-            return
         try:
+            if pair is None:
+                raise StereoGuiError(f"pair {name} is no longer in the session")
             left, right = load_image(pair.left), load_image(pair.right)
         except StereoGuiError as exc:
             self.ctx.report_error(str(exc))
+            if self.shown_pair is not None:  # the list goes back to what is on screen
+                self.saved_panel.select(self.shown_pair)
+            else:
+                self.saved_panel.clear_selection()
             return
         self.state = "saved"
+        self.shown_pair = name
         self._set_processing(False)
         self.frozen = None
         self._frozen_frame = None
@@ -527,7 +595,8 @@ class CaptureTab(QWidget):
         self._update_controls()
 
     def _delete_selected(self) -> None:
-        name = self.saved_panel.current_name()
+        """Delete pair: the pair on screen (asks first)."""
+        name = self.shown_pair if self.state == "saved" else None
         if name is None:
             return
         answer = QMessageBox.question(  # the files go, not only the list entry
@@ -554,8 +623,10 @@ class CaptureTab(QWidget):
         self._refill_list()
         self._update_coverage()
         self.ctx.show_status(f"Deleted pair {name}")
-        if self.state == "saved":
+        if self.state == "saved" and self.shown_pair == name:
             self.go_live()
+        elif self.shown_pair is not None:
+            self.saved_panel.select(self.shown_pair)
 
     # ---- controls --------------------------------------------------------------------------------
     def _update_controls(self) -> None:
@@ -566,7 +637,8 @@ class CaptureTab(QWidget):
         self.save_button.setEnabled(review)
         self.cancel_button.setEnabled(review)
         self.live_button.setEnabled(self.state == "saved")
-        self.delete_button.setEnabled(self.session is not None and self.pair_list.count() > 0)
+        # Delete pair deletes the saved pair on screen: with none shown there is nothing to delete
+        self.delete_button.setEnabled(self.session is not None and self.state == "saved")
         if review:
             self.save_button.setDefault(True)
 

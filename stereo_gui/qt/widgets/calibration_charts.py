@@ -1,6 +1,7 @@
-"""The Calibration tab's charts: reprojection error per pair (click a bar to select the pair)
-and a rectified pair with horizontal lines to check the rectification by eye: side by side with
-one zoom for both halves, as an anaglyph, or blended."""
+"""The Calibration tab's charts: reprojection error per pair (click a bar to select the pair),
+with the mean error and a threshold line to exclude the pairs above it; and a rectified pair with
+horizontal lines to check the rectification by eye: side by side with one zoom for both halves
+(with the pair's detected and reprojected corners), as an anaglyph, or blended."""
 
 from __future__ import annotations
 
@@ -9,20 +10,43 @@ import math
 import cv2
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import Signal
-from PySide6.QtWidgets import QComboBox, QHBoxLayout, QLabel, QVBoxLayout, QWidget
+from PySide6.QtCore import Qt, Signal
+from PySide6.QtWidgets import QCheckBox, QComboBox, QHBoxLayout, QLabel, QVBoxLayout, QWidget
 
 LINE_EVERY_PX = 32  # rectification check: a horizontal line every this many rows
 LEGEND_HEADROOM = 1.5  # the error chart's y range over its tallest bar
 _BAR_LEFT = "#4f8fd6"
 _BAR_RIGHT = "#e08a3c"
 _BAR_SELECTED = "#f5e342"
+_BAR_EXCLUDED = "#8a8a8a"  # a pair excluded since this calibration: hatched grey
+_MEAN_LINE = "#e8e8e8"
+_THRESHOLD_LINE = "#ff4d4d"
+_DETECTED = "#2ee65a"  # corners as detected: circles
+_REPROJECTED = "#ff3b3b"  # as the calibration reprojects them: crosses
+_ERROR_LINE = "#ffd21f"
+ERROR_LINE_PX = 12.0  # the mean error is drawn this long (the scale is said in the title)
+
+
+def error_scale(mean_px: float | None) -> float:
+    """How many times longer to draw reprojection errors so that the mean one is about
+    ERROR_LINE_PX long: 1, 2, 5, 10, 20, 50, ... (never shorter than they are)."""
+    if not mean_px or not math.isfinite(mean_px) or mean_px <= 0:
+        return 1.0
+    want = ERROR_LINE_PX / mean_px
+    if want <= 1:
+        return 1.0
+    exp = math.floor(math.log10(want))
+    for m in (5, 2, 1):
+        if m * 10 ** exp <= want:
+            return float(m * 10 ** exp)
+    return 1.0
 
 
 class ErrorBarChart(pg.PlotWidget):
     """Reprojection error per pair (left and right bars); a click selects a pair."""
 
     pairClicked = Signal(str)
+    thresholdMoved = Signal(float)  # the threshold line dragged to this error, px
 
     def __init__(self, parent=None) -> None:
         super().__init__(parent)
@@ -33,15 +57,37 @@ class ErrorBarChart(pg.PlotWidget):
         self.setMouseEnabled(x=False, y=False)
         self.hideButtons()
         self.setMenuEnabled(False)
-        self.addLegend(offset=(-10, 10))
+        self.addLegend(offset=(-10, 4), colCount=3)  # rows across the top, above the bars
         self.names: list[str] = []
         self.selected: str | None = None
+        self.excluded: set[str] = set()  # pairs excluded in the session (shown hatched)
         self._left = pg.BarGraphItem(x=[], height=[], width=0.38, brush=_BAR_LEFT, name="left")
         self._right = pg.BarGraphItem(x=[], height=[], width=0.38, brush=_BAR_RIGHT, name="right")
         self._mark = pg.BarGraphItem(x=[], height=[], width=0.9, brush=pg.mkBrush(245, 227, 66, 90),
                                      pen=pg.mkPen(_BAR_SELECTED, width=2))
-        for it in (self._mark, self._left, self._right):
+        self._excluded = pg.BarGraphItem(
+            x=[], height=[], width=0.82, pen=pg.mkPen(_BAR_EXCLUDED, width=1),
+            brush=pg.mkBrush(_BAR_EXCLUDED, style=Qt.BrushStyle.BDiagPattern))
+        self._excluded_in_legend = False
+        for it in (self._mark, self._left, self._right, self._excluded):
             self.addItem(it)
+        self.mean_px: float | None = None
+        # the mean and the threshold are named in the legend, not on the bars
+        self._mean = pg.InfiniteLine(angle=0, movable=False,
+                                     pen=pg.mkPen(_MEAN_LINE, width=1.5, style=Qt.PenStyle.DashLine))
+        self._threshold = pg.InfiniteLine(angle=0, movable=True,
+                                          pen=pg.mkPen(_THRESHOLD_LINE, width=1.5),
+                                          hoverPen=pg.mkPen(_THRESHOLD_LINE, width=3))
+        # legend samples of the two lines (curves with no points)
+        self._mean_key = pg.PlotDataItem([], [], pen=self._mean.pen)
+        self._threshold_key = pg.PlotDataItem([], [], pen=self._threshold.pen)
+        self._lines_in_legend = False
+        self._threshold.setToolTip("Drag: the pairs above this error can be excluded")
+        self._threshold.sigPositionChanged.connect(self._threshold_dragged)
+        self._threshold.setBounds((0, None))
+        for line in (self._mean, self._threshold):
+            line.setVisible(False)
+            self.addItem(line, ignoreBounds=True)
         self.scene().sigMouseClicked.connect(self._clicked)
         self.setToolTip("Click a bar to look at that pair (and exclude it if it is bad)")
 
@@ -58,6 +104,62 @@ class ErrorBarChart(pg.PlotWidget):
         # headroom above the tallest bar: the legend (top right) sits there, not on the bars
         self.setYRange(0, top * LEGEND_HEADROOM, padding=0)
         self.select(self.selected if self.selected in self.names else None)
+        self.set_excluded(self.excluded)
+        errs = np.asarray([*left, *right], float)
+        errs = errs[np.isfinite(errs)]
+        self.mean_px = float(errs.mean()) if errs.size else None
+        self._mean.setVisible(self.mean_px is not None)
+        self._threshold.setVisible(self.mean_px is not None)
+        if self.mean_px is not None:
+            self._mean.setValue(self.mean_px)
+        self._update_line_legend()
+
+    def _update_line_legend(self) -> None:
+        legend = self.plotItem.legend
+        if self._lines_in_legend:
+            legend.removeItem(self._mean_key)
+            legend.removeItem(self._threshold_key)
+            self._lines_in_legend = False
+        if self.mean_px is not None:
+            legend.addItem(self._mean_key, f"mean {self.mean_px:.3f}")
+            legend.addItem(self._threshold_key, f"threshold {self.threshold_px:.3f}")
+            self._lines_in_legend = True
+
+    def set_threshold(self, px: float) -> None:
+        """Put the threshold line at `px` (no thresholdMoved)."""
+        self._threshold.blockSignals(True)
+        self._threshold.setValue(float(px))
+        self._threshold.blockSignals(False)
+        self._update_line_legend()
+
+    @property
+    def threshold_px(self) -> float:
+        return float(self._threshold.value())
+
+    def _threshold_dragged(self) -> None:
+        v = float(self._threshold.value())
+        self._update_line_legend()
+        self.thresholdMoved.emit(v)
+
+    def set_excluded(self, names) -> None:
+        """Hatch the bars of the pairs excluded in the session: they are still part of this
+        calibration until Recalibrate (issue 12: they were not marked until then)."""
+        self.excluded = set(names)
+        idx = [i for i, n in enumerate(self.names) if n in self.excluded]
+        lh, rh = self.heights()
+        self._excluded.setOpts(x=np.asarray(idx, float),
+                               height=[float(max(lh[i], rh[i])) for i in idx])
+        legend = self.plotItem.legend
+        if idx and not self._excluded_in_legend:
+            legend.addItem(self._excluded, "excluded: Recalibrate")
+        elif not idx and self._excluded_in_legend:
+            legend.removeItem(self._excluded)
+        self._excluded_in_legend = bool(idx)
+
+    def excluded_bars(self) -> list[str]:
+        """Names of the pairs whose bars are marked excluded (for tests)."""
+        xs = self._excluded.opts["x"]
+        return [self.names[int(round(x))] for x in (xs if xs is not None else [])]
 
     def bar_count(self) -> int:
         return len(self.names)
@@ -132,6 +234,9 @@ class RectifiedPairView(QWidget):
         self.views: list[pg.ViewBox] = []
         self.images: list[pg.ImageItem] = []
         self.line_items: list[pg.PlotCurveItem] = []
+        self.detected_items: list[pg.ScatterPlotItem] = []
+        self.reprojected_items: list[pg.ScatterPlotItem] = []
+        self.error_items: list[pg.PlotCurveItem] = []
         for col in (0, 1):
             vb = self.glw.addViewBox(row=1, col=col, lockAspect=True, enableMouse=True)
             vb.invertY(True)
@@ -140,6 +245,16 @@ class RectifiedPairView(QWidget):
             lines = pg.PlotCurveItem(pen=pg.mkPen((80, 255, 80, 150), width=1),
                                      connect="pairs")
             vb.addItem(lines)
+            errors = pg.PlotCurveItem(pen=pg.mkPen(_ERROR_LINE, width=1), connect="pairs")
+            detected = pg.ScatterPlotItem(symbol="o", size=7, brush=None,
+                                          pen=pg.mkPen(_DETECTED, width=1))
+            reprojected = pg.ScatterPlotItem(symbol="+", size=7, brush=pg.mkBrush(_REPROJECTED),
+                                             pen=pg.mkPen(_REPROJECTED, width=1))
+            for it in (errors, detected, reprojected):
+                vb.addItem(it)
+            self.error_items.append(errors)
+            self.detected_items.append(detected)
+            self.reprojected_items.append(reprojected)
             self.views.append(vb)
             self.images.append(img)
             self.line_items.append(lines)
@@ -153,6 +268,14 @@ class RectifiedPairView(QWidget):
         row.setContentsMargins(0, 0, 0, 0)
         row.addWidget(QLabel("Show:"))
         row.addWidget(self.mode_combo)
+        self.corners_check = QCheckBox("Corners: \u25cb detected, + reprojected")
+        self.corners_check.setChecked(True)
+        self.corners_check.setToolTip(
+            "The pair's corners as found (circles) and as the calibration reprojects them "
+            "(crosses), side by side; the yellow lines are the errors, drawn longer (the title "
+            "says how much). Zoom with the mouse wheel to see the crosses apart.")
+        self.corners_check.toggled.connect(lambda _on: self._draw())
+        row.addWidget(self.corners_check)
         row.addStretch(1)
         col = QVBoxLayout(self)
         col.setContentsMargins(0, 0, 0, 0)
@@ -161,6 +284,9 @@ class RectifiedPairView(QWidget):
         self.shown: str | None = None
         self._pair: tuple[np.ndarray, np.ndarray] | None = None
         self._title = ""
+        # (detected, reprojected) rectified px per side, and how much longer errors are drawn
+        self._corners: tuple[tuple[np.ndarray, np.ndarray], ...] | None = None
+        self.error_scale = 1.0
 
     @property
     def mode(self) -> str:
@@ -171,10 +297,14 @@ class RectifiedPairView(QWidget):
         self.mode_combo.setCurrentIndex(list(RECT_MODES).index(mode))
 
     def show_pair(self, name: str, left_rect: np.ndarray, right_rect: np.ndarray,
-                  note: str = "") -> None:
+                  note: str = "", corners=None, error_scale: float = 1.0) -> None:
+        """Show a rectified pair; `corners` ((detected, reprojected) of the left image, the same
+        of the right), in rectified pixels, are drawn in the side-by-side mode with the errors
+        drawn `error_scale` times longer."""
+        self._corners = corners
+        self.error_scale = float(error_scale)
         self._pair = (left_rect, right_rect)
-        self._title = (f"Rectified pair {name}: a point should lie on the same row in both"
-                       f"{note}")
+        self._title = f"Rectified pair {name}: a point lies on one row in both{note}"
         self.shown = name
         h, w = left_rect.shape[:2]
         self._draw()
@@ -201,15 +331,41 @@ class RectifiedPairView(QWidget):
                 continue
             img.setImage(np.ascontiguousarray(arr), levels=(0, 255), autoLevels=False)
             lines.setData(xs, np.repeat(ys, 2))
+        corners = self._corners if (side and self.corners_check.isChecked()) else None
+        self.corners_check.setEnabled(side and self._corners is not None)
+        for k in (0, 1):
+            if corners is None:
+                for it in (self.detected_items[k], self.reprojected_items[k], self.error_items[k]):
+                    it.setData([], [])
+                continue
+            det, rep = (np.asarray(a, float).reshape(-1, 2) for a in corners[k])
+            self.detected_items[k].setData(det[:, 0], det[:, 1])
+            self.reprojected_items[k].setData(rep[:, 0], rep[:, 1])
+            tip = det + self.error_scale * (rep - det)
+            seg = np.empty((2 * len(det), 2))
+            seg[0::2], seg[1::2] = det, tip
+            self.error_items[k].setData(seg[:, 0], seg[:, 1])
         # one image: the right column gives its room to it
         self.glw.ci.layout.setColumnMaximumWidth(1, 1e6 if side else 0.0)
         what = "left | right" if side else RECT_MODES[self.mode].lower()
-        self.title.setText(f"{self._title} ({what})")
+        extra = ""
+        if corners is not None:
+            extra = f"; errors \u00d7{self.error_scale:g}" if self.error_scale != 1 else ""
+        self.title.setText(f"{self._title} ({what}{extra})")
+
+    def corner_points(self, side: int) -> tuple[np.ndarray, np.ndarray]:
+        """(detected, reprojected) points drawn on one half, (N, 2) each (for tests)."""
+        d = self.detected_items[side].data
+        r = self.reprojected_items[side].data
+        return (np.column_stack([d["x"], d["y"]]), np.column_stack([r["x"], r["y"]]))
 
     def clear_pair(self) -> None:
         for img, lines in zip(self.images, self.line_items, strict=True):
             img.clear()
             lines.setData([], [])
+        for it in (*self.detected_items, *self.reprojected_items, *self.error_items):
+            it.setData([], [])
+        self._corners = None
         self._pair = None
         self.title.setText("Rectification check: select a pair")
         self.shown = None

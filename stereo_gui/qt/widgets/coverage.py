@@ -33,6 +33,11 @@ GRID_COLS = GRID  # cells across the image in a corner map: the regions' cells
 GRID_ROWS = GRID
 
 
+def pairs_kept(n: int) -> str:
+    """"1 pair kept", "2 pairs kept" (issue 12: "1 pairs kept")."""
+    return f"{n} pair{'' if n == 1 else 's'} kept"
+
+
 @dataclass(frozen=True)
 class CoverageBar:
     """One bar: `fraction` (0..1) of the wanted range covered, and a short hint for a person."""
@@ -189,7 +194,7 @@ class CoverageWidget(QWidget):
         self.readiness_label.setText(r.summary())
         self.readiness_label.setStyleSheet(
             "color: #1e7b34; font-weight: bold" if r.ready else "color: #9a5b00")
-        self.count_label.setText(f"{r.pairs} pairs kept" + ("" if r.ready else
+        self.count_label.setText(pairs_kept(r.pairs) + ("" if r.ready else
                                  " (not yet enough coverage to calibrate)"))
 
     def bar_values(self) -> dict[str, int]:
@@ -197,4 +202,4 @@ class CoverageWidget(QWidget):
         return {name: bar.value() for name, (bar, _) in self._bars.items()}
 
     def set_count(self, n_pairs: int, recommended: int) -> None:
-        self.count_label.setText(f"{n_pairs} pairs kept (usually {recommended} or more)")
+        self.count_label.setText(f"{pairs_kept(n_pairs)} (usually {recommended} or more)")

@@ -1,5 +1,6 @@
-"""The Capture tab's side pane: coverage guidance above the saved pairs (thumbnails; click one
-to review it) and Delete pair."""
+"""The Capture tab's side pane: coverage guidance above the saved pairs (thumbnails; click one,
+or move to it with the keyboard, to review it) and Delete pair (Del), which deletes the pair
+shown: the pair on screen and the pair selected in the list are one."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from PySide6.QtCore import QSize, Qt, Signal
+from PySide6.QtCore import QEvent, QObject, QSize, Qt, Signal
 from PySide6.QtGui import QIcon, QImage, QPixmap
 from PySide6.QtWidgets import (
     QHBoxLayout,
@@ -47,7 +48,11 @@ class SavedPairInfo:
 
 
 class SavedPairsPanel(QWidget):
-    """Coverage of the saved pairs, their list and Delete pair; `pairClicked(name)`."""
+    """Coverage of the saved pairs, their list and Delete pair.
+
+    `pairClicked(name)` when the technician makes a pair the current one, by mouse or keyboard
+    (not when the tab does it with `select`, `clear_selection` or by filling the list).
+    """
 
     pairClicked = Signal(str)
 
@@ -62,14 +67,23 @@ class SavedPairsPanel(QWidget):
         self.pair_list = QListWidget()
         self.pair_list.setIconSize(THUMB_SIZE)
         self.pair_list.setUniformItemSizes(True)
-        self.pair_list.itemClicked.connect(
-            lambda item: self.pairClicked.emit(item.data(Qt.ItemDataRole.UserRole)))
+        self._quiet = 0  # > 0 while the list is changed by the program, not by the user
+        self.pair_list.currentItemChanged.connect(self._current_changed)
         sl.addWidget(self.pair_list, 1)
         pb = QHBoxLayout()
-        self.delete_button = QPushButton("Delete pair")
+        self.delete_button = QPushButton("Delete pair (Del)")
+        self.delete_button.setToolTip("Delete the saved pair shown (its two image files)")
+        self.pair_list.installEventFilter(self)  # the Del key in the list: Delete pair
         pb.addWidget(self.delete_button)
         pb.addStretch(1)
         sl.addLayout(pb)
+
+    def eventFilter(self, obj: QObject, event: QEvent) -> bool:
+        if (obj is self.pair_list and event.type() == QEvent.Type.KeyPress
+                and event.key() == Qt.Key.Key_Delete and self.delete_button.isEnabled()):
+            self.delete_button.click()
+            return True
+        return super().eventFilter(obj, event)
 
     def add_coverage(self, det: PairDetection) -> None:
         """Count a saved pair's corners in the coverage maps."""
@@ -87,12 +101,35 @@ class SavedPairsPanel(QWidget):
         if info.icon is not None:
             item.setIcon(info.icon)
         item.setData(Qt.ItemDataRole.UserRole, info.name)
-        self.pair_list.addItem(item)
+        self._quiet += 1
+        try:
+            self.pair_list.addItem(item)
+        finally:
+            self._quiet -= 1
         self.update_label()
+
+    def show_newest(self) -> None:
+        """Scroll the list to its last pair (the one just saved)."""
+        n = self.pair_list.count()
+        if n:
+            self.pair_list.scrollToItem(self.pair_list.item(n - 1))
+
+    def clear(self) -> None:
+        """Empty the list (no pairClicked)."""
+        self._quiet += 1
+        try:
+            self.pair_list.clear()
+        finally:
+            self._quiet -= 1
+
+    def _current_changed(self, item, _previous) -> None:
+        if self._quiet or item is None:
+            return
+        self.pairClicked.emit(item.data(Qt.ItemDataRole.UserRole))
 
     def update_label(self) -> None:
         n = self.pair_list.count()
-        self.pairs_label.setText(f"Saved pairs ({n}): click one to review it")
+        self.pairs_label.setText(f"Saved pairs ({n}): click one (or \u2191 \u2193) to review it")
 
     def names(self) -> list[str]:
         """The pair names listed, in order."""
@@ -104,8 +141,23 @@ class SavedPairsPanel(QWidget):
         return item.data(Qt.ItemDataRole.UserRole) if item is not None else None
 
     def select(self, name: str) -> None:
+        """Make pair `name` the current one, scrolled into view (no pairClicked)."""
         for i in range(self.pair_list.count()):
             item = self.pair_list.item(i)
             if item.data(Qt.ItemDataRole.UserRole) == name:
-                self.pair_list.setCurrentItem(item)
+                self._quiet += 1
+                try:
+                    self.pair_list.setCurrentItem(item)
+                finally:
+                    self._quiet -= 1
+                self.pair_list.scrollToItem(item)
                 return
+
+    def clear_selection(self) -> None:
+        """No current pair (none is shown; no pairClicked)."""
+        self._quiet += 1
+        try:
+            self.pair_list.setCurrentItem(None)
+            self.pair_list.clearSelection()
+        finally:
+            self._quiet -= 1

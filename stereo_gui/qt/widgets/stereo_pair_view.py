@@ -55,6 +55,13 @@ class StereoPairView(QWidget):
             for vb in self.views:
                 vb.setRange(xRange=(0, shape[1]), yRange=(0, shape[0]), padding=0.01)
 
+    def clear(self, text: str = "") -> None:
+        """Show no images and no corners; each title says `text` after its side's name."""
+        for i, (img, name) in enumerate(zip(self.images, ("Left", "Right"), strict=True)):
+            img.clear()
+            self.show_corners(i, None, False)
+            self.set_title(i, f"{name}: {text}" if text else name)
+
     def show_corners(self, side: int, det: Detection | None, both: bool) -> None:
         line, dots = self.corner_lines[side], self.corner_dots[side]
         if det is None:

@@ -7,7 +7,10 @@ camera_calibration):
   happens here) and keeps the newest `ProcessedFrame`.
 
 The UI never receives a backlog: `frameReady` (queued to the UI thread) is emitted at most once
-until `latest()` is called, and `latest()` returns only the newest result.
+until the UI thread has received it (or `latest()` was called), and `latest()` returns only the
+newest result. It is re-armed where it is received, not only by `latest()`: a notification that
+reached no reader (the tab shown draws no frames) must not silence the worker for the tab shown
+next (issue 12: the Capture view froze after a visit to the Calibration tab).
 
 A source that raises SourceUnavailable (a camera source opening a vanished camera again) is
 kept and read again: the message is shown once, and `streamStatus` says "reconnecting" and later
@@ -107,7 +110,7 @@ class StreamStatus:
 class FrameWorker(QObject):
     """Reads frames from a FrameSource and processes them off the UI thread (see module doc)."""
 
-    frameReady = Signal()  # a new ProcessedFrame is available; at most once until latest()
+    frameReady = Signal()  # a new ProcessedFrame is available; at most one pending at a time
     errorOccurred = Signal(str)  # a message for the user (source or processor failure)
     sourceChanged = Signal(str)  # the name of the new source ("" when none)
     streamStatus = Signal(object)  # StreamStatus, when the stream's state changes
@@ -124,6 +127,7 @@ class FrameWorker(QObject):
         self._frame: StereoFrame | None = None  # newest frame not yet processed
         self._latest: ProcessedFrame | None = None
         self._notified = False
+        self._source_gen = 0  # set_source() counts up: a result of an older source is dropped
         self._paused = False
         self._stopping = False
         self._camera_rate = _RateMeter()
@@ -142,6 +146,8 @@ class FrameWorker(QObject):
         self._watchdog = QTimer(self)
         self._watchdog.setInterval(_WATCHDOG_MS)
         self._watchdog.timeout.connect(self._check_read)
+        # connected first, so it runs before the readers' slots (see the module docstring)
+        self.frameReady.connect(self._frame_delivered)
 
     # ---- control (UI thread) -----------------------------------------------------------------
     def set_source(self, source: FrameSource | None) -> None:
@@ -149,6 +155,7 @@ class FrameWorker(QObject):
         with self._cond:
             self._pending_source = source
             self._source_pending = True
+            self._source_gen += 1
             self._frame = None
             self._latest = None
             self._last_error = ""
@@ -193,6 +200,11 @@ class FrameWorker(QObject):
         with self._cond:
             self._notified = False
             return self._latest
+
+    def _frame_delivered(self) -> None:
+        """UI thread: a frameReady has arrived; the next result may notify again."""
+        with self._cond:
+            self._notified = False
 
     def pause(self) -> None:
         """Stop reading and processing until `resume()`; the last result stays available."""
@@ -479,6 +491,7 @@ class FrameWorker(QObject):
                     return
                 frame, self._frame = self._frame, None
                 fn = self._processor
+                gen = self._source_gen
             t0 = time.perf_counter()
             output = None
             if fn is not None:
@@ -492,6 +505,8 @@ class FrameWorker(QObject):
             with self._cond:
                 if self._processor is not fn:
                     continue  # made for a processor that has since been replaced
+                if self._source_gen != gen:
+                    continue  # a frame of the previous source (issue 12: a stale frozen pair)
                 self._proc_rate.tick(time.monotonic())
                 self._frames_processed += 1
                 self._latest = ProcessedFrame(frame, output, self._camera_rate.fps,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from stereo_gui.files.session import CaptureSession
@@ -182,3 +183,73 @@ def test_empty_error_chart_axis_reads_pair_without_an_si_prefix(qtbot):
     axis.updateAutoSIPrefix()
     label = axis.labelString()
     assert "pair" in label and "x0.001" not in label and "(m" not in label
+
+
+def test_exclusions_are_shown_before_recalibration_and_after_a_restart(
+        tab, ctx, qtbot, make_tab, session_folder, tmp_path):
+    """Issue 12, item 9: a pair excluded is marked on the chart at once (not only after
+    Recalibrate), and after a restart the list names the session's excluded pairs, not "none"."""
+    tab.folder_edit.setText(str(session_folder))
+    _calibrate(tab, qtbot)
+    assert tab.rejected_lines() == ["none"] and tab.chart.excluded_bars() == []
+    name = tab.chart.names[2]
+    tab.select_pair(name)
+    tab.exclude_button.click()
+    assert tab.chart.excluded_bars() == [name]
+    assert f"{name}: excluded (Recalibrate leaves it out)" in tab.rejected_lines()
+    assert tab.save_calibration(tmp_path / "calib.yaml")
+    # a restart: a new tab, the calibration loaded from its file, no run
+    ctx.set_calibration(None)
+    assert ctx.open_calibration_file(tmp_path / "calib.yaml")
+    again = make_tab(CalibrationTab)
+    again.folder_edit.setText(str(session_folder))
+    assert again.run is None
+    assert f"{name}: excluded (Recalibrate leaves it out)" in again.rejected_lines()
+    assert again.chart.excluded_bars() == [name]
+    again.select_pair(name)  # it can be included again without calibrating first
+    assert again.exclude_button.isEnabled()
+    assert again.exclude_button.text() == "Include pair again"
+    again.exclude_button.click()
+    assert not CaptureSession.open(session_folder).pair(name).excluded
+    assert again.rejected_lines() == ["none"] and again.chart.excluded_bars() == []
+
+
+def test_review_draws_corners_a_mean_line_and_excludes_above_a_threshold(
+        tab, qtbot, session_folder):
+    """Issue 12, item 16: the selected pair shows its detected and reprojected corners, the
+    chart a mean-error line, and the pairs above a threshold are excluded in one step."""
+    tab.folder_edit.setText(str(session_folder))
+    run = _calibrate(tab, qtbot)
+    calib = run.result.calibration
+    errs = [(p.name, p.error_left, p.error_right) for p in calib.per_pair]
+    assert tab.chart.mean_px == pytest.approx(
+        sum(e[1] + e[2] for e in errs) / (2 * len(errs)))
+    name = tab.chart.names[1]
+    tab.select_pair(name)
+    det, rep = tab.rect_view.corner_points(0)
+    assert len(det) == len(run.detections[name].left.corners) and det.shape == rep.shape
+    # rectified pixels: the two sit within a pixel of each other, inside the rectified image
+    assert float(np.abs(det - rep).max()) < 1.0
+    w, h = calib.image_size
+    assert (det[:, 0] > 0).all() and (det[:, 0] < w).all()
+    det_r, _ = tab.rect_view.corner_points(1)
+    # a corner lies on the same row in both rectified images
+    assert float(np.abs(np.median(det[:, 1] - det_r[:, 1]))) < 0.5
+    tab.rect_view.corners_check.setChecked(False)
+    assert len(tab.rect_view.corner_points(0)[0]) == 0
+    # exclude above a threshold between the errors: exactly those above it
+    worst = sorted(max(e[1], e[2]) for e in errs)
+    px = (worst[-3] + worst[-4]) / 2
+    tab.threshold_spin.setValue(px)
+    px = tab.threshold_spin.value()  # (to the spin box's 0.001 px)
+    assert tab.chart.threshold_px == pytest.approx(px)
+    assert tab.exclude_above_button.text() == "Exclude 3 pairs above"
+    names = tab.exclude_above(tab.threshold_spin.value())
+    expected = {e[0] for e in errs if max(e[1], e[2]) > px}
+    assert set(names) == expected and len(expected) == 3
+    session = CaptureSession.open(session_folder)
+    assert {p.name for p in session.pairs if p.excluded} == expected
+    assert set(tab.chart.excluded_bars()) == expected
+    assert not tab.exclude_above_button.isEnabled()  # nothing left above it
+    run2 = _calibrate(tab, qtbot)
+    assert run2.result.report.pairs_used == len(errs) - 3

@@ -54,7 +54,7 @@ def test_both_sides_found_freezes_and_save_writes_both_images(tab, tmp_path, qtb
     assert np.array_equal(left, frame.left) and np.array_equal(right, frame.right)
     assert tab.saved_names() == [name]
     assert tab.coverage.bar_values()["X"] >= 0
-    assert "1 pairs kept" in tab.coverage.count_label.text()
+    assert tab.coverage.count_label.text().startswith("1 pair kept")  # not "1 pairs"
 
 
 def test_cancel_discards_and_same_pose_does_not_freeze_again(tab, tmp_path):
@@ -111,13 +111,14 @@ def test_open_session_lists_pairs_with_coverage_and_delete(tab, tmp_path, qtbot)
     tab.open_session(folder)
     qtbot.waitUntil(lambda: not tab.scanning(), timeout=20000)
     assert len(tab.saved_names()) == 4
-    assert tab.delete_button.isEnabled()  # once the pairs are listed, not only after a click
+    # Delete pair deletes the pair on screen: none yet (live), so there is nothing to delete
+    assert not tab.delete_button.isEnabled()
     assert tab.pair_list.item(0).icon() is not None and not tab.pair_list.item(0).icon().isNull()
     assert tab.coverage.left_map.covered_fraction() > 0
     assert sum(tab.coverage.bar_values().values()) > 0
     first = tab.saved_names()[0]
     tab.show_saved_pair(first)
-    assert tab.state == "saved" and tab.live_button.isEnabled()
+    assert tab.state == "saved" and tab.live_button.isEnabled() and tab.delete_button.isEnabled()
     files = CaptureSession.open(folder).pair(first)
     tab.delete_pair(first)
     assert first not in tab.saved_names() and len(tab.saved_names()) == 3
@@ -211,3 +212,146 @@ def test_list_follows_exclusions_made_elsewhere(tab, tmp_path, qtbot):
     tab.set_active(True)
     assert "(excluded)" in tab.pair_list.item(1).text()
     assert "(excluded)" not in tab.pair_list.item(0).text()
+
+
+def test_a_new_source_without_a_board_drops_the_frozen_pair(tab, ctx, qtbot, tmp_path, sim_rig):
+    """Issue 12, item 4: a pair frozen from the previous source is not offered (Save enabled)
+    once the source is a folder whose pairs show no board; the view shows the new frames."""
+    from stereo_gui.sources.playback import PlaybackSource
+    from stereo_gui.sources.sim import Scene
+
+    rng = np.random.default_rng(5)
+    folder = tmp_path / "no-board"
+    folder.mkdir()
+    for k in (1, 2):
+        left, right = sim_rig.render_scene(Scene.wall(1200.0 + 300 * k), rng)
+        cv2.imwrite(str(folder / f"left{k}.png"), left)
+        cv2.imwrite(str(folder / f"right{k}.png"), right)
+    tab.set_active(True)
+    ctx.frames.set_source(SimSource(rig=sim_rig, mode="board", paced=False, frames_per_move=8))
+    qtbot.waitUntil(lambda: tab.state == "review", timeout=30000)
+    assert tab.save_button.isEnabled()
+    ctx.frames.set_source(PlaybackSource(folder, fps=20))
+    assert tab.state == "live" and tab.frozen is None
+    assert not tab.save_button.isEnabled()
+    assert tab.view.images[0].image is None  # not the old picture while the new one comes
+    n = tab.frames_shown
+    qtbot.waitUntil(lambda: tab.frames_shown >= n + 3, timeout=30000)
+    assert tab.state == "live" and not tab.save_button.isEnabled()
+    shown = tab.shown_frame.left
+    assert any(np.array_equal(shown, cv2.imread(str(folder / f"left{k}.png"))) for k in (1, 2))
+    assert "Hold the" in tab.prompt.text()
+
+
+def test_keyboard_selection_shows_the_pair_and_delete_deletes_what_is_shown(
+        tab, tmp_path, qtbot, monkeypatch):
+    """Issue 12, item 5: moving through the saved pairs with the keyboard shows each pair, and
+    Delete pair asks about (and deletes) the pair on screen, never another one."""
+    from PySide6.QtCore import Qt
+    from PySide6.QtWidgets import QMessageBox
+
+    (tmp_path / "set").mkdir()
+    folder = write_calibration_set(tmp_path / "set", n_pairs=4, seed=3)
+    tab.open_session(folder)
+    qtbot.waitUntil(lambda: not tab.scanning(), timeout=20000)
+    names = tab.saved_names()
+    tab.show()
+    tab.pair_list.setFocus()
+    tab.show_saved_pair(names[0])  # as a click
+    assert tab.shown_pair == names[0]
+    qtbot.keyClick(tab.pair_list, Qt.Key.Key_Down)
+    qtbot.keyClick(tab.pair_list, Qt.Key.Key_Down)
+    assert tab.state == "saved" and tab.shown_pair == names[2]
+    assert tab.saved_panel.current_name() == names[2]
+    assert f"saved pair {names[2]}" in tab.view.titles[0].text
+    asked = []
+
+    def question(_parent, _title, text, *a, **k):
+        asked.append(text)
+        return QMessageBox.StandardButton.Yes
+
+    monkeypatch.setattr(QMessageBox, "question", question)
+    qtbot.keyClick(tab.pair_list, Qt.Key.Key_Delete)  # the Del key in the list: Delete pair
+    assert asked and f"pair {names[2]}?" in asked[0]
+    assert tab.saved_names() == [names[0], names[1], names[3]]
+    assert tab.state == "live" and tab.saved_panel.current_name() is None
+    assert not tab.delete_button.isEnabled()  # nothing on screen to delete
+
+
+def test_new_session_in_a_folder_with_files_asks_before_writing_into_it(
+        tab, tmp_path, monkeypatch):
+    """Issue 12, item 10: New session… in a non-empty folder without a session asks first; No
+    writes nothing there, Yes starts the session (the pairs there are listed)."""
+    from PySide6.QtWidgets import QFileDialog, QMessageBox
+
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    write_calibration_set(folder, n_pairs=2, seed=3)
+    (folder / "notes.txt").write_text("holiday")
+    before = sorted(p.name for p in folder.iterdir())
+    monkeypatch.setattr(QFileDialog, "getExistingDirectory", lambda *a, **k: str(folder))
+    asked = []
+
+    def answer(reply):
+        def question(_parent, _title, text, *a, **k):
+            asked.append(text)
+            return reply
+        return question
+
+    monkeypatch.setattr(QMessageBox, "question", answer(QMessageBox.StandardButton.No))
+    tab.new_button.click()
+    assert asked and "not empty" in asked[0] and "2 image pairs" in asked[0]
+    assert tab.session is None
+    assert sorted(p.name for p in folder.iterdir()) == before  # no session.json
+    monkeypatch.setattr(QMessageBox, "question", answer(QMessageBox.StandardButton.Yes))
+    tab.new_button.click()
+    assert tab.session is not None and (folder / "session.json").exists()
+    assert len(tab.session.pairs) == 2
+    # an empty folder is not asked about
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    monkeypatch.setattr(QFileDialog, "getExistingDirectory", lambda *a, **k: str(empty))
+    asked.clear()
+    tab.new_button.click()
+    assert not asked and (empty / "session.json").exists()
+
+
+def test_new_session_in_a_session_folder_offers_to_open_it(tab, tmp_path, monkeypatch, qtbot):
+    from PySide6.QtWidgets import QFileDialog, QMessageBox
+
+    folder = tmp_path / "s"
+    CaptureSession.create(folder, BoardSpec(), (640, 480))
+    monkeypatch.setattr(QFileDialog, "getExistingDirectory", lambda *a, **k: str(folder))
+    monkeypatch.setattr(QMessageBox, "question",
+                        lambda *a, **k: QMessageBox.StandardButton.Yes)
+    tab.new_button.click()
+    assert tab.session is not None and tab.session.folder == folder
+
+
+def test_a_saved_pair_is_scrolled_into_view_and_counted_in_words(tab, tmp_path, qtbot):
+    """Issue 12, item 9: the saved-pairs list shows the pair just saved (not the top of a long
+    list); "1 pair kept", "2 pairs kept"."""
+    from PySide6.QtCore import Qt
+
+    (tmp_path / "set").mkdir()
+    folder = write_calibration_set(tmp_path / "set", n_pairs=12, seed=3)
+    tab.open_session(folder)
+    qtbot.waitUntil(lambda: not tab.scanning(), timeout=20000)
+    tab.resize(1000, 600)
+    tab.show()
+    qtbot.waitExposed(tab)
+    lst = tab.pair_list
+    lst.scrollToTop()
+    out, frame = _board_frames()[0]
+    tab.show_output(out, frame)
+    with qtbot.waitSignal(tab.pairSaved, timeout=30000) as blocker:
+        tab.save_button.click()
+    last = lst.item(lst.count() - 1)
+    assert last.data(Qt.ItemDataRole.UserRole) == blocker.args[0]
+    assert lst.viewport().rect().intersects(lst.visualItemRect(last))
+    assert not lst.viewport().rect().intersects(lst.visualItemRect(lst.item(0)))
+    assert "13 pairs kept" in tab.coverage.count_label.text()
+    from stereo_gui.qt.widgets.coverage import pairs_kept
+
+    assert (pairs_kept(1), pairs_kept(2), pairs_kept(0)) == (
+        "1 pair kept", "2 pairs kept", "0 pairs kept")

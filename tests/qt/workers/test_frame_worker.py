@@ -6,6 +6,7 @@ import threading
 
 import numpy as np
 import pytest
+from PySide6.QtWidgets import QApplication
 
 from stereo_gui.qt.workers.frame_worker import FrameWorker, ProcessedFrame
 
@@ -38,18 +39,69 @@ def test_delivers_processed_frames_off_the_ui_thread(qtbot, worker, array_source
     qtbot.waitUntil(lambda: worker.fps_camera > 0 and worker.fps_processing > 0, timeout=30000)
 
 
-def test_frame_ready_is_coalesced_until_latest_is_taken(qtbot, worker, array_source):
+def test_frame_ready_is_coalesced_while_the_ui_thread_is_busy(qtbot, worker, array_source):
+    """However many results are made while the UI thread handles no events, one notification
+    waits for it, not a backlog; and one that nobody answered with latest() (the tab shown draws
+    no frames) does not silence the worker for the tab shown next (issue 12, item 1)."""
     count = []
     worker.frameReady.connect(lambda: count.append(1))
+    calls = []
+    published = threading.Event()
+    gate = threading.Event()  # holds the 21st call, so no result arrives while we count
+
+    def proc(frame):
+        calls.append(frame.index)
+        if len(calls) == 21:  # the 20th result was published before this call
+            published.set()
+            gate.wait(30)
+        return frame.index
+
+    worker.set_processor(proc)
     worker.set_source(array_source(fps=500))
-    qtbot.waitUntil(lambda: worker.frames_processed >= 20, timeout=30000)
-    qtbot.wait(1)  # deliver queued signals
-    # nobody called latest(): only one notification however many frames were processed
-    assert len(count) == 1
+    try:
+        assert published.wait(30)  # the UI thread (this one) handled no events meanwhile
+        QApplication.processEvents()
+        assert len(count) == 1
+    finally:
+        gate.set()
+    # nobody called latest(): the notifications go on all the same
+    qtbot.waitUntil(lambda: len(count) >= 3, timeout=30000)
     first = worker.latest()
-    qtbot.waitUntil(lambda: len(count) == 2, timeout=30000)
-    second = worker.latest()
-    assert second.frame.index > first.frame.index
+    qtbot.waitUntil(lambda: worker.latest().frame.index > first.frame.index, timeout=30000)
+
+
+def test_a_frame_of_the_previous_source_in_processing_is_not_published(qtbot, worker,
+                                                                       array_source):
+    """A frame of source A still being processed when source B is chosen must not become the
+    newest result (issue 12, item 4: Capture froze a stale pair of the old source)."""
+    a = array_source(left=np.zeros((48, 64, 3), np.uint8))
+    b = array_source(left=np.full((48, 64, 3), 200, np.uint8))
+    inside_a, inside_b = threading.Event(), threading.Event()
+    gate_a, gate_b = threading.Event(), threading.Event()
+
+    def proc(frame):
+        mean = float(frame.left.mean())
+        if mean == 0.0 and not inside_a.is_set():
+            inside_a.set()
+            gate_a.wait(30)  # held in processing while the source changes
+        elif mean == 200.0 and not inside_b.is_set():
+            inside_b.set()  # the one processor thread is done with A's frame
+            gate_b.wait(30)
+        return mean
+
+    worker.set_processor(proc)
+    worker.set_source(a)
+    try:
+        assert inside_a.wait(30)
+        worker.set_source(b)
+        gate_a.set()
+        assert inside_b.wait(30)
+        assert worker.latest() is None  # A's result was dropped
+    finally:
+        gate_a.set()
+        gate_b.set()
+    qtbot.waitUntil(lambda: worker.latest() is not None, timeout=30000)
+    assert worker.latest().output == 200.0
 
 
 def test_processor_change_applies_to_next_frame(qtbot, worker, array_source):

@@ -89,7 +89,8 @@ def test_jobs_and_generator_jobs_run_in_our_qthreads(qtbot):
 
 def test_a_fast_source_and_a_slow_processor_build_no_backlog(qtbot, array_source):
     """The processor holds each frame until the test lets it go; meanwhile the reader goes on
-    reading: only the newest frame waits, the ones between are skipped, the UI is told once."""
+    reading: only the newest frame waits, the ones between are skipped, the UI is told at most
+    once a result."""
     worker = FrameWorker()
     gate = threading.Event()
     processed: list[int] = []
@@ -122,7 +123,8 @@ def test_a_fast_source_and_a_slow_processor_build_no_backlog(qtbot, array_source
         assert all(b - a >= 10 for a, b in zip(processed, processed[1:], strict=False))
         assert worker.frames_processed <= len(processed) < worker.frames_read / 5
         qtbot.waitUntil(lambda: bool(notified), timeout=30000)
-        assert len(notified) == 1  # at most one frameReady until latest() is taken
+        # never more notifications than results: nothing queues up in the UI thread
+        assert 1 <= len(notified) <= worker.frames_processed
         assert worker.latest().output == processed[-1]
     finally:
         gate.set()

@@ -1,0 +1,65 @@
+"""Switching tabs in the window: every tab that shows live frames draws new ones whichever tabs
+were shown before it (issue 12, item 1)."""
+
+from __future__ import annotations
+
+from stereo_gui.qt.dialogs.source_dialog import SourceChoice
+from stereo_gui.sources.sim import SimSource
+
+
+def _board_source(sim_rig):
+    return SimSource(rig=sim_rig, mode="board", fps=30, frames_per_move=20)
+
+
+def _frames_pass(qtbot, ctx, n=3):
+    """Wait until `n` more frames went through the worker (the tab shown sees them)."""
+    done = ctx.frames.frames_processed
+    qtbot.waitUntil(lambda: ctx.frames.frames_processed >= done + n, timeout=30000)
+
+
+def test_capture_goes_live_again_after_the_calibration_tab(qtbot, ctx, window, sim_rig):
+    """Live -> Capture (a pair freezes) -> Calibration -> Capture -> C: new frames are drawn."""
+    window.use_source(_board_source(sim_rig), SourceChoice("sim"))
+    window.show_tab("live")
+    _frames_pass(qtbot, ctx)
+    capture = window.capture_tab
+    window.show_tab("capture")
+    qtbot.waitUntil(lambda: capture.state == "review", timeout=60000)
+    window.show_tab("calibration")
+    _frames_pass(qtbot, ctx)
+    window.show_tab("capture")
+    _frames_pass(qtbot, ctx)
+    assert capture.state == "review"
+    capture.cancel_button.click()  # C
+    assert capture.prompt.text() == "Live"
+    n, index = capture.frames_shown, capture.shown_frame.index
+    qtbot.waitUntil(lambda: capture.frames_shown > n, timeout=30000)
+    assert capture.shown_frame.index > index
+
+
+def test_capture_shows_frames_after_measurements_and_calibration(qtbot, ctx, window, sim_rig):
+    """After a start: Measurements -> Calibration -> Capture shows the cameras at once, without
+    a visit to Live first."""
+    window.show_tab("measurements")
+    window.use_source(_board_source(sim_rig), SourceChoice("sim"))
+    _frames_pass(qtbot, ctx)
+    window.show_tab("calibration")
+    _frames_pass(qtbot, ctx)
+    capture = window.capture_tab
+    window.show_tab("capture")
+    qtbot.waitUntil(lambda: capture.frames_shown >= 1, timeout=30000)  # (it may freeze at once)
+
+
+def test_live_draws_again_after_capture_froze_a_pair(qtbot, ctx, window, sim_rig):
+    """Capture froze a pair (its processor is off) -> Measurements -> Live: Live draws."""
+    ctx.set_calibration(sim_rig.true_calibration(), None)
+    window.use_source(_board_source(sim_rig), SourceChoice("sim"))
+    capture = window.capture_tab
+    window.show_tab("capture")
+    qtbot.waitUntil(lambda: capture.state == "review", timeout=60000)
+    window.show_tab("measurements")
+    _frames_pass(qtbot, ctx)
+    live = window.live_tab
+    n = live.frames_shown
+    window.show_tab("live")
+    qtbot.waitUntil(lambda: live.frames_shown >= n + 2, timeout=60000)
