@@ -6,11 +6,14 @@ camera_calibration):
 - the processor takes the newest frame, runs the processor function on it (all heavy OpenCV work
   happens here) and keeps the newest `ProcessedFrame`.
 
-The UI never receives a backlog: `frameReady` (queued to the UI thread) is emitted at most once
-until the UI thread has received it (or `latest()` was called), and `latest()` returns only the
-newest result. It is re-armed where it is received, not only by `latest()`: a notification that
-reached no reader (the tab shown draws no frames) must not silence the worker for the tab shown
-next (issue 12: the Capture view froze after a visit to the Calibration tab).
+The UI never receives a backlog: the processing thread posts one private notification to the
+UI thread at a time (until the UI thread has received it, or `latest()` was called), and there
+the public `frameReady` is emitted; `latest()` returns only the newest result. It is re-armed
+where it is received, not only by `latest()`: a notification that reached no reader (the tab
+shown draws no frames) must not silence the worker for the tab shown next (issue 12: the Capture
+view froze after a visit to the Calibration tab). `frameReady` itself is only ever emitted in
+the UI thread: PySide crashed when a receiver disconnected (a test's waitSignal) while another
+thread emitted the same signal.
 
 A source that raises SourceUnavailable (a camera source opening a vanished camera again) is
 kept and read again: the message is shown once, and `streamStatus` says "reconnecting" and later
@@ -110,7 +113,8 @@ class StreamStatus:
 class FrameWorker(QObject):
     """Reads frames from a FrameSource and processes them off the UI thread (see module doc)."""
 
-    frameReady = Signal()  # a new ProcessedFrame is available; at most one pending at a time
+    frameReady = Signal()  # a new ProcessedFrame is available (emitted in the UI thread only)
+    _published = Signal()  # processing thread -> UI thread (queued); never disconnected
     errorOccurred = Signal(str)  # a message for the user (source or processor failure)
     sourceChanged = Signal(str)  # the name of the new source ("" when none)
     streamStatus = Signal(object)  # StreamStatus, when the stream's state changes
@@ -146,8 +150,7 @@ class FrameWorker(QObject):
         self._watchdog = QTimer(self)
         self._watchdog.setInterval(_WATCHDOG_MS)
         self._watchdog.timeout.connect(self._check_read)
-        # connected first, so it runs before the readers' slots (see the module docstring)
-        self.frameReady.connect(self._frame_delivered)
+        self._published.connect(self._frame_delivered)  # queued: this object lives in the UI thread
 
     # ---- control (UI thread) -----------------------------------------------------------------
     def set_source(self, source: FrameSource | None) -> None:
@@ -202,9 +205,11 @@ class FrameWorker(QObject):
             return self._latest
 
     def _frame_delivered(self) -> None:
-        """UI thread: a frameReady has arrived; the next result may notify again."""
+        """UI thread: a result's notification has arrived; the next result may notify again,
+        and the readers are told."""
         with self._cond:
             self._notified = False
+        self.frameReady.emit()
 
     def pause(self) -> None:
         """Stop reading and processing until `resume()`; the last result stays available."""
@@ -514,7 +519,7 @@ class FrameWorker(QObject):
                 notify = not self._notified
                 self._notified = True
             if notify:
-                self.frameReady.emit()
+                self._published.emit()
 
 
 def close_quietly(source: FrameSource) -> None:

@@ -325,3 +325,17 @@ def test_the_rate_falls_to_zero_when_no_frame_arrives(monkeypatch):
     assert meter.fps == pytest.approx(1 / (0.5 + 1 / 30), rel=0.01)
     clock["t"] += fw.RATE_STALE_S
     assert meter.fps == 0.0
+
+
+def test_frame_ready_is_emitted_in_the_ui_thread_only(qtbot, worker, array_source):
+    """A direct connection runs in the emitting thread: it must be the UI thread's (PySide
+    crashed when a receiver disconnected while the processing thread emitted)."""
+    from PySide6.QtCore import Qt
+
+    ui_thread = threading.get_ident()
+    emitted_in = []
+    worker.frameReady.connect(lambda: emitted_in.append(threading.get_ident()),
+                              Qt.ConnectionType.DirectConnection)
+    worker.set_source(array_source(fps=200))
+    qtbot.waitUntil(lambda: len(emitted_in) >= 5, timeout=30000)
+    assert set(emitted_in) == {ui_thread}
