@@ -21,27 +21,13 @@ import shutil
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "scripts"))
+from screenshots import _pump, _wait  # noqa: E402 - the same event-loop helpers
+
 log = logging.getLogger("screenshots")
-
-
-def _pump(app, seconds: float) -> None:
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
-        app.processEvents()
-        time.sleep(0.01)
-
-
-def _wait(app, cond, timeout: float, what: str) -> None:
-    end = time.monotonic() + timeout
-    while not cond():
-        if time.monotonic() > end:
-            raise SystemExit(f"screenshots: timed out waiting for {what}")
-        app.processEvents()
-        time.sleep(0.02)
 
 
 def _capture(app, path: Path) -> None:

@@ -60,6 +60,39 @@ class FakeCapture:
         self.released = True
 
 
+class PresentCapture:
+    """A minimal fake cv2.VideoCapture: indices in `present` open and deliver frames of their
+    index's grey level; `backends` records every (index, *args) it was opened with."""
+
+    present: set = set()
+    backends: list = []
+
+    def __init__(self, index, *args):
+        self.index = index
+        PresentCapture.backends.append((index, *args))
+
+    def isOpened(self):
+        return self.index in PresentCapture.present
+
+    def set(self, *args):
+        return True
+
+    def get(self, prop):
+        return 30.0
+
+    def grab(self):
+        return True
+
+    def retrieve(self):
+        return True, np.full((48, 64, 3), self.index, np.uint8)
+
+    def read(self):
+        return self.retrieve()
+
+    def release(self):
+        pass
+
+
 def unplug(devices: dict, index: int) -> None:
     """Make camera `index` vanish: its open captures fail, a new one does not open."""
     devices.pop(index)["gone"] = True

@@ -7,8 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from stereo_gui.commands.accuracy import (BENCH_SEED, WALLS_MM, evaluate_wall, format_table,
-                                          grid_pixels)
+from stereo_gui.commands.accuracy import (
+    BENCH_SEED,
+    WALLS_MM,
+    evaluate_wall,
+    format_table,
+    grid_pixels,
+)
 from stereo_gui.core.measure import NOT_SEEN
 from stereo_gui.sources.sim import SimRig
 

@@ -13,23 +13,14 @@ import pytest
 
 from stereo_gui.cli import main
 from stereo_gui.files.calibration_file import export_ros
-from stereo_gui.sources.sim import Scene, SimRig
 
-WALL_MM = 1500.0
 AT = ("320,240", "250,200", "420,300")
 
 
 @pytest.fixture(scope="module")
-def rig_pair(tmp_path_factory):
+def rig_pair(wall_files):
     """Raw left/right images of a wall from the simulated rig, the rig, scene and calibration."""
-    d = tmp_path_factory.mktemp("foreign")
-    rig = SimRig(seed=3)
-    calib = rig.true_calibration()
-    scene = Scene.wall(WALL_MM)
-    left, right = rig.render_scene(scene, np.random.default_rng(0))
-    cv2.imwrite(str(d / "left.png"), left)
-    cv2.imwrite(str(d / "right.png"), right)
-    return d, rig, scene, calib
+    return wall_files
 
 
 def _measure(capsys, calib_spec, left, right, at=AT) -> list[dict]:

@@ -3,26 +3,18 @@
 import json
 
 import cv2
-import numpy as np
 import pytest
 
 from stereo_gui.cli import main
 from stereo_gui.files.calibration_file import save_calibration
-from stereo_gui.sources.sim import Scene, SimRig
 
-WALL_MM = 1500.0
+WALL_MM = 1500.0  # the wall of the `wall_files` fixture (tests/commands/conftest.py)
 
 
 @pytest.fixture(scope="module")
-def pair(tmp_path_factory):
+def pair(wall_files):
     """calibration file, raw left and right images of a wall, the rig, the scene, the calibration."""
-    d = tmp_path_factory.mktemp("measure")
-    rig = SimRig(seed=3)
-    calib = rig.true_calibration()
-    scene = Scene.wall(WALL_MM)
-    left, right = rig.render_scene(scene, np.random.default_rng(0))
-    cv2.imwrite(str(d / "left.png"), left)
-    cv2.imwrite(str(d / "right.png"), right)
+    d, rig, scene, calib = wall_files
     save_calibration(calib, d / "calib.yaml")
     return d, rig, scene, calib
 

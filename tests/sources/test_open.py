@@ -5,6 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from fake_cameras import PresentCapture
 
 import stereo_gui.sources.cameras as cameras
 from stereo_gui.core.errors import InputError, SourceError
@@ -69,34 +70,7 @@ def test_auto_falls_back_to_sim_without_cameras(monkeypatch):
     assert opened.fell_back_to_sim and "only one camera" in opened.message and "Webcam" in opened.message
 
 
-class _Cap:
-    """A minimal fake cv2.VideoCapture: indices in `present` open and deliver grey frames."""
-
-    present: set = set()
-
-    def __init__(self, index, *args):
-        self.index = index
-
-    def isOpened(self):
-        return self.index in _Cap.present
-
-    def set(self, *args):
-        return True
-
-    def get(self, prop):
-        return 30.0
-
-    def grab(self):
-        return True
-
-    def retrieve(self):
-        return True, np.full((48, 64, 3), self.index, np.uint8)
-
-    def read(self):
-        return self.retrieve()
-
-    def release(self):
-        pass
+_Cap = PresentCapture
 
 
 def test_auto_uses_two_cameras_or_says_why_not(monkeypatch):

@@ -128,13 +128,7 @@ class CalibrationTab(PairReview, QWidget):
         options = QWidget()
         flow = FlowLayout(options, spacing=14)
 
-        def group(*widgets) -> None:
-            box = QWidget()
-            row = QHBoxLayout(box)
-            row.setContentsMargins(0, 0, 0, 0)
-            for w in widgets:
-                row.addWidget(w)
-            flow.addWidget(box)
+        group = flow.add_group
 
         self.method_combo = QComboBox()
         self.method_combo.addItem("Bouguet (metric, from the board)", "bouguet")

@@ -8,7 +8,6 @@ from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
     QDoubleSpinBox,
-    QHBoxLayout,
     QLabel,
     QPushButton,
     QSpinBox,
@@ -45,14 +44,7 @@ class BoardRow(QWidget):
         # groups that wrap onto further rows on a narrow window (a laptop screen)
         flow = FlowLayout(self, spacing=14)
 
-        def group(*widgets) -> QWidget:
-            box = QWidget()
-            row = QHBoxLayout(box)
-            row.setContentsMargins(0, 0, 0, 0)
-            for w in widgets:
-                row.addWidget(w)
-            flow.addWidget(box)
-            return box
+        group = flow.add_group
 
         self.target_combo = QComboBox()
         for t in TARGETS:

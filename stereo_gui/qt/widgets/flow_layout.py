@@ -5,7 +5,7 @@ widget of its own (`FlowLayout(widget)`): that widget then asks for the height i
 from __future__ import annotations
 
 from PySide6.QtCore import QMargins, QPoint, QRect, QSize, Qt
-from PySide6.QtWidgets import QLayout, QLayoutItem, QWidget
+from PySide6.QtWidgets import QHBoxLayout, QLayout, QLayoutItem, QWidget
 
 
 class FlowLayout(QLayout):
@@ -23,6 +23,16 @@ class FlowLayout(QLayout):
     # ---- QLayout API ---------------------------------------------------------------------------
     def addItem(self, item: QLayoutItem) -> None:  # noqa: N802 - Qt API
         self._items.append(item)
+
+    def add_group(self, *widgets: QWidget) -> QWidget:
+        """Add `widgets` side by side as one item (a label and its field never wrap apart)."""
+        box = QWidget()
+        row = QHBoxLayout(box)
+        row.setContentsMargins(0, 0, 0, 0)
+        for w in widgets:
+            row.addWidget(w)
+        self.addWidget(box)
+        return box
 
     def add_stretch(self) -> None:
         """Items added from now on sit at the right end of their row when it has room."""

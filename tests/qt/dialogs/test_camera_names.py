@@ -4,8 +4,8 @@ and a remembered camera that came back under another index is found again."""
 from __future__ import annotations
 
 import cv2
-import numpy as np
 import pytest
+from fake_cameras import PresentCapture
 
 import stereo_gui.sources.cameras as cameras
 
@@ -36,34 +36,7 @@ def fake_library(monkeypatch):
     return state
 
 
-class _Cap:
-    present: set = set()
-    backends: list = []
-
-    def __init__(self, index, *args):
-        self.index = index
-        _Cap.backends.append((index, *args))
-
-    def isOpened(self):
-        return self.index in _Cap.present
-
-    def set(self, *args):
-        return True
-
-    def get(self, prop):
-        return 30.0
-
-    def grab(self):
-        return True
-
-    def retrieve(self):
-        return True, np.full((48, 64, 3), self.index, np.uint8)
-
-    def read(self):
-        return self.retrieve()
-
-    def release(self):
-        pass
+_Cap = PresentCapture
 
 
 def test_source_dialog_shows_names_and_usb_ids(qtbot, fake_library):
