@@ -36,6 +36,8 @@ log = logging.getLogger(__name__)
 
 STEADY_FRAMES = 4  # automatic capture: the board must hold still over this many frames
 STEADY_PX = 2.0  # ... moving its corners less than this, px
+STEADY_S = 0.1  # ... or over frames this long apart, s (when frames are processed slowly)
+STEADY_MAX_S = 0.5  # frames older than this do not count (a pause, a stalled source), s
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,6 +48,7 @@ class CaptureOutput:
     right_rgb: np.ndarray
     detection: PairDetection
     board: BoardSpec
+    time_s: float | None = None  # the frame's capture time (left camera), s; None if unknown
 
     @property
     def pose(self) -> PoseDescriptor | None:
@@ -53,9 +56,12 @@ class CaptureOutput:
 
 
 def _maybe_board(gray: np.ndarray, board: BoardSpec) -> bool:
-    """A fast test whether a chessboard may be in the image (a full search without a board takes
-    a few hundred ms; this quick check a few ms), so live frames without a board stay cheap.
-    The other targets' detectors are quick to say no by themselves."""
+    """A quicker test whether a chessboard may be in the image, so live frames without a board
+    stay cheaper (on the simulated rig's textured scene, 640x480: a full search without a
+    board about 180 ms, this check about 80 ms). With a board in view it costs more than the
+    search itself (about 45 ms against 20 ms on a cluttered background), so `detect_live` skips
+    it while the board was found in the frame before. The other targets' detectors are quick to
+    say no by themselves."""
     if board.target != "chessboard":
         return True
     ok, _ = cv2.findChessboardCorners(
@@ -64,24 +70,34 @@ def _maybe_board(gray: np.ndarray, board: BoardSpec) -> bool:
     return bool(ok)
 
 
-def detect_live(frame: StereoFrame, board: BoardSpec) -> CaptureOutput:
-    """Detect the target in both images of a live frame (subpixel where found)."""
+def detect_live(frame: StereoFrame, board: BoardSpec,
+                seen: tuple[bool, bool] = (False, False)) -> CaptureOutput:
+    """Detect the target in both images of a live frame (subpixel where found). `seen` says in
+    which images (left, right) the board was found in the frame before: those are searched at
+    once, without the quick pre-check (a board in view rarely leaves it between two frames)."""
     size = frame.size
     dets: list[Detection | None] = []
-    for img in (frame.left, frame.right):
+    for img, was_seen in zip((frame.left, frame.right), seen, strict=True):
         gray = to_gray(img)
-        dets.append(detect_board(gray, board) if _maybe_board(gray, board) else None)
+        dets.append(detect_board(gray, board) if was_seen or _maybe_board(gray, board) else None)
     left, right = dets
     # same rules as core.detect_pair: both cameras number the grid from the same end, and a
     # partly visible target counts when they share enough of its points
     pair = make_pair(f"frame {frame.index}", left, right, size, board)
-    return CaptureOutput(display_rgb(frame.left), display_rgb(frame.right), pair, board)
+    return CaptureOutput(display_rgb(frame.left), display_rgb(frame.right), pair, board,
+                         float(frame.t_left))
 
 
 def make_capture_processor(board: BoardSpec):
-    """The frame worker processor of the capture tab, for `board`."""
+    """The frame worker processor of the capture tab, for `board` (it runs in the worker's one
+    processing thread, and remembers in which images the board was found last)."""
+    seen = [False, False]
+
     def process(frame: StereoFrame) -> CaptureOutput:
-        return detect_live(frame, board)
+        out = detect_live(frame, board, (seen[0], seen[1]))
+        seen[0] = out.detection.left is not None
+        seen[1] = out.detection.right is not None
+        return out
     return process
 
 
@@ -141,13 +157,17 @@ class CaptureRules:
 
     Manual capture freezes a pair that both cameras see, unless its pose is close to the one
     reviewed last (until the board leaves a view). Automatic capture takes a pair once the board
-    has held still (corners moving less than STEADY_PX over STEADY_FRAMES frames) in a pose that
+    has held still (corners moving less than STEADY_PX over STEADY_FRAMES frames, or over frames
+    STEADY_S apart when fewer are processed: the board must hold still for as long whatever the
+    processing rate; issue 12: at 3 fps four frames meant 1.3 s of stillness, which the
+    simulated rig's board, resting only a moment at each pose, hardly ever gave) in a pose that
     differs from those saved, or that reaches an image region still empty (then a smaller
     difference will do, though not the very same view).
     """
 
     def __init__(self) -> None:
-        self.recent_corners: deque[np.ndarray] = deque(maxlen=STEADY_FRAMES)
+        # (frame time s or None, left corners (N, 2)) of the recent frames, oldest first
+        self.recent_corners: deque[tuple[float | None, np.ndarray]] = deque(maxlen=16)
         self.last_reviewed_pose: PoseDescriptor | None = None
 
     def reset_steadiness(self) -> None:
@@ -179,13 +199,28 @@ class CaptureRules:
         self.last_reviewed_pose = pose
         return CaptureStep("freeze", "")
 
+    def _steady(self) -> bool:
+        """The newest corners moved less than STEADY_PX from each of the frames before them,
+        back over STEADY_FRAMES frames or STEADY_S seconds, whichever comes first."""
+        t_now, now = self.recent_corners[-1]
+        frames = 1
+        for t, c in reversed(list(self.recent_corners)[:-1]):
+            dt = None if (t is None or t_now is None) else t_now - t
+            if dt is not None and dt > STEADY_MAX_S:
+                return False
+            if c.shape != now.shape or float(np.abs(c - now).max()) >= STEADY_PX:
+                return False
+            frames += 1
+            if frames >= STEADY_FRAMES or (dt is not None and dt >= STEADY_S):
+                return True
+        return False
+
     def _auto_step(self, out: CaptureOutput, pose: PoseDescriptor | None,
                    saved: list[PoseDescriptor], have_session: bool,
                    fills: dict[str, list[str]], empty_regions) -> CaptureStep:
         corners = out.detection.left.corners.reshape(-1, 2)  # type: ignore[union-attr]
-        self.recent_corners.append(corners)
-        steady = len(self.recent_corners) == STEADY_FRAMES and max(
-            float(np.abs(c - corners).max()) for c in self.recent_corners) < STEADY_PX
+        self.recent_corners.append((out.time_s, corners))
+        steady = self._steady()
         distinct = is_new_pose(pose, saved, NEW_POSE_DISTANCE / 4)  # not the very same view
         new = (any(fills.values()) and distinct) or is_new_pose(pose, saved)
         if not (new and distinct):

@@ -98,3 +98,52 @@ def test_automatic_capture_waits_for_a_steady_new_pose_and_a_session(board_outpu
     rules = CaptureRules()
     no_session = [rules.step(board_output, True, list, False) for _ in range(STEADY_FRAMES)]
     assert no_session[-1].action == "show" and "needs a session" in no_session[-1].prompt
+
+
+def _at(out: CaptureOutput, t_s: float) -> CaptureOutput:
+    return dataclasses.replace(out, time_s=t_s)
+
+
+def test_steadiness_is_time_not_frame_count_when_frames_come_slowly(board_output):
+    """Issue 12, item 11: at a few processed frames a second, four frames meant a second of
+    stillness; the board must hold still for STEADY_S (or STEADY_FRAMES frames), whichever
+    comes first."""
+    from stereo_gui.pipeline.capture import STEADY_MAX_S, STEADY_S
+
+    gap = 1.5 * STEADY_S
+    rules = CaptureRules()
+    steps = [rules.step(_at(board_output, k * gap), True, list, True).action for k in range(2)]
+    assert steps == ["show", "save"]  # two frames STEADY_S apart, the corners still
+    rules = CaptureRules()  # moving STEADY_PX or more in that time: not still
+    moved = [rules.step(_at(_moved(board_output, k * STEADY_PX), k * gap), True, list,
+                        True).action for k in range(4)]
+    assert "save" not in moved
+    rules = CaptureRules()  # frames close together: STEADY_FRAMES of them, as before
+    quick = [rules.step(_at(board_output, k * 0.001), True, list, True).action
+             for k in range(STEADY_FRAMES)]
+    assert quick == ["show"] * (STEADY_FRAMES - 1) + ["save"]
+    rules = CaptureRules()  # a frame from long ago (a pause) says nothing about now
+    old = [rules.step(_at(board_output, t), True, list, True).action
+           for t in (0.0, 2 * STEADY_MAX_S)]
+    assert old == ["show", "show"]
+
+
+def test_the_processor_skips_the_quick_check_while_the_board_stays_in_view(monkeypatch):
+    """The pre-check costs more than the search when a board is in view (issue 12, item 11):
+    once found, the next frame is searched at once."""
+    import stereo_gui.pipeline.capture as capture
+
+    calls = []
+    real = capture._maybe_board
+    monkeypatch.setattr(capture, "_maybe_board", lambda g, b: calls.append(1) or real(g, b))
+    src = SimSource(SimRig(RigConfig(supersample=1)), mode="board", paced=False, seed=1,
+                    frames_per_move=50)
+    proc = make_capture_processor(BoardSpec())
+    try:
+        first = proc(src.read())
+        assert first.detection.found and len(calls) == 2  # both images checked first
+        second = proc(src.read())
+    finally:
+        src.close()
+    assert second.detection.found and len(calls) == 2  # not again: the board was in view
+    assert second.time_s is not None and second.time_s >= first.time_s

@@ -38,6 +38,7 @@ from stereo_gui.files.pairs import load_image
 from stereo_gui.pipeline.capture import (
     STEADY_FRAMES,
     STEADY_PX,
+    STEADY_S,
     CaptureOutput,
     CaptureRules,
     make_capture_processor,
@@ -116,7 +117,8 @@ class CaptureTab(QWidget):
 
         self.board_row = BoardRow(
             f"Take a pair by itself when the board holds still (corners move less than "
-            f"{STEADY_PX:g} px over {STEADY_FRAMES} frames) and its pose differs from those kept")
+            f"{STEADY_PX:g} px over {STEADY_FRAMES} frames or {STEADY_S:g} s) and its pose differs "
+            "from those kept")
         row = self.board_row
         self.cols_spin, self.rows_spin = row.cols_spin, row.rows_spin
         self.square_spin, self.auto_check = row.square_spin, row.auto_check
