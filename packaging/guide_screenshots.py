@@ -156,7 +156,7 @@ def main(argv: list[str]) -> int:
         pump(1.0)
     live.ruler_button.setChecked(False)
     x, y = points["single"][0]
-    live._hovered("wls", x + 3, y + 3)  # what the readout line shows with the pointer there
+    live.readings.hovered("wls", x + 3, y + 3)  # what the readout line shows with the pointer there
     pump(1.0)
     shot("live")
     # the whole parameter panel (taller than the screen: rendered by Qt rather than grabbed)

@@ -129,8 +129,7 @@ def main(argv: list[str] | None = None) -> int:
         live.set_paused(True)
         calib = ctx.calibration
         scene = Scene.demo()
-        # pixels on the panel (1.3 m, turned 20 degrees), the poster (2 m) and the wall (3 m); the
-        # box at 0.8 m lies in the band at the left edge where SGBM cannot match
+        # pixels on the panel (1.3 m, turned 20 degrees), the poster (2 m) and the wall (3 m)
         points = [(420, 215), (300, 345), (560, 70), (585, 420), (250, 90)]
         for x, y in points:
             live.measure_at(x, y)
@@ -146,7 +145,7 @@ def main(argv: list[str] | None = None) -> int:
             truth = rig.true_point_rectified(calib, scene, rec.x_px, rec.y_px)
             if rec.valid and truth is not None:
                 ctx.update_measurement(i, dataclasses.replace(rec, true_mm=round(float(truth[2]), 0)))
-        live._hovered("wls", 455.0, 180.0)  # the readout line as if the pointer were on the panel
+        live.readings.hovered("wls", 455.0, 180.0)  # the readout line as if the pointer were on the panel
         _wait(app, lambda: live.last_reading is not None, 60, "the pointer's reading")
         _pump(app, 1.0)
         _capture(app, window, out / "screenshot-live.png")
@@ -177,7 +176,7 @@ def main(argv: list[str] | None = None) -> int:
         n = len(ctx.measurements)
         live.measure_at(420, 215)
         _wait(app, lambda: len(ctx.measurements) > n, 60, "a measurement on the recording")
-        live._hovered("wls", 420.0, 215.0)
+        live.readings.hovered("wls", 420.0, 215.0)
         _pump(app, 1.0)
         _capture(app, window, out / "screenshot-playback.png")
     finally:
