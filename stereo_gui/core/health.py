@@ -30,8 +30,8 @@ from stereo_gui.core.util import to_gray
 
 DRIFT_WARN_PX = 0.5  # above this median vertical disparity the cameras moved since calibration
 MIN_MATCHES = 30
-# the live check finds its features on half-size images (SIFT on 640x480: about 0.5 s of CPU a
-# check, 0.15 s at half size) and places them on the full-size ones; the figure is the same to a
+# the live check finds its features on half-size images (SIFT on 640x480: 0.33-0.41 s of CPU a
+# check, 0.16-0.18 s at half size) and places them on the full-size ones; the figure is the same to a
 # few hundredths of a pixel (tests/core/test_health.py)
 HEALTH_DETECT_SCALE = 0.5
 _LK = dict(winSize=(15, 15), maxLevel=2,

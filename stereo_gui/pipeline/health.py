@@ -2,7 +2,7 @@
 
 The frame worker hands each processed frame's rectified pair to `HealthMonitor.offer`; at most
 one check runs at a time, in a thread of the monitor's own, and only when the last one is a
-second old, so the live views never wait for it (a check takes about 0.15 s of CPU at
+second old, so the live views never wait for it (a check takes about 0.17 s of CPU at
 640x480: features found at half size). `latest()` gives the newest finished figure. No Qt here.
 """
 
