@@ -132,3 +132,28 @@ def wall_pair(sim_rig):
     scene = Scene.wall(1500.0)
     left, right = sim_rig.render_scene(scene, np.random.default_rng(3))
     return scene, left, right
+
+
+class Questions:
+    """Stands in for QMessageBox.question: answers `reply` (Yes unless set) and keeps the texts
+    asked in `asked`."""
+
+    def __init__(self) -> None:
+        from PySide6.QtWidgets import QMessageBox
+
+        self.reply = QMessageBox.StandardButton.Yes
+        self.asked: list[str] = []
+
+    def __call__(self, _parent, _title, text, *args, **kwargs):
+        self.asked.append(text)
+        return self.reply
+
+
+@pytest.fixture
+def questions(monkeypatch):
+    """Every QMessageBox.question of the test answered by a `Questions` (set `.reply`)."""
+    from PySide6.QtWidgets import QMessageBox
+
+    q = Questions()
+    monkeypatch.setattr(QMessageBox, "question", q)
+    return q

@@ -244,11 +244,10 @@ def test_a_new_source_without_a_board_drops_the_frozen_pair(tab, ctx, qtbot, tmp
 
 
 def test_keyboard_selection_shows_the_pair_and_delete_deletes_what_is_shown(
-        tab, tmp_path, qtbot, monkeypatch):
+        tab, tmp_path, qtbot, monkeypatch, questions):
     """Issue 12, item 5: moving through the saved pairs with the keyboard shows each pair, and
     Delete pair asks about (and deletes) the pair on screen, never another one."""
     from PySide6.QtCore import Qt
-    from PySide6.QtWidgets import QMessageBox
 
     (tmp_path / "set").mkdir()
     folder = write_calibration_set(tmp_path / "set", n_pairs=4, seed=3)
@@ -264,22 +263,15 @@ def test_keyboard_selection_shows_the_pair_and_delete_deletes_what_is_shown(
     assert tab.state == "saved" and tab.shown_pair == names[2]
     assert tab.saved_panel.current_name() == names[2]
     assert f"saved pair {names[2]}" in tab.view.titles[0].text
-    asked = []
-
-    def question(_parent, _title, text, *a, **k):
-        asked.append(text)
-        return QMessageBox.StandardButton.Yes
-
-    monkeypatch.setattr(QMessageBox, "question", question)
     qtbot.keyClick(tab.pair_list, Qt.Key.Key_Delete)  # the Del key in the list: Delete pair
-    assert asked and f"pair {names[2]}?" in asked[0]
+    assert questions.asked and f"pair {names[2]}?" in questions.asked[0]
     assert tab.saved_names() == [names[0], names[1], names[3]]
     assert tab.state == "live" and tab.saved_panel.current_name() is None
     assert not tab.delete_button.isEnabled()  # nothing on screen to delete
 
 
 def test_new_session_in_a_folder_with_files_asks_before_writing_into_it(
-        tab, tmp_path, monkeypatch):
+        tab, tmp_path, monkeypatch, questions):
     """Issue 12, item 10: New session… in a non-empty folder without a session asks first; No
     writes nothing there, Yes starts the session (the pairs there are listed)."""
     from PySide6.QtWidgets import QFileDialog, QMessageBox
@@ -290,20 +282,13 @@ def test_new_session_in_a_folder_with_files_asks_before_writing_into_it(
     (folder / "notes.txt").write_text("holiday")
     before = sorted(p.name for p in folder.iterdir())
     monkeypatch.setattr(QFileDialog, "getExistingDirectory", lambda *a, **k: str(folder))
-    asked = []
-
-    def answer(reply):
-        def question(_parent, _title, text, *a, **k):
-            asked.append(text)
-            return reply
-        return question
-
-    monkeypatch.setattr(QMessageBox, "question", answer(QMessageBox.StandardButton.No))
+    asked = questions.asked
+    questions.reply = QMessageBox.StandardButton.No
     tab.new_button.click()
     assert asked and "not empty" in asked[0] and "2 image pairs" in asked[0]
     assert tab.session is None
     assert sorted(p.name for p in folder.iterdir()) == before  # no session.json
-    monkeypatch.setattr(QMessageBox, "question", answer(QMessageBox.StandardButton.Yes))
+    questions.reply = QMessageBox.StandardButton.Yes
     tab.new_button.click()
     assert tab.session is not None and (folder / "session.json").exists()
     assert len(tab.session.pairs) == 2

@@ -186,24 +186,16 @@ def test_entering_a_true_distance_keeps_the_current_cell(tab, ctx, qtbot):
     assert table.model().rowCount() == 4
 
 
-def test_clear_log_asks_first(tab, ctx, monkeypatch):
+def test_clear_log_asks_first(tab, ctx, questions):
     """One click on Clear log must not throw away the true distances typed in."""
     from PySide6.QtWidgets import QMessageBox
 
     _log_with_truth(ctx, tab)
     n = len(ctx.measurements)
-    asked = []
-
-    def answer(reply):
-        def question(parent, title, text, *args, **kwargs):
-            asked.append(text)
-            return reply
-        return question
-
-    monkeypatch.setattr(QMessageBox, "question", answer(QMessageBox.StandardButton.No))
+    questions.reply = QMessageBox.StandardButton.No
     tab.clear_button.click()
-    assert len(ctx.measurements) == n and f"all {n} readings" in asked[-1]
-    monkeypatch.setattr(QMessageBox, "question", answer(QMessageBox.StandardButton.Yes))
+    assert len(ctx.measurements) == n and f"all {n} readings" in questions.asked[-1]
+    questions.reply = QMessageBox.StandardButton.Yes
     tab.clear_button.click()
     assert ctx.measurements == []
 
