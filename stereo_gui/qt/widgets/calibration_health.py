@@ -108,9 +108,6 @@ class CalibrationHealthPanel(QFrame):
     # ---- the figure ------------------------------------------------------------------------
     def show_output(self, out, frame) -> None:
         """Called with every frame the Live tab draws (UI thread: text only)."""
-        result = getattr(out, "result", None)
-        if result is not None and result.calibration is not self.ctx.calibration:
-            return  # the last frame of the calibration before: its figure is not this one's
         self._frame = frame
         h = getattr(out, "health", None)
         if h is not None and h is not self.health:

@@ -130,6 +130,7 @@ class FrameWorker(QObject):
         self._tap: Callable[[StereoFrame], None] | None = None
         self._frame: StereoFrame | None = None  # newest frame not yet processed
         self._latest: ProcessedFrame | None = None
+        self._latest_of: Processor | None = None  # the processor that made _latest
         self._notified = False
         self._source_gen = 0  # set_source() counts up: a result of an older source is dropped
         self._paused = False
@@ -199,10 +200,12 @@ class FrameWorker(QObject):
             return self._tap
 
     def latest(self) -> ProcessedFrame | None:
-        """The newest processed frame (or None); re-arms `frameReady`."""
+        """The newest frame processed by the processor now set (or None: a result of the one
+        before is never handed out, e.g. a frame of the calibration just replaced); re-arms
+        `frameReady`."""
         with self._cond:
             self._notified = False
-            return self._latest
+            return self._latest if self._latest_of is self._processor else None
 
     def _frame_delivered(self) -> None:
         """UI thread: a result's notification has arrived; the next result may notify again,
@@ -516,6 +519,7 @@ class FrameWorker(QObject):
                 self._frames_processed += 1
                 self._latest = ProcessedFrame(frame, output, self._camera_rate.fps,
                                               self._proc_rate.fps, ms)
+                self._latest_of = fn
                 notify = not self._notified
                 self._notified = True
             if notify:

@@ -109,7 +109,11 @@ def test_processor_change_applies_to_next_frame(qtbot, worker, array_source):
     worker.set_source(array_source())
     qtbot.waitUntil(lambda: worker.latest() is not None and worker.latest().output == "a",
                     timeout=30000)
+    worker.pause()  # nothing new is processed: the last result is "a"'s
     worker.set_processor(lambda f: "b")
+    # a result of the processor replaced is never handed out (a frame of the calibration before)
+    assert worker.latest() is None
+    worker.resume()
     qtbot.waitUntil(lambda: (worker.latest() is not None and worker.latest().output == "b"),
                     timeout=30000)
 
