@@ -69,7 +69,7 @@ _RANGES: dict[str, tuple[float, float]] = {
     "p1": (0, 10_000_000), "p2": (0, 10_000_000), "pre_filter_cap": (0, 63),
     "closing_kernel": (0, 51), "wls_lambda": (0.0, 1e7), "wls_sigma": (0.0, 100.0),
     "bilateral_d": (0, 50), "bilateral_sigma_color": (0.0, 1000.0),
-    "bilateral_sigma_space": (0.0, 1000.0), "scale": (0.1, 1.0),
+    "bilateral_sigma_space": (0.0, 1000.0), "scale": (0.1, 1.0), "check_scale": (0.25, 1.0),
     "color_z_near_mm": (1.0, 1e7), "color_z_far_mm": (1.0, 1e7), "cv_threads": (0, 256),
 }
 
@@ -118,6 +118,10 @@ class MatcherParams:
     # OpenCV's WLS filter turns off the matcher's uniqueness, speckle and left-right checks when
     # it is made from it; True reproduces that (the report's code did it without knowing)
     wls_disables_checks: bool = False
+    # the right matcher serves only the left-right check behind the WLS confidence: 0.5 runs it
+    # on images halved again (an eighth of the work: half the width, height and range), its map
+    # enlarged back for the check (1.0: at the matched resolution, as OpenCV's samples do)
+    check_scale: float = 1.0
     bilateral: bool = False  # bilateral filter on the rectified images before matching
     bilateral_d: int = 5
     bilateral_sigma_color: float = 25.0
@@ -440,16 +444,24 @@ class StereoPipeline:
         s = self._scale = p.effective_scale(self.calibration.width)
         self._min_s, self._num_s = p.matcher_range(self.calibration, s)
         self._range_full = (self._min_s / s, (self._min_s + self._num_s - 1) / s)
-        def sgbm():
+        def sgbm(lo=self._min_s, num=self._num_s):
             return cv2.StereoSGBM_create(
-                minDisparity=self._min_s, numDisparities=self._num_s, blockSize=p.block_size,
+                minDisparity=lo, numDisparities=num, blockSize=p.block_size,
                 P1=p.p1_value, P2=p.p2_value, disp12MaxDiff=p.disp12_max_diff,
                 preFilterCap=p.pre_filter_cap, uniquenessRatio=p.uniqueness_ratio,
                 speckleWindowSize=p.speckle_window_size, speckleRange=p.speckle_range,
                 mode=MODES[p.mode])
 
         self._left = sgbm()
-        self._right = cv2.ximgproc.createRightMatcher(self._left) if p.wls else None
+        self._check: tuple[float, int, int] | None = None  # (scale, min, num) of a smaller check
+        if p.wls and p.check_scale < 1.0:
+            cs = p.check_scale
+            lo = int(math.floor(self._min_s * cs))
+            num = max(16, int(math.ceil(((self._min_s + self._num_s - 1) * cs - lo + 1) / 16.0)) * 16)
+            self._check = (cs, lo, num)
+            self._right = cv2.ximgproc.createRightMatcher(sgbm(lo, num))
+        else:
+            self._right = cv2.ximgproc.createRightMatcher(self._left) if p.wls else None
         self._wls = None
         if p.wls:
             # createDisparityWLSFilter switches off the uniqueness, speckle and left-right checks
@@ -520,14 +532,31 @@ class StereoPipeline:
         pad = self._min_s + self._num_s if self._params.full_frame else 0
         if self._right is None:
             return compute_padded(self._left, ml, mr, pad, "left"), None
+        right = self._match_right if self._check is not None else compute_padded
         if self._executor is not None:
-            fut = self._executor.submit(compute_padded, self._right, mr, ml, pad, "right")
+            fut = self._executor.submit(right, self._right, mr, ml, pad, "right")
             d16 = compute_padded(self._left, ml, mr, pad, "left")
             d16_right = fut.result()
         else:
             d16 = compute_padded(self._left, ml, mr, pad, "left")
-            d16_right = compute_padded(self._right, mr, ml, pad, "right")
+            d16_right = right(self._right, mr, ml, pad, "right")
         return d16, d16_right
+
+    def _match_right(self, matcher, mr: np.ndarray, ml: np.ndarray, pad: int, side: str
+                     ) -> np.ndarray:
+        """The right matcher's map for the left-right check, computed on images made smaller by
+        `check_scale` and enlarged back to the matched size (values scaled; "no match" kept as
+        the value a right matcher at the matched resolution gives it)."""
+        cs, lo, num = self._check
+        h, w = mr.shape[:2]
+        size = (max(1, round(w * cs)), max(1, round(h * cs)))
+        small = [cv2.resize(img, size, interpolation=cv2.INTER_AREA) for img in (mr, ml)]
+        d = compute_padded(matcher, *small, lo + num if pad else 0, side)
+        none = d == (-(lo + num - 1) - 1) * DISP_SCALE  # the right matcher's "no match"
+        big = cv2.resize(d, (w, h), interpolation=cv2.INTER_NEAREST).astype(np.float32) / cs
+        big[cv2.resize(none.view(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST) > 0] = \
+            (-(self._min_s + self._num_s - 1) - 1) * DISP_SCALE
+        return np.clip(np.rint(big), -32768, 32767).astype(np.int16)
 
     def process(self, left_bgr: np.ndarray, right_bgr: np.ndarray, right_colour: bool = True
                 ) -> PipelineResult:

@@ -333,3 +333,29 @@ def test_a_wide_frame_is_matched_at_most_max_match_width_wide():
     assert np.nanmedian(r.disparity_px[20:-20, 80:-20]) == pytest.approx(24, abs=0.5)
     with pytest.raises(InputError, match="max_match_width"):
         MatcherParams(max_match_width=10)
+
+
+def test_a_smaller_left_right_check_keeps_the_final_map():
+    """check_scale 0.5 runs the right matcher (which serves only the left-right check behind the
+    WLS confidence) on images halved again: its map comes back at the matched size with values
+    in the matched image's px and its "no match" as the full-size right matcher writes it, and
+    the final map keeps nearly all of its pixels and the same disparity."""
+    left, right = textured_pair(shift=24, w=320, h=200)
+    base = MatcherParams(min_disparity=0, num_disparities=64, block_size=5, wls_lambda=8000.0)
+    full = StereoPipeline(calib(w=320, h=200), base)
+    small = StereoPipeline(calib(w=320, h=200), base.replace(check_scale=0.5))
+    gl, gr = (cv2.cvtColor(i, cv2.COLOR_BGR2GRAY) for i in (left, right))
+    _, right_full = full._match(gl, gr)
+    _, right_small = small._match(gl, gr)
+    assert right_small.shape == right_full.shape and right_small.dtype == np.int16
+    no_match = (-(0 + 64 - 1) - 1) * DISP_SCALE  # the right matcher's minDisparity - 1, x16
+    assert right_full.min() == no_match and right_small.min() == no_match
+    both = (right_full != no_match) & (right_small != no_match)
+    assert both.mean() > 0.85
+    assert np.median(np.abs(right_full[both] - right_small[both])) <= DISP_SCALE // 2
+    a, b = full.process(left, right), small.process(left, right)
+    core = np.s_[20:-20, 24 + 8:-20]
+    assert np.isfinite(b.final_px[core]).mean() > 0.97 * np.isfinite(a.final_px[core]).mean()
+    assert np.nanmedian(b.final_px[core]) == pytest.approx(24, abs=0.25)
+    with pytest.raises(InputError, match="check_scale"):
+        MatcherParams(check_scale=0.1)
