@@ -196,3 +196,39 @@ def test_closing_during_a_blocked_read_exits_0_within_3_s(tmp_path):
     assert closing, out + err
     took = ended - float(closing[0].split()[-1])
     assert took < 3.0, f"closing took {took:.2f} s"
+
+
+_POOL_PROBE = """
+import os, sys
+import cv2, numpy as np
+from stereo_gui.qt.workers.threads import start_opencv_pool_low
+def nice_of_threads():
+    return {int(t): os.getpriority(os.PRIO_PROCESS, int(t)) for t in os.listdir("/proc/self/task")}
+before = nice_of_threads()
+if sys.argv[1] == "low":
+    start_opencv_pool_low()
+for _ in range(3):  # the UI thread's own OpenCV work, as at start-up
+    cv2.resize(np.zeros((720, 1280), np.uint8), (640, 360))
+new = {t: n for t, n in nice_of_threads().items() if t not in before}
+print(min(new.values()) if new else "none")
+"""
+
+
+def test_opencv_pool_threads_yield_to_the_ui_thread():
+    """OpenCV's pool, made by the first thread that runs a parallel call, takes its niceness:
+    made by start_opencv_pool_low (as run_app does first), its threads run below the UI thread;
+    made by the UI thread itself, they would run beside it (the window stalled 40-60 ms)."""
+    import cv2
+    import pytest
+
+    if not sys.platform.startswith("linux") or cv2.getNumThreads() < 2:
+        pytest.skip("per-thread niceness and a pool of OpenCV threads: Linux with 2+ CPUs")
+    from stereo_gui.qt.workers.threads import WORKER_NICE
+
+    def lowest_nice_of_new_threads(mode: str) -> str:
+        out = subprocess.run([sys.executable, "-c", _POOL_PROBE, mode], capture_output=True,
+                             text=True, timeout=60, check=True)
+        return out.stdout.strip()
+
+    assert lowest_nice_of_new_threads("low") == str(max(WORKER_NICE, os.nice(0)))
+    assert lowest_nice_of_new_threads("ui") == str(os.nice(0))
