@@ -385,6 +385,26 @@ def _solid(h: int, w: int, channels: int, value: tuple[int, ...]) -> np.ndarray:
     return img
 
 
+@functools.lru_cache(maxsize=8)
+def _nan_image(h: int, w: int) -> np.ndarray:
+    img = np.full((h, w), np.nan, np.float32)
+    img.setflags(write=False)
+    return img
+
+
+def blank(disparity_px: np.ndarray, mask: np.ndarray) -> None:
+    """Set the pixels of a float32 H x W map where `mask` (bool or uint8) is set to NaN, in
+    place (cv2.copyTo: 2-10x faster than numpy's boolean assignment at 1280x720, the more so
+    the more pixels are set)."""
+    if not (disparity_px.flags.c_contiguous and disparity_px.dtype == np.float32):
+        disparity_px[mask.astype(bool, copy=False)] = np.nan  # (OpenCV would write a copy)
+        return
+    if mask.dtype == np.bool_:
+        mask = mask.view(np.uint8)
+    h, w = disparity_px.shape
+    cv2.copyTo(_nan_image(h, w), mask, disparity_px)
+
+
 def paint(image: np.ndarray, mask: np.ndarray, value: tuple[int, ...]) -> None:
     """Set the pixels of a uint8 H x W x C `image` where `mask` (bool or uint8, H x W) is set to
     `value`, in place (cv2.copyTo: many times faster than numpy's boolean assignment)."""
@@ -609,9 +629,9 @@ class StereoPipeline:
         edge = self.edge_margin_px
         if p.full_frame:
             into_padding = unseen_mask(raw, edge)
-            raw[into_padding] = np.nan
+            blank(raw, into_padding)
             if closed is not raw:
-                closed[unseen_mask(closed, edge)] = np.nan
+                blank(closed, unseen_mask(closed, edge))
         lap("convert")
         wls_px = confidence = None
         if self._wls is not None:
@@ -637,7 +657,7 @@ class StereoPipeline:
             wls_px[:, :x0] = np.nan
             wls_px[:, x1:] = np.nan
             if p.full_frame:
-                wls_px[unseen_mask(wls_px, edge)] = np.nan
+                blank(wls_px, unseen_mask(wls_px, edge))
             confidence = self._wls.getConfidenceMap()
             if confidence.shape != wls_px.shape:
                 confidence = cv2.resize(confidence, (w, h), interpolation=cv2.INTER_NEAREST)
@@ -647,7 +667,7 @@ class StereoPipeline:
             final = closed
         elif p.wls_confident_only:
             final = wls_px.copy()
-            final[~(confidence > 0)] = np.nan
+            blank(final, ~(confidence > 0))
         else:
             final = wls_px
         valid = np.isfinite(final)
@@ -656,7 +676,7 @@ class StereoPipeline:
             # is; whatever the matcher put there is a match the right camera cannot have made
             not_seen = into_padding | unseen_strip(final, edge)
             for m in {id(a): a for a in (raw, closed, wls_px, final) if a is not None}.values():
-                m[not_seen] = np.nan
+                blank(m, not_seen)
         colours = color_scale(final, p, self.calibration)
         color = colorize(final, colours, p.colormap, not_seen)
         lap("colormap")

@@ -359,3 +359,19 @@ def test_a_smaller_left_right_check_keeps_the_final_map():
     assert np.nanmedian(b.final_px[core]) == pytest.approx(24, abs=0.25)
     with pytest.raises(InputError, match="check_scale"):
         MatcherParams(check_scale=0.1)
+
+
+def test_blank_sets_nan_where_the_mask_is_set_in_place():
+    from stereo_gui.core.matching import blank
+
+    rng = np.random.default_rng(1)
+    a = rng.random((30, 40)).astype(np.float32)
+    mask = rng.random((30, 40)) < 0.3
+    for m in (mask, mask.astype(np.uint8) * 255):
+        b = a.copy()
+        blank(b, m)
+        np.testing.assert_array_equal(np.isnan(b), mask)
+        np.testing.assert_array_equal(b[~mask], a[~mask])
+    view = a.copy()[:, ::2]  # not contiguous: OpenCV would fill a copy, so numpy does it
+    blank(view, mask[:, ::2])
+    np.testing.assert_array_equal(np.isnan(view), mask[:, ::2])
