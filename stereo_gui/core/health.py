@@ -30,10 +30,16 @@ from stereo_gui.core.util import to_gray
 
 DRIFT_WARN_PX = 0.5  # above this median vertical disparity the cameras moved since calibration
 MIN_MATCHES = 30
-# the live check finds its features on half-size images (SIFT on 640x480: 0.33-0.41 s of CPU a
-# check, 0.16-0.18 s at half size) and places them on the full-size ones; the figure is the same to a
-# few hundredths of a pixel (tests/core/test_health.py)
-HEALTH_DETECT_SCALE = 0.5
+# the live check finds its features on images at most this wide and places them on the full-size
+# ones (SIFT on 640x480: 0.33-0.41 s of CPU a check, 0.16-0.18 s at half size; on 1280x720 0.9 s,
+# 0.40 s at half size, 0.12 s at a quarter); the figure is the same to a few hundredths of a
+# pixel (tests/core/test_health.py)
+HEALTH_DETECT_WIDTH = 320
+
+
+def health_detect_scale(width_px: int) -> float:
+    """The scale the live check finds its features at, for images `width_px` wide."""
+    return min(1.0, HEALTH_DETECT_WIDTH / max(1, int(width_px)))
 _LK = dict(winSize=(15, 15), maxLevel=2,
            criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.005))
 
@@ -124,7 +130,7 @@ def _robust(dy: np.ndarray) -> np.ndarray:
 def calibration_health(left_rect: np.ndarray, right_rect: np.ndarray,
                        detect_scale: float = 1.0) -> CalibrationHealth:
     """The health figure of a rectified pair (see the module docstring); `detect_scale`: see
-    `feature_matches` (the live check uses HEALTH_DETECT_SCALE)."""
+    `feature_matches` (the live check uses health_detect_scale)."""
     pl, pr = feature_matches(left_rect, right_rect, detect_scale=detect_scale)
     if len(pl) < 8:
         return CalibrationHealth(float("nan"), len(pl), 0.0)
