@@ -131,6 +131,7 @@ def main(argv: list[str]) -> int:
     calib_tab.folder_edit.setText(str(full))
     calib_tab.start_calibration()
     wait_for("the calibration", lambda: not calib_tab.is_running(), 300)
+    wait_for("the first pair rectified", lambda: calib_tab.rect_view.shown is not None, 30)
     pump(1.0)
     window.save_calibration(str(work / "calibration.yaml"))
     pump(0.5)

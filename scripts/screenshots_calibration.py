@@ -108,6 +108,7 @@ def main(argv: list[str] | None = None) -> int:
                 raise SystemExit("screenshots: calibration did not start")
             _wait(app, lambda: not cal.is_running() and cal.run is not None
                   and cal.run.folder == folder, 600, "calibration")
+            _wait(app, lambda: cal.rect_view.shown is not None, 30, "the pair rectified")
             _pump(app, 1.0)
             _capture(app, out / f"{name}{args.suffix}.png")
 

@@ -55,6 +55,7 @@ from stereo_gui.qt.widgets.calibration_figures import CalibrationFigures, format
 from stereo_gui.qt.widgets.calibration_warnings import CalibrationWarnings
 from stereo_gui.qt.widgets.flow_layout import FlowLayout
 from stereo_gui.qt.widgets.helpers import pane
+from stereo_gui.qt.workers.job_runner import JobRunner
 from stereo_gui.qt.workers.job_worker import JobWorker
 
 log = logging.getLogger(__name__)
@@ -92,6 +93,11 @@ class CalibrationTab(PairReview, QWidget):
         self._maps: RectifyMaps | None = None
         self._maps_for: StereoCalibration | None = None
         self.selected_pair: str | None = None
+        self._pair_jobs = JobRunner("pair-view", self)  # reads and rectifies the pair clicked
+        ctx.register_worker(self._pair_jobs)
+        self._pair_jobs.finished.connect(self._pair_ready)
+        self._pair_jobs.failed.connect(self._pair_failed)
+        self._pair_job: int | None = None
         self._build()
         s = ctx.settings
         self.baseline_spin.setValue(float(s.nominal_baseline_mm))

@@ -3,6 +3,8 @@ reprojected corners, the pairs excluded (by hand or above an error threshold) an
 rejected and excluded pairs, kept in the capture session so that Recalibrate leaves them out.
 
 `PairReview` is a part of `CalibrationTab` (a mixin: it uses the tab's widgets, run and session).
+A pair is read and rectified on the tab's pair-view thread (`_pair_jobs`), never on the UI
+thread.
 """
 
 from __future__ import annotations
@@ -36,24 +38,37 @@ class PairReview:
         self._update_buttons()
         files = self._pair_files(name)
         if c is None or files is None:
+            self._pair_job = None  # (a pair still being read is not shown)
             self.rect_view.clear_pair()
             self.rect_view.title.setText(f"Pair {name}: images not available (calibrate from "
                                          f"the session to see them)")
             return
-        try:
-            left, right = read_image(files[0]), read_image(files[1])
-        except StereoGuiError as exc:
-            self.ctx.report_error(str(exc))
+        maps = self._maps if self._maps_for is c else None
+        # reading and rectifying the pair (and making the maps, the first time) runs on the
+        # pair-view thread: the UI thread only draws what comes back (_pair_ready)
+        self._pair_job = self._pair_jobs.submit(
+            lambda: _read_rectified(name, files, c, maps))
+
+    def _pair_ready(self, job_id: int, result) -> None:
+        if job_id != self._pair_job:
+            return  # an older click's pair, or one of another calibration
+        self._pair_job = None
+        name, lr, rr, c, maps = result
+        if c is not self.calibration or name != self.selected_pair:
             return
-        if (left.shape[1], left.shape[0]) != tuple(c.image_size):
+        if self._maps_for is not c:
+            self._maps, self._maps_for = maps, c
+        if lr is None:  # the images are not of the calibration's size
             self.rect_view.clear_pair()
             return
-        maps = self._rectify_maps(c)
-        lr = cv2.remap(left, maps.left_x, maps.left_y, cv2.INTER_LINEAR)
-        rr = cv2.remap(right, maps.right_x, maps.right_y, cv2.INTER_LINEAR)
         note = " (Hartley: row-aligned, no metric scale)" if not c.metric else ""
         self.rect_view.show_pair(name, lr, rr, note, self._rectified_corners(name, c),
                                  error_scale(self.chart.mean_px))
+
+    def _pair_failed(self, job_id: int, message: str) -> None:
+        if job_id == self._pair_job:
+            self._pair_job = None
+            self.ctx.report_error(message)
 
     def _rectified_corners(self, name: str, c: StereoCalibration):
         """The pair's detected and reprojected corners in rectified pixels (None when this
@@ -66,12 +81,6 @@ class PairReview:
                  c.rectify_points("left", rp.reprojected_left)),
                 (c.rectify_points("right", rp.detected_right),
                  c.rectify_points("right", rp.reprojected_right)))
-
-    def _rectify_maps(self, c: StereoCalibration) -> RectifyMaps:
-        if self._maps is None or self._maps_for is not c:
-            self._maps = c.rectify_maps()
-            self._maps_for = c
-        return self._maps
 
     def _pair_files(self, name: str) -> tuple[str, str] | None:
         if self.run is not None and name in self.run.files:
@@ -202,3 +211,18 @@ class PairReview:
         self._show_exclusions()
         self._update_buttons()
         return names
+
+
+def _read_rectified(name: str, files: tuple[str, str], c: StereoCalibration,
+                    maps: RectifyMaps | None):
+    """(name, rectified left, rectified right, c, maps) of a pair (on the pair-view thread);
+    the images are None when they are not of the calibration's size. StereoGuiError when a
+    file cannot be read."""
+    left, right = read_image(files[0]), read_image(files[1])
+    if maps is None:
+        maps = c.rectify_maps()
+    if (left.shape[1], left.shape[0]) != tuple(c.image_size):
+        return name, None, None, c, maps
+    lr = cv2.remap(left, maps.left_x, maps.left_y, cv2.INTER_LINEAR)
+    rr = cv2.remap(right, maps.right_x, maps.right_y, cv2.INTER_LINEAR)
+    return name, lr, rr, c, maps

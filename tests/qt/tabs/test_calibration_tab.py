@@ -55,8 +55,8 @@ def test_calibrate_session_shows_results(tab, ctx, qtbot, session_folder):
     assert tab.chart.bar_count() == rep.pairs_used
     assert f"{rep.pairs_used} used of {N_PAIRS}" in tab.figures.pairs_label.text()
     assert tab.progress.value() == 100
-    # the first pair is shown rectified at once
-    assert tab.rect_view.shown == tab.chart.names[0]
+    # the first pair is shown rectified (read and rectified on the pair-view thread)
+    qtbot.waitUntil(lambda: tab.rect_view.shown == tab.chart.names[0], timeout=5000)
 
 
 def test_click_exclude_and_recalibrate_changes_used_count(tab, qtbot, session_folder):
@@ -75,7 +75,7 @@ def test_click_exclude_and_recalibrate_changes_used_count(tab, qtbot, session_fo
     with qtbot.waitSignal(tab.chart.pairClicked, timeout=2000) as clicked:
         qtbot.mouseClick(tab.chart.viewport(), Qt.MouseButton.LeftButton, pos=pos)
     assert clicked.args == [name]
-    assert tab.rect_view.shown == name
+    qtbot.waitUntil(lambda: tab.rect_view.shown == name, timeout=5000)
     assert tab.exclude_button.isEnabled()
     tab.exclude_button.click()
     assert CaptureSession.open(session_folder).pair(name).excluded
@@ -88,7 +88,8 @@ def test_click_exclude_and_recalibrate_changes_used_count(tab, qtbot, session_fo
     # the excluded pair stays selectable from the list, and can be included again
     item = tab.rejected_list.findItems(f"{name}: excluded by you", Qt.MatchFlag.MatchExactly)[0]
     tab.rejected_list.itemClicked.emit(item)
-    assert tab.selected_pair == name and tab.rect_view.shown == name
+    assert tab.selected_pair == name
+    qtbot.waitUntil(lambda: tab.rect_view.shown == name, timeout=5000)
     assert tab.exclude_button.text() == "Include pair again"
     tab.exclude_button.click()
     assert not CaptureSession.open(session_folder).pair(name).excluded
@@ -159,7 +160,7 @@ def test_hartley_states_its_limits(tab, qtbot, session_folder):
     assert run.result.calibration.method == "hartley"
     assert "no metric scale" in tab.figures.baseline_label.text()
     assert "NOT in millimetres" in tab.figures.note_label.text()
-    assert "no metric scale" in tab.rect_view.title.text
+    qtbot.waitUntil(lambda: "no metric scale" in tab.rect_view.title.text, timeout=5000)
 
 
 def test_shutdown_while_calibrating_joins_the_worker(tab, ctx, qtbot, session_folder):
@@ -226,6 +227,7 @@ def test_review_draws_corners_a_mean_line_and_excludes_above_a_threshold(
         sum(e[1] + e[2] for e in errs) / (2 * len(errs)))
     name = tab.chart.names[1]
     tab.select_pair(name)
+    qtbot.waitUntil(lambda: tab.rect_view.shown == name, timeout=5000)
     det, rep = tab.rect_view.corner_points(0)
     assert len(det) == len(run.detections[name].left.corners) and det.shape == rep.shape
     # rectified pixels: the two sit within a pixel of each other, inside the rectified image
@@ -253,3 +255,30 @@ def test_review_draws_corners_a_mean_line_and_excludes_above_a_threshold(
     assert not tab.exclude_above_button.isEnabled()  # nothing left above it
     run2 = _calibrate(tab, qtbot)
     assert run2.result.report.pairs_used == len(errs) - 3
+
+
+def test_a_pair_is_read_and_rectified_off_the_ui_thread(tab, qtbot, session_folder,
+                                                          monkeypatch):
+    """Selecting a pair reads and rectifies it on the pair-view thread: the UI thread only draws
+    (it took 20-30 ms a click, and the first one made the maps too); a later click wins."""
+    import threading
+
+    from stereo_gui.qt.tabs import calibration_pairs
+
+    tab.folder_edit.setText(str(session_folder))
+    _calibrate(tab, qtbot)
+    readers = []
+    real = calibration_pairs.read_image
+
+    def recording(path):
+        readers.append(threading.current_thread())
+        return real(path)
+
+    monkeypatch.setattr(calibration_pairs, "read_image", recording)
+    first, second = tab.chart.names[1], tab.chart.names[3]
+    tab.select_pair(first)
+    tab.select_pair(second)  # at once: the first one's answer must not be shown after it
+    qtbot.waitUntil(lambda: tab.rect_view.shown == second and len(readers) == 4, timeout=5000)
+    qtbot.wait(100)
+    assert tab.rect_view.shown == second
+    assert readers and all(t is not threading.main_thread() for t in readers)
