@@ -464,10 +464,12 @@ class StereoPipeline:
         s = self._scale = p.effective_scale(self.calibration.width)
         self._min_s, self._num_s = p.matcher_range(self.calibration, s)
         self._range_full = (self._min_s / s, (self._min_s + self._num_s - 1) / s)
-        def sgbm(lo=self._min_s, num=self._num_s):
+        def sgbm(lo=self._min_s, num=self._num_s, block=p.block_size):
+            area = (block / p.block_size) ** 2  # the penalties grow with the window's area
             return cv2.StereoSGBM_create(
-                minDisparity=lo, numDisparities=num, blockSize=p.block_size,
-                P1=p.p1_value, P2=p.p2_value, disp12MaxDiff=p.disp12_max_diff,
+                minDisparity=lo, numDisparities=num, blockSize=block,
+                P1=round(p.p1_value * area), P2=round(p.p2_value * area),
+                disp12MaxDiff=p.disp12_max_diff,
                 preFilterCap=p.pre_filter_cap, uniquenessRatio=p.uniqueness_ratio,
                 speckleWindowSize=p.speckle_window_size, speckleRange=p.speckle_range,
                 mode=MODES[p.mode])
@@ -479,7 +481,11 @@ class StereoPipeline:
             lo = int(math.floor(self._min_s * cs))
             num = max(16, int(math.ceil(((self._min_s + self._num_s - 1) * cs - lo + 1) / 16.0)) * 16)
             self._check = (cs, lo, num)
-            self._right = cv2.ximgproc.createRightMatcher(sgbm(lo, num))
+            # its window shrinks with the images (at least 3 px, odd), so that it covers about
+            # as much of the scene and reaches as near the images' edges: with the full window
+            # the check failed in the last 12 px at the right edge instead of 6-8
+            block = max(3, math.ceil(p.block_size * cs) | 1)
+            self._right = cv2.ximgproc.createRightMatcher(sgbm(lo, num, block))
         else:
             self._right = cv2.ximgproc.createRightMatcher(self._left) if p.wls else None
         self._wls = None
