@@ -40,6 +40,8 @@ HEALTH_DETECT_WIDTH = 320
 def health_detect_scale(width_px: int) -> float:
     """The scale the live check finds its features at, for images `width_px` wide."""
     return min(1.0, HEALTH_DETECT_WIDTH / max(1, int(width_px)))
+
+
 _LK = dict(winSize=(15, 15), maxLevel=2,
            criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.005))
 

@@ -20,8 +20,7 @@ window waits at closing. So:
 Threads run at a lower priority on Linux (niceness WORKER_NICE, per thread): under CPU load the
 UI thread wins. OpenCV's pool threads take the niceness of the thread that made them:
 `start_opencv_pool_low` has a lowered thread make them before the UI thread can (left to the UI
-thread, the pool's thread ran at normal priority beside it, a third of a CPU while live, and
-the window stalled up to 40-60 ms now and then).
+thread, the pool's thread ran at normal priority beside it, using a third of a CPU while live).
 """
 
 from __future__ import annotations
