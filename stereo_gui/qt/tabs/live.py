@@ -18,7 +18,7 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-from PySide6.QtCore import Qt, Signal
+from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtWidgets import (
     QCheckBox,
     QDoubleSpinBox,
@@ -93,6 +93,8 @@ class LiveTab(QWidget):
         self._scale_note = ""
         self.shown_frame: StereoFrame | None = None  # the raw frame of the result shown
         self.frames_shown = 0
+        self._to_draw: list[str] = []  # views still to get the image of the frame shown
+        self._draw_scheduled = False
 
         # params
         self.params_panel = ParamsPanel(self._initial_params())
@@ -311,6 +313,7 @@ class LiveTab(QWidget):
             self._processor.set_views(self._processed_views())
         self._apply_region()
         self._output = None
+        self._to_draw = []  # (a view still to be drawn of the frame before must not be)
         self.clear_markers()
         self._install_processor()
         note = self.ctx.calibration_note
@@ -366,11 +369,13 @@ class LiveTab(QWidget):
         self.show_output(pf.output)
 
     def show_output(self, out: LiveOutput) -> None:
-        """Draw one processed frame (UI thread: array hand-over only)."""
+        """Draw one processed frame (UI thread: array hand-over only). The views get their
+        images one event-loop turn apart, so that each is painted on its own and the window
+        answers in between (four views painted in one go held it up to 40-60 ms on a busy
+        machine); frameShown follows the last one."""
         self._output = out
-        for key in self.visible_views():
-            if key in out.images:  # (a view ticked after this frame was made: the next has it)
-                self.panels[key].set_image(out.images[key])
+        # (a view ticked after this frame was made is left out: the next frame has it)
+        self._to_draw = [k for k in self.visible_views() if k in out.images]
         if "wls" in self.visible_views():
             self._update_color_bar(out)
         wls = out.result.wls_px is not None
@@ -384,6 +389,27 @@ class LiveTab(QWidget):
             if out.scale_note:
                 self.ctx.show_status(out.scale_note)
         self.health.show_output(out, self.shown_frame)
+        if not self._draw_scheduled:  # (else the turn already scheduled goes on with this frame)
+            self._draw_next()
+
+    def _draw_next(self) -> None:
+        """Hand the next view its image; the one after it comes once this one is painted."""
+        self._draw_scheduled = False
+        if self._output is None:  # the views were cleared meanwhile (a new calibration)
+            self._to_draw = []
+            return
+        if not self._to_draw:  # no view shown
+            self._frame_drawn()
+            return
+        key = self._to_draw.pop(0)
+        self.panels[key].set_image(self._output.images[key])
+        if self._to_draw:
+            self._draw_scheduled = True
+            QTimer.singleShot(0, self, self._draw_next)  # (dropped if the tab is deleted)
+        else:
+            self._frame_drawn()
+
+    def _frame_drawn(self) -> None:
         self.frames_shown += 1
         self.frameShown.emit()
 

@@ -3,6 +3,7 @@ apply, no-calibration page, snapshot, ruler."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -358,3 +359,31 @@ def test_hidden_views_belong_to_the_window_too(qtbot, ctx):
         assert panel.isWindow() is False
     tab.set_visible_views(["left", "wls"])
     assert [k for k, p in tab.panels.items() if p.isVisibleTo(tab._grid_host)] == ["left", "wls"]
+
+
+def test_views_are_drawn_one_event_loop_turn_apart_and_the_newest_frame_wins(
+        qtbot, ctx, live, sim_rig, wall_pair, array_source):
+    """Each view gets its image in a turn of its own (each is painted on its own, the window
+    answers in between); frameShown follows the last view; a frame that comes meanwhile is
+    the one the remaining views show; a new calibration drops what was still to be drawn."""
+    _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
+    ctx.frames.pause()
+    qtbot.wait(200)
+    first = live._output
+    keys = [k for k in live.visible_views() if k in first.images]
+    assert len(keys) >= 2
+    blank = {k: np.zeros_like(first.images[k]) for k in keys}
+    newer = dataclasses.replace(first, images=blank)
+    shown = live.frames_shown
+    live.show_output(first)
+    assert live.frames_shown == shown  # only the first view has its image yet
+    assert np.array_equal(live.panels[keys[0]].item.image, first.images[keys[0]])
+    assert first.images[keys[0]].any()  # (the newer frame's images are all black)
+    live.show_output(newer)  # before the other views' turns came
+    with qtbot.waitSignal(live.frameShown, timeout=2000):
+        pass
+    for k in keys[1:]:
+        assert not live.panels[k].item.image.any()  # the newer frame's
+    live.show_output(first)
+    live._calibration_changed(ctx.calibration)  # clears the views' frame
+    qtbot.wait(100)  # the remaining turns find nothing to draw, and raise nothing
