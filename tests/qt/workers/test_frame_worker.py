@@ -275,13 +275,21 @@ class FlakySource:
         self._inner.close()
 
 
-def test_a_reconnecting_source_is_kept_said_once_and_resumes(qtbot, worker, array_source):
+def _start_flaky(qtbot, worker, array_source, frames: int):
+    """A FlakySource in use once `frames` frames were read; (source, errors, source names,
+    stream states) the worker reported from the start."""
     src = FlakySource(array_source)
-    errors, states = [], []
+    errors, names, states = [], [], []
     worker.errorOccurred.connect(errors.append)
+    worker.sourceChanged.connect(names.append)
     worker.streamStatus.connect(states.append)
     worker.set_source(src)
-    qtbot.waitUntil(lambda: worker.frames_read > 2, timeout=30000)
+    qtbot.waitUntil(lambda: worker.frames_read > frames, timeout=30000)
+    return src, errors, names, states
+
+
+def test_a_reconnecting_source_is_kept_said_once_and_resumes(qtbot, worker, array_source):
+    src, errors, _names, states = _start_flaky(qtbot, worker, array_source, 2)
     with qtbot.waitSignal(worker.streamStatus, timeout=30000) as sig:
         src.unavailable.set()
     assert (sig.args[0].state, sig.args[0].source_name) == ("reconnecting", "flaky cameras")
@@ -298,12 +306,7 @@ def test_a_reconnecting_source_is_kept_said_once_and_resumes(qtbot, worker, arra
 
 
 def test_a_source_that_fails_is_dropped_by_name(qtbot, worker, array_source):
-    src = FlakySource(array_source)
-    names, states = [], []
-    worker.sourceChanged.connect(names.append)
-    worker.streamStatus.connect(states.append)
-    worker.set_source(src)
-    qtbot.waitUntil(lambda: worker.frames_read > 0, timeout=30000)
+    src, _errors, names, states = _start_flaky(qtbot, worker, array_source, 0)
     with qtbot.waitSignal(worker.streamStatus, timeout=30000) as sig:
         src.fail.set()
     assert sig.args[0].state == "failed" and "gone for good" in sig.args[0].message
