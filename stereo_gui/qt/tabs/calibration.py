@@ -560,15 +560,16 @@ class CalibrationTab(PairReview, QWidget):
         self.load_button.setEnabled(not running)
         sel = self.selected_pair
         # after a restart (no run) a pair of the session can still be excluded or included
-        known = sel is not None and (self.run is not None or self._in_session(sel))
+        pair = self._session_pair(sel) if sel is not None else None  # (one read of the session)
+        known = sel is not None and (self.run is not None or pair is not None)
         self.exclude_button.setEnabled(not running and known)
         n_above = len(self.pairs_above(self.threshold_spin.value())) if not running else 0
         self.exclude_above_button.setText(
             f"Exclude {n_above} pair{'s' if n_above != 1 else ''} above")
         self.exclude_above_button.setEnabled(n_above > 0)
         if known:
-            self.exclude_button.setText("Include pair again" if self._is_excluded(sel)
-                                        else "Exclude pair")
+            excluded = bool(getattr(pair, "excluded", False))
+            self.exclude_button.setText("Include pair again" if excluded else "Exclude pair")
 
 
 

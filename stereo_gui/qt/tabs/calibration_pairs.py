@@ -103,20 +103,17 @@ class PairReview:
         folder = self.run.folder if self.run is not None else Path(self.folder_edit.text())
         return CaptureSession.open(folder)
 
-    def _in_session(self, name: str) -> bool:
-        if not self.folder_edit.text().strip():
-            return False
+    def _session_pair(self, name: str):
+        """The session's pair `name`, read once (None: not in it, or no session to read)."""
+        if self.run is None and not self.folder_edit.text().strip():
+            return None
         try:
-            return any(p.name == name for p in self._session().pairs)
+            return next((p for p in self._session().pairs if p.name == name), None)
         except (StereoGuiError, OSError):
-            return False
+            return None
 
     def _is_excluded(self, name: str) -> bool:
-        try:
-            s = self._session()
-        except (StereoGuiError, OSError):
-            return False
-        return any(p.name == name and getattr(p, "excluded", False) for p in s.pairs)
+        return bool(getattr(self._session_pair(name), "excluded", False))
 
     def _toggle_exclude_selected(self) -> None:
         name = self.selected_pair
