@@ -134,7 +134,7 @@ class MatcherParams:
     color_range: str = "minmax"  # "minmax" per frame (the report) or "fixed" distance range
     color_z_near_mm: float = 500.0  # fixed colour range: this distance gets the top colour
     color_z_far_mm: float = 3000.0  # ... and this one the bottom colour
-    parallel: bool = False  # run left and right matchers concurrently
+    parallel: bool = False  # two cores: left and right matchers at once (Live: two frames at once)
     cv_threads: int | None = None  # cv2.setNumThreads for the process (None: leave as is)
 
     def __post_init__(self) -> None:

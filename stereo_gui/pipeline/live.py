@@ -7,6 +7,7 @@ displayable uint8 image, so the UI thread only hands arrays to pyqtgraph. No Qt 
 from __future__ import annotations
 
 import logging
+import os
 import threading
 from dataclasses import dataclass
 
@@ -43,6 +44,7 @@ class LiveOutput:
 
 VIEW_KEYS = ("left", "right", "raw", "closed", "wls")  # the images a LiveOutput can hold
 DEFAULT_VIEWS = ("left", "raw", "closed", "wls")  # what the Live tab shows at first
+MAX_LANES = 2  # frames processed at once (measured on 2 CPUs only)
 
 
 def _gray_disparity(disp_px: np.ndarray, lo: float, hi: float,
@@ -59,26 +61,58 @@ def _gray_disparity(disp_px: np.ndarray, lo: float, hi: float,
     return rgb
 
 
-class LiveProcessor:
-    """The frame worker's processor for the Live tab (called in the worker thread only).
+def frame_lanes(params: MatcherParams, cpus: int | None = None) -> int:
+    """How many frames the Live tab processes at once: one per CPU, at most MAX_LANES, when the
+    preset is `parallel` (one frame on each core: frames in flight share no work, so they keep
+    both cores busy without the hand-offs of splitting one frame); else 1."""
+    cpus = os.cpu_count() or 1 if cpus is None else cpus
+    return max(1, min(MAX_LANES, cpus)) if params.parallel else 1
 
-    The pipeline is built on the first frame, in the worker thread (building rectification maps
-    takes a while); `set_params` may be called from any thread and applies to the next frame.
-    Frames of another size than the calibration's use `StereoCalibration.scaled_to` (same aspect
-    ratio: `LiveOutput.scale_note` says so); another aspect ratio raises CalibrationError with
-    the reason, for every frame, so it is never silently wrong.
+
+def opencv_in_calling_threads() -> int:
+    """Have every OpenCV call run in the thread that makes it (no pool of OpenCV's own); return
+    the thread count set before. The application's own threads use the cores (the frame lanes,
+    the health check, the detection pool). OpenCV's pool on top of them only added hand-offs
+    and spinning: on 2 CPUs, live at 640x480 in two lanes took 38 ms of CPU a frame (median of 8
+    runs) against 42 ms with OpenCV's 2 threads; detection and calibration of 40 rig pairs took
+    0.86-0.92 s against 0.98-1.00 s. `run_app` and `bench` call it for the presets."""
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    return before
+
+
+class LiveProcessor:
+    """The frame worker's processor for the Live tab (called in the worker's threads only).
+
+    `lanes` frames may be processed at once, each by a thread of its own (`frame_lanes`): every
+    call takes a pipeline of its own from a small pool, made on the call that first needs it, in
+    the worker thread (building rectification maps takes a while). The pipelines themselves run
+    one frame's stages one after the other (a `parallel` preset's parallelism is the lanes).
+    `set_params` may be called from any thread and applies to the next frame. Frames of another
+    size than the calibration's use `StereoCalibration.scaled_to` (same aspect ratio:
+    `LiveOutput.scale_note` says so); another aspect ratio raises CalibrationError with the
+    reason, for every frame, so it is never silently wrong.
     """
 
     def __init__(self, calibration, params: MatcherParams) -> None:
         self.calibration = calibration
         self._lock = threading.Lock()
         self._params = params
-        self._pipeline: StereoPipeline | None = None
-        self._size: tuple[int, int] | None = None  # frame size the pipeline was built for
+        self._lanes = frame_lanes(params)
+        self._idle: list[StereoPipeline] = []  # pipelines for frames of self._size, not in use
+        self._busy: set[StereoPipeline] = set()
+        self._size: tuple[int, int] | None = None  # frame size the pipelines are built for
         self._note = ""
+        self._closed = False
         self._region: tuple[Region, float | None, object] | None = None
         self._views: frozenset[str] = frozenset(VIEW_KEYS)
         self.health = HealthMonitor()  # about once a second, in a thread of its own
+
+    @property
+    def lanes(self) -> int:
+        """How many calls may run at once (the frame worker reads it before each frame)."""
+        with self._lock:
+            return self._lanes
 
     def set_views(self, keys) -> None:
         """Make display images only of the views in `keys` (any thread; the next frame): the
@@ -91,8 +125,9 @@ class LiveProcessor:
     def set_params(self, params: MatcherParams) -> None:
         with self._lock:
             self._params = params
-            if self._pipeline is not None:
-                self._pipeline.set_params(params)
+            self._lanes = frame_lanes(params)
+            for pipeline in (*self._idle, *self._busy):
+                pipeline.set_params(_one_lane(params))
 
     def set_region(self, region: Region | None, alarm_mm: float | None = None,
                    fit=None) -> None:
@@ -101,15 +136,14 @@ class LiveProcessor:
         with self._lock:
             self._region = None if region is None else (region, alarm_mm, fit)
 
-    def __call__(self, frame: StereoFrame) -> LiveOutput:
-        size = (int(frame.left.shape[1]), int(frame.left.shape[0]))
+    def _take_pipeline(self, size: tuple[int, int]) -> StereoPipeline:
+        """A pipeline for frames of `size`, not in use by another call (made if none is idle)."""
         with self._lock:
-            if self._pipeline is None or self._size != size:
-                if self._pipeline is not None:
-                    self._pipeline.close()
-                    self._pipeline = None
+            if self._closed:
+                raise RuntimeError("the live processor is closed")
+            if self._size != size:
+                stale, self._idle = self._idle, []
                 calib = self.calibration.scaled_to(size)  # CalibrationError: another aspect
-                self._pipeline = StereoPipeline(calib, self._params)
                 self._size = size
                 c = self.calibration
                 self._note = ("" if calib is c else
@@ -117,8 +151,42 @@ class LiveProcessor:
                               f"source's {size[0]}x{size[1]} px (same aspect ratio)")
                 if self._note:
                     log.info("%s", self._note)
-            pipeline, note, watched = self._pipeline, self._note, self._region
-            views = self._views
+                for old in stale:
+                    old.close()
+            if self._idle:
+                pipeline = self._idle.pop()
+            else:
+                pipeline = None
+                params = _one_lane(self._params)
+        if pipeline is None:  # built outside the lock: the other lane goes on meanwhile
+            pipeline = StereoPipeline(self.calibration.scaled_to(size), params)
+        with self._lock:
+            if pipeline.params != _one_lane(self._params):
+                pipeline.set_params(_one_lane(self._params))  # changed while it was built
+            self._busy.add(pipeline)
+        return pipeline
+
+    def _give_back(self, pipeline: StereoPipeline, size: tuple[int, int]) -> None:
+        with self._lock:
+            self._busy.discard(pipeline)
+            keep = not self._closed and size == self._size
+            if keep:
+                self._idle.append(pipeline)
+        if not keep:
+            pipeline.close()
+
+    def __call__(self, frame: StereoFrame) -> LiveOutput:
+        size = (int(frame.left.shape[1]), int(frame.left.shape[0]))
+        pipeline = self._take_pipeline(size)
+        try:
+            with self._lock:
+                note, watched, views = self._note, self._region, self._views
+            return self._process(pipeline, frame, note, watched, views)
+        finally:
+            self._give_back(pipeline, size)
+
+    def _process(self, pipeline: StereoPipeline, frame: StereoFrame, note: str, watched,
+                 views: frozenset[str]) -> LiveOutput:
         r = pipeline.process(*self.calibration.ordered(frame.left, frame.right),
                              right_colour="right" in views)
         lo, hi = r.disparity_range_px
@@ -136,8 +204,17 @@ class LiveProcessor:
         return LiveOutput(r, images, note, stats, self.health.latest())
 
     def close(self) -> None:
+        """Close the idle pipelines and the health check (a call still running closes its own
+        pipeline when it ends)."""
         self.health.close()
         with self._lock:
-            if self._pipeline is not None:
-                self._pipeline.close()
+            self._closed = True
+            idle, self._idle = self._idle, []
+        for pipeline in idle:
+            pipeline.close()
+
+
+def _one_lane(params: MatcherParams) -> MatcherParams:
+    """The parameters a lane's pipeline runs: a frame's stages one after the other."""
+    return params.replace(parallel=False) if params.parallel else params
 

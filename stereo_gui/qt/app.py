@@ -128,9 +128,9 @@ def run_app(source: str | None = None, calib: str | None = None) -> int:
     from PySide6.QtCore import QTimer
     from PySide6.QtWidgets import QApplication
 
-    from stereo_gui.qt.workers.threads import start_opencv_pool_low
+    from stereo_gui.pipeline.live import opencv_in_calling_threads
 
-    start_opencv_pool_low()  # before the UI thread runs OpenCV: its pool yields to the UI thread
+    opencv_in_calling_threads()  # our threads (the frame lanes first) share the cores
     quit_after = quit_after_seconds()
     app = QApplication.instance() or QApplication(sys.argv[:1])
     app.setApplicationName("Stereo GUI")

@@ -86,3 +86,67 @@ def test_only_the_views_shown_are_made_and_the_right_image_is_gray_unless_shown(
         assert out.images["right"].shape == (H, W, 3)
     finally:
         proc.close()
+
+
+def test_lanes_follow_the_parallel_setting_and_the_cpus():
+    from stereo_gui.pipeline.live import MAX_LANES, frame_lanes
+
+    on, off = MatcherParams(parallel=True), MatcherParams(parallel=False)
+    assert frame_lanes(on, cpus=2) == 2 and frame_lanes(on, cpus=8) == MAX_LANES
+    assert frame_lanes(on, cpus=1) == 1 and frame_lanes(off, cpus=8) == 1
+    calib = StereoCalibration.identity((W, H), 300.0, 100.0)
+    proc = LiveProcessor(calib, MatcherParams(num_disparities=32, block_size=5, parallel=False))
+    try:
+        assert proc.lanes == 1
+        proc.set_params(proc._params.replace(parallel=True))
+        assert proc.lanes == frame_lanes(MatcherParams(parallel=True))
+    finally:
+        proc.close()
+
+
+def test_two_frames_at_once_each_get_a_pipeline_and_the_result_of_one_at_a_time():
+    """Two lanes calling at once (as the frame worker's do) use a pipeline each, every one built
+    to run a frame's stages in turn, and get what a call alone gets; a change of parameters
+    reaches the idle pipelines too."""
+    import threading
+
+    from stereo_gui.pipeline import live
+
+    calib = StereoCalibration.identity((W, H), 300.0, 100.0)
+    params = MatcherParams(num_disparities=32, block_size=5, parallel=True)
+    alone = LiveProcessor(calib, params)
+    proc = LiveProcessor(calib, params)
+    frame = _frame()
+    inside = threading.Barrier(2, timeout=30)
+    used = []
+    real = live.StereoPipeline.process
+
+    def meeting(self, *a, **k):  # both calls inside a pipeline at the same time
+        used.append(self)
+        inside.wait()
+        return real(self, *a, **k)
+
+    try:
+        expected = alone(frame).result.final_px
+        outs = [None, None]
+        live.StereoPipeline.process = meeting
+        try:
+            threads = [threading.Thread(target=lambda i=i: outs.__setitem__(i, proc(frame)))
+                       for i in range(2)]
+            for t in threads:
+                t.start()
+            for t in threads:
+                t.join(60)
+        finally:
+            live.StereoPipeline.process = real
+        assert len(used) == 2 and used[0] is not used[1]
+        assert all(not p.params.parallel for p in used)  # the lanes are the parallelism
+        for out in outs:
+            np.testing.assert_array_equal(out.result.final_px, expected)
+        proc.set_params(params.replace(block_size=7))
+        assert proc(frame).result.params.block_size == 7 and len(proc._idle) == 2
+        for pipeline in proc._idle:  # the one not used since: its next frame
+            assert (pipeline._pending or pipeline.params).block_size == 7
+    finally:
+        alone.close()
+        proc.close()

@@ -171,8 +171,9 @@ class ParamsPanel(QWidget):
         self.scale = QComboBox()
         for s in (1.0, 0.75, 0.5, 0.25):
             self.scale.addItem(f"{s:g}" + ("  (full)" if s == 1.0 else ""), s)
-        self.parallel = QCheckBox("left and right matchers in parallel")
-        self.parallel.setToolTip("uses two CPU cores for one frame")
+        self.parallel = QCheckBox("use two CPU cores")
+        self.parallel.setToolTip("Live: two frames processed at once, one on each core (about "
+                                 "1.4x the frames of one frame split over both cores)")
         sgbm = QFormLayout()
         sgbm.addRow("window_size", self.block_size)
         sgbm.addRow("min_disp (px)", self.min_disparity)

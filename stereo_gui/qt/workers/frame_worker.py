@@ -1,10 +1,14 @@
 """The frame worker: reads the current source and runs the current processor off the UI thread.
 
-Two QThreads (`threads.WorkerThread`), joined by a slot of size one (newest frame wins, as in ROS
+QThreads (`threads.WorkerThread`), joined by a slot of size one (newest frame wins, as in ROS
 camera_calibration):
 - the reader calls `source.read()` as fast as the source delivers, so a camera never backs up;
-- the processor takes the newest frame, runs the processor function on it (all heavy OpenCV work
-  happens here) and keeps the newest `ProcessedFrame`.
+- a processing lane takes the newest frame, runs the processor function on it (all heavy OpenCV
+  work happens here) and keeps the newest `ProcessedFrame`. There are LANES of them; as many as
+  the processor's `lanes` attribute allows (1 without it) take frames, so a processor that can
+  run two frames at once (`pipeline.live.LiveProcessor`) gets the next frame while the last one
+  is still being processed. A result older than one already kept is dropped: results are handed
+  out in the order the frames were read, and never more than one frame per lane is in work.
 
 The UI never receives a backlog: the processing thread posts one private notification to the
 UI thread at a time (until the UI thread has received it, or `latest()` was called), and there
@@ -51,6 +55,7 @@ _WATCHDOG_MS = 500
 _FPS_SMOOTHING = 0.1  # weight of the newest interval in the running frame-rate estimate
 RATE_STALE_S = 2.0  # no event for this long (or 3 intervals, if longer): the rate is 0
 _UNAVAILABLE_PAUSE_S = 0.1  # after SourceUnavailable, the reader asks again this soon
+LANES = 2  # processing threads; a processor's `lanes` says how many of them it lets work
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,6 +134,9 @@ class FrameWorker(QObject):
         self._processor: Processor | None = None
         self._tap: Callable[[StereoFrame], None] | None = None
         self._frame: StereoFrame | None = None  # newest frame not yet processed
+        self._frame_seq = 0  # its number (frames are numbered as they are read)
+        self._latest_seq = -1  # the number of the frame _latest was made of
+        self._in_work = 0  # frames being processed now (at most the processor's lanes)
         self._latest: ProcessedFrame | None = None
         self._latest_of: Processor | None = None  # the processor that made _latest
         self._notified = False
@@ -146,7 +154,7 @@ class FrameWorker(QObject):
         self._stream_source: FrameSource | None = None  # the source a problem was about
         self._reader_gen = 0  # a reader loop of an older generation ends after its read
         self._reader: WorkerThread | None = None
-        self._worker: WorkerThread | None = None
+        self._workers: list[WorkerThread] = []  # the processing lanes
         self._left_behind: list[WorkerThread] = []  # blocked threads stop() could not join
         self._watchdog = QTimer(self)
         self._watchdog.setInterval(_WATCHDOG_MS)
@@ -268,7 +276,7 @@ class FrameWorker(QObject):
     def is_running(self) -> bool:
         """True while one of its threads runs (a blocked one left behind included)."""
         return any(t is not None and t.isRunning()
-                   for t in (self._reader, self._worker, *self._left_behind))
+                   for t in (self._reader, *self._workers, *self._left_behind))
 
     @property
     def pending_frames(self) -> int:
@@ -277,8 +285,8 @@ class FrameWorker(QObject):
             return 0 if self._frame is None else 1
 
     def threads(self) -> list[WorkerThread]:
-        """The reader and processor threads (for tests and diagnostics)."""
-        return [t for t in (self._reader, self._worker) if t is not None]
+        """The reader and the processing lanes' threads (for tests and diagnostics)."""
+        return [t for t in (self._reader, *self._workers) if t is not None]
 
     def stop(self, timeout_ms: int = _JOIN_TIMEOUT_MS) -> bool:
         """Ask both threads to end, join them, close the source; True if they ended in time.
@@ -292,7 +300,7 @@ class FrameWorker(QObject):
             self._stopping = True
             self._cond.notify_all()
         deadline = time.monotonic() + timeout_ms / 1000.0
-        for t in (self._reader, self._worker):
+        for t in (self._reader, *self._workers):
             if t is not None and not t.join(max(1, int((deadline - time.monotonic()) * 1000))):
                 self._left_behind.append(t)
         self._left_behind = [t for t in self._left_behind if t.isRunning()]
@@ -307,7 +315,7 @@ class FrameWorker(QObject):
                 self._pending_source = None
                 self._source_pending = False
         self._reader = None
-        self._worker = None
+        self._workers = []
         if ok:
             for s in sources:
                 close_quietly(s)
@@ -330,10 +338,12 @@ class FrameWorker(QObject):
             self._reader = WorkerThread(lambda: self._read_loop(gen), "frame-reader",
                                         self._request_stop)
             self._reader.start()
-        if self._worker is None:
-            self._worker = WorkerThread(self._process_loop, "frame-processor",
-                                        self._request_stop)
-            self._worker.start()
+        if not self._workers:
+            for lane in range(LANES):
+                t = WorkerThread(lambda lane=lane: self._process_loop(lane),
+                                 f"frame-processor-{lane + 1}", self._request_stop)
+                self._workers.append(t)
+                t.start()
         self._watchdog.start()
 
     def _blocked_for(self) -> float:
@@ -476,6 +486,7 @@ class FrameWorker(QObject):
                     continue  # a frame of the previous source: drop it
                 self._frame = frame
                 self._frames_read += 1
+                self._frame_seq = self._frames_read
                 self._camera_rate.tick(time.monotonic())
                 self._cond.notify_all()
                 tap = self._tap
@@ -490,31 +501,50 @@ class FrameWorker(QObject):
                             self._tap = None
                     self._report(f"recording the frames failed: {exc}")
 
-    def _process_loop(self) -> None:
+    def _may_take(self, lane: int) -> bool:
+        """Whether `lane` may take a frame now (called with the lock held): lane 0 always, the
+        others while the processor allows that many frames at once."""
+        if lane == 0:
+            return True
+        lanes = _lanes_of(self._processor)
+        return lane < lanes and self._in_work < lanes
+
+    def _process_loop(self, lane: int = 0) -> None:
         while True:
             with self._cond:
-                while not self._stopping and (self._paused or self._frame is None):
+                while not self._stopping and (self._paused or self._frame is None
+                                              or not self._may_take(lane)):
                     self._cond.wait()
                 if self._stopping:
                     return
                 frame, self._frame = self._frame, None
+                seq = self._frame_seq
                 fn = self._processor
                 gen = self._source_gen
-            t0 = time.perf_counter()
-            output = None
-            if fn is not None:
-                try:
-                    output = fn(frame)
-                except Exception as exc:  # noqa: BLE001 - shown to the user, the loop goes on
-                    log.debug("processor failed", exc_info=True)
-                    self._report(f"processing failed: {exc}")
-                    continue
-            ms = (time.perf_counter() - t0) * 1000.0
+                self._in_work += 1
+            try:
+                t0 = time.perf_counter()
+                output = None
+                if fn is not None:
+                    try:
+                        output = fn(frame)
+                    except Exception as exc:  # noqa: BLE001 - shown to the user, the loop goes on
+                        log.debug("processor failed", exc_info=True)
+                        self._report(f"processing failed: {exc}")
+                        continue
+                ms = (time.perf_counter() - t0) * 1000.0
+            finally:
+                with self._cond:
+                    self._in_work -= 1
+                    self._cond.notify_all()  # a lane waiting for its turn may take a frame
             with self._cond:
                 if self._processor is not fn:
                     continue  # made for a processor that has since been replaced
                 if self._source_gen != gen:
                     continue  # a frame of the previous source (issue 12: a stale frozen pair)
+                if seq <= self._latest_seq and self._latest_of is fn:
+                    continue  # another lane has already kept a newer frame: newest wins
+                self._latest_seq = seq
                 self._proc_rate.tick(time.monotonic())
                 self._frames_processed += 1
                 self._latest = ProcessedFrame(frame, output, self._camera_rate.fps,
@@ -524,6 +554,14 @@ class FrameWorker(QObject):
                 self._notified = True
             if notify:
                 self._published.emit()
+
+
+def _lanes_of(fn: Processor | None) -> int:
+    """How many frames `fn` may process at once (its `lanes` attribute; 1 without it)."""
+    try:
+        return max(1, int(getattr(fn, "lanes", 1)))
+    except (TypeError, ValueError):
+        return 1
 
 
 def close_quietly(source: FrameSource) -> None:

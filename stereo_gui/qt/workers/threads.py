@@ -18,9 +18,9 @@ window waits at closing. So:
   os._exit when its workers did not stop.
 
 Threads run at a lower priority on Linux (niceness WORKER_NICE, per thread): under CPU load the
-UI thread wins. OpenCV's pool threads take the niceness of the thread that made them:
-`start_opencv_pool_low` has a lowered thread make them before the UI thread can (left to the UI
-thread, the pool's thread ran at normal priority beside it, using a third of a CPU while live).
+UI thread wins. OpenCV starts no pool of its own in the application
+(`pipeline.live.opencv_in_calling_threads`): its calls run at the niceness of the thread that
+makes them.
 """
 
 from __future__ import annotations
@@ -58,24 +58,6 @@ def _lower_thread_priority() -> None:
             os.setpriority(os.PRIO_PROCESS, tid, max(current, WORKER_NICE))
         except OSError as exc:
             log.debug("could not lower the worker thread's priority: %s", exc)
-
-
-def start_opencv_pool_low() -> None:
-    """Make OpenCV's worker pool from a thread of lowered priority (call before the UI thread
-    runs any parallel OpenCV function: the pool is made once, by its first user, and its
-    threads inherit that thread's niceness on Linux)."""
-    if not sys.platform.startswith("linux"):
-        return
-    import cv2
-    import numpy as np
-
-    def make_pool() -> None:
-        _lower_thread_priority()
-        cv2.resize(np.zeros((720, 1280), np.uint8), (640, 360))  # a parallel call: the pool
-
-    t = threading.Thread(target=make_pool, name="opencv-pool", daemon=True)
-    t.start()
-    t.join(5.0)
 
 
 class WorkerThread(QThread):

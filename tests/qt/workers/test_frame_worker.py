@@ -346,3 +346,82 @@ def test_frame_ready_is_emitted_in_the_ui_thread_only(qtbot, worker, array_sourc
     worker.set_source(array_source(fps=200))
     qtbot.waitUntil(lambda: len(emitted_in) >= 5, timeout=30000)
     assert set(emitted_in) == {ui_thread}
+
+
+class _TwoLanes:
+    """A processor that lets two frames in at once. The first two calls meet at a barrier (so
+    they must run at the same time); the first is held until the test has seen the second's
+    result kept, the later calls until the first has ended: the first's result is then older
+    than the one kept, and must be dropped."""
+
+    lanes = 2
+
+    def __init__(self) -> None:
+        self.meet = threading.Barrier(2, timeout=30)
+        self.lock = threading.Lock()
+        self.calls: list[int] = []
+        self.active = 0
+        self.most_active = 0
+        self.second_kept = threading.Event()
+        self.first_done = threading.Event()
+        self.rest = threading.Event()
+
+    def __call__(self, frame):
+        with self.lock:
+            self.calls.append(frame.index)
+            n = len(self.calls)
+            self.active += 1
+            self.most_active = max(self.most_active, self.active)
+        try:
+            if n <= 2:
+                self.meet.wait()
+            if n == 1:
+                self.second_kept.wait(30)
+            elif n > 2:
+                self.rest.wait(30)
+            return frame.index
+        finally:
+            with self.lock:
+                self.active -= 1
+            if n == 1:
+                self.first_done.set()
+
+
+def test_a_processor_with_two_lanes_gets_two_frames_at_once_and_the_newest_wins(
+        qtbot, worker, array_source):
+    proc = _TwoLanes()
+    worker.set_processor(proc)
+    worker.set_source(array_source(fps=500))
+    try:
+        qtbot.waitUntil(lambda: worker.latest() is not None, timeout=30000)
+        assert proc.most_active == 2  # the barrier let both calls through: they ran at once
+        second = worker.latest().frame.index
+        assert second == proc.calls[1] > proc.calls[0]
+        proc.second_kept.set()  # the first call, an older frame, ends now
+        assert proc.first_done.wait(30)
+        qtbot.wait(50)
+        assert worker.latest().frame.index == second  # not replaced by the older frame
+        assert worker.pending_frames <= 1 and proc.active <= 2
+    finally:
+        proc.second_kept.set()
+        proc.rest.set()
+    qtbot.waitUntil(lambda: worker.latest().frame.index > second, timeout=30000)
+
+
+def test_a_processor_without_lanes_is_never_called_twice_at_once(qtbot, worker, array_source):
+    active, most = [0], [0]
+    lock = threading.Lock()
+
+    def proc(frame):
+        with lock:
+            active[0] += 1
+            most[0] = max(most[0], active[0])
+        threading.Event().wait(0.005)  # long enough for a second lane to step in, were it let
+        with lock:
+            active[0] -= 1
+        return frame.index
+
+    worker.set_processor(proc)
+    worker.set_source(array_source(fps=500))
+    qtbot.waitUntil(lambda: worker.frames_processed >= 30, timeout=30000)
+    assert most[0] == 1

@@ -12,7 +12,7 @@ import time
 from PySide6.QtCore import QCoreApplication, QThread
 
 from stereo_gui.pipeline.jobs import Progress
-from stereo_gui.qt.workers.frame_worker import FrameWorker
+from stereo_gui.qt.workers.frame_worker import LANES, FrameWorker
 from stereo_gui.qt.workers.job_runner import JobRunner
 from stereo_gui.qt.workers.job_worker import JobWorker
 from stereo_gui.qt.workers.threads import WorkerThread, live_threads
@@ -53,15 +53,15 @@ def test_frames_are_read_and_processed_in_our_qthreads(qtbot, array_source):
         worker.set_processor(processor)
         worker.set_source(source)
         qtbot.waitUntil(lambda: worker.frames_processed >= 3, timeout=30000)
-        reader, proc = worker.threads()
-        assert {type(reader), type(proc)} == {WorkerThread}
-        assert reader is not proc and _main_thread() not in (reader, proc)
+        reader, *lanes = worker.threads()
+        assert {type(t) for t in (reader, *lanes)} == {WorkerThread}
+        assert len(lanes) == LANES and reader not in lanes and _main_thread() not in lanes
         assert set(source.read_threads) == {reader}
-        assert set(seen) == {proc}
-        assert reader in live_threads() and proc in live_threads()
+        assert set(seen) == {lanes[0]}  # a processor without `lanes` runs in the first lane only
+        assert all(t in live_threads() for t in (reader, *lanes))
     finally:
         assert worker.stop(2000)
-    assert reader not in live_threads() and not reader.isRunning() and not proc.isRunning()
+    assert not any(t in live_threads() or t.isRunning() for t in (reader, *lanes))
 
 
 def test_jobs_and_generator_jobs_run_in_our_qthreads(qtbot):
@@ -201,34 +201,31 @@ def test_closing_during_a_blocked_read_exits_0_within_3_s(tmp_path):
 _POOL_PROBE = """
 import os, sys
 import cv2, numpy as np
-from stereo_gui.qt.workers.threads import start_opencv_pool_low
-def nice_of_threads():
-    return {int(t): os.getpriority(os.PRIO_PROCESS, int(t)) for t in os.listdir("/proc/self/task")}
-before = nice_of_threads()
-if sys.argv[1] == "low":
-    start_opencv_pool_low()
-for _ in range(3):  # the UI thread's own OpenCV work, as at start-up
+from stereo_gui.pipeline.live import opencv_in_calling_threads
+before = set(os.listdir("/proc/self/task"))
+if sys.argv[1] == "calling":
+    opencv_in_calling_threads()
+for _ in range(3):  # parallel OpenCV calls, as the frame lanes and the UI thread make
     cv2.resize(np.zeros((720, 1280), np.uint8), (640, 360))
-new = {t: n for t, n in nice_of_threads().items() if t not in before}
-print(min(new.values()) if new else "none")
+print(len(set(os.listdir("/proc/self/task")) - before), cv2.getNumThreads())
 """
 
 
-def test_opencv_pool_threads_yield_to_the_ui_thread():
-    """OpenCV's pool, made by the first thread that runs a parallel call, takes its niceness:
-    made by start_opencv_pool_low (as run_app does first), its threads run below the UI thread;
-    made by the UI thread itself, they would run beside it (the window stalled 40-60 ms)."""
+def test_opencv_runs_in_the_calling_threads_as_run_app_sets_it():
+    """run_app has OpenCV run every call in its calling thread: the frame lanes and our other
+    threads share the cores, and no pool of OpenCV's own (which ran beside the UI thread, at
+    its priority) is started. Without the call OpenCV starts its pool."""
     import cv2
     import pytest
 
     if not sys.platform.startswith("linux") or cv2.getNumThreads() < 2:
-        pytest.skip("per-thread niceness and a pool of OpenCV threads: Linux with 2+ CPUs")
-    from stereo_gui.qt.workers.threads import WORKER_NICE
+        pytest.skip("counting threads in /proc and a pool of OpenCV threads: Linux, 2+ CPUs")
 
-    def lowest_nice_of_new_threads(mode: str) -> str:
+    def new_threads_and_count(mode: str) -> list[int]:
         out = subprocess.run([sys.executable, "-c", _POOL_PROBE, mode], capture_output=True,
                              text=True, timeout=60, check=True)
-        return out.stdout.strip()
+        return [int(v) for v in out.stdout.split()]
 
-    assert lowest_nice_of_new_threads("low") == str(max(WORKER_NICE, os.nice(0)))
-    assert lowest_nice_of_new_threads("ui") == str(os.nice(0))
+    assert new_threads_and_count("calling") == [0, 1]
+    started, count = new_threads_and_count("default")
+    assert started >= 1 and count >= 2
