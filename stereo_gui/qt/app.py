@@ -9,7 +9,6 @@ from __future__ import annotations
 import logging
 import os
 import sys
-from pathlib import Path
 
 from stereo_gui.core.errors import InputError, StereoGuiError
 

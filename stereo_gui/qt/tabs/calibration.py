@@ -1,5 +1,6 @@
 """The Calibration tab: calibrate from a capture session, check the result, save or load it
-(single pairs: `calibration_pairs.PairReview`).
+(single pairs: `calibration_pairs.PairReview`; the warnings' remedies, the swap box, save and
+load: `calibration_actions.CalibrationActions`).
 
 Calibrate runs `stereo_gui.pipeline.calibration.calibration_job` in a JobWorker (detection of
 every pair, then the core's calibrate_stereo) with a progress bar and Cancel. The results show
@@ -30,7 +31,6 @@ from PySide6.QtWidgets import (
     QPlainTextEdit,
     QProgressBar,
     QPushButton,
-    QScrollArea,
     QSplitter,
     QVBoxLayout,
     QWidget,
@@ -46,6 +46,7 @@ from stereo_gui.pipeline.calibration import (
     matrices_text,
 )
 from stereo_gui.pipeline.jobs import Progress
+from stereo_gui.qt.tabs.calibration_actions import CalibrationActions
 from stereo_gui.qt.tabs.calibration_pairs import PairReview
 from stereo_gui.qt.widgets.calibration_charts import (
     ErrorBarChart,
@@ -54,7 +55,7 @@ from stereo_gui.qt.widgets.calibration_charts import (
 from stereo_gui.qt.widgets.calibration_figures import CalibrationFigures, format_px
 from stereo_gui.qt.widgets.calibration_warnings import CalibrationWarnings
 from stereo_gui.qt.widgets.flow_layout import FlowLayout
-from stereo_gui.qt.widgets.helpers import pane
+from stereo_gui.qt.widgets.helpers import VerticalScroll, pane
 from stereo_gui.qt.workers.job_runner import JobRunner
 from stereo_gui.qt.workers.job_worker import JobWorker
 
@@ -64,22 +65,7 @@ _MONO = QFont("Monospace")
 _MONO.setStyleHint(QFont.StyleHint.TypeWriter)
 
 
-class _VerticalScroll(QScrollArea):
-    """Scrolls up and down only: as wide as its widget needs, as low as one likes."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
-
-    def minimumSizeHint(self):
-        w = self.widget()
-        hint = super().minimumSizeHint()
-        if w is not None:
-            hint.setWidth(w.minimumSizeHint().width() + self.verticalScrollBar().sizeHint().width())
-        return hint
-
-
-class CalibrationTab(PairReview, QWidget):
+class CalibrationTab(PairReview, CalibrationActions, QWidget):
     """Calibrate, review and save/load the stereo calibration (see module docstring)."""
 
     calibrationFinished = Signal(object)  # CalibrationRun
@@ -225,7 +211,7 @@ class CalibrationTab(PairReview, QWidget):
         ll.addLayout(files)
         # scrolls rather than making the window taller than a laptop screen (1280x720: the
         # figures and the warnings alone are taller than the room left)
-        left_scroll = _VerticalScroll()
+        left_scroll = VerticalScroll()
         left_scroll.setWidgetResizable(True)
         left_scroll.setFrameShape(QFrame.Shape.NoFrame)
         left_scroll.setWidget(left)
@@ -485,71 +471,6 @@ class CalibrationTab(PairReview, QWidget):
         if self.run is not None and self.run.result.calibration is calib:
             return self.run.result.report.warnings
         return tuple(getattr(calib, "warnings", ()))
-
-    # ---- remedies and the swapped cameras ------------------------------------------------------
-    def apply_remedy(self, proposal: str) -> bool:
-        """One click: "fix_k3" holds k3 and recalibrates; "swap" exchanges left and right in the
-        session (it remembers) and recalibrates. False if it could not start."""
-        if proposal == "fix_k3":
-            self.fix_k3_check.setChecked(True)
-            return self.start_calibration()
-        if proposal == "swap":
-            self.swap_check.setChecked(not self.swap_check.isChecked())
-            if self._session_swapped() != self.swap_check.isChecked():
-                return False  # the session could not record it (the error is shown)
-            return self.start_calibration()
-        return False
-
-    def _session_swapped(self) -> bool | None:
-        try:
-            return bool(getattr(self._session(), "swapped", False))
-        except (StereoGuiError, OSError):
-            return None
-
-    def _show_session_swap(self) -> None:
-        swapped = self._session_swapped() if self.folder_edit.text().strip() else None
-        self.swap_check.blockSignals(True)
-        self.swap_check.setChecked(bool(swapped))
-        self.swap_check.blockSignals(False)
-        self.swap_check.setEnabled(swapped is not None)
-
-    def _swap_toggled(self, on: bool) -> None:
-        try:
-            session = self._session()
-            if bool(getattr(session, "swapped", False)) != on:
-                session.set_swapped(on)
-        except (StereoGuiError, OSError) as exc:
-            self.ctx.report_error(f"could not record the swap in the session: {exc}")
-            self._show_session_swap()
-            return
-        self.ctx.show_status("The session now exchanges left and right: press Recalibrate" if on
-                             else "The session takes left and right as they are: press Recalibrate")
-
-    # ---- files ---------------------------------------------------------------------------------
-    def _choose_save(self) -> None:
-        if self.calibration is None:
-            return
-        start = str(self.ctx.calibration_path or (Path(self.folder_edit.text() or Path.home())
-                                                   / "calibration.yaml"))
-        path, _ = QFileDialog.getSaveFileName(self, "Save calibration", start,
-                                              "OpenCV YAML (*.yaml *.yml)")
-        if path:
-            self.save_calibration(path)
-
-    def save_calibration(self, path: str | Path) -> bool:
-        return self.ctx.save_calibration_file(self.calibration, path)
-
-    def _choose_load(self) -> None:
-        cp = self.ctx.calibration_path
-        start = str(cp.parent) if cp else str(Path.home())
-        path, _ = QFileDialog.getOpenFileName(
-            self, "Load calibration (ours, OpenCV's, ROS's or Middlebury's)", start,
-            "Calibration files (*.yaml *.yml *.xml *.txt);;All files (*)")
-        if path:
-            self.load_calibration(path)
-
-    def load_calibration(self, path: str | Path) -> bool:
-        return self.ctx.open_calibration_file(path)
 
     def _update_buttons(self) -> None:
         running = self.worker is not None

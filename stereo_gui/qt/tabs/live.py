@@ -7,6 +7,7 @@ Work is split by thread:
 - the pointer's readout and double-click measurements (`live_readings.LiveReadings`) are
   `measure_point` jobs on the context's job thread;
 - the 3D point cloud (`live_cloud.LiveCloud`) is made on a thread of its own;
+- the watched region's figures (`live_region.LiveRegion`) come with each frame's output;
 - the UI thread only hands arrays to pyqtgraph, writes the readout line and draws markers.
 
 Snapshot and depth exports are `live_exports.LiveExports`; recording is the
@@ -21,7 +22,6 @@ from pathlib import Path
 from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtWidgets import (
     QCheckBox,
-    QDoubleSpinBox,
     QGridLayout,
     QLabel,
     QPushButton,
@@ -36,11 +36,10 @@ from PySide6.QtWidgets import (
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.matching import COLORMAPS, MatcherParams
 from stereo_gui.pipeline.live import DEFAULT_VIEWS, LiveOutput, LiveProcessor
-from stereo_gui.pipeline.readout import format_distance
-from stereo_gui.pipeline.region import Region
 from stereo_gui.qt.tabs.live_cloud import LiveCloud
 from stereo_gui.qt.tabs.live_exports import EXPORTS, LiveExports
 from stereo_gui.qt.tabs.live_readings import HOVER_HINT, LiveReadings
+from stereo_gui.qt.tabs.live_region import LiveRegion
 from stereo_gui.qt.widgets.calibration_health import CalibrationHealthPanel
 from stereo_gui.qt.widgets.flow_layout import FlowLayout
 from stereo_gui.qt.widgets.image_view import ImagePanel
@@ -85,11 +84,9 @@ class LiveTab(QWidget):
         self._active = False
         self._processor: LiveProcessor | None = None
         self._output: LiveOutput | None = None
-        self.last_region = None  # RegionStats of the last frame shown with a region
         self.readings = LiveReadings(ctx, self)  # hover readout, double-clicks and the ruler
         self.readings.measured.connect(self.measured)
         self.readings.hoverRead.connect(self.hoverRead)
-        self._bar_state = None
         self._scale_note = ""
         self.shown_frame: StereoFrame | None = None  # the raw frame of the result shown
         self.frames_shown = 0
@@ -150,23 +147,9 @@ class LiveTab(QWidget):
         self.fit_button.clicked.connect(self.fit_views)
         self.export_button = self.exports.make_export_button()
         self.record_button = RecordButton(ctx)
-        self.region_button = QPushButton("Region")
-        self.region_button.setCheckable(True)
-        self.region_button.setToolTip("A box on the colour view: its nearest and median distance "
-                                      "every frame, and an alarm when anything in it is nearer")
-        self.region_button.toggled.connect(self._region_toggled)
-        self.alarm_spin = QDoubleSpinBox()
-        self.alarm_spin.setRange(0.0, 20.0)
-        self.alarm_spin.setDecimals(2)
-        self.alarm_spin.setSingleStep(0.05)
-        self.alarm_spin.setSuffix(" m")
-        self.alarm_spin.setPrefix("alarm < ")
-        self.alarm_spin.setSpecialValueText("no alarm")
-        self.alarm_spin.setToolTip("The region box turns red and the status bar says so when "
-                                   "anything in it is nearer than this")
-        self.alarm_spin.valueChanged.connect(lambda _v: self._apply_region())
-        self.alarm_spin.hide()
-        self._alarm_on = False
+        self.region = LiveRegion(ctx, self, self.panels[REGION_VIEW],
+                                 self.view_checks[REGION_VIEW], lambda: self._processor)
+        self.region_button, self.alarm_spin = self.region.button, self.region.alarm_spin
         self.cloud_button = QPushButton("3D view")
         self.cloud_button.setToolTip("The point cloud of the frame shown, in a window of its own "
                                      "(drag to rotate, wheel to zoom), updated a few times a "
@@ -199,10 +182,7 @@ class LiveTab(QWidget):
         self.readout.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
         self.legend = QLabel(LEGEND)
         self.legend.setStyleSheet("padding: 0px 4px;")
-        self.region_label = QLabel()
-        self.region_label.setTextFormat(Qt.TextFormat.PlainText)
-        self.region_label.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
-        self.region_label.hide()
+        self.region_label = self.region.label
         self.calib_note = QLabel()
         self.calib_note.setStyleSheet("background: #ffd54f; color: #3e2700; padding: 2px 6px;")
         self.calib_note.hide()
@@ -245,8 +225,6 @@ class LiveTab(QWidget):
         outer.addWidget(splitter)
 
         self._layout_views()
-        self.panels[REGION_VIEW].regionChanged.connect(lambda _box: self._apply_region())
-        ctx.activeFitChanged.connect(lambda _fit: self._apply_region())
         ctx.calibrationChanged.connect(self._calibration_changed)
         ctx.frames.frameReady.connect(self._frame_ready)
         ctx.frames.sourceChanged.connect(self._source_changed)
@@ -311,7 +289,7 @@ class LiveTab(QWidget):
                            if calib is not None else None)
         if self._processor is not None:
             self._processor.set_views(self._processed_views())
-        self._apply_region()
+        self.region.apply()
         self._output = None
         self._to_draw = []  # (a view still to be drawn of the frame before must not be)
         self.clear_markers()
@@ -381,7 +359,7 @@ class LiveTab(QWidget):
         wls = out.result.wls_px is not None
         self.panels["wls"].set_title(VIEWS["wls"] if wls else NO_WLS_TITLE)
         self.readings.frame_shown()
-        self._show_region(out.region)
+        self.region.show(out.region)
         if out.scale_note != self._scale_note:
             self._scale_note = out.scale_note
             self.scale_label.setText(out.scale_note)
@@ -414,17 +392,9 @@ class LiveTab(QWidget):
         self.frameShown.emit()
 
     def _update_color_bar(self, out: LiveOutput) -> None:
-        calib = out.result.calibration
-        if calib is None or self.panels["wls"].color_bar is None:
-            return
-        scale = out.result.color_scale
-        if scale is None:
-            return
-        state = (out.result.params.colormap, scale.kind, round(scale.far, 1), round(scale.near, 1))
-        if state == self._bar_state:
-            return  # the ticks change only when the range does
-        self._bar_state = state
-        self.panels["wls"].color_bar.set_scale(COLORMAPS[out.result.params.colormap], scale)
+        bar, scale = self.panels["wls"].color_bar, out.result.color_scale
+        if bar is not None and scale is not None and out.result.calibration is not None:
+            bar.set_scale(COLORMAPS[out.result.params.colormap], scale)
 
     # ---- the 3D point cloud -----------------------------------------------------------------
     def show_cloud(self) -> QWidget:
@@ -439,63 +409,17 @@ class LiveTab(QWidget):
     def cloud_view(self):
         return self.cloud.view
 
-    # ---- the watched region ------------------------------------------------------------------
-    def _region_toggled(self, on: bool) -> None:
-        panel = self.panels[REGION_VIEW]
-        if on:
-            if not self.view_checks[REGION_VIEW].isChecked():
-                self.view_checks[REGION_VIEW].setChecked(True)
-            w, h = panel.image_size() or (640, 480)
-            panel.show_region((w * 3 // 8, h * 3 // 8, w * 5 // 8, h * 5 // 8))
-        else:
-            panel.show_region(None)
-        self.alarm_spin.setVisible(on)
-        self.region_label.setVisible(on)
-        self._apply_region()
+    # ---- the watched region (see LiveRegion) ------------------------------------------------
+    @property
+    def last_region(self):
+        """RegionStats of the last frame shown with a region (None before)."""
+        return self.region.last
 
     def set_region(self, box: tuple[int, int, int, int] | None,
                    alarm_m: float | None = None) -> None:
         """Watch the box (x0, y0, x1, y1) px of the colour view (None: stop), with an alarm
         below `alarm_m` metres (None or 0: none)."""
-        if alarm_m is not None:
-            self.alarm_spin.setValue(alarm_m)
-        if box is None:
-            self.region_button.setChecked(False)
-            return
-        self.region_button.setChecked(True)
-        self.panels[REGION_VIEW].show_region(box)
-        self._apply_region()
-
-    def _apply_region(self) -> None:
-        """Hand the region, the alarm and the fit to the processor (from the next frame)."""
-        if self._processor is None:
-            return
-        box = self.panels[REGION_VIEW].region() if self.region_button.isChecked() else None
-        alarm_mm = 1000.0 * self.alarm_spin.value() or None
-        self._processor.set_region(None if box is None else Region(*box), alarm_mm,
-                                   self.ctx.active_fit)
-
-    def _show_region(self, stats) -> None:
-        if stats is None or not self.region_button.isChecked():
-            return
-        self.last_region = stats
-        if stats.note:
-            text = f"Region: {stats.note}"
-        else:
-            text = (f"Region: nearest {format_distance(stats.nearest_mm)}   median "
-                    f"{format_distance(stats.median_mm)}   {stats.valid_fraction:.0%} with depth")
-        if stats.alarm:
-            text += f"   ALARM: nearer than {format_distance(stats.alarm_mm)}"
-        self.region_label.setText(text)
-        self.region_label.setStyleSheet("background: #c62828; color: white; font-weight: bold;"
-                                        if stats.alarm else "")
-        self.panels[REGION_VIEW].set_region_alarm(stats.alarm)
-        if stats.alarm and not self._alarm_on:
-            self.ctx.show_status(f"ALARM: something at {format_distance(stats.nearest_mm)} in "
-                                 f"the region, nearer than {format_distance(stats.alarm_mm)}")
-        self._alarm_on = stats.alarm
-
-    # ---- hover readout -----------------------------------------------------------------------
+        self.region.set_region(box, alarm_m)
 
     # ---- readings (see LiveReadings) ---------------------------------------------------------
     def measure_at(self, x: float, y: float, key: str = "wls") -> int | None:

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
+from PySide6.QtCore import Qt
+from PySide6.QtWidgets import QLabel, QScrollArea, QVBoxLayout, QWidget
 
 
 def pane() -> tuple[QWidget, QVBoxLayout]:
@@ -18,3 +19,18 @@ def wrapping_label(text: str = "") -> QLabel:
     label = QLabel(text)
     label.setWordWrap(True)
     return label
+
+
+class VerticalScroll(QScrollArea):
+    """Scrolls up and down only: as wide as its widget needs, as low as one likes."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+
+    def minimumSizeHint(self):
+        w = self.widget()
+        hint = super().minimumSizeHint()
+        if w is not None:
+            hint.setWidth(w.minimumSizeHint().width() + self.verticalScrollBar().sizeHint().width())
+        return hint

@@ -265,6 +265,7 @@ class DistanceColorBar(pg.PlotItem):
         self._img = pg.ImageItem(axisOrder="row-major")
         self.addItem(self._img)
         self._lut_id: int | None = None
+        self._ticks_of: tuple | None = None  # the range the ticks were made for
         self.setXRange(0, 1, padding=0)
         # room above and below the ramp: the end labels are centred on the ends (the bottom
         # one was cut in half)
@@ -274,12 +275,17 @@ class DistanceColorBar(pg.PlotItem):
         self.getAxis("right").setTicks([[], []])
 
     def set_scale(self, colormap_id: int, scale: ColorScale) -> None:
-        """Show the colour map with distance ticks placed as `scale` maps them."""
+        """Show the colour map with distance ticks placed as `scale` maps them (called every
+        frame: the ticks are made again only when the range changes)."""
         if colormap_id != self._lut_id:
             lut = colormap_lut(colormap_id)
             self._img.setImage(lut.reshape(256, 1, 3), autoLevels=False)
             self._img.setRect(0, 0, 1, 256)
             self._lut_id = colormap_id
+        shown = (scale.kind, round(scale.far, 1), round(scale.near, 1))
+        if shown == self._ticks_of:
+            return
+        self._ticks_of = shown
         ticks = distance_ticks(scale)
         self.getAxis("right").setTicks([[(t + 0.5, s) for t, s in ticks], []])
 
