@@ -40,10 +40,10 @@ def main(argv: list[str] | None = None) -> int:
     from stereo_gui.qt.context import AppContext
     from stereo_gui.qt.main_window import MainWindow
     from stereo_gui.qt.dialogs.source_dialog import SourceChoice
-    from stereo_gui.pipeline.live import opencv_in_calling_threads
+    from stereo_gui.pipeline.live import use_opencv_threads_beside_lanes
     from stereo_gui.sources.open import open_source
 
-    opencv_in_calling_threads()  # as run_app does first
+    use_opencv_threads_beside_lanes()  # as run_app does first
 
     app = QApplication.instance() or QApplication(sys.argv[:1])
     configure_pyqtgraph()

@@ -4,11 +4,11 @@
 Speed runs on a given raw pair (--calib C LEFT RIGHT) or on the simulated rig's demo scene, the
 same pair over and over (what is measured is processing, not the source). Each preset is timed
 end to end as the Live tab runs it (rectify, match, filter, colour map, and the conversion of
-every view for display: as many frames at once as its lanes, OpenCV in the calling threads);
-the reference is the report's loop, its own code (core.report_loop) as it runs (one frame after
-the other, OpenCV's thread count left as it was), timed in the same run, so the ratio holds
-whatever else the machine is doing. Resident memory is reported at the start and end of each run
-(it should stay flat).
+every view for display), as many frames at once as its lanes, OpenCV with the threads the
+application gives it. The reference is the report's loop, its own code (core.report_loop), as
+it runs: one frame after the other, OpenCV's thread count left as it was. It is timed in the
+same run, so the ratio holds whatever else the machine is doing. Resident memory is reported
+at the start and end of each run (it should stay flat).
 """
 
 from __future__ import annotations
@@ -135,17 +135,18 @@ def _time(step, frames: int, warmup: int = 2, lanes: int = 1) -> dict:
 
 def bench_preset(calib, params, left, right, frames: int, warmup: int = 2) -> dict:
     """Time one preset as the Live tab runs it with its default views (pipeline and display
-    conversion): as many frames at once as the processor's lanes, OpenCV in the calling threads
-    (as `run_app` sets it)."""
+    conversion): as many frames at once as the processor's lanes, OpenCV with the threads
+    `run_app` gives it."""
     import cv2
 
-    from stereo_gui.pipeline.live import DEFAULT_VIEWS, LiveProcessor, opencv_in_calling_threads
+    from stereo_gui.pipeline.live import (DEFAULT_VIEWS, LiveProcessor,
+                                          use_opencv_threads_beside_lanes)
     from stereo_gui.sources.base import StereoFrame
 
     frame = StereoFrame(left, right, 0.0, 0.0, 0)
     proc = LiveProcessor(calib, params)
     proc.set_views(DEFAULT_VIEWS)  # as the Live tab starts
-    threads_before = opencv_in_calling_threads()
+    threads_before = use_opencv_threads_beside_lanes()
     try:
         def step():
             t0 = time.perf_counter()
@@ -192,8 +193,11 @@ def run_bench(args) -> dict:
     source, calib, left, right = _input(args)
     import cv2
 
+    from stereo_gui.pipeline.live import opencv_threads_beside_lanes
+
     out = {"source": source, "size": list(calib.image_size), "frames": args.frames,
-           "cv_threads": cv2.getNumThreads(), "reference": REFERENCE, "presets": {}}
+           "cv_threads": cv2.getNumThreads(), "reference": REFERENCE, "presets": {},
+           "cv_threads_presets": opencv_threads_beside_lanes()}
     # the reference first and last, so that a change of the machine's load shows in its two runs
     ref_before = bench_reference(calib, left, right, args.frames)
     for name, p in params.items():
@@ -217,7 +221,8 @@ def run(args) -> int:
     w, h = res["size"]
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"{res['source']}, {w}x{h}, {res['frames']} frames per run, "
-          f"OpenCV threads {res['cv_threads']}, load average {load:.1f} on {os.cpu_count()} CPUs")
+          f"OpenCV threads {res['cv_threads']} (the presets {res['cv_threads_presets']}), "
+          f"load average {load:.1f} on {os.cpu_count()} CPUs")
     ref = res[REFERENCE]
     runs = " and ".join(f"{v:.1f}" for v in ref["fps_runs"])
     print(f"{'report':>10}: {ref['fps']:6.1f} fps (the report's loop, its own code; runs before and "

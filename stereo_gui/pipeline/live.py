@@ -69,15 +69,24 @@ def frame_lanes(params: MatcherParams, cpus: int | None = None) -> int:
     return max(1, min(MAX_LANES, cpus)) if params.parallel else 1
 
 
-def opencv_in_calling_threads() -> int:
-    """Have every OpenCV call run in the thread that makes it (no pool of OpenCV's own); return
-    the thread count set before. The application's own threads use the cores (the frame lanes,
-    the health check, the detection pool). OpenCV's pool on top of them only added hand-offs
-    and spinning: on 2 CPUs, live at 640x480 in two lanes took 38 ms of CPU a frame (median of 8
-    runs) against 42 ms with OpenCV's 2 threads; detection and calibration of 40 rig pairs took
-    0.86-0.92 s against 0.98-1.00 s. `run_app` and `bench` call it for the presets."""
+def opencv_threads_beside_lanes(cpus: int | None = None) -> int:
+    """The OpenCV thread count the application runs with: the CPUs the frame lanes leave, plus
+    one (on 2 CPUs: 1, every OpenCV call in the thread that makes it, no pool of OpenCV's own).
+    The application's own threads use the cores (the frame lanes, the health check, the
+    detection pool); OpenCV's pool on top of them only added hand-offs and spinning: on 2 CPUs,
+    live at 640x480 in two lanes took 38 ms of CPU a frame (median of 8 runs) against 42 ms with
+    OpenCV's 2 threads, and detection and calibration of 40 rig pairs 0.86-0.92 s against
+    0.98-1.00 s. (More CPUs were not measured: there, the first lane to call OpenCV gets its pool
+    and the other runs its call in its own thread.)"""
+    cpus = os.cpu_count() or 1 if cpus is None else cpus
+    return max(1, cpus - MAX_LANES + 1)
+
+
+def use_opencv_threads_beside_lanes() -> int:
+    """Set `opencv_threads_beside_lanes()` (`run_app`, and `bench` for the presets); return the
+    thread count set before."""
     before = cv2.getNumThreads()
-    cv2.setNumThreads(1)
+    cv2.setNumThreads(opencv_threads_beside_lanes())
     return before
 
 

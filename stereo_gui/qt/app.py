@@ -127,9 +127,9 @@ def run_app(source: str | None = None, calib: str | None = None) -> int:
     from PySide6.QtCore import QTimer
     from PySide6.QtWidgets import QApplication
 
-    from stereo_gui.pipeline.live import opencv_in_calling_threads
+    from stereo_gui.pipeline.live import use_opencv_threads_beside_lanes
 
-    opencv_in_calling_threads()  # our threads (the frame lanes first) share the cores
+    use_opencv_threads_beside_lanes()  # our threads (the frame lanes first) share the cores
     quit_after = quit_after_seconds()
     app = QApplication.instance() or QApplication(sys.argv[:1])
     app.setApplicationName("Stereo GUI")

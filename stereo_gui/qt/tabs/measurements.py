@@ -5,8 +5,8 @@ editable column) makes it a regression sample (disparity px, true distance mm); 
 fitted again at once: the report's cubic and Z = a / (d - d0). The plot shows samples, both
 curves and the residuals with R^2. The model chosen for live readings goes to
 `ctx.set_active_fit`. Exports (`measurement_exports`): the log and regression to .xlsx (in a
-worker) and CSV; Open log... brings back a log exported before (CSV or xlsx). Beside each fit, triangulation's own RMS
-against the same true distances shows whether the fit helps.
+worker) and CSV; Open log... brings back a log exported before (CSV or xlsx). Beside each fit,
+triangulation's own RMS against the same true distances shows whether the fit helps.
 """
 
 from __future__ import annotations

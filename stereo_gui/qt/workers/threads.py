@@ -18,9 +18,9 @@ window waits at closing. So:
   os._exit when its workers did not stop.
 
 Threads run at a lower priority on Linux (niceness WORKER_NICE, per thread): under CPU load the
-UI thread wins. OpenCV starts no pool of its own in the application
-(`pipeline.live.opencv_in_calling_threads`): its calls run at the niceness of the thread that
-makes them.
+UI thread wins. On 2 CPUs OpenCV starts no pool of its own in the application
+(`pipeline.live.opencv_threads_beside_lanes`): its calls run in, and at the niceness of, the
+thread that makes them.
 """
 
 from __future__ import annotations

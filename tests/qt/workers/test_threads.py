@@ -201,25 +201,30 @@ def test_closing_during_a_blocked_read_exits_0_within_3_s(tmp_path):
 _POOL_PROBE = """
 import os, sys
 import cv2, numpy as np
-from stereo_gui.pipeline.live import opencv_in_calling_threads
+from stereo_gui.pipeline.live import use_opencv_threads_beside_lanes
 before = set(os.listdir("/proc/self/task"))
 if sys.argv[1] == "calling":
-    opencv_in_calling_threads()
+    use_opencv_threads_beside_lanes()
 for _ in range(3):  # parallel OpenCV calls, as the frame lanes and the UI thread make
     cv2.resize(np.zeros((720, 1280), np.uint8), (640, 360))
 print(len(set(os.listdir("/proc/self/task")) - before), cv2.getNumThreads())
 """
 
 
-def test_opencv_runs_in_the_calling_threads_as_run_app_sets_it():
-    """run_app has OpenCV run every call in its calling thread: the frame lanes and our other
-    threads share the cores, and no pool of OpenCV's own (which ran beside the UI thread, at
-    its priority) is started. Without the call OpenCV starts its pool."""
+def test_opencv_threads_leave_the_cpus_to_the_frame_lanes_as_run_app_sets_them():
+    """run_app sets OpenCV's thread count to the CPUs the frame lanes leave, plus one: on 2
+    CPUs every call runs in its calling thread and no pool of OpenCV's own (which ran beside
+    the UI thread, at its priority) is started. Without the call OpenCV starts its pool."""
     import cv2
     import pytest
 
-    if not sys.platform.startswith("linux") or cv2.getNumThreads() < 2:
-        pytest.skip("counting threads in /proc and a pool of OpenCV threads: Linux, 2+ CPUs")
+    from stereo_gui.pipeline.live import MAX_LANES, opencv_threads_beside_lanes
+
+    assert [opencv_threads_beside_lanes(n) for n in (1, 2, 4, 8)] == [
+        max(1, n - MAX_LANES + 1) for n in (1, 2, 4, 8)]
+    assert opencv_threads_beside_lanes(2) == 1 and opencv_threads_beside_lanes(1) == 1
+    if not sys.platform.startswith("linux") or os.cpu_count() != 2 or cv2.getNumThreads() < 2:
+        pytest.skip("counting threads in /proc on a 2-CPU Linux machine, OpenCV with its pool")
 
     def new_threads_and_count(mode: str) -> list[int]:
         out = subprocess.run([sys.executable, "-c", _POOL_PROBE, mode], capture_output=True,
