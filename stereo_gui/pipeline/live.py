@@ -65,7 +65,7 @@ def frame_lanes(params: MatcherParams, cpus: int | None = None) -> int:
     """How many frames the Live tab processes at once: one per CPU, at most MAX_LANES, when the
     preset is `parallel` (one frame on each core: frames in flight share no work, so they keep
     both cores busy without the hand-offs of splitting one frame); else 1."""
-    cpus = os.cpu_count() or 1 if cpus is None else cpus
+    cpus = (os.cpu_count() or 1) if cpus is None else cpus
     return max(1, min(MAX_LANES, cpus)) if params.parallel else 1
 
 
@@ -78,7 +78,7 @@ def opencv_threads_beside_lanes(cpus: int | None = None) -> int:
     OpenCV's 2 threads, and detection and calibration of 40 rig pairs 0.86-0.92 s against
     0.98-1.00 s. (More CPUs were not measured: there, the first lane to call OpenCV gets its pool
     and the other runs its call in its own thread.)"""
-    cpus = os.cpu_count() or 1 if cpus is None else cpus
+    cpus = (os.cpu_count() or 1) if cpus is None else cpus
     return max(1, cpus - MAX_LANES + 1)
 
 

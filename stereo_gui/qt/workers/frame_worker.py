@@ -10,7 +10,7 @@ camera_calibration):
   is still being processed. A result older than one already kept is dropped: results are handed
   out in the order the frames were read, and never more than one frame per lane is in work.
 
-The UI never receives a backlog: the processing thread posts one private notification to the
+The UI never receives a backlog: the processing lanes post one private notification to the
 UI thread at a time (until the UI thread has received it, or `latest()` was called), and there
 the public `frameReady` is emitted; `latest()` returns only the newest result. It is re-armed
 where it is received, not only by `latest()`: a notification that reached no reader (the tab
@@ -119,7 +119,7 @@ class FrameWorker(QObject):
     """Reads frames from a FrameSource and processes them off the UI thread (see module doc)."""
 
     frameReady = Signal()  # a new ProcessedFrame is available (emitted in the UI thread only)
-    _published = Signal()  # processing thread -> UI thread (queued); never disconnected
+    _published = Signal()  # processing lanes -> UI thread (queued); never disconnected
     errorOccurred = Signal(str)  # a message for the user (source or processor failure)
     sourceChanged = Signal(str)  # the name of the new source ("" when none)
     streamStatus = Signal(object)  # StreamStatus, when the stream's state changes
@@ -289,7 +289,7 @@ class FrameWorker(QObject):
         return [t for t in (self._reader, *self._workers) if t is not None]
 
     def stop(self, timeout_ms: int = _JOIN_TIMEOUT_MS) -> bool:
-        """Ask both threads to end, join them, close the source; True if they ended in time.
+        """Ask every thread to end, join them, close the source; True if they ended in time.
 
         Waits at most `timeout_ms` in all. A thread still blocked then (in a source read that
         does not return) is left to end on its own and the source is not closed under it; a

@@ -218,11 +218,9 @@ def test_opencv_threads_leave_the_cpus_to_the_frame_lanes_as_run_app_sets_them()
     import cv2
     import pytest
 
-    from stereo_gui.pipeline.live import MAX_LANES, opencv_threads_beside_lanes
+    from stereo_gui.pipeline.live import opencv_threads_beside_lanes
 
-    assert [opencv_threads_beside_lanes(n) for n in (1, 2, 4, 8)] == [
-        max(1, n - MAX_LANES + 1) for n in (1, 2, 4, 8)]
-    assert opencv_threads_beside_lanes(2) == 1 and opencv_threads_beside_lanes(1) == 1
+    assert [opencv_threads_beside_lanes(n) for n in (1, 2, 4, 8)] == [1, 1, 3, 7]
     if not sys.platform.startswith("linux") or os.cpu_count() != 2 or cv2.getNumThreads() < 2:
         pytest.skip("counting threads in /proc on a 2-CPU Linux machine, OpenCV with its pool")
 
