@@ -94,30 +94,33 @@ def _input(args):
 def _time(step, frames: int, warmup: int = 2, lanes: int = 1) -> dict:
     """Time `frames` calls of step() -> (stage timings dict or None, valid fraction), made by
     `lanes` threads at once (each makes its share of the calls, as the frame worker's lanes do)."""
-    for _ in range(warmup):
-        step()
-    rss0 = rss_mb()
     sums: dict[str, float] = {}
     valid = [float("nan")]
     lock = threading.Lock()
 
-    def calls(n: int) -> None:
+    def calls(n: int, record: bool = True) -> None:
         for _ in range(n):
             stages, v = step()
-            with lock:
-                valid[0] = v
-                for k, ms in (stages or {}).items():
-                    sums[k] = sums.get(k, 0.0) + ms
+            if record:
+                with lock:
+                    valid[0] = v
+                    for k, ms in (stages or {}).items():
+                        sums[k] = sums.get(k, 0.0) + ms
 
-    shares = [frames // lanes + (1 if i < frames % lanes else 0) for i in range(lanes)]
+    def in_lanes(n: int, record: bool = True) -> None:
+        if lanes == 1:
+            calls(n, record)
+            return
+        shares = [n // lanes + (1 if i < n % lanes else 0) for i in range(lanes)]
+        with ThreadPoolExecutor(lanes, thread_name_prefix="bench-lane") as pool:
+            for f in [pool.submit(calls, k, record) for k in shares]:
+                f.result()
+
+    in_lanes(max(warmup, lanes), record=False)  # every lane's pipeline built before timing
+    rss0 = rss_mb()
     cpu0 = time.process_time()
     t0 = time.perf_counter()
-    if lanes == 1:
-        calls(frames)
-    else:
-        with ThreadPoolExecutor(lanes, thread_name_prefix="bench-lane") as pool:
-            for f in [pool.submit(calls, n) for n in shares]:
-                f.result()
+    in_lanes(frames)
     elapsed = time.perf_counter() - t0
     cpu = time.process_time() - cpu0
     return {
@@ -156,7 +159,7 @@ def bench_preset(calib, params, left, right, frames: int, warmup: int = 2) -> di
             stages["total"] += stages["display"]
             return stages, float(out.result.valid.mean())
 
-        return _time(step, frames, max(warmup, proc.lanes), proc.lanes)
+        return _time(step, frames, warmup, proc.lanes)
     finally:
         proc.close()
         cv2.setNumThreads(threads_before)

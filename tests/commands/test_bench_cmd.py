@@ -36,6 +36,25 @@ def test_bench_times_the_preset_beside_the_reports_loop(files, capsys):
     assert doc["size"] == [320, 96] and doc["frames"] == 2
 
 
+def test_bench_runs_a_parallel_preset_in_the_frame_lanes_and_restores_opencv(files, capsys):
+    """As the Live tab runs it: `lanes` frames at once, OpenCV with the application's threads;
+    the report's loop (and whatever runs next) keeps the thread count found."""
+    import cv2
+
+    from stereo_gui.files.presets import load_preset
+    from stereo_gui.pipeline.live import frame_lanes, opencv_threads_beside_lanes
+
+    before = cv2.getNumThreads()
+    assert main(["bench", "--calib", str(files / "c.yaml"), str(files / "l.png"),
+                 str(files / "r.png"), "--frames", "3", "--preset", "live", "--preset", "seed",
+                 "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["presets"]["live"]["lanes"] == frame_lanes(load_preset("live"))
+    assert doc["presets"]["seed"]["lanes"] == 1  # not a parallel preset
+    assert doc["cv_threads"] == before and doc["cv_threads_presets"] == opencv_threads_beside_lanes()
+    assert cv2.getNumThreads() == before
+
+
 def test_bench_on_the_simulated_rig_prints_a_table(capsys):
     assert main(["bench", "--frames", "1"]) == 0
     out = capsys.readouterr().out
