@@ -44,7 +44,7 @@ class LiveOutput:
 
 VIEW_KEYS = ("left", "right", "raw", "closed", "wls")  # the images a LiveOutput can hold
 DEFAULT_VIEWS = ("left", "raw", "closed", "wls")  # what the Live tab shows at first
-MAX_LANES = 2  # frames processed at once (measured on 2 CPUs only)
+MAX_LANES = 2  # frames processed at once (the frame worker has as many lanes; measured on 2 CPUs)
 
 
 def _gray_disparity(disp_px: np.ndarray, lo: float, hi: float,
@@ -111,6 +111,7 @@ class LiveProcessor:
         self._idle: list[StereoPipeline] = []  # pipelines for frames of self._size, not in use
         self._busy: set[StereoPipeline] = set()
         self._size: tuple[int, int] | None = None  # frame size the pipelines are built for
+        self._scaled = calibration  # the calibration scaled to that size
         self._note = ""
         self._closed = False
         self._region: tuple[Region, float | None, object] | None = None
@@ -153,7 +154,7 @@ class LiveProcessor:
             if self._size != size:
                 stale, self._idle = self._idle, []
                 calib = self.calibration.scaled_to(size)  # CalibrationError: another aspect
-                self._size = size
+                self._size, self._scaled = size, calib
                 c = self.calibration
                 self._note = ("" if calib is c else
                               f"Calibration made at {c.width}x{c.height} px, scaled to the "
@@ -166,9 +167,9 @@ class LiveProcessor:
                 pipeline = self._idle.pop()
             else:
                 pipeline = None
-                params = _one_lane(self._params)
+                calib, params = self._scaled, _one_lane(self._params)
         if pipeline is None:  # built outside the lock: the other lane goes on meanwhile
-            pipeline = StereoPipeline(self.calibration.scaled_to(size), params)
+            pipeline = StereoPipeline(calib, params)
         with self._lock:
             if pipeline.params != _one_lane(self._params):
                 pipeline.set_params(_one_lane(self._params))  # changed while it was built

@@ -42,6 +42,7 @@ from dataclasses import dataclass
 from PySide6.QtCore import QObject, QTimer, Signal
 
 from stereo_gui.core.errors import SourceUnavailable
+from stereo_gui.pipeline.live import MAX_LANES
 from stereo_gui.qt.workers.threads import WorkerThread
 from stereo_gui.sources.base import FrameSource, StereoFrame
 
@@ -55,7 +56,7 @@ _WATCHDOG_MS = 500
 _FPS_SMOOTHING = 0.1  # weight of the newest interval in the running frame-rate estimate
 RATE_STALE_S = 2.0  # no event for this long (or 3 intervals, if longer): the rate is 0
 _UNAVAILABLE_PAUSE_S = 0.1  # after SourceUnavailable, the reader asks again this soon
-LANES = 2  # processing threads; a processor's `lanes` says how many of them it lets work
+LANES = MAX_LANES  # processing threads; a processor's `lanes` says how many of them work
 
 
 @dataclass(frozen=True, eq=False)
