@@ -36,7 +36,7 @@ def main(argv: list[str] | None = None) -> int:
     from PySide6.QtCore import QElapsedTimer, Qt, QTimer
     from PySide6.QtWidgets import QApplication
 
-    from stereo_gui.qt.app import configure_pyqtgraph
+    from stereo_gui.qt.app import configure_pyqtgraph, freeze_startup_objects
     from stereo_gui.qt.context import AppContext
     from stereo_gui.qt.main_window import MainWindow
     from stereo_gui.qt.dialogs.source_dialog import SourceChoice
@@ -56,6 +56,7 @@ def main(argv: list[str] | None = None) -> int:
     ctx.set_calibration(source.rig.true_calibration(), None, note="simulated rig's TRUE calibration")
     window.live_tab.params_panel.apply_preset(args.preset)
     window.show_tab("live")
+    freeze_startup_objects()  # as run_app does once the window is shown
     if not args.idle:
         window.use_source(source, SourceChoice("sim"))
 
@@ -89,15 +90,23 @@ def main(argv: list[str] | None = None) -> int:
     fps_timer = QTimer()
     fps_timer.setInterval(500)
     fps_timer.timeout.connect(sample_fps)
-    QTimer.singleShot(int(args.seconds * 1000), app.quit)
+    t0 = time.monotonic()
+    elapsed, shown = 0.0, 0
+
+    def finish() -> None:
+        # the measurement ends before the quit: QApplication.quit() closes the window, and
+        # closing (stopping the frame worker, saving the settings) is not the live view
+        nonlocal elapsed, shown
+        timer.stop()
+        fps_timer.stop()
+        elapsed = time.monotonic() - t0
+        shown = window.live_tab.frames_shown - shown0
+        app.quit()
+
+    QTimer.singleShot(int(args.seconds * 1000), finish)
     timer.start()
     fps_timer.start()
-    t0 = time.monotonic()
     app.exec()
-    elapsed = time.monotonic() - t0
-    timer.stop()
-    fps_timer.stop()
-    shown = window.live_tab.frames_shown - shown0
     window.close()
 
     gaps = sorted(gaps_ms)
