@@ -465,23 +465,19 @@ def calibrate_hartley(pairs: Sequence[PairDetection], board: BoardSpec | None,
 def match_features(left: np.ndarray, right: np.ndarray, max_features: int = 4000,
                    ratio: float = 0.75) -> tuple[np.ndarray, np.ndarray]:
     """Matched SIFT keypoints of a scene pair (Lowe's ratio test, mutual), (N, 2) px each."""
-    from stereo_gui.core.util import to_gray
+    from stereo_gui.core.util import mutual_ratio_matches, to_gray
 
     sift = cv2.SIFT_create(nfeatures=max_features)
     kl, dl = sift.detectAndCompute(to_gray(left), None)
     kr, dr = sift.detectAndCompute(to_gray(right), None)
     if dl is None or dr is None or len(kl) < 8 or len(kr) < 8:
         raise CalibrationError("too few features in the scene pair to match (need texture)")
-    matcher = cv2.BFMatcher(cv2.NORM_L2)
-    fwd = matcher.knnMatch(dl, dr, k=2)
-    back = {m.queryIdx: m.trainIdx for m in matcher.match(dr, dl)}
-    good = [m for m, n2 in (x for x in fwd if len(x) == 2)
-            if m.distance < ratio * n2.distance and back.get(m.trainIdx) == m.queryIdx]
-    if len(good) < 8:
-        raise CalibrationError(f"only {len(good)} feature matches in the scene pair, at least 8 "
+    il, ir = mutual_ratio_matches(dl, dr, ratio)
+    if len(il) < 8:
+        raise CalibrationError(f"only {len(il)} feature matches in the scene pair, at least 8 "
                                "are needed")
-    pl = np.float64([kl[m.queryIdx].pt for m in good])
-    pr = np.float64([kr[m.trainIdx].pt for m in good])
+    pl = np.float64([kl[i].pt for i in il])
+    pr = np.float64([kr[j].pt for j in ir])
     return pl, pr
 
 

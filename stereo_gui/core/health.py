@@ -26,7 +26,7 @@ import numpy as np
 from stereo_gui.core.errors import CalibrationError
 from stereo_gui.core.lens import stereo_rectify
 from stereo_gui.core.stereo_calibration import StereoCalibration
-from stereo_gui.core.util import to_gray
+from stereo_gui.core.util import mutual_ratio_matches, to_gray
 
 DRIFT_WARN_PX = 0.5  # above this median vertical disparity the cameras moved since calibration
 MIN_MATCHES = 30
@@ -103,17 +103,13 @@ def feature_matches(left: np.ndarray, right: np.ndarray, max_features: int = 150
     kr, dr = sift.detectAndCompute(sr, None)
     if dl is None or dr is None or len(kl) < 2 or len(kr) < 2:
         return np.zeros((0, 2)), np.zeros((0, 2))
-    matcher = cv2.BFMatcher(cv2.NORM_L2)
-    fwd = matcher.knnMatch(dl, dr, k=2)
-    back = {m.queryIdx: m.trainIdx for m in matcher.match(dr, dl)}
-    good = [m for m, n2 in (x for x in fwd if len(x) == 2)
-            if m.distance < ratio * n2.distance and back.get(m.trainIdx) == m.queryIdx]
-    if not good:
+    il, ir = mutual_ratio_matches(dl, dr, ratio)
+    if not il.size:
         return np.zeros((0, 2)), np.zeros((0, 2))
     up = np.float32(1.0 / detect_scale) if detect_scale < 1.0 else np.float32(1.0)
     # (a shrunk image's pixel centres: x_full + 0.5 = (x_small + 0.5) / scale)
-    pl = ((np.float32([kl[m.queryIdx].pt for m in good]) + 0.5) * up - 0.5).reshape(-1, 1, 2)
-    pr = ((np.float32([kr[m.trainIdx].pt for m in good]) + 0.5) * up - 0.5).reshape(-1, 1, 2)
+    pl = ((np.float32([kl[i].pt for i in il]) + 0.5) * up - 0.5).reshape(-1, 1, 2)
+    pr = ((np.float32([kr[j].pt for j in ir]) + 0.5) * up - 0.5).reshape(-1, 1, 2)
     refined, st, _ = cv2.calcOpticalFlowPyrLK(gl, gr, pl, pr.copy(),
                                               flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **_LK)
     ok = st.reshape(-1).astype(bool)

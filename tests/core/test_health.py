@@ -128,3 +128,43 @@ def test_the_live_check_of_a_wide_camera_finds_its_features_at_a_quarter(turn_de
     assert live.matches > 200
     assert live.vertical_px == pytest.approx(full.vertical_px, abs=0.06)
     assert live.drifted == full.drifted == (turn_deg > 0)
+
+
+def _bf_pairs(dl, dr, ratio=0.75):
+    """The pairs of OpenCV's BFMatcher: knnMatch(k=2) with the ratio test, and match() back."""
+    matcher = cv2.BFMatcher(cv2.NORM_L2)
+    back = {m.queryIdx: m.trainIdx for m in matcher.match(dr, dl)}
+    return sorted((m.queryIdx, m.trainIdx) for m, n in matcher.knnMatch(dl, dr, k=2)
+                  if m.distance < ratio * n.distance and back.get(m.trainIdx) == m.queryIdx)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_mutual_ratio_matches_are_the_pairs_bfmatcher_gives(seed):
+    """One distance matrix for both directions gives BFMatcher's pairs: descriptors that have a
+    noisy twin on the other side, ones without, and near-twins where the ratio test decides."""
+    from stereo_gui.core.util import mutual_ratio_matches
+
+    rng = np.random.default_rng(seed)
+    n = 600
+    dl = rng.random((n, 128), np.float32) * 40
+    twins = rng.permutation(n)[:400]
+    dr = np.concatenate([dl[twins] + rng.normal(0, 8, (400, 128)),  # noisy twins
+                         rng.random((300, 128)) * 40]).astype(np.float32)  # no twin
+    dr[400:450] = dl[twins[:50]] + rng.normal(0, 8, (50, 128))  # second twins: the ratio test
+    il, ir = mutual_ratio_matches(dl, dr)
+    got = sorted(zip(il.tolist(), ir.tolist()))
+    assert got == _bf_pairs(dl, dr)
+    assert 100 < len(got) < 400  # the test has pairs that pass and pairs that fail
+
+
+def test_mutual_ratio_matches_on_the_rig_scene(rig_and_calib):
+    from stereo_gui.core.util import mutual_ratio_matches
+
+    rig, calib = rig_and_calib
+    left, right = rig.render_scene(Scene.demo(), np.random.default_rng(3))
+    sift = cv2.SIFT_create(nfeatures=1500)
+    _, dl = sift.detectAndCompute(cv2.cvtColor(left, cv2.COLOR_BGR2GRAY), None)
+    _, dr = sift.detectAndCompute(cv2.cvtColor(right, cv2.COLOR_BGR2GRAY), None)
+    il, ir = mutual_ratio_matches(dl, dr)
+    assert sorted(zip(il.tolist(), ir.tolist())) == _bf_pairs(dl, dr)
+    assert len(il) > 300
