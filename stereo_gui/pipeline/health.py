@@ -77,7 +77,9 @@ class HealthMonitor:
             self._latest = None
             self._last_start = -1e18
 
-    def close(self) -> None:
+    def close(self, wait: bool = True) -> None:
+        """No more checks; `wait` for a running one to end (False: it ends by itself, and its
+        thread with it: the UI thread never waits)."""
         with self._lock:
             self._closed = True
-        self._pool.shutdown(wait=True, cancel_futures=True)
+        self._pool.shutdown(wait=wait, cancel_futures=True)

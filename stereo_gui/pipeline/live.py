@@ -213,10 +213,10 @@ class LiveProcessor:
             self.health.offer(r.rectified_left, r.rectified_right)
         return LiveOutput(r, images, note, stats, self.health.latest())
 
-    def close(self) -> None:
+    def close(self, wait: bool = True) -> None:
         """Close the idle pipelines and the health check (a call still running closes its own
-        pipeline when it ends)."""
-        self.health.close()
+        pipeline when it ends; `wait` for a running health check, see HealthMonitor.close)."""
+        self.health.close(wait)
         with self._lock:
             self._closed = True
             idle, self._idle = self._idle, []

@@ -283,8 +283,17 @@ class LiveTab(QWidget):
         if self._active:
             self.ctx.frames.set_processor(self._processor)
 
+    def _retire(self, processor: LiveProcessor | None) -> None:
+        """Off the frame worker (if still on it) and closed: its pipelines and health thread
+        (a frame in work ends first; the UI thread does not wait for it)."""
+        if processor is not None:
+            if self.ctx.frames.processor() is processor:
+                self.ctx.frames.set_processor(None)
+            processor.close(wait=False)
+
     def _calibration_changed(self, calib) -> None:
         self.params_panel.set_calibration(calib)
+        replaced = self._processor
         self._processor = (LiveProcessor(calib, self.params_panel.params())
                            if calib is not None else None)
         if self._processor is not None:
@@ -294,6 +303,7 @@ class LiveTab(QWidget):
         self._to_draw = []  # (a view still to be drawn of the frame before must not be)
         self.clear_markers()
         self._install_processor()
+        self._retire(replaced)
         note = self.ctx.calibration_note
         self.calib_note.setVisible(calib is not None and note == TRUE_CALIBRATION_NOTE)
         self.calib_note.setText("Using the simulated rig's TRUE calibration (the one it was "
@@ -495,5 +505,4 @@ class LiveTab(QWidget):
         """Called by the main window on close."""
         self.cloud.shutdown()
         self.health.shutdown()
-        if self._processor is not None and self.ctx.frames.processor() is self._processor:
-            self.ctx.frames.set_processor(None)
+        self._retire(self._processor)

@@ -531,7 +531,10 @@ class FrameWorker(QObject):
                         output = fn(frame)
                     except Exception as exc:  # noqa: BLE001 - shown to the user, the loop goes on
                         log.debug("processor failed", exc_info=True)
-                        self._report(f"processing failed: {exc}")
+                        with self._cond:
+                            current = self._processor is fn
+                        if current:  # (a replaced processor may be closed: that is no news)
+                            self._report(f"processing failed: {exc}")
                         continue
                 ms = (time.perf_counter() - t0) * 1000.0
             finally:

@@ -387,3 +387,23 @@ def test_views_are_drawn_one_event_loop_turn_apart_and_the_newest_frame_wins(
     live.show_output(first)
     live._calibration_changed(ctx.calibration)  # clears the views' frame
     qtbot.wait(100)  # the remaining turns find nothing to draw, and raise nothing
+
+
+def test_a_new_calibration_closes_the_processor_it_replaces(qtbot, ctx, live, sim_rig):
+    """Its pipelines and its health thread go; the frames go on with the new one, and the old
+    one, closed while a frame may be in work, shows no error."""
+    from stereo_gui.sources.sim import SimSource
+
+    errors = []
+    ctx.frames.errorOccurred.connect(errors.append)
+    ctx.set_calibration(sim_rig.true_calibration())
+    ctx.frames.set_source(SimSource(rig=sim_rig, mode="scene", fps=30))
+    qtbot.waitUntil(lambda: live.frames_shown >= 2, timeout=60000)
+    for _ in range(3):  # while frames are in work
+        old = live._processor
+        ctx.set_calibration(sim_rig.true_calibration())
+        assert live._processor is not old and ctx.frames.processor() is live._processor
+        assert old._closed and old.health._closed
+        shown = live.frames_shown
+        qtbot.waitUntil(lambda: live.frames_shown >= shown + 2, timeout=60000)
+    assert not errors

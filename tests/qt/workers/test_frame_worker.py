@@ -135,6 +135,31 @@ def test_processor_error_is_reported_once_and_loop_goes_on(qtbot, worker, array_
     assert len(errors) == 1
 
 
+def test_a_replaced_processor_that_fails_is_not_reported(qtbot, worker, array_source):
+    """The Live tab closes the processor it replaces while a frame may be in it; the frame
+    failing there is no news (the new processor's frames go on)."""
+    import threading
+
+    errors = []
+    worker.errorOccurred.connect(errors.append)
+    entered, release = threading.Event(), threading.Event()
+
+    def closing(frame):
+        entered.set()
+        release.wait(10)
+        raise RuntimeError("the live processor is closed")
+
+    worker.set_processor(closing)
+    worker.set_source(array_source())
+    assert entered.wait(30)
+    worker.set_processor(lambda f: "new")
+    release.set()
+    qtbot.waitUntil(lambda: worker.latest() is not None and worker.latest().output == "new",
+                    timeout=30000)
+    qtbot.wait(50)  # (an error would be emitted in the lane, delivered queued)
+    assert errors == []
+
+
 def test_failing_source_is_reported_and_closed(qtbot, worker, array_source):
     src = array_source()
     src.close()  # read() now raises SourceError
