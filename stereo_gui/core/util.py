@@ -25,7 +25,7 @@ def mutual_ratio_matches(dl: np.ndarray, dr: np.ndarray, ratio: float = 0.75
     Both directions come from one matrix of squared L2 distances, |a|^2 + |b|^2 - 2 a.b, made
     by one matrix product on one BLAS thread: 16 ms of CPU for 1400 x 1300 SIFT descriptors
     where BFMatcher's two passes took 105 ms, for the same pairs (the live health check runs
-    this once a second beside the frame lanes: its CPU is theirs)."""
+    this every two seconds beside the frame lanes: its CPU is theirs)."""
     from threadpoolctl import threadpool_limits
 
     a = np.asarray(dl, np.float32)

@@ -116,7 +116,7 @@ class LiveProcessor:
         self._closed = False
         self._region: tuple[Region, float | None, object] | None = None
         self._views: frozenset[str] = frozenset(VIEW_KEYS)
-        self.health = HealthMonitor()  # about once a second, in a thread of its own
+        self.health = HealthMonitor()  # every two seconds, in a thread of its own
 
     @property
     def lanes(self) -> int:

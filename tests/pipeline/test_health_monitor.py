@@ -1,5 +1,5 @@
-"""The calibration-health monitor: off the frame path, at most one check at a time and about
-once a second; the Live processor's output carries the newest figure."""
+"""The calibration-health monitor: off the frame path, at most one check at a time and every
+`interval_s`; the Live processor's output carries the newest figure."""
 
 from __future__ import annotations
 

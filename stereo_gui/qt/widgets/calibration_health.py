@@ -1,5 +1,5 @@
 """The Live tab's calibration health: the figure (median vertical disparity of feature matches
-in the rectified pair, about once a second, computed off the UI thread by pipeline.health), a
+in the rectified pair, every two seconds, computed off the UI thread by pipeline.health), a
 warning when the cameras moved since calibration, "Refine rectification from the scene" (a job
 off the UI thread: core.health.refine_rotation on the frame shown, saved as a new calibration
 that records where it came from), and on the simulated rig a control that turns the right
@@ -64,7 +64,7 @@ class CalibrationHealthPanel(QFrame):
         self.label = QLabel("Calibration health: waiting for the first check…")
         self.label.setWordWrap(True)
         self.label.setToolTip("The median vertical disparity of feature matches in the rectified "
-                              "pair, checked about once a second: a few tenths of a pixel right "
+                              "pair, checked every two seconds: a few tenths of a pixel right "
                               "after calibration, more when a camera has turned since")
         row.addWidget(self.label, 1)
         self.refine_button = QPushButton("Refine rectification from the scene")
