@@ -1,8 +1,8 @@
 """The Live tab's calibration-health figure, computed every two seconds off the frame path.
 
 The frame worker hands each processed frame's rectified pair to `HealthMonitor.offer`; at most
-one check runs at a time, in a thread of the monitor's own, and only when the last one is a
-second old, so the live views never wait for it (a check takes 0.17 s of CPU at 640x480 and
+one check runs at a time, in a thread of the monitor's own, and only when the last one began
+`INTERVAL_S` ago, so the live views never wait for it (a check takes 0.17 s of CPU at 640x480 and
 0.10 s at 1280x720, with features found on images at most 320 px wide; OpenCV's brute-force
 matcher made them 0.24 and 0.14 s, medians of 6 runs alternating). `latest()`
 gives the newest finished figure. No Qt here.
