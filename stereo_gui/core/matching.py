@@ -286,6 +286,9 @@ class PipelineResult:
     # pixels the right camera cannot see (their match fell outside the right image, or they lie
     # in the strip at the left edge): None when the preset keeps the report's dead band
     not_seen: np.ndarray | None = None
+    # every pixel set in `not_seen` lies in the leftmost `not_seen_cols` columns (None: anywhere),
+    # so that the views paint only those (`unseen_columns`)
+    not_seen_cols: int | None = None
     match_scale: float = 1.0  # the scale the images were matched at (MatcherParams.effective_scale)
 
 
@@ -347,10 +350,11 @@ def color_scale(disparity_px: np.ndarray, params: MatcherParams,
 
 
 def colorize(disparity_px: np.ndarray, scale: ColorScale, colormap: str,
-             not_seen: np.ndarray | None = None) -> np.ndarray:
+             not_seen: np.ndarray | None = None, not_seen_cols: int | None = None
+             ) -> np.ndarray:
     """Colour view of a disparity map (BGR uint8) on `scale`; near bright. Invalid pixels get
     NO_MATCH_BGR (black is the far end of OCEAN), pixels the right camera cannot see (`not_seen`
-    mask) NOT_SEEN_BGR.
+    mask, set only in the leftmost `not_seen_cols` columns if given) NOT_SEEN_BGR.
 
     The levels are those of `ColorScale.level`, computed with OpenCV's saturating arithmetic
     (a few times faster than numpy here, and this runs on every frame).
@@ -373,7 +377,7 @@ def colorize(disparity_px: np.ndarray, scale: ColorScale, colormap: str,
     color = cv2.applyColorMap(u8, COLORMAPS[colormap])
     paint(color, cv2.bitwise_not(valid), NO_MATCH_BGR)
     if not_seen is not None:
-        paint(color, not_seen, NOT_SEEN_BGR)
+        paint(color, not_seen, NOT_SEEN_BGR, not_seen_cols)
     return color
 
 
@@ -392,11 +396,15 @@ def _nan_image(h: int, w: int) -> np.ndarray:
     return img
 
 
-def blank(disparity_px: np.ndarray, mask: np.ndarray) -> None:
+def blank(disparity_px: np.ndarray, mask: np.ndarray, cols: int | None = None) -> None:
     """Set the pixels of a float32 H x W map where `mask` (bool or uint8) is set to NaN, in
     place (cv2.copyTo: 2-10x faster than numpy's boolean assignment at 1280x720, the more so
-    the more pixels are set)."""
-    if not (disparity_px.flags.c_contiguous and disparity_px.dtype == np.float32):
+    the more pixels are set). `cols`: the mask is set only in the leftmost `cols` columns (only
+    those are looked at)."""
+    if cols is not None and cols < disparity_px.shape[1]:
+        disparity_px, mask = disparity_px[:, :max(0, cols)], mask[:, :max(0, cols)]
+    if not (disparity_px.flags.c_contiguous or _rows_contiguous(disparity_px)) \
+            or disparity_px.dtype != np.float32:
         disparity_px[mask.astype(bool, copy=False)] = np.nan  # (OpenCV would write a copy)
         return
     if mask.dtype == np.bool_:
@@ -405,13 +413,23 @@ def blank(disparity_px: np.ndarray, mask: np.ndarray) -> None:
     cv2.copyTo(_nan_image(h, w), mask, disparity_px)
 
 
-def paint(image: np.ndarray, mask: np.ndarray, value: tuple[int, ...]) -> None:
+def paint(image: np.ndarray, mask: np.ndarray, value: tuple[int, ...],
+          cols: int | None = None) -> None:
     """Set the pixels of a uint8 H x W x C `image` where `mask` (bool or uint8, H x W) is set to
-    `value`, in place (cv2.copyTo: many times faster than numpy's boolean assignment)."""
+    `value`, in place (cv2.copyTo: many times faster than numpy's boolean assignment). `cols`:
+    as for `blank`."""
+    if cols is not None and cols < image.shape[1]:
+        image, mask = image[:, :max(0, cols)], mask[:, :max(0, cols)]
     if mask.dtype == np.bool_:
         mask = mask.view(np.uint8)
     h, w = image.shape[:2]
     cv2.copyTo(_solid(h, w, image.shape[2], tuple(value)), mask, image)
+
+
+def _rows_contiguous(a: np.ndarray) -> bool:
+    """Each row of `a` contiguous and the rows evenly spaced (a column slice of a C-contiguous
+    array): OpenCV then writes into it in place."""
+    return a.ndim == 2 and a.strides[1] == a.itemsize and a.strides[0] >= a.shape[1] * a.itemsize
 
 
 class StereoPipeline:
@@ -634,11 +652,15 @@ class StereoPipeline:
             closed = (cv2.resize(closed, (w, h), interpolation=cv2.INTER_NEAREST)
                       if closed16 is not d16 else raw)
         edge = self.edge_margin_px
+        # what the right camera cannot see lies in the leftmost `band` columns: no map here
+        # exceeds the matcher's largest disparity (closing takes extremes of it, WLS and the
+        # enlargements average it), so the masks are made and applied there only
+        band = unseen_columns(self._range_full[1], edge, w) if p.full_frame else None
         if p.full_frame:
-            into_padding = unseen_mask(raw, edge)
-            blank(raw, into_padding)
+            into_padding = unseen_mask(raw, edge, band)
+            blank(raw, into_padding, band)
             if closed is not raw:
-                blank(closed, unseen_mask(closed, edge))
+                blank(closed, unseen_mask(closed, edge, band), band)
         lap("convert")
         wls_px = confidence = None
         if self._wls is not None:
@@ -664,7 +686,7 @@ class StereoPipeline:
             wls_px[:, :x0] = np.nan
             wls_px[:, x1:] = np.nan
             if p.full_frame:
-                blank(wls_px, unseen_mask(wls_px, edge))
+                blank(wls_px, unseen_mask(wls_px, edge, band), band)
             confidence = self._wls.getConfidenceMap()
             if confidence.shape != wls_px.shape:
                 confidence = cv2.resize(confidence, (w, h), interpolation=cv2.INTER_NEAREST)
@@ -681,11 +703,12 @@ class StereoPipeline:
         if p.full_frame:
             # the strip is known only once the final map has found where the surface at the edge
             # is; whatever the matcher put there is a match the right camera cannot have made
-            not_seen = into_padding | unseen_strip(final, edge)
+            not_seen = unseen_strip(final, edge, band)
+            np.logical_or(not_seen[:, :band], into_padding[:, :band], out=not_seen[:, :band])
             for m in {id(a): a for a in (raw, closed, wls_px, final) if a is not None}.values():
-                blank(m, not_seen)
+                blank(m, not_seen, band)
         colours = color_scale(final, p, self.calibration)
-        color = colorize(final, colours, p.colormap, not_seen)
+        color = colorize(final, colours, p.colormap, not_seen, band)
         lap("colormap")
         t["total"] = (time.perf_counter() - start) * 1000.0
         return PipelineResult(
@@ -693,7 +716,7 @@ class StereoPipeline:
             wls_px=wls_px, final_px=final, color_bgr=color, valid=valid, timings_ms=t,
             size=(w, h), params=p, disparity_range_px=self._range_full,
             calibration=self.calibration, color_scale=colours, wls_confidence=confidence,
-            not_seen=not_seen, match_scale=scale)
+            not_seen=not_seen, not_seen_cols=band, match_scale=scale)
 
 
 def compute_padded(matcher, reference: np.ndarray, other: np.ndarray, pad: int, side: str
@@ -711,24 +734,55 @@ def compute_padded(matcher, reference: np.ndarray, other: np.ndarray, pad: int, 
     return np.ascontiguousarray(d[:, left:left + w])
 
 
-def unseen_strip(disparity_px: np.ndarray, margin_px: float = 0.0) -> np.ndarray:
+def unseen_columns(largest_disparity_px: float, margin_px: float, width: int) -> int:
+    """How many columns from the left edge `unseen_mask` and `unseen_strip` can mark in a map
+    whose disparities are at most `largest_disparity_px` (full-resolution px): a pixel the right
+    camera cannot see has x < d + margin. (Two columns more than that, for rounding.)"""
+    return int(min(width, max(0, math.floor(largest_disparity_px + margin_px) + 2)))
+
+
+def unseen_strip(disparity_px: np.ndarray, margin_px: float = 0.0, cols: int | None = None
+                 ) -> np.ndarray:
     """The strip at the left edge that the right camera cannot see, row by row: left of each
     row's first valid pixel, the columns x < d + margin with d that pixel's disparity (the
-    surface there continues into the strip; nearer surfaces would only widen it)."""
+    surface there continues into the strip; nearer surfaces would only widen it).
+
+    `cols` (`unseen_columns` of the map's largest disparity) limits the search to the columns
+    where the strip can be; the mask returned is the same."""
     h, w = disparity_px.shape
-    finite = np.isfinite(disparity_px)
-    first = np.argmax(finite, axis=1)  # 0 where a row has none: then nothing is marked
-    has = finite[np.arange(h), first]
-    d = np.where(has, disparity_px[np.arange(h), first], 0.0)
+    c = w if cols is None else max(0, min(w, cols))
+    out = np.zeros((h, w), np.bool_)
+    if c == 0:
+        return out
+    finite = np.isfinite(disparity_px[:, :c])
+    first = np.argmax(finite, axis=1)  # 0 where a row has none in the band
+    rows = np.arange(h)
+    has = finite[rows, first]
+    d = np.where(has, disparity_px[rows, first], 0.0)
+    later = np.flatnonzero(~has) if c < w else ()
+    if len(later):  # the row's first valid pixel lies right of the band: it sets the strip
+        rest = np.isfinite(disparity_px[later, c:])
+        at = np.argmax(rest, axis=1)
+        found = rest[np.arange(len(later)), at]
+        rows_f, at_f = later[found], at[found] + c
+        first[rows_f], has[rows_f], d[rows_f] = at_f, True, disparity_px[rows_f, at_f]
     limit = np.minimum(first, np.ceil(d + margin_px - 0.5)).astype(np.int64)
     limit[~has] = 0
-    return np.arange(w)[None, :] < limit[:, None]
+    out[:, :c] = np.arange(c)[None, :] < np.minimum(limit, c)[:, None]
+    return out
 
 
-def unseen_mask(disparity_px: np.ndarray, margin_px: float = 0.0) -> np.ndarray:
+def unseen_mask(disparity_px: np.ndarray, margin_px: float = 0.0, cols: int | None = None
+                ) -> np.ndarray:
     """Pixels whose match x - d lies left of the right image (the right camera cannot see them),
     or within `margin_px` of its edge, where the matching block overlaps the padding and the
-    image's border itself is what matches (full-resolution px)."""
-    cols = np.arange(disparity_px.shape[1], dtype=np.float32)[None, :]
+    image's border itself is what matches (full-resolution px). `cols`: as for `unseen_strip`
+    (only those columns are computed; the rest cannot be set)."""
+    h, w = disparity_px.shape
+    if cols is not None and cols < w:
+        out = np.zeros((h, w), np.bool_)
+        out[:, :max(0, cols)] = unseen_mask(disparity_px[:, :max(0, cols)], margin_px)
+        return out
+    cols_x = np.arange(w, dtype=np.float32)[None, :]
     with np.errstate(invalid="ignore"):
-        return (cols - disparity_px) < np.float32(margin_px - 0.5)
+        return (cols_x - disparity_px) < np.float32(margin_px - 0.5)

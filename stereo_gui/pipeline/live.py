@@ -48,16 +48,18 @@ MAX_LANES = 2  # frames processed at once (the frame worker has as many lanes; m
 
 
 def _gray_disparity(disp_px: np.ndarray, lo: float, hi: float,
-                    not_seen: np.ndarray | None = None) -> np.ndarray:
+                    not_seen: np.ndarray | None = None, not_seen_cols: int | None = None
+                    ) -> np.ndarray:
     """Disparity (px, NaN invalid) as RGB uint8: gray, near bright; invalid NO_MATCH_RGB, the
-    strip the right camera cannot see NOT_SEEN_RGB."""
+    strip the right camera cannot see NOT_SEEN_RGB (`not_seen`, set only in the leftmost
+    `not_seen_cols` columns if given)."""
     span = max(hi - lo, 1e-6)
     invalid = cv2.bitwise_not(cv2.compare(disp_px, disp_px, cv2.CMP_EQ))  # 255 where NaN
     gray = cv2.convertScaleAbs(disp_px, alpha=255.0 / span, beta=-lo * 255.0 / span)
     rgb = cv2.cvtColor(gray, cv2.COLOR_GRAY2RGB)
     paint(rgb, invalid, NO_MATCH_RGB)
     if not_seen is not None:
-        paint(rgb, not_seen, NOT_SEEN_RGB)
+        paint(rgb, not_seen, NOT_SEEN_RGB, not_seen_cols)
     return rgb
 
 
@@ -203,8 +205,8 @@ class LiveProcessor:
         make = {
             "left": lambda: display_rgb(r.rectified_left),
             "right": lambda: display_rgb(r.rectified_right),
-            "raw": lambda: _gray_disparity(r.disparity_px, lo, hi, r.not_seen),
-            "closed": lambda: _gray_disparity(r.closed_px, lo, hi, r.not_seen),
+            "raw": lambda: _gray_disparity(r.disparity_px, lo, hi, r.not_seen, r.not_seen_cols),
+            "closed": lambda: _gray_disparity(r.closed_px, lo, hi, r.not_seen, r.not_seen_cols),
             "wls": lambda: cv2.cvtColor(r.color_bgr, cv2.COLOR_BGR2RGB),  # (painted by colorize)
         }
         images = {key: make[key]() for key in VIEW_KEYS if key in views}

@@ -375,3 +375,68 @@ def test_blank_sets_nan_where_the_mask_is_set_in_place():
     view = a.copy()[:, ::2]  # not contiguous: OpenCV would fill a copy, so numpy does it
     blank(view, mask[:, ::2])
     np.testing.assert_array_equal(np.isnan(view), mask[:, ::2])
+
+
+def test_unseen_masks_made_in_the_band_equal_those_of_the_whole_map():
+    from stereo_gui.core.matching import unseen_columns, unseen_mask, unseen_strip
+
+    rng = np.random.default_rng(5)
+    h, w, largest, margin = 40, 120, 30.0, 3.0
+    band = unseen_columns(largest, margin, w)
+    assert band == 35 and unseen_columns(largest, margin, 20) == 20
+    assert unseen_columns(-5.0, 0.0, w) == 0
+    d = (rng.random((h, w)) * largest).astype(np.float32)
+    d[:, 0] = largest  # the largest disparity at the edge: the widest strip there can be
+    d[rng.random((h, w)) < 0.4] = np.nan
+    d[3, :] = np.nan  # a row without any reading
+    d[5, :60] = np.nan  # rows whose first reading lies right of the band
+    d[6, :band] = np.nan
+    d[6, band:] = largest
+    for m in (0.0, margin):
+        np.testing.assert_array_equal(unseen_mask(d, m, band), unseen_mask(d, m))
+        np.testing.assert_array_equal(unseen_strip(d, m, band), unseen_strip(d, m))
+        assert not unseen_mask(d, m)[:, band:].any() and not unseen_strip(d, m)[:, band:].any()
+    assert unseen_strip(d, margin)[6, :band - 2].all()  # set by a reading beyond the band
+
+
+def test_blank_and_paint_in_the_band_only():
+    from stereo_gui.core.matching import blank, paint
+
+    rng = np.random.default_rng(2)
+    mask = rng.random((20, 50)) < 0.5
+    mask[:, 15:] = False
+    a = rng.random((20, 50)).astype(np.float32)
+    whole, banded = a.copy(), a.copy()
+    blank(whole, mask)
+    blank(banded, mask, 15)
+    np.testing.assert_array_equal(whole, banded)
+    img = rng.integers(0, 255, (20, 50, 3), dtype=np.uint8)
+    whole, banded = img.copy(), img.copy()
+    paint(whole, mask, (1, 2, 3))
+    paint(banded, mask, (1, 2, 3), 15)
+    np.testing.assert_array_equal(whole, banded)
+    paint(banded, mask, (9, 9, 9), 0)  # an empty band paints nothing
+    np.testing.assert_array_equal(whole, banded)
+
+
+def test_on_the_nearest_wall_the_maps_stay_below_the_largest_disparity():
+    """The pipeline makes and applies its "not seen" masks in the band `unseen_columns` gives
+    for the matcher's largest disparity: no map may exceed it (closing takes extremes, WLS and
+    the enlargements average). A wall at the working range's near end, where the strip is
+    widest."""
+    from stereo_gui.files.presets import load_preset
+    from stereo_gui.sources.sim import RigConfig, Scene, SimRig
+
+    rig = SimRig(RigConfig.for_size((640, 480)), seed=0)
+    cal = rig.true_calibration(alpha=0.0)
+    left, right = rig.render_scene(Scene.wall(460.0))
+    for name in ("live", "quality"):
+        with StereoPipeline(cal, load_preset(name)) as pipe:
+            r = pipe.process(left, right)
+        top = r.disparity_range_px[1]
+        for m in (r.disparity_px, r.closed_px, r.wls_px):
+            assert np.nanmax(m) <= top
+        assert np.nanmax(r.disparity_px) > 0.9 * top  # the wall is near the range's end
+        band = r.not_seen_cols
+        assert band is not None and band < r.size[0]
+        assert r.not_seen[:, :band].any() and not r.not_seen[:, band:].any()
