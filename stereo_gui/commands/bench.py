@@ -9,6 +9,11 @@ application gives it. The reference is the report's loop, its own code (core.rep
 it runs: one frame after the other, OpenCV's thread count left as it was. It is timed in the
 same run, so the ratio holds whatever else the machine is doing. Resident memory is reported
 at the start and end of each run (it should stay flat).
+
+On a shared machine the speed moves with the host's load within seconds, and the presets (two
+cores) feel it more than the report's loop (one). `--rounds R` interleaves them in short turns,
+the report's loop on an eighth of the frames before, between and after the presets' runs, and
+gives each round's ratio against the report's runs on either side of it, with the median.
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import statistics
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -46,6 +52,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="frames per preset (default 30)")
     parser.add_argument("--preset", action="append", metavar="P",
                         help="preset to time beside the report's loop (repeatable; default live)")
+    parser.add_argument("--rounds", type=int, default=1, metavar="R",
+                        help="interleave R rounds: the report's loop on N/8 frames (at least 2) "
+                        "between the presets' runs of N frames; each round's ratio and the median "
+                        "(default 1: the report's loop on N frames before and after)")
     parser.add_argument("--size", metavar="WxH",
                         help="simulated rig's frame size (default 640x480; without LEFT RIGHT)")
     parser.add_argument("--accuracy", action="store_true",
@@ -136,19 +146,19 @@ def _time(step, frames: int, warmup: int = 2, lanes: int = 1) -> dict:
     }
 
 
-def bench_preset(calib, params, left, right, frames: int, warmup: int = 2) -> dict:
+def bench_preset(calib, params, left, right, frames: int, warmup: int = 2,
+                 processor=None) -> dict:
     """Time one preset as the Live tab runs it with its default views (pipeline and display
     conversion): as many frames at once as the processor's lanes, OpenCV with the threads
-    `run_app` gives it."""
+    `run_app` gives it. `processor`: a LiveProcessor of `params` to time (kept open, so that its
+    health check keeps its own schedule over several calls), else one made and closed here."""
     import cv2
 
-    from stereo_gui.pipeline.live import (DEFAULT_VIEWS, LiveProcessor,
-                                          use_opencv_threads_beside_lanes)
+    from stereo_gui.pipeline.live import use_opencv_threads_beside_lanes
     from stereo_gui.sources.base import StereoFrame
 
     frame = StereoFrame(left, right, 0.0, 0.0, 0)
-    proc = LiveProcessor(calib, params)
-    proc.set_views(DEFAULT_VIEWS)  # as the Live tab starts
+    proc = processor if processor is not None else live_processor(calib, params)
     threads_before = use_opencv_threads_beside_lanes()
     try:
         def step():
@@ -161,8 +171,18 @@ def bench_preset(calib, params, left, right, frames: int, warmup: int = 2) -> di
 
         return _time(step, frames, warmup, proc.lanes)
     finally:
-        proc.close()
+        if processor is None:
+            proc.close()
         cv2.setNumThreads(threads_before)
+
+
+def live_processor(calib, params):
+    """The Live tab's processor for `params`, with the views the Live tab starts with."""
+    from stereo_gui.pipeline.live import DEFAULT_VIEWS, LiveProcessor
+
+    proc = LiveProcessor(calib, params)
+    proc.set_views(DEFAULT_VIEWS)  # as the Live tab starts
+    return proc
 
 
 def bench_reference(calib, left, right, frames: int, warmup: int = 2) -> dict:
@@ -191,6 +211,9 @@ def run_bench(args) -> dict:
 
     if args.frames < 1:
         raise InputError(f"--frames must be at least 1, not {args.frames}")
+    rounds = getattr(args, "rounds", 1)
+    if not 1 <= rounds <= 1000:
+        raise InputError(f"--rounds must be between 1 and 1000, not {rounds}")
     names = list(dict.fromkeys(args.preset or ["live"]))
     params = {n: load_preset(n) for n in names}  # unknown names fail before any work
     source, calib, left, right = _input(args)
@@ -199,18 +222,60 @@ def run_bench(args) -> dict:
     from stereo_gui.pipeline.live import opencv_threads_beside_lanes
 
     out = {"source": source, "size": list(calib.image_size), "frames": args.frames,
-           "cv_threads": cv2.getNumThreads(), "reference": REFERENCE, "presets": {},
-           "cv_threads_presets": opencv_threads_beside_lanes()}
-    # the reference first and last, so that a change of the machine's load shows in its two runs
-    ref_before = bench_reference(calib, left, right, args.frames)
-    for name, p in params.items():
-        out["presets"][name] = bench_preset(calib, p, left, right, args.frames)
-    ref_after = bench_reference(calib, left, right, args.frames)
-    ref = dict(ref_after)
-    ref["fps"] = 2.0 / (1.0 / ref_before["fps"] + 1.0 / ref_after["fps"])
-    ref["fps_runs"] = [ref_before["fps"], ref_after["fps"]]
+           "rounds": rounds, "cv_threads": cv2.getNumThreads(), "reference": REFERENCE,
+           "presets": {}, "cv_threads_presets": opencv_threads_beside_lanes()}
+    # the reference first and last (and between the rounds), so that a change of the machine's
+    # load shows in its runs
+    ref_frames = args.frames if rounds == 1 else max(2, args.frames // 8)
+    refs = [bench_reference(calib, left, right, ref_frames)]
+    runs: dict[str, list[dict]] = {n: [] for n in names}
+    # one processor per preset for all rounds: its health check runs every two seconds as live
+    procs = {n: live_processor(calib, p) for n, p in params.items()}
+    try:
+        for _ in range(rounds):
+            for name, p in params.items():
+                runs[name].append(bench_preset(calib, p, left, right, args.frames,
+                                               processor=procs[name]))
+                procs[name].health.wait()  # a check still running ends before the next run
+            refs.append(bench_reference(calib, left, right, ref_frames))
+    finally:
+        for proc in procs.values():
+            proc.close()
+    ref = dict(refs[-1])
+    ref["fps"] = _harmonic([r["fps"] for r in refs])
+    ref["fps_runs"] = [r["fps"] for r in refs]
     out[REFERENCE] = ref
+    out["report_frames"] = ref_frames
+    out["presets"] = {n: _merged(v) for n, v in runs.items()}
     out["over_report"] = {n: r["fps"] / ref["fps"] for n, r in out["presets"].items()}
+    if rounds > 1:
+        # each round against the report's runs on either side of it
+        out["rounds_over_report"] = {
+            n: [r["fps"] / _harmonic([refs[i]["fps"], refs[i + 1]["fps"]])
+                for i, r in enumerate(v)] for n, v in runs.items()}
+        out["median_over_report"] = {
+            n: float(statistics.median(v)) for n, v in out["rounds_over_report"].items()}
+    return out
+
+
+def _harmonic(fps: list[float]) -> float:
+    """The rate of runs of equal frame counts taken together."""
+    return len(fps) / sum(1.0 / f for f in fps)
+
+
+def _merged(runs: list[dict]) -> dict:
+    """Runs of one preset (equal frame counts) as one: rates over all of them, stage times and
+    CPU averaged, memory from the first start to the last end."""
+    if len(runs) == 1:
+        return runs[0]
+    out = dict(runs[-1])
+    out["fps"] = _harmonic([r["fps"] for r in runs])
+    out["ms_per_frame"] = statistics.fmean(r["ms_per_frame"] for r in runs)
+    out["cpu_ms_per_frame"] = statistics.fmean(r["cpu_ms_per_frame"] for r in runs)
+    out["stages_ms"] = {k: statistics.fmean(r["stages_ms"].get(k, 0.0) for r in runs)
+                        for k in runs[0]["stages_ms"]}
+    out["rss_start_mb"] = runs[0]["rss_start_mb"]
+    out["fps_runs"] = [r["fps"] for r in runs]
     return out
 
 
@@ -223,13 +288,17 @@ def run(args) -> int:
         return 0
     w, h = res["size"]
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    print(f"{res['source']}, {w}x{h}, {res['frames']} frames per run, "
+    rounds = ("" if res["rounds"] == 1 else
+              f" in {res['rounds']} rounds (the report's loop {res['report_frames']} a run)")
+    print(f"{res['source']}, {w}x{h}, {res['frames']} frames per run{rounds}, "
           f"OpenCV threads {res['cv_threads']} (the presets {res['cv_threads_presets']}), "
           f"load average {load:.1f} on {os.cpu_count()} CPUs")
     ref = res[REFERENCE]
-    runs = " and ".join(f"{v:.1f}" for v in ref["fps_runs"])
-    print(f"{'report':>10}: {ref['fps']:6.1f} fps (the report's loop, its own code; runs before and "
-          f"after: {runs} fps)")
+    runs = (" and " if len(ref["fps_runs"]) == 2 else ", ").join(
+        f"{v:.1f}" for v in ref["fps_runs"])
+    where = "before and after" if res["rounds"] == 1 else "before, between and after the rounds"
+    print(f"{'report':>10}: {ref['fps']:6.1f} fps (the report's loop, its own code; runs {where}: "
+          f"{runs} fps)")
     for name, r in res["presets"].items():
         stages = ", ".join(f"{k} {v:.1f}" for k, v in r["stages_ms"].items() if k != "total")
         print(f"{name:>10}: {r['fps']:6.1f} fps ({r['lanes']} at once: a frame every "
@@ -237,6 +306,11 @@ def run(args) -> int:
               f"{r['cpu_ms_per_frame']:.1f} ms/frame; {stages} ms); "
               f"RSS {r['rss_start_mb']:.0f} -> {r['rss_end_mb']:.0f} MiB; "
               f"{res['over_report'][name]:.1f}x the report's loop")
+    for name, ratios in res.get("rounds_over_report", {}).items():
+        each = ", ".join(f"{v:.1f}" for v in ratios)
+        print(f"{name:>10}: rounds {each} x the report's loop beside them "
+              f"(median {res['median_over_report'][name]:.1f}x, "
+              f"{min(ratios):.1f}-{max(ratios):.1f}x)")
     return 0
 
 

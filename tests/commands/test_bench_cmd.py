@@ -85,6 +85,7 @@ def test_bench_accuracy_prints_the_whole_frame_tables(capsys):
 @pytest.mark.parametrize("args,message", [
     (["--calib", "c.yaml"], "together with LEFT and RIGHT"),
     (["--frames", "0"], "--frames"),
+    (["--rounds", "0"], "--rounds"),
     (["--preset", "nope"], "unknown preset"),
     (["--size", "big"], "WxH"),
     (["--size", "10x10"], "between"),
@@ -104,3 +105,27 @@ def test_images_too_narrow_for_the_range_are_an_input_error(files, capsys):
     assert main(["bench", "--calib", str(files / "s.yaml"), str(files / "s.png"),
                  str(files / "s.png"), "--frames", "1", "--preset", "seed"]) == 2
     assert "too narrow" in capsys.readouterr().err
+
+
+def test_bench_in_rounds_gives_each_rounds_ratio_and_the_median(files, capsys):
+    """--rounds interleaves the report's loop (an eighth of the frames, at least 2) with the
+    presets; each round's ratio is against the report's runs on either side of it."""
+    import statistics
+
+    assert main(["bench", "--calib", str(files / "c.yaml"), str(files / "l.png"),
+                 str(files / "r.png"), "--frames", "4", "--rounds", "3", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["rounds"] == 3 and doc["report_frames"] == 2
+    refs = doc["report"]["fps_runs"]
+    assert len(refs) == 4  # before, between and after the rounds
+    live = doc["presets"]["live"]
+    assert len(live["fps_runs"]) == 3
+    assert live["fps"] == pytest.approx(3 / sum(1 / f for f in live["fps_runs"]))
+    ratios = doc["rounds_over_report"]["live"]
+    for i, (fps, ratio) in enumerate(zip(live["fps_runs"], ratios)):
+        assert ratio == pytest.approx(fps * (1 / refs[i] + 1 / refs[i + 1]) / 2)
+    assert doc["median_over_report"]["live"] == pytest.approx(statistics.median(ratios))
+    assert main(["bench", "--calib", str(files / "c.yaml"), str(files / "l.png"),
+                 str(files / "r.png"), "--frames", "2", "--rounds", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "in 2 rounds" in out and "median" in out
