@@ -652,11 +652,13 @@ class StereoPipeline:
             closed = (cv2.resize(closed, (w, h), interpolation=cv2.INTER_NEAREST)
                       if closed16 is not d16 else raw)
         edge = self.edge_margin_px
-        # what the right camera cannot see lies in the leftmost `band` columns: no map here
-        # exceeds the matcher's largest disparity (closing takes extremes of it, WLS and the
-        # enlargements average it), so the masks are made and applied there only
-        band = unseen_columns(self._range_full[1], edge, w) if p.full_frame else None
+        # what the right camera cannot see lies in the leftmost `band` columns, found from the
+        # largest disparity of the maps (at the matched resolution: the enlargements take or
+        # average their values); the masks are made and applied there only
+        band = None
         if p.full_frame:
+            band = unseen_columns(max(int(d16.max()), int(closed16.max())) * factor / DISP_SCALE,
+                                  edge, w)
             into_padding = unseen_mask(raw, edge, band)
             blank(raw, into_padding, band)
             if closed is not raw:
@@ -686,6 +688,10 @@ class StereoPipeline:
             wls_px[:, :x0] = np.nan
             wls_px[:, x1:] = np.nan
             if p.full_frame:
+                # (WLS may exceed its input's range: with a small lambda its few confident
+                # neighbours can leave values up to int16's limit)
+                top = int(f16.max()) * (1.0 if guide is gl else factor) / DISP_SCALE
+                band = max(band, unseen_columns(top, edge, w))
                 blank(wls_px, unseen_mask(wls_px, edge, band), band)
             confidence = self._wls.getConfidenceMap()
             if confidence.shape != wls_px.shape:

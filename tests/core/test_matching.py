@@ -419,24 +419,36 @@ def test_blank_and_paint_in_the_band_only():
     np.testing.assert_array_equal(whole, banded)
 
 
-def test_on_the_nearest_wall_the_maps_stay_below_the_largest_disparity():
-    """The pipeline makes and applies its "not seen" masks in the band `unseen_columns` gives
-    for the matcher's largest disparity: no map may exceed it (closing takes extremes, WLS and
-    the enlargements average). A wall at the working range's near end, where the strip is
-    widest."""
+def test_the_masks_made_in_the_band_give_the_whole_frames_results(monkeypatch):
+    """The pipeline makes and applies its "not seen" masks only in the band `unseen_columns`
+    gives for the maps' largest disparity: the results are those of masks over the whole width.
+    On a wall at the working range's near end, where the strip is widest, and with a small WLS
+    lambda, whose output overshoots the matcher's range (up to int16's limit)."""
+    import stereo_gui.core.matching as matching
     from stereo_gui.files.presets import load_preset
     from stereo_gui.sources.sim import RigConfig, Scene, SimRig
 
     rig = SimRig(RigConfig.for_size((640, 480)), seed=0)
     cal = rig.true_calibration(alpha=0.0)
     left, right = rig.render_scene(Scene.wall(460.0))
-    for name in ("live", "quality"):
-        with StereoPipeline(cal, load_preset(name)) as pipe:
-            r = pipe.process(left, right)
-        top = r.disparity_range_px[1]
-        for m in (r.disparity_px, r.closed_px, r.wls_px):
-            assert np.nanmax(m) <= top
-        assert np.nanmax(r.disparity_px) > 0.9 * top  # the wall is near the range's end
-        band = r.not_seen_cols
-        assert band is not None and band < r.size[0]
-        assert r.not_seen[:, :band].any() and not r.not_seen[:, band:].any()
+    banded = matching.unseen_columns
+    fields = ("disparity_px", "closed_px", "wls_px", "final_px", "color_bgr", "valid",
+              "not_seen")
+    overshoots = False
+    for params in (load_preset("live"), load_preset("quality"),
+                   load_preset("live").replace(wls_lambda=100.0, wls_sigma=0.5)):
+        results = []
+        for columns in (banded, lambda largest, margin, width: width):
+            monkeypatch.setattr(matching, "unseen_columns", columns)
+            with StereoPipeline(cal, params) as pipe:
+                results.append(pipe.process(left, right))
+        ours, whole = results
+        for f in fields:
+            np.testing.assert_array_equal(getattr(ours, f), getattr(whole, f), err_msg=f)
+        band = ours.not_seen_cols
+        assert ours.not_seen[:, :band].any() and not ours.not_seen[:, band:].any()
+        if np.nanmax(ours.wls_px) > ours.disparity_range_px[1]:
+            overshoots = True  # the case where the band follows the maps, not the range
+        else:
+            assert band < ours.size[0] // 3
+    assert overshoots
