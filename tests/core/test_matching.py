@@ -417,6 +417,14 @@ def test_blank_and_paint_in_the_band_only():
     np.testing.assert_array_equal(whole, banded)
     paint(banded, mask, (9, 9, 9), 0)  # an empty band paints nothing
     np.testing.assert_array_equal(whole, banded)
+    beyond = np.zeros_like(mask)
+    beyond[:, 30:] = True  # set only right of the band: not looked at
+    kept = a.copy()
+    blank(kept, beyond, 15)
+    np.testing.assert_array_equal(kept, a)
+    kept = img.copy()
+    paint(kept, beyond, (1, 2, 3), 15)
+    np.testing.assert_array_equal(kept, img)
 
 
 def test_the_masks_made_in_the_band_give_the_whole_frames_results(monkeypatch):
