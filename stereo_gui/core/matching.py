@@ -597,11 +597,12 @@ class StereoPipeline:
         size = (max(1, round(w * cs)), max(1, round(h * cs)))
         small = [cv2.resize(img, size, interpolation=cv2.INTER_AREA) for img in (mr, ml)]
         d = compute_padded(matcher, *small, lo + num if pad else 0, side)
+        # values scaled at the small size, then enlarged: nearest-neighbour enlargement only
+        # picks pixels, so this is the same as scaling after it, on a quarter of the pixels
+        scaled = np.clip(np.rint(d.astype(np.float32) / cs), -32768, 32767).astype(np.int16)
         none = d == (-(lo + num - 1) - 1) * DISP_SCALE  # the right matcher's "no match"
-        big = cv2.resize(d, (w, h), interpolation=cv2.INTER_NEAREST).astype(np.float32) / cs
-        big[cv2.resize(none.view(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST) > 0] = \
-            (-(self._min_s + self._num_s - 1) - 1) * DISP_SCALE
-        return np.clip(np.rint(big), -32768, 32767).astype(np.int16)
+        scaled[none] = (-(self._min_s + self._num_s - 1) - 1) * DISP_SCALE
+        return cv2.resize(scaled, (w, h), interpolation=cv2.INTER_NEAREST)
 
     def process(self, left_bgr: np.ndarray, right_bgr: np.ndarray, right_colour: bool = True
                 ) -> PipelineResult:
@@ -702,7 +703,8 @@ class StereoPipeline:
             final = closed
         elif p.wls_confident_only:
             final = wls_px.copy()
-            blank(final, ~(confidence > 0))
+            # (the confidence is never NaN: a map of 255 * min(...) >= 0)
+            blank(final, cv2.compare(confidence, 0.0, cv2.CMP_LE))
         else:
             final = wls_px
         valid = np.isfinite(final)

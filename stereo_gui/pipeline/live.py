@@ -108,7 +108,7 @@ class LiveProcessor:
     def __init__(self, calibration, params: MatcherParams) -> None:
         self.calibration = calibration
         self._lock = threading.Lock()
-        self._params = params
+        self._lane_params = _one_lane(params)  # what each lane's pipeline runs (made once)
         self._lanes = frame_lanes(params)
         self._idle: list[StereoPipeline] = []  # pipelines for frames of self._size, not in use
         self._busy: set[StereoPipeline] = set()
@@ -136,10 +136,10 @@ class LiveProcessor:
 
     def set_params(self, params: MatcherParams) -> None:
         with self._lock:
-            self._params = params
+            self._lane_params = lane = _one_lane(params)
             self._lanes = frame_lanes(params)
             for pipeline in (*self._idle, *self._busy):
-                pipeline.set_params(_one_lane(params))
+                pipeline.set_params(lane)
 
     def set_region(self, region: Region | None, alarm_mm: float | None = None,
                    fit=None) -> None:
@@ -169,12 +169,15 @@ class LiveProcessor:
                 pipeline = self._idle.pop()
             else:
                 pipeline = None
-                calib, params = self._scaled, _one_lane(self._params)
+                calib, params = self._scaled, self._lane_params
         if pipeline is None:  # built outside the lock: the other lane goes on meanwhile
             pipeline = StereoPipeline(calib, params)
         with self._lock:
-            if pipeline.params != _one_lane(self._params):
-                pipeline.set_params(_one_lane(self._params))  # changed while it was built
+            lane = self._lane_params
+            # (the same object on every frame but the first after a change: no field-by-field
+            # comparison, and no new parameters validated, per frame)
+            if pipeline.params is not lane and pipeline.params != lane:
+                pipeline.set_params(lane)  # changed while it was built
             self._busy.add(pipeline)
         return pipeline
 

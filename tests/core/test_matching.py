@@ -350,6 +350,15 @@ def test_a_smaller_left_right_check_keeps_the_final_map():
     assert right_small.shape == right_full.shape and right_small.dtype == np.int16
     no_match = (-(0 + 64 - 1) - 1) * DISP_SCALE  # the right matcher's minDisparity - 1, x16
     assert right_full.min() == no_match and right_small.min() == no_match
+    # exactly the small map enlarged (nearest) and then scaled, "no match" made the full-size one
+    from stereo_gui.core.matching import compute_padded
+    halves = [cv2.resize(g, (160, 100), interpolation=cv2.INTER_AREA) for g in (gr, gl)]
+    cs, lo, num = small._check
+    d = compute_padded(small._right, *halves, lo + num, "right")
+    big = cv2.resize(d, (320, 200), interpolation=cv2.INTER_NEAREST)
+    expected = np.clip(np.rint(big.astype(np.float32) / cs), -32768, 32767).astype(np.int16)
+    expected[big == (-(lo + num - 1) - 1) * DISP_SCALE] = no_match
+    assert np.array_equal(right_small, expected)
     both = (right_full != no_match) & (right_small != no_match)
     assert both.mean() > 0.85
     assert np.median(np.abs(right_full[both] - right_small[both])) <= DISP_SCALE // 2

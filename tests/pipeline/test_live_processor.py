@@ -95,10 +95,11 @@ def test_lanes_follow_the_parallel_setting_and_the_cpus():
     assert frame_lanes(on, cpus=2) == 2 and frame_lanes(on, cpus=8) == MAX_LANES
     assert frame_lanes(on, cpus=1) == 1 and frame_lanes(off, cpus=8) == 1
     calib = StereoCalibration.identity((W, H), 300.0, 100.0)
-    proc = LiveProcessor(calib, MatcherParams(num_disparities=32, block_size=5, parallel=False))
+    params = MatcherParams(num_disparities=32, block_size=5, parallel=False)
+    proc = LiveProcessor(calib, params)
     try:
         assert proc.lanes == 1
-        proc.set_params(proc._params.replace(parallel=True))
+        proc.set_params(params.replace(parallel=True))
         assert proc.lanes == frame_lanes(MatcherParams(parallel=True))
     finally:
         proc.close()
