@@ -57,6 +57,9 @@ class Settings:
     nominal_baseline_mm: float = 110.0
     preset: str = "live"  # matcher preset name
     last_calibration: str | None = None  # path of the calibration loaded at start-up
+    # the calibration chosen last was the simulated rig's true one: used again whenever the rig
+    # is the source (last_calibration stays for other sources)
+    sim_true_calibration: bool = False
     last_session: str | None = None  # path of the last capture session folder
     last_export_dir: str | None = None
     recordings_dir: str | None = None  # where new recordings go (None: ~/stereo-gui-recordings)

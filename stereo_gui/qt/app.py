@@ -113,10 +113,10 @@ def build_window(source: str | None = None, calib: str | None = None):
     window = MainWindow(ctx)
     _install_excepthook(ctx)
     if loaded is not None and loaded.path is not None:
-        ctx.set_calibration(loaded.calibration, loaded.path.resolve())
+        ctx.set_calibration(loaded.calibration, loaded.path.resolve(), remember=False)
         ctx.settings = ctx.settings.with_updates(last_calibration=str(loaded.path.resolve()))
     elif loaded is not None:  # rectified:F,B[,DOFFS] is remembered as written
-        ctx.set_calibration(loaded.calibration, None, note=loaded.description)
+        ctx.set_calibration(loaded.calibration, None, note=loaded.description, remember=False)
         ctx.settings = ctx.settings.with_updates(last_calibration=calib or
                                                  settings.last_calibration)
     # opening takes seconds (devices, the simulated rig's ray maps): done off the UI thread

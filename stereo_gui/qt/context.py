@@ -23,6 +23,10 @@ log = logging.getLogger(__name__)
 LOG_SAVE_DELAY_MS = 300  # changes to the measurement log within this time are saved together
 
 
+# the note of the simulated rig's true calibration (the status bar and the Live tab show it)
+TRUE_CALIBRATION_NOTE = "simulated rig's TRUE calibration"
+
+
 class AppContext(QObject):
     """App-wide state: settings, calibration, measurement log, active fit, frame worker.
 
@@ -68,15 +72,21 @@ class AppContext(QObject):
         self.frames.errorOccurred.connect(self.report_error)
 
     # ---- state changes -----------------------------------------------------------------------
-    def set_calibration(self, calib, path: str | Path | None = None, note: str = "") -> None:
+    def set_calibration(self, calib, path: str | Path | None = None, note: str = "",
+                        remember: bool = True) -> None:
         """Use `calib` (or None) from now on; `path` is the file it came from, if any.
 
-        `note` says where an unsaved calibration came from (e.g. "simulated rig's true
-        calibration"); the status bar shows it instead of a file name.
+        `note` says where an unsaved calibration came from (e.g. TRUE_CALIBRATION_NOTE); the
+        status bar shows it instead of a file name. Whether it is the simulated rig's true
+        calibration is remembered for the next start (`Settings.sim_true_calibration`) unless
+        `remember` is False (the start itself restoring the last one).
         """
         self.calibration = calib
         self.calibration_path = Path(path) if path is not None else None
         self.calibration_note = note
+        true = calib is not None and note == TRUE_CALIBRATION_NOTE
+        if remember and self.settings.sim_true_calibration != true:
+            self.update_settings(sim_true_calibration=true)
         self.calibrationChanged.emit(calib)
 
     def open_calibration_file(self, path: str | Path) -> bool:

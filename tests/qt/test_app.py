@@ -98,6 +98,47 @@ def test_build_window_loads_the_last_calibration_and_reports_a_broken_one(qtbot,
         window.close()
 
 
+def test_the_simulated_rigs_true_calibration_is_chosen_again_after_a_restart(
+        qtbot, sim_rig, tmp_path):
+    """Choosing the simulated rig's true calibration survives quitting and starting again (on
+    the rig; the file remembered before stays for other sources), and loading a file afterwards
+    ends it."""
+    from stereo_gui.files.calibration_file import save_calibration
+    from stereo_gui.files.settings import Settings, load_settings, save_settings
+    from stereo_gui.qt.context import TRUE_CALIBRATION_NOTE
+
+    good = tmp_path / "rig.yaml"
+    save_calibration(sim_rig.true_calibration(), good)
+    save_settings(Settings(source="sim", last_calibration=str(good)))
+    ctx, window = _start(qtbot)
+    try:
+        qtbot.waitUntil(lambda: window.live_tab._sim_rig() is not None, timeout=60000)
+        qtbot.wait(200)
+        assert ctx.calibration_path == good.resolve()  # nothing chosen yet: the file
+        assert window.live_tab.use_true_calibration()
+    finally:
+        window.close()
+    saved = load_settings()[0]
+    assert saved.sim_true_calibration and saved.last_calibration == str(good.resolve())
+
+    ctx, window = _start(qtbot)
+    try:
+        qtbot.waitUntil(lambda: ctx.calibration_note == TRUE_CALIBRATION_NOTE, timeout=60000)
+        assert ctx.calibration_path is None and window.live_tab.calib_note.isVisibleTo(window)
+        assert ctx.open_calibration_file(good)  # another choice ends it
+        assert not ctx.settings.sim_true_calibration
+    finally:
+        window.close()
+
+    ctx, window = _start(qtbot)
+    try:
+        qtbot.waitUntil(lambda: window.live_tab._sim_rig() is not None, timeout=60000)
+        qtbot.wait(200)
+        assert ctx.calibration_path == good.resolve() and ctx.calibration_note == ""
+    finally:
+        window.close()
+
+
 # ---- remembered files that are bad never block the start (issue 13, item 4) -----------------
 def _bad_header_calibration(sim_rig, path):
     """A calibration whose M1 header says 4 rows but holds 9 numbers."""

@@ -36,6 +36,7 @@ from PySide6.QtWidgets import (
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.matching import COLORMAPS, MatcherParams
 from stereo_gui.pipeline.live import DEFAULT_VIEWS, LiveOutput, LiveProcessor
+from stereo_gui.qt.context import TRUE_CALIBRATION_NOTE
 from stereo_gui.qt.tabs.live_cloud import LiveCloud
 from stereo_gui.qt.tabs.live_exports import EXPORTS, LiveExports
 from stereo_gui.qt.tabs.live_readings import HOVER_HINT, LiveReadings
@@ -65,7 +66,6 @@ LEGEND = ("<span style='color:#6e1414'>■</span> dark red: no match &nbsp; "
           "<span style='color:#606060'>■</span> grey: not seen by the right camera")
 SHORT_NAMES = {"left": "Left", "right": "Right", "raw": "Raw", "closed": "Closed", "wls": "WLS"}
 REGION_VIEW = "wls"  # the view that carries the region box
-TRUE_CALIBRATION_NOTE = "simulated rig's TRUE calibration"
 
 
 class LiveTab(QWidget):
@@ -316,6 +316,9 @@ class LiveTab(QWidget):
         during playback the playback bar's Play/Pause is the one pause button."""
         self.clear_markers()
         self._update_no_calib_page()
+        if (self._sim_rig() is not None and self.ctx.settings.sim_true_calibration
+                and self.ctx.calibration_note != TRUE_CALIBRATION_NOTE):
+            self.use_true_calibration()  # the calibration chosen last, on the rig it belongs to
         playing_back = self.playback.source() is not None
         if playing_back and self.pause_button.isChecked():
             self.set_paused(False)
