@@ -239,7 +239,7 @@ def test_the_window_fits_laptop_screens(qtbot, ctx, window, sim_rig):
                   live.params_button, live.cloud_button, live.region_button):
             assert page.rect().contains(b.geometry()), (width, b.text(), b.geometry())
         # the wrapped rows get their height: nothing below the toolbar is drawn over
-        below = live._grid_host.geometry().top()
+        below = live.views.geometry().top()
         assert page.geometry().bottom() < below, (width, page.geometry(), below)
     # the parameters give their room to the views
     live.params_button.setChecked(False)

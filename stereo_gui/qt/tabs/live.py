@@ -21,8 +21,6 @@ from pathlib import Path
 
 from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtWidgets import (
-    QCheckBox,
-    QGridLayout,
     QLabel,
     QPushButton,
     QScrollArea,
@@ -35,15 +33,15 @@ from PySide6.QtWidgets import (
 
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.matching import COLORMAPS, MatcherParams
-from stereo_gui.pipeline.live import DEFAULT_VIEWS, LiveOutput, LiveProcessor
+from stereo_gui.pipeline.live import LiveOutput, LiveProcessor
 from stereo_gui.qt.context import TRUE_CALIBRATION_NOTE
 from stereo_gui.qt.tabs.live_cloud import LiveCloud
 from stereo_gui.qt.tabs.live_exports import EXPORTS, LiveExports
 from stereo_gui.qt.tabs.live_readings import HOVER_HINT, LiveReadings
 from stereo_gui.qt.tabs.live_region import LiveRegion
+from stereo_gui.qt.tabs.live_views import VIEWS, ViewGrid
 from stereo_gui.qt.widgets.calibration_health import CalibrationHealthPanel
 from stereo_gui.qt.widgets.flow_layout import FlowLayout
-from stereo_gui.qt.widgets.image_view import ImagePanel
 from stereo_gui.qt.widgets.no_calibration_page import NoCalibrationPage
 from stereo_gui.qt.widgets.params_panel import MODIFIED, ParamsPanel, load_preset
 from stereo_gui.qt.widgets.playback_bar import PlaybackBar
@@ -52,19 +50,10 @@ from stereo_gui.sources.base import StereoFrame
 
 log = logging.getLogger(__name__)
 
-# view key -> title; all views are in rectified-left pixel coordinates except "right"
-VIEWS: dict[str, str] = {
-    "left": "Rectified left",
-    "right": "Rectified right",
-    "raw": "Raw disparity (SGBM), bright = near",
-    "closed": "After the closing filter",
-    "wls": "WLS filtered (confident pixels), colour = distance",
-}
 NO_WLS_TITLE = "Closed disparity (no WLS), colour = distance"
 # what the colours of pixels without depth mean, once under the views (not in every title)
 LEGEND = ("<span style='color:#6e1414'>■</span> dark red: no match &nbsp; "
           "<span style='color:#606060'>■</span> grey: not seen by the right camera")
-SHORT_NAMES = {"left": "Left", "right": "Right", "raw": "Raw", "closed": "Closed", "wls": "WLS"}
 REGION_VIEW = "wls"  # the view that carries the region box
 
 
@@ -104,27 +93,11 @@ class LiveTab(QWidget):
                                + scroll.verticalScrollBar().sizeHint().width() + 4)
 
         # views
-        self.panels: dict[str, ImagePanel] = {}
-        self.view_checks: dict[str, QCheckBox] = {}
-        shown = tuple(v for v in (ctx.settings.visible_views or DEFAULT_VIEWS)
-                      if v in VIEWS) or DEFAULT_VIEWS
-        # every panel, shown or not, is a child of the views' grid: a hidden one is deleted with
-        # the window, never left to the interpreter's exit as a top-level widget of its own
-        self._grid_host = QWidget()
-        for key, title in VIEWS.items():
-            panel = ImagePanel(key, title, color_bar=(key == "wls"), parent=self._grid_host)
-            panel.hide()
+        self.views = ViewGrid(ctx.settings.visible_views)
+        self.panels, self.view_checks = self.views.panels, self.views.checks
+        for panel in self.panels.values():
             panel.hovered.connect(self.readings.hovered)
             panel.doubleClicked.connect(self.readings.double_clicked)
-            self.panels[key] = panel
-            check = QCheckBox(SHORT_NAMES[key])
-            check.setToolTip(title)
-            check.setChecked(key in shown)
-            check.toggled.connect(self._layout_views)
-            self.view_checks[key] = check
-        self._grid = QGridLayout(self._grid_host)
-        self._grid.setContentsMargins(0, 0, 0, 0)
-        self._grid.setSpacing(4)
 
         # toolbar
         self.pause_button = QPushButton("Pause")
@@ -197,7 +170,7 @@ class LiveTab(QWidget):
         vcol.addWidget(self.playback)
         vcol.addWidget(self.calib_note)
         vcol.addWidget(self.scale_label)
-        vcol.addWidget(self._grid_host, 1)
+        vcol.addWidget(self.views, 1)
         vcol.addWidget(self.legend)
         vcol.addWidget(self.region_label)
         vcol.addWidget(self.readout)
@@ -224,7 +197,8 @@ class LiveTab(QWidget):
         outer.setContentsMargins(0, 0, 0, 0)
         outer.addWidget(splitter)
 
-        self._layout_views()
+        self.views.changed.connect(self._views_changed)
+        self.views.lay_out()
         ctx.calibrationChanged.connect(self._calibration_changed)
         ctx.frames.frameReady.connect(self._frame_ready)
         ctx.frames.sourceChanged.connect(self._source_changed)
@@ -240,34 +214,20 @@ class LiveTab(QWidget):
                 log.warning("preset %s: %s", candidate, exc)
         return MatcherParams(name="seed")
 
-    def _layout_views(self, *_args) -> None:
-        for panel in self.panels.values():
-            self._grid.removeWidget(panel)
-            panel.hide()
-        keys = [k for k in VIEWS if self.view_checks[k].isChecked()]
-        cols = 1 if len(keys) == 1 else 2
-        for i, key in enumerate(keys):
-            # an odd last view spans the row: no empty cell beside it (2-2-1 with Right on)
-            span = cols if i == len(keys) - 1 and len(keys) % cols else 1
-            self._grid.addWidget(self.panels[key], i // cols, i % cols, 1, span)
-            self.panels[key].show()
+    def _views_changed(self, keys: list[str]) -> None:
         self.ctx.update_settings(visible_views=tuple(keys)) if self.ctx.settings else None
         if self._processor is not None:
             self._processor.set_views(self._processed_views())
 
     def visible_views(self) -> list[str]:
-        return [k for k in VIEWS if self.view_checks[k].isChecked()]
+        return self.views.visible()
 
     def _processed_views(self) -> list[str]:
         """The views the processor makes images of: those shown (the snapshot saves those)."""
         return self.visible_views()
 
     def set_visible_views(self, keys) -> None:
-        for k, c in self.view_checks.items():
-            c.blockSignals(True)
-            c.setChecked(k in keys)
-            c.blockSignals(False)
-        self._layout_views()
+        self.views.set_visible(keys)
 
     # ---- activation, calibration, parameters -------------------------------------------------
     def set_active(self, active: bool) -> None:

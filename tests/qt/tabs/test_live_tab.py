@@ -354,11 +354,11 @@ def test_hidden_views_belong_to_the_window_too(qtbot, ctx):
     tab.show()
     assert tab.visible_views() == ["left"]
     for key, panel in tab.panels.items():
-        assert panel.parent() is tab._grid_host, key
-        assert panel.isVisibleTo(tab._grid_host) == (key == "left"), key
+        assert panel.parent() is tab.views, key
+        assert panel.isVisibleTo(tab.views) == (key == "left"), key
         assert panel.isWindow() is False
     tab.set_visible_views(["left", "wls"])
-    assert [k for k, p in tab.panels.items() if p.isVisibleTo(tab._grid_host)] == ["left", "wls"]
+    assert [k for k, p in tab.panels.items() if p.isVisibleTo(tab.views)] == ["left", "wls"]
 
 
 def test_views_are_drawn_one_event_loop_turn_apart_and_the_newest_frame_wins(
@@ -407,3 +407,28 @@ def test_a_new_calibration_closes_the_processor_it_replaces(qtbot, ctx, live, si
         shown = live.frames_shown
         qtbot.waitUntil(lambda: live.frames_shown >= shown + 2, timeout=60000)
     assert not errors
+
+
+def test_views_share_the_width_evenly_whatever_they_are(qtbot):
+    """Two views a row get half the width each, whichever are shown and in whatever order they
+    were switched (the colour bar of the WLS view does not widen its column)."""
+    from stereo_gui.qt.tabs.live_views import ViewGrid
+
+    grid = ViewGrid(("left", "raw", "closed", "wls"))
+    qtbot.addWidget(grid)
+    grid.resize(1000, 500)
+    grid.show()
+    grid.lay_out()
+    for panel in grid.panels.values():
+        panel.set_image(np.zeros((480, 640, 3), np.uint8))
+    qtbot.wait(50)
+    grid.checks["right"].setChecked(True)  # as a person does it: Right on (five views), Raw off
+    qtbot.wait(50)
+    grid.checks["raw"].setChecked(False)
+    qtbot.wait(50)
+    for shown in (["left", "right", "closed", "wls"], ["left", "wls"], ["raw", "closed"]):
+        if shown != grid.visible():
+            grid.set_visible(shown)
+        qtbot.wait(50)
+        widths = [grid.panels[k].width() for k in shown]
+        assert max(widths) - min(widths) <= 2, (shown, widths)
