@@ -655,11 +655,11 @@ class StereoPipeline:
         edge = self.edge_margin_px
         # what the right camera cannot see lies in the leftmost `band` columns, found from the
         # largest disparity of the maps (at the matched resolution: the enlargements take or
-        # average their values); the masks are made and applied there only
+        # average their values; a closing never exceeds its input's largest value, being an
+        # erosion of a dilation); the masks are made and applied there only
         band = None
         if p.full_frame:
-            band = unseen_columns(max(int(d16.max()), int(closed16.max())) * factor / DISP_SCALE,
-                                  edge, w)
+            band = unseen_columns(int(d16.max()) * factor / DISP_SCALE, edge, w)
             into_padding = unseen_mask(raw, edge, band)
             blank(raw, into_padding, band)
             if closed is not raw:
