@@ -14,6 +14,13 @@ the distance the rig rendered there. Per preset and wall it reports
 
 The reference row "report" is the student report's own loop (core.report_loop): its remap,
 matcher and its 3x3 mean of the raw disparity, triangulated through Q with the same calibration.
+The row "plain" is plain OpenCV set up with care (`core.scene_score.plain_sgbm`: 8-direction
+SGBM with a 1 px left-right check) on the same rectified images, read as the median of the 9x9
+patch's valid disparities.
+
+Each wall is rendered under a `Condition`: the rig's usual rich texture, or a smooth painted wall
+at lower contrast, with what two cheap webcams add (the right camera's own gain and black level,
+MJPG compression, darker corners).
 
 The truth: the rectified pixel is taken back to the raw left pixel by the calibration under test
 (its own maps), the true left camera's ray through that raw pixel is intersected with the wall,
@@ -35,6 +42,50 @@ from stereo_gui.core.measure import PATCH_PX, Measurement, measure_point
 from stereo_gui.core.stereo_calibration import StereoCalibration
 
 WALLS_MM = (500.0, 1000.0, 2000.0, 3000.0)
+PLAIN = "plain"  # plain OpenCV SGBM with a left-right check, read as the 9x9 patch's median
+
+
+@dataclass(frozen=True)
+class Condition:
+    """How a wall is rendered: its texture's contrast (1: the rig's usual texture), the sensor
+    noise (grey levels), and the webcam effects of `RigConfig` (right camera's gain and black
+    level, vignetting, JPEG quality)."""
+
+    name: str
+    contrast: float = 1.0
+    noise_sigma: float | None = None  # None: the rig's own
+    gain_right: float | None = None
+    black_right: float = 0.0
+    vignetting: float = 0.0
+    jpeg_quality: int | None = None
+    description: str = ""
+
+    def rig_config(self, base):
+        from dataclasses import replace
+
+        changes = {"black_right": self.black_right, "vignetting": self.vignetting,
+                   "jpeg_quality": self.jpeg_quality}
+        if self.noise_sigma is not None:
+            changes["noise_sigma"] = self.noise_sigma
+        if self.gain_right is not None:
+            changes["gain_right"] = self.gain_right
+        return replace(base, **changes)
+
+
+# a painted wall: a 9x9 window's grey-level spread about 2.5 with the sensor noise of 1.5
+WEAK_CONTRAST = 0.12
+CONDITIONS = {c.name: c for c in (
+    Condition("rig", description="the rig's usual texture"),
+    Condition("weak", WEAK_CONTRAST, 1.5, description="a smooth painted wall: 9x9 spread ~2.5 "
+              "grey levels with noise 1.5"),
+    Condition("half", WEAK_CONTRAST / 2, 1.5, description="the painted wall at half contrast"),
+    Condition("quarter", WEAK_CONTRAST / 4, 1.5,
+              description="the painted wall at a quarter of its contrast"),
+    Condition("webcams", WEAK_CONTRAST / 2, 1.5, gain_right=0.8, black_right=12.0,
+              vignetting=0.35, jpeg_quality=75,
+              description="half contrast, the right camera's gain 0.8 and black level +12, "
+              "corners 35 % darker, MJPG at quality 75"),
+)}
 GRID = (9, 7)  # columns, rows
 GRID_MARGIN_PX = PATCH_PX // 2 + 4  # the outermost grid points sit this far inside the image
 BENCH_SEED = 4242  # the benchmark's rig seed; tests use others
@@ -73,6 +124,7 @@ class WallReport:
     preset: str
     wall_mm: float
     readings: tuple[GridReading, ...] = field(repr=False)
+    condition: str = "rig"
 
     @property
     def seen(self) -> list[GridReading]:
@@ -100,7 +152,7 @@ class WallReport:
     def covered_fraction(self) -> float:
         read = [r for r in self.seen if r.read]
         with_bound = [r for r in read if math.isfinite(r.expected_error_mm)]
-        return sum(r.covered for r in with_bound) / len(read) if read else float("nan")
+        return sum(r.covered for r in with_bound) / len(read) if with_bound else float("nan")
 
     @property
     def median_bound_pct(self) -> float:
@@ -121,7 +173,8 @@ class WallReport:
         return out
 
     def summary(self) -> dict:
-        return {"preset": self.preset, "wall_mm": self.wall_mm, "points": len(self.readings),
+        return {"preset": self.preset, "wall_mm": self.wall_mm, "condition": self.condition,
+                "points": len(self.readings),
                 "seen": len(self.seen), "coverage": self.coverage, "worst_pct": self.worst_pct,
                 "rms_pct": self.rms_pct, "covered_fraction": self.covered_fraction,
                 "median_bound_pct": self.median_bound_pct, "unseen_read": self.unseen_read,
@@ -198,21 +251,56 @@ def _report_reading(result, x: float, y: float, calib: StereoCalibration
     return float(Z / W), None
 
 
+def _plain_reading(disparity_px: np.ndarray, x: float, y: float, calib: StereoCalibration
+                   ) -> tuple[float, str | None]:
+    """Plain OpenCV's reading: the median of the valid disparities of the 9x9 patch around the
+    pixel, triangulated through Q."""
+    xi, yi = int(round(x)), int(round(y))
+    half = PATCH_PX // 2
+    d = disparity_px[max(0, yi - half):yi + half + 1, max(0, xi - half):xi + half + 1]
+    d = d[np.isfinite(d)]
+    if d.size == 0:
+        return float("nan"), "no valid pixels"
+    X, Y, Z, W = np.asarray(calib.Q, np.float64) @ np.array([x, y, float(np.median(d)), 1.0])
+    if not W > 0:
+        return float("nan"), "too far"
+    return float(Z / W), None
+
+
+def plain_disparity(calib: StereoCalibration, left: np.ndarray, right: np.ndarray,
+                    z_min_mm: float = 450.0) -> np.ndarray:
+    """Plain OpenCV SGBM (`plain_sgbm`) on the rectified pair, disparities 0 .. the working
+    distance's (as the presets search), full resolution."""
+    from stereo_gui.core.scene_score import plain_sgbm
+
+    pipe = StereoPipeline(calib, MatcherParams(z_min_mm=z_min_mm))
+    rl, rr = pipe.rectify(left, right)
+    d_max = calib.focal_px * calib.rectified_baseline_mm / z_min_mm - calib.disparity_offset_px
+    num = max(16, int(math.ceil((d_max + 1) / 16.0)) * 16)
+    return plain_sgbm(rl, rr, num)
+
+
 def evaluate_wall(rig, calib: StereoCalibration, params: MatcherParams | str, wall_mm: float,
-                  seed: int, grid: tuple[int, int] = GRID) -> WallReport:
-    """Render a wall at `wall_mm`, run one preset (or "report": the report's loop) and measure
-    the grid."""
+                  seed: int, grid: tuple[int, int] = GRID, condition: Condition | None = None
+                  ) -> WallReport:
+    """Render a wall at `wall_mm` (under `condition`, default the rig's usual texture), run one
+    preset (or "report": the report's loop; "plain": plain OpenCV) and measure the grid."""
     from stereo_gui.sources.sim import Scene
 
-    scene = Scene.wall(wall_mm, seed=seed + int(wall_mm))
+    condition = condition or CONDITIONS["rig"]
+    scene = Scene.wall(wall_mm, seed=seed + int(wall_mm), contrast=condition.contrast)
     left, right = rig.render_scene(scene, np.random.default_rng(seed * 7 + int(wall_mm)))
     truth = WallTruth(rig, calib, wall_mm)
     readings = []
+    plain = None
     if params == "report":
         from stereo_gui.core.report_loop import ReportLoop
 
         result = ReportLoop(calib).process(left, right)
         name = "report"
+    elif params == PLAIN:
+        plain = plain_disparity(calib, left, right)
+        name = PLAIN
     else:
         if isinstance(params, str):
             from stereo_gui.files.presets import load_preset
@@ -226,12 +314,15 @@ def evaluate_wall(rig, calib: StereoCalibration, params: MatcherParams | str, wa
         if name == "report":
             z, reason = _report_reading(result, x, y, calib)
             bound = float("nan")
+        elif name == PLAIN:
+            z, reason = _plain_reading(plain, x, y, calib)
+            bound = float("nan")
         else:
             m: Measurement = measure_point(result, x, y)
             z = m.Z_mm if m.valid else float("nan")
             reason, bound = m.reason, m.expected_error_mm
         readings.append(GridReading(x, y, seen, z_true, z, bound, reason))
-    return WallReport(name, float(wall_mm), tuple(readings))
+    return WallReport(name, float(wall_mm), tuple(readings), condition.name)
 
 
 def computed_calibration(rig, pairs: int = 20, seed: int = BENCH_SEED) -> StereoCalibration:
@@ -247,29 +338,60 @@ def computed_calibration(rig, pairs: int = 20, seed: int = BENCH_SEED) -> Stereo
 
 def run_accuracy(presets=("report", "seed", "live", "quality"), walls=WALLS_MM,
                  seed: int = BENCH_SEED, calibrations=("true", "computed"),
-                 pairs: int = 20) -> dict[str, list[WallReport]]:
-    """Every preset on every wall, for each calibration; {calibration label: [WallReport]}."""
+                 pairs: int = 20, conditions=("rig",)) -> dict[str, list[WallReport]]:
+    """Every preset on every wall under every condition, for each calibration; {calibration
+    label: [WallReport]} (the calibration is computed once, from the rig's usual images)."""
     from stereo_gui.sources.sim import SimRig
 
     if not walls:
         raise InputError("no wall distances to measure")
-    rig = SimRig(seed=seed)
+    unknown = [c for c in conditions if c not in CONDITIONS]
+    if unknown:
+        raise InputError(f"unknown condition {unknown[0]!r}: one of {', '.join(CONDITIONS)}")
+    base = SimRig(seed=seed)
+    rigs = {c: base if c == "rig" else SimRig(CONDITIONS[c].rig_config(base.config), seed=seed)
+            for c in conditions}
     out: dict[str, list[WallReport]] = {}
     for label in calibrations:
         if label == "true":
-            calib = rig.true_calibration()
+            calib = base.true_calibration()
         elif label == "computed":
-            calib = computed_calibration(rig, pairs, seed)
+            calib = computed_calibration(base, pairs, seed)
         else:
             raise InputError(f"unknown calibration {label!r}: true or computed")
-        out[label] = [evaluate_wall(rig, calib, p, z, seed) for z in walls for p in presets]
+        out[label] = [evaluate_wall(rigs[c], calib, p, z, seed, condition=CONDITIONS[c])
+                      for c in conditions for z in walls for p in presets]
+    return out
+
+
+def condition_totals(reports: list[WallReport]) -> dict[tuple[str, str], dict]:
+    """Per (condition, preset): the whole grid over all walls: coverage, worst and RMS error (%),
+    how often the +- covered the truth, and the median +- (% of the distance)."""
+    groups: dict[tuple[str, str], list[WallReport]] = {}
+    for r in reports:
+        groups.setdefault((r.condition, r.preset), []).append(r)
+    out = {}
+    for key, reps in groups.items():
+        seen = [g for r in reps for g in r.seen]
+        read = [g for g in seen if g.read]
+        errs = np.array([g.error_pct for g in read])
+        bounded = [g for g in read if math.isfinite(g.expected_error_mm)]
+        out[key] = {
+            "coverage": len(read) / len(seen) if seen else float("nan"),
+            "worst_pct": float(np.abs(errs).max()) if errs.size else float("nan"),
+            "rms_pct": float(np.sqrt(np.mean(errs ** 2))) if errs.size else float("nan"),
+            "covered_fraction": (sum(g.covered for g in bounded) / len(read)
+                                 if bounded else float("nan")),
+            "median_bound_pct": (float(np.median([100 * g.expected_error_mm / g.true_z_mm
+                                                  for g in read])) if bounded else float("nan")),
+            "unseen_read": sum(r.unseen_read for r in reps)}
     return out
 
 
 def format_table(label: str, reports: list[WallReport]) -> str:
     """A plain-text table of one calibration's reports."""
     lines = [f"calibration: {label}",
-             f"{'wall':>6} {'preset':>8} {'cover':>7} {'worst%':>7} {'rms%':>6} "
+             f"{'cond':>8} {'wall':>6} {'preset':>8} {'cover':>7} {'worst%':>7} {'rms%':>6} "
              f"{'+-cov':>6} {'med+-%':>7}  no reading (seen points)"]
     for r in reports:
         reasons = ", ".join(f"{k} {v}" for k, v in sorted(r.reasons.items())) or "-"
@@ -280,9 +402,19 @@ def format_table(label: str, reports: list[WallReport]) -> str:
             return "-" if not math.isfinite(v) else f"{v:.{digits}f}"
 
         lines.append(
-            f"{r.wall_mm / 1000:5.1f}m {r.preset:>8} {pct(100 * r.coverage, 1):>6}% "
+            f"{r.condition:>8} {r.wall_mm / 1000:5.1f}m {r.preset:>8} {pct(100 * r.coverage, 1):>6}% "
             f"{pct(r.worst_pct):>7} {pct(r.rms_pct):>6} {pct(100 * r.covered_fraction, 0):>5}% "
             f"{pct(r.median_bound_pct):>7}  {reasons}")
+    lines.append("whole grid, all walls:")
+    for (cond, preset), t in condition_totals(reports).items():
+        def pct2(v: float, digits: int = 2) -> str:
+            return "-" if not math.isfinite(v) else f"{v:.{digits}f}"
+
+        unseen = f"; {t['unseen_read']} unseen points read" if t["unseen_read"] else ""
+        lines.append(
+            f"{cond:>8} {'all':>6} {preset:>8} {pct2(100 * t['coverage'], 1):>6}% "
+            f"{pct2(t['worst_pct']):>7} {pct2(t['rms_pct']):>6} "
+            f"{pct2(100 * t['covered_fraction'], 0):>5}% {pct2(t['median_bound_pct']):>7}{unseen}")
     return "\n".join(lines)
 
 

@@ -48,8 +48,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("left", nargs="?", metavar="LEFT",
                         help="left raw image (without LEFT RIGHT: the simulated rig)")
     parser.add_argument("right", nargs="?", metavar="RIGHT", help="right raw image")
-    parser.add_argument("--frames", type=int, default=30, metavar="N",
-                        help="frames per preset (default 30)")
+    parser.add_argument("--frames", type=int, default=None, metavar="N",
+                        help="frames per preset (default 30; with --scenes: frames timed per "
+                        "scene and method, default 1)")
     parser.add_argument("--preset", action="append", metavar="P",
                         help="preset to time beside the report's loop (repeatable; default live)")
     parser.add_argument("--rounds", type=int, default=1, metavar="R",
@@ -66,6 +67,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "rendered board pairs, or both (default)")
     parser.add_argument("--seed", type=int, default=None, metavar="S",
                         help="with --accuracy: the simulated rig's seed (default: the benchmark's)")
+    parser.add_argument("--condition", action="append", metavar="C",
+                        help="with --accuracy: how the walls are rendered (repeatable): rig (the "
+                        "rig's usual texture), weak (a smooth painted wall), half, quarter (its "
+                        "contrast halved, quartered), webcams (half contrast with the right "
+                        "camera's own gain and black level, MJPG, darker corners), or all "
+                        "(default rig)")
+    parser.add_argument("--scenes", metavar="FILE",
+                        help="instead of speed: the presets' final maps beside plain OpenCV SGBM "
+                        "on every scene of FILE (tab-separated: name, left, right, ground truth, "
+                        "divide by; e.g. shared/data/scenes.tsv): bad-1/2/4, density, median "
+                        "error and time per frame (default presets live and quality)")
     parser.add_argument("--json", action="store_true", help="print the results as JSON")
 
 
@@ -209,6 +221,8 @@ def bench_reference(calib, left, right, frames: int, warmup: int = 2) -> dict:
 def run_bench(args) -> dict:
     from stereo_gui.files.presets import load_preset
 
+    if args.frames is None:
+        args.frames = 30
     if args.frames < 1:
         raise InputError(f"--frames must be at least 1, not {args.frames}")
     rounds = getattr(args, "rounds", 1)
@@ -280,6 +294,16 @@ def _merged(runs: list[dict]) -> dict:
 
 
 def run(args) -> int:
+    if getattr(args, "scenes", None):
+        if args.accuracy or args.calib or args.left or args.right or args.size:
+            raise InputError("--scenes takes its images from the scene list: no --accuracy, "
+                             "--calib, images or --size")
+        from stereo_gui.commands.scenes import format_scenes, run_scenes
+
+        res = run_scenes(args.scenes, args.preset or ("live", "quality"),
+                         repeat=1 if args.frames is None else args.frames)
+        print(json.dumps(res, indent=2) if args.json else format_scenes(res))
+        return 0
     if args.accuracy:
         return run_accuracy_bench(args)
     res = run_bench(args)
@@ -319,14 +343,25 @@ def run_accuracy_bench(args) -> int:
 
     if args.calib or args.left or args.right or args.size:
         raise InputError("--accuracy runs on the simulated rig: no --calib, images or --size")
-    presets = tuple(dict.fromkeys(["report"] + (args.preset or ["seed", "live", "quality"])))
+    from stereo_gui.commands.accuracy import CONDITIONS, PLAIN, condition_totals
+
+    presets = tuple(dict.fromkeys(["report", PLAIN]
+                                  + (args.preset or ["seed", "live", "quality"])))
     cal = ("true", "computed") if args.calibration == "both" else (args.calibration,)
     seed = BENCH_SEED if args.seed is None else args.seed
-    res = run_accuracy(presets=presets, seed=seed, calibrations=cal)
+    conditions = list(dict.fromkeys(getattr(args, "condition", None) or ["rig"]))
+    if "all" in conditions:
+        conditions = list(CONDITIONS)
+    res = run_accuracy(presets=presets, seed=seed, calibrations=cal, conditions=conditions)
     if args.json:
-        print(json.dumps({"seed": seed, "calibrations": {
-            k: [r.summary() for r in v] for k, v in res.items()}}, indent=2))
+        print(json.dumps({"seed": seed, "conditions": {
+            c: CONDITIONS[c].description for c in conditions}, "calibrations": {
+            k: [r.summary() for r in v] for k, v in res.items()}, "totals": {
+            k: [{"condition": c, "preset": p, **t} for (c, p), t in condition_totals(v).items()]
+            for k, v in res.items()}}, indent=2))
         return 0
+    for c in conditions:
+        print(f"condition {c}: {CONDITIONS[c].description}")
     print(f"accuracy on the simulated rig (seed {seed}): 9x7 grid over the whole frame; cover = "
           "readings / points both cameras see; errors of Z in %; +-cov = share of readings whose "
           "95 % bound covers the true error; med+- = median bound in % of the distance")

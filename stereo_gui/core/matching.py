@@ -71,6 +71,8 @@ _RANGES: dict[str, tuple[float, float]] = {
     "bilateral_d": (0, 50), "bilateral_sigma_color": (0.0, 1000.0),
     "bilateral_sigma_space": (0.0, 1000.0), "scale": (0.1, 1.0), "check_scale": (0.25, 1.0),
     "color_z_near_mm": (1.0, 1e7), "color_z_far_mm": (1.0, 1e7), "cv_threads": (0, 256),
+    "check_block_size": (0, 51), "agree_px": (0.0, 64.0), "range_end_px": (0.0, 64.0),
+    "normalize_window": (0, 255),
 }
 
 
@@ -100,6 +102,22 @@ class MatcherParams:
     p2: int | None = None  # None: 32*3*w^2
     pre_filter_cap: int = 63  # 0: OpenCV's default (15), as the report left it
     mode: str = "sgbm"  # sgbm | 3way | hh | hh4
+    # a second SGBM with this window checks the first: the final map keeps a pixel only where
+    # both found a match and they agree within `agree_px` (px of the matched image), and holds
+    # their mean there. Two windows fail in different places (the small one on weak texture,
+    # the large one at depth edges), so a wrong match rarely survives both. 0: no second
+    # window (the final map is the WLS output, or the closed map without WLS)
+    check_block_size: int = 0
+    agree_px: float = 1.0
+    # matches within this many px (of the matched image) of either end of the searched range are
+    # dropped from the final map: the cost's minimum lay at the range's edge, so the surface may
+    # lie beyond it (a blank wall far away matches "at infinity" as well as anywhere)
+    range_end_px: float = 0.0
+    # both images matched after a local contrast normalisation over this window (px of the
+    # matched image; 0: as they are): each pixel's difference from the window's mean in units
+    # of the window's spread, so that the two cameras' own gain, black level and darker
+    # corners, and the slow shading of a smooth wall, do not decide the match
+    normalize_window: int = 0
     # search the whole disparity range at every column: both images are padded for the matchers
     # (SGBM leaves the first minDisparity + numDisparities columns empty otherwise); False keeps
     # the report's dead band at the left edge (the seed preset)
@@ -173,6 +191,11 @@ class MatcherParams:
             problems.append("z_max_mm needs z_min_mm and must be larger than it")
         if self.color_z_far_mm <= self.color_z_near_mm or self.color_z_near_mm <= 0:
             problems.append("color_z_far_mm must be larger than color_z_near_mm > 0")
+        if self.normalize_window and (self.normalize_window < 3 or self.normalize_window % 2 == 0):
+            problems.append(f"normalize_window must be odd and >= 3 (or 0: none), not "
+                            f"{self.normalize_window}")
+        if self.check_block_size and self.check_block_size % 2 == 0:
+            problems.append(f"check_block_size must be odd (or 0: none), not {self.check_block_size}")
         if problems:
             raise InputError(f"matcher parameters of {self.name!r}: " + "; ".join(problems))
 
@@ -244,7 +267,8 @@ class MatcherParams:
                 raise InputError(f"{where}: {key} must be a number, not {v!r}")
         for key in ("block_size", "min_disparity", "num_disparities", "uniqueness_ratio",
                     "speckle_window_size", "speckle_range", "disp12_max_diff", "closing_kernel",
-                    "bilateral_d", "pre_filter_cap", "max_match_width"):
+                    "bilateral_d", "pre_filter_cap", "max_match_width", "check_block_size",
+                    "normalize_window"):
             v = kwargs.get(key)
             if isinstance(v, float):
                 if not v.is_integer():
@@ -493,6 +517,7 @@ class StereoPipeline:
                 mode=MODES[p.mode])
 
         self._left = sgbm()
+        self._second = sgbm(block=p.check_block_size) if p.check_block_size else None
         self._check: tuple[float, int, int] | None = None  # (scale, min, num) of a smaller check
         if p.wls and p.check_scale < 1.0:
             cs = p.check_scale
@@ -565,27 +590,34 @@ class StereoPipeline:
         rr = cv2.remap(right_bgr, m.right_x, m.right_y, interp)
         return rl, rr
 
-    def _match(self, ml: np.ndarray, mr: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-        """Left (and, for WLS, right) SGBM disparity x16 of matched-resolution gray images.
+    def _match(self, ml: np.ndarray, mr: np.ndarray, right: bool = True
+               ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """Left, second-window and (for WLS, when `right`) right SGBM disparity x16 of
+        matched-resolution gray images (None for a matcher the preset does not have).
 
         With `full_frame` the images are padded with black columns so that SGBM, which leaves
         its first minDisparity + numDisparities columns empty, searches the whole range at every
-        column: at the left for the left matcher, at the right for the right matcher (whose empty
-        band is on that side). Matches that land in the padding are removed afterwards
+        column: at the left for the left matchers, at the right for the right matcher (whose
+        empty band is on that side). Matches that land in the padding are removed afterwards
         (`unseen_mask`); black never resembles texture, so they are rare.
         """
         pad = self._min_s + self._num_s if self._params.full_frame else 0
-        if self._right is None:
-            return compute_padded(self._left, ml, mr, pad, "left"), None
-        right = self._match_right if self._check is not None else compute_padded
-        if self._executor is not None:
-            fut = self._executor.submit(right, self._right, mr, ml, pad, "right")
+        jobs = []
+        if self._second is not None:
+            jobs.append(lambda: compute_padded(self._second, ml, mr, pad, "left"))
+        if right and self._right is not None:
+            match_right = self._match_right if self._check is not None else compute_padded
+            jobs.append(lambda: match_right(self._right, mr, ml, pad, "right"))
+        if self._executor is not None and jobs:
+            fut = self._executor.submit(lambda: [job() for job in jobs])
             d16 = compute_padded(self._left, ml, mr, pad, "left")
-            d16_right = fut.result()
+            others = fut.result()
         else:
             d16 = compute_padded(self._left, ml, mr, pad, "left")
-            d16_right = right(self._right, mr, ml, pad, "right")
-        return d16, d16_right
+            others = [job() for job in jobs]
+        d16_second = others.pop(0) if self._second is not None else None
+        d16_right = others.pop(0) if others else None
+        return d16, d16_second, d16_right
 
     def _match_right(self, matcher, mr: np.ndarray, ml: np.ndarray, pad: int, side: str
                      ) -> np.ndarray:
@@ -604,9 +636,12 @@ class StereoPipeline:
         scaled[none] = (-(self._min_s + self._num_s - 1) - 1) * DISP_SCALE
         return cv2.resize(scaled, (w, h), interpolation=cv2.INTER_NEAREST)
 
-    def process(self, left_bgr: np.ndarray, right_bgr: np.ndarray, right_colour: bool = True
-                ) -> PipelineResult:
-        """Run every stage on one raw stereo pair (`right_colour`: see `rectify`)."""
+    def process(self, left_bgr: np.ndarray, right_bgr: np.ndarray, right_colour: bool = True,
+                wls: bool = True) -> PipelineResult:
+        """Run every stage on one raw stereo pair (`right_colour`: see `rectify`). With a second
+        window the final map is the two windows' agreement and the WLS output only a picture:
+        `wls` False skips it (and the right matcher it needs); without one, WLS is the final map
+        and always runs."""
         self._apply_pending()
         p = self._params
         t = {}
@@ -640,7 +675,13 @@ class StereoPipeline:
             raise InputError(
                 f"the images ({w}x{h}, matched at {mw} px wide) are too narrow for disparities up to "
                 f"{self._range_full[1]:.0f} px; narrow the disparity range or the working distances")
-        d16, d16_right = self._match(ml, mr)
+        run_wls = self._wls is not None and (wls or self._second is None)
+        if p.normalize_window:
+            nl, nr = (local_contrast(m, p.normalize_window) for m in (ml, mr))
+            lap("normalize")
+        else:
+            nl, nr = ml, mr
+        d16, d16_second, d16_right = self._match(nl, nr, right=run_wls)
         lap("match")
         closed16 = (cv2.morphologyEx(d16, cv2.MORPH_CLOSE, self._kernel)
                     if self._kernel is not None else d16)
@@ -652,6 +693,15 @@ class StereoPipeline:
             raw = cv2.resize(raw, (w, h), interpolation=cv2.INTER_NEAREST)
             closed = (cv2.resize(closed, (w, h), interpolation=cv2.INTER_NEAREST)
                       if closed16 is not d16 else raw)
+        agreed = None
+        if d16_second is not None:
+            agreed = agreement(d16, d16_second, self._min_s, p.agree_px,
+                               (self._min_s + p.range_end_px,
+                                self._min_s + self._num_s - 1 - p.range_end_px))
+            blank(agreed, occluded(agreed, p.agree_px,
+                                   max(p.block_size, p.check_block_size) // 2 + 1))
+            agreed = enlarge(agreed, (w, h), p.agree_px) * np.float32(factor) if scale < 1.0 \
+                else agreed
         edge = self.edge_margin_px
         # what the right camera cannot see lies in the leftmost `band` columns, found from the
         # largest disparity of the maps (at the matched resolution: the enlargements take or
@@ -659,14 +709,18 @@ class StereoPipeline:
         # erosion of a dilation); the masks are made and applied there only
         band = None
         if p.full_frame:
-            band = unseen_columns(int(d16.max()) * factor / DISP_SCALE, edge, w)
+            top16 = int(d16.max()) if d16_second is None else max(int(d16.max()),
+                                                                   int(d16_second.max()))
+            band = unseen_columns(top16 * factor / DISP_SCALE, edge, w)
             into_padding = unseen_mask(raw, edge, band)
             blank(raw, into_padding, band)
             if closed is not raw:
                 blank(closed, unseen_mask(closed, edge, band), band)
+            if agreed is not None:
+                blank(agreed, unseen_mask(agreed, edge, band), band)
         lap("convert")
         wls_px = confidence = None
-        if self._wls is not None:
+        if run_wls:
             # the report filters the unclosed left disparity; a low-resolution map is enlarged by
             # the filter itself (values scaled) against the full-resolution guide
             guide = gl if p.wls_full_resolution else ml
@@ -699,7 +753,9 @@ class StereoPipeline:
                 confidence = cv2.resize(confidence, (w, h), interpolation=cv2.INTER_NEAREST)
             lap("wls")
         not_seen = None
-        if wls_px is None:
+        if agreed is not None:
+            final = agreed
+        elif wls_px is None:
             final = closed
         elif p.wls_confident_only:
             final = wls_px.copy()
@@ -715,6 +771,7 @@ class StereoPipeline:
             np.logical_or(not_seen[:, :band], into_padding[:, :band], out=not_seen[:, :band])
             for m in {id(a): a for a in (raw, closed, wls_px, final) if a is not None}.values():
                 blank(m, not_seen, band)
+            valid = np.isfinite(final)
         colours = color_scale(final, p, self.calibration)
         color = colorize(final, colours, p.colormap, not_seen, band)
         lap("colormap")
@@ -725,6 +782,101 @@ class StereoPipeline:
             size=(w, h), params=p, disparity_range_px=self._range_full,
             calibration=self.calibration, color_scale=colours, wls_confidence=confidence,
             not_seen=not_seen, not_seen_cols=band, match_scale=scale)
+
+
+NORMALIZED_SPREAD = 32.0  # grey levels one local standard deviation becomes
+NORMALIZE_FLOOR = 16.0  # grey levels added to the local spread: a blank window stays flat
+
+
+def local_contrast(gray: np.ndarray, window: int) -> np.ndarray:
+    """A uint8 image's local contrast normalisation: 128 + NORMALIZED_SPREAD * (I - mean) /
+    (spread + NORMALIZE_FLOOR), mean and spread over `window` x `window` (box filters),
+    clipped to uint8. Gain, offset and any shading slower than the window leave it unchanged."""
+    f = gray.astype(np.float32)
+    k = (window, window)
+    mean = cv2.boxFilter(f, -1, k)
+    dev = cv2.subtract(f, mean)
+    spread = cv2.sqrt(cv2.boxFilter(cv2.multiply(dev, dev), -1, k))
+    out = cv2.divide(dev, cv2.add(spread, NORMALIZE_FLOOR), scale=NORMALIZED_SPREAD)
+    return np.clip(out + np.float32(128.0), 0, 255).astype(np.uint8)
+
+
+def agreement(d16: np.ndarray, d16_second: np.ndarray, min_disparity: int, agree_px: float,
+              keep_px: tuple[float, float]) -> np.ndarray:
+    """The final map of two windows' SGBM maps (x16 fixed point, same size, both searched from
+    `min_disparity`): their mean in float px of those maps where both found a match, they agree
+    within `agree_px` and the mean lies within `keep_px` = (smallest, largest) disparity kept;
+    NaN elsewhere."""
+    a = d16.astype(np.float32)
+    b = d16_second.astype(np.float32)
+    out = cv2.addWeighted(a, 0.5 / DISP_SCALE, b, 0.5 / DISP_SCALE, 0.0)
+    bad = cv2.compare(cv2.absdiff(a, b), float(agree_px * DISP_SCALE), cv2.CMP_GT)
+    lo, hi = keep_px
+    bad |= cv2.compare(out, float(lo), cv2.CMP_LT)
+    bad |= cv2.compare(out, float(hi), cv2.CMP_GT)
+    # ("no match" is (minDisparity - 1) x16: with a match of the other map next to it, it could
+    # pass the tests above; a reading needs both)
+    bad |= cv2.compare(d16, min_disparity * DISP_SCALE, cv2.CMP_LT)
+    bad |= cv2.compare(d16_second, min_disparity * DISP_SCALE, cv2.CMP_LT)
+    blank(out, bad)
+    return out
+
+
+def occluded(disparity_px: np.ndarray, tolerance_px: float = 1.0, reach_px: int = 0
+             ) -> np.ndarray:
+    """Pixels of a left disparity map (px, NaN invalid) whose match in the right image is taken
+    by a nearer surface: the right camera sees at column u = x - d only the nearest surface
+    there, so a pixel is hidden from it when a pixel further right in the same row, more than
+    `tolerance_px` nearer, matches at u or left of it (within half a pixel). SGBM's own
+    left-right check compares only the winners of one cost volume, so a wrong far match just
+    left of a surface can pass it. Bool mask.
+
+    A surface is taken to go on under the `reach_px` pixels without a value left of it (the
+    matching window's half and the edge margin leave them empty although they are the same
+    surface), so that it hides what it would hide there.
+
+    Pixels of one surface (disparities within the tolerance) cannot trigger this beyond the
+    next `skip` - 1 columns (their matches move right with them), so the test looks at the
+    columns from x + skip on: one running minimum of u from the right."""
+    h, w = disparity_px.shape
+    skip = int(math.floor(tolerance_px + 0.5)) + 1
+    out = np.zeros((h, w), np.bool_)
+    if w <= skip:
+        return out
+    cols = np.arange(w, dtype=np.float32)[None, :]
+    d = disparity_px
+    if reach_px > 0:
+        # each empty pixel takes the disparity of the next valued pixel to its right, if that
+        # lies within reach
+        valued = ~np.isnan(d)
+        nxt = np.where(valued, np.arange(w)[None, :], w)
+        nxt = np.minimum.accumulate(nxt[:, ::-1], axis=1)[:, ::-1]
+        near = (~valued) & (nxt - np.arange(w)[None, :] <= reach_px) & (nxt < w)
+        rows = np.nonzero(near)
+        d = d.copy()
+        d[rows] = disparity_px[rows[0], nxt[rows]]
+    u = cols - d
+    u[np.isnan(u)] = np.inf
+    right_min = np.minimum.accumulate(u[:, ::-1], axis=1)[:, ::-1]
+    out[:, :-skip] = u[:, :-skip] + np.float32(0.5) >= right_min[:, skip:]
+    return out
+
+
+def enlarge(disparity: np.ndarray, size: tuple[int, int], smooth_px: float) -> np.ndarray:
+    """A float map (NaN invalid) enlarged to `size` (w, h) without inventing values: linear
+    interpolation where the four source pixels around a target pixel are all valid and the
+    interpolated value stays within `smooth_px` of the nearest one (one surface), the nearest
+    source pixel elsewhere (edges keep their step; a hole stays a hole). Values unchanged
+    (multiply by the scale for full-resolution disparities)."""
+    valid = cv2.compare(disparity, disparity, cv2.CMP_EQ)  # 255 where not NaN
+    nearest = cv2.resize(disparity, size, interpolation=cv2.INTER_NEAREST)
+    filled = disparity.copy()
+    blank_value = np.zeros_like(disparity)
+    cv2.copyTo(blank_value, cv2.bitwise_not(valid), filled)  # NaN -> 0 for the interpolation
+    linear = cv2.resize(filled, size, interpolation=cv2.INTER_LINEAR)
+    support = cv2.resize((valid > 0).astype(np.float32), size, interpolation=cv2.INTER_LINEAR)
+    use = (support > np.float32(0.999)) & (np.abs(linear - nearest) <= np.float32(smooth_px))
+    return np.where(use, linear, nearest).astype(np.float32, copy=False)
 
 
 def compute_padded(matcher, reference: np.ndarray, other: np.ndarray, pad: int, side: str

@@ -18,8 +18,8 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import (DISP_SCALE, PipelineResult, compute_padded, fixed_to_px,
-                                     unseen_mask)
+from stereo_gui.core.matching import (DISP_SCALE, PipelineResult, agreement, compute_padded,
+                                     fixed_to_px, local_contrast, unseen_mask)
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.core.util import to_gray
 
@@ -31,8 +31,9 @@ MAD_TO_SIGMA = 1.4826  # median absolute deviation -> standard deviation for nor
 NOT_SEEN = "not seen by the right camera"
 NOT_SEARCHED = "not searched (the report's dead band at the left edge)"
 TOO_FEW = "too few valid pixels"
+AMBIGUOUS = "ambiguous match"
 REASONS = ("no valid pixels", TOO_FEW, NOT_SEEN, NOT_SEARCHED, "no texture", "too near", "too far",
-           "outside the image", "out of disparity range", "no metric scale")
+           "outside the image", "out of disparity range", "no metric scale", AMBIGUOUS)
 Z95 = 1.959964  # two-sided 95 % quantile of the normal distribution
 # the parts of a reading's disparity uncertainty (1 sigma, px) that its refinement's own standard
 # error does not see, measured on the simulated rig (rig seeds 11-15: 17x13 grids on walls at
@@ -50,6 +51,9 @@ REFINE_HALF_PX = 6  # the refinement aligns a 13 x 13 window around the point
 MIN_VALID_FRACTION = 0.1  # share of the patch whose match must pass the checks
 EDGE_SPREAD_PX = 1.0  # a patch spread above this straddles surfaces (walls: at most 0.4 px)
 SCAN_MARGIN = 0.1  # correlation (NCC) by which a peak beyond the range must beat the estimate
+# ... and the least correlation that peak needs to count at all: on a smooth wall whose texture
+# is near the sensor noise every window's best correlation is 0.2-0.5, wherever it lies
+SCAN_PEAK_MIN = 0.7
 TEXTURE_MIN_STD = 3.0  # grey levels: below this a window holds little more than sensor noise
 
 
@@ -213,7 +217,8 @@ def refine_point(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, 
 
 
 def rematch_strip(result: PipelineResult, y: int, half: int) -> np.ndarray | None:
-    """Full-resolution SGBM of a band of rows around y; float px (NaN invalid), band-sized.
+    """Full-resolution SGBM of a band of rows around y, checked as the preset checks its frame
+    (with a second window: the two windows' agreement); float px (NaN invalid), band-sized.
 
     Returns the band's disparity (rows y-half .. y+half clipped), or None without a result.
     """
@@ -221,20 +226,34 @@ def rematch_strip(result: PipelineResult, y: int, half: int) -> np.ndarray | Non
     gl, gr = to_gray(result.rectified_left), to_gray(result.rectified_right)
     h = gl.shape[0]
     # rows beyond the patch give SGBM's vertical paths and the block window something to work on
-    pad = half + 2 * p.block_size + 8
+    pad = half + 2 * max(p.block_size, p.check_block_size) + 8
     y0, y1 = max(0, y - pad), min(h, y + pad + 1)
     lo, hi = result.disparity_range_px
     lo_i = int(math.floor(lo))
     num = int(math.ceil((hi - lo_i + 1) / 16.0)) * 16
-    m = cv2.StereoSGBM_create(
-        minDisparity=lo_i, numDisparities=num, blockSize=p.block_size, P1=p.p1_value,
-        P2=p.p2_value, disp12MaxDiff=p.disp12_max_diff, preFilterCap=p.pre_filter_cap,
-        uniquenessRatio=p.uniqueness_ratio, speckleWindowSize=p.speckle_window_size,
-        speckleRange=p.speckle_range, mode=cv2.StereoSGBM_MODE_SGBM_3WAY)
-    d16 = compute_padded(m, gl[y0:y1], gr[y0:y1], lo_i + num if p.full_frame else 0, "left")
-    band = fixed_to_px(d16, lo_i)
+    sl, sr = gl[y0:y1], gr[y0:y1]
+    if p.normalize_window:  # as the frame was matched, its window at full resolution
+        window = max(3, int(round(p.normalize_window / result.match_scale)) | 1)
+        sl, sr = local_contrast(sl, window), local_contrast(sr, window)
+
+    def match(block: int) -> np.ndarray:
+        area = (block / p.block_size) ** 2
+        m = cv2.StereoSGBM_create(
+            minDisparity=lo_i, numDisparities=num, blockSize=block, P1=round(p.p1_value * area),
+            P2=round(p.p2_value * area), disp12MaxDiff=p.disp12_max_diff,
+            preFilterCap=p.pre_filter_cap, uniquenessRatio=p.uniqueness_ratio,
+            speckleWindowSize=p.speckle_window_size, speckleRange=p.speckle_range,
+            mode=cv2.StereoSGBM_MODE_SGBM_3WAY)
+        return compute_padded(m, sl, sr, lo_i + num if p.full_frame else 0, "left")
+
+    d16 = match(p.block_size)
+    if p.check_block_size:
+        band = agreement(d16, match(p.check_block_size), lo_i, p.agree_px,
+                         (lo_i + p.range_end_px, lo_i + num - 1 - p.range_end_px))
+    else:
+        band = fixed_to_px(d16, lo_i)
     if p.full_frame:
-        band[unseen_mask(band, p.block_size // 2 + 1)] = np.nan
+        band[unseen_mask(band, max(p.block_size, p.check_block_size) // 2 + 1)] = np.nan
     r0 = max(0, y - half) - y0
     r1 = min(h, y + half + 1) - y0
     return band[r0:r1]
@@ -307,12 +326,20 @@ def histogram_mode(values: np.ndarray) -> float:
     return float(centre)
 
 
+def reading_map(result: PipelineResult) -> np.ndarray:
+    """The disparity map (px, NaN invalid) a reading takes its values from: the final map of a
+    preset with a second window (checked by the two windows' agreement, what the views show
+    and the exports write), else the matcher's raw map (checked by `consistent_pixels`)."""
+    return result.final_px if result.params.check_block_size else result.disparity_px
+
+
 def consistent_pixels(result: PipelineResult, y0: int, y1: int, x0: int, x1: int
                       ) -> np.ndarray | None:
-    """Mask of the window's pixels whose match passed the left-right check (the WLS filter's
-    confidence above zero), or None when the preset has no right matcher to check with."""
+    """Mask of the window's pixels of `reading_map` whose match passed the left-right check (the
+    WLS filter's confidence above zero), or None when the map is checked already (a second
+    window) or the preset has no right matcher to check with."""
     conf = result.wls_confidence
-    if conf is None:
+    if conf is None or result.params.check_block_size:
         return None
     return conf[y0:y1, x0:x1] > 0
 
@@ -328,7 +355,7 @@ def has_texture(gray: np.ndarray, x: int, y: int, half: int) -> bool:
 def _estimate_from_right(result: PipelineResult, x: int, y: int, half: int) -> float | None:
     """The disparity of the nearest checked matches to the right of (x, y) in the window's rows
     (where a surface the right camera cannot see continues into view), or None."""
-    disp = result.disparity_px
+    disp = reading_map(result)
     h, w = disp.shape
     y0, y1 = max(0, y - half), min(h, y + half + 1)
     reach = int(math.ceil(result.disparity_range_px[1])) + 2 * half + 1
@@ -414,7 +441,7 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
         raise InputError(f"mode must be point or object, not {mode!r}")
     result = source if isinstance(source, PipelineResult) else None
     if result is not None:
-        disp = result.disparity_px
+        disp = reading_map(result)
         calibration = calibration or result.calibration
         d_lo, d_hi = result.disparity_range_px
     else:
@@ -435,7 +462,8 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
 
     if result is not None and result.not_seen is not None and result.not_seen[yi, xi]:
         return invalid(NOT_SEEN)  # as every view shows it
-    if result is not None and not has_texture(to_gray(result.rectified_left), xi, yi, half):
+    if (result is not None and not result.params.check_block_size
+            and not has_texture(to_gray(result.rectified_left), xi, yi, half)):
         return invalid("no texture")  # whatever matched there matched noise
 
     scaled = result is not None and result.match_scale < 1.0
@@ -503,7 +531,7 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
             k = int(round(d))
             at_estimate = (float(np.nanmax(by_d[max(0, k - 1):k + 2])) if 0 <= k < by_d.size
                            else -1.0)
-            if (score_best > at_estimate + SCAN_MARGIN
+            if (score_best >= SCAN_PEAK_MIN and score_best > at_estimate + SCAN_MARGIN
                     and not (d_lo - step <= d_best <= d_hi + step)):
                 return invalid("too near" if d_best > d_hi else "too far", disparity_px=d,
                                **common)
@@ -536,6 +564,10 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
         expected = _depth_bound_mm(calibration.focal_px * calibration.rectified_baseline_mm, d,
                                    bound_px) * (Z / _z_of(calibration, d))
         expected = with_calibration_uncertainty(expected, calibration, x, y, d)
+    if not (math.isfinite(expected) and expected < abs(Z)):
+        # the match fits so loosely that its 95 % bound spans more than the distance itself
+        # (one window's worth of texture near the sensor noise, or shading both cameras share)
+        return invalid(AMBIGUOUS, disparity_px=d, method=method, **common)
     rng = math.sqrt(X * X + Y * Y + Z * Z)
     return Measurement(x, y, True, None, disparity_px=d, X_mm=X, Y_mm=Y, Z_mm=Z, range_mm=rng,
                        valid_fraction=valid_fraction, spread_px=spread, expected_error_mm=expected,

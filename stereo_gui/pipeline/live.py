@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from stereo_gui.core.matching import (NO_MATCH_BGR, NOT_SEEN_BGR, MatcherParams, PipelineResult,
-                                     StereoPipeline, paint)
+from stereo_gui.core.matching import (NO_MATCH_BGR, NOT_SEEN_BGR, MatcherParams,
+                                     PipelineResult, StereoPipeline, colorize, paint)
 from stereo_gui.core.health import CalibrationHealth
 from stereo_gui.pipeline.health import HealthMonitor
 from stereo_gui.pipeline.images import display_rgb
@@ -42,8 +42,8 @@ class LiveOutput:
     health: CalibrationHealth | None = None  # the newest calibration-health figure (pipeline.health)
 
 
-VIEW_KEYS = ("left", "right", "raw", "closed", "wls")  # the images a LiveOutput can hold
-DEFAULT_VIEWS = ("left", "raw", "closed", "wls")  # what the Live tab shows at first
+VIEW_KEYS = ("left", "right", "raw", "closed", "depth", "wls")  # the images a LiveOutput can hold
+DEFAULT_VIEWS = ("left", "raw", "depth", "wls")  # what the Live tab shows at first
 MAX_LANES = 2  # frames processed at once (the frame worker has as many lanes; measured on 2 CPUs)
 
 
@@ -61,6 +61,15 @@ def _gray_disparity(disp_px: np.ndarray, lo: float, hi: float,
     if not_seen is not None:
         paint(rgb, not_seen, NOT_SEEN_RGB, not_seen_cols)
     return rgb
+
+
+def _wls_picture(r: PipelineResult) -> np.ndarray:
+    """The WLS view as RGB uint8: the filter's output on the depth view's colour scale (the
+    depth view itself when the filter's output is the final map or there is none)."""
+    if r.wls_px is None or r.wls_px is r.final_px or r.color_scale is None:
+        return cv2.cvtColor(r.color_bgr, cv2.COLOR_BGR2RGB)
+    bgr = colorize(r.wls_px, r.color_scale, r.params.colormap, r.not_seen, r.not_seen_cols)
+    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
 
 def frame_lanes(params: MatcherParams, cpus: int | None = None) -> int:
@@ -203,14 +212,15 @@ class LiveProcessor:
     def _process(self, pipeline: StereoPipeline, frame: StereoFrame, note: str, watched,
                  views: frozenset[str]) -> LiveOutput:
         r = pipeline.process(*self.calibration.ordered(frame.left, frame.right),
-                             right_colour="right" in views)
+                             right_colour="right" in views, wls="wls" in views)
         lo, hi = r.disparity_range_px
         make = {
             "left": lambda: display_rgb(r.rectified_left),
             "right": lambda: display_rgb(r.rectified_right),
             "raw": lambda: _gray_disparity(r.disparity_px, lo, hi, r.not_seen, r.not_seen_cols),
             "closed": lambda: _gray_disparity(r.closed_px, lo, hi, r.not_seen, r.not_seen_cols),
-            "wls": lambda: cv2.cvtColor(r.color_bgr, cv2.COLOR_BGR2RGB),  # (painted by colorize)
+            "depth": lambda: cv2.cvtColor(r.color_bgr, cv2.COLOR_BGR2RGB),  # (painted by colorize)
+            "wls": lambda: _wls_picture(r),
         }
         images = {key: make[key]() for key in VIEW_KEYS if key in views}
         stats = None if watched is None else region_stats(r, *watched)

@@ -17,7 +17,7 @@ from stereo_gui.core.matching import PipelineResult
 from stereo_gui.core.measure import Measurement, measure_point
 
 # views sharing the left image's pixel frame: a reading there is a reading of the left image
-MEASURABLE_VIEWS = ("left", "raw", "closed", "wls")
+MEASURABLE_VIEWS = ("left", "raw", "closed", "depth", "wls")
 TRUTH_LABEL = "TRUE (simulated scene)"
 
 

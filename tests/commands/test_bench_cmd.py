@@ -73,13 +73,25 @@ def test_bench_accuracy_prints_the_whole_frame_tables(capsys):
                  "--seed", "3", "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     rows = doc["calibrations"]["true"]
-    assert {r["preset"] for r in rows} == {"report", "live"}
+    # the report's loop and plain OpenCV beside the preset asked for
+    assert {r["preset"] for r in rows} == {"report", "plain", "live"}
     assert {r["wall_mm"] for r in rows} == {500.0, 1000.0, 2000.0, 3000.0}
+    assert {r["condition"] for r in rows} == {"rig"}  # the rig's usual texture by default
     live = [r for r in rows if r["preset"] == "live"]
     assert all(r["points"] == 63 and 0 < r["seen"] <= 63 for r in live)
-    # live matches at half resolution: within 6 px of the right image's edge it gives no depth
-    # (one grid column at 1 m), elsewhere everything both cameras see
-    assert all(r["coverage"] > 0.85 and r["worst_pct"] < 1.5 for r in live)
+    assert all(r["coverage"] > 0.95 and r["worst_pct"] < 1.5 for r in live)
+    totals = {(t["condition"], t["preset"]): t for t in doc["totals"]["true"]}
+    assert totals[("rig", "live")]["coverage"] > 0.95
+
+
+def test_bench_accuracy_renders_the_conditions_asked_for(capsys):
+    assert main(["bench", "--accuracy", "--calibration", "true", "--preset", "live",
+                 "--condition", "weak", "--condition", "webcams", "--seed", "3", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert set(doc["conditions"]) == {"weak", "webcams"}
+    assert {r["condition"] for r in doc["calibrations"]["true"]} == {"weak", "webcams"}
+    assert {(t["condition"], t["preset"]) for t in doc["totals"]["true"]} == {
+        (c, p) for c in ("weak", "webcams") for p in ("report", "plain", "live")}
 
 
 @pytest.mark.parametrize("args,message", [
@@ -90,6 +102,7 @@ def test_bench_accuracy_prints_the_whole_frame_tables(capsys):
     (["--size", "big"], "WxH"),
     (["--size", "10x10"], "between"),
     (["--accuracy", "--calib", "c.yaml"], "simulated rig"),
+    (["--accuracy", "--condition", "foggy"], "unknown condition"),
 ])
 def test_bench_bad_input(files, capsys, args, message):
     args = [a if a != "c.yaml" else str(files / a) for a in args]

@@ -345,8 +345,8 @@ def test_a_smaller_left_right_check_keeps_the_final_map():
     full = StereoPipeline(calib(w=320, h=200), base)
     small = StereoPipeline(calib(w=320, h=200), base.replace(check_scale=0.5))
     gl, gr = (cv2.cvtColor(i, cv2.COLOR_BGR2GRAY) for i in (left, right))
-    _, right_full = full._match(gl, gr)
-    _, right_small = small._match(gl, gr)
+    _, _, right_full = full._match(gl, gr)
+    _, _, right_small = small._match(gl, gr)
     assert right_small.shape == right_full.shape and right_small.dtype == np.int16
     no_match = (-(0 + 64 - 1) - 1) * DISP_SCALE  # the right matcher's minDisparity - 1, x16
     assert right_full.min() == no_match and right_small.min() == no_match

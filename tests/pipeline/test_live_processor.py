@@ -34,7 +34,7 @@ def test_every_view_is_displayable_and_no_match_has_its_colour():
     finally:
         proc.close()
     assert isinstance(out, LiveOutput) and out.scale_note == ""
-    for key in ("left", "right", "raw", "closed", "wls"):
+    for key in ("left", "right", "raw", "closed", "depth", "wls"):
         img = out.images[key]
         assert img.dtype == np.uint8 and img.shape == (H, W, 3), key
     r = out.result
@@ -43,7 +43,8 @@ def test_every_view_is_displayable_and_no_match_has_its_colour():
     # dark red, in the colour view and the gray ones alike
     assert r.not_seen is not None and r.not_seen[:, :SHIFT - 1].all()
     invalid = ~r.valid & ~r.not_seen
-    for key, m in (("wls", r.final_px), ("raw", r.disparity_px), ("closed", r.closed_px)):
+    for key, m in (("depth", r.final_px), ("raw", r.disparity_px), ("closed", r.closed_px),
+                   ("wls", r.wls_px)):
         assert (out.images[key][r.not_seen] == NOT_SEEN_RGB).all(), key
         no_match = np.isnan(m) & ~r.not_seen
         assert (out.images[key][no_match] == NO_MATCH_RGB).all(), key

@@ -39,7 +39,7 @@ from stereo_gui.qt.tabs.live_cloud import LiveCloud
 from stereo_gui.qt.tabs.live_exports import EXPORTS, LiveExports
 from stereo_gui.qt.tabs.live_readings import HOVER_HINT, LiveReadings
 from stereo_gui.qt.tabs.live_region import LiveRegion
-from stereo_gui.qt.tabs.live_views import VIEWS, ViewGrid
+from stereo_gui.qt.tabs.live_views import COLOR_VIEWS, VIEWS, ViewGrid
 from stereo_gui.qt.widgets.calibration_health import CalibrationHealthPanel
 from stereo_gui.qt.widgets.flow_layout import FlowLayout
 from stereo_gui.qt.widgets.no_calibration_page import NoCalibrationPage
@@ -50,11 +50,21 @@ from stereo_gui.sources.base import StereoFrame
 
 log = logging.getLogger(__name__)
 
-NO_WLS_TITLE = "Closed disparity (no WLS), colour = distance"
+NO_WLS_TITLE = "No WLS filter in this preset: the depth view"
+WLS_MEASURED_TITLE = "WLS filtered: this preset's depth (what a click reads)"
 # what the colours of pixels without depth mean, once under the views (not in every title)
 LEGEND = ("<span style='color:#6e1414'>■</span> dark red: no match &nbsp; "
           "<span style='color:#606060'>■</span> grey: not seen by the right camera")
-REGION_VIEW = "wls"  # the view that carries the region box
+REGION_VIEW = "depth"  # the view that carries the region box
+
+
+def wls_title(result) -> str:
+    """The WLS view's title for a frame: a picture, or the preset's depth itself."""
+    if result.wls_px is None:
+        return NO_WLS_TITLE
+    if result.wls_px is result.final_px or not result.params.check_block_size:
+        return WLS_MEASURED_TITLE
+    return VIEWS["wls"]
 
 
 class LiveTab(QWidget):
@@ -327,10 +337,8 @@ class LiveTab(QWidget):
         self._output = out
         # (a view ticked after this frame was made is left out: the next frame has it)
         self._to_draw = [k for k in self.visible_views() if k in out.images]
-        if "wls" in self.visible_views():
-            self._update_color_bar(out)
-        wls = out.result.wls_px is not None
-        self.panels["wls"].set_title(VIEWS["wls"] if wls else NO_WLS_TITLE)
+        self._update_color_bars(out)
+        self.panels["wls"].set_title(wls_title(out.result))
         self.readings.frame_shown()
         self.region.show(out.region)
         if out.scale_note != self._scale_note:
@@ -364,10 +372,15 @@ class LiveTab(QWidget):
         self.frames_shown += 1
         self.frameShown.emit()
 
-    def _update_color_bar(self, out: LiveOutput) -> None:
-        bar, scale = self.panels["wls"].color_bar, out.result.color_scale
-        if bar is not None and scale is not None and out.result.calibration is not None:
-            bar.set_scale(COLORMAPS[out.result.params.colormap], scale)
+    def _update_color_bars(self, out: LiveOutput) -> None:
+        scale = out.result.color_scale
+        if scale is None or out.result.calibration is None:
+            return
+        shown = self.visible_views()
+        for key in COLOR_VIEWS:
+            bar = self.panels[key].color_bar
+            if bar is not None and key in shown:
+                bar.set_scale(COLORMAPS[out.result.params.colormap], scale)
 
     # ---- the 3D point cloud -----------------------------------------------------------------
     def show_cloud(self) -> QWidget:
@@ -395,7 +408,7 @@ class LiveTab(QWidget):
         self.region.set_region(box, alarm_m)
 
     # ---- readings (see LiveReadings) ---------------------------------------------------------
-    def measure_at(self, x: float, y: float, key: str = "wls") -> int | None:
+    def measure_at(self, x: float, y: float, key: str = "depth") -> int | None:
         """Measure at rectified-left pixel (x, y) on the frame now shown; returns the job id."""
         return self.readings.measure_at(x, y, key)
 

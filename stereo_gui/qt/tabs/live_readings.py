@@ -138,7 +138,7 @@ class LiveReadings(QObject):
             return
         self.measure_at(x, y, key)
 
-    def measure_at(self, x: float, y: float, key: str = "wls") -> int | None:
+    def measure_at(self, x: float, y: float, key: str = "depth") -> int | None:
         """Measure at rectified-left pixel (x, y) on the frame now shown; returns the job id."""
         out = self._tab._output
         if out is None:

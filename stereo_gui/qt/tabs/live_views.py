@@ -15,9 +15,12 @@ VIEWS: dict[str, str] = {
     "right": "Rectified right",
     "raw": "Raw disparity (SGBM), bright = near",
     "closed": "After the closing filter",
-    "wls": "WLS filtered (confident pixels), colour = distance",
+    "depth": "Depth (what a click reads), colour = distance",
+    "wls": "WLS filtered (a picture: holes filled, not measured)",
 }
-SHORT_NAMES = {"left": "Left", "right": "Right", "raw": "Raw", "closed": "Closed", "wls": "WLS"}
+SHORT_NAMES = {"left": "Left", "right": "Right", "raw": "Raw", "closed": "Closed",
+               "depth": "Depth", "wls": "WLS"}
+COLOR_VIEWS = ("depth", "wls")  # the views coloured by distance, each with its colour bar
 
 
 class ViewGrid(QWidget):
@@ -34,7 +37,7 @@ class ViewGrid(QWidget):
         # every panel, shown or not, is a child of this grid: a hidden one is deleted with the
         # window, never left to the interpreter's exit as a top-level widget of its own
         for key, title in VIEWS.items():
-            panel = ImagePanel(key, title, color_bar=(key == "wls"), parent=self)
+            panel = ImagePanel(key, title, color_bar=(key in COLOR_VIEWS), parent=self)
             panel.hide()
             self.panels[key] = panel
             check = QCheckBox(SHORT_NAMES[key])

@@ -84,6 +84,13 @@ class RigConfig:
     t_direction: tuple[float, float, float] = (-1.0, 0.0065, -0.0085)
     noise_sigma: float = 2.0  # sensor noise, grey levels (standard deviation)
     gain_right: float = 0.93  # the right camera is a little darker
+    # what two cheap webcams add (all off by default): the right camera's own black level (grey
+    # levels added after its gain), darker corners (the share of brightness lost in the image
+    # corners, falling off with the squared distance from the centre) and MJPG compression
+    # (each frame JPEG-encoded at this quality and decoded, as a USB webcam sends it)
+    black_right: float = 0.0
+    vignetting: float = 0.0
+    jpeg_quality: int | None = None
     board: BoardSpec = field(default_factory=BoardSpec)
     supersample: int = 3  # samples per pixel along each axis (anti-aliasing)
 
@@ -95,6 +102,12 @@ class RigConfig:
     def __post_init__(self) -> None:
         if self.left.model != self.right.model:
             raise InputError("both cameras of the simulated rig need the same lens model")
+        if not 0.0 <= self.vignetting < 1.0:
+            raise InputError(f"vignetting must be from 0 to below 1, not {self.vignetting}")
+        if self.jpeg_quality is not None and not 1 <= self.jpeg_quality <= 100:
+            raise InputError(f"JPEG quality must be from 1 to 100, not {self.jpeg_quality}")
+        if not -255.0 <= self.black_right <= 255.0:
+            raise InputError(f"black level must be from -255 to 255, not {self.black_right}")
 
     @staticmethod
     def fisheye(**changes) -> RigConfig:

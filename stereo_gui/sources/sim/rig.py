@@ -99,7 +99,7 @@ class SimRig:
         self._rays = (ray_map(c.left, c.image_size, c.supersample),
                       ray_map(c.right, c.image_size, c.supersample))
         self._scene_cache: dict[tuple, tuple] = {}
-        self._noise: dict[int, np.ndarray] = {}
+        self._noise: dict[int | str, np.ndarray] = {}  # noise banks per camera, the vignette
         self._lock = threading.Lock()
         self._untouched: RigTruth | None = None  # the truth before turn_right_camera
 
@@ -476,7 +476,8 @@ class SimRig:
         zbuf = np.full((h * s, w * s), np.inf, np.float32)
         if scene is not None:
             for obj in scene.objects:
-                tex, texel = _texture(int(obj.seed), float(obj.width_mm), float(obj.height_mm))
+                tex, texel = _texture(int(obj.seed), float(obj.width_mm), float(obj.height_mm),
+                                      float(obj.contrast))
                 self._draw_plane(cam, self._object_plane(obj), tex, texel, img, zbuf)
         small = img if s == 1 else cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA)
         with self._lock:
@@ -517,12 +518,35 @@ class SimRig:
                 part = crop if s == 1 else cv2.resize(crop, ((x1 - x0) // s, (y1 - y0) // s),
                                                       interpolation=cv2.INTER_AREA)
                 out[y0 // s:y1 // s, x0 // s:x1 // s] = part
-        gain = 1.0 if cam == 0 else float(self.config.gain_right)
-        if self.config.noise_sigma > 0:
+        c = self.config
+        gain = 1.0 if cam == 0 else float(c.gain_right)
+        black = 0.0 if cam == 0 else float(c.black_right)
+        if c.vignetting > 0:
+            out = cv2.multiply(out, self._vignette(), dtype=cv2.CV_8U)
+        if c.noise_sigma > 0:
             dx, dy = (int(v) for v in rng.integers(0, _NOISE_PAD + 1, 2))
             noise = self._noise_bank(cam)[dy:dy + h, dx:dx + w]
-            return cv2.addWeighted(out, gain, noise, 1.0, -128.0, dtype=cv2.CV_8U)
-        return cv2.convertScaleAbs(out, alpha=gain)
+            img = cv2.addWeighted(out, gain, noise, 1.0, black - 128.0, dtype=cv2.CV_8U)
+        else:
+            img = cv2.convertScaleAbs(out, alpha=gain, beta=black)
+        if c.jpeg_quality is not None:
+            ok, data = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, int(c.jpeg_quality)])
+            img = cv2.imdecode(data, cv2.IMREAD_COLOR)
+        return img
+
+    def _vignette(self) -> np.ndarray:
+        """Per-pixel brightness factor (float32, 3 channels) of the lens's darker corners: 1 in
+        the centre, 1 - vignetting in the corners, quadratic in the distance between."""
+        v = self._noise.get("vignette")
+        if v is None:
+            w, h = self.config.image_size
+            y, x = np.mgrid[0:h, 0:w].astype(np.float32)
+            r2 = ((x - (w - 1) / 2) ** 2 + (y - (h - 1) / 2) ** 2) / (((w - 1) / 2) ** 2
+                                                                      + ((h - 1) / 2) ** 2)
+            f = (1.0 - self.config.vignetting * r2).astype(np.float32)
+            v = cv2.merge([f, f, f])
+            self._noise["vignette"] = v
+        return v
 
     def _render(self, pose: BoardPose | None, scene: Scene | None, rng) -> tuple[np.ndarray, np.ndarray]:
         rng = rng if rng is not None else np.random.default_rng()

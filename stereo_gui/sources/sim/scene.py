@@ -40,7 +40,8 @@ class BoardPose:
 class SceneObject:
     """A textured rectangle: centre (3,) mm in the left camera frame, in-plane unit axes u, v.
 
-    The rectangle spans centre +- u*width/2 +- v*height/2; `seed` picks its texture.
+    The rectangle spans centre +- u*width/2 +- v*height/2; `seed` picks its texture and
+    `contrast` scales it (1: the rig's usual rich texture; 0.1: a smooth painted wall).
     """
 
     name: str
@@ -50,10 +51,13 @@ class SceneObject:
     width_mm: float
     height_mm: float
     seed: int = 0
+    contrast: float = 1.0
 
     def __post_init__(self) -> None:
         for k in ("center", "u", "v"):
             object.__setattr__(self, k, np.asarray(getattr(self, k), np.float64).reshape(3))
+        if not (math.isfinite(self.contrast) and 0.0 <= self.contrast <= 4.0):
+            raise InputError(f"texture contrast must be from 0 to 4, not {self.contrast}")
 
     @property
     def normal(self) -> np.ndarray:
@@ -81,16 +85,18 @@ class SceneObject:
 
     def to_json(self) -> dict:
         return {"name": self.name, "center_mm": self.center.tolist(), "u": self.u.tolist(),
+                "contrast": self.contrast,
                 "v": self.v.tolist(), "width_mm": self.width_mm, "height_mm": self.height_mm,
                 "normal": self.normal.tolist(),
                 "distance_mm": float(self.center[2]) if abs(self.normal[2]) > 0.999 else None}
 
 
 def _fronto(name: str, cx: float, cy: float, z: float, w: float, h: float, seed: int,
-            yaw_deg: float = 0.0) -> SceneObject:
+            yaw_deg: float = 0.0, contrast: float = 1.0) -> SceneObject:
     a = math.radians(yaw_deg)
     u = np.array([math.cos(a), 0.0, math.sin(a)])
-    return SceneObject(name, np.array([cx, cy, z]), u, np.array([0.0, 1.0, 0.0]), w, h, seed)
+    return SceneObject(name, np.array([cx, cy, z]), u, np.array([0.0, 1.0, 0.0]), w, h, seed,
+                       contrast)
 
 
 @dataclass(frozen=True, eq=False)
@@ -101,15 +107,17 @@ class Scene:
     name: str = "scene"
 
     @staticmethod
-    def wall(distance_mm: float, seed: int = 1) -> Scene:
-        """A fronto-parallel textured wall at Z = distance_mm filling both cameras' views."""
+    def wall(distance_mm: float, seed: int = 1, contrast: float = 1.0) -> Scene:
+        """A fronto-parallel textured wall at Z = distance_mm filling both cameras' views, its
+        texture's contrast scaled by `contrast` (see SceneObject)."""
         z = float(distance_mm)
         if not z > 0:
             raise InputError(f"wall distance must be positive, not {distance_mm}")
         # wide enough for both cameras' (distorted, so wider) fields of view and the baseline
         w = 2.0 * (0.75 * z + 250.0)
         h = 2.0 * (0.6 * z + 200.0)
-        return Scene((_fronto("wall", 0.0, 0.0, z, w, h, seed),), name=f"wall-{z:g}mm")
+        return Scene((_fronto("wall", 0.0, 0.0, z, w, h, seed, contrast=contrast),),
+                     name=f"wall-{z:g}mm" + ("" if contrast == 1.0 else f"-contrast{contrast:g}"))
 
     @staticmethod
     def demo() -> Scene:

@@ -19,8 +19,10 @@ OCTAVES = ((1, 0.55), (2, 0.8), (4, 1.0), (8, 0.9), (16, 0.8), (48, 0.9), (160, 
 
 
 @functools.lru_cache(maxsize=16)
-def _texture(seed: int, width_mm: float, height_mm: float) -> tuple[np.ndarray, float]:
-    """A rich colour texture (uint8 HxWx3) for an object, and its texel size in mm.
+def _texture(seed: int, width_mm: float, height_mm: float, contrast: float = 1.0
+             ) -> tuple[np.ndarray, float]:
+    """A rich colour texture (uint8 HxWx3) for an object, and its texel size in mm; `contrast`
+    scales its variation around its mean colour.
 
     Multi-scale noise (octaves of smoothly upsampled random images) so that there is detail for
     the matcher at every distance: the texel follows the object's size, walls grow with distance.
@@ -38,7 +40,7 @@ def _texture(seed: int, width_mm: float, height_mm: float) -> tuple[np.ndarray, 
         layer = small if k == 1 else cv2.resize(small, (tw, th), interpolation=cv2.INTER_CUBIC)
         acc += amp * layer[:th, :tw]
         total += amp * amp
-    acc *= 46.0 / math.sqrt(total)
+    acc *= 46.0 * contrast / math.sqrt(total)
     acc += 125.0 + rng.uniform(-30.0, 30.0, 3).astype(np.float32)  # a tint per object
     tex = np.empty((th, tw, 4), np.uint8)
     tex[..., :3] = np.clip(acc, 10, 245)

@@ -208,10 +208,10 @@ def test_parameter_change_applies_to_next_frame(qtbot, ctx, live, sim_rig, wall_
     new = 5 if before != 5 else 7
     live.params_panel.closing.setValue(new)
     qtbot.waitUntil(lambda: live._output.result.params.closing_kernel == new, timeout=30000)
-    # and switching the WLS filter off shows the closed map in the colour view
+    # and switching the WLS filter off leaves its view showing the depth, and saying so
     live.params_panel.wls.setChecked(False)
     qtbot.waitUntil(lambda: live._output.result.wls_px is None, timeout=30000)
-    assert "no WLS" in live.panels["wls"].title.text
+    assert "No WLS" in live.panels["wls"].title.text
 
 
 def test_preset_chooser_and_save_as(qtbot, ctx, live):
@@ -324,7 +324,7 @@ def test_region_box_watches_the_nearest_distance_and_alarms(qtbot, ctx, live, si
     statuses = []
     ctx.statusMessage.connect(statuses.append)
     live.set_region((250, 180, 400, 300), alarm_m=1.0)  # the wall is at 1.5 m: no alarm
-    assert live.panels["wls"].region() == (250, 180, 400, 300)
+    assert live.panels["depth"].region() == (250, 180, 400, 300)
     qtbot.waitUntil(lambda: live.last_region is not None
                     and live.last_region.region.x0 == 250, timeout=30000)
     stats = live.last_region
@@ -334,13 +334,13 @@ def test_region_box_watches_the_nearest_distance_and_alarms(qtbot, ctx, live, si
     qtbot.waitUntil(lambda: live.last_region.alarm, timeout=30000)
     assert "ALARM" in live.region_label.text()
     assert any(s.startswith("ALARM") for s in statuses)
-    assert live.panels["wls"].region_box.pen.color().name() == REGION_ALARM
+    assert live.panels["depth"].region_box.pen.color().name() == REGION_ALARM
     # dragged elsewhere (what the box reports when the user lets go)
-    live.panels["wls"].show_region((10, 10, 40, 40))
-    live.panels["wls"].regionChanged.emit((10, 10, 40, 40))
+    live.panels["depth"].show_region((10, 10, 40, 40))
+    live.panels["depth"].regionChanged.emit((10, 10, 40, 40))
     qtbot.waitUntil(lambda: live.last_region.region.x0 == 10, timeout=30000)
     live.set_region(None)
-    assert live.panels["wls"].region_box is None and not live.region_label.isVisibleTo(live)
+    assert live.panels["depth"].region_box is None and not live.region_label.isVisibleTo(live)
 
 
 def test_hidden_views_belong_to_the_window_too(qtbot, ctx):

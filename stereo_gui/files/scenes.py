@@ -1,0 +1,150 @@
+"""Rectified stereo scenes with ground-truth disparity, listed in a scene file (the format of
+`../shared/data/scenes.tsv`): one scene a line, tab-separated
+
+    name  left  right  ground_truth  divide_by
+
+paths relative to the list's folder; `#` starts a comment line. The ground truth is a PFM file
+(float pixels, bottom row first, inf = unknown: Middlebury 2014) or an integer image (PNG, PGM)
+holding disparity x `divide_by`, 0 = unknown (Middlebury 2001-2006, KITTI). Truth is handed out
+as float32 px with 0 where unknown.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from stereo_gui.core.errors import InputError
+from stereo_gui.files.atomic import os_error_text
+
+MAX_LIST_BYTES = 1 << 20  # a list of scenes, not a data set
+MAX_PFM_SIDE = 30_000
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    """One line of a scene list: paths resolved against the list's folder."""
+
+    name: str
+    left: Path
+    right: Path
+    truth: Path
+    divide_by: float
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """A loaded scene: BGR uint8 images and the left view's true disparity (float32 px, 0 where
+    unknown), all of one size."""
+
+    name: str
+    left: np.ndarray
+    right: np.ndarray
+    truth_px: np.ndarray
+
+    @property
+    def size(self) -> tuple[int, int]:
+        return self.left.shape[1], self.left.shape[0]
+
+
+def read_scene_list(path: str | os.PathLike) -> list[SceneSpec]:
+    """The scenes of a list file; InputError with the file and line for anything malformed."""
+    path = Path(path)
+    try:
+        if path.stat().st_size > MAX_LIST_BYTES:
+            raise InputError(f"scene list {path} is too large to be one")
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"cannot read the scene list {path}: {os_error_text(exc)}") from None
+    except UnicodeDecodeError:
+        raise InputError(f"scene list {path} is not UTF-8 text") from None
+    folder = path.parent
+    out = []
+    for number, line in enumerate(text.splitlines(), 1):
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        fields = line.rstrip("\r\n").split("\t")
+        if len(fields) != 5:
+            raise InputError(f"{path}, line {number}: expected 5 tab-separated fields (name, "
+                             f"left, right, ground truth, divide by), found {len(fields)}")
+        name, left, right, truth, div = (f.strip() for f in fields)
+        try:
+            divide_by = float(div)
+        except ValueError:
+            divide_by = float("nan")
+        if not (np.isfinite(divide_by) and divide_by > 0):
+            raise InputError(f"{path}, line {number}: divide_by must be a positive number, "
+                             f"not {div!r}")
+        out.append(SceneSpec(name, folder / left, folder / right, folder / truth, divide_by))
+    if not out:
+        raise InputError(f"scene list {path} names no scene")
+    return out
+
+
+def read_pfm(path: str | os.PathLike) -> np.ndarray:
+    """A single-channel PFM image as float32, top row first (PFM stores the bottom row first;
+    a negative scale means little-endian)."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as fh:
+            kind = fh.readline().strip()
+            dims = fh.readline().split()
+            scale = float(fh.readline().strip())
+            if kind not in (b"Pf", b"PF") or len(dims) != 2:
+                raise ValueError("not a PFM header")
+            w, h = int(dims[0]), int(dims[1])
+            channels = 3 if kind == b"PF" else 1
+            if not (0 < w <= MAX_PFM_SIDE and 0 < h <= MAX_PFM_SIDE) or scale == 0:
+                raise ValueError(f"size {w}x{h}, scale {scale}")
+            data = np.fromfile(fh, "<f4" if scale < 0 else ">f4", w * h * channels)
+    except OSError as exc:
+        raise InputError(f"cannot read {path}: {os_error_text(exc)}") from None
+    except ValueError as exc:
+        raise InputError(f"{path} is not a PFM image ({exc})") from None
+    if data.size != w * h * channels:
+        raise InputError(f"{path} is cut short: {data.size} of {w * h * channels} values")
+    image = data.reshape(h, w, channels)[..., 0] if channels == 3 else data.reshape(h, w)
+    return np.ascontiguousarray(image[::-1]).astype(np.float32)
+
+
+def read_truth(path: str | os.PathLike, divide_by: float) -> np.ndarray:
+    """Ground-truth disparity in float32 px, 0 where unknown (PFM: inf or NaN; images: 0)."""
+    path = Path(path)
+    if path.suffix.lower() == ".pfm":
+        truth = read_pfm(path) / np.float32(divide_by)
+        truth[~np.isfinite(truth) | (truth < 0)] = 0.0
+        return truth
+    raw = _imread(path, cv2.IMREAD_UNCHANGED, "ground truth")
+    if raw.ndim == 3:
+        raw = raw[..., 0]
+    return raw.astype(np.float32) / np.float32(divide_by)
+
+
+def load_scene(spec: SceneSpec) -> Scene:
+    """Both images and the truth of a scene, checked to be of one size."""
+    left = _imread(spec.left, cv2.IMREAD_COLOR, f"{spec.name}: left image")
+    right = _imread(spec.right, cv2.IMREAD_COLOR, f"{spec.name}: right image")
+    truth = read_truth(spec.truth, spec.divide_by)
+    shapes = {left.shape[:2], right.shape[:2], truth.shape[:2]}
+    if len(shapes) != 1:
+        raise InputError(f"scene {spec.name}: the left image, the right image and the ground "
+                         f"truth differ in size ({left.shape[1]}x{left.shape[0]}, "
+                         f"{right.shape[1]}x{right.shape[0]}, {truth.shape[1]}x{truth.shape[0]})")
+    if not (truth > 0).any():
+        raise InputError(f"scene {spec.name}: its ground truth {spec.truth} knows no pixel")
+    return Scene(spec.name, left, right, truth)
+
+
+def _imread(path: Path, flags: int, what: str) -> np.ndarray:
+    try:
+        data = np.fromfile(str(path), np.uint8)
+    except OSError as exc:
+        raise InputError(f"cannot read {what} {path}: {os_error_text(exc)}") from None
+    image = cv2.imdecode(data, flags) if data.size else None
+    if image is None:
+        raise InputError(f"{what} {path} cannot be read as an image")
+    return image
