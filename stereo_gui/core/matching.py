@@ -700,6 +700,9 @@ class StereoPipeline:
                                 self._min_s + self._num_s - 1 - p.range_end_px))
             blank(agreed, occluded(agreed, p.agree_px,
                                    max(p.block_size, p.check_block_size) // 2 + 1))
+            # what matched on a blank surface matched noise, however well the windows agree
+            blank(agreed, blank_mask(ml, max(4, round(BLANK_HALF_PX * scale)),
+                                     max(1, round(BLANK_LAG_PX * scale))))
             agreed = enlarge(agreed, (w, h), p.agree_px) * np.float32(factor) if scale < 1.0 \
                 else agreed
         edge = self.edge_margin_px
@@ -782,6 +785,57 @@ class StereoPipeline:
             size=(w, h), params=p, disparity_range_px=self._range_full,
             calibration=self.calibration, color_scale=colours, wls_confidence=confidence,
             not_seen=not_seen, not_seen_cols=band, match_scale=scale)
+
+
+# a window is blank (nothing but sensor noise) when its pixels correlate with their neighbours
+# BLANK_LAG_PX away by less than BLANK_MIN_CORRELATION, over windows of BLANK_HALF_PX (full-
+# resolution px; both shrink with a preset's scale, the lag to no less than 1). On 49 x 49
+# windows that is 7 standard deviations of what noise alone gives (3 with the correlation the
+# rectification's interpolation leaves between neighbours)
+BLANK_HALF_PX = 24
+BLANK_LAG_PX = 2
+BLANK_MIN_CORRELATION = 0.15
+BLANK_NOISE_RATIO = 3.0  # ... and whose spread is at most this many times the noise level
+SENSOR_NOISE_MAX = 4.0  # grey levels
+
+
+def sensor_noise(gray: np.ndarray) -> float:
+    """The image's noise level, grey levels (1 sigma): Immerkaer's estimate from a second-
+    difference kernel's response, its robust median so that texture and edges (a minority of a
+    frame) do not count. Resampled images (rectified, shrunk) come out lower than the sensor's:
+    their noise is smoothed."""
+    kernel = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float32)
+    response = cv2.filter2D(gray.astype(np.float32), -1, kernel)[1:-1, 1:-1]
+    return float(1.4826 * np.median(np.abs(response)) / 6.0)  # (6: the kernel's norm)
+
+
+def blank_mask(gray: np.ndarray, half: int, lag: int = BLANK_LAG_PX,
+               min_correlation: float = BLANK_MIN_CORRELATION) -> np.ndarray:
+    """Pixels whose window (of `half` around them) holds nothing but sensor noise: a grey-level
+    spread within BLANK_NOISE_RATIO of the image's noise level (`sensor_noise`), and pixels
+    that correlate with their neighbours `lag` px away (right and below) by less than
+    `min_correlation`: texture at any contrast is smoother than noise, and a texture as fine as
+    noise but stronger shows in the spread. Bool mask, the size of `gray`."""
+    f = gray.astype(np.float32)
+    k = (2 * half + 1, 2 * half + 1)
+    h, w = f.shape
+    mean = cv2.boxFilter(f, -1, k)
+    spread2 = cv2.boxFilter(f * f, -1, k) - mean * mean
+    # (a frame covered by a texture as fine as noise would give that texture's spread: no
+    # camera's noise is larger than SENSOR_NOISE_MAX)
+    limit = BLANK_NOISE_RATIO * min(max(sensor_noise(gray), 0.25), SENSOR_NOISE_MAX)
+    weak = spread2 < np.float32(limit * limit)
+    if not weak.any():
+        return weak
+    corr = np.zeros((h, w), np.float32)
+    for a, b in ((f[:, :-lag], f[:, lag:]), (f[:-lag, :], f[lag:, :])):
+        ma, mb = cv2.boxFilter(a, -1, k), cv2.boxFilter(b, -1, k)
+        cov = cv2.boxFilter(a * b, -1, k) - ma * mb
+        va = cv2.boxFilter(a * a, -1, k) - ma * ma
+        vb = cv2.boxFilter(b * b, -1, k) - mb * mb
+        r = cov / np.sqrt(np.maximum(va * vb, np.float32(1e-6)))
+        corr[:r.shape[0], :r.shape[1]] += np.float32(0.5) * r
+    return weak & (corr < np.float32(min_correlation))
 
 
 NORMALIZED_SPREAD = 32.0  # grey levels one local standard deviation becomes

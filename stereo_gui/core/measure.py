@@ -18,8 +18,9 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import (DISP_SCALE, PipelineResult, agreement, compute_padded,
-                                     fixed_to_px, local_contrast, unseen_mask)
+from stereo_gui.core.matching import (BLANK_HALF_PX, BLANK_LAG_PX, DISP_SCALE, PipelineResult,
+                                     agreement, blank_mask, compute_padded, fixed_to_px,
+                                     local_contrast, unseen_mask)
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.core.util import to_gray
 
@@ -32,6 +33,7 @@ NOT_SEEN = "not seen by the right camera"
 NOT_SEARCHED = "not searched (the report's dead band at the left edge)"
 TOO_FEW = "too few valid pixels"
 AMBIGUOUS = "ambiguous match"
+AMBIGUOUS_SHARE = 0.25  # a reading whose 95 % bound exceeds this share of its distance
 REASONS = ("no valid pixels", TOO_FEW, NOT_SEEN, NOT_SEARCHED, "no texture", "too near", "too far",
            "outside the image", "out of disparity range", "no metric scale", AMBIGUOUS)
 Z95 = 1.959964  # two-sided 95 % quantile of the normal distribution
@@ -46,8 +48,15 @@ REFINED_FLOOR_PX = 0.02
 REFINEMENT_MOVE_SHARE = 0.1
 WINDOWS_SHARE = 3.0
 PIXEL_LOCKING_PX = 0.19
+# the alignment's standard error counts residuals as independent; neighbouring pixels' noise is
+# not (both images are resampled: rectification, the alignment's own cubic interpolation), and
+# on weak texture the error it leaves is this many times the standard error
+STDERR_SCALE = 2.5
 REFINE_MAX_SHIFT_PX = 2.0  # how far the refinement may move from the matcher's estimate
 REFINE_HALF_PX = 6  # the refinement aligns a 13 x 13 window around the point
+# ... and where that is not precise to REFINE_PRECISE_PX (weak texture), windows of these halves
+REFINE_GROWTH = (12, 24)
+REFINE_PRECISE_PX = 0.03
 MIN_VALID_FRACTION = 0.1  # share of the patch whose match must pass the checks
 EDGE_SPREAD_PX = 1.0  # a patch spread above this straddles surfaces (walls: at most 0.4 px)
 SCAN_MARGIN = 0.1  # correlation (NCC) by which a peak beyond the range must beat the estimate
@@ -55,6 +64,11 @@ SCAN_MARGIN = 0.1  # correlation (NCC) by which a peak beyond the range must bea
 # is near the sensor noise every window's best correlation is 0.2-0.5, wherever it lies
 SCAN_PEAK_MIN = 0.7
 TEXTURE_MIN_STD = 3.0  # grey levels: below this a window holds little more than sensor noise
+# (the check of presets without a second window; with one, a match is judged by the agreement)
+# with one, a reading needs its aligned windows to correlate beyond what noise gives: the
+# correlation's t statistic (correlation x sqrt(pixels), the pixels counted as STDERR_SCALE**2
+# times fewer: resampled noise is not independent) at least this
+TEXTURE_MIN_T = 3.0
 
 
 @dataclass(frozen=True)
@@ -124,6 +138,9 @@ class Refinement:
     stderr_px: float
     converged: bool
     moved_px: float = 0.0
+    # correlation of the left window with the aligned right one, and the window's pixel count
+    correlation: float = float("nan")
+    pixels: int = 0
     windows_px: float = 0.0  # how far the patch's own window disagrees (refine_point)
 
 
@@ -195,16 +212,24 @@ def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: i
         if abs(delta) < 1e-3:
             converged = True
             break
-    return Refinement(d, stderr, converged, abs(d - d0))
+    rc = Rc.reshape(-1).astype(np.float64)
+    denom = float(np.std(rc) * np.std(Lf))
+    corr = float(np.mean((rc - rc.mean()) * (Lf - Lf.mean())) / denom) if denom > 0 else 0.0
+    return Refinement(d, stderr, converged, abs(d - d0), corr, int(Lf.size))
 
 
 def refine_point(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, d0: float,
-                 half: int) -> Refinement | None:
+                 half: int, surface: np.ndarray | None = None) -> Refinement | None:
     """The reading's refinement: the alignment of a REFINE_HALF_PX window (larger than the patch:
     more texture, measured to be more accurate on walls and on the chessboard), checked against
     the same alignment of the patch's own window; `windows_px` is how far the two disagree (on a
     surface that matches cleanly they agree to a few hundredths of a pixel; on sharp, repeating
-    or sparse texture they do not, and the bound says so). None when it does not converge."""
+    or sparse texture they do not, and the bound says so). None when it does not converge.
+
+    Where the texture is weak (the alignment's standard error above REFINE_PRECISE_PX) the
+    window grows (REFINE_GROWTH) as long as the disparity map `surface` (px, NaN invalid) holds
+    one surface in it; a grown window's `windows_px` is the part of its disagreement with the
+    window before that the smaller window's own noise does not explain."""
     big = refine_disparity(left_gray, right_gray, x, y, d0, max(half, REFINE_HALF_PX),
                            max_shift_px=REFINE_MAX_SHIFT_PX)
     if not (big.converged and math.isfinite(big.stderr_px)):
@@ -213,7 +238,30 @@ def refine_point(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, 
                              max_shift_px=REFINE_MAX_SHIFT_PX)
     apart = (abs(big.disparity_px - small.disparity_px) if small.converged
              else big.moved_px)  # the small window alone found nothing: as unsure as the move
-    return replace(big, windows_px=apart)
+    best = replace(big, windows_px=apart)
+    for grown in REFINE_GROWTH:
+        if best.stderr_px <= REFINE_PRECISE_PX or surface is None:
+            break
+        h = max(half, grown)
+        if not one_surface(surface, x, y, h):
+            break
+        wider = refine_disparity(left_gray, right_gray, x, y, d0, h,
+                                 max_shift_px=REFINE_MAX_SHIFT_PX)
+        if not (wider.converged and wider.stderr_px < best.stderr_px):
+            break
+        unexplained = max(0.0, abs(wider.disparity_px - best.disparity_px)
+                          - Z95 * best.stderr_px)
+        best = replace(wider, windows_px=unexplained)
+    return best
+
+
+def one_surface(disparity_px: np.ndarray, x: int, y: int, half: int) -> bool:
+    """Whether the map's valid disparities in the window of `half` around (x, y) (clipped to
+    the map) lie on one surface: a robust spread of at most EDGE_SPREAD_PX."""
+    h, w = disparity_px.shape[:2]
+    values = disparity_px[max(0, y - half):y + half + 1, max(0, x - half):x + half + 1]
+    values = values[np.isfinite(values)]
+    return values.size >= 9 and robust_spread(values) <= EDGE_SPREAD_PX
 
 
 def rematch_strip(result: PipelineResult, y: int, half: int) -> np.ndarray | None:
@@ -375,6 +423,19 @@ def _estimate_from_right(result: PipelineResult, x: int, y: int, half: int) -> f
     return float(np.median(near))
 
 
+def is_blank(gray: np.ndarray, x: int, y: int) -> bool:
+    """Whether the window around (x, y) holds nothing but sensor noise (`core.matching.
+    blank_mask`'s rule on the full-resolution image, for one window)."""
+    h, w = gray.shape[:2]
+    half = BLANK_HALF_PX
+    y0, x0 = max(0, y - half), max(0, x - half)
+    win = gray[y0:min(h, y + half + 1), x0:min(w, x + half + 1)]
+    if win.shape[0] <= BLANK_LAG_PX or win.shape[1] <= BLANK_LAG_PX:
+        return False
+    mask = blank_mask(win, half, BLANK_LAG_PX)
+    return bool(mask[y - y0, x - x0])
+
+
 def _why_nothing(result: PipelineResult | None, x: int, y: int, half: int) -> str:
     """Reason for a patch without a usable match: the right camera cannot see the point, nothing
     to match, the surface beyond the range, or no match."""
@@ -387,8 +448,10 @@ def _why_nothing(result: PipelineResult | None, x: int, y: int, half: int) -> st
     d_est = _estimate_from_right(result, x, y, half)
     if d_est is not None and x - d_est < half:
         return NOT_SEEN
+    if p.check_block_size and is_blank(gl, x, y):
+        return "no texture"
     scan = best_match_disparity(gl, to_gray(result.rectified_right), x, y, max(half, 5))
-    if scan is not None:
+    if scan is not None and scan[1] >= SCAN_PEAK_MIN:
         d_lo, d_hi = result.disparity_range_px
         step = 1.0 / result.match_scale
         if scan[0] > d_hi + step:
@@ -406,7 +469,7 @@ def disparity_bound_px(refinement: Refinement | None, spread_px: float) -> float
     for that bias. A patch whose disparities spread more than EDGE_SPREAD_PX straddles a depth
     edge: its spread counts too."""
     if refinement is not None:
-        sigma = math.hypot(refinement.stderr_px, REFINED_FLOOR_PX,
+        sigma = math.hypot(STDERR_SCALE * refinement.stderr_px, REFINED_FLOOR_PX,
                            REFINEMENT_MOVE_SHARE * refinement.moved_px,
                            WINDOWS_SHARE * refinement.windows_px)
         if spread_px > EDGE_SPREAD_PX:
@@ -511,8 +574,11 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
     if result is not None:
         gl, gr = to_gray(result.rectified_left), to_gray(result.rectified_right)
     if refine and result is not None and mode == "point":
-        ref = refine_point(gl, gr, xi, yi, d, half)
+        ref = refine_point(gl, gr, xi, yi, d, half, surface=disp)
         if ref is not None:
+            if ref.correlation * math.sqrt(ref.pixels) < TEXTURE_MIN_T * STDERR_SCALE:
+                # the aligned windows share nothing the noise could not have given them
+                return invalid("no texture", disparity_px=d, **common)
             d = ref.disparity_px
     if result is not None and xi - d < -0.5:
         return invalid(NOT_SEEN, disparity_px=d, **common)
@@ -564,9 +630,10 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
         expected = _depth_bound_mm(calibration.focal_px * calibration.rectified_baseline_mm, d,
                                    bound_px) * (Z / _z_of(calibration, d))
         expected = with_calibration_uncertainty(expected, calibration, x, y, d)
-    if not (math.isfinite(expected) and expected < abs(Z)):
-        # the match fits so loosely that its 95 % bound spans more than the distance itself
-        # (one window's worth of texture near the sensor noise, or shading both cameras share)
+    if not (math.isfinite(expected) and expected <= AMBIGUOUS_SHARE * abs(Z)):
+        # the match fits so loosely that its 95 % bound spans a large part of the distance
+        # (texture near the sensor noise, shading both cameras share, a match into the strip
+        # the right camera cannot see): a number that says so little is no reading
         return invalid(AMBIGUOUS, disparity_px=d, method=method, **common)
     rng = math.sqrt(X * X + Y * Y + Z * Z)
     return Measurement(x, y, True, None, disparity_px=d, X_mm=X, Y_mm=Y, Z_mm=Z, range_mm=rng,

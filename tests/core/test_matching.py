@@ -469,3 +469,19 @@ def test_the_masks_made_in_the_band_give_the_whole_frames_results(monkeypatch):
         else:
             assert band < ours.size[0] // 3
     assert overshoots
+
+
+def test_blank_mask_finds_noise_alone_whatever_the_texture_would_be():
+    """Nothing but sensor noise is blank; a weak smooth texture (weaker than the noise per
+    pixel, but correlated over pixels) is not, nor is a strong texture as fine as noise."""
+    from stereo_gui.core.matching import blank_mask
+
+    rng = np.random.default_rng(8)
+    noise = rng.normal(0, 1.5, (120, 160))
+    smooth = cv2.GaussianBlur(rng.normal(0, 1.0, (120, 160)), (0, 0), 3.0) * 15.0  # spread 1.4
+    fine = rng.normal(0, 30.0, (120, 160))
+    for texture, blank in ((0.0, True), (smooth, False), (fine, False)):
+        img = np.clip(128 + noise + texture, 0, 255).astype(np.uint8)
+        mask = blank_mask(img, 12, 1)
+        share = mask[20:-20, 20:-20].mean()
+        assert share > 0.95 if blank else share < 0.05, (blank, share)

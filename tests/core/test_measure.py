@@ -310,3 +310,58 @@ def test_a_chessboard_is_read_not_refused_for_its_repeating_squares(rig):
     read = np.isfinite(errors)
     assert read.mean() >= 0.9, (read.mean(), reasons)
     assert (errors[read] <= bounds[read]).mean() >= 0.9
+
+
+@pytest.fixture(scope="module")
+def weak_rig():
+    """The rig with the sensor noise of a cheap webcam (1.5 grey levels)."""
+    from dataclasses import replace
+
+    from stereo_gui.sources.sim import RigConfig
+
+    return SimRig(replace(RigConfig(), noise_sigma=1.5), seed=5)
+
+
+@pytest.mark.parametrize("preset", ["live", "quality"])
+def test_a_painted_wall_of_weak_texture_is_read_over_the_whole_frame(weak_rig, preset):
+    """A smooth wall at 1 m whose texture is about as strong as the sensor noise (a 9x9 window's
+    grey-level spread near 1.5): a reading at nearly every point of a grid over the whole frame,
+    each within its +-, the worst within 2 %."""
+    from stereo_gui.commands.accuracy import WallTruth, grid_pixels
+
+    calib = weak_rig.true_calibration()
+    wall = 1000.0
+    left, right = weak_rig.render_scene(Scene.wall(wall, seed=21, contrast=0.06),
+                                        np.random.default_rng(4))
+    truth = WallTruth(weak_rig, calib, wall)
+    with StereoPipeline(calib, load_preset(preset)) as pipe:
+        result = pipe.process(left, right)
+    seen = read = covered = 0
+    worst = 0.0
+    for x, y in grid_pixels(calib.image_size):
+        z_true, visible = truth.point(x, y)
+        if not visible:
+            continue
+        seen += 1
+        m = measure_point(result, x, y)
+        if m.valid:
+            read += 1
+            covered += abs(m.Z_mm - z_true) <= m.expected_error_mm
+            worst = max(worst, abs(m.Z_mm - z_true) / z_true)
+    # (at 1 m one grid column's match lies 3.5 px inside the right image, where live's
+    # half-resolution window reaches past its edge: 7 of 56 points)
+    assert read >= 0.85 * seen, (read, seen)
+    assert covered >= 0.95 * read and worst <= 0.02, (covered, read, worst)
+
+
+@pytest.mark.parametrize("preset", ["live", "quality"])
+def test_a_blank_wall_is_refused_for_having_no_texture(weak_rig, preset):
+    """Nothing but sensor noise to match: no number anywhere, and the reason says why."""
+    calib = weak_rig.true_calibration()
+    left, right = weak_rig.render_scene(Scene.wall(1000.0, seed=21, contrast=0.0),
+                                        np.random.default_rng(4))
+    with StereoPipeline(calib, load_preset(preset)) as pipe:
+        result = pipe.process(left, right)
+    readings = [measure_point(result, x, y) for x, y in POINTS]
+    assert not any(m.valid for m in readings), readings
+    assert sum(m.reason == "no texture" for m in readings) >= len(POINTS) - 1, readings
