@@ -126,10 +126,8 @@ def build_window(source: str | None = None, calib: str | None = None):
     # the log, the readings of the last Clear log and the active fit of the last run
     warnings = [*warnings, *ctx.keep_log(default_log_path())]
     problems = [w for w in warnings] + ([calib_error] if calib_error else [])
-    if problems:
-        # keep what the tabs reported while they opened (a remembered session, ...)
-        shown = window.error_bar.label.text() if window.error_bar.isVisibleTo(window) else ""
-        window.show_error("; ".join(problems + ([shown] if shown else [])))
+    for text in problems:  # each kept in the error bar's list, beside what the tabs reported
+        window.show_error(text)
     return ctx, window
 
 
