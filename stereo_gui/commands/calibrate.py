@@ -229,10 +229,10 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     board = parse_board(args.board or ("7x5" if args.target == "charuco" else "9x6"),
                         args.square_mm, args.target, args.marker_mm, args.dict)
-    if not math.isfinite(args.alpha) or not (0.0 <= args.alpha <= 1.0 or args.alpha == -1.0):
+    if not (math.isfinite(args.alpha) and 0.0 <= args.alpha <= 1.0):
         raise InputError(f"--alpha must be between 0 and 1, not {args.alpha:g}")
-    if args.min_pairs < 1:
-        raise InputError(f"--min-pairs must be at least 1, not {args.min_pairs}")
+    if not 1 <= args.min_pairs <= 10_000:
+        raise InputError(f"--min-pairs must be from 1 to 10000, not {args.min_pairs}")
     output = Path(args.output)
     if not output.parent.is_dir() and str(output.parent):
         raise InputError(f"cannot write {output}: folder {output.parent} does not exist")

@@ -45,19 +45,19 @@ def load_calibration(spec: str, left_image: str | None = None) -> StereoCalibrat
 
 
 def read_image(path: str, what: str) -> np.ndarray:
+    """The image `path` (BGR); InputError naming it as the `what` image (too large files and
+    headers are refused before decoding: files.images)."""
+    from stereo_gui.files.images import read_image_file
+
     p = Path(path)
     if not p.is_file():
         raise InputError(f"{what} image {path} does not exist")
-    try:  # read by Python first: "permission denied" is then said as such
-        data = np.fromfile(str(p), np.uint8)
-    except OSError as exc:
-        from stereo_gui.files.atomic import os_error_text
+    return read_image_file(p, cv2.IMREAD_COLOR, name=f"{what} image {path}")
 
-        raise InputError(f"{what} image {path} cannot be read: {os_error_text(exc)}") from None
-    img = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
-    if img is None:
-        raise InputError(f"{what} image {path} cannot be read as an image")
-    return img
+
+# smaller images hold nothing to match (below a few pixels OpenCV's matchers fail with their
+# own assertions); the simulated rig's smallest frame, as `bench --size` allows
+MIN_IMAGE_SIZE = (64, 48)
 
 
 def read_pair(left: str, right: str, calibration: StereoCalibration) -> tuple[np.ndarray, np.ndarray]:
@@ -66,6 +66,9 @@ def read_pair(left: str, right: str, calibration: StereoCalibration) -> tuple[np
     out = []
     for path, what in ((left, "left"), (right, "right")):
         img = read_image(path, what)
+        if img.shape[1] < MIN_IMAGE_SIZE[0] or img.shape[0] < MIN_IMAGE_SIZE[1]:
+            raise InputError(f"{what} image {path} is {img.shape[1]}x{img.shape[0]} px: too small "
+                             f"to match (at least {MIN_IMAGE_SIZE[0]}x{MIN_IMAGE_SIZE[1]} px)")
         if (img.shape[1], img.shape[0]) != (w, h):
             raise InputError(f"{what} image {path} is {img.shape[1]}x{img.shape[0]} but the "
                              f"calibration is for {w}x{h}")

@@ -16,6 +16,7 @@ from stereo_gui.core.errors import InputError, StereoGuiError
 log = logging.getLogger(__name__)
 
 QUIT_AFTER_ENV = "STEREO_GUI_QUIT_AFTER"
+QUIT_AFTER_MAX_S = 86_400  # a day: the switch is for smoke tests of a build
 
 
 def quit_after_seconds() -> float | None:
@@ -27,8 +28,9 @@ def quit_after_seconds() -> float | None:
         value = float(raw)
     except ValueError:
         raise InputError(f"{QUIT_AFTER_ENV} must be a number of seconds, not {raw!r}") from None
-    if not value >= 0:
-        raise InputError(f"{QUIT_AFTER_ENV} must be zero or more seconds, not {raw!r}")
+    if not 0 <= value <= QUIT_AFTER_MAX_S:  # Qt's timers take at most 2**31 - 1 ms
+        raise InputError(f"{QUIT_AFTER_ENV} must be from 0 to {QUIT_AFTER_MAX_S} seconds, "
+                         f"not {raw!r}")
     return value
 
 

@@ -68,6 +68,19 @@ def test_bad_quit_after_value_is_refused(monkeypatch):
         quit_after_seconds()
     monkeypatch.setenv("STEREO_GUI_QUIT_AFTER", "1.5")
     assert quit_after_seconds() == 1.5
+    for raw in ("inf", "1e10", "nan", "-1"):  # the probe: an abort (1e10) or OverflowError (inf)
+        monkeypatch.setenv("STEREO_GUI_QUIT_AFTER", raw)
+        with pytest.raises(InputError, match="from 0 to 86400 seconds"):
+            quit_after_seconds()
+
+
+def test_quit_after_inf_exits_2_with_one_line(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "stereo_gui", "--source", "sim"],
+                          env=_env(tmp_path, STEREO_GUI_QUIT_AFTER="inf"), capture_output=True,
+                          text=True, timeout=60)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "STEREO_GUI_QUIT_AFTER" in lines[0], proc.stderr
 
 
 def test_build_window_loads_the_last_calibration_and_reports_a_broken_one(qtbot, sim_rig, tmp_path):
