@@ -139,27 +139,31 @@ def check_outputs(outputs) -> None:
 
 def run(args) -> int:
     from stereo_gui.files import depth_export
-    from stereo_gui.files.atomic import write_image_atomic
+    from stereo_gui.files.atomic import encode_image, write_many_atomic
 
     if Path(args.output).suffix.lower() not in (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"):
         raise InputError(f"{args.output}: the colour view needs an image suffix such as .png")
     check_outputs([(args.output, None), (args.npy, ".npy"), (args.png16, ".png"),
                    (args.depth_png, ".png"), (args.ply, ".ply")])
     calib, result = run_pipeline(args)
-    write_image_atomic(args.output, result.color_bgr)
+    d = result.final_px
+    items = [(args.output, encode_image(args.output, result.color_bgr), None)]
     written = [args.output]
     if args.npy:
-        depth_export.write_disparity_npy(args.npy, result.final_px)
+        items.append(depth_export.disparity_npy_item(args.npy, d))
         written.append(args.npy)
     if args.png16:
-        depth_export.write_disparity_png16(args.png16, result.final_px)
+        items.append(depth_export.disparity_png16_item(args.png16, d))
         written.append(args.png16)
     if args.depth_png:
-        depth_export.write_depth_png16(args.depth_png, result.final_px, calib)
+        items.append(depth_export.depth_png16_item(args.depth_png, d, calib))
         written.append(args.depth_png)
     if args.ply:
-        n = depth_export.write_ply(args.ply, result.final_px, result.rectified_left, calib)
+        item, n = depth_export.ply_item(args.ply, d, result.rectified_left, calib)
+        items.append(item)
         written.append(f"{args.ply} ({n} points)")
+    # all the outputs, or none: half old and half new outputs would not belong together
+    write_many_atomic(items, what="the set of outputs" if len(items) > 1 else None)
     valid = float(result.valid.mean()) * 100.0
     lo, hi = result.disparity_range_px
     print(f"preset {result.params.name}: {valid:.1f}% valid, disparity range {lo:.0f}..{hi:.0f} px; "

@@ -83,10 +83,13 @@ def run(args: argparse.Namespace) -> int:
             sys.stderr.write(f"\rrendering {done}/{total_}")
             sys.stderr.flush()
 
-    write_calibration_set(out, n_pairs=args.pairs, seed=args.seed, scene=args.scene,
-                          config=config, progress=progress)
-    if interactive:
-        sys.stderr.write("\n")
+    try:
+        write_calibration_set(out, n_pairs=args.pairs, seed=args.seed, scene=args.scene,
+                              config=config, progress=progress,
+                              what=f"the new simulated set in {out}")
+    finally:
+        if interactive:
+            sys.stderr.write("\n")
     # a smaller set over an earlier larger one would leave pairs that truth.json does not describe
     keep = set(calibration_set_names(args.pairs, args.scene))
     stale = [p for p in earlier if p.relative_to(out).as_posix() not in keep]
