@@ -209,20 +209,12 @@ def summary_text(result: CalibrationResult, output: Path, seconds: float) -> str
     return "\n".join(lines)
 
 
-def _excluded_in_session(folder: Path) -> set[str]:
-    """Names of the pairs a capture session in `folder` excludes (none without a manifest)."""
+def _session_in(folder: Path):
+    """The capture session in `folder`, or None without a manifest (opened once: what its
+    manifest could not give is said once, as a warning)."""
     from stereo_gui.files.session import MANIFEST, CaptureSession
 
-    if not (folder / MANIFEST).is_file():
-        return set()
-    return {p.name for p in CaptureSession.open(folder).pairs if p.excluded}
-
-
-def _swapped_session(folder: Path) -> bool:
-    """True when a capture session in `folder` says its cameras are swapped."""
-    from stereo_gui.files.session import MANIFEST, CaptureSession
-
-    return (folder / MANIFEST).is_file() and bool(CaptureSession.open(folder).swapped)
+    return CaptureSession.open(folder) if (folder / MANIFEST).is_file() else None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -243,11 +235,12 @@ def run(args: argparse.Namespace) -> int:
     found = discover_pairs(args.folder)
     if found.unpaired:
         sys.stderr.write(f"stereo-gui: warning: {found.warning()}\n")
-    excluded = _excluded_in_session(Path(args.folder))
+    session = _session_in(Path(args.folder))
+    excluded = {p.name for p in session.pairs if p.excluded} if session else set()
     pairs = [p for p in found.pairs if p.name not in excluded]
     if found.pairs and not pairs:
         raise InputError(f"every pair in {args.folder} is excluded in its capture session")
-    swap = bool(args.swap) or _swapped_session(Path(args.folder))
+    swap = bool(args.swap) or bool(session and session.swapped)
     sides = [(p.right, p.left) if swap else (p.left, p.right) for p in pairs]
     items = [PairInput(p.name, (lambda f=a: load_image(f)), (lambda f=b: load_image(f)),
                        a.name, b.name) for p, (a, b) in zip(pairs, sides)]
