@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import os
 import struct
-import time
 import zlib
 
 import cv2
