@@ -1,11 +1,11 @@
 """Reading image files: sizes checked before anything is decoded, the decoders' own complaints
 kept off the terminal.
 
-A file of gigabytes, or a 69-byte PNG whose header claims 100000 x 100000 pixels, made OpenCV
-fail with its own assertion (a traceback) or decode for minutes. Here the file's size is checked
-first, then the width and height its header gives (PNG, JPEG, BMP, TIFF, WebP, PNM: read from
-the first bytes, without decoding), both against limits stated in the error; what the header
-does not tell is checked after decoding. libpng and libjpeg write warnings straight to the
+Left to OpenCV, a file of gigabytes, or a 69-byte PNG whose header claims 100000 x 100000
+pixels, fails with OpenCV's own assertion or decodes for minutes. So the file's size is checked
+first, then the width and height its header gives (PNG, JPEG, BMP, TIFF, WebP, PNM: read from the
+header, without decoding), both against limits stated in the error; what the header does not
+tell is checked after decoding. libpng and libjpeg write warnings straight to the
 process's stderr ("libpng warning: iCCP: ..."); while a file is decoded they are caught and
 logged, and the first of them names what is wrong in our error.
 """
