@@ -26,7 +26,10 @@ import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 
+from stereo_gui.commands import options
 from stereo_gui.core.errors import InputError
+
+MAX_FRAMES = 10_000  # a preset at 2 frames per second: over an hour
 
 REFERENCE = "report"
 
@@ -48,12 +51,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("left", nargs="?", metavar="LEFT",
                         help="left raw image (without LEFT RIGHT: the simulated rig)")
     parser.add_argument("right", nargs="?", metavar="RIGHT", help="right raw image")
-    parser.add_argument("--frames", type=int, default=None, metavar="N",
+    parser.add_argument("--frames", type=options.whole(1, MAX_FRAMES), default=None, metavar="N",
                         help="frames per preset (default 30; with --scenes: frames timed per "
                         "scene and method, default 1)")
     parser.add_argument("--preset", action="append", metavar="P",
                         help="preset to time beside the report's loop (repeatable; default live)")
-    parser.add_argument("--rounds", type=int, default=1, metavar="R",
+    parser.add_argument("--rounds", type=options.whole(1, 1000), default=1, metavar="R",
                         help="interleave R rounds: the report's loop on N/8 frames (at least 2) "
                         "between the presets' runs of N frames; each round's ratio and the median "
                         "(default 1: the report's loop on N frames before and after)")
@@ -65,7 +68,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--calibration", choices=("true", "computed", "both"), default="both",
                         help="with --accuracy: the rig's true calibration, one computed from 20 "
                         "rendered board pairs, or both (default)")
-    parser.add_argument("--seed", type=int, default=None, metavar="S",
+    parser.add_argument("--seed", type=options.seed, default=None, metavar="S",
                         help="with --accuracy: the simulated rig's seed (default: the benchmark's)")
     parser.add_argument("--condition", action="append", metavar="C",
                         help="with --accuracy: how the walls are rendered (repeatable): rig (the "
@@ -223,8 +226,8 @@ def run_bench(args) -> dict:
 
     if args.frames is None:
         args.frames = 30
-    if args.frames < 1:
-        raise InputError(f"--frames must be at least 1, not {args.frames}")
+    if not 1 <= args.frames <= MAX_FRAMES:
+        raise InputError(f"--frames must be from 1 to {MAX_FRAMES}, not {args.frames}")
     rounds = getattr(args, "rounds", 1)
     if not 1 <= rounds <= 1000:
         raise InputError(f"--rounds must be between 1 and 1000, not {rounds}")

@@ -209,30 +209,22 @@ def summary_text(result: CalibrationResult, output: Path, seconds: float) -> str
     return "\n".join(lines)
 
 
-def _excluded_in_session(folder: Path) -> set[str]:
-    """Names of the pairs a capture session in `folder` excludes (none without a manifest)."""
+def _session_in(folder: Path):
+    """The capture session in `folder`, or None without a manifest (opened once: what its
+    manifest could not give is said once, as a warning)."""
     from stereo_gui.files.session import MANIFEST, CaptureSession
 
-    if not (folder / MANIFEST).is_file():
-        return set()
-    return {p.name for p in CaptureSession.open(folder).pairs if p.excluded}
-
-
-def _swapped_session(folder: Path) -> bool:
-    """True when a capture session in `folder` says its cameras are swapped."""
-    from stereo_gui.files.session import MANIFEST, CaptureSession
-
-    return (folder / MANIFEST).is_file() and bool(CaptureSession.open(folder).swapped)
+    return CaptureSession.open(folder) if (folder / MANIFEST).is_file() else None
 
 
 def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     board = parse_board(args.board or ("7x5" if args.target == "charuco" else "9x6"),
                         args.square_mm, args.target, args.marker_mm, args.dict)
-    if not math.isfinite(args.alpha) or not (0.0 <= args.alpha <= 1.0 or args.alpha == -1.0):
+    if not (math.isfinite(args.alpha) and 0.0 <= args.alpha <= 1.0):
         raise InputError(f"--alpha must be between 0 and 1, not {args.alpha:g}")
-    if args.min_pairs < 1:
-        raise InputError(f"--min-pairs must be at least 1, not {args.min_pairs}")
+    if not 1 <= args.min_pairs <= 10_000:
+        raise InputError(f"--min-pairs must be from 1 to 10000, not {args.min_pairs}")
     output = Path(args.output)
     if not output.parent.is_dir() and str(output.parent):
         raise InputError(f"cannot write {output}: folder {output.parent} does not exist")
@@ -243,11 +235,12 @@ def run(args: argparse.Namespace) -> int:
     found = discover_pairs(args.folder)
     if found.unpaired:
         sys.stderr.write(f"stereo-gui: warning: {found.warning()}\n")
-    excluded = _excluded_in_session(Path(args.folder))
+    session = _session_in(Path(args.folder))
+    excluded = {p.name for p in session.pairs if p.excluded} if session else set()
     pairs = [p for p in found.pairs if p.name not in excluded]
     if found.pairs and not pairs:
         raise InputError(f"every pair in {args.folder} is excluded in its capture session")
-    swap = bool(args.swap) or _swapped_session(Path(args.folder))
+    swap = bool(args.swap) or bool(session and session.swapped)
     sides = [(p.right, p.left) if swap else (p.left, p.right) for p in pairs]
     items = [PairInput(p.name, (lambda f=a: load_image(f)), (lambda f=b: load_image(f)),
                        a.name, b.name) for p, (a, b) in zip(pairs, sides)]

@@ -45,19 +45,19 @@ def load_calibration(spec: str, left_image: str | None = None) -> StereoCalibrat
 
 
 def read_image(path: str, what: str) -> np.ndarray:
+    """The image `path` (BGR); InputError naming it as the `what` image (too large files and
+    headers are refused before decoding: files.images)."""
+    from stereo_gui.files.images import read_image_file
+
     p = Path(path)
     if not p.is_file():
         raise InputError(f"{what} image {path} does not exist")
-    try:  # read by Python first: "permission denied" is then said as such
-        data = np.fromfile(str(p), np.uint8)
-    except OSError as exc:
-        from stereo_gui.files.atomic import os_error_text
+    return read_image_file(p, cv2.IMREAD_COLOR, name=f"{what} image {path}")
 
-        raise InputError(f"{what} image {path} cannot be read: {os_error_text(exc)}") from None
-    img = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
-    if img is None:
-        raise InputError(f"{what} image {path} cannot be read as an image")
-    return img
+
+# smaller images hold nothing to match (below a few pixels OpenCV's matchers fail with their
+# own assertions); the simulated rig's smallest frame, as `bench --size` allows
+MIN_IMAGE_SIZE = (64, 48)
 
 
 def read_pair(left: str, right: str, calibration: StereoCalibration) -> tuple[np.ndarray, np.ndarray]:
@@ -66,6 +66,9 @@ def read_pair(left: str, right: str, calibration: StereoCalibration) -> tuple[np
     out = []
     for path, what in ((left, "left"), (right, "right")):
         img = read_image(path, what)
+        if img.shape[1] < MIN_IMAGE_SIZE[0] or img.shape[0] < MIN_IMAGE_SIZE[1]:
+            raise InputError(f"{what} image {path} is {img.shape[1]}x{img.shape[0]} px: too small "
+                             f"to match (at least {MIN_IMAGE_SIZE[0]}x{MIN_IMAGE_SIZE[1]} px)")
         if (img.shape[1], img.shape[0]) != (w, h):
             raise InputError(f"{what} image {path} is {img.shape[1]}x{img.shape[0]} but the "
                              f"calibration is for {w}x{h}")
@@ -136,27 +139,31 @@ def check_outputs(outputs) -> None:
 
 def run(args) -> int:
     from stereo_gui.files import depth_export
-    from stereo_gui.files.atomic import write_image_atomic
+    from stereo_gui.files.atomic import encode_image, write_many_atomic
 
     if Path(args.output).suffix.lower() not in (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"):
         raise InputError(f"{args.output}: the colour view needs an image suffix such as .png")
     check_outputs([(args.output, None), (args.npy, ".npy"), (args.png16, ".png"),
                    (args.depth_png, ".png"), (args.ply, ".ply")])
     calib, result = run_pipeline(args)
-    write_image_atomic(args.output, result.color_bgr)
+    d = result.final_px
+    items = [(args.output, encode_image(args.output, result.color_bgr), None)]
     written = [args.output]
     if args.npy:
-        depth_export.write_disparity_npy(args.npy, result.final_px)
+        items.append(depth_export.disparity_npy_item(args.npy, d))
         written.append(args.npy)
     if args.png16:
-        depth_export.write_disparity_png16(args.png16, result.final_px)
+        items.append(depth_export.disparity_png16_item(args.png16, d))
         written.append(args.png16)
     if args.depth_png:
-        depth_export.write_depth_png16(args.depth_png, result.final_px, calib)
+        items.append(depth_export.depth_png16_item(args.depth_png, d, calib))
         written.append(args.depth_png)
     if args.ply:
-        n = depth_export.write_ply(args.ply, result.final_px, result.rectified_left, calib)
+        item, n = depth_export.ply_item(args.ply, d, result.rectified_left, calib)
+        items.append(item)
         written.append(f"{args.ply} ({n} points)")
+    # all the outputs, or none: half old and half new outputs would not belong together
+    write_many_atomic(items, what="the set of outputs" if len(items) > 1 else None)
     valid = float(result.valid.mean()) * 100.0
     lo, hi = result.disparity_range_px
     print(f"preset {result.params.name}: {valid:.1f}% valid, disparity range {lo:.0f}..{hi:.0f} px; "

@@ -5,9 +5,14 @@ from __future__ import annotations
 import argparse
 import json
 
+from stereo_gui.commands import options
 from stereo_gui.commands.disparity import add_pair_arguments, run_pipeline
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.measure import PATCH_PX, Measurement, measure_point
+
+
+MAX_PATCH_PX = 101  # as the window's own patch setting: wider patches straddle surfaces
+MAX_POINTS = 10_000
 
 
 def _point(text: str) -> tuple[float, float]:
@@ -22,8 +27,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_pair_arguments(parser)
     parser.add_argument("--at", action="append", type=_point, required=True, metavar="X,Y",
                         help="pixel of the rectified left image (repeat for more points)")
-    parser.add_argument("--patch", type=int, default=PATCH_PX, metavar="N",
-                        help=f"side of the square patch around each point, px (default {PATCH_PX})")
+    parser.add_argument("--patch", type=options.whole(1, MAX_PATCH_PX), default=PATCH_PX,
+                        metavar="N", help=f"side of the square patch around each point, px "
+                        f"(default {PATCH_PX}, at most {MAX_PATCH_PX})")
     parser.add_argument("--model", metavar="FIT",
                         help="a regression fit (JSON) to use instead of triangulation")
     parser.add_argument("--mode", choices=("point", "object"), default="point",
@@ -40,6 +46,8 @@ def measure_all(args) -> tuple[object, list[Measurement]]:
     """Run the pipeline once and measure every --at point; returns (calibration, measurements)."""
     if args.patch < 1:
         raise InputError(f"--patch must be at least 1, not {args.patch}")
+    if len(args.at) > MAX_POINTS:
+        raise InputError(f"{len(args.at)} --at points: give at most {MAX_POINTS} at a time")
     fit = None
     if args.model:
         from stereo_gui.files.fit_file import load_fit

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 
+from stereo_gui.commands import options
 from stereo_gui.core.board import TARGETS, parse_board
 from stereo_gui.core.errors import InputError
 from stereo_gui.sources.sim import (SCENE_FOLDER, RigConfig, SimRig, calibration_set_names,
@@ -20,24 +21,13 @@ from stereo_gui.sources.sim import (SCENE_FOLDER, RigConfig, SimRig, calibration
 _OWN_NAMES = re.compile(r"^(chessboard-[LR]\d+|scenes/scene-[LR]\d+)\.png$|^truth\.json$")
 
 
-def _seed(text: str) -> int:
-    """--seed: a whole number from 0 to 2**32 - 1 (numpy's seeds are never negative)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-    if not 0 <= value < 2**32:
-        raise argparse.ArgumentTypeError(f"{value} is not a seed: give 0 to {2**32 - 1}")
-    return value
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("out_dir", metavar="OUT_DIR", help="folder to write (created if missing)")
     parser.add_argument("--pairs", type=int, default=20, metavar="N",
                         help="number of chessboard pairs (default 20)")
     parser.add_argument("--scene", action="store_true",
                         help="also write scene pairs: walls at 0.5, 1, 1.5, 2, 3 m and the demo scene")
-    parser.add_argument("--seed", type=_seed, default=0, metavar="S",
+    parser.add_argument("--seed", type=options.seed, default=0, metavar="S",
                         help="random seed of the board poses and noise (default 0)")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace a simulated set already in OUT_DIR")
@@ -79,8 +69,9 @@ def run(args: argparse.Namespace) -> int:
     if args.pairs > 10000:
         raise InputError(f"--pairs {args.pairs} is more than anyone needs; give at most 10000")
     charuco = args.target == "charuco"
-    board = parse_board(args.board or ("7x5" if charuco else "9x6"),
-                        args.square_mm or (30.0 if charuco else 25.0), args.target,
+    # an explicit 0 is refused as a square size, not taken for the default
+    square_mm = (30.0 if charuco else 25.0) if args.square_mm is None else args.square_mm
+    board = parse_board(args.board or ("7x5" if charuco else "9x6"), square_mm, args.target,
                         args.marker_mm or (22.0 if charuco else 0.0))
     config = (RigConfig.fisheye(board=board) if args.lens == "fisheye" else RigConfig(board=board))
     out = Path(args.out_dir)
@@ -92,10 +83,13 @@ def run(args: argparse.Namespace) -> int:
             sys.stderr.write(f"\rrendering {done}/{total_}")
             sys.stderr.flush()
 
-    write_calibration_set(out, n_pairs=args.pairs, seed=args.seed, scene=args.scene,
-                          config=config, progress=progress)
-    if interactive:
-        sys.stderr.write("\n")
+    try:
+        write_calibration_set(out, n_pairs=args.pairs, seed=args.seed, scene=args.scene,
+                              config=config, progress=progress,
+                              what=f"the new simulated set in {out}")
+    finally:
+        if interactive:
+            sys.stderr.write("\n")
     # a smaller set over an earlier larger one would leave pairs that truth.json does not describe
     keep = set(calibration_set_names(args.pairs, args.scene))
     stale = [p for p in earlier if p.relative_to(out).as_posix() not in keep]

@@ -116,8 +116,8 @@ def fit_cubic(samples, norm_offset_px: float = REPORT_MIN_DISP,
     x = (d - norm_offset_px) / norm_span_px
     coef = np.polyfit(x, z, 3)
     r2, res = _r2(z, np.polyval(coef, x))
-    return FitResult("cubic", tuple(float(c) for c in coef), r2, res, s, float(norm_offset_px),
-                     float(norm_span_px))
+    return _plausible(FitResult("cubic", tuple(float(c) for c in coef), r2, res, s,
+                                float(norm_offset_px), float(norm_span_px)))
 
 
 def fit_inverse(samples, iterations: int = 50) -> FitResult:
@@ -147,7 +147,16 @@ def fit_inverse(samples, iterations: int = 50) -> FitResult:
     if not np.all(np.isfinite(pred)):
         raise InputError("the inverse fit failed: a sample lies at or below the fitted offset d0")
     r2, res = _r2(z, pred)
-    return FitResult("inverse", (float(a), float(d0)), r2, res, s)
+    return _plausible(FitResult("inverse", (float(a), float(d0)), r2, res, s))
+
+
+def _plausible(f: FitResult) -> FitResult:
+    """`f`, or InputError when it is no usable distance model (see `implausibility`): a fit
+    that could not be saved and loaded again is not offered either."""
+    why = implausibility(f)
+    if why:
+        raise InputError(f"the {f.model} fit is not usable: {why}")
+    return f
 
 
 def fit(model: str, samples) -> FitResult:
@@ -162,6 +171,62 @@ def report_cubic() -> FitResult:
     """The report's hand-fitted cubic (-593.97 x^3 + 1506.8 x^2 - 1373.1 x + 522.06 cm), in mm."""
     coef = tuple(10.0 * c for c in (-593.97, 1506.8, -1373.1, 522.06))
     return FitResult("cubic", coef, float("nan"), (), (), note="the student report's formula")
+
+
+# a fit's distance at one of its own samples may differ from the sample by this share of it at
+# most: a fit that misses its samples by more does not describe them (a damaged file)
+SAMPLE_MISS_SHARE = 0.5
+
+
+def implausibility(f: FitResult) -> str | None:
+    """Why `f` cannot turn disparities into distances over the disparities it is used at (those
+    of its samples: see `disparity_span`), or None when it can: its distance must be positive
+    there and fall as the disparity grows (two disparities with one distance would make a
+    reading ambiguous); a cubic without samples has no such range. Its residuals, when given,
+    must be what it predicts at its samples."""
+    if f.model == "inverse":
+        a, d0 = f.coefficients
+        if not a > 0:
+            return f"coefficient a (f*B) is {a:g}; it must be positive"
+        lo = f.disparity_span[0]
+        if f.samples and not d0 < lo:
+            return (f"its offset d0 = {d0:g} px is not below its smallest sample disparity "
+                    f"{lo:g} px: it gives no distance there")
+    elif not f.samples:
+        return "a cubic fit without samples has no range of disparities where it holds"
+    else:
+        lo, hi = f.disparity_span
+        coef = np.asarray(f.coefficients, np.float64)
+        x_lo, x_hi = ((v - f.norm_offset_px) / f.norm_span_px for v in (lo, hi))
+        slope = np.polyder(coef)
+        turns = [float(r.real) for r in np.roots(slope)
+                 if abs(r.imag) < 1e-12 and x_lo < r.real < x_hi]
+        if turns or (hi > lo and not np.polyval(slope, 0.5 * (x_lo + x_hi)) < 0):
+            at = f" (it turns at {turns[0] * f.norm_span_px + f.norm_offset_px:.4g} px)" \
+                if turns else ""
+            return (f"its distance does not fall steadily as the disparity grows from {lo:g} to "
+                    f"{hi:g} px{at}")
+        z_far = float(np.polyval(coef, x_hi))
+        if not z_far > 0:
+            return f"its distance at {hi:g} px is {z_far:g} mm; distances must be positive"
+    if f.samples:
+        d = np.array([s[0] for s in f.samples], np.float64)
+        z = np.array([s[1] for s in f.samples], np.float64)
+        with np.errstate(all="ignore"):
+            pred = np.asarray(f.predict(d), np.float64)
+        miss = np.abs(z - pred)
+        if not np.all(np.isfinite(pred)) or np.any(miss > SAMPLE_MISS_SHARE * z):
+            i = int(np.argmax(np.where(np.isfinite(miss), miss / z, np.inf)))
+            return (f"it gives {pred[i]:.6g} mm at sample {i + 1} ({d[i]:g} px), which is "
+                    f"{z[i]:g} mm: it does not describe its samples")
+        if f.residuals_mm:
+            r = np.asarray(f.residuals_mm, np.float64)
+            off = np.abs(z - pred - r)
+            if np.any(off > 1e-3 + 1e-6 * np.abs(z)):
+                i = int(np.argmax(off))
+                return (f"residual {i + 1} is {r[i]:g} mm but the fit misses sample {i + 1} by "
+                        f"{z[i] - pred[i]:g} mm: its coefficients or samples were changed")
+    return None
 
 
 # ---- to and from JSON documents (files.fit_file reads and writes the files) ----------------------
@@ -183,7 +248,11 @@ MAX_SAMPLES = 100_000
 def _finite(value, name: str, limit: float = MAX_COEFFICIENT) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise ValueError(f"{name} should be a number, not {type(value).__name__}")
-    v = float(value)
+    try:
+        v = float(value)
+    except OverflowError:  # an integer literal such as 10**400 has no float
+        raise ValueError(f"{name} is an integer beyond 1e308, not a finite number up to "
+                         f"{limit:g}") from None
     if not (math.isfinite(v) and abs(v) <= limit):
         raise ValueError(f"{name} is {v:g}, not a finite number up to {limit:g}")
     return v
@@ -243,6 +312,10 @@ def fit_from_dict(doc, where: str) -> FitResult:
                        MAX_DISPARITY_PX)
         if not span > 0:
             raise ValueError(f"normalisation span_px is {span:g}; it must be positive")
-        return FitResult(model, coef, r2, residuals, tuple(samples), offset, span)
+        result = FitResult(model, coef, r2, residuals, tuple(samples), offset, span)
+        why = implausibility(result)
+        if why:
+            raise ValueError(why)
+        return result
     except (KeyError, TypeError, ValueError) as exc:
         raise InputError(f"{where} is not usable: {exc}") from exc

@@ -22,6 +22,10 @@ MARGIN_MM = 6.0  # most printers print to 5 mm of the edge
 TEXT_MM = 3.5  # line height of the text (its letters are 0.8 of that)
 TEXT_BLOCK_MM = 11.0  # room under the target for the scale bar and two lines of text
 SCALE_BAR_MM = 100.0
+MAX_PAGE_MM = 2000.0  # wider than A0 (841 x 1189 mm) and the rolls of large-format printers
+# a printer's dot is 0.02 to 0.08 mm: below this a square (and the marker or circle in it) does
+# not print sharply enough for a detector to place its corners
+MIN_PRINTED_SQUARE_MM = 2.0
 
 
 @dataclass(frozen=True)
@@ -72,6 +76,9 @@ def parse_page(text: str) -> tuple[str, tuple[float, float]]:
     w, h = float(m.group(1)), float(m.group(2))
     if w <= 2 * MARGIN_MM or h <= 2 * MARGIN_MM:
         raise InputError(f"a page of {w:g} x {h:g} mm leaves no room inside its margins")
+    if w > MAX_PAGE_MM or h > MAX_PAGE_MM:
+        raise InputError(f"a page of {w:g} x {h:g} mm is larger than any printer's (at most "
+                         f"{MAX_PAGE_MM:g} mm a side)")
     return f"{w:g} x {h:g} mm", (w, h)
 
 
@@ -124,6 +131,9 @@ def layout(board: BoardSpec, page: str = "a4", margin_mm: float = MARGIN_MM) -> 
     """The target centred on the page (turned to landscape when it fits only so), with the scale
     bar and text under it; InputError when it fits neither way."""
     name, (pw, ph) = parse_page(page)
+    if board.square_mm < MIN_PRINTED_SQUARE_MM:
+        raise InputError(f"squares of {board.square_mm:g} mm do not print sharply enough to be "
+                         f"detected: give at least {MIN_PRINTED_SQUARE_MM:g} mm")
     tw, th = target_size_mm(board)
     need_h = th + TEXT_BLOCK_MM
     fits = [(w, h) for w, h in ((pw, ph), (ph, pw))

@@ -164,6 +164,9 @@ def load_any_calibration(spec: str | Path, image_size: SizeHint = None) -> Loade
         from stereo_gui.files.opencv_calibration import read_opencv_stereo
 
         got = read_opencv_stereo(path, image_size)
+        from stereo_gui.files.calibration_file import check_plausible
+
+        check_plausible(got.calibration, " + ".join(map(str, got.files)))
         size = got.calibration.image_size
         how = "from the file" if got.size_from_file else "from the images or source"
         files = " + ".join(p.name for p in got.files)

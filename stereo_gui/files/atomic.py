@@ -178,31 +178,91 @@ def write_bytes_atomic(target: str | os.PathLike, data: bytes,
     return write_many_atomic([(target, data, verify)])[0]
 
 
-def write_many_atomic(items) -> list[Path]:
-    """Write several files as one: `items` are (target, data bytes, verify or None). Every file
-    is written and checked under its temporary name before any target is replaced, so a full
-    disk leaves all the old files (a rename, which needs no space, is the only step after)."""
+def write_many_atomic(items, what: str | None = None) -> list[Path]:
+    """Write several files as one: `items` are (target, data bytes, verify or None), and may be
+    a generator (each file's data is made when its turn comes, so a large set is never in
+    memory at once). Every file is written and checked under its temporary name before any
+    target is replaced, so a full disk leaves all the old files; the renames that follow need
+    no space, and should one fail, the files already replaced get their old contents back.
+
+    `what` names the set for a person ("the simulated set in OUT"): an error then says that
+    nothing of it replaced an earlier file.
+    """
     prepared: list[tuple[Path, Path]] = []
     try:
         for target, data, verify in items:
             target = Path(target)
             prepared.append((_prepare(target, data, verify), target))
-    except BaseException:
+    except BaseException as exc:
         for tmp_path, _ in prepared:
             _discard(tmp_path, -1)
+        if what is not None and isinstance(exc, InputError):
+            raise InputError(f"{exc}; {what} was not written: every file it would have "
+                             "replaced is as it was") from exc
         raise
-    done: list[Path] = []
+    kept: list[tuple[Path, Path | None]] = []  # (target, its earlier file kept aside or None)
     for i, (tmp_path, target) in enumerate(prepared):
+        folder = _folder_of(target)
         try:
-            _commit(tmp_path, target, _folder_of(target))
+            earlier = _keep_earlier(target, folder)
+            kept.append((target, earlier))
+            _commit(tmp_path, target, folder)
         except OSError as exc:
             for rest, _ in prepared[i:]:
                 _discard(rest, -1)
-            written = f" ({', '.join(map(str, done))} already replaced)" if done else ""
-            raise InputError(f"cannot write {target}: {os_error_text(exc)}; "
-                             f"{target} was left as it was{written}") from exc
-        done.append(target)
-    return done
+            undone = _undo(kept, done=i)
+            replaced = [t for t, _ in kept[:i]]
+            if not replaced or undone:
+                where = (f"{target} was left as it was" if not replaced else
+                         f"the {len(replaced)} files already replaced have their earlier "
+                         "contents again")
+            else:
+                where = (f"{target} was left as it was ({', '.join(map(str, replaced))} "
+                         "already replaced)")
+            if what is not None and (not replaced or undone):
+                where += f"; {what} was not written: every file it would have replaced is as it was"
+            raise InputError(f"cannot write {target}: {os_error_text(exc)}; {where}") from exc
+    for _, earlier in kept:
+        if earlier is not None:
+            _discard(earlier, -1)
+    return [target for _, target in prepared]
+
+
+def _keep_earlier(target: Path, folder: Path) -> Path | None:
+    """A second name (a hard link: no data is copied) for the file at `target`, so that it can
+    be put back if a later file of the set cannot be renamed; None when there is no file, or
+    the file system has no hard links (it cannot be put back then)."""
+    if not target.is_file():
+        return None
+    for _ in range(100):
+        path = folder / f".{target.name}.{secrets.token_hex(4)}.earlier"
+        try:
+            os.link(target, path)
+        except FileExistsError:
+            continue
+        except OSError:
+            return None
+        return path
+    return None
+
+
+def _undo(kept: list[tuple[Path, Path | None]], done: int) -> bool:
+    """Put back the earlier files of the first `done` targets (those new ones not in place yet
+    stay as they were); True when every one is as it was."""
+    ok = True
+    for j, (target, earlier) in enumerate(kept):
+        try:
+            if j >= done:
+                if earlier is not None:
+                    earlier.unlink(missing_ok=True)
+                continue
+            if earlier is not None:
+                os.replace(earlier, target)
+            else:
+                target.unlink(missing_ok=True)  # it did not exist before the set
+        except OSError:
+            ok = False
+    return ok
 
 
 def _discard(tmp_path: Path, fd: int) -> None:
@@ -224,12 +284,17 @@ def _verify_json(path: Path) -> None:
     json.loads(path.read_text(encoding="utf-8"))
 
 
-def write_json_atomic(target: str | os.PathLike, doc) -> Path:
-    """Write `doc` as indented JSON atomically; the file is parsed back before the rename."""
+def json_item(target: str | os.PathLike, doc):
+    """`doc` as indented JSON for `target`, parsed back before the rename: an item of
+    `write_many_atomic`."""
     import json
 
-    return write_text_atomic(target, json.dumps(doc, indent=2) + "\n",
-                             _verify_json)
+    return (target, (json.dumps(doc, indent=2) + "\n").encode("utf-8"), _verify_json)
+
+
+def write_json_atomic(target: str | os.PathLike, doc) -> Path:
+    """Write `doc` as indented JSON atomically; the file is parsed back before the rename."""
+    return write_bytes_atomic(*json_item(target, doc))
 
 
 @contextlib.contextmanager
@@ -303,8 +368,9 @@ def write_atomic(target: str | os.PathLike, writer: Callable[[Path], None],
     return Path(target)
 
 
-def write_image_atomic(target: str | os.PathLike, image) -> Path:
-    """Encode `image` (a numpy array) in the format its suffix names and write it atomically."""
+def encode_image(target: str | os.PathLike, image) -> bytes:
+    """`image` (a numpy array) encoded in the format the suffix of `target` names; InputError
+    naming the target when OpenCV cannot."""
     import cv2
 
     target = Path(target)
@@ -315,4 +381,9 @@ def write_image_atomic(target: str | os.PathLike, image) -> Path:
     if not ok:
         raise InputError(f"cannot write {target}: OpenCV could not encode the image as "
                          f"{target.suffix or 'an image'}")
-    return write_bytes_atomic(target, buf.tobytes())
+    return buf.tobytes()
+
+
+def write_image_atomic(target: str | os.PathLike, image) -> Path:
+    """Encode `image` (a numpy array) in the format its suffix names and write it atomically."""
+    return write_bytes_atomic(target, encode_image(target, image))

@@ -16,7 +16,7 @@ import numpy as np
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import DISP_SCALE
 from stereo_gui.core.stereo_calibration import StereoCalibration
-from stereo_gui.files.atomic import write_bytes_atomic, write_image_atomic
+from stereo_gui.files.atomic import encode_image, write_bytes_atomic
 
 UINT16_MAX = np.iinfo(np.uint16).max
 
@@ -63,17 +63,23 @@ def depth_to_png16(depth: np.ndarray) -> np.ndarray:
     return np.where(ok, mm, 0).astype(np.uint16)
 
 
-def _imwrite(path, image: np.ndarray) -> Path:
+# Each export is made as an item (path, bytes, verify or None) that files.atomic writes: alone
+# (the write_* functions) or with others as one set (write_many_atomic), all or none.
+def _png16_item(path, image: np.ndarray):
     if Path(path).suffix.lower() != ".png":
         raise InputError(f"{path}: a 16-bit image must be written as .png")
-    return write_image_atomic(path, image)
+    return (path, encode_image(path, image), None)
+
+
+def disparity_png16_item(path, disparity_px: np.ndarray):
+    return _png16_item(path, disparity_to_png16(disparity_px))
 
 
 def write_disparity_png16(path, disparity_px: np.ndarray) -> Path:
-    return _imwrite(path, disparity_to_png16(disparity_px))
+    return write_bytes_atomic(*disparity_png16_item(path, disparity_px))
 
 
-def write_disparity_npy(path, disparity_px: np.ndarray) -> Path:
+def disparity_npy_item(path, disparity_px: np.ndarray):
     d = _check(disparity_px)
     buf = io.BytesIO()
     np.save(buf, d.astype(np.float32))
@@ -84,11 +90,19 @@ def write_disparity_npy(path, disparity_px: np.ndarray) -> Path:
         if back.shape != expected or back.dtype != np.float32:
             raise ValueError(f"it holds {back.dtype} {back.shape}, not float32 {expected}")
 
-    return write_bytes_atomic(path, buf.getvalue(), verify)
+    return (path, buf.getvalue(), verify)
+
+
+def write_disparity_npy(path, disparity_px: np.ndarray) -> Path:
+    return write_bytes_atomic(*disparity_npy_item(path, disparity_px))
+
+
+def depth_png16_item(path, disparity_px: np.ndarray, calibration: StereoCalibration):
+    return _png16_item(path, depth_to_png16(depth_mm(disparity_px, calibration)))
 
 
 def write_depth_png16(path, disparity_px: np.ndarray, calibration: StereoCalibration) -> Path:
-    return _imwrite(path, depth_to_png16(depth_mm(disparity_px, calibration)))
+    return write_bytes_atomic(*depth_png16_item(path, disparity_px, calibration))
 
 
 def write_ply(path, disparity_px: np.ndarray, color_bgr: np.ndarray,
@@ -98,6 +112,14 @@ def write_ply(path, disparity_px: np.ndarray, color_bgr: np.ndarray,
     `color_bgr` is an image of the same size (e.g. the rectified left image). Returns the number
     of points written.
     """
+    item, n = ply_item(path, disparity_px, color_bgr, calibration)
+    write_bytes_atomic(*item)  # size and bytes checked there
+    return n
+
+
+def ply_item(path, disparity_px: np.ndarray, color_bgr: np.ndarray,
+             calibration: StereoCalibration):
+    """(the PLY's item, the number of points in it); see write_ply."""
     xyz = points_mm(disparity_px, calibration)
     color = np.asarray(color_bgr)
     if color.shape[:2] != xyz.shape[:2]:
@@ -120,11 +142,11 @@ def write_ply(path, disparity_px: np.ndarray, color_bgr: np.ndarray,
         "property uchar red\nproperty uchar green\nproperty uchar blue\n"
         "end_header\n"
     ).encode("ascii")
-    write_bytes_atomic(path, header + vertex.tobytes())  # size and bytes checked there
-    return n
+    return (path, header + vertex.tobytes(), None), n
 
 
 __all__ = [
     "disparity_to_png16", "points_mm", "depth_mm", "depth_to_png16", "write_disparity_png16",
-    "write_disparity_npy", "write_depth_png16", "write_ply",
+    "write_disparity_npy", "write_depth_png16", "write_ply", "disparity_png16_item",
+    "disparity_npy_item", "depth_png16_item", "ply_item",
 ]

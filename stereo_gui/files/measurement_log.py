@@ -18,7 +18,8 @@ from pathlib import Path
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.regression import FitResult, fit_from_dict, fit_to_dict
 from stereo_gui.files.atomic import write_text_atomic
-from stereo_gui.files.spreadsheet import MeasurementRecord
+from stereo_gui.files.readers import set_aside
+from stereo_gui.files.spreadsheet import RULER_METHOD, MeasurementRecord
 
 log = logging.getLogger(__name__)
 
@@ -60,9 +61,11 @@ def _record_to_json(r: MeasurementRecord) -> dict:
 
 _FLOAT_FIELDS = {f.name for f in fields(MeasurementRecord) if "float" in str(f.type)}
 _TEXT_FIELDS = {"time", "reason", "method", "calibration_file"}
+_VALID_NEEDS = ("Z_mm", "range_mm")
+NO_DISTANCE_KEPT = "no distance was kept for it"
 
 
-def _record_from_json(doc, where: str) -> MeasurementRecord:
+def _record_from_json(doc, where: str, warnings: list[str] | None = None) -> MeasurementRecord:
     if not isinstance(doc, dict):
         raise InputError(f"{where}: a reading is not a JSON object")
     kw = {}
@@ -85,13 +88,24 @@ def _record_from_json(doc, where: str) -> MeasurementRecord:
             if v is None:
                 v = float("nan")
             elif isinstance(v, bool) or not isinstance(v, int | float):
-                raise InputError(f"{where}: {f.name!r} must be a number, not {v!r}")
-            v = float(v)
+                raise InputError(f"{where}: {f.name!r} must be a number, not {v!r:.40}")
+            try:
+                v = float(v)
+            except OverflowError:  # an integer such as 10**400 has no float
+                raise InputError(f"{where}: {f.name!r} is an integer beyond 1e308") from None
         kw[f.name] = v
     missing = {"time", "x_px", "y_px", "disparity_px", "X_mm", "Y_mm", "Z_mm", "range_mm",
                "valid"} - set(kw)
     if missing:
         raise InputError(f"{where}: a reading lacks {', '.join(sorted(missing))}")
+    # a valid reading is a distance: without one it would be listed, exported and fitted as one
+    needs = ("range_mm",) if str(kw.get("method", "")).startswith(RULER_METHOD) else _VALID_NEEDS
+    unknown = [k for k in needs if not math.isfinite(kw[k])] if kw["valid"] else []
+    if unknown:
+        kw["valid"], kw["reason"] = False, NO_DISTANCE_KEPT
+        if warnings is not None:
+            warnings.append(f"{where}: a reading marked valid has no {', '.join(unknown)}; it is "
+                            "kept as invalid")
     return MeasurementRecord(**kw)
 
 
@@ -103,12 +117,17 @@ def log_to_json(kept: KeptLog) -> str:
     return json.dumps(doc, indent=1, allow_nan=False) + "\n"
 
 
-def log_from_json(text: str, where: str) -> KeptLog:
-    """The kept log in `text`; InputError naming `where` when it cannot be used."""
+def log_from_json(text: str, where: str, warnings: list[str] | None = None) -> KeptLog:
+    """The kept log in `text`; InputError naming `where` when it cannot be used. What is used
+    only in part (a reading marked valid without a distance) is added to `warnings`."""
     try:
         doc = json.loads(text)
+    except RecursionError:
+        raise InputError(f"{where} is nested too deeply to be a measurement log") from None
     except json.JSONDecodeError as exc:
         raise InputError(f"{where} is not valid JSON: {exc}") from exc
+    except ValueError:  # Python refuses integer literals of more than 4300 digits
+        raise InputError(f"{where} holds an integer too long to be a number") from None
     if not isinstance(doc, dict):
         raise InputError(f"{where} does not hold a JSON object")
     version = doc.get("format_version")
@@ -120,10 +139,17 @@ def log_from_json(text: str, where: str) -> KeptLog:
         items = doc.get(key, [])
         if not isinstance(items, list):
             raise InputError(f"{where}: {key!r} is not a list")
-        lists.append(tuple(_record_from_json(d, f"{where}, {key}[{i}]")
+        lists.append(tuple(_record_from_json(d, f"{where}, {key}[{i}]", warnings)
                            for i, d in enumerate(items)))
     fit_doc = doc.get("active_fit")
-    fit = None if fit_doc is None else fit_from_dict(fit_doc, f"{where}, active fit")
+    try:
+        fit = None if fit_doc is None else fit_from_dict(fit_doc, f"{where}, active fit")
+    except InputError as exc:
+        if warnings is None:
+            raise
+        # the readings are worth keeping without the fit: live readings then triangulate
+        warnings.append(f"{exc}; live readings use triangulation")
+        fit = None
     return KeptLog(lists[0], lists[1], fit)
 
 
@@ -146,16 +172,16 @@ def load_log(path: str | os.PathLike | None = None) -> tuple[KeptLog, list[str]]
     path = Path(path) if path is not None else default_log_path()
     if not path.exists():
         return KeptLog(), []
+    warnings: list[str] = []
     try:
-        kept = log_from_json(path.read_text(encoding="utf-8"), f"measurement log {path}")
+        kept = log_from_json(path.read_text(encoding="utf-8"), f"measurement log {path}",
+                             warnings)
     except (OSError, UnicodeDecodeError, InputError) as exc:
-        aside = path.with_name(path.name + ".unreadable")
-        try:
-            os.replace(path, aside)
-            where = f"; it was kept as {aside.name}"
-        except OSError:
-            where = ""
+        aside = set_aside(path)
+        where = f"; it was kept as {aside.name}" if aside is not None else ""
         text = f"the measurement log could not be restored: {exc}{where}"
         log.warning("%s", text)
         return KeptLog(), [text]
-    return kept, []
+    for w in warnings:
+        log.warning("%s", w)
+    return kept, warnings

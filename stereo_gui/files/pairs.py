@@ -157,20 +157,11 @@ def discover_pairs(folder: str | Path) -> PairDiscovery:
 
 # ---- loading ---------------------------------------------------------------------------------
 def load_image(path: str | Path, grayscale: bool = False) -> np.ndarray:
-    """Read an image file (BGR uint8, or gray); raise InputError naming the file if it cannot."""
-    path = Path(path)
-    try:
-        data = np.fromfile(str(path), np.uint8)  # works with any characters in the path
-    except OSError as exc:
-        from stereo_gui.files.atomic import os_error_text
+    """Read an image file (BGR uint8, or gray); raise InputError naming the file if it cannot
+    (too large files and headers are refused before decoding: files.images)."""
+    from stereo_gui.files.images import read_image_file
 
-        raise InputError(f"cannot read image {path}: {os_error_text(exc)}") from exc
-    img = None
-    if data.size:
-        img = cv2.imdecode(data, cv2.IMREAD_GRAYSCALE if grayscale else cv2.IMREAD_COLOR)
-    if img is None:
-        raise InputError(f"cannot read image {path}: the file is corrupt or not an image")
-    return img
+    return read_image_file(path, cv2.IMREAD_GRAYSCALE if grayscale else cv2.IMREAD_COLOR)
 
 
 def _size(img: np.ndarray) -> tuple[int, int]:

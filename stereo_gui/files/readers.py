@@ -4,13 +4,31 @@ from __future__ import annotations
 
 import csv
 import json
+import logging
 import os
 from pathlib import Path
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.files.atomic import os_error_text
 
+log = logging.getLogger(__name__)
+
 MAX_JSON_BYTES = 64 << 20  # none of our JSON files comes near this
+UNREADABLE_SUFFIX = ".unreadable"
+
+
+def set_aside(path: str | os.PathLike) -> Path | None:
+    """Rename a remembered file that cannot be used to `<name>.unreadable` (replacing an older
+    one), so that the next save does not overwrite what a person may still want; return the new
+    path, or None when it could not be renamed (the reason is logged)."""
+    path = Path(path)
+    aside = path.with_name(path.name + UNREADABLE_SUFFIX)
+    try:
+        os.replace(path, aside)
+    except OSError as exc:
+        log.info("cannot set %s aside: %s", path, os_error_text(exc))
+        return None
+    return aside
 
 
 def read_json_object(path: str | os.PathLike, what: str) -> dict:
@@ -25,8 +43,10 @@ def read_json_object(path: str | os.PathLike, what: str) -> dict:
         raise InputError(f"cannot read {what} {path}: {os_error_text(exc)}") from exc
     except RecursionError:
         raise InputError(f"{what} {path} is nested too deeply to be one") from None
-    except (ValueError, UnicodeDecodeError) as exc:  # JSONDecodeError, huge integer literals
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise InputError(f"{what} {path} is not valid JSON: {exc}") from exc
+    except ValueError:  # Python refuses integer literals of more than 4300 digits
+        raise InputError(f"{what} {path} holds an integer too long to be a number") from None
     if not isinstance(doc, dict):
         raise InputError(f"{what} {path} does not hold a JSON object")
     return doc

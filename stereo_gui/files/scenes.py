@@ -140,11 +140,6 @@ def load_scene(spec: SceneSpec) -> Scene:
 
 
 def _imread(path: Path, flags: int, what: str) -> np.ndarray:
-    try:
-        data = np.fromfile(str(path), np.uint8)
-    except OSError as exc:
-        raise InputError(f"cannot read {what} {path}: {os_error_text(exc)}") from None
-    image = cv2.imdecode(data, flags) if data.size else None
-    if image is None:
-        raise InputError(f"{what} {path} cannot be read as an image")
-    return image
+    from stereo_gui.files.images import read_image_file
+
+    return read_image_file(path, flags, name=f"{what} {path}")

@@ -103,6 +103,29 @@ def _text(v, field: str, empty: bool = True) -> str:
     return v
 
 
+def _pair_entry(folder: Path, p, i: int, excluded: set[str], names: set[str],
+                numbers: set[int], files: set[Path]) -> PairEntry:
+    """The manifest's pairs entry `p` (number `i`), checked against those before it (their
+    names, numbers and files, which this one joins); ValueError naming what is wrong."""
+    if not isinstance(p, dict):
+        raise ValueError(f"pairs entry {i} should be an object")
+    name = _text(p.get("name"), f"pairs entry {i} name", empty=False)
+    number = _whole(p.get("number"), f"pairs entry {i} number", 1, 10**9)
+    if name in names:
+        raise ValueError(f"pairs entry {i}: name {name!r} is listed twice")
+    if number in numbers:
+        raise ValueError(f"pairs entry {i}: number {number} is listed twice")
+    left = _inside(folder, p.get("left"), f"pairs entry {i} ({name}) left")
+    right = _inside(folder, p.get("right"), f"pairs entry {i} ({name}) right")
+    if left == right or left in files or right in files:
+        raise ValueError(f"pairs entry {i}: its image files are listed twice")
+    time = _text(p.get("time", ""), f"pairs entry {i} time")
+    names.add(name)
+    numbers.add(number)
+    files.update((left, right))
+    return PairEntry(name, number, left, right, time, name in excluded)
+
+
 def _is_inside(folder: Path, path: Path) -> bool:
     try:
         Path(path).resolve().relative_to(Path(folder).resolve())
@@ -244,24 +267,18 @@ class CaptureSession:
         names: set[str] = set()
         numbers: set[int] = set()
         files: set[Path] = set()
+        dropped = 0
         for i, p in enumerate(raw_pairs, start=1):
-            if not isinstance(p, dict):
-                raise ValueError(f"pairs entry {i} should be an object")
-            name = _text(p.get("name"), f"pairs entry {i} name", empty=False)
-            number = _whole(p.get("number"), f"pairs entry {i} number", 1, 10**9)
-            if name in names:
-                raise ValueError(f"pairs entry {i}: name {name!r} is listed twice")
-            if number in numbers:
-                raise ValueError(f"pairs entry {i}: number {number} is listed twice")
-            left = _inside(folder, p.get("left"), f"pairs entry {i} left")
-            right = _inside(folder, p.get("right"), f"pairs entry {i} right")
-            if left == right or left in files or right in files:
-                raise ValueError(f"pairs entry {i}: its image files are listed twice")
-            names.add(name)
-            numbers.add(number)
-            files.update((left, right))
-            e = PairEntry(name, number, left, right, _text(p.get("time", ""), f"pairs entry {i} "
-                                                           "time"), name in excluded)
+            # an entry that cannot be used (a file outside the folder, a number listed twice)
+            # is left out alone: the other pairs and the exclusions still hold
+            try:
+                e = _pair_entry(folder, p, i, excluded, names, numbers, files)
+            except ValueError as exc:
+                dropped += 1
+                warnings.append(f"{folder / MANIFEST}: {exc}; that entry is left out (the "
+                                f"manifest is kept as {MANIFEST}.unreadable when the session "
+                                "changes)")
+                continue
             if not (e.left.is_file() and e.right.is_file()):
                 warnings.append(f"{folder}: pair {e.name} is listed but its images are missing; "
                                 "it is left out")
@@ -274,6 +291,7 @@ class CaptureSession:
                 continue
             if any(p.name == e.name for p in pairs):
                 e = replace(e, name=f"{e.name}-{e.number}")
+            e = replace(e, excluded=e.name in excluded)  # exclusions are kept by name
             warnings.append(f"{folder}: pair {e.left.name}/{e.right.name} was not in the "
                             "manifest; it is added")
             pairs.append(e)
@@ -285,6 +303,7 @@ class CaptureSession:
         if not isinstance(swapped, bool):
             raise ValueError("swapped should be true or false")
         s.swapped = swapped
+        s._unreadable_manifest = dropped > 0  # what was left out is kept for the person
         return s
 
     # ---- reading ----------------------------------------------------------------------------

@@ -27,6 +27,7 @@ from stereo_gui.core.board import (
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.measure import PATCH_PX
 from stereo_gui.files.atomic import write_json_atomic
+from stereo_gui.files.readers import set_aside
 
 log = logging.getLogger(__name__)
 
@@ -241,10 +242,15 @@ def load_settings(path: str | os.PathLike | None = None) -> tuple[Settings, list
     """Read the settings; return them with warnings about whatever had to be ignored.
 
     Never raises for a bad file: a missing file gives the defaults silently, anything else
-    unusable gives the defaults (or the usable part) and a warning.
+    unusable gives the defaults (or the usable part) and a warning. A file that cannot be read
+    at all is set aside as `settings.json.unreadable` (one of a newer version stays as it is).
     """
     path = Path(path) if path is not None else settings_path()
     warnings: list[str] = []
+    if path.parent.exists() and not path.parent.is_dir():
+        warnings.append(f"the settings folder {path.parent} is a file, not a folder: settings "
+                        "and presets cannot be kept until it is moved away")
+        log.warning("%s", warnings[-1])
     if not path.exists():
         return Settings(), warnings
     try:
@@ -253,8 +259,11 @@ def load_settings(path: str | os.PathLike | None = None) -> tuple[Settings, list
     except RecursionError:
         warnings.append(f"settings file {path} is nested too deeply to be settings; "
                         "defaults used")
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         warnings.append(f"settings file {path} could not be read ({exc}); defaults used")
+    except ValueError:  # Python refuses integer literals of more than 4300 digits
+        warnings.append(f"settings file {path} holds an integer too long to be a number; "
+                        "defaults used")
     else:
         if not isinstance(data, dict):
             warnings.append(f"settings file {path} does not hold a JSON object; defaults used")
@@ -273,6 +282,11 @@ def load_settings(path: str | os.PathLike | None = None) -> tuple[Settings, list
                 for w in warnings:
                     log.warning("%s", w)
                 return settings, warnings
+    if warnings and not _newer(_version_on_disk(path)):
+        # what could not be read is kept for the person, and the next save writes a new file
+        aside = set_aside(path)
+        if aside is not None:
+            warnings[-1] += f"; the file was kept as {aside.name}"
     for w in warnings:
         log.warning("%s", w)
     return Settings(), warnings

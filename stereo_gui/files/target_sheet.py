@@ -23,6 +23,7 @@ from stereo_gui.files.atomic import write_bytes_atomic, write_text_atomic
 
 PT_PER_MM = 72.0 / 25.4
 FORMATS = (".pdf", ".svg", ".png")
+MAX_PNG_PIXELS = 250_000_000  # A4 at 1600 dpi; the image is drawn whole in memory
 _GREY_FRAME = 0.75  # the outline of the target: light grey, to cut along
 
 
@@ -40,6 +41,11 @@ def write_target(sheet: TargetSheet, path: str | Path, dpi: float = 300.0) -> Pa
         return write_text_atomic(path, svg_text(sheet))
     if not 50 <= dpi <= 2400:
         raise InputError(f"--dpi must be between 50 and 2400, not {dpi:g}")
+    w, h = (round(v / 25.4 * dpi) for v in sheet.page_mm)
+    if w * h > MAX_PNG_PIXELS:
+        raise InputError(f"{sheet.page_name} at {dpi:g} dpi would be a PNG of {w} x {h} px (at "
+                         f"most {MAX_PNG_PIXELS // 1_000_000} megapixels): give a lower --dpi, "
+                         "or write a .pdf or .svg, which print at any size")
     return write_bytes_atomic(path, png_bytes(sheet, dpi))
 
 

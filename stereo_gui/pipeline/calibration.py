@@ -133,10 +133,9 @@ class CalibrationRun:
 
 def read_image(path: str) -> np.ndarray:
     """A BGR image from `path`; InputError if it cannot be read."""
-    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if img is None:
-        raise InputError(f"cannot read image {path}")
-    return img
+    from stereo_gui.files.images import read_image_file
+
+    return read_image_file(path, cv2.IMREAD_COLOR)
 
 
 def calibration_job(folder: Path, board: BoardSpec, alpha: float, method: str,

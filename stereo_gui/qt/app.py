@@ -16,6 +16,7 @@ from stereo_gui.core.errors import InputError, StereoGuiError
 log = logging.getLogger(__name__)
 
 QUIT_AFTER_ENV = "STEREO_GUI_QUIT_AFTER"
+QUIT_AFTER_MAX_S = 86_400  # a day: the switch is for smoke tests of a build
 
 
 def quit_after_seconds() -> float | None:
@@ -27,8 +28,9 @@ def quit_after_seconds() -> float | None:
         value = float(raw)
     except ValueError:
         raise InputError(f"{QUIT_AFTER_ENV} must be a number of seconds, not {raw!r}") from None
-    if not value >= 0:
-        raise InputError(f"{QUIT_AFTER_ENV} must be zero or more seconds, not {raw!r}")
+    if not 0 <= value <= QUIT_AFTER_MAX_S:  # Qt's timers take at most 2**31 - 1 ms
+        raise InputError(f"{QUIT_AFTER_ENV} must be from 0 to {QUIT_AFTER_MAX_S} seconds, "
+                         f"not {raw!r}")
     return value
 
 
@@ -126,10 +128,8 @@ def build_window(source: str | None = None, calib: str | None = None):
     # the log, the readings of the last Clear log and the active fit of the last run
     warnings = [*warnings, *ctx.keep_log(default_log_path())]
     problems = [w for w in warnings] + ([calib_error] if calib_error else [])
-    if problems:
-        # keep what the tabs reported while they opened (a remembered session, ...)
-        shown = window.error_bar.label.text() if window.error_bar.isVisibleTo(window) else ""
-        window.show_error("; ".join(problems + ([shown] if shown else [])))
+    for text in problems:  # each kept in the error bar's list, beside what the tabs reported
+        window.show_error(text)
     return ctx, window
 
 

@@ -34,6 +34,7 @@ from stereo_gui.qt.tabs.calibration import CalibrationTab
 from stereo_gui.qt.tabs.capture import CaptureTab
 from stereo_gui.qt.tabs.live import LiveTab
 from stereo_gui.qt.tabs.measurements import MeasurementsTab
+from stereo_gui.qt.widgets.error_bar import ErrorBar
 from stereo_gui.qt.widgets.helpers import pane
 from stereo_gui.qt.widgets.playback_bar import playback_of
 from stereo_gui.qt.workers.job_runner import JobRunner
@@ -125,7 +126,7 @@ def _order_left_right(files) -> tuple[str, str]:
 
 
 class _MessageBar(QWidget):
-    """A coloured bar with a message and a close button (the banner and the error bar)."""
+    """A coloured bar with a message and an optional close button (the banner)."""
 
     def __init__(self, style: str, closable: bool, parent: QWidget | None = None) -> None:
         super().__init__(parent)
@@ -180,7 +181,7 @@ class MainWindow(QMainWindow):
 
         self.banner = _MessageBar(
             "background: #ffd54f; color: #3e2700; font-weight: bold;", closable=False)
-        self.error_bar = _MessageBar("background: #c62828; color: white;", closable=True)
+        self.error_bar = ErrorBar()  # every problem kept, the newest shown
 
         self.tabs = QTabWidget()
         self.tabs.setDocumentMode(True)
@@ -209,8 +210,8 @@ class MainWindow(QMainWindow):
 
         ctx.errorOccurred.disconnect(collect)
         ctx.errorOccurred.connect(self.show_error)
-        if early_errors:
-            self.show_error("; ".join(early_errors))
+        for text in early_errors:
+            self.show_error(text)
         ctx.statusMessage.connect(lambda text: self.statusBar().showMessage(text, 8000))
         ctx.calibrationChanged.connect(self._update_calibration_label)
         ctx.frames.sourceChanged.connect(self._update_source_label)
@@ -405,6 +406,8 @@ class MainWindow(QMainWindow):
         choice = self._opening[0]
         if opened.spec:  # absolute paths; cameras where they were found
             choice = replace(choice, spec=opened.spec)
+        for text in opened.warnings:  # a recording not closed cleanly, frames left out, ...
+            self.ctx.report_error(text)
         self.use_source(opened.source, choice, opened.fell_back_to_sim, opened.message,
                         cameras=opened.cameras)
 
@@ -449,10 +452,8 @@ class MainWindow(QMainWindow):
         reconnected or the source stopped; once frames come again the error bar about the
         stream goes (a newer error stays) and the status bar says the frames are back."""
         if status.state == "ok":
-            text = self.error_bar.label.text()
-            if self._stream_error and self.error_bar.isVisibleTo(self) and text == \
-                    self._stream_error:
-                self.error_bar.hide()
+            if self._stream_error:
+                self.error_bar.remove(self._stream_error)
             self._stream_error = ""
             self._update_source_label(status.source_name)
             if status.message:

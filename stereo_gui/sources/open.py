@@ -36,6 +36,7 @@ class OpenedSource:
     message: str = ""
     spec: str = ""
     cameras: tuple[str, ...] = ()
+    warnings: tuple[str, ...] = ()  # what opening tolerated, for the person (not the terminal)
 
 
 @dataclass(frozen=True)
@@ -213,5 +214,6 @@ def open_source(spec: str | None, size: tuple[int, int] = (640, 480), swap: bool
     from stereo_gui.sources.playback import PlaybackSource  # owned elsewhere; import at use
 
     src = PlaybackSource(s.path)
+    warnings = src.warnings
     src = _SwappedSource(src) if swap else src
-    return OpenedSource(src, False, src.name, spec=str(s.path))
+    return OpenedSource(src, False, src.name, spec=str(s.path), warnings=warnings)

@@ -138,11 +138,13 @@ class PlaybackSource:
         self.at_end = at_end
         times: list[tuple[float, float]] | None = None
         default_fps = PLAIN_FOLDER_FPS
+        self.warnings: tuple[str, ...] = ()  # what opening tolerated (a torn last frame, ...)
         if self.path.is_dir():
             from stereo_gui.files.recording import is_recording, open_recording
 
             if is_recording(self.path):
                 rec = open_recording(self.path)
+                self.warnings = tuple(rec.warnings)
                 if not rec.frames:
                     raise SourceError(f"recording {self.path} holds no frames")
                 times = [(f.t_left, f.t_right) for f in rec.frames]

@@ -102,6 +102,28 @@ def test_pairs_excluded_in_a_capture_session_are_left_out(rig_dir, tmp_path, cap
     assert {p["name"] for p in data["per_pair"]}.isdisjoint(excluded)
 
 
+def test_a_session_entry_pointing_outside_keeps_the_other_exclusions(rig_dir, tmp_path, capsys,
+                                                                     caplog):
+    """The probe: one manifest entry pointing outside the folder made the whole manifest
+    unreadable, and calibrate took the pair the person had excluded."""
+    from stereo_gui.files.session import MANIFEST, CaptureSession
+
+    folder = tmp_path / "session"
+    shutil.copytree(rig_dir, folder)
+    CaptureSession.open(folder).set_excluded("chessboard-3", True)
+    doc = json.loads((folder / MANIFEST).read_text())
+    doc["pairs"][9]["left"] = "../elsewhere.png"
+    (folder / MANIFEST).write_text(json.dumps(doc))
+    code, out, err = _run([folder, "--board", "9x6", "--square-mm", "25", "-o",
+                           tmp_path / "c.yaml", "--json"], capsys)
+    assert code == 0, err
+    data = json.loads(out)
+    assert [r["name"] for r in data["pairs_rejected"]] == ["chessboard-3"]
+    assert data["pairs_used"] == N_PAIRS - 1
+    said = [r.getMessage() for r in caplog.records if "left out" in r.getMessage()]
+    assert len(said) == 1 and "'../elsewhere.png'" in said[0]  # said once, naming the entry
+
+
 def _assert_one_error_line(code, out, err, *fragments):
     assert code == 2
     lines = err.strip().splitlines()

@@ -39,8 +39,9 @@ def test_inverse_formula_writes_a_negative_offset_as_an_addition():
 
 
 def test_noisy_fits_report_residuals_in_sample_order():
-    samples = inverse_samples(noise_mm=3.0, seed=1)
-    for f in (fit_inverse(samples), fit_cubic(samples)):
+    # up to 110 px: over 20..160 px a cubic cannot follow 1/d without turning (refused below)
+    for samples, f in ((s, fn(s)) for fn in (fit_inverse, fit_cubic)
+                       for s in [inverse_samples(noise_mm=3.0, seed=1)[:-1]]):
         assert len(f.residuals_mm) == len(samples) and f.samples == tuple(samples)
         pred = f.predict(np.array([d for d, _ in samples]))
         np.testing.assert_allclose(f.residuals_mm, [z for _, z in samples] - pred, atol=1e-6)
@@ -90,7 +91,7 @@ def test_fewer_true_distances_than_parameters_are_refused_not_fitted_exactly():
 
 
 def test_dict_round_trip_and_errors_name_the_place():
-    for f in (fit_inverse(inverse_samples(1.0)), fit_cubic(inverse_samples(1.0))):
+    for f in (fit_inverse(inverse_samples(1.0)), fit_cubic(inverse_samples(1.0)[:-1])):
         g = fit_from_dict(json.loads(json.dumps(fit_to_dict(f))), where="x")
         assert isinstance(g, FitResult)
         assert (g.model, g.coefficients, g.samples) == (f.model, f.coefficients, f.samples)

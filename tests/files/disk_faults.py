@@ -9,7 +9,8 @@ makes the n-th file's `step` fail as a full disk does:
   device that silently stops taking data; atomic must not loop forever nor accept it)
 - "fsync": the data does not reach the disk (EIO)
 - "close": close reports the lost write (ENOSPC, as NFS does)
-- "replace": the rename fails (ENOSPC)
+- "replace": the rename fails (ENOSPC); with `rename=k`, the k-th rename made (a set of files
+  is renamed only once all of it is written, so its k-th file's rename)
 """
 
 from __future__ import annotations
@@ -21,10 +22,12 @@ STEPS = ("open", "write", "short", "fsync", "close", "replace")
 
 
 class FaultyDisk:
-    def __init__(self, step: str, nth: int = 1) -> None:
+    def __init__(self, step: str, nth: int = 1, rename: int | None = None) -> None:
         assert step in STEPS, step
         self.step = step
         self.nth = nth
+        self.rename = rename
+        self.renames = 0
         self.files = 0
         self.failed = False
         self._fd: int | None = None  # the descriptor of the n-th file
@@ -77,17 +80,24 @@ class FaultyDisk:
                 raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
     def replace(self, src, dst):
+        self.renames += 1
+        if self.step == "replace" and self.rename is not None:
+            if self.renames == self.rename and not self.failed:
+                self.failed = True
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+            return os.replace(src, dst)
         if self.step == "replace" and self._hit() and not self.failed:
             self.failed = True
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
         return os.replace(src, dst)
 
 
-def install(monkeypatch, step: str, nth: int = 1) -> FaultyDisk:
-    """Make the n-th file written through stereo_gui.files.atomic fail at `step`."""
+def install(monkeypatch, step: str, nth: int = 1, rename: int | None = None) -> FaultyDisk:
+    """Make the n-th file written through stereo_gui.files.atomic fail at `step` (or, with
+    step "replace" and `rename`, the rename-th rename)."""
     from stereo_gui.files import atomic
 
-    disk = FaultyDisk(step, nth)
+    disk = FaultyDisk(step, nth, rename)
     for name in ("open", "write", "fsync", "close", "replace"):
         monkeypatch.setattr(atomic._ops, name, getattr(disk, name))
     return disk

@@ -100,6 +100,33 @@ def test_several_files_are_replaced_only_when_all_were_written(tmp_path, monkeyp
     assert sorted(p.name for p in tmp_path.iterdir()) == ["left.yaml", "right.yaml"]
 
 
+@pytest.mark.parametrize("failing", [1, 3, 4])
+def test_a_rename_that_fails_in_a_set_puts_back_those_already_replaced(tmp_path, monkeypatch,
+                                                                       failing):
+    """All or nothing to the end: the k-th rename of four fails, the earlier files replaced
+    get their old contents back, a file that did not exist before is gone again."""
+    names = ["a.png", "b.npy", "c.png", "new.ply"]
+    for name in names[:3]:
+        (tmp_path / name).write_bytes(b"old " + name.encode())
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    disk = install(monkeypatch, "replace", rename=failing)
+    with pytest.raises(InputError, match=rf"cannot write .*{names[failing - 1]}: No space.*"
+                                         r"the outputs was not written: every file it would "
+                                         r"have replaced is as it was"):
+        atomic.write_many_atomic([(tmp_path / n, b"new " + n.encode(), None) for n in names],
+                                 what="the outputs")
+    assert disk.failed
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before  # nothing left over
+
+
+def test_a_set_written_whole_leaves_no_earlier_copies(tmp_path):
+    for name in ("a", "b"):
+        (tmp_path / name).write_bytes(b"old")
+    atomic.write_many_atomic((tmp_path / n, b"new", None) for n in ("a", "b", "c"))
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == {
+        "a": b"new", "b": b"new", "c": b"new"}
+
+
 def test_os_errors_are_said_in_words():
     import errno
 

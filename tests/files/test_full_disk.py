@@ -365,3 +365,38 @@ def test_disparity_on_a_full_disk_exits_2_and_keeps_the_old_outputs(disk, tmp_pa
     assert len(done.stderr.strip().splitlines()) == 1, done.stderr
     for p in outs:
         assert p.read_bytes() == b"old " + p.name.encode()
+
+
+@pytest.fixture
+def big_disk(tmp_path_factory):
+    """A tmpfs of 8 MiB: a simulated set of 640x480 pairs does not fit in the small one."""
+    if not _can_mount():
+        pytest.skip("a real full disk needs root to mount a small tmpfs")
+    point = tmp_path_factory.mktemp("bigdisk")
+    done = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=8m", "tmpfs", str(point)],
+                          capture_output=True, text=True)
+    if done.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {done.stderr.strip()}")
+    try:
+        yield Disk(point)
+    finally:
+        subprocess.run(["umount", "-l", str(point)], check=False)
+
+
+def test_simulate_overwrite_on_a_filling_disk_keeps_the_earlier_set(big_disk, tmp_path):
+    """The probe: 12 of 13 old images were replaced while truth.json still described the old
+    set. With room for about half of the new set, the earlier one stays whole."""
+    disk = big_disk
+    out = disk.root / "set"
+    done = _cli("simulate", out, "--pairs", "3", "--seed", "1", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    before = disk.snapshot()
+    size = sum(len(v) for v in before.values())
+    disk.fill(size // 2)
+    done = _cli("simulate", out, "--pairs", "3", "--seed", "2", "--overwrite", cwd=tmp_path)
+    disk.unfill()
+    assert done.returncode == 2, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "was not written" in lines[0], done.stderr
+    assert disk.snapshot() == before
+    assert [p.name for p in disk.root.rglob(".*") if p.name != ".filler"] == []

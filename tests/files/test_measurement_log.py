@@ -74,7 +74,10 @@ def test_a_full_disk_leaves_the_earlier_log_byte_for_byte(tmp_path, monkeypatch,
     "", "[]", "{", '{"format_version": 2, "records": []}', '{"format_version": "1"}',
     '{"format_version": 1, "records": {}}', '{"format_version": 1, "records": [3]}',
     '{"format_version": 1, "records": [{"time": "t"}]}',
-    '{"format_version": 1, "records": [], "active_fit": {"model": "quartic"}}',
+    # the probe's: 100,000 levels deep, an integer of 5000 digits, 10**400
+    "[" * 100_000 + "]" * 100_000,
+    '{"format_version": 1, "records": [], "cleared": [], "n": ' + "7" * 5000 + "}",
+    '{"format_version": 1, "records": [{"time": "t", "x_px": 1' + "0" * 400 + "}]}",
 ])
 def test_a_log_that_cannot_be_used_is_set_aside_and_reported(tmp_path, text):
     path = tmp_path / "log.json"
@@ -91,3 +94,39 @@ def test_wrong_types_in_a_reading_are_named(tmp_path):
         bad["records"][0][field] = value
         with pytest.raises(InputError, match=field):
             ml.log_from_json(json.dumps(bad), "log")
+
+
+def _doc_with(**fields):
+    doc = json.loads(ml.log_to_json(ml.KeptLog((_rec(40.0, 2000.0), _rec(20.0)))))
+    doc["records"][0].update(fields)
+    return json.dumps(doc)
+
+
+def test_a_reading_of_10_to_the_400_sets_the_log_aside(tmp_path):
+    path = tmp_path / "log.json"
+    path.write_text(_doc_with(Z_mm=10**400))
+    kept, warnings = ml.load_log(path)
+    assert kept == ml.KeptLog() and "integer beyond 1e308" in warnings[0]
+    assert "kept as log.json.unreadable" in warnings[0]
+
+
+def test_a_valid_reading_without_a_distance_is_kept_as_invalid_and_said(tmp_path):
+    path = tmp_path / "log.json"
+    path.write_text(_doc_with(Z_mm=None))
+    kept, warnings = ml.load_log(path)
+    first = kept.records[0]
+    assert not first.valid and first.reason == ml.NO_DISTANCE_KEPT
+    assert len(kept.records) == 2 and len(warnings) == 1 and "Z_mm" in warnings[0]
+    assert path.exists()  # nothing set aside: the rest of the log is as it was
+
+
+def test_a_log_whose_active_fit_cannot_be_used_keeps_its_readings(tmp_path):
+    path = tmp_path / "log.json"
+    doc = json.loads(_doc_with())
+    doc["active_fit"] = {"model": "quartic"}
+    path.write_text(json.dumps(doc))
+    kept, warnings = ml.load_log(path)
+    assert len(kept.records) == 2 and kept.active_fit is None
+    assert len(warnings) == 1 and "quartic" in warnings[0] and "triangulation" in warnings[0]
+    with pytest.raises(InputError, match="quartic"):
+        ml.log_from_json(json.dumps(doc), "log")  # without a list for warnings it is refused

@@ -101,7 +101,7 @@ def test_missing_folder_empty_folder_and_only_unpaired(tmp_path):
 def test_load_image_errors_name_the_file(tmp_path):
     bad = tmp_path / "left1.png"
     bad.write_bytes(b"this is not a png")
-    with pytest.raises(InputError, match=r"cannot read image .*left1.png: the file is corrupt"):
+    with pytest.raises(InputError, match=r"image .*left1.png cannot be read as an image"):
         load_image(bad)
     empty = tmp_path / "right1.png"
     empty.write_bytes(b"")

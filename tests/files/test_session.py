@@ -241,6 +241,37 @@ def test_a_manifest_path_outside_the_folder_is_refused_and_never_deleted(tmp_pat
     assert victim.read_text() == "not yours"
 
 
+def test_an_entry_pointing_outside_is_left_out_alone(tmp_path):
+    """The probe: a manifest with one entry pointing outside was refused whole, so its
+    exclusions were lost (calibrate took the excluded pair again). Only that entry goes, and
+    the warning names it; the manifest is kept aside when the session changes."""
+    s = _new(tmp_path)
+    for i in range(4):
+        s.add_pair(_img(i), _img(10 + i))
+    s.set_excluded("chessboard-2", True)
+    (tmp_path / "outside.png").write_bytes((tmp_path / "s" / "chessboard-L1.png").read_bytes())
+    manifest = tmp_path / "s" / MANIFEST
+    doc = json.loads(manifest.read_text())
+    doc["pairs"][3]["left"] = "../outside.png"  # chessboard-4
+    doc["pairs"][2]["number"] = 1  # chessboard-3 says it is number 1 too
+    original = json.dumps(doc)
+    manifest.write_text(original)
+    opened = CaptureSession.open(tmp_path / "s")
+    said = [w for w in opened.warnings if "that entry is left out" in w]
+    assert len(said) == 2
+    assert "pairs entry 4 (chessboard-4) left '../outside.png'" in said[0] + said[1]
+    assert "number 1 is listed twice" in said[0] + said[1]
+    by_name = {p.name: p for p in opened.pairs}
+    assert by_name["chessboard-2"].excluded and not by_name["chessboard-1"].excluded
+    assert opened.board == BoardSpec(9, 6, 25.0) and opened.resolution == SIZE
+    for p in opened.pairs:  # the images in the folder are still found: none outside
+        assert (tmp_path / "s") in p.left.resolve().parents
+    opened.set_excluded("chessboard-1", True)  # a change: the manifest as it was is kept
+    assert (tmp_path / "s" / f"{MANIFEST}.unreadable").read_text() == original
+    again = CaptureSession.open(tmp_path / "s")
+    assert {p.name for p in again.pairs if p.excluded} == {"chessboard-1", "chessboard-2"}
+
+
 def test_delete_pair_refuses_a_file_outside_the_folder(tmp_path):
     from dataclasses import replace
 

@@ -67,6 +67,46 @@ def test_corrupt_file_is_reported_and_ignored(content, caplog):
     assert any("settings" in r.getMessage() for r in caplog.records)
 
 
+UNREADABLE = {
+    "truncated": json.dumps({"format_version": 1, "preset": "quality"})[:20].encode(),
+    "garbage": b"\x00\x13garbage{{{",
+    "utf-16": json.dumps({"format_version": 1, "preset": "quality"}).encode("utf-16"),
+    "deeply nested": b"[" * 100_000 + b"]" * 100_000,
+    "5000 digits": b'{"format_version": 1, "patch_size": ' + b"1" * 5000 + b"}",
+    "old version": b'{"format_version": 0, "preset": "quality"}',
+}
+
+
+@pytest.mark.parametrize("kind", sorted(UNREADABLE))
+def test_an_unreadable_file_is_kept_aside_and_a_new_one_written_next_to_it(kind):
+    """The probe's: these were overwritten with the defaults at exit, without a copy."""
+    data = UNREADABLE[kind]
+    path = settings_path()
+    path.write_bytes(data)
+    s, warnings = load_settings()
+    assert s == Settings() and len(warnings) == 1
+    assert "kept as settings.json.unreadable" in warnings[0]
+    aside = path.with_name("settings.json.unreadable")
+    assert aside.read_bytes() == data and not path.exists()
+    save_settings(s.with_updates(preset="seed"))  # what the window does at exit
+    assert aside.read_bytes() == data and load_settings()[0].preset == "seed"
+
+
+def test_a_newer_versions_file_is_not_set_aside():
+    settings_path().write_text(json.dumps({"format_version": 99, "preset": "seed"}))
+    load_settings()
+    assert settings_path().exists() and not settings_path().with_name(
+        "settings.json.unreadable").exists()
+
+
+def test_a_settings_folder_that_is_a_file_is_said(tmp_path):
+    folder = tmp_path / "cfg"
+    folder.write_text("not a folder")
+    s, warnings = load_settings(folder / "settings.json")
+    assert s == Settings()
+    assert len(warnings) == 1 and "is a file, not a folder" in warnings[0]
+
+
 def test_unknown_version_is_reported_and_ignored():
     settings_path().write_text(json.dumps({"format_version": 99, "preset": "seed"}))
     s, warnings = load_settings()

@@ -68,6 +68,19 @@ def test_bad_quit_after_value_is_refused(monkeypatch):
         quit_after_seconds()
     monkeypatch.setenv("STEREO_GUI_QUIT_AFTER", "1.5")
     assert quit_after_seconds() == 1.5
+    for raw in ("inf", "1e10", "nan", "-1"):  # the probe: an abort (1e10) or OverflowError (inf)
+        monkeypatch.setenv("STEREO_GUI_QUIT_AFTER", raw)
+        with pytest.raises(InputError, match="from 0 to 86400 seconds"):
+            quit_after_seconds()
+
+
+def test_quit_after_inf_exits_2_with_one_line(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "stereo_gui", "--source", "sim"],
+                          env=_env(tmp_path, STEREO_GUI_QUIT_AFTER="inf"), capture_output=True,
+                          text=True, timeout=60)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "STEREO_GUI_QUIT_AFTER" in lines[0], proc.stderr
 
 
 def test_build_window_loads_the_last_calibration_and_reports_a_broken_one(qtbot, sim_rig, tmp_path):
@@ -187,7 +200,7 @@ def test_bad_remembered_files_are_reported_and_defaults_used(qtbot, sim_rig, tmp
                      "last_session": str(session)})
     ctx, window = _start(qtbot)
     try:
-        text = window.error_bar.label.text()
+        text = " ".join(window.error_bar.messages())
         assert window.error_bar.isVisibleTo(window)
         assert "window_geometry" in text  # the geometry is not used
         assert "c.yaml" in text and "M1" in text  # the calibration is not loaded
@@ -248,6 +261,116 @@ def test_the_application_starts_with_bad_remembered_files(tmp_path, sim_rig):
                           text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+LOGS = {  # the probe's measurement logs that stopped the start (exit 1 or an abort)
+    "100k deep": "[" * 100_000 + "]" * 100_000,
+    "5000 digits": '{"format_version": 1, "records": [], "n": ' + "9" * 5000 + "}",
+    "10^400": '{"format_version": 1, "records": [{"time": "t", "x_px": 1' + "0" * 400 + "}]}",
+}
+
+
+@pytest.mark.parametrize("kind", sorted(LOGS))
+def test_a_log_that_cannot_be_read_is_set_aside_said_and_the_start_goes_on(qtbot, kind):
+    from stereo_gui.files.measurement_log import default_log_path
+
+    log = default_log_path()
+    log.parent.mkdir(parents=True, exist_ok=True)
+    log.write_text(LOGS[kind])
+    _write_settings({"format_version": 1, "source": "sim"})
+    ctx, window = _start(qtbot)
+    try:
+        assert ctx.measurements == []
+        said = [m for m in window.error_bar.messages() if "measurement log" in m]
+        assert len(said) == 1 and "measurement-log.json.unreadable" in said[0]
+        assert log.with_name(log.name + ".unreadable").read_text() == LOGS[kind]
+    finally:
+        window.close()
+
+
+@pytest.mark.slow
+def test_the_application_starts_with_a_log_100k_deep(tmp_path):
+    """The probe: RecursionError, exit 1."""
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "measurement-log.json").write_text(LOGS["100k deep"])
+    proc = subprocess.run([sys.executable, "-m", "stereo_gui", "--source", "sim"],
+                          env=_env(tmp_path, STEREO_GUI_QUIT_AFTER="1",
+                                   STEREO_GUI_DATA_DIR=str(data)),
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert (data / "measurement-log.json.unreadable").is_file()
+
+
+def test_every_problem_of_a_start_is_kept_in_the_error_bar(qtbot, tmp_path):
+    """The probe: with several problems at start only the last stayed in the error bar (the
+    source's failure, which comes last, replaced the others). Each is kept; the bar shows the
+    newest and opens the list of all."""
+    from stereo_gui.files.measurement_log import default_log_path
+    from stereo_gui.files.presets import user_preset_dir
+
+    log = default_log_path()
+    log.parent.mkdir(parents=True, exist_ok=True)
+    log.write_text("{not json")
+    bad_calib = tmp_path / "bad.yaml"
+    bad_calib.write_text("not a calibration")
+    user_preset_dir().mkdir(parents=True)
+    (user_preset_dir() / "mine.json").write_text("{broken")
+    not_a_folder = tmp_path / "recordings"
+    not_a_folder.write_text("a file")
+    _write_settings({"format_version": 1, "source": str(tmp_path / "missing-recording"),
+                     "last_calibration": str(bad_calib), "window_geometry": "AdnQé€",
+                     "preset": "mine", "recordings_dir": str(not_a_folder)})
+    ctx, window = _start(qtbot)
+    bar = window.error_bar
+    try:
+        qtbot.waitUntil(lambda: any("Cannot open the source" in m for m in bar.messages()),
+                        timeout=60000)
+        text = "\n".join(bar.messages())
+        for words in ("window_geometry", "measurement log", "bad.yaml", "preset 'mine'",
+                      "recordings folder", "missing-recording"):
+            assert words in text, words
+        assert bar.label.text() == bar.messages()[-1]
+        assert bar.all_button.isVisibleTo(window) and "All" in bar.all_button.text()
+        bar.all_button.click()  # the list the person opens
+        assert bar.list.isVisibleTo(window) and bar.list.count() == len(bar.messages())
+        assert ctx.settings.preset == "mine"  # nothing forgotten that the person chose
+    finally:
+        window.close()
+
+
+def test_a_recording_not_closed_cleanly_is_said_in_the_window(qtbot, tmp_path):
+    import numpy as np
+
+    from stereo_gui.files.recording import RecordingWriter
+    from stereo_gui.sources.base import StereoFrame
+
+    rec = tmp_path / "rec"
+    w = RecordingWriter(rec, fps=30.0, background=False)
+    for i in range(3):
+        img = np.full((48, 64, 3), 40 * i, np.uint8)
+        w.write(StereoFrame(img, img, i / 30, i / 30, i))
+    # not closed: as after a crash (the frames written are kept)
+    _write_settings({"format_version": 1, "source": str(rec), "resolution": [64, 48]})
+    ctx, window = _start(qtbot)
+    try:
+        qtbot.waitUntil(lambda: any("not closed cleanly" in m
+                                    for m in window.error_bar.messages()), timeout=60000)
+    finally:
+        window.close()
+
+
+def test_a_settings_folder_that_is_a_file_is_said_in_the_window(qtbot, monkeypatch, tmp_path):
+    cfg = tmp_path / "cfg"
+    cfg.write_text("a file")
+    monkeypatch.setenv("STEREO_GUI_CONFIG_DIR", str(cfg))
+    ctx, window = _start(qtbot)
+    try:
+        assert any("settings folder" in m and "is a file" in m
+                   for m in window.error_bar.messages())
+    finally:
+        window.close()
 
 
 QUITS = 6  # each quit crashed with a chance of about 1 in 6 before the fix

@@ -217,12 +217,20 @@ class LiveTab(QWidget):
     # ---- set-up ------------------------------------------------------------------------------
     def _initial_params(self) -> MatcherParams:
         name = self.ctx.settings.preset or "live"
-        for candidate in (name, "live", "seed"):
+        failed = []
+        for candidate in dict.fromkeys((name, "live", "seed")):
             try:
-                return load_preset(candidate).replace(name=candidate)
+                params = load_preset(candidate).replace(name=candidate)
             except StereoGuiError as exc:
-                log.warning("preset %s: %s", candidate, exc)
-        return MatcherParams(name="seed")
+                failed.append(str(exc))
+                continue
+            break
+        else:
+            params = MatcherParams(name="seed")
+        if failed:  # said in the window: the preset chosen last is not what runs now
+            self.ctx.report_error(f"The preset {name!r} chosen last could not be used "
+                                  f"({'; '.join(failed)}); the {params.name!r} preset is used")
+        return params
 
     def _views_changed(self, keys: list[str]) -> None:
         self.ctx.update_settings(visible_views=tuple(keys)) if self.ctx.settings else None

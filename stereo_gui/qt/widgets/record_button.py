@@ -45,6 +45,10 @@ class RecordButton(QToolButton):
         self._record_timer.timeout.connect(self._update_record_button)
         ctx.recorder.started.connect(self._recording_started)
         ctx.recorder.stopped.connect(self._recording_stopped)
+        base = recordings_dir(ctx.settings)
+        if base.exists() and not base.is_dir():  # said now, not only when a recording fails
+            ctx.report_error(f"The recordings folder {base} is a file, not a folder: choose "
+                             "another with Record ▾ > Change the recordings folder…")
 
     def _update_record_tooltip(self) -> None:
         base = recordings_dir(self.ctx.settings)

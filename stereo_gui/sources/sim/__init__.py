@@ -30,12 +30,14 @@ from stereo_gui.sources.sim.camera import (
 )
 from stereo_gui.sources.sim.live import SimSource
 from stereo_gui.sources.sim.rays import RayMap, ray_map, undistort_normalized
-from stereo_gui.sources.sim.rig import MIN_POINT_SPACING_PX, SimFrameTruth, SimRig
+from stereo_gui.sources.sim.rig import (MIN_POINT_SPACING_PX, BoardOutOfView, SimFrameTruth,
+                                        SimRig)
 from stereo_gui.sources.sim.scene import BoardPose, Scene, SceneObject
 from stereo_gui.sources.sim.textures import OCTAVES
 
 __all__ = [
-    "MIN_POINT_SPACING_PX", "OCTAVES", "SCENE_FOLDER", "SCENE_WALL_DISTANCES_MM", "TRUTH_FORMAT_VERSION", "BoardPose",
+    "MIN_POINT_SPACING_PX", "OCTAVES", "SCENE_FOLDER", "SCENE_WALL_DISTANCES_MM", "TRUTH_FORMAT_VERSION", "BoardOutOfView",
+    "BoardPose",
     "CameraTruth", "RayMap", "RigConfig", "RigTruth", "Scene", "SceneObject", "SimFrameTruth",
     "SimRig", "SimSource", "calibration_set_names", "load_truth", "ray_map",
     "undistort_normalized", "write_calibration_set",

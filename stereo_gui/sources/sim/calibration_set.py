@@ -3,12 +3,13 @@ truth.json with everything the rig was built with."""
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
 import numpy as np
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.files.atomic import write_image_atomic, write_json_atomic
+from stereo_gui.files.atomic import encode_image, json_item, write_many_atomic
 from stereo_gui.sources.sim.camera import RigConfig
 from stereo_gui.sources.sim.rig import SimRig
 from stereo_gui.sources.sim.scene import Scene
@@ -28,13 +29,19 @@ def calibration_set_names(n_pairs: int, scene: bool) -> list[str]:
 
 
 def write_calibration_set(out_dir, n_pairs: int = 20, seed: int = 0, scene: bool = False,
-                          config: RigConfig | None = None, progress=None) -> Path:
+                          config: RigConfig | None = None, progress=None,
+                          what: str | None = None) -> Path:
     """Write a calibration set in the report's naming plus truth.json; return the folder.
 
     chessboard-L{n}.png / chessboard-R{n}.png for n = 1..n_pairs; with `scene`, also
     scenes/scene-L{k}.png / scenes/scene-R{k}.png for walls at SCENE_WALL_DISTANCES_MM and the
     demo scene, with their true distances in truth.json (paths relative to the folder).
-    `progress(done, total)` is called after each pair. Every file is written atomically.
+    `progress(done, total)` is called after each pair.
+
+    The set is written as one (files.atomic.write_many_atomic): every image is rendered and
+    written under a temporary name first, and only when all are on disk do they replace the
+    files of an earlier set, so a disk that fills leaves the earlier set whole, truth.json
+    still describing it. `what` names the set in such an error.
     """
     out = Path(out_dir)
     if n_pairs < 0:
@@ -44,35 +51,47 @@ def write_calibration_set(out_dir, n_pairs: int = 20, seed: int = 0, scene: bool
     rng = np.random.default_rng(seed * 104729 + 5)
     scenes = ([Scene.wall(d) for d in SCENE_WALL_DISTANCES_MM] + [Scene.demo()]) if scene else []
     total = len(poses) + len(scenes)
-    pairs = []
-    for n, pose in enumerate(poses, start=1):
-        left, right = rig.render_board_pair(pose, rng)
-        lname, rname = f"chessboard-L{n}.png", f"chessboard-R{n}.png"
-        write_image_atomic(out / lname, left)
-        write_image_atomic(out / rname, right)
-        pairs.append({"n": n, "left": lname, "right": rname, **pose.to_json()})
-        if progress:
-            progress(n, total)
-    scene_entries = []
-    for k, sc in enumerate(scenes, start=1):
-        left, right = rig.render_scene(sc, rng)
-        lname, rname = f"{SCENE_FOLDER}/scene-L{k}.png", f"{SCENE_FOLDER}/scene-R{k}.png"
-        (out / SCENE_FOLDER).mkdir(exist_ok=True)
-        write_image_atomic(out / lname, left)
-        write_image_atomic(out / rname, right)
-        entry = {"name": sc.name, "left": lname, "right": rname}
-        if len(sc.objects) == 1:
-            entry["distance_mm"] = float(sc.objects[0].center[2])
-        else:
-            entry["objects"] = [o.to_json() for o in sc.objects]
-        scene_entries.append(entry)
-        if progress:
-            progress(len(poses) + k, total)
-    data = rig.truth.to_json()
-    data.update({"seed": int(seed), "generator": "stereo_gui.sources.sim",
-                 "noise_sigma": rig.config.noise_sigma, "gain_right": rig.config.gain_right,
-                 "pairs": pairs})
+    made_folder = scene and not (out / SCENE_FOLDER).exists()
     if scene:
-        data["scenes"] = scene_entries
-    write_json_atomic(out / "truth.json", data)
+        (out / SCENE_FOLDER).mkdir(exist_ok=True)
+
+    def files():  # rendered one pair at a time, as write_many_atomic takes them
+        pairs = []
+        for n, pose in enumerate(poses, start=1):
+            left, right = rig.render_board_pair(pose, rng)
+            lname, rname = f"chessboard-L{n}.png", f"chessboard-R{n}.png"
+            yield out / lname, encode_image(out / lname, left), None
+            yield out / rname, encode_image(out / rname, right), None
+            pairs.append({"n": n, "left": lname, "right": rname, **pose.to_json()})
+            if progress:
+                progress(n, total)
+        scene_entries = []
+        for k, sc in enumerate(scenes, start=1):
+            left, right = rig.render_scene(sc, rng)
+            lname, rname = f"{SCENE_FOLDER}/scene-L{k}.png", f"{SCENE_FOLDER}/scene-R{k}.png"
+            yield out / lname, encode_image(out / lname, left), None
+            yield out / rname, encode_image(out / rname, right), None
+            entry = {"name": sc.name, "left": lname, "right": rname}
+            if len(sc.objects) == 1:
+                entry["distance_mm"] = float(sc.objects[0].center[2])
+            else:
+                entry["objects"] = [o.to_json() for o in sc.objects]
+            scene_entries.append(entry)
+            if progress:
+                progress(len(poses) + k, total)
+        data = rig.truth.to_json()
+        data.update({"seed": int(seed), "generator": "stereo_gui.sources.sim",
+                     "noise_sigma": rig.config.noise_sigma, "gain_right": rig.config.gain_right,
+                     "pairs": pairs})
+        if scene:
+            data["scenes"] = scene_entries
+        yield json_item(out / "truth.json", data)
+
+    try:
+        write_many_atomic(files(), what=what)
+    except BaseException:
+        if made_folder:  # the new set's own folder goes with it
+            with contextlib.suppress(OSError):
+                (out / SCENE_FOLDER).rmdir()
+        raise
     return out

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from stereo_gui.core.errors import InputError
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.sources.sim.camera import RigConfig, RigTruth
 from stereo_gui.sources.sim.rays import ray_map
@@ -22,6 +23,10 @@ from stereo_gui.sources.sim.textures import _board_texture, _texture
 MIN_POINT_SPACING_PX = 9.0
 _BOARD_BACKGROUND = 118.0  # plain grey behind the board when no scene is shown
 _NOISE_PAD = 64  # the noise bank is this much larger than an image (random crops)
+
+
+class BoardOutOfView(InputError):
+    """No pose of the rig's board is seen by both cameras as a calibration view needs."""
 
 
 @dataclass(frozen=True)
@@ -313,6 +318,10 @@ class SimRig:
         # sees the board as large from nearer
         zoom = f / 750.0
         z_lo, z_hi = z_lo * zoom, z_hi * zoom
+        # the nearest and farthest any whole board is placed (see above)
+        out_of_view = self._out_of_view(400.0 * zoom, 1600.0 * zoom, f)
+        if out_of_view is not None:
+            raise out_of_view
         for _ in range(max_tries):
             z = rng.uniform(z_lo, z_hi)
             tilt_x = math.radians(rng.uniform(-40, 40))
@@ -355,7 +364,31 @@ class SimRig:
             pose = BoardPose(R, t0 + np.array([shift[0] * z / f, shift[1] * z / f, 0.0]))
             if self._board_visible(pose, margin_px=margin - 2.0):
                 return pose
-        raise RuntimeError("could not find a board pose visible in both cameras")
+        raise BoardOutOfView(f"could not find a pose of the {b.label()} board that both "
+                             f"simulated cameras see whole between {z_lo:.0f} and {z_hi:.0f} mm "
+                             "(a board this large fits only in a few places: give a smaller "
+                             "square size)")
+
+    def _out_of_view(self, z_lo: float, z_hi: float, f: float) -> BoardOutOfView | None:
+        """Why no pose between z_lo and z_hi mm can show the board to both cameras as a
+        calibration view needs (too large to be seen whole facing them at the farthest, its
+        points too close together at the nearest), with the square sizes that can be; None
+        when one may."""
+        b = self.config.board
+        w, h = self.config.image_size
+        a0, b0, a1, b1 = self.board_outline_mm()
+        scale = min(w * z_hi / (f * (a1 - a0)), h * z_hi / (f * (b1 - b0)))
+        least = MIN_POINT_SPACING_PX * (1.5 if b.target in ("circles", "acircles") else 1.0)
+        smallest = least * z_lo / f  # square size whose points are `least` px apart nearest
+        largest = b.square_mm * scale
+        if b.partial or smallest <= b.square_mm <= largest:
+            return None
+        why = (f"it is {a1 - a0:.0f} x {b1 - b0:.0f} mm with its border, more than they see at "
+               f"{z_hi:.0f} mm" if b.square_mm > largest else
+               f"its points would be less than {least:g} px apart even at {z_lo:.0f} mm")
+        return BoardOutOfView(f"the simulated cameras cannot see the {b.label()} board whole: "
+                              f"{why}; give a square size from about {smallest:.1f} to "
+                              f"{largest:.0f} mm")
 
     def board_poses(self, n: int, seed: int | None = None) -> list[BoardPose]:
         """`n` varied board poses (0.4-1.2 m, tilts up to 40 deg) that visit the image corners,
@@ -370,7 +403,7 @@ class SimRig:
                         rng, max_tries=2000 if pull == 0.5 else 400,
                         where=tuple(where + pull * (0.5 - where))))
                     break
-                except RuntimeError:
+                except BoardOutOfView:
                     if pull == 0.5:
                         raise
         return poses
