@@ -447,7 +447,7 @@ def test_the_masks_made_in_the_band_give_the_whole_frames_results(monkeypatch):
 
     rig = SimRig(RigConfig.for_size((640, 480)), seed=0)
     cal = rig.true_calibration(alpha=0.0)
-    left, right = rig.render_scene(Scene.wall(460.0))
+    left, right = rig.render_scene(Scene.wall(460.0), np.random.default_rng(3))
     banded = matching.unseen_columns
     fields = ("disparity_px", "closed_px", "wls_px", "final_px", "color_bgr", "valid",
               "not_seen")

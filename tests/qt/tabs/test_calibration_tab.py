@@ -278,7 +278,10 @@ def test_a_pair_is_read_and_rectified_off_the_ui_thread(tab, qtbot, session_fold
     first, second = tab.chart.names[1], tab.chart.names[3]
     tab.select_pair(first)
     tab.select_pair(second)  # at once: the first one's answer must not be shown after it
-    qtbot.waitUntil(lambda: tab.rect_view.shown == second and len(readers) == 4, timeout=5000)
+    # each pair read is its two images; the first request is dropped when the second comes
+    # before the thread took it (the newest wins), so two or four reads
+    qtbot.waitUntil(lambda: tab.rect_view.shown == second and len(readers) in (2, 4),
+                    timeout=5000)
     qtbot.wait(100)
     assert tab.rect_view.shown == second
     assert readers and all(t is not threading.main_thread() for t in readers)
