@@ -389,33 +389,33 @@ def condition_totals(reports: list[WallReport]) -> dict[tuple[str, str], dict]:
 
 
 def format_table(label: str, reports: list[WallReport]) -> str:
-    """A plain-text table of one calibration's reports."""
+    """A plain-text table of one calibration's reports: wall by wall, then each condition's and
+    preset's whole grid over all walls."""
     lines = [f"calibration: {label}",
              f"{'cond':>8} {'wall':>6} {'preset':>8} {'cover':>7} {'worst%':>7} {'rms%':>6} "
              f"{'+-cov':>6} {'med+-%':>7}  no reading (seen points)"]
+
+    def row(cond: str, wall: str, preset: str, t: dict, tail: str) -> str:
+        return (f"{cond:>8} {wall:>6} {preset:>8} {_num(100 * t['coverage'], 1):>6}% "
+                f"{_num(t['worst_pct']):>7} {_num(t['rms_pct']):>6} "
+                f"{_num(100 * t['covered_fraction'], 0):>5}% {_num(t['median_bound_pct']):>7}"
+                f"{tail}")
+
     for r in reports:
         reasons = ", ".join(f"{k} {v}" for k, v in sorted(r.reasons.items())) or "-"
         if r.unseen_read:
             reasons += f"; {r.unseen_read} unseen points read"
-
-        def pct(v: float, digits: int = 2) -> str:
-            return "-" if not math.isfinite(v) else f"{v:.{digits}f}"
-
-        lines.append(
-            f"{r.condition:>8} {r.wall_mm / 1000:5.1f}m {r.preset:>8} {pct(100 * r.coverage, 1):>6}% "
-            f"{pct(r.worst_pct):>7} {pct(r.rms_pct):>6} {pct(100 * r.covered_fraction, 0):>5}% "
-            f"{pct(r.median_bound_pct):>7}  {reasons}")
+        lines.append(row(r.condition, f"{r.wall_mm / 1000:5.1f}m", r.preset, r.summary(),
+                         f"  {reasons}"))
     lines.append("whole grid, all walls:")
     for (cond, preset), t in condition_totals(reports).items():
-        def pct2(v: float, digits: int = 2) -> str:
-            return "-" if not math.isfinite(v) else f"{v:.{digits}f}"
-
         unseen = f"; {t['unseen_read']} unseen points read" if t["unseen_read"] else ""
-        lines.append(
-            f"{cond:>8} {'all':>6} {preset:>8} {pct2(100 * t['coverage'], 1):>6}% "
-            f"{pct2(t['worst_pct']):>7} {pct2(t['rms_pct']):>6} "
-            f"{pct2(100 * t['covered_fraction'], 0):>5}% {pct2(t['median_bound_pct']):>7}{unseen}")
+        lines.append(row(cond, "all", preset, t, unseen))
     return "\n".join(lines)
+
+
+def _num(v: float, digits: int = 2) -> str:
+    return "-" if not math.isfinite(v) else f"{v:.{digits}f}"
 
 
 # ---- Middlebury benchmark pairs -------------------------------------------------------------

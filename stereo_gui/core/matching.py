@@ -1,5 +1,10 @@
 """The frame pipeline: rectify, match (SGBM), close, WLS-filter, colourise.
 
+The final map (what the views colour, a click reads and the exports write) is, for a preset with a
+second window, the agreement of two SGBM matchers (`agreement`), without what a nearer surface
+hides from the right camera (`occluded`) and what matched on a blank surface (`blank_mask`); the
+WLS output is then a picture. Without a second window it is the WLS output, as in the report.
+
 Units: every disparity this module hands out is float32 pixels of the full-resolution rectified
 left image, NaN where invalid. OpenCV's matchers and the WLS filter work in x16 fixed point; that
 scale is divided out in exactly one place, `fixed_to_px`.
@@ -703,8 +708,8 @@ class StereoPipeline:
             # what matched on a blank surface matched noise, however well the windows agree
             blank(agreed, blank_mask(ml, max(4, round(BLANK_HALF_PX * scale)),
                                      max(1, round(BLANK_LAG_PX * scale))))
-            agreed = enlarge(agreed, (w, h), p.agree_px) * np.float32(factor) if scale < 1.0 \
-                else agreed
+            if scale < 1.0:
+                agreed = enlarge(agreed, (w, h), p.agree_px) * np.float32(factor)
         edge = self.edge_margin_px
         # what the right camera cannot see lies in the leftmost `band` columns, found from the
         # largest disparity of the maps (at the matched resolution: the enlargements take or
@@ -766,7 +771,6 @@ class StereoPipeline:
             blank(final, cv2.compare(confidence, 0.0, cv2.CMP_LE))
         else:
             final = wls_px
-        valid = np.isfinite(final)
         if p.full_frame:
             # the strip is known only once the final map has found where the surface at the edge
             # is; whatever the matcher put there is a match the right camera cannot have made
@@ -774,7 +778,7 @@ class StereoPipeline:
             np.logical_or(not_seen[:, :band], into_padding[:, :band], out=not_seen[:, :band])
             for m in {id(a): a for a in (raw, closed, wls_px, final) if a is not None}.values():
                 blank(m, not_seen, band)
-            valid = np.isfinite(final)
+        valid = np.isfinite(final)
         colours = color_scale(final, p, self.calibration)
         color = colorize(final, colours, p.colormap, not_seen, band)
         lap("colormap")
@@ -860,18 +864,14 @@ def agreement(d16: np.ndarray, d16_second: np.ndarray, min_disparity: int, agree
     """The final map of two windows' SGBM maps (x16 fixed point, same size, both searched from
     `min_disparity`): their mean in float px of those maps where both found a match, they agree
     within `agree_px` and the mean lies within `keep_px` = (smallest, largest) disparity kept;
-    NaN elsewhere."""
-    a = d16.astype(np.float32)
-    b = d16_second.astype(np.float32)
-    out = cv2.addWeighted(a, 0.5 / DISP_SCALE, b, 0.5 / DISP_SCALE, 0.0)
-    bad = cv2.compare(cv2.absdiff(a, b), float(agree_px * DISP_SCALE), cv2.CMP_GT)
+    NaN elsewhere (a map's "no match" is NaN already, and the mean keeps it)."""
+    a = fixed_to_px(d16, min_disparity)
+    b = fixed_to_px(d16_second, min_disparity)
+    out = cv2.addWeighted(a, 0.5, b, 0.5, 0.0)
     lo, hi = keep_px
-    bad |= cv2.compare(out, float(lo), cv2.CMP_LT)
-    bad |= cv2.compare(out, float(hi), cv2.CMP_GT)
-    # ("no match" is (minDisparity - 1) x16: with a match of the other map next to it, it could
-    # pass the tests above; a reading needs both)
-    bad |= cv2.compare(d16, min_disparity * DISP_SCALE, cv2.CMP_LT)
-    bad |= cv2.compare(d16_second, min_disparity * DISP_SCALE, cv2.CMP_LT)
+    with np.errstate(invalid="ignore"):
+        bad = (np.abs(a - b) > np.float32(agree_px)) | (out < np.float32(lo)) | \
+            (out > np.float32(hi))
     blank(out, bad)
     return out
 

@@ -485,3 +485,45 @@ def test_blank_mask_finds_noise_alone_whatever_the_texture_would_be():
         mask = blank_mask(img, 12, 1)
         share = mask[20:-20, 20:-20].mean()
         assert share > 0.95 if blank else share < 0.05, (blank, share)
+
+
+def test_agreement_keeps_the_mean_where_both_windows_match_and_agree():
+    from stereo_gui.core.matching import agreement
+
+    a = np.array([[80, 80, -16, 160, 32]], np.int16)  # x16: 5, 5, no match, 10, 2
+    b = np.array([[88, 112, 80, 176, 32]], np.int16)  # x16: 5.5, 7, 5, 11, 2
+    out = agreement(a, b, 0, 1.0, (2.5, 100.0))
+    assert out[0, 0] == 5.25  # agree within 1 px: their mean
+    assert np.isnan(out[0, 1])  # 2 px apart
+    assert np.isnan(out[0, 2])  # one found no match
+    assert out[0, 3] == 10.5  # exactly 1 px apart still agrees
+    assert np.isnan(out[0, 4])  # below the kept range (the searched range's end)
+
+
+def test_occluded_finds_a_far_match_that_a_nearer_surface_covers():
+    """Row: a wrong far match (d 2) at x 8 and a surface at d 27 from x 32: the right camera sees
+    the surface at column 5 (32 - 27), where the far match would also be seen (8 - 2 = 6): the
+    far one is hidden. The surface's own pixels are not, nor is a far match that lies clear of
+    it; `reach` lets the surface go on under the empty pixels just left of it."""
+    from stereo_gui.core.matching import occluded
+
+    row = np.full((1, 60), np.nan, np.float32)
+    row[0, 8] = 2.0
+    row[0, 32:] = 27.0
+    mask = occluded(row, 1.0)
+    assert mask[0, 8] and not mask[0, 32:].any()
+    row[0, 8] = np.nan
+    row[0, 3] = 2.0  # matches at column 1: left of what the surface covers (from 5)
+    assert not occluded(row, 1.0)[0, 3]
+    assert occluded(row, 1.0, reach_px=4)[0, 3]  # the surface taken on to x 28: column 1
+
+
+def test_enlarge_interpolates_within_a_surface_and_keeps_edges_and_holes():
+    from stereo_gui.core.matching import enlarge
+
+    m = np.array([[10.0, 10.5, 30.0, np.nan]], np.float32).repeat(2, axis=0)
+    big = enlarge(m, (8, 4), 1.0)
+    assert big.shape == (4, 8)
+    assert 10.0 < big[0, 2] < 10.5  # between two pixels of one surface: interpolated
+    assert set(np.unique(big[:, 3:6][np.isfinite(big[:, 3:6])])) <= {10.5, 30.0}  # the edge
+    assert np.isnan(big[:, 7]).all()  # the hole stays a hole

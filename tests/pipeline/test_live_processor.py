@@ -152,3 +152,22 @@ def test_two_frames_at_once_each_get_a_pipeline_and_the_result_of_one_at_a_time(
     finally:
         alone.close()
         proc.close()
+
+
+def test_the_wls_picture_is_made_only_when_its_view_is_shown():
+    """With a second window the depth is the windows' agreement and WLS only a picture: hidden,
+    it is not computed (nor the right matcher it needs); shown, it is, and the depth is the same."""
+    calib = StereoCalibration.identity((W, H), 300.0, 100.0)
+    params = MatcherParams(num_disparities=32, block_size=3, check_block_size=5, p1=72, p2=288)
+    proc = LiveProcessor(calib, params)
+    try:
+        proc.set_views(["left", "depth"])
+        hidden = proc(_frame()).result
+        proc.set_views(["left", "depth", "wls"])
+        shown = proc(_frame())
+    finally:
+        proc.close()
+    assert hidden.wls_px is None and "wls" not in hidden.timings_ms
+    assert shown.result.wls_px is not None and "wls" in shown.images
+    np.testing.assert_array_equal(hidden.final_px, shown.result.final_px)
+    assert np.nanmedian(hidden.final_px) == pytest.approx(SHIFT, abs=0.5)
