@@ -245,9 +245,12 @@ class LiveTab(QWidget):
         self._active = active
         if active:
             self._install_processor()
+            if self.pause_button.isChecked():  # paused before another tab was shown: still is
+                self.ctx.frames.pause()
             self._frame_ready()
         elif self.pause_button.isChecked():
-            self.pause_button.setChecked(False)  # other tabs need frames
+            # other tabs need frames; the Live view stays paused until the person resumes it
+            self.ctx.frames.resume()
 
     def _install_processor(self) -> None:
         if self._active:
@@ -443,6 +446,8 @@ class LiveTab(QWidget):
             self.pause_button.setChecked(paused)  # re-enters through toggled
             return
         self.pause_button.setText("Resume" if paused else "Pause")
+        if not self._active:
+            return  # the frames belong to the tab shown; set_active applies the pause
         if paused:
             self.ctx.frames.pause()
         else:
