@@ -345,7 +345,6 @@ class CaptureTab(SessionPairs, QWidget):
         self._saved[name] = info
         self._add_list_item(info)
         self.saved_panel.show_newest()  # the pair just taken is in view, however long the list
-        self.saved_panel.add_coverage(det)
         self._update_coverage()
         self.ctx.show_status(f"Saved pair {name} to {self.session.folder}")
         self.pairSaved.emit(name)

@@ -125,7 +125,6 @@ class SessionPairs:
         self._saved.clear()
         self.shown_pair = None
         self.saved_panel.clear()
-        self.coverage.reset(self._image_size())
         self._update_coverage()
         self.sessionChanged.emit(session)
         self._start_scan()
@@ -166,8 +165,6 @@ class SessionPairs:
             if name in self._saved:
                 continue  # saved while the scan ran
             self._saved[name] = info
-            if det is not None:
-                self.saved_panel.add_coverage(det)
         self._refill_list()
         self._update_coverage()
         if self.state == "review":  # what a frozen pair adds is known now
@@ -283,11 +280,6 @@ class SessionPairs:
             self.ctx.report_error(f"could not delete pair {name}: {exc}")
             return
         self._saved.pop(name, None)
-        self.coverage.reset(self._image_size())
-        for info in self._saved.values():
-            det = info.detection
-            if det is not None:
-                self.saved_panel.add_coverage(det)
         self._refill_list()
         self._update_coverage()
         self.ctx.show_status(f"Deleted pair {name}")

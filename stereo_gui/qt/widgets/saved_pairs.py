@@ -85,11 +85,6 @@ class SavedPairsPanel(QWidget):
             return True
         return super().eventFilter(obj, event)
 
-    def add_coverage(self, det: PairDetection) -> None:
-        """Count a saved pair's corners in the coverage maps."""
-        self.coverage.add_pair(det.left.corners if det.left else None,
-                               det.right.corners if det.right else None)
-
     def add_item(self, info: SavedPairInfo, excluded: bool) -> None:
         """Append a saved pair to the list (with its thumbnail and what is wrong with it)."""
         text = info.name
