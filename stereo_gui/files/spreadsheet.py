@@ -38,6 +38,7 @@ import numpy as np
 
 from stereo_gui.core.detect import check_cancel
 from stereo_gui.core.errors import InputError
+from stereo_gui.core.util import how_many
 from stereo_gui.files.atomic import atomic_path, os_error_text, write_text_atomic
 from stereo_gui.files.readers import read_csv_rows
 
@@ -259,7 +260,7 @@ def _write_measurements_sheet(ws, records: Sequence[MeasurementRecord], cancel=N
         if n % _CANCEL_EVERY_ROWS == 0:
             check_cancel(cancel)
             if progress is not None:
-                progress(n, len(records), f"{n:,} of {len(records):,} rows")
+                progress(n, len(records), f"{n:,} of {how_many(len(records), 'row')}")
     return n
 
 

@@ -18,6 +18,7 @@ from stereo_gui.core.detect import PairDetection, PairInput, detect_pairs
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.lens import project_points, undistort_points
 from stereo_gui.core.stereo_calibration import RectifyMaps, StereoCalibration
+from stereo_gui.core.util import how_many
 from stereo_gui.pipeline.jobs import JobControl, Progress
 
 log = logging.getLogger(__name__)
@@ -161,7 +162,7 @@ def calibration_job(folder: Path, board: BoardSpec, alpha: float, method: str,
                             Path(a).name, Path(b).name) for p, (a, b) in zip(included, sides)]
         n = len(inputs)
         total = n + 10
-        yield Progress(0, total, f"finding the board in {n} pairs")
+        yield Progress(0, total, f"finding the board in {how_many(n, 'pair')}")
         dets = detect_pairs(
             inputs, board, cancel=control,
             progress=lambda d, t, s: control.report(d, total, f"finding the board: {s}"))

@@ -13,6 +13,8 @@ import logging
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QComboBox, QHBoxLayout, QLabel, QVBoxLayout, QWidget
 
+from stereo_gui.core.util import how_many
+
 log = logging.getLogger(__name__)
 
 COLOUR_TEXT = {"image": "colour from the image", "distance": "colour by distance"}
@@ -121,7 +123,7 @@ class CloudView(QWidget):
 
     def show_points(self, cloud) -> None:
         """Draw a `stereo_gui.pipeline.cloud.CloudPoints` (arrays handed over, nothing more)."""
-        self.info.setText(f"{cloud.count} points, {cloud.z_near_m:.2f} – {cloud.z_far_m:.2f} m")
+        self.info.setText(f"{how_many(cloud.count, 'point')}, {cloud.z_near_m:.2f} – {cloud.z_far_m:.2f} m")
         self.points = cloud
         if self.scatter is None:
             return

@@ -320,3 +320,27 @@ def test_an_unreadable_kept_log_is_set_aside_and_said(qtbot, tmp_path):
     assert (tmp_path / "measurement-log.json.unreadable").read_text() == "{ half a log"
     assert ctx.measurements == []
     assert ctx.shutdown(2000)
+
+
+def test_one_reading_is_one_reading_not_one_readings(tab, ctx, questions):
+    """With one reading and one true distance the tab says "1 reading", "1 sample" and "of
+    1 reading" (it said "1 samples" and "of 1 readings"), and two are plural again."""
+    ctx.add_measurement(_record(41.0))
+    assert tab.table.model().setData(tab.table.model().index(0, TRUE_COL), "2000")
+    texts = [tab.count_label.text(), tab.sample_label.text(), tab.triangulation_label.text()]
+    joined = " | ".join(texts)
+    assert "1 reading," in texts[0] and texts[1].startswith("1 sample ")
+    assert "of 1 reading" in texts[2] and "1 readings" not in joined and "1 samples" not in joined
+    tab.clear_button.click()
+    assert "Remove the 1 reading (1 with a true distance)" in questions.asked[-1]
+    ctx.add_measurement(_record(30.0))
+    ctx.add_measurement(_record(20.0))
+    assert "2 readings," in tab.count_label.text()
+
+
+def test_how_many_says_a_count_in_the_right_number():
+    from stereo_gui.core.util import how_many
+
+    assert [how_many(n, "sample") for n in (0, 1, 2)] == ["0 samples", "1 sample", "2 samples"]
+    assert how_many(20000, "reading") == "20,000 readings"
+    assert how_many(1, "cleared reading is", "cleared readings are") == "1 cleared reading is"
