@@ -53,7 +53,9 @@ class SimSource:
         self._frames_per_move = max(2, int(frames_per_move))
         self._from: BoardPose | None = None
         self._to: BoardPose | None = None
-        self._moves = 0  # poses drawn: the next one goes to PLACES[_moves % len(PLACES)]
+        # the next pose goes to PLACES[_moves % len(PLACES)]; the first one to the centre, in
+        # full view of both cameras (a far corner is a hard first sight of the board)
+        self._moves = SimRig.PLACES.index((0.5, 0.5))
         self._index = 0
         self._pacer = FramePacer()
         self._closed = False

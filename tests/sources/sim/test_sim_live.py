@@ -68,7 +68,7 @@ def test_sim_source_paces_frames(monkeypatch):
 @pytest.mark.parametrize("mode", ["mixed", "board"])
 def test_the_live_rigs_resting_poses_make_a_set_ready_to_calibrate(mode):
     """Where the live board rests (every second frame with two frames a move), both cameras see
-    it whole, in front of the scene's objects, and two rounds of its places satisfy the Capture
+    it whole, in front of the scene's objects, and three rounds of its places satisfy the Capture
     tab's own readiness rule (random poses left image corners empty after 50 pairs)."""
     from stereo_gui.core.board import BoardSpec
     from stereo_gui.core.coverage import readiness
@@ -78,7 +78,7 @@ def test_the_live_rigs_resting_poses_make_a_set_ready_to_calibrate(mode):
     src = SimSource(rig, mode=mode, paced=False, seed=0, frames_per_move=2)
     board = BoardSpec()
     kept = []
-    for i in range(2 * len(SimRig.PLACES) * 2):
+    for i in range(2 * len(SimRig.PLACES) * 3):
         f = src.read()
         if i % 2 == 0:
             det = detect_pair(f"rest {i}", f.left, f.right, board)
