@@ -32,3 +32,29 @@ def test_showing_more_views_never_makes_the_window_taller(qtbot, ctx, window, si
             assert window.minimumSizeHint().height() <= h, shown
             assert window.minimumSizeHint().width() <= w, shown
             assert (window.width(), window.height()) == (w, h), shown
+
+
+def test_save_calibration_is_in_view_after_a_calibration_at_1366x768(qtbot, ctx, window,
+                                                                      tmp_path):
+    """The Calibration tab's Save calibration… is on screen, whole, once a calibration with
+    warnings fills the figures (it was below the fold of the left pane at 1366x768)."""
+    from stereo_gui.sources.sim import write_calibration_set
+
+    (tmp_path / "set").mkdir()
+    folder = write_calibration_set(tmp_path / "set", n_pairs=12, seed=11)
+    window.resize(1366, 768 - TITLE_BAR_PX)
+    window.show_tab("calibration")
+    tab = window.calibration_tab
+    tab.folder_edit.setText(str(folder))
+    with qtbot.waitSignal(tab.calibrationFinished, timeout=120000):
+        assert tab.start_calibration()
+    try:
+        qtbot.waitUntil(lambda: not tab.is_running(), timeout=30000)
+        QApplication.processEvents()
+        button = tab.save_button
+        assert button.isVisible() and button.isEnabled()
+        assert button.visibleRegion().boundingRect() == button.rect()
+    finally:
+        # saved, so that closing asks nothing; closing joins the tabs' threads
+        assert window.save_calibration(str(tmp_path / "calibration.yaml"))
+        window.close()
