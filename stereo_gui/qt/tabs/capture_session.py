@@ -17,6 +17,7 @@ from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.files.pairs import load_image
 from stereo_gui.pipeline.capture import session_scan_job
 from stereo_gui.pipeline.images import display_rgb
+from stereo_gui.qt.widgets import folder_dialog
 from stereo_gui.qt.widgets.saved_pairs import THUMB_SIZE, SavedPairInfo, pair_thumbnail
 from stereo_gui.qt.workers.job_worker import JobWorker
 
@@ -28,7 +29,8 @@ class SessionPairs:
     def _choose_new_session(self) -> bool:
         last = self.ctx.settings.last_session
         start = str(Path(last).parent) if last else str(Path.home())
-        folder = QFileDialog.getExistingDirectory(self, "Folder for the new capture session", start)
+        # a new folder's name may be typed: it is created after asking
+        folder = folder_dialog.choose_folder(self, "Folder for the new capture session", start)
         if not folder or not self._confirm_session_folder(Path(folder)):
             return False
         try:
