@@ -86,3 +86,22 @@ def test_a_paused_live_view_stays_paused_across_a_tab_switch(qtbot, ctx, window,
     live.pause_button.click()
     assert not ctx.frames.paused and live.pause_button.text() == "Pause"
     qtbot.waitUntil(lambda: live.frames_shown > shown, timeout=30000)
+
+
+def test_coming_back_to_a_frozen_pair_says_it_is_from_before(qtbot, ctx, window, sim_rig):
+    """Capture (a pair freezes), Measurements, Capture: the pair is still offered, and the
+    prompt says it was frozen before the tab was left (it was shown unchanged, without a
+    word); Cancel goes live."""
+    window.use_source(_board_source(sim_rig), SourceChoice("sim"))
+    capture = window.capture_tab
+    window.show_tab("capture")
+    qtbot.waitUntil(lambda: capture.state == "review", timeout=60000)
+    assert capture.prompt.text().startswith("Both cameras see the board")
+    window.show_tab("measurements")
+    _frames_pass(qtbot, ctx)
+    window.show_tab("capture")
+    assert capture.state == "review" and capture.save_button.isEnabled()
+    text = capture.prompt.text()
+    assert "This pair was frozen at" in text and "before you left the Capture tab" in text
+    capture.cancel_button.click()
+    assert capture.prompt.text() == "Live"
