@@ -217,6 +217,7 @@ class LiveTab(QWidget):
 
         self.views.changed.connect(self._views_changed)
         self.views.lay_out()
+        self.region.restore()
         ctx.calibrationChanged.connect(self._calibration_changed)
         ctx.frames.frameReady.connect(self._frame_ready)
         ctx.frames.sourceChanged.connect(self._source_changed)
