@@ -59,7 +59,7 @@ def _record_to_json(r: MeasurementRecord) -> dict:
 
 
 _FLOAT_FIELDS = {f.name for f in fields(MeasurementRecord) if "float" in str(f.type)}
-_TEXT_FIELDS = {"time", "reason", "method", "calibration_file"}
+_TEXT_FIELDS = {"time", "reason", "method", "calibration_file", "note"}
 
 
 def _record_from_json(doc, where: str) -> MeasurementRecord:

@@ -80,6 +80,7 @@ class MeasurementRecord:
     true_mm: float | None = None  # true distance entered by the technician
     calibration_file: str = ""
     calibration_rms_px: float = float("nan")
+    note: str = ""  # what was measured, in the technician's words
 
     @classmethod
     def from_measurement(cls, m, *, time: str | None = None, true_mm: float | None = None,
@@ -117,6 +118,9 @@ COLUMNS: tuple[tuple[str, str, str, int], ...] = (
     ("calibration_file", "Calibration file", "@", 30),
     ("calibration_rms_px", "Calibration RMS (px)", "0.000", 12),
 )
+# the technician's note, the last column of a file: files written before it had none, and are
+# read as they are (their columns are the first ones of today's)
+NOTE_COLUMN = ("note", "Note", "@", 40)
 HEADERS = tuple(c[1] for c in COLUMNS)
 # derived from each record and written after its columns (readers ignore them): how far Z is
 # from the true distance once one was entered
@@ -125,13 +129,15 @@ ERROR_COLUMNS: tuple[tuple[str, str, int], ...] = (
 ERROR_HEADERS = tuple(c[0] for c in ERROR_COLUMNS)
 ERROR_FIELDS = ("error_mm", "error_pct")  # their names, for their units (csv_decimals)
 _FIELD_NAMES = tuple(f.name for f in fields(MeasurementRecord))
-assert tuple(c[0] for c in COLUMNS) == _FIELD_NAMES  # the layout covers every field, in order
+# the layout covers every field, in order
+assert tuple(c[0] for c in COLUMNS) + (NOTE_COLUMN[0],) == _FIELD_NAMES
+FILE_HEADERS = HEADERS + ERROR_HEADERS + (NOTE_COLUMN[1],)  # a CSV's first row, in order
 
 # In a workbook the time is a date-time cell in UTC (Excel has no time zones); CSV keeps ISO text.
 XLSX_TIME_HEADER = "Time (UTC)"
 XLSX_TIME_FORMAT = "yyyy-mm-dd hh:mm:ss.000"
 XLSX_HEADERS = tuple(XLSX_TIME_HEADER if name == "time" else header
-                     for name, header, _, _ in COLUMNS) + ERROR_HEADERS
+                     for name, header, _, _ in COLUMNS) + ERROR_HEADERS + (NOTE_COLUMN[1],)
 
 
 # a ruler distance in the log: the method starts so; X/Y/Z are the components of B - A and
@@ -184,6 +190,9 @@ def _time_text(value: _dt.datetime) -> str:
 
 def _record_from_row(values: Sequence[Any], where: str) -> MeasurementRecord:
     kw: dict[str, Any] = {}
+    note_at = len(COLUMNS) + len(ERROR_COLUMNS)
+    if len(values) > note_at and values[note_at] not in (None, ""):
+        kw["note"] = str(values[note_at])
     for (name, header, _, _), v in zip(COLUMNS, values, strict=False):
         if name == "time" and isinstance(v, _dt.datetime):
             kw[name] = _time_text(v)
@@ -209,15 +218,22 @@ def _bold():
     return Font(bold=True)
 
 
+def _file_values(rec: MeasurementRecord) -> tuple:
+    """A record's values in the order of a file's columns: the measured fields, the derived
+    errors, the note."""
+    values = astuple(rec)
+    return values[:len(COLUMNS)] + record_error(rec) + (rec.note,)
+
+
 def _row_values(rec: MeasurementRecord) -> list[Any]:
-    values = [_cell(v) for v in astuple(rec) + record_error(rec)]
+    values = [_cell(v) for v in _file_values(rec)]
     values[0] = _time_cell(rec.time)
     return values
 
 
 def _formats() -> list[str]:
     return ([XLSX_TIME_FORMAT if name == "time" else fmt for name, _, fmt, _ in COLUMNS]
-            + [c[1] for c in ERROR_COLUMNS])
+            + [c[1] for c in ERROR_COLUMNS] + [NOTE_COLUMN[2]])
 
 
 _CANCEL_EVERY_ROWS = 500  # a streamed export looks at its cancel flag and reports this often
@@ -232,8 +248,8 @@ def _write_measurements_sheet(ws, records: Sequence[MeasurementRecord], cancel=N
     from openpyxl.cell import WriteOnlyCell
     from openpyxl.utils import get_column_letter
 
-    widths = [c[3] for c in COLUMNS] + [c[2] for c in ERROR_COLUMNS]
-    names = [c[0] for c in COLUMNS] + list(ERROR_FIELDS)
+    widths = [c[3] for c in COLUMNS] + [c[2] for c in ERROR_COLUMNS] + [NOTE_COLUMN[3]]
+    names = [c[0] for c in COLUMNS] + list(ERROR_FIELDS) + [NOTE_COLUMN[0]]
     for i, (name, header, width) in enumerate(zip(names, XLSX_HEADERS, widths, strict=True),
                                               start=1):
         # wide enough for the bold header with its unit ("Expected error (mm)" was cut off)
@@ -715,7 +731,10 @@ def append_measurements(path: str | os.PathLike, records: Iterable[MeasurementRe
         write_workbook(path, records, fits or (), calibration, calibration_file)
         return len(records)
     wb = _load_ours(path)
-    wb[MEASUREMENTS_SHEET].cell(row=1, column=1).value = XLSX_TIME_HEADER
+    for col, text in enumerate(XLSX_HEADERS, start=1):  # (older workbooks lack the last ones)
+        cell = wb[MEASUREMENTS_SHEET].cell(row=1, column=col)
+        cell.value = text
+        cell.font = _bold()
     n = _append_measurement_rows(wb[MEASUREMENTS_SHEET], records)
     cf = None if calibration_file is None else str(calibration_file)
     if fits is not None:
@@ -768,12 +787,12 @@ def records_to_csv(records: Iterable[MeasurementRecord]) -> str:
     numbers rounded to what they mean (`csv_decimals`)."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(HEADERS + ERROR_HEADERS)
-    decimals = [csv_decimals(name) for name in _FIELD_NAMES] + [csv_decimals(name)
-                                                                 for name in ERROR_FIELDS]
+    w.writerow(FILE_HEADERS)
+    decimals = ([csv_decimals(name) for name, _, _, _ in COLUMNS]
+                + [csv_decimals(name) for name in ERROR_FIELDS] + [None])
     for rec in records:
         row = []
-        for v, dec in zip(astuple(rec) + record_error(rec), decimals, strict=True):
+        for v, dec in zip(_file_values(rec), decimals, strict=True):
             v = _cell(v)
             if v is None:
                 row.append("")
@@ -791,9 +810,14 @@ def write_csv(path: str | os.PathLike, records: Iterable[MeasurementRecord]) -> 
 
 
 def read_csv(path: str | os.PathLike) -> list[MeasurementRecord]:
-    """Read a CSV file written by `write_csv` (with the error columns or, older, without)."""
+    """Read a CSV file written by `write_csv` (with the error and note columns or, older,
+    without them)."""
+    what = "a measurement CSV of stereo-gui"
     try:
-        rows = read_csv_rows(path, HEADERS + ERROR_HEADERS, "a measurement CSV of stereo-gui")
+        rows = read_csv_rows(path, FILE_HEADERS, what)
     except InputError:
-        rows = read_csv_rows(path, HEADERS, "a measurement CSV of stereo-gui")
+        try:
+            rows = read_csv_rows(path, HEADERS + ERROR_HEADERS, what)
+        except InputError:
+            rows = read_csv_rows(path, HEADERS, what)
     return [_record_from_row(r, f"{path}, line {i}") for i, r in enumerate(rows, start=2) if r]

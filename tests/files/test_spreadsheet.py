@@ -102,13 +102,15 @@ def test_measurements_sheet_holds_what_was_written(tmp_path):
     ws = wb["Measurements"]
     header = [c.value for c in ws[1]]
     assert tuple(header) == ss.XLSX_HEADERS
-    assert header[0] == "Time (UTC)" and header[-len(ss.ERROR_HEADERS):] == list(ss.ERROR_HEADERS)
+    assert header[0] == "Time (UTC)" and header[-1] == "Note"
+    assert header[-1 - len(ss.ERROR_HEADERS):-1] == list(ss.ERROR_HEADERS)
     assert "Disparity (px)" in header and "Z (mm)" in header and "True distance (mm)" in header
     assert ws.max_row == 1 + len(recs)
     for row, rec in zip(ws.iter_rows(min_row=2, values_only=True), recs, strict=True):
         # the time is a real date-time cell (UTC, naive: Excel has no time zones)
         assert row[0] == _dt.datetime.fromisoformat(rec.time).replace(tzinfo=None)
-        for value, expected in zip(row[1:len(HEADERS)], astuple(rec)[1:], strict=True):
+        for value, expected in zip(row[1:len(HEADERS)], astuple(rec)[1:len(HEADERS)],
+                                   strict=True):
             if isinstance(expected, float) and math.isnan(expected) or expected in ("", None):
                 assert value is None  # Excel has no NaN: an empty cell
             elif isinstance(expected, float):
@@ -466,7 +468,7 @@ def test_error_columns_say_how_far_z_is_from_the_true_distance(tmp_path):
 def test_a_csv_written_before_the_error_columns_still_reads(tmp_path):
     recs = _records(2)
     text = ss.records_to_csv(recs).splitlines()
-    n = len(ss.ERROR_HEADERS)
+    n = len(ss.ERROR_HEADERS) + 1  # and the note
     old = "\n".join(",".join(line.split(",")[:-n]) for line in text) + "\n"
     (tmp_path / "old.csv").write_text(old, encoding="utf-8")
     assert len(read_csv(tmp_path / "old.csv")) == len(recs)

@@ -37,7 +37,7 @@ from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.util import how_many
 from stereo_gui.qt.tabs.measurement_exports import MeasurementExports
 from stereo_gui.qt.widgets.helpers import pane, wrapping_label
-from stereo_gui.qt.widgets.measurement_table import (MeasurementModel, samples_from,
+from stereo_gui.qt.widgets.measurement_table import (NOTE_COL, MeasurementModel, samples_from,
                                                      triangulation_errors_mm)
 from stereo_gui.qt.widgets.regression_plot import MODELS, RegressionPlot
 from stereo_gui.qt.workers.job_worker import JobWorker
@@ -92,6 +92,9 @@ class MeasurementsTab(MeasurementExports, QWidget):
         self.table.setAlternatingRowColors(True)
         hh = self.table.horizontalHeader()
         hh.setSectionResizeMode(QHeaderView.ResizeMode.ResizeToContents)
+        # room to type a note before there is one; a long one does not push the numbers away
+        hh.setSectionResizeMode(NOTE_COL, QHeaderView.ResizeMode.Interactive)
+        hh.resizeSection(NOTE_COL, 160)
         hh.setStretchLastSection(True)
         self.table.verticalHeader().setDefaultSectionSize(22)
         ll.addWidget(self.table, 1)
