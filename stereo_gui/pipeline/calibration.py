@@ -132,6 +132,9 @@ class CalibrationRun:
     reprojections: dict[str, PairReprojection] = field(default_factory=dict)  # used pairs
 
 
+EXCLUDED_BY_YOU = "excluded by you"  # why an excluded pair is not in a calibration
+
+
 def read_image(path: str) -> np.ndarray:
     """A BGR image from `path`; InputError if it cannot be read."""
     img = cv2.imread(str(path), cv2.IMREAD_COLOR)
@@ -173,6 +176,10 @@ def calibration_job(folder: Path, board: BoardSpec, alpha: float, method: str,
             origin=f"{folder}" + (" with left and right exchanged" if swapped else ""))
         if swapped:
             result = replace(result, calibration=result.calibration.with_updates(swapped_inputs=True))
+        if excluded:  # recorded with the calibration, beside the pairs it rejected
+            calib = result.calibration
+            result = replace(result, calibration=calib.with_updates(
+                left_out=tuple((name, EXCLUDED_BY_YOU) for name in excluded) + calib.left_out))
         control.check()
         yield Progress(n + 9, total, "computing rectification maps")
         maps = result.calibration.rectify_maps()
