@@ -16,7 +16,8 @@ Every sheet prints landscape, one page wide.
 
 A new workbook is streamed with openpyxl's write-only mode (time linear in the rows: 20,000
 readings take seconds); appending loads the workbook and adds rows below the last one.
-CSV numbers are rounded to what they mean: 0.1 mm and 0.001 px (`csv_decimals`).
+CSV numbers are rounded to what they mean: 0.1 mm and 0.001 px, an error in % to its 0.1 mm
+(`csv_decimals`, `pct_decimals`).
 
 Every write goes through a temporary file in the same folder and a rename, so a crash or a full
 disk mid-write leaves the earlier file intact.
@@ -887,14 +888,22 @@ def _replace_sheet(wb, title: str, index: int, fill) -> None:
 # ---- CSV ------------------------------------------------------------------------------------
 def csv_decimals(field: str) -> int | None:
     """Decimals a CSV number of record field `field` keeps, from the unit in its name: 0.1 mm,
-    0.001 px, 0.1 % (a fraction to 0.001); None for a number without a unit (6 digits)."""
+    0.001 px (a fraction to 0.001, 0.1 %); None for a number without a unit (6 digits). An error
+    in % keeps as many as its true distance asks (`pct_decimals`)."""
     if field.endswith("_mm"):
         return 1
     if field.endswith("_px") or field.endswith("fraction"):
         return 3
-    if field.endswith("_pct"):
-        return 1
     return None
+
+
+def pct_decimals(true_mm: float | None) -> int:
+    """Decimals of an error in % of `true_mm` that keep the error's own 0.1 mm: 3 at 2 m (a
+    step of 0.005 %), 2 at 0.5 m; rounded to 0.1 % an error of -0.6 mm at 2 m was written 0.0."""
+    if true_mm is None or not math.isfinite(true_mm) or true_mm <= 0:
+        return 1
+    step_pct = 100.0 * 0.1 / float(true_mm)
+    return int(min(6, max(1, math.ceil(-math.log10(step_pct)))))
 
 
 def _csv_number(value: float, decimals: int | None) -> str:
@@ -910,8 +919,10 @@ def records_to_csv(records: Iterable[MeasurementRecord]) -> str:
     w.writerow(FILE_HEADERS)
     decimals = ([csv_decimals(name) for name, _, _, _ in COLUMNS]
                 + [csv_decimals(name) for name in ERROR_FIELDS] + [None])
+    pct = len(COLUMNS) + ERROR_FIELDS.index("error_pct")
     for rec in records:
         row = []
+        decimals[pct] = pct_decimals(rec.true_mm)
         for v, dec in zip(_file_values(rec), decimals, strict=True):
             v = _cell(v)
             if v is None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 import math
 import zipfile
@@ -580,3 +581,17 @@ def test_every_sheet_prints_landscape_one_page_wide_with_the_header_on_every_pag
                 if (c.font.b and isinstance(c.value, str) and c.row > 1 and not dim.hidden
                         and ws.title != "Calibration" and not c.value.endswith(" formula")):
                     assert len(c.value) <= dim.width, (ws.title, c.value, dim.width)
+
+
+def test_csv_keeps_an_error_in_percent_to_what_it_means(tmp_path):
+    """An error of -0.6 mm at 2 m is -0.03 %: the CSV wrote 0.0 (rounded to 0.1 %); it keeps
+    as many decimals as the error's 0.1 mm asks at that distance."""
+    import csv
+
+    rec = dataclasses.replace(_record(1), Z_mm=1999.4, range_mm=1999.4, true_mm=2000.0)
+    near = dataclasses.replace(_record(2), Z_mm=499.6, range_mm=499.6, true_mm=500.0)
+    rows = list(csv.reader(ss.records_to_csv([rec, near]).splitlines()))
+    col = rows[0].index("Error (%)")
+    assert rows[1][col] == "-0.030" and rows[1][rows[0].index("Error Z - true (mm)")] == "-0.6"
+    assert rows[2][col] == "-0.08"
+    assert ss.pct_decimals(None) == 1 and ss.pct_decimals(3000.0) == 3
