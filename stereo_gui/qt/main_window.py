@@ -262,6 +262,9 @@ class MainWindow(QMainWindow):
                 file_menu.addAction(a)
         self._build_shortcuts()
         help_menu = self.menuBar().addMenu("&Help")
+        from stereo_gui.qt.dialogs.help import add_help_actions
+
+        self.help_actions = add_help_actions(self, help_menu)
         about = QAction("&About Stereo GUI", self)
         about.triggered.connect(self.show_about)
         help_menu.addAction(about)
