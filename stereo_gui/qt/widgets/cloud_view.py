@@ -14,6 +14,7 @@ from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QComboBox, QHBoxLayout, QLabel, QVBoxLayout, QWidget
 
 from stereo_gui.core.util import how_many
+from stereo_gui.pipeline.cloud import IMAGE_BACKGROUND_RGB
 
 log = logging.getLogger(__name__)
 
@@ -101,7 +102,7 @@ class CloudView(QWidget):
         import pyqtgraph.opengl as gl
 
         self.gl = gl.GLViewWidget()
-        self.gl.setBackgroundColor("#202020")
+        self.gl.setBackgroundColor(IMAGE_BACKGROUND_RGB)
         self.gl.setCameraPosition(distance=3.0, elevation=12, azimuth=-90)
         grid = gl.GLGridItem()
         grid.setSize(4, 6)
@@ -127,6 +128,7 @@ class CloudView(QWidget):
         self.points = cloud
         if self.scatter is None:
             return
+        self.gl.setBackgroundColor(cloud.background_rgb)  # (by distance: a grey of its own)
         self.scatter.setData(pos=cloud.xyz_m, color=cloud.rgba)
         if not self._centred and cloud.count:
             from PySide6.QtGui import QVector3D
