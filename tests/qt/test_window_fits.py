@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 
 from PySide6.QtWidgets import QApplication
@@ -58,3 +59,56 @@ def test_save_calibration_is_in_view_after_a_calibration_at_1366x768(qtbot, ctx,
         # saved, so that closing asks nothing; closing joins the tabs' threads
         assert window.save_calibration(str(tmp_path / "calibration.yaml"))
         window.close()
+
+
+def test_the_saved_pairs_list_shows_several_pairs_at_1280x720(qtbot, ctx, window, tmp_path):
+    """At 1280x720 the coverage guidance took the side pane's height and the list showed
+    about one thumbnail: four are in view now, whole."""
+    from stereo_gui.sources.sim import write_calibration_set
+
+    (tmp_path / "set").mkdir()
+    folder = write_calibration_set(tmp_path / "set", n_pairs=6, seed=3)
+    window.resize(SCREEN[0], SCREEN[1] - TITLE_BAR_PX)
+    window.show_tab("capture")
+    tab = window.capture_tab
+    tab.open_session(folder)
+    qtbot.waitUntil(lambda: not tab.scanning(), timeout=30000)
+    QApplication.processEvents()
+    assert "Not ready yet" in tab.coverage.readiness_label.text()  # the long guidance is shown
+    lst = tab.pair_list
+    assert lst.count() == 6
+    view = lst.viewport().rect()
+    assert all(view.contains(lst.visualItemRect(lst.item(i))) for i in range(4))
+
+
+def test_capture_views_keep_their_height_whatever_the_prompt_says(qtbot, ctx, window):
+    """At 1280x720 and 1366x768 a prompt of one line ("Live") and the longest one (a pair
+    under review, the regions it reaches, the ask for a session) leave the views where they
+    are (they jumped by about 20 px)."""
+    from stereo_gui.core.board import BoardSpec
+    from stereo_gui.pipeline.capture import make_capture_processor
+    from stereo_gui.sources.sim import RigConfig, SimRig, SimSource
+
+    src = SimSource(SimRig(RigConfig(supersample=1)), mode="board", paced=False, seed=1,
+                    frames_per_move=6)
+    proc = make_capture_processor(BoardSpec())
+    try:
+        frame = src.read()
+        out = proc(frame)
+    finally:
+        src.close()
+    assert out.detection.found
+    window.show_tab("capture")
+    tab = window.capture_tab
+    for w, h in ((1280, 720), (1366, 768)):
+        window.resize(w, h - TITLE_BAR_PX)
+        tab.go_live()
+        # the board out of one view first: the same pose may freeze again
+        tab.show_output(dataclasses.replace(out, detection=dataclasses.replace(
+            out.detection, right=None)), frame)
+        QApplication.processEvents()
+        live_height = tab.view.height()
+        tab.show_output(out, frame)  # frozen: the long review prompt (no session: it asks)
+        assert tab.state == "review" and "Save asks for a session folder" in tab.prompt.text()
+        QApplication.processEvents()
+        assert tab.view.height() == live_height, (w, h)

@@ -17,8 +17,10 @@ from datetime import datetime
 from pathlib import Path
 
 from PySide6.QtCore import Qt, Signal
+from PySide6.QtGui import QFontMetrics
 from PySide6.QtWidgets import (
     QHBoxLayout,
+    QVBoxLayout,
     QLabel,
     QPushButton,
     QSplitter,
@@ -136,6 +138,9 @@ class CaptureTab(SessionPairs, QWidget):
         f = self.prompt.font()
         f.setPointSize(f.pointSize() + 2)
         self.prompt.setFont(f)
+        # three lines always: a prompt of one line and one of three must not move the views
+        self.prompt.setMinimumHeight(3 * QFontMetrics(f).lineSpacing() + 12)
+        self.prompt.setAlignment(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter)
         self.save_button = QPushButton("Save pair (S)")
         self.save_button.setShortcut("S")
         self.cancel_button = QPushButton("Cancel (C)")
@@ -145,9 +150,11 @@ class CaptureTab(SessionPairs, QWidget):
         self.cancel_button.clicked.connect(self.cancel_frozen)
         self.live_button.clicked.connect(self.go_live)
         review.addWidget(self.prompt, 1)
-        review.addWidget(self.save_button)
-        review.addWidget(self.cancel_button)
-        review.addWidget(self.live_button)
+        buttons = QVBoxLayout()  # stacked: the prompt gets the width, three lines hold it
+        buttons.setSpacing(2)
+        for b in (self.save_button, self.cancel_button, self.live_button):
+            buttons.addWidget(b)
+        review.addLayout(buttons)
         ml.addLayout(review)
         split.addWidget(main)
 

@@ -159,19 +159,20 @@ class CoverageWidget(QWidget):
         layout.addLayout(maps)
 
         grid = QGridLayout()
-        self._bars: dict[str, tuple[QProgressBar, QLabel]] = {}
-        for row, name in enumerate(("X", "Y", "Size", "Tilt")):
-            grid.addWidget(QLabel(name), row, 0)
+        self._bars: dict[str, QProgressBar] = {}
+        self._hints: dict[str, str] = {}  # what each bar still needs, "ok" when full
+        for i, name in enumerate(("X", "Y", "Size", "Tilt")):
+            row, col = i // 2, 3 * (i % 2)  # two by two: half the height of a column of four
+            grid.addWidget(QLabel(name), row, col)
             bar = QProgressBar()
             bar.setRange(0, 100)
             bar.setTextVisible(True)
             bar.setMaximumHeight(16)
-            hint = QLabel("")
-            hint.setStyleSheet("color: gray")
-            grid.addWidget(bar, row, 1)
-            grid.addWidget(hint, row, 2)
-            self._bars[name] = (bar, hint)
+            bar.setToolTip(f"{name}: how much of its range the kept poses span")
+            grid.addWidget(bar, row, col + 1)
+            self._bars[name] = bar
         grid.setColumnStretch(1, 1)
+        grid.setColumnStretch(4, 1)
         layout.addLayout(grid)
 
         self.count_label = QLabel("0 pairs")
@@ -180,18 +181,25 @@ class CoverageWidget(QWidget):
         self.readiness_label = QLabel("")
         self.readiness_label.setWordWrap(True)
         layout.addWidget(self.readiness_label)
+        # what would still help once ready (the far sides): smaller, it does not hold anything up
+        self.advice_label = QLabel("")
+        self.advice_label.setWordWrap(True)
+        self.advice_label.setStyleSheet("color: #666666; font-size: 9pt")
+        layout.addWidget(self.advice_label)
         self.set_bars([])
         self.set_count(0, 20)
 
     def set_bars(self, bars: Sequence[CoverageBar]) -> None:
         given = {b.name: b for b in bars}
-        for name, (bar, hint) in self._bars.items():
+        for name, bar in self._bars.items():
             b = given.get(name)
             frac = 0.0 if b is None else float(np.clip(b.fraction, 0.0, 1.0))
             bar.setValue(int(round(100 * frac)))
             colour = "#3a3" if frac >= 0.999 else ("#c90" if frac >= 0.5 else "#c33")
             bar.setStyleSheet(f"QProgressBar::chunk {{ background: {colour}; }}")
-            hint.setText("" if b is None else b.hint)
+            self._hints[name] = "" if b is None else b.hint
+            bar.setToolTip(f"{name}: how much of its range the kept poses span"
+                           + (f" ({self._hints[name]})" if self._hints[name] else ""))
 
     def set_coverage(self, cov) -> None:
         """Show a core `detect.Coverage` (bars, count against the recommended count)."""
@@ -212,15 +220,17 @@ class CoverageWidget(QWidget):
         empty = r.empty
         self.left_map.show_counts(r.counts["left"], empty["left"])
         self.right_map.show_counts(r.counts["right"], empty["right"])
-        self.readiness_label.setText(r.summary())
+        advice = r.advice()
+        self.readiness_label.setText(r.summary()[:-len(advice)].rstrip() if advice else r.summary())
+        self.advice_label.setText(advice)
+        self.advice_label.setVisible(bool(advice))
         self.readiness_label.setStyleSheet(
             "color: #1e7b34; font-weight: bold" if r.ready else "color: #9a5b00")
-        self.count_label.setText(pairs_kept(r.pairs) + ("" if r.ready else
-                                 " (not yet enough coverage to calibrate)"))
+        self.count_label.setText(pairs_kept(r.pairs))  # (the words below say what is missing)
 
     def bar_values(self) -> dict[str, int]:
         """Percent shown on each bar (for tests and screenshots)."""
-        return {name: bar.value() for name, (bar, _) in self._bars.items()}
+        return {name: bar.value() for name, bar in self._bars.items()}
 
     def set_count(self, n_pairs: int, recommended: int) -> None:
         self.count_label.setText(f"{pairs_kept(n_pairs)} (usually {recommended} or more)")
