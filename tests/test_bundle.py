@@ -85,7 +85,7 @@ def test_wheel_builds_without_warnings_and_carries_every_resource_file(tmp_path)
     # installs the setuptools that pyproject.toml asks for (from the package index).
     src = tmp_path / "src"
     ignore = shutil.ignore_patterns("__pycache__", "*.pyc")
-    for name in ("stereo_gui", "resources"):
+    for name in ("stereo_gui", "resources", "docs"):
         shutil.copytree(REPO / name, src / name, ignore=ignore)
     for name in ("pyproject.toml", "README.md"):
         shutil.copy2(REPO / name, src / name)
@@ -103,6 +103,10 @@ def test_wheel_builds_without_warnings_and_carries_every_resource_file(tmp_path)
             name = "stereo_gui/_resources/" + rel.as_posix()
             assert name in zf.namelist(), f"{name} missing from {wheel.name}"
             assert zf.read(name) == (RESOURCES / rel).read_bytes()
+        # the guide and its pictures, for Help > Technician's guide
+        for path in sorted((REPO / "docs").glob("*.md")) + sorted((REPO / "docs").glob("*.png")):
+            name = "stereo_gui/_docs/" + path.name
+            assert name in zf.namelist(), f"{name} missing from {wheel.name}"
 
 
 @pytest.fixture(scope="module")

@@ -356,12 +356,14 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
                f"({board.label()}, {model} model{', k3 fixed' if fix_k3 else ''})")
     regions = uncovered_regions(usable, image_size)
     warnings = calibration_warnings(calib, regions, fix_k3)
-    calib = calib.with_updates(warnings=warnings)
-    _progress(progress, total, total, "done")
     order = {p.name: i for i, p in enumerate(detections)}
+    rejected = sorted(rejected, key=lambda r: order.get(r.name, 0))
+    calib = calib.with_updates(warnings=warnings,
+                               left_out=tuple((r.name, r.reason) for r in rejected))
+    _progress(progress, total, total, "done")
     report = CalibrationReport(
         pairs_found=n, pairs_used=len(usable), used=tuple(sol.names),
-        rejected=tuple(sorted(rejected, key=lambda r: order.get(r.name, 0))),
+        rejected=tuple(rejected),
         rms_left=sol.rms_left, rms_right=sol.rms_right, rms_stereo=sol.rms_stereo,
         epipolar_error_px=epi, baseline_mm=calib.baseline_mm,
         relative_rotation_deg=calib.relative_rotation_deg, method="bouguet",
@@ -450,7 +452,7 @@ def calibrate_hartley(pairs: Sequence[PairDetection], board: BoardSpec | None,
         F=h["F"], R1=h["R1"], R2=h["R2"], P1=h["P1"], P2=h["P2"], Q=h["Q"], board=board,
         rms_left=float(rms1), rms_right=float(rms2), rms_stereo=float("nan"),
         epipolar_error_px=epi, per_pair=tuple(per_pair), method="hartley", alpha=float(alpha),
-        optimal_M1=opt1, optimal_M2=opt2)
+        optimal_M1=opt1, optimal_M2=opt2, left_out=tuple((r.name, r.reason) for r in rejected))
     _progress(progress, 4, 4, "done")
     report = CalibrationReport(
         pairs_found=len(pairs) + len(rejected) if n_found is None else n_found,

@@ -52,9 +52,9 @@ COLORMAPS: dict[str, int] = {
 
 COLOR_RANGES = ("minmax", "fixed")
 # colours of pixels without depth in every view and export: no match (dark red), and the strip
-# the right camera cannot see (grey); neither occurs in the colour maps' ramps near them
+# the right camera cannot see (magenta); neither occurs in the colour maps' ramps near them
 NO_MATCH_BGR = (20, 20, 110)
-NOT_SEEN_BGR = (96, 96, 96)
+NOT_SEEN_BGR = (180, 40, 180)
 
 INTERPOLATIONS: dict[str, int] = {"linear": cv2.INTER_LINEAR, "cubic": cv2.INTER_CUBIC,
                                   "lanczos4": cv2.INTER_LANCZOS4}

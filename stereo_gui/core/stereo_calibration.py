@@ -80,6 +80,9 @@ class StereoCalibration:
     # made from pairs whose left and right images were exchanged (the cameras were found
     # swapped): frames from the same source must be exchanged before they are rectified
     swapped_inputs: bool = False
+    # (pair name, why) of the pairs it was not made from: rejected when it was made (no board
+    # in both images, an outlier) or excluded by the technician
+    left_out: tuple[tuple[str, str], ...] = ()
 
     def ordered(self, left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """A source's (left, right) images in the order this calibration expects."""

@@ -44,3 +44,10 @@ def mutual_ratio_matches(dl: np.ndarray, dr: np.ndarray, ratio: float = 0.75
     runner_up = d2.min(axis=1)  # the second nearest
     ok = (best < np.float32(ratio * ratio) * runner_up) & (back[nearest] == rows)
     return rows[ok], nearest[ok]
+
+
+def how_many(n: int, noun: str, plural: str | None = None) -> str:
+    """A count with its noun in the right number: "1 reading", "2 readings", "0 readings",
+    "20,000 readings" (`plural` when it is not noun + "s")."""
+    word = noun if n == 1 else (plural or noun + "s")
+    return f"{n:,} {word}"

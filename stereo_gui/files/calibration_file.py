@@ -648,6 +648,14 @@ def _write_lens_and_uncertainty(fs, calib: StereoCalibration) -> None:
             fs.write("proposal", w.proposal)
             fs.endWriteStruct()
         fs.endWriteStruct()
+    if calib.left_out:
+        fs.startWriteStruct("pairs_left_out", cv2.FileNode_SEQ)
+        for name, why in calib.left_out:
+            fs.startWriteStruct("", cv2.FileNode_MAP)
+            fs.write("name", name)
+            fs.write("why", why)
+            fs.endWriteStruct()
+        fs.endWriteStruct()
     u = calib.uncertainty
     if u is not None:
         fs.write("uncertainty_level", "1 sigma")
@@ -689,6 +697,15 @@ def _read_lens_and_uncertainty(fs, where: str, mats: dict) -> dict:
                 warnings.append(CalibrationWarning(code.string(), msg.string(),
                                                    prop.string() if prop.isString() else ""))
     out["warnings"] = tuple(warnings)
+    left_out = []
+    ln = fs.getNode("pairs_left_out")
+    if not ln.empty() and ln.isSeq():  # (what cannot be read there is left out: a note only)
+        for i in range(ln.size()):
+            item = ln.at(i)
+            name, why = item.getNode("name"), item.getNode("why")
+            if item.isMap() and name.isString() and why.isString():
+                left_out.append((name.string(), why.string()))
+    out["left_out"] = tuple(left_out)
     nn = fs.getNode("uncertainty_names")
     if not nn.empty() and not nn.isNone():
         if not nn.isSeq():

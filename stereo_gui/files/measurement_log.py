@@ -60,7 +60,7 @@ def _record_to_json(r: MeasurementRecord) -> dict:
 
 
 _FLOAT_FIELDS = {f.name for f in fields(MeasurementRecord) if "float" in str(f.type)}
-_TEXT_FIELDS = {"time", "reason", "method", "calibration_file"}
+_TEXT_FIELDS = {"time", "reason", "method", "calibration_file", "note"}
 _VALID_NEEDS = ("Z_mm", "range_mm")
 NO_DISTANCE_KEPT = "no distance was kept for it"
 

@@ -72,6 +72,10 @@ class Settings:
     auto_capture: bool = False
     measure_model: str = "triangulation"  # or the name of a fitted model ("cubic", "inverse")
     visible_views: tuple[str, ...] = ()  # live views shown; empty means the window's default
+    # the Live tab's watched region: its box (x0, y0, x1, y1) px of the depth view, () for none,
+    # and its alarm distance (0: no alarm)
+    region_box: tuple[int, ...] = ()
+    region_alarm_m: float = 0.0
 
     @property
     def board(self) -> BoardSpec:
@@ -151,6 +155,10 @@ _CHECKS: dict[str, tuple[typing.Callable[[object], bool], str]] = {
                      "a list of at most 100 paths"),
     "visible_views": (lambda v: len(v) <= 100 and all(map(_text_ok, v)),
                       "a list of view names"),
+    "region_box": (lambda v: v == () or (len(v) == 4 and 0 <= v[0] < v[2] <= 100_000
+                                         and 0 <= v[1] < v[3] <= 100_000),
+                   "no box, or x0, y0, x1, y1 with x0 < x1 and y0 < y1 (px)"),
+    "region_alarm_m": (lambda v: math.isfinite(v) and 0 <= v <= 1000, "metres from 0 to 1000"),
 }
 for _key in ("source", "preset", "last_calibration", "last_session", "last_export_dir",
              "recordings_dir", "colormap", "measure_model"):

@@ -8,12 +8,16 @@ A workbook written here has three sheets:
   residual, a table of the models (formula, R^2, coefficients), the fitted curves evaluated on a
   disparity grid (hidden columns) and a native Excel scatter chart of distance against disparity:
   samples as markers, each fit as a line. This replaces the report's manual Excel step.
-- **Calibration**: the figures (RMS, baseline, board, date) and the matrices M1 D1 M2 D2 R T P1 P2 Q
-  as small tables.
+- **Calibration**: the figures (RMS, baseline, board, date) and each camera's parameters, each
+  with its 1-sigma uncertainty, the warnings, the pairs it was not made from, each pair's error,
+  and the matrices M1 D1 M2 D2 R T P1 P2 Q as small tables.
+
+Every sheet prints landscape, one page wide.
 
 A new workbook is streamed with openpyxl's write-only mode (time linear in the rows: 20,000
 readings take seconds); appending loads the workbook and adds rows below the last one.
-CSV numbers are rounded to what they mean: 0.1 mm and 0.001 px (`csv_decimals`).
+CSV numbers are rounded to what they mean: 0.1 mm and 0.001 px, an error in % to its 0.1 mm
+(`csv_decimals`, `pct_decimals`).
 
 Every write goes through a temporary file in the same folder and a rename, so a crash or a full
 disk mid-write leaves the earlier file intact.
@@ -38,6 +42,7 @@ import numpy as np
 
 from stereo_gui.core.detect import check_cancel
 from stereo_gui.core.errors import InputError
+from stereo_gui.core.util import how_many
 from stereo_gui.files.atomic import atomic_path, os_error_text, write_text_atomic
 from stereo_gui.files.readers import read_csv_rows
 
@@ -79,6 +84,7 @@ class MeasurementRecord:
     true_mm: float | None = None  # true distance entered by the technician
     calibration_file: str = ""
     calibration_rms_px: float = float("nan")
+    note: str = ""  # what was measured, in the technician's words
 
     @classmethod
     def from_measurement(cls, m, *, time: str | None = None, true_mm: float | None = None,
@@ -116,6 +122,9 @@ COLUMNS: tuple[tuple[str, str, str, int], ...] = (
     ("calibration_file", "Calibration file", "@", 30),
     ("calibration_rms_px", "Calibration RMS (px)", "0.000", 12),
 )
+# the technician's note, the last column of a file: files written before it had none, and are
+# read as they are (their columns are the first ones of today's)
+NOTE_COLUMN = ("note", "Note", "@", 40)
 HEADERS = tuple(c[1] for c in COLUMNS)
 # derived from each record and written after its columns (readers ignore them): how far Z is
 # from the true distance once one was entered
@@ -124,13 +133,15 @@ ERROR_COLUMNS: tuple[tuple[str, str, int], ...] = (
 ERROR_HEADERS = tuple(c[0] for c in ERROR_COLUMNS)
 ERROR_FIELDS = ("error_mm", "error_pct")  # their names, for their units (csv_decimals)
 _FIELD_NAMES = tuple(f.name for f in fields(MeasurementRecord))
-assert tuple(c[0] for c in COLUMNS) == _FIELD_NAMES  # the layout covers every field, in order
+# the layout covers every field, in order
+assert tuple(c[0] for c in COLUMNS) + (NOTE_COLUMN[0],) == _FIELD_NAMES
+FILE_HEADERS = HEADERS + ERROR_HEADERS + (NOTE_COLUMN[1],)  # a CSV's first row, in order
 
 # In a workbook the time is a date-time cell in UTC (Excel has no time zones); CSV keeps ISO text.
 XLSX_TIME_HEADER = "Time (UTC)"
 XLSX_TIME_FORMAT = "yyyy-mm-dd hh:mm:ss.000"
 XLSX_HEADERS = tuple(XLSX_TIME_HEADER if name == "time" else header
-                     for name, header, _, _ in COLUMNS) + ERROR_HEADERS
+                     for name, header, _, _ in COLUMNS) + ERROR_HEADERS + (NOTE_COLUMN[1],)
 
 
 # a ruler distance in the log: the method starts so; X/Y/Z are the components of B - A and
@@ -183,6 +194,9 @@ def _time_text(value: _dt.datetime) -> str:
 
 def _record_from_row(values: Sequence[Any], where: str) -> MeasurementRecord:
     kw: dict[str, Any] = {}
+    note_at = len(COLUMNS) + len(ERROR_COLUMNS)
+    if len(values) > note_at and values[note_at] not in (None, ""):
+        kw["note"] = str(values[note_at])
     for (name, header, _, _), v in zip(COLUMNS, values, strict=False):
         if name == "time" and isinstance(v, _dt.datetime):
             kw[name] = _time_text(v)
@@ -208,15 +222,22 @@ def _bold():
     return Font(bold=True)
 
 
+def _file_values(rec: MeasurementRecord) -> tuple:
+    """A record's values in the order of a file's columns: the measured fields, the derived
+    errors, the note."""
+    values = astuple(rec)
+    return values[:len(COLUMNS)] + record_error(rec) + (rec.note,)
+
+
 def _row_values(rec: MeasurementRecord) -> list[Any]:
-    values = [_cell(v) for v in astuple(rec) + record_error(rec)]
+    values = [_cell(v) for v in _file_values(rec)]
     values[0] = _time_cell(rec.time)
     return values
 
 
 def _formats() -> list[str]:
     return ([XLSX_TIME_FORMAT if name == "time" else fmt for name, _, fmt, _ in COLUMNS]
-            + [c[1] for c in ERROR_COLUMNS])
+            + [c[1] for c in ERROR_COLUMNS] + [NOTE_COLUMN[2]])
 
 
 _CANCEL_EVERY_ROWS = 500  # a streamed export looks at its cancel flag and reports this often
@@ -231,14 +252,21 @@ def _write_measurements_sheet(ws, records: Sequence[MeasurementRecord], cancel=N
     from openpyxl.cell import WriteOnlyCell
     from openpyxl.utils import get_column_letter
 
-    widths = [c[3] for c in COLUMNS] + [c[2] for c in ERROR_COLUMNS]
-    names = [c[0] for c in COLUMNS] + list(ERROR_FIELDS)
+    widths = [c[3] for c in COLUMNS] + [c[2] for c in ERROR_COLUMNS] + [NOTE_COLUMN[3]]
+    names = [c[0] for c in COLUMNS] + list(ERROR_FIELDS) + [NOTE_COLUMN[0]]
     for i, (name, header, width) in enumerate(zip(names, XLSX_HEADERS, widths, strict=True),
                                               start=1):
         # wide enough for the bold header with its unit ("Expected error (mm)" was cut off)
         width = max(21 if name == "time" else width, round(1.1 * len(header) + 2))
         ws.column_dimensions[get_column_letter(i)].width = width
     ws.freeze_panes = "A2"
+    # printed (or made a PDF) landscape, one page wide, the header on every page: it was cut
+    # into five pages of columns
+    ws.page_setup.orientation = "landscape"
+    ws.sheet_properties.pageSetUpPr.fitToPage = True
+    ws.page_setup.fitToWidth = 1
+    ws.page_setup.fitToHeight = 0
+    ws.print_title_rows = "1:1"
     bold = _bold()
     header = []
     for text in XLSX_HEADERS:
@@ -259,7 +287,7 @@ def _write_measurements_sheet(ws, records: Sequence[MeasurementRecord], cancel=N
         if n % _CANCEL_EVERY_ROWS == 0:
             check_cancel(cancel)
             if progress is not None:
-                progress(n, len(records), f"{n:,} of {len(records):,} rows")
+                progress(n, len(records), f"{n:,} of {how_many(len(records), 'row')}")
     return n
 
 
@@ -314,10 +342,13 @@ class _Draft:
         self.hidden: set[int] = set()
         self.charts: list[tuple[Any, str]] = []
         self.print_one_page_wide = False  # landscape, scaled to the page's width when printed
+        self.wrapped: set[tuple[int, int]] = set()
 
     def set(self, row: int, col: int, value: Any, fmt: str | None = None,
-            bold: bool = False) -> None:
+            bold: bool = False, wrap: bool = False) -> None:
         self.cells[(row, col)] = (value, fmt, bold)
+        if wrap:  # long text wraps within its column's width, not past the printed page
+            self.wrapped.add((row, col))
 
     def to_sheet(self, ws) -> None:
         from openpyxl.cell import WriteOnlyCell
@@ -328,12 +359,27 @@ class _Draft:
             ws.column_dimensions[get_column_letter(col)].width = width
         for col in self.hidden:
             ws.column_dimensions[get_column_letter(col)].hidden = True
+        # a row of wrapped text as tall as its lines (neither Excel nor LibreOffice grows a row
+        # written by openpyxl: the lines ran over the rows below)
+        heights: dict[int, int] = {}
+        for r, c in self.wrapped:
+            text = str(self.cells[(r, c)][0] or "")
+            per_line = max(1.0, 1.1 * self.widths.get(c, 8.43))
+            heights[r] = max(heights.get(r, 1), math.ceil(len(text) / per_line))
+        for r, lines in heights.items():
+            if lines > 1:
+                ws.row_dimensions[r].height = 15 * lines
         if self.print_one_page_wide:
             ws.page_setup.orientation = "landscape"
             ws.sheet_properties.pageSetUpPr.fitToPage = True
             ws.page_setup.fitToWidth = 1
             ws.page_setup.fitToHeight = 0
+        from openpyxl.styles import Alignment
+
         bold = _bold()
+        wrap = Alignment(wrap_text=True, vertical="top")
+        top = Alignment(vertical="top")  # the other cells of a row of wrapped text
+        wrapped_rows = {r for r, _ in self.wrapped}
         if isinstance(ws, WriteOnlyWorksheet):
             n_rows = max((r for r, _ in self.cells), default=0)
             n_cols = max((c for _, c in self.cells), default=0)
@@ -347,6 +393,10 @@ class _Draft:
                             cell.number_format = fmt
                         if is_bold:
                             cell.font = bold
+                        if (r, c) in self.wrapped:
+                            cell.alignment = wrap
+                        elif r in wrapped_rows:
+                            cell.alignment = top
                         row[c - 1] = cell
                 ws.append(row)
         else:
@@ -356,6 +406,10 @@ class _Draft:
                     cell.number_format = fmt
                 if is_bold:
                     cell.font = bold
+                if (r, c) in self.wrapped:
+                    cell.alignment = wrap
+                elif r in wrapped_rows:
+                    cell.alignment = top
         for chart, anchor in self.charts:
             ws.add_chart(chart, anchor)
 
@@ -405,65 +459,72 @@ def _write_regression_sheet(ws, samples: list[tuple[float, float]], fits: Sequen
     draft = _Draft()
     draft.set(1, 1, "Regression: distance against disparity", bold=True)
 
+    # the models first, then the samples below them: one page wide when printed (the models
+    # beside the samples made the sheet too wide to read on paper); each model's formula on a
+    # row of its own, where it runs across the empty cells to its right
+    n_coef = max((len(f.coefficients) for f in fits), default=0)
+    mheader = ["Model", "R^2", "Samples", "RMS residual (mm)"] + [f"c{i}" for i in range(n_coef)]
+    for j, text in enumerate(mheader):
+        draft.set(3, 1 + j, text, bold=True)
+    for k, fit in enumerate(fits):
+        res = np.asarray(fit.residuals_mm, float)
+        rms = float(np.sqrt(np.mean(res**2))) if res.size else float("nan")
+        values = [fit.model, _cell(fit.r2), len(fit.samples), _cell(rms)]
+        values += [_cell(c) for c in fit.coefficients]
+        formats = {1: "0.00000", 3: "0.00"}
+        for j, v in enumerate(values):
+            draft.set(4 + k, 1 + j, v, formats.get(j, "0.0000E+00" if j >= 4 else None))
+    row = 4 + len(fits)
+    for fit in fits:
+        draft.set(row, 1, f"{fit.model} formula", bold=True)
+        draft.set(row, 2, fit.formula())
+        row += 1
+    if not fits:
+        draft.set(4, 1, "no fit yet: enter true distances for at least a few measurements "
+                        "and fit a model")
+        row = 5
+
     # samples table: A disparity, B true distance, then prediction and residual per fit
+    header_row = row + 1
     header = ["Disparity (px)", "True distance (mm)"]
     for fit in fits:
         header += [f"{fit.model} prediction (mm)", f"{fit.model} residual (mm)"]
     for col, text in enumerate(header, start=1):
-        draft.set(3, col, text, bold=True)
-        draft.widths[col] = max(12, len(text) + 2)
+        draft.set(header_row, col, text, bold=True)
+    for table in (header, mheader):  # each column as wide as the wider of its two headers
+        for col, text in enumerate(table, start=1):
+            draft.widths[col] = max(draft.widths.get(col, 12), len(text) + 3)
     residual_maps = []
     for fit in fits:
         residual_maps.append({(float(d), float(z)): float(r)
                               for (d, z), r in zip(fit.samples, fit.residuals_mm, strict=False)})
     d_arr = np.array([s[0] for s in samples], float)
     predictions = [_predict(fit, d_arr) if samples else np.empty(0) for fit in fits]
+    first_sample_row = header_row + 1
     for i, (d, z) in enumerate(samples):
-        row = 4 + i
+        row = first_sample_row + i
         draft.set(row, 1, _cell(d), "0.000")
         draft.set(row, 2, _cell(z), "0.0")
         for k, fit in enumerate(fits):
             draft.set(row, 3 + 2 * k, _cell(predictions[k][i]), "0.0")
             draft.set(row, 4 + 2 * k, _cell(residual_maps[k].get((d, z))), "0.0")
-    first_sample_row, last_sample_row = 4, 3 + len(samples)
-
-    # models table, right of the samples
-    mcol = len(header) + 2
-    n_coef = max((len(f.coefficients) for f in fits), default=0)
-    mheader = ["Model", "Formula", "R^2", "Samples", "RMS residual (mm)"] + [
-        f"c{i}" for i in range(n_coef)]
-    for j, text in enumerate(mheader):
-        draft.set(3, mcol + j, text, bold=True)
-    draft.widths[mcol] = 12
-    draft.widths[mcol + 1] = 48
-    for k, fit in enumerate(fits):
-        row = 4 + k
-        res = np.asarray(fit.residuals_mm, float)
-        rms = float(np.sqrt(np.mean(res**2))) if res.size else float("nan")
-        values = [fit.model, fit.formula(), _cell(fit.r2), len(fit.samples), _cell(rms)]
-        values += [_cell(c) for c in fit.coefficients]
-        formats = {2: "0.00000", 4: "0.00"}
-        for j, v in enumerate(values):
-            draft.set(row, mcol + j, v, formats.get(j))
-    if not fits:
-        draft.set(4, mcol, "no fit yet: enter true distances for at least a few measurements "
-                           "and fit a model")
+    last_sample_row = first_sample_row + len(samples) - 1
 
     # fitted curves on a disparity grid, in hidden columns the chart reads
-    gcol = mcol + len(mheader) + 1
+    gcol = max(len(header), len(mheader)) + 2  # right of both tables
     grid_rows = 0
     if fits and samples:
         lo, hi = float(d_arr.min()), float(d_arr.max())
         pad = 0.05 * (hi - lo) if hi > lo else 1.0
         grid = np.linspace(lo - pad, hi + pad, CURVE_POINTS)
-        draft.set(3, gcol, "Curve disparity (px)", bold=True)
+        draft.set(header_row, gcol, "Curve disparity (px)", bold=True)
         curves = [_predict(fit, grid) for fit in fits]
         for k, fit in enumerate(fits):
-            draft.set(3, gcol + 1 + k, f"{fit.model} curve (mm)", bold=True)
+            draft.set(header_row, gcol + 1 + k, f"{fit.model} curve (mm)", bold=True)
         for i, g in enumerate(grid):
-            draft.set(4 + i, gcol, float(g))
+            draft.set(first_sample_row + i, gcol, float(g))
             for k in range(len(fits)):
-                draft.set(4 + i, gcol + 1 + k, _cell(curves[k][i]))
+                draft.set(first_sample_row + i, gcol + 1 + k, _cell(curves[k][i]))
         grid_rows = len(grid)
         draft.hidden.update(range(gcol, gcol + 1 + len(fits)))
 
@@ -484,11 +545,12 @@ def _write_regression_sheet(ws, samples: list[tuple[float, float]], fits: Sequen
         ys = Reference(ws, min_col=2, min_row=first_sample_row, max_row=last_sample_row)
         chart.series.append(_sample_series(ys, xs))
         if grid_rows:
-            gx = Reference(ws, min_col=gcol, min_row=4, max_row=3 + grid_rows)
+            last = first_sample_row + grid_rows - 1
+            gx = Reference(ws, min_col=gcol, min_row=first_sample_row, max_row=last)
             for k, fit in enumerate(fits):
-                gy = Reference(ws, min_col=gcol + 1 + k, min_row=4, max_row=3 + grid_rows)
+                gy = Reference(ws, min_col=gcol + 1 + k, min_row=first_sample_row, max_row=last)
                 chart.series.append(_fit_series(gy, gx, f"{fit.model} fit (R^2 {fit.r2:.4f})", k))
-        anchor_row = max(last_sample_row, 3 + len(fits)) + 3
+        anchor_row = max(last_sample_row, header_row) + 3
         draft.charts.append((chart, f"A{anchor_row}"))
         draft.print_one_page_wide = True  # printed (or made a PDF), the chart is not cut
     draft.to_sheet(ws)
@@ -508,38 +570,111 @@ _MATRIX_NOTES = {
 CALIBRATION_MATRICES = tuple(_MATRIX_NOTES)
 
 
+def _calibration_figures(calib: StereoCalibration, calib_file: str | None
+                         ) -> list[tuple[str, Any, str, float | None]]:
+    """(label with unit, value, number format, 1 sigma or None) of the Calibration sheet."""
+    u = calib.uncertainty
+    board = calib.board
+    return [
+        ("File", calib_file or "", "@", None),
+        ("Created", calib.created, "@", None),
+        ("Made", calib.origin, "@", None),
+        ("Method", calib.method, "@", None),
+        ("Lens model", calib.model, "@", None),
+        ("Image width (px)", calib.width, "0", None),
+        ("Image height (px)", calib.height, "0", None),
+        ("Board", board.label() if board else "", "@", None),
+        ("Square (mm)", board.square_mm if board else None, "0.00", None),
+        ("RMS left (px)", calib.rms_left, "0.0000", None),
+        ("RMS right (px)", calib.rms_right, "0.0000", None),
+        ("RMS stereo (px)", calib.rms_stereo, "0.0000", None),
+        ("Epipolar error (px)", calib.epipolar_error_px, "0.0000", None),
+        ("Baseline (mm)", calib.baseline_mm, "0.00",
+         None if u is None else u.baseline_sigma_mm(calib.T)),
+        ("Rectified baseline (mm)", calib.rectified_baseline_mm, "0.00", None),
+        ("Rectified focal length (px)", calib.focal_px, "0.00", None),
+        ("Relative rotation (deg)", calib.relative_rotation_deg, "0.000",
+         None if u is None else u.rotation_sigma_deg(calib.R)),
+        ("Alpha", calib.alpha, "0.00", None),
+    ]
+
+
+def _camera_rows(calib: StereoCalibration, side: str) -> list[tuple[str, float, float | None]]:
+    """(name with unit, value, 1 sigma or None) of one camera's intrinsics and distortion."""
+    from stereo_gui.core.lens import distortion_names
+    from stereo_gui.core.uncertainty import corner_sigma_px
+
+    M, D = (calib.M1, calib.D1) if side == "left" else (calib.M2, calib.D2)
+    M, D = np.asarray(M, float), np.asarray(D, float).reshape(-1)
+    u = calib.uncertainty
+    rows: list[tuple[str, float, float | None]] = []
+    for name, value in (("fx", M[0, 0]), ("fy", M[1, 1]), ("cx", M[0, 2]), ("cy", M[1, 2])):
+        rows.append((f"{name} (px)", float(value),
+                     None if u is None else u.sigma(f"{side}.{name}")))
+    for name, value in zip(distortion_names(calib.model, D.size), D, strict=False):
+        rows.append((name, float(value), None if u is None else u.distortion_sigma(side, name)))
+    if u is not None:
+        rows.append(("lens at the corners (px)", float("nan"), corner_sigma_px(calib, side)))
+    return rows
+
+
 def _write_calibration_sheet(ws, calib: StereoCalibration | None, calib_file: str | None) -> None:
+    """The calibration in use: its figures, each camera's parameters, each with its 1-sigma
+    uncertainty where the calibration has one, its warnings, the pairs it was not made from,
+    each pair's error, and the matrices. Printed landscape, one page wide."""
     draft = _Draft()
+    draft.print_one_page_wide = True
     draft.set(1, 1, "Calibration", bold=True)
     if calib is None:
         draft.set(3, 1, "no calibration given")
         draft.to_sheet(ws)
         return
-    board = calib.board
-    figures: list[tuple[str, Any, str]] = [
-        ("File", calib_file or "", "@"),
-        ("Created", calib.created, "@"),
-        ("Method", calib.method, "@"),
-        ("Image width (px)", calib.width, "0"),
-        ("Image height (px)", calib.height, "0"),
-        ("Board (inner corners)", f"{board.cols}x{board.rows}" if board else "", "@"),
-        ("Square (mm)", board.square_mm if board else None, "0.00"),
-        ("RMS left (px)", calib.rms_left, "0.0000"),
-        ("RMS right (px)", calib.rms_right, "0.0000"),
-        ("RMS stereo (px)", calib.rms_stereo, "0.0000"),
-        ("Epipolar error (px)", calib.epipolar_error_px, "0.0000"),
-        ("Baseline (mm)", calib.baseline_mm, "0.00"),
-        ("Rectified baseline (mm)", calib.rectified_baseline_mm, "0.00"),
-        ("Rectified focal length (px)", calib.focal_px, "0.00"),
-        ("Relative rotation (deg)", calib.relative_rotation_deg, "0.000"),
-        ("Alpha", calib.alpha, "0.00"),
-    ]
-    for i, (label, value, fmt) in enumerate(figures):
-        draft.set(3 + i, 1, label, bold=True)
-        draft.set(3 + i, 2, _cell(value), fmt)
-    draft.widths[1] = 26
-    draft.widths[2] = 28
-    row = 3 + len(figures) + 1
+    sigma_note = ("1 sigma: the true value lies within ± 1 sigma about two times in three"
+                  if calib.uncertainty is not None else "no uncertainty recorded")
+    draft.set(1, 2, sigma_note)
+    for j, text in enumerate(("Figure", "Value", "± (1 sigma)")):
+        draft.set(3, 1 + j, text, bold=True)
+    row = 4
+    for label, value, fmt, sigma in _calibration_figures(calib, calib_file):
+        draft.set(row, 1, label, bold=True)
+        draft.set(row, 2, _cell(value), fmt, wrap=fmt == "@")
+        if sigma is not None:
+            draft.set(row, 3, _cell(sigma), fmt)
+        row += 1
+    row += 1
+    for side in ("left", "right"):
+        draft.set(row, 1, f"{side.capitalize()} camera", bold=True)
+        draft.set(row, 2, "Value", bold=True)
+        draft.set(row, 3, "± (1 sigma)", bold=True)
+        row += 1
+        for name, value, sigma in _camera_rows(calib, side):
+            draft.set(row, 1, name)
+            draft.set(row, 2, _cell(value), "0.000000" if abs(value) < 10 else "0.00")
+            draft.set(row, 3, _cell(sigma), "0.000000" if sigma is not None and sigma < 0.1
+                      else "0.00")
+            row += 1
+        row += 1
+    draft.set(row, 1, "Warnings", bold=True)
+    row += 1
+    for w in calib.warnings or ():
+        draft.set(row, 1, w.code)
+        draft.set(row, 2, w.message, wrap=True)
+        row += 1
+    if not calib.warnings:
+        draft.set(row, 1, "none")
+        row += 1
+    row += 1
+    draft.set(row, 1, "Pairs left out", bold=True)
+    draft.set(row, 2, "Why", bold=True)
+    row += 1
+    for name, why in calib.left_out:
+        draft.set(row, 1, name)
+        draft.set(row, 2, why, wrap=True)
+        row += 1
+    if not calib.left_out:
+        draft.set(row, 1, "none")
+        row += 1
+    row += 1
     if calib.per_pair:
         for j, text in enumerate(("Pair", "Error left (px)", "Error right (px)")):
             draft.set(row, 1 + j, text, bold=True)
@@ -547,6 +682,9 @@ def _write_calibration_sheet(ws, calib: StereoCalibration | None, calib_file: st
             draft.set(row + 1 + k, 1, pe.name)
             draft.set(row + 1 + k, 2, _cell(pe.error_left), "0.0000")
             draft.set(row + 1 + k, 3, _cell(pe.error_right), "0.0000")
+    draft.widths[1] = 26
+    draft.widths[2] = 44
+    draft.widths[3] = 17  # wide enough for "Error right (px)"
 
     # matrices stacked in columns E.., each under a bold label row
     col0 = 5
@@ -714,7 +852,10 @@ def append_measurements(path: str | os.PathLike, records: Iterable[MeasurementRe
         write_workbook(path, records, fits or (), calibration, calibration_file)
         return len(records)
     wb = _load_ours(path)
-    wb[MEASUREMENTS_SHEET].cell(row=1, column=1).value = XLSX_TIME_HEADER
+    for col, text in enumerate(XLSX_HEADERS, start=1):  # (older workbooks lack the last ones)
+        cell = wb[MEASUREMENTS_SHEET].cell(row=1, column=col)
+        cell.value = text
+        cell.font = _bold()
     n = _append_measurement_rows(wb[MEASUREMENTS_SHEET], records)
     cf = None if calibration_file is None else str(calibration_file)
     if fits is not None:
@@ -747,14 +888,22 @@ def _replace_sheet(wb, title: str, index: int, fill) -> None:
 # ---- CSV ------------------------------------------------------------------------------------
 def csv_decimals(field: str) -> int | None:
     """Decimals a CSV number of record field `field` keeps, from the unit in its name: 0.1 mm,
-    0.001 px, 0.1 % (a fraction to 0.001); None for a number without a unit (6 digits)."""
+    0.001 px (a fraction to 0.001, 0.1 %); None for a number without a unit (6 digits). An error
+    in % keeps as many as its true distance asks (`pct_decimals`)."""
     if field.endswith("_mm"):
         return 1
     if field.endswith("_px") or field.endswith("fraction"):
         return 3
-    if field.endswith("_pct"):
-        return 1
     return None
+
+
+def pct_decimals(true_mm: float | None) -> int:
+    """Decimals of an error in % of `true_mm` that keep the error's own 0.1 mm: 3 at 2 m (a
+    step of 0.005 %), 2 at 0.5 m; rounded to 0.1 % an error of -0.6 mm at 2 m was written 0.0."""
+    if true_mm is None or not math.isfinite(true_mm) or true_mm <= 0:
+        return 1
+    step_pct = 100.0 * 0.1 / float(true_mm)
+    return int(min(6, max(1, math.ceil(-math.log10(step_pct)))))
 
 
 def _csv_number(value: float, decimals: int | None) -> str:
@@ -767,12 +916,14 @@ def records_to_csv(records: Iterable[MeasurementRecord]) -> str:
     numbers rounded to what they mean (`csv_decimals`)."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(HEADERS + ERROR_HEADERS)
-    decimals = [csv_decimals(name) for name in _FIELD_NAMES] + [csv_decimals(name)
-                                                                 for name in ERROR_FIELDS]
+    w.writerow(FILE_HEADERS)
+    decimals = ([csv_decimals(name) for name, _, _, _ in COLUMNS]
+                + [csv_decimals(name) for name in ERROR_FIELDS] + [None])
+    pct = len(COLUMNS) + ERROR_FIELDS.index("error_pct")
     for rec in records:
         row = []
-        for v, dec in zip(astuple(rec) + record_error(rec), decimals, strict=True):
+        decimals[pct] = pct_decimals(rec.true_mm)
+        for v, dec in zip(_file_values(rec), decimals, strict=True):
             v = _cell(v)
             if v is None:
                 row.append("")
@@ -790,9 +941,14 @@ def write_csv(path: str | os.PathLike, records: Iterable[MeasurementRecord]) -> 
 
 
 def read_csv(path: str | os.PathLike) -> list[MeasurementRecord]:
-    """Read a CSV file written by `write_csv` (with the error columns or, older, without)."""
+    """Read a CSV file written by `write_csv` (with the error and note columns or, older,
+    without them)."""
+    what = "a measurement CSV of stereo-gui"
     try:
-        rows = read_csv_rows(path, HEADERS + ERROR_HEADERS, "a measurement CSV of stereo-gui")
+        rows = read_csv_rows(path, FILE_HEADERS, what)
     except InputError:
-        rows = read_csv_rows(path, HEADERS, "a measurement CSV of stereo-gui")
+        try:
+            rows = read_csv_rows(path, HEADERS + ERROR_HEADERS, what)
+        except InputError:
+            rows = read_csv_rows(path, HEADERS, what)
     return [_record_from_row(r, f"{path}, line {i}") for i, r in enumerate(rows, start=2) if r]

@@ -18,6 +18,7 @@ from stereo_gui.core.detect import PairDetection, PairInput, detect_pairs
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.lens import project_points, undistort_points
 from stereo_gui.core.stereo_calibration import RectifyMaps, StereoCalibration
+from stereo_gui.core.util import how_many
 from stereo_gui.pipeline.jobs import JobControl, Progress
 
 log = logging.getLogger(__name__)
@@ -131,6 +132,9 @@ class CalibrationRun:
     reprojections: dict[str, PairReprojection] = field(default_factory=dict)  # used pairs
 
 
+EXCLUDED_BY_YOU = "excluded by you"  # why an excluded pair is not in a calibration
+
+
 def read_image(path: str) -> np.ndarray:
     """A BGR image from `path`; InputError if it cannot be read."""
     from stereo_gui.files.images import read_image_file
@@ -160,7 +164,7 @@ def calibration_job(folder: Path, board: BoardSpec, alpha: float, method: str,
                             Path(a).name, Path(b).name) for p, (a, b) in zip(included, sides)]
         n = len(inputs)
         total = n + 10
-        yield Progress(0, total, f"finding the board in {n} pairs")
+        yield Progress(0, total, f"finding the board in {how_many(n, 'pair')}")
         dets = detect_pairs(
             inputs, board, cancel=control,
             progress=lambda d, t, s: control.report(d, total, f"finding the board: {s}"))
@@ -171,6 +175,10 @@ def calibration_job(folder: Path, board: BoardSpec, alpha: float, method: str,
             origin=f"{folder}" + (" with left and right exchanged" if swapped else ""))
         if swapped:
             result = replace(result, calibration=result.calibration.with_updates(swapped_inputs=True))
+        if excluded:  # recorded with the calibration, beside the pairs it rejected
+            calib = result.calibration
+            result = replace(result, calibration=calib.with_updates(
+                left_out=tuple((name, EXCLUDED_BY_YOU) for name in excluded) + calib.left_out))
         control.check()
         yield Progress(n + 9, total, "computing rectification maps")
         maps = result.calibration.rectify_maps()

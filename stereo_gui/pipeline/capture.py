@@ -13,6 +13,7 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.board import TARGET_NAMES, BoardSpec
+from stereo_gui.core.corner_check import check_points
 from stereo_gui.core.coverage import regions_in_words
 from stereo_gui.core.detect import (
     NEW_POSE_DISTANCE,
@@ -49,6 +50,9 @@ class CaptureOutput:
     detection: PairDetection
     board: BoardSpec
     time_s: float | None = None  # the frame's capture time (left camera), s; None if unknown
+    # why the pair cannot be taken although both cameras see the board: a point of the target
+    # lies off where its neighbours put it (core.corner_check); "" when every point agrees
+    misplaced: str = ""
 
     @property
     def pose(self) -> PoseDescriptor | None:
@@ -85,7 +89,21 @@ def detect_live(frame: StereoFrame, board: BoardSpec,
     # partly visible target counts when they share enough of its points
     pair = make_pair(f"frame {frame.index}", left, right, size, board)
     return CaptureOutput(display_rgb(frame.left), display_rgb(frame.right), pair, board,
-                         float(frame.t_left))
+                         float(frame.t_left), misplaced_point(pair, board) if pair.found else "")
+
+
+def misplaced_point(pair: PairDetection, board: BoardSpec) -> str:
+    """Why a pair both cameras see must not be taken: a point of the target that lies off where
+    its neighbours put it (core.corner_check), in words; "" when every point agrees."""
+    for side in ("left", "right"):
+        det = getattr(pair, side)
+        check = check_points(det, board) if det is not None else None
+        if check is not None and check.misplaced:
+            x, y = check.worst_xy
+            return (f"a point of the target in the {side} image, at ({x:.0f}, {y:.0f}), lies "
+                    f"{check.worst_px:.2f} px from where its neighbours put it (the others "
+                    f"{check.median_px:.2f} px): glare, blur, a speck or a bent board?")
+    return ""
 
 
 def make_capture_processor(board: BoardSpec):
@@ -155,7 +173,9 @@ def live_hint(det: PairDetection, board: BoardSpec | None = None) -> str:
 class CaptureRules:
     """When a live frame becomes a pair (the Capture tab's rules, without Qt).
 
-    Manual capture freezes a pair that both cameras see, unless its pose is close to the one
+    A pair with a point of the target off where its neighbours put it is never frozen nor
+    taken (`CaptureOutput.misplaced`). Manual capture freezes a pair that both cameras see,
+    unless its pose is close to the one
     reviewed last (until the board leaves a view). Automatic capture takes a pair once the board
     has held still (corners moving less than STEADY_PX over STEADY_FRAMES frames, or over frames
     STEADY_S apart when fewer are processed: the board must hold still for as long whatever the
@@ -188,6 +208,10 @@ class CaptureRules:
             if det.left is None or det.right is None:
                 self.last_reviewed_pose = None  # the board left a view: the next pose is new
             return CaptureStep("show", live_hint(det, board))
+        if out.misplaced:  # neither frozen for review nor taken: it would spoil the solve
+            self.recent_corners.clear()
+            return CaptureStep("show", f"Not taken: {out.misplaced} Move or turn the board a "
+                                       "little")
         pose = out.pose
         if auto:
             return self._auto_step(out, pose, saved_poses(), have_session,

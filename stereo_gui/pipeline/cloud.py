@@ -17,17 +17,33 @@ from stereo_gui.core.matching import COLORMAPS, PipelineResult
 
 COLOURINGS = ("image", "distance")
 MAX_POINTS = 120_000  # what the view draws at interactive rates on a small machine
+IMAGE_BACKGROUND_RGB = (32, 32, 32)  # behind points coloured from the image
+
+
+def distance_background_rgb(colormap: str) -> tuple[int, int, int]:
+    """The grey behind points coloured by distance with `colormap`: the one farthest from
+    every colour of the map, so that no distance vanishes into it (OCEAN's far end is black:
+    on the dark grey of the image colouring the farthest points could not be seen)."""
+    cmap = COLORMAPS.get(colormap, cv2.COLORMAP_OCEAN)
+    ramp = np.arange(256, dtype=np.uint8).reshape(256, 1)
+    lut = cv2.applyColorMap(ramp, cmap).reshape(256, 3).astype(np.float64)
+    greys = np.arange(0, 256, 2, dtype=np.float64)
+    nearest = np.linalg.norm(lut[None, :, :] - greys[:, None, None], axis=2).min(axis=1)
+    g = int(greys[int(np.argmax(nearest))])
+    return (g, g, g)
 
 
 @dataclass(frozen=True, eq=False)
 class CloudPoints:
     """Points (N x 3 float32, m, display coordinates: see the module docstring) with colours
-    (N x 4 float32 RGBA, 0..1), and the depth range they span (m)."""
+    (N x 4 float32 RGBA, 0..1), the depth range they span (m), and the background (RGB 0..255)
+    every colour of theirs stands out from."""
 
     xyz_m: np.ndarray
     rgba: np.ndarray
     z_near_m: float
     z_far_m: float
+    background_rgb: tuple[int, int, int] = IMAGE_BACKGROUND_RGB
 
     @property
     def count(self) -> int:
@@ -73,4 +89,6 @@ def cloud_points(result: PipelineResult, colouring: str = "image", step: int = 2
     rgba = np.empty((pts.shape[0], 4), np.float32)
     rgba[:, :3] = rgb.astype(np.float32) / 255.0
     rgba[:, 3] = 1.0
-    return CloudPoints(pts, rgba, near, far)
+    background = (IMAGE_BACKGROUND_RGB if colouring == "image" else
+                  distance_background_rgb(result.params.colormap))
+    return CloudPoints(pts, rgba, near, far, background)

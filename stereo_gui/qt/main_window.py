@@ -219,6 +219,7 @@ class MainWindow(QMainWindow):
         self._stream_error = ""  # the error bar's text about the stream, while it is wrong
         ctx.recorder.started.connect(lambda _f: self._update_recording_label())
         ctx.recorder.stopped.connect(lambda _r: self._update_recording_label())
+        ctx.recorder.stopped.connect(self._recording_stopped)
         self._update_calibration_label()
         self._fps_timer = QTimer(self)
         self._fps_timer.setInterval(500)
@@ -262,6 +263,9 @@ class MainWindow(QMainWindow):
                 file_menu.addAction(a)
         self._build_shortcuts()
         help_menu = self.menuBar().addMenu("&Help")
+        from stereo_gui.qt.dialogs.help import add_help_actions
+
+        self.help_actions = add_help_actions(self, help_menu)
         about = QAction("&About Stereo GUI", self)
         about.triggered.connect(self.show_about)
         help_menu.addAction(about)
@@ -294,6 +298,11 @@ class MainWindow(QMainWindow):
         if self.ctx.settings.recent_files[:1] != (p,):
             self.ctx.settings = self.ctx.settings.with_recent(p)
             self.ctx.settingsChanged.emit(self.ctx.settings)
+
+    def _recording_stopped(self, result) -> None:
+        """A recording just made is in File > Open recent at once, not only once played."""
+        if result.frames and result.recording is not None:
+            self.remember_recent(result.folder)
 
     def _settings_changed(self, settings) -> None:
         session = settings.last_session

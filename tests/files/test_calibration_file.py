@@ -268,3 +268,17 @@ def test_unparsable_file_names_the_parse_error_not_the_binding(tmp_path):
     message = str(caught.value)
     assert "exception set" not in message and "cv2.FileStorage" not in message
     assert re.search(r"\(line \d+: \w", message), message
+
+
+def test_the_pairs_left_out_are_kept_in_the_file(tmp_path):
+    """A calibration records the pairs it was not made from (rejected, or excluded by the
+    technician) and reads them back; an entry that cannot be read is skipped."""
+    c = StereoCalibration.identity((640, 480), 700.0, 110.0).with_updates(
+        left_out=(("chessboard-4", "excluded by you"),
+                  ("chessboard-9", "chessboard not found in the right image")))
+    path = tmp_path / "c.yaml"
+    save_calibration(c, path)
+    assert load_calibration(path).left_out == c.left_out
+    text = path.read_text().replace("name: chessboard-9", "name: 9")
+    path.write_text(text)
+    assert load_calibration(path).left_out == (("chessboard-4", "excluded by you"),)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 import math
 import zipfile
@@ -102,13 +103,15 @@ def test_measurements_sheet_holds_what_was_written(tmp_path):
     ws = wb["Measurements"]
     header = [c.value for c in ws[1]]
     assert tuple(header) == ss.XLSX_HEADERS
-    assert header[0] == "Time (UTC)" and header[-len(ss.ERROR_HEADERS):] == list(ss.ERROR_HEADERS)
+    assert header[0] == "Time (UTC)" and header[-1] == "Note"
+    assert header[-1 - len(ss.ERROR_HEADERS):-1] == list(ss.ERROR_HEADERS)
     assert "Disparity (px)" in header and "Z (mm)" in header and "True distance (mm)" in header
     assert ws.max_row == 1 + len(recs)
     for row, rec in zip(ws.iter_rows(min_row=2, values_only=True), recs, strict=True):
         # the time is a real date-time cell (UTC, naive: Excel has no time zones)
         assert row[0] == _dt.datetime.fromisoformat(rec.time).replace(tzinfo=None)
-        for value, expected in zip(row[1:len(HEADERS)], astuple(rec)[1:], strict=True):
+        for value, expected in zip(row[1:len(HEADERS)], astuple(rec)[1:len(HEADERS)],
+                                   strict=True):
             if isinstance(expected, float) and math.isnan(expected) or expected in ("", None):
                 assert value is None  # Excel has no NaN: an empty cell
             elif isinstance(expected, float):
@@ -200,25 +203,26 @@ def test_regression_sheet_and_native_chart(tmp_path):
     write_workbook(tmp_path / "log.xlsx", recs, fits)
     ws = openpyxl.load_workbook(tmp_path / "log.xlsx")["Regression"]
     rows = list(ws.iter_rows(values_only=True))
-    header = rows[2]
+    # the models first: R^2, samples, RMS and coefficients, then each formula on a row of its own
+    assert rows[2][:4] == ("Model", "R^2", "Samples", "RMS residual (mm)")
+    for k, fit in enumerate(fits):
+        assert rows[3 + k][0] == fit.model and rows[3 + k][1] == pytest.approx(fit.r2)
+        assert rows[3 + len(fits) + k][:2] == (f"{fit.model} formula", fit.formula())
+    # then the samples with each fit's prediction and residual
+    h = next(i for i, r in enumerate(rows) if r[0] == "Disparity (px)")
+    header = rows[h]
     assert header[:2] == ("Disparity (px)", "True distance (mm)")
     samples = _samples(recs)
     for i, (d, z) in enumerate(samples):
-        assert rows[3 + i][:2] == pytest.approx((d, z), rel=REL)
-    # each model: formula, R^2 and coefficients in the models table; residuals per sample
-    mcol = header.index("Model")
+        assert rows[h + 1 + i][:2] == pytest.approx((d, z), rel=REL)
     for k, fit in enumerate(fits):
-        row = rows[3 + k]
-        assert row[mcol] == fit.model
-        assert row[mcol + 1] == fit.formula()
-        assert row[mcol + 2] == pytest.approx(fit.r2)
-        coefs = [v for v in row[mcol + 5 : mcol + 5 + len(fit.coefficients)]]
+        coefs = list(rows[3 + k][4:4 + len(fit.coefficients)])
         assert coefs == pytest.approx(list(fit.coefficients))
         rcol = header.index(f"{fit.model} residual (mm)")
         pcol = header.index(f"{fit.model} prediction (mm)")
         for i, (d, z) in enumerate(samples):
-            assert rows[3 + i][rcol] == pytest.approx(fit.residuals_mm[i])
-            assert rows[3 + i][pcol] == pytest.approx(float(fit.predict(np.array([d]))[0]))
+            assert rows[h + 1 + i][rcol] == pytest.approx(fit.residuals_mm[i])
+            assert rows[h + 1 + i][pcol] == pytest.approx(float(fit.predict(np.array([d]))[0]))
     assert 0.99 < fits[1].r2 <= 1.0
 
     # the curve grid lives in hidden columns and holds each fit's prediction
@@ -226,10 +230,11 @@ def test_regression_sheet_and_native_chart(tmp_path):
     from openpyxl.utils import get_column_letter
 
     assert ws.column_dimensions[get_column_letter(gcol + 1)].hidden
-    grid = np.array([r[gcol] for r in rows[3 : 3 + ss.CURVE_POINTS]], float)
+    grid_rows = rows[h + 1:h + 1 + ss.CURVE_POINTS]
+    grid = np.array([r[gcol] for r in grid_rows], float)
     assert grid.min() < min(s[0] for s in samples) and grid.max() > max(s[0] for s in samples)
     for k, fit in enumerate(fits):
-        curve = np.array([r[gcol + 1 + k] for r in rows[3 : 3 + ss.CURVE_POINTS]], float)
+        curve = np.array([r[gcol + 1 + k] for r in grid_rows], float)
         np.testing.assert_allclose(curve, fit.predict(grid), rtol=1e-9)
 
     # a native scatter chart: samples as markers plus one line per fit
@@ -242,7 +247,9 @@ def test_regression_sheet_and_native_chart(tmp_path):
     assert chart.series[0].marker.symbol == "circle"
     assert chart.visible_cells_only is False  # the hidden curve columns are still drawn
     # the chart's references point at the sample cells
-    assert "$A$4" in chart.series[0].xVal.numRef.f and "$B$4" in chart.series[0].yVal.numRef.f
+    first = f"${h + 2}"  # the first sample's row (1-based)
+    assert f"$A{first}" in chart.series[0].xVal.numRef.f
+    assert f"$B{first}" in chart.series[0].yVal.numRef.f
     with zipfile.ZipFile(tmp_path / "log.xlsx") as z:
         xml = z.read("xl/charts/chart1.xml").decode()
     # openpyxl reads a "none" marker back as None, so check the lines in the file itself
@@ -279,8 +286,9 @@ def test_samples_without_fits_come_from_true_distances(tmp_path):
     recs = _records(3)
     write_workbook(tmp_path / "log.xlsx", recs)
     ws = openpyxl.load_workbook(tmp_path / "log.xlsx")["Regression"]
-    rows = list(ws.iter_rows(min_row=4, max_col=2, values_only=True))
-    got = [v for r in rows if r[0] is not None for v in r]
+    rows = list(ws.iter_rows(max_col=2, values_only=True))
+    h = next(i for i, r in enumerate(rows) if r[0] == "Disparity (px)")
+    got = [v for r in rows[h + 1:] if r[0] is not None for v in r]
     assert got == pytest.approx([v for s in _samples(recs) for v in s], rel=REL)
     assert len(ws._charts) == 1 and len(ws._charts[0].series) == 1
 
@@ -295,7 +303,7 @@ def test_calibration_sheet_holds_matrices_and_figures(tmp_path):
     assert figures["RMS stereo (px)"] == pytest.approx(0.23)
     assert figures["RMS left (px)"] == pytest.approx(0.18)
     assert figures["Baseline (mm)"] == pytest.approx(B_MM)
-    assert figures["Board (inner corners)"] == "9x6"
+    assert figures["Board"] == BoardSpec(9, 6, 25.0).label()
     assert figures["Square (mm)"] == 25.0
     assert figures["Created"] == "2026-11-22T09:00:00+00:00"
     assert figures["chessboard-2"] == pytest.approx(0.2)
@@ -466,7 +474,7 @@ def test_error_columns_say_how_far_z_is_from_the_true_distance(tmp_path):
 def test_a_csv_written_before_the_error_columns_still_reads(tmp_path):
     recs = _records(2)
     text = ss.records_to_csv(recs).splitlines()
-    n = len(ss.ERROR_HEADERS)
+    n = len(ss.ERROR_HEADERS) + 1  # and the note
     old = "\n".join(",".join(line.split(",")[:-n]) for line in text) + "\n"
     (tmp_path / "old.csv").write_text(old, encoding="utf-8")
     assert len(read_csv(tmp_path / "old.csv")) == len(recs)
@@ -506,3 +514,84 @@ def test_a_cancelled_export_writes_nothing_and_leaves_no_temporary_file(tmp_path
     # not cancelled: the same rows are written
     write_workbook(path, records, cancel=lambda: False, progress=progress)
     assert len(read_measurements(path)) == 1200
+
+
+def test_calibration_sheet_gives_each_value_its_uncertainty_the_warnings_and_pairs_left_out(
+        tmp_path):
+    """The Calibration sheet: every value with its 1-sigma ± where the calibration has one
+    (baseline, rotation, each camera's fx fy cx cy and distortion, the lens at the corners), the
+    warnings in words and the pairs it was not made from, with why."""
+    from stereo_gui.core.calibrate import calibrate_stereo
+    from stereo_gui.core.detect import detect_pair
+    from stereo_gui.sources.sim import SimRig
+
+    rig = SimRig(seed=5)
+    board = BoardSpec()
+    dets = [detect_pair(f"pair-{i}", left, right, board)
+            for i, (left, right) in enumerate(rig.calibration_set(10, seed=3))]
+    blank = np.full_like(rig.calibration_set(1, seed=3)[0][0], 128)
+    dets.append(detect_pair("pair-blank", blank, blank, board))  # no board: rejected
+    calib = calibrate_stereo(dets, board).calibration
+    calib = calib.with_updates(left_out=(("pair-7", "excluded by you"),) + calib.left_out)
+    assert calib.uncertainty is not None and calib.warnings
+    write_workbook(tmp_path / "log.xlsx", [], calibration=calib, calibration_file="c.yaml")
+    ws = openpyxl.load_workbook(tmp_path / "log.xlsx")["Calibration"]
+    rows = [r[:3] for r in ws.iter_rows(values_only=True)]
+    by_label = {}
+    for r in rows:
+        by_label.setdefault(r[0], []).append(r)
+    u = calib.uncertainty
+    assert by_label["Baseline (mm)"][0][2] == pytest.approx(u.baseline_sigma_mm(calib.T))
+    assert by_label["Relative rotation (deg)"][0][2] == pytest.approx(
+        u.rotation_sigma_deg(calib.R))
+    left, right = by_label["fx (px)"]
+    assert left[1:] == pytest.approx((calib.M1[0, 0], u.sigma("left.fx")))
+    assert right[1:] == pytest.approx((calib.M2[0, 0], u.sigma("right.fx")))
+    assert by_label["k1"][0][2] == pytest.approx(u.distortion_sigma("left", "k1"))
+    assert len(by_label["lens at the corners (px)"]) == 2
+    start = next(i for i, r in enumerate(rows) if r[0] == "Warnings")
+    for k, w in enumerate(calib.warnings):
+        assert rows[start + 1 + k][:2] == (w.code, w.message)
+    start = next(i for i, r in enumerate(rows) if r[0] == "Pairs left out")
+    assert rows[start + 1][:2] == ("pair-7", "excluded by you")
+    assert rows[start + 2][0] == "pair-blank" and "not found" in rows[start + 2][1]
+    # printed landscape, one page wide
+    assert ws.page_setup.orientation == "landscape" and ws.page_setup.fitToWidth == 1
+
+
+def test_every_sheet_prints_landscape_one_page_wide_with_the_header_on_every_page(tmp_path):
+    """Printed or made a PDF, the Measurements sheet was five pages of columns; now every sheet
+    is one page wide, landscape, and the Measurements header repeats on each page."""
+    recs = _records()
+    write_workbook(tmp_path / "log.xlsx", recs, _make_fits(_samples(recs)),
+                   calibration=_calibration())
+    wb = openpyxl.load_workbook(tmp_path / "log.xlsx")
+    for ws in wb.worksheets:
+        assert ws.page_setup.orientation == "landscape", ws.title
+        assert ws.sheet_properties.pageSetUpPr.fitToPage, ws.title
+        assert (ws.page_setup.fitToWidth, ws.page_setup.fitToHeight) == (1, 0), ws.title
+    assert wb["Measurements"].print_title_rows.replace("$", "") == "1:1"
+    # no bold header wider than its column (they ran over each other: "RMS resid" over "c0")
+    from openpyxl.utils import get_column_letter
+
+    for ws in wb.worksheets:
+        for row in ws.iter_rows():
+            for c in row:
+                dim = ws.column_dimensions[get_column_letter(c.column)]
+                if (c.font.b and isinstance(c.value, str) and c.row > 1 and not dim.hidden
+                        and ws.title != "Calibration" and not c.value.endswith(" formula")):
+                    assert len(c.value) <= dim.width, (ws.title, c.value, dim.width)
+
+
+def test_csv_keeps_an_error_in_percent_to_what_it_means(tmp_path):
+    """An error of -0.6 mm at 2 m is -0.03 %: the CSV wrote 0.0 (rounded to 0.1 %); it keeps
+    as many decimals as the error's 0.1 mm asks at that distance."""
+    import csv
+
+    rec = dataclasses.replace(_record(1), Z_mm=1999.4, range_mm=1999.4, true_mm=2000.0)
+    near = dataclasses.replace(_record(2), Z_mm=499.6, range_mm=499.6, true_mm=500.0)
+    rows = list(csv.reader(ss.records_to_csv([rec, near]).splitlines()))
+    col = rows[0].index("Error (%)")
+    assert rows[1][col] == "-0.030" and rows[1][rows[0].index("Error Z - true (mm)")] == "-0.6"
+    assert rows[2][col] == "-0.08"
+    assert ss.pct_decimals(None) == 1 and ss.pct_decimals(3000.0) == 3

@@ -12,6 +12,7 @@ from stereo_gui.pipeline.capture import (
     STEADY_PX,
     CaptureOutput,
     CaptureRules,
+    detect_live,
     display_rgb,
     make_capture_processor,
 )
@@ -19,19 +20,25 @@ from stereo_gui.sources.sim import RigConfig, SimRig, SimSource
 
 
 @pytest.fixture(scope="module")
-def board_output() -> CaptureOutput:
-    """A processed simulated frame in which both cameras see the board."""
+def board_frame():
+    """A simulated frame in which both cameras see the board."""
     src = SimSource(SimRig(RigConfig(supersample=1)), mode="board", paced=False, seed=1,
                     frames_per_move=6)
     proc = make_capture_processor(BoardSpec())
     try:
         for _ in range(30):
-            out = proc(src.read())
-            if out.detection.found:
-                return out
+            frame = src.read()
+            if proc(frame).detection.found:
+                return frame
     finally:
         src.close()
     pytest.fail("the simulated rig never showed the board to both cameras")
+
+
+@pytest.fixture(scope="module")
+def board_output(board_frame) -> CaptureOutput:
+    """The processed frame in which both cameras see the board."""
+    return make_capture_processor(BoardSpec())(board_frame)
 
 
 def _moved(out: CaptureOutput, dx_px: float) -> CaptureOutput:
@@ -98,6 +105,33 @@ def test_automatic_capture_waits_for_a_steady_new_pose_and_a_session(board_outpu
     rules = CaptureRules()
     no_session = [rules.step(board_output, True, list, False) for _ in range(STEADY_FRAMES)]
     assert no_session[-1].action == "show" and "needs a session" in no_session[-1].prompt
+
+
+def test_a_pair_with_a_misplaced_point_is_neither_frozen_nor_taken(board_frame):
+    """A speck beside a corner pulls it aside: the processor says so, and neither manual nor
+    automatic capture takes the pair (auto-capture kept such a pair before)."""
+    import cv2
+
+    from stereo_gui.sources.base import StereoFrame
+
+    board = BoardSpec()
+    clean = detect_live(board_frame, board)
+    assert clean.detection.found and clean.misplaced == ""
+    x, y = clean.detection.left.corners[len(clean.detection.left.corners) // 2]
+    left = board_frame.left.copy()
+    cv2.circle(left, (int(round(x + 3)), int(round(y + 1))), 2, (255, 255, 255), -1)
+    f = board_frame
+    out = detect_live(StereoFrame(left, f.right, f.t_left, f.t_right, f.index), board)
+    assert out.detection.found
+    assert "left image" in out.misplaced and "from where its neighbours put it" in out.misplaced
+    rules = CaptureRules()
+    manual = rules.step(out, False, list, True)
+    assert manual.action == "show" and manual.prompt.startswith("Not taken: a point")
+    rules = CaptureRules()
+    auto = [rules.step(out, True, list, True) for _ in range(2 * STEADY_FRAMES)]
+    assert {s.action for s in auto} == {"show"}
+    rules = CaptureRules()
+    assert [rules.step(clean, True, list, True) for _ in range(STEADY_FRAMES)][-1].action == "save"
 
 
 def _at(out: CaptureOutput, t_s: float) -> CaptureOutput:

@@ -41,3 +41,23 @@ def test_big_frames_are_thinned_and_bad_requests_refused():
     hartley = r.__class__(**{**r.__dict__, "calibration": None})
     with pytest.raises(InputError, match="metric"):
         cloud_points(hartley)
+
+
+def test_points_coloured_by_distance_stand_out_from_their_background():
+    """By distance, the farthest points are the colour map's far end (black in OCEAN): they
+    were drawn on a dark grey and could not be seen. Every point's colour now stands well
+    apart from the background it is drawn on, near and far, whichever colour map."""
+    import dataclasses
+
+    from stereo_gui.pipeline.cloud import IMAGE_BACKGROUND_RGB
+
+    r = _plane()
+    near = _plane(shift=30)
+    for colormap in ("ocean", "jet", "turbo", "viridis", "hot"):
+        for res in (r, near):
+            res = dataclasses.replace(res, params=res.params.replace(colormap=colormap))
+            c = cloud_points(res, "distance")
+            bg = np.asarray(c.background_rgb, float)
+            gap = np.linalg.norm(255.0 * c.rgba[:, :3] - bg, axis=1).min()
+            assert gap > 80, (colormap, c.background_rgb, gap)
+    assert cloud_points(r, "image").background_rgb == IMAGE_BACKGROUND_RGB

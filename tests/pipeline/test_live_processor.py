@@ -39,7 +39,7 @@ def test_every_view_is_displayable_and_no_match_has_its_colour():
         assert img.dtype == np.uint8 and img.shape == (H, W, 3), key
     r = out.result
     assert np.nanmedian(r.final_px[r.valid]) == pytest.approx(SHIFT, abs=0.5)
-    # the strip at the left edge the right camera cannot see is grey, other invalid pixels
+    # the strip at the left edge the right camera cannot see is magenta, other invalid pixels
     # dark red, in the colour view and the gray ones alike
     assert r.not_seen is not None and r.not_seen[:, :SHIFT - 1].all()
     invalid = ~r.valid & ~r.not_seen
@@ -49,6 +49,24 @@ def test_every_view_is_displayable_and_no_match_has_its_colour():
         no_match = np.isnan(m) & ~r.not_seen
         assert (out.images[key][no_match] == NO_MATCH_RGB).all(), key
     assert invalid.any()
+
+
+def test_the_not_seen_colour_is_no_colour_of_depth_in_any_view():
+    """The grey views (Raw, Closed: r = g = b) and the presets' colour maps never draw depth in
+    the "not seen" colour, nor in anything close to it; it is no "no match" either (the legend
+    said grey while Raw and Closed are grey scale)."""
+    from stereo_gui.core.matching import COLORMAPS
+    from stereo_gui.files.presets import load_preset
+
+    seen = np.asarray(NOT_SEEN_RGB, float)
+    greys = np.repeat(np.arange(256, dtype=float)[:, None], 3, 1)
+    assert np.linalg.norm(greys - seen, axis=1).min() > 80
+    assert np.linalg.norm(seen - np.asarray(NO_MATCH_RGB, float)) > 80
+    ramp = np.arange(256, dtype=np.uint8).reshape(256, 1)
+    for name in ("live", "quality", "seed"):
+        cmap = load_preset(name).colormap
+        lut = cv2.applyColorMap(ramp, COLORMAPS[cmap]).reshape(256, 3)[:, ::-1].astype(float)
+        assert np.linalg.norm(lut - seen, axis=1).min() > 80, (name, cmap)
 
 
 def test_a_frame_of_another_size_scales_the_calibration_and_says_so():

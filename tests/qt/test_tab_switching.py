@@ -63,3 +63,45 @@ def test_live_draws_again_after_capture_froze_a_pair(qtbot, ctx, window, sim_rig
     n = live.frames_shown
     window.show_tab("live")
     qtbot.waitUntil(lambda: live.frames_shown >= n + 2, timeout=60000)
+
+
+def test_a_paused_live_view_stays_paused_across_a_tab_switch(qtbot, ctx, window, sim_rig):
+    """Live, Pause, Measurements, Live: still paused (the button says Resume, no frame is read);
+    the other tab got frames meanwhile; Resume goes on."""
+    ctx.set_calibration(sim_rig.true_calibration(), None, note="simulated rig's TRUE calibration")
+    window.use_source(_board_source(sim_rig), SourceChoice("sim"))
+    live = window.live_tab
+    window.show_tab("live")
+    qtbot.waitUntil(lambda: live.frames_shown >= 1, timeout=60000)
+    live.pause_button.click()
+    assert ctx.frames.paused and live.pause_button.text() == "Resume"
+    window.show_tab("measurements")
+    assert not ctx.frames.paused  # the tab shown now is not held up by the Live tab's pause
+    window.show_tab("capture")
+    _frames_pass(qtbot, ctx)
+    window.show_tab("live")
+    assert live.pause_button.isChecked() and live.pause_button.text() == "Resume"
+    assert ctx.frames.paused
+    shown = live.frames_shown
+    live.pause_button.click()
+    assert not ctx.frames.paused and live.pause_button.text() == "Pause"
+    qtbot.waitUntil(lambda: live.frames_shown > shown, timeout=30000)
+
+
+def test_coming_back_to_a_frozen_pair_says_it_is_from_before(qtbot, ctx, window, sim_rig):
+    """Capture (a pair freezes), Measurements, Capture: the pair is still offered, and the
+    prompt says it was frozen before the tab was left (it was shown unchanged, without a
+    word); Cancel goes live."""
+    window.use_source(_board_source(sim_rig), SourceChoice("sim"))
+    capture = window.capture_tab
+    window.show_tab("capture")
+    qtbot.waitUntil(lambda: capture.state == "review", timeout=60000)
+    assert capture.prompt.text().startswith("Both cameras see the board")
+    window.show_tab("measurements")
+    _frames_pass(qtbot, ctx)
+    window.show_tab("capture")
+    assert capture.state == "review" and capture.save_button.isEnabled()
+    text = capture.prompt.text()
+    assert "This pair was frozen at" in text and "before you left the Capture tab" in text
+    capture.cancel_button.click()
+    assert capture.prompt.text() == "Live"

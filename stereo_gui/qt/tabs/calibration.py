@@ -208,14 +208,18 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
         files.addWidget(self.load_button)
         files.addWidget(self.save_button)
         files.addStretch(1)
-        ll.addLayout(files)
         # scrolls rather than making the window taller than a laptop screen (1280x720: the
         # figures and the warnings alone are taller than the room left)
         left_scroll = VerticalScroll()
         left_scroll.setWidgetResizable(True)
         left_scroll.setFrameShape(QFrame.Shape.NoFrame)
         left_scroll.setWidget(left)
-        split.addWidget(left_scroll)
+        # Load and Save stay in view under the scrolled figures: a new calibration is not saved
+        # until Save is clicked, and at 1366x768 it was below the fold
+        left_box, lb = pane()
+        lb.addWidget(left_scroll, 1)
+        lb.addLayout(files)
+        split.addWidget(left_box)
 
         # right: chart and rectification check
         right = QSplitter(Qt.Orientation.Vertical)

@@ -13,11 +13,14 @@ Sessions and saved pairs: `capture_session.SessionPairs`.
 from __future__ import annotations
 
 import logging
+from datetime import datetime
 from pathlib import Path
 
 from PySide6.QtCore import Qt, Signal
+from PySide6.QtGui import QFontMetrics
 from PySide6.QtWidgets import (
     QHBoxLayout,
+    QVBoxLayout,
     QLabel,
     QPushButton,
     QSplitter,
@@ -69,6 +72,8 @@ class CaptureTab(SessionPairs, QWidget):
         self.frozen: CaptureOutput | None = None
         self.shown_pair: str | None = None  # the saved pair on screen (state "saved")
         self._frozen_frame: StereoFrame | None = None
+        self._frozen_at = ""  # the wall-clock time the pair under review was frozen, HH:MM:SS
+        self._left_while_frozen = False  # the tab was hidden with that pair on screen
         self._active = False
         self._last_output: CaptureOutput | None = None
         self.frames_shown = 0  # live frames drawn (for the status and tests)
@@ -133,6 +138,9 @@ class CaptureTab(SessionPairs, QWidget):
         f = self.prompt.font()
         f.setPointSize(f.pointSize() + 2)
         self.prompt.setFont(f)
+        # three lines always: a prompt of one line and one of three must not move the views
+        self.prompt.setMinimumHeight(3 * QFontMetrics(f).lineSpacing() + 12)
+        self.prompt.setAlignment(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter)
         self.save_button = QPushButton("Save pair (S)")
         self.save_button.setShortcut("S")
         self.cancel_button = QPushButton("Cancel (C)")
@@ -142,9 +150,11 @@ class CaptureTab(SessionPairs, QWidget):
         self.cancel_button.clicked.connect(self.cancel_frozen)
         self.live_button.clicked.connect(self.go_live)
         review.addWidget(self.prompt, 1)
-        review.addWidget(self.save_button)
-        review.addWidget(self.cancel_button)
-        review.addWidget(self.live_button)
+        buttons = QVBoxLayout()  # stacked: the prompt gets the width, three lines hold it
+        buttons.setSpacing(2)
+        for b in (self.save_button, self.cancel_button, self.live_button):
+            buttons.addWidget(b)
+        review.addLayout(buttons)
         ml.addLayout(review)
         split.addWidget(main)
 
@@ -223,10 +233,14 @@ class CaptureTab(SessionPairs, QWidget):
         if active == self._active:
             return
         self._active = active
+        if not active:
+            self._left_while_frozen = self.state == "review"
         if active:
             self._show_board_on_sim(self.board)
             self._set_processing(self.state == "live")
             self._reload_session()
+            if self.state == "review":  # the pair on screen is from before: say so
+                self._show_review_prompt()
 
     def _reload_session(self) -> None:
         """Read the session again (the Calibration tab may have excluded pairs meanwhile)."""
@@ -295,12 +309,17 @@ class CaptureTab(SessionPairs, QWidget):
         self.state = "review"
         self.frozen = out
         self._frozen_frame = frame
+        self._frozen_at = datetime.now().strftime("%H:%M:%S")
+        self._left_while_frozen = False
         self._show_review_prompt()
         self._set_processing(False)  # nothing to detect while a pair is under review
         self._update_controls()
 
     def _show_review_prompt(self) -> None:
         text = "Both cameras see the board. Save this pair (S) or Cancel (C)?"
+        if self._left_while_frozen:  # not the cameras' view now: it waited while away
+            text = (f"This pair was frozen at {self._frozen_at}, before you left the Capture tab "
+                    "(the cameras have moved on). Save it (S), or Cancel (C) to go live?")
         fills = self._fills(self.frozen.detection) if self.frozen is not None else {}
         if any(fills.values()):
             text += f"  It reaches {regions_in_words(fills)} (still empty)."
@@ -328,6 +347,7 @@ class CaptureTab(SessionPairs, QWidget):
         self.state = "live"
         self.frozen = None
         self._frozen_frame = None
+        self._left_while_frozen = False
         self.shown_pair = None
         self.rules.reset_steadiness()
         self.saved_panel.clear_selection()  # no saved pair is shown, none is selected
@@ -345,7 +365,6 @@ class CaptureTab(SessionPairs, QWidget):
         self._saved[name] = info
         self._add_list_item(info)
         self.saved_panel.show_newest()  # the pair just taken is in view, however long the list
-        self.saved_panel.add_coverage(det)
         self._update_coverage()
         self.ctx.show_status(f"Saved pair {name} to {self.session.folder}")
         self.pairSaved.emit(name)

@@ -17,6 +17,7 @@ from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.files.pairs import load_image
 from stereo_gui.pipeline.capture import session_scan_job
 from stereo_gui.pipeline.images import display_rgb
+from stereo_gui.qt.widgets import folder_dialog
 from stereo_gui.qt.widgets.saved_pairs import THUMB_SIZE, SavedPairInfo, pair_thumbnail
 from stereo_gui.qt.workers.job_worker import JobWorker
 
@@ -28,7 +29,8 @@ class SessionPairs:
     def _choose_new_session(self) -> bool:
         last = self.ctx.settings.last_session
         start = str(Path(last).parent) if last else str(Path.home())
-        folder = QFileDialog.getExistingDirectory(self, "Folder for the new capture session", start)
+        # a new folder's name may be typed: it is created after asking
+        folder = folder_dialog.choose_folder(self, "Folder for the new capture session", start)
         if not folder or not self._confirm_session_folder(Path(folder)):
             return False
         try:
@@ -125,7 +127,6 @@ class SessionPairs:
         self._saved.clear()
         self.shown_pair = None
         self.saved_panel.clear()
-        self.coverage.reset(self._image_size())
         self._update_coverage()
         self.sessionChanged.emit(session)
         self._start_scan()
@@ -166,8 +167,6 @@ class SessionPairs:
             if name in self._saved:
                 continue  # saved while the scan ran
             self._saved[name] = info
-            if det is not None:
-                self.saved_panel.add_coverage(det)
         self._refill_list()
         self._update_coverage()
         if self.state == "review":  # what a frozen pair adds is known now
@@ -283,11 +282,6 @@ class SessionPairs:
             self.ctx.report_error(f"could not delete pair {name}: {exc}")
             return
         self._saved.pop(name, None)
-        self.coverage.reset(self._image_size())
-        for info in self._saved.values():
-            det = info.detection
-            if det is not None:
-                self.saved_panel.add_coverage(det)
         self._refill_list()
         self._update_coverage()
         self.ctx.show_status(f"Deleted pair {name}")

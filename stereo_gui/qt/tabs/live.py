@@ -33,7 +33,7 @@ from PySide6.QtWidgets import (
 
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.matching import COLORMAPS, MatcherParams
-from stereo_gui.pipeline.live import LiveOutput, LiveProcessor
+from stereo_gui.pipeline.live import NO_MATCH_RGB, NOT_SEEN_RGB, LiveOutput, LiveProcessor
 from stereo_gui.qt.context import TRUE_CALIBRATION_NOTE
 from stereo_gui.qt.tabs.live_cloud import LiveCloud
 from stereo_gui.qt.tabs.live_exports import EXPORTS, LiveExports
@@ -52,9 +52,17 @@ log = logging.getLogger(__name__)
 
 NO_WLS_TITLE = "No WLS filter in this preset: the depth view"
 WLS_MEASURED_TITLE = "WLS filtered: this preset's depth (what a click reads)"
-# what the colours of pixels without depth mean, once under the views (not in every title)
-LEGEND = ("<span style='color:#6e1414'>■</span> dark red: no match &nbsp; "
-          "<span style='color:#606060'>■</span> grey: not seen by the right camera")
+
+
+def _hex(rgb) -> str:
+    return "#" + "".join(f"{int(v):02x}" for v in rgb)
+
+
+# what the colours of pixels without depth mean, once under the views (not in every title); the
+# grey views (Raw, Closed) and the colour maps use neither colour for depth
+LEGEND = (f"<span style='color:{_hex(NO_MATCH_RGB)}'>■</span> dark red: no match &nbsp; "
+          f"<span style='color:{_hex(NOT_SEEN_RGB)}'>■</span> magenta: not seen by the right "
+          "camera")
 REGION_VIEW = "depth"  # the view that carries the region box
 
 
@@ -209,6 +217,7 @@ class LiveTab(QWidget):
 
         self.views.changed.connect(self._views_changed)
         self.views.lay_out()
+        self.region.restore()
         ctx.calibrationChanged.connect(self._calibration_changed)
         ctx.frames.frameReady.connect(self._frame_ready)
         ctx.frames.sourceChanged.connect(self._source_changed)
@@ -253,9 +262,12 @@ class LiveTab(QWidget):
         self._active = active
         if active:
             self._install_processor()
+            if self.pause_button.isChecked():  # paused before another tab was shown: still is
+                self.ctx.frames.pause()
             self._frame_ready()
         elif self.pause_button.isChecked():
-            self.pause_button.setChecked(False)  # other tabs need frames
+            # other tabs need frames; the Live view stays paused until the person resumes it
+            self.ctx.frames.resume()
 
     def _install_processor(self) -> None:
         if self._active:
@@ -451,6 +463,8 @@ class LiveTab(QWidget):
             self.pause_button.setChecked(paused)  # re-enters through toggled
             return
         self.pause_button.setText("Resume" if paused else "Pause")
+        if not self._active:
+            return  # the frames belong to the tab shown; set_active applies the pause
         if paused:
             self.ctx.frames.pause()
         else:

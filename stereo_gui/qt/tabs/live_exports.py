@@ -12,6 +12,7 @@ from PySide6.QtCore import QObject
 from PySide6.QtWidgets import QFileDialog, QMenu, QToolButton, QWidget
 
 from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.core.util import how_many
 
 # depth exports of the frame shown: key -> (menu text, file suffix, what the file holds)
 EXPORTS: dict[str, tuple[str, str, str]] = {
@@ -162,7 +163,7 @@ class LiveExports(QObject):
     def _snapshot_done(self, job_id: int, paths) -> bool:
         if job_id in self._snapshots:
             self._snapshots.discard(job_id)
-            self.ctx.show_status(f"Snapshot saved: {len(paths)} files in {Path(paths[0]).parent}"
+            self.ctx.show_status(f"Snapshot saved: {how_many(len(paths), 'file')} in {Path(paths[0]).parent}"
                                  if paths else "Snapshot: no views shown")
             return True
         return False
@@ -233,7 +234,7 @@ class LiveExports(QObject):
                     note = ""
                 else:
                     n = dx.write_ply(path, disparity, result.rectified_left, calib)
-                    note = f"{n} points"
+                    note = how_many(n, "point")
                 done.append((kind, Path(path), note))
             return done
 
@@ -252,7 +253,7 @@ class LiveExports(QObject):
             extra = f", {note}" if note else ""
             self.ctx.show_status(f"Exported the {EXPORTS[kind][2]} to {path}{extra}")
         else:
-            self.ctx.show_status(f"Exported the frame's depth: {len(done)} files in "
+            self.ctx.show_status(f"Exported the frame's depth: {how_many(len(done), 'file')} in "
                                  f"{done[0][1].parent} (disparity PNG and .npy, depth PNG, PLY)")
         return True
 

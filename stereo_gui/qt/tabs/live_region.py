@@ -52,6 +52,27 @@ class LiveRegion(QObject):
         panel.regionChanged.connect(lambda _box: self.apply())
         ctx.activeFitChanged.connect(lambda _fit: self.apply())
 
+    def restore(self) -> None:
+        """The region and alarm of the last run (the settings); called once the button, the
+        alarm box and the line are in the tab's layout."""
+        s = self.ctx.settings
+        if s is None:
+            return
+        if s.region_alarm_m:
+            self.alarm_spin.setValue(s.region_alarm_m)
+        if len(s.region_box) == 4:
+            self.set_region(tuple(s.region_box))
+
+    def _remember(self) -> None:
+        """Keep the region and alarm in the settings, for the next run."""
+        if self.ctx.settings is None:
+            return
+        box = self._panel.region() if self.button.isChecked() else None
+        alarm = float(self.alarm_spin.value())
+        kept = (tuple(box) if box else (), alarm)
+        if kept != (tuple(self.ctx.settings.region_box), self.ctx.settings.region_alarm_m):
+            self.ctx.update_settings(region_box=kept[0], region_alarm_m=alarm)
+
     def _toggled(self, on: bool) -> None:
         if on:
             if not self._view_check.isChecked():
@@ -79,6 +100,7 @@ class LiveRegion(QObject):
 
     def apply(self) -> None:
         """Hand the region, the alarm and the fit to the processor (from the next frame)."""
+        self._remember()
         processor = self._processor()
         if processor is None:
             return

@@ -21,6 +21,11 @@ VIEWS: dict[str, str] = {
 SHORT_NAMES = {"left": "Left", "right": "Right", "raw": "Raw", "closed": "Closed",
                "depth": "Depth", "wls": "WLS"}
 COLOR_VIEWS = ("depth", "wls")  # the views coloured by distance, each with its colour bar
+# the least height all rows of views together ask for, px: the rows share it, so that showing
+# another view never makes the window taller (a third row of panels at their own minimum height
+# pushed a 720 or 768 px high window's status bar off the screen)
+GRID_MIN_HEIGHT_PX = 240
+PANEL_MIN_WIDTH_PX = 200
 
 
 class ViewGrid(QWidget):
@@ -65,6 +70,10 @@ class ViewGrid(QWidget):
             panel.hide()
         keys = self.visible()
         cols = 1 if len(keys) == 1 else 2
+        rows = max(1, -(-len(keys) // cols))
+        row_min = (GRID_MIN_HEIGHT_PX - self._grid.spacing() * (rows - 1)) // rows
+        for panel in self.panels.values():
+            panel.setMinimumSize(PANEL_MIN_WIDTH_PX, row_min)
         for c in range(2):  # columns of equal width, whatever the panels' own size hints
             self._grid.setColumnStretch(c, 1 if c < cols else 0)
         for i, key in enumerate(keys):

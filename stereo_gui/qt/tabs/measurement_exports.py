@@ -12,6 +12,7 @@ from pathlib import Path
 from PySide6.QtWidgets import QFileDialog
 
 from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.core.util import how_many
 from stereo_gui.pipeline.jobs import Progress
 from stereo_gui.qt.widgets.regression_plot import MODELS
 from stereo_gui.qt.workers.job_worker import JobWorker
@@ -58,9 +59,9 @@ class MeasurementExports:
         self.ctx.register_worker(w)
         self._export = w
         self._export_path = path
-        self._export_progress = f"{len(records):,} rows"
+        self._export_progress = how_many(len(records), "row")
         self.xlsx_button.setEnabled(False)
-        self.ctx.show_status(f"Exporting {len(records)} readings to {path}…")
+        self.ctx.show_status(f"Exporting {how_many(len(records), 'reading')} to {path}…")
         w.start()
         self._remember_dir(path)
         return True
@@ -100,7 +101,7 @@ class MeasurementExports:
             self.ctx.report_error(f"could not write {path}: {exc}")
             return False
         self._remember_dir(path)
-        self.ctx.show_status(f"Exported {len(self.ctx.measurements)} readings to {path}")
+        self.ctx.show_status(f"Exported {how_many(len(self.ctx.measurements), 'reading')} to {path}")
         return True
 
     def unfinished_work(self) -> list[str]:

@@ -34,9 +34,10 @@ from PySide6.QtWidgets import (
 )
 
 from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.core.util import how_many
 from stereo_gui.qt.tabs.measurement_exports import MeasurementExports
 from stereo_gui.qt.widgets.helpers import pane, wrapping_label
-from stereo_gui.qt.widgets.measurement_table import (MeasurementModel, samples_from,
+from stereo_gui.qt.widgets.measurement_table import (NOTE_COL, MeasurementModel, samples_from,
                                                      triangulation_errors_mm)
 from stereo_gui.qt.widgets.regression_plot import MODELS, RegressionPlot
 from stereo_gui.qt.workers.job_worker import JobWorker
@@ -91,6 +92,9 @@ class MeasurementsTab(MeasurementExports, QWidget):
         self.table.setAlternatingRowColors(True)
         hh = self.table.horizontalHeader()
         hh.setSectionResizeMode(QHeaderView.ResizeMode.ResizeToContents)
+        # room to type a note before there is one; a long one does not push the numbers away
+        hh.setSectionResizeMode(NOTE_COL, QHeaderView.ResizeMode.Interactive)
+        hh.resizeSection(NOTE_COL, 160)
         hh.setStretchLastSection(True)
         self.table.verticalHeader().setDefaultSectionSize(22)
         ll.addWidget(self.table, 1)
@@ -175,7 +179,7 @@ class MeasurementsTab(MeasurementExports, QWidget):
         n_true = sum(1 for r in recs if r.true_mm is not None)
         samples = samples_from(recs)
         self.count_label.setText(
-            f"{len(recs)} readings, {n_true} with a true distance. Double-click the True distance "
+            f"{how_many(len(recs), 'reading')}, {n_true} with a true distance. Double-click the True distance "
             f"cell of a reading to enter what you measured (mm).")
         self.fits, self.fit_errors = {}, {}
         for m, fn in (("cubic", regression.fit_cubic), ("inverse", regression.fit_inverse)):
@@ -186,7 +190,7 @@ class MeasurementsTab(MeasurementExports, QWidget):
         if self._loaded_fit is not None and self._loaded_fit.model not in self.fits:
             self.fits[self._loaded_fit.model] = self._loaded_fit
         self.sample_label.setText(
-            f"{len(samples)} samples (valid readings with a true distance)." if samples else
+            f"{how_many(len(samples), 'sample')} (valid readings with a true distance)." if samples else
             "No samples yet: enter true distances in the log. The cubic needs at least 4 "
             "samples, the inverse model 2.")
         tri = triangulation_errors_mm(recs, self.ctx.calibration)
@@ -194,7 +198,7 @@ class MeasurementsTab(MeasurementExports, QWidget):
         self.triangulation_rms_mm = tri_rms
         self.triangulation_label.setText(
             f"<b>triangulation</b> (the calibration alone): RMS {tri_rms:.1f} mm against the "
-            f"true distances of {len(tri)} readings" if tri else
+            f"true distances of {how_many(len(tri), 'reading')}" if tri else
             "<b>triangulation</b> (the calibration alone): no reading with a true distance yet")
         for m in MODELS:
             fit = self.fits.get(m)
@@ -202,12 +206,12 @@ class MeasurementsTab(MeasurementExports, QWidget):
             if fit is not None:
                 src = " (loaded from file)" if fit is self._loaded_fit else ""
                 if fit.exactly_determined:
-                    quality = (f"passes exactly through its {len(fit.samples)} samples: R² and "
+                    quality = (f"passes exactly through its {how_many(len(fit.samples), 'sample')}: R² and "
                                f"residuals say nothing yet, add readings at other distances")
                 else:
                     quality = (f"R² = {fit.r2:.5f}, residual RMS {fit.rms_mm:.1f} mm"
                                + (f" (triangulation {tri_rms:.1f} mm)" if tri else "")
-                               + f", {len(fit.samples)} samples")
+                               + f", {how_many(len(fit.samples), 'sample')}")
                 lab.setText(f"<b>{m}</b>{src}: {quality}<br>"
                             f"<span style='font-family: monospace'>{fit.formula()}</span>")
             else:
@@ -280,17 +284,19 @@ class MeasurementsTab(MeasurementExports, QWidget):
         with_truth = sum(r.true_mm is not None for r in self.ctx.measurements)
         answer = QMessageBox.question(
             self, "Clear the log",
-            f"Remove all {n} readings ({with_truth} with a true distance) from the log? "
+            f"Remove {'the' if n == 1 else 'all'} {how_many(n, 'reading')} ({with_truth} with a "
+            "true distance) from the log? "
             "Readings not exported are lost.")
         if answer == QMessageBox.StandardButton.Yes:
             self.ctx.clear_measurements()
-            self.ctx.show_status(f"Cleared {n} readings (Undo clear brings them back until the "
+            self.ctx.show_status(f"Cleared {how_many(n, 'reading')} (Undo clear brings them back until the "
                                  f"next reading)")
 
     def _undo_clear(self) -> None:
         n = len(self.ctx.cleared_measurements)
         if self.ctx.undo_clear():
-            self.ctx.show_status(f"{n} cleared readings are back in the log")
+            self.ctx.show_status(f"{how_many(n, 'cleared reading is', 'cleared readings are')} "
+                                 "back in the log")
 
     def _update_undo(self) -> None:
         self.undo_button.setVisible(self.ctx.can_undo_clear)
@@ -305,7 +311,7 @@ class MeasurementsTab(MeasurementExports, QWidget):
         replace = False
         if self.ctx.measurements:
             box = QMessageBox(QMessageBox.Icon.Question, "Open log",
-                              f"The log holds {len(self.ctx.measurements)} readings. Add the "
+                              f"The log holds {how_many(len(self.ctx.measurements), 'reading')}. Add the "
                               f"readings of {Path(path).name} after them, or replace them?",
                               parent=self)
             add = box.addButton("Add", QMessageBox.ButtonRole.AcceptRole)
@@ -333,7 +339,7 @@ class MeasurementsTab(MeasurementExports, QWidget):
             self.ctx.clear_measurements()  # undoable, like Clear log
         self.ctx.add_measurements(records)
         self._remember_dir(path)
-        self.ctx.show_status(f"Opened {len(records)} readings from {path}")
+        self.ctx.show_status(f"Opened {how_many(len(records), 'reading')} from {path}")
         return True
 
     def _remove_selected(self) -> None:

@@ -13,6 +13,9 @@ import logging
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QComboBox, QHBoxLayout, QLabel, QVBoxLayout, QWidget
 
+from stereo_gui.core.util import how_many
+from stereo_gui.pipeline.cloud import IMAGE_BACKGROUND_RGB
+
 log = logging.getLogger(__name__)
 
 COLOUR_TEXT = {"image": "colour from the image", "distance": "colour by distance"}
@@ -99,7 +102,7 @@ class CloudView(QWidget):
         import pyqtgraph.opengl as gl
 
         self.gl = gl.GLViewWidget()
-        self.gl.setBackgroundColor("#202020")
+        self.gl.setBackgroundColor(IMAGE_BACKGROUND_RGB)
         self.gl.setCameraPosition(distance=3.0, elevation=12, azimuth=-90)
         grid = gl.GLGridItem()
         grid.setSize(4, 6)
@@ -121,10 +124,11 @@ class CloudView(QWidget):
 
     def show_points(self, cloud) -> None:
         """Draw a `stereo_gui.pipeline.cloud.CloudPoints` (arrays handed over, nothing more)."""
-        self.info.setText(f"{cloud.count} points, {cloud.z_near_m:.2f} – {cloud.z_far_m:.2f} m")
+        self.info.setText(f"{how_many(cloud.count, 'point')}, {cloud.z_near_m:.2f} – {cloud.z_far_m:.2f} m")
         self.points = cloud
         if self.scatter is None:
             return
+        self.gl.setBackgroundColor(cloud.background_rgb)  # (by distance: a grey of its own)
         self.scatter.setData(pos=cloud.xyz_m, color=cloud.rgba)
         if not self._centred and cloud.count:
             from PySide6.QtGui import QVector3D

@@ -1,5 +1,6 @@
 """The measurement log as a Qt table model over `ctx.measurements` (MeasurementRecord); the
-true-distance column is editable and makes a reading a regression sample."""
+true-distance column is editable and makes a reading a regression sample, the note column says
+what was measured."""
 
 from __future__ import annotations
 
@@ -48,6 +49,7 @@ COLUMNS = (
     ("Disparity (px)", lambda r: _num(r.disparity_px, 3), "median disparity of the patch"),
     ("True distance (mm)", lambda r: _num(r.true_mm) if r.true_mm is not None else "",
      "double-click to enter the measured true distance: it makes the reading a regression sample"),
+    ("Note", lambda r: r.note, "double-click to say what was measured (kept and exported)"),
     ("Z (mm)", lambda r: _xyz(r.Z_mm, r), "depth along the optical axis (Δ: a ruler's B − A)"),
     ("Error (mm)", lambda r: _num(record_error(r)[0]),
      "Z − true distance, mm (empty until a true distance is entered)"),
@@ -65,8 +67,10 @@ COLUMNS = (
     ("Method", lambda r: r.method, "triangulation or the fit used"),
 )
 TRUE_COL = 3
-VALID_COL = 9
-_LEFT_ALIGNED = (0, VALID_COL, len(COLUMNS) - 1)
+NOTE_COL = 4
+VALID_COL = 10
+_LEFT_ALIGNED = (0, NOTE_COL, VALID_COL, len(COLUMNS) - 1)
+NOTE_MAX_CHARS = 500  # a note is a few words; longer text is cut there
 
 
 class MeasurementModel(QAbstractTableModel):
@@ -115,6 +119,10 @@ class MeasurementModel(QAbstractTableModel):
             return COLUMNS[col][1](rec)
         if role == Qt.ItemDataRole.EditRole and col == TRUE_COL:
             return "" if rec.true_mm is None else f"{rec.true_mm:g}"
+        if role == Qt.ItemDataRole.EditRole and col == NOTE_COL:
+            return rec.note
+        if role == Qt.ItemDataRole.ToolTipRole and col == NOTE_COL and rec.note:
+            return rec.note
         if role == Qt.ItemDataRole.ForegroundRole and not rec.valid:
             return QBrush(QColor("#a93226"))
         if role == Qt.ItemDataRole.BackgroundRole and col == TRUE_COL:
@@ -127,13 +135,20 @@ class MeasurementModel(QAbstractTableModel):
 
     def flags(self, index):
         f = super().flags(index)
-        if index.isValid() and index.column() == TRUE_COL:
+        if index.isValid() and index.column() in (TRUE_COL, NOTE_COL):
             f |= Qt.ItemFlag.ItemIsEditable
         return f
 
     def setData(self, index, value, role=Qt.ItemDataRole.EditRole) -> bool:  # noqa: N802
-        if role != Qt.ItemDataRole.EditRole or index.column() != TRUE_COL:
+        if role != Qt.ItemDataRole.EditRole or index.column() not in (TRUE_COL, NOTE_COL):
             return False
+        if index.column() == NOTE_COL:
+            # one line of text: a line break or tab would split the row of a CSV export reader
+            note = " ".join(str(value or "").split())[:NOTE_MAX_CHARS]
+            rec = self.ctx.measurements[index.row()]
+            if note != rec.note:
+                self.ctx.update_measurement(index.row(), replace(rec, note=note))
+            return True
         text = str(value).strip().replace(",", ".")
         if text == "":
             true_mm = None

@@ -7,9 +7,10 @@ from __future__ import annotations
 from pathlib import Path
 
 from PySide6.QtCore import QTimer
-from PySide6.QtWidgets import QFileDialog, QMenu, QToolButton
+from PySide6.QtWidgets import QMenu, QToolButton
 
 from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.qt.widgets import folder_dialog
 from stereo_gui.qt.workers.recorder import (
     describe_result,
     format_elapsed,
@@ -66,14 +67,14 @@ class RecordButton(QToolButton):
     def _record_into_clicked(self) -> None:
         if self.ctx.recorder.is_recording:
             return
-        folder = QFileDialog.getExistingDirectory(
+        folder = folder_dialog.choose_folder(
             self, "Record into (an empty or new folder)", str(recordings_dir(self.ctx.settings)))
         if folder:
             self.start_recording(folder)
 
     def _choose_recordings_dir(self) -> None:
-        folder = QFileDialog.getExistingDirectory(self, "Folder for new recordings",
-                                                  str(recordings_dir(self.ctx.settings)))
+        folder = folder_dialog.choose_folder(self, "Folder for new recordings",
+                                             str(recordings_dir(self.ctx.settings)))
         if folder:
             self.ctx.update_settings(recordings_dir=folder)
             self._update_record_tooltip()

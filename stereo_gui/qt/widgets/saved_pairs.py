@@ -11,19 +11,22 @@ import numpy as np
 from PySide6.QtCore import QEvent, QObject, QSize, Qt, Signal
 from PySide6.QtGui import QIcon, QImage, QPixmap
 from PySide6.QtWidgets import (
+    QFrame,
     QHBoxLayout,
     QLabel,
     QListWidget,
     QListWidgetItem,
     QPushButton,
+    QSplitter,
     QVBoxLayout,
     QWidget,
 )
 
 from stereo_gui.core.detect import PairDetection
 from stereo_gui.qt.widgets.coverage import CoverageWidget
+from stereo_gui.qt.widgets.helpers import VerticalScroll, pane
 
-THUMB_SIZE = QSize(176, 66)  # a saved pair's thumbnail: both images side by side
+THUMB_SIZE = QSize(128, 48)  # a saved pair's thumbnail: both images side by side
 
 
 def pair_thumbnail(left_bgr: np.ndarray, right_bgr: np.ndarray) -> QIcon:
@@ -61,15 +64,29 @@ class SavedPairsPanel(QWidget):
         sl = QVBoxLayout(self)
         sl.setContentsMargins(0, 0, 0, 0)
         self.coverage = CoverageWidget()
-        sl.addWidget(self.coverage)
+        # the guidance scrolls and the line between it and the list can be dragged: at 1280x720
+        # its words took the height and the list showed one pair
+        coverage_scroll = VerticalScroll()
+        coverage_scroll.setWidgetResizable(True)
+        coverage_scroll.setFrameShape(QFrame.Shape.NoFrame)
+        coverage_scroll.setWidget(self.coverage)
+        pairs, pl = pane()
         self.pairs_label = QLabel("Saved pairs")
-        sl.addWidget(self.pairs_label)
+        pl.addWidget(self.pairs_label)
         self.pair_list = QListWidget()
         self.pair_list.setIconSize(THUMB_SIZE)
         self.pair_list.setUniformItemSizes(True)
         self._quiet = 0  # > 0 while the list is changed by the program, not by the user
         self.pair_list.currentItemChanged.connect(self._current_changed)
-        sl.addWidget(self.pair_list, 1)
+        pl.addWidget(self.pair_list, 1)
+        self.splitter = QSplitter(Qt.Orientation.Vertical)
+        self.splitter.addWidget(coverage_scroll)
+        self.splitter.addWidget(pairs)
+        self.splitter.setChildrenCollapsible(False)
+        self.splitter.setStretchFactor(0, 3)
+        self.splitter.setStretchFactor(1, 2)
+        self.splitter.setSizes([330, 220])  # the list: four pairs or more at 1280x720
+        sl.addWidget(self.splitter, 1)
         pb = QHBoxLayout()
         self.delete_button = QPushButton("Delete pair (Del)")
         self.delete_button.setToolTip("Delete the saved pair shown (its two image files)")
@@ -84,11 +101,6 @@ class SavedPairsPanel(QWidget):
             self.delete_button.click()
             return True
         return super().eventFilter(obj, event)
-
-    def add_coverage(self, det: PairDetection) -> None:
-        """Count a saved pair's corners in the coverage maps."""
-        self.coverage.add_pair(det.left.corners if det.left else None,
-                               det.right.corners if det.right else None)
 
     def add_item(self, info: SavedPairInfo, excluded: bool) -> None:
         """Append a saved pair to the list (with its thumbnail and what is wrong with it)."""

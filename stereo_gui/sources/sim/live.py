@@ -26,7 +26,11 @@ class SimSource:
     """The simulated rig as a live frame source.
 
     mode "board": a board moving smoothly between poses in front of a plain background;
-    "scene": the demo scene alone; "mixed": the board moving in front of the demo scene.
+    "scene": the demo scene alone; "mixed": the board moving in front of the demo scene. The
+    poses visit the image corners, edges and centre in turn (SimRig.PLACES), as a technician
+    following the coverage guidance does, and always in front of the scene's objects (random
+    poses, some of them behind the nearest box, left corners of the images empty for 50 pairs
+    and more, and the guidance never said ready).
     With paced=True frames arrive at `fps` like a camera; paced=False returns them at once.
     """
 
@@ -49,6 +53,9 @@ class SimSource:
         self._frames_per_move = max(2, int(frames_per_move))
         self._from: BoardPose | None = None
         self._to: BoardPose | None = None
+        # the next pose goes to PLACES[_moves % len(PLACES)]; the first one to the centre, in
+        # full view of both cameras (a far corner is a hard first sight of the board)
+        self._moves = SimRig.PLACES.index((0.5, 0.5))
         self._index = 0
         self._pacer = FramePacer()
         self._closed = False
@@ -60,11 +67,16 @@ class SimSource:
     def _pose(self, i: int) -> BoardPose:
         k = i % self._frames_per_move
         if self._to is None or k == 0:
-            self._from = self._to or self.rig.random_board_pose(self._pose_rng)
-            self._to = self.rig.random_board_pose(self._pose_rng)
+            self._from = self._to or self._next_pose()
+            self._to = self._next_pose()
         f = k / self._frames_per_move
         f = f * f * (3 - 2 * f)  # ease in and out: the board rests a moment at each pose
         return _interpolate_pose(self._from, self._to, f)
+
+    def _next_pose(self) -> BoardPose:
+        pose = self.rig.place_pose(self._pose_rng, self._moves, self.scene)
+        self._moves += 1
+        return pose
 
     def read(self) -> StereoFrame:
         from stereo_gui.core.errors import SourceError

@@ -279,8 +279,38 @@ class SimRig:
     PLACES = ((0.0, 0.0), (1.0, 1.0), (1.0, 0.0), (0.0, 1.0), (0.5, 0.5), (0.5, 0.0),
               (0.0, 0.5), (1.0, 0.5), (0.5, 1.0))
 
+    def _hidden_by(self, pose: BoardPose, scene: Scene) -> bool:
+        """Whether an object of `scene` stands between a camera and part of the board (its
+        outline or its points): a board held behind an object is not seen whole."""
+        a0, b0, a1, b1 = self.board_outline_mm()
+        k = np.linspace(0.0, 1.0, 9)
+        plane = np.concatenate([
+            np.stack([a0 + (a1 - a0) * k, np.full_like(k, b0)], 1),
+            np.stack([a0 + (a1 - a0) * k, np.full_like(k, b1)], 1),
+            np.stack([np.full_like(k, a0), b0 + (b1 - b0) * k], 1),
+            np.stack([np.full_like(k, a1), b0 + (b1 - b0) * k], 1)])
+        pts = np.concatenate([np.concatenate([plane, np.zeros((len(plane), 1))], 1)
+                              @ pose.R.T + pose.t, pose.corners_left_mm(self.config.board)])
+        t = self.truth
+        for origin in (np.zeros(3), (-t.R.T @ t.T).reshape(3)):
+            d = pts - origin
+            dist = np.linalg.norm(d, axis=1)
+            d = d / dist[:, None]
+            for obj in scene.objects:
+                n = obj.normal
+                denom = d @ n
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    s_hit = ((obj.center - origin) @ n) / denom
+                q = origin + s_hit[:, None] * d - obj.center
+                inside = ((np.abs(q @ obj.u) <= obj.width_mm / 2)
+                          & (np.abs(q @ obj.v) <= obj.height_mm / 2))
+                if np.any(inside & (np.abs(denom) > 1e-12) & (s_hit > 0) & (s_hit < dist - 1.0)):
+                    return True
+        return False
+
     def random_board_pose(self, rng: np.random.Generator, max_tries: int = 2000,
-                          where: tuple[float, float] | None = None) -> BoardPose:
+                          where: tuple[float, float] | None = None,
+                          scene: Scene | None = None) -> BoardPose:
         """One random board pose seen by both cameras (0.4-1.2 m, up to 1.6 m for the left and
         right edges; tilts up to 40 deg).
 
@@ -290,6 +320,7 @@ class SimRig:
         a calibration needs to see the distortion). A board that must be seen whole (chessboard,
         circle grids) stays inside both images by a few pixels; a ChArUco board may reach out
         of them by a good part of its size, as long as both cameras see enough of its corners.
+        With a `scene`, the board is held in front of its objects, never behind one.
         """
         b = self.config.board
         w, h = self.config.image_size
@@ -362,7 +393,8 @@ class SimRig:
             if np.any(room <= 0):
                 continue
             pose = BoardPose(R, t0 + np.array([shift[0] * z / f, shift[1] * z / f, 0.0]))
-            if self._board_visible(pose, margin_px=margin - 2.0):
+            if self._board_visible(pose, margin_px=margin - 2.0) and (
+                    scene is None or not self._hidden_by(pose, scene)):
                 return pose
         raise BoardOutOfView(f"could not find a pose of the {b.label()} board that both "
                              f"simulated cameras see whole between {z_lo:.0f} and {z_hi:.0f} mm "
@@ -394,19 +426,22 @@ class SimRig:
         """`n` varied board poses (0.4-1.2 m, tilts up to 40 deg) that visit the image corners,
         edges and centre in turn (PLACES), each seen by both cameras (see random_board_pose)."""
         rng = np.random.default_rng(self.seed * 7919 + 17 if seed is None else seed)
-        poses = []
-        for i in range(int(n)):
-            where = np.array(self.PLACES[i % len(self.PLACES)])
-            for pull in (0.0, 0.25, 0.5):  # a place out of reach: a little nearer the centre
-                try:
-                    poses.append(self.random_board_pose(
-                        rng, max_tries=2000 if pull == 0.5 else 400,
-                        where=tuple(where + pull * (0.5 - where))))
-                    break
-                except BoardOutOfView:
-                    if pull == 0.5:
-                        raise
-        return poses
+        return [self.place_pose(rng, i) for i in range(int(n))]
+
+    def place_pose(self, rng: np.random.Generator, i: int, scene: Scene | None = None
+                   ) -> BoardPose:
+        """A random board pose at the i-th of PLACES (in turn, from the first again after the
+        last), seen by both cameras (in front of `scene`'s objects); a place out of reach is
+        pulled a little nearer the centre."""
+        where = np.array(self.PLACES[i % len(self.PLACES)])
+        for pull in (0.0, 0.25):
+            try:
+                return self.random_board_pose(rng, max_tries=400, scene=scene,
+                                              where=tuple(where + pull * (0.5 - where)))
+            except BoardOutOfView:
+                pass
+        return self.random_board_pose(rng, max_tries=2000, scene=scene,
+                                      where=tuple(where + 0.5 * (0.5 - where)))
 
     # ---- rendering ------------------------------------------------------------------------
     def _plane_in_camera(self, cam: int, origin, u, v, width: float, height: float) -> _Plane:

@@ -274,14 +274,16 @@ def test_new_session_in_a_folder_with_files_asks_before_writing_into_it(
         tab, tmp_path, monkeypatch, questions):
     """Issue 12, item 10: New session… in a non-empty folder without a session asks first; No
     writes nothing there, Yes starts the session (the pairs there are listed)."""
-    from PySide6.QtWidgets import QFileDialog, QMessageBox
+    from PySide6.QtWidgets import QMessageBox
+
+    from stereo_gui.qt.widgets import folder_dialog
 
     folder = tmp_path / "photos"
     folder.mkdir()
     write_calibration_set(folder, n_pairs=2, seed=3)
     (folder / "notes.txt").write_text("holiday")
     before = sorted(p.name for p in folder.iterdir())
-    monkeypatch.setattr(QFileDialog, "getExistingDirectory", lambda *a, **k: str(folder))
+    monkeypatch.setattr(folder_dialog, "choose_folder", lambda *a, **k: str(folder))
     asked = questions.asked
     questions.reply = QMessageBox.StandardButton.No
     tab.new_button.click()
@@ -295,18 +297,20 @@ def test_new_session_in_a_folder_with_files_asks_before_writing_into_it(
     # an empty folder is not asked about
     empty = tmp_path / "empty"
     empty.mkdir()
-    monkeypatch.setattr(QFileDialog, "getExistingDirectory", lambda *a, **k: str(empty))
+    monkeypatch.setattr(folder_dialog, "choose_folder", lambda *a, **k: str(empty))
     asked.clear()
     tab.new_button.click()
     assert not asked and (empty / "session.json").exists()
 
 
 def test_new_session_in_a_session_folder_offers_to_open_it(tab, tmp_path, monkeypatch, qtbot):
-    from PySide6.QtWidgets import QFileDialog, QMessageBox
+    from PySide6.QtWidgets import QMessageBox
+
+    from stereo_gui.qt.widgets import folder_dialog
 
     folder = tmp_path / "s"
     CaptureSession.create(folder, BoardSpec(), (640, 480))
-    monkeypatch.setattr(QFileDialog, "getExistingDirectory", lambda *a, **k: str(folder))
+    monkeypatch.setattr(folder_dialog, "choose_folder", lambda *a, **k: str(folder))
     monkeypatch.setattr(QMessageBox, "question",
                         lambda *a, **k: QMessageBox.StandardButton.Yes)
     tab.new_button.click()
@@ -340,3 +344,35 @@ def test_a_saved_pair_is_scrolled_into_view_and_counted_in_words(tab, tmp_path, 
 
     assert (pairs_kept(1), pairs_kept(2), pairs_kept(0)) == (
         "1 pair kept", "2 pairs kept", "0 pairs kept")
+
+
+def test_new_session_in_a_folder_typed_that_does_not_exist_yet_creates_it(
+        tab, tmp_path, questions, qtbot):
+    """The folder dialog: a new folder's name typed and OK offers to create it (Qt's own
+    dialog said "Directory not found"); No keeps the dialog open, Yes creates the folder and
+    the session goes there."""
+    from PySide6.QtCore import QTimer
+    from PySide6.QtWidgets import QApplication, QDialog, QMessageBox
+
+    from stereo_gui.qt.widgets.folder_dialog import FolderDialog
+
+    new = tmp_path / "calib-2026-11-22"
+    seen = []
+
+    def answer_dialog():
+        dialog = next(w for w in QApplication.topLevelWidgets()
+                      if isinstance(w, FolderDialog) and w.isVisible())
+        dialog.selectFile(str(new))
+        questions.reply = QMessageBox.StandardButton.No
+        dialog.accept()
+        seen.append((dialog.isVisible(), new.exists()))
+        questions.reply = QMessageBox.StandardButton.Yes
+        dialog.accept()
+        seen.append((dialog.result() == QDialog.DialogCode.Accepted, new.is_dir()))
+
+    QTimer.singleShot(0, answer_dialog)
+    tab.new_button.click()
+    assert seen == [(True, False), (True, True)]
+    assert "There is no folder" in questions.asked[0] and str(new) in questions.asked[0]
+    assert tab.session is not None and tab.session.folder == new
+    assert (new / "session.json").exists()

@@ -49,7 +49,7 @@ def test_log_table_shows_readings(tab, ctx):
     model = tab.table.model()
     assert model.rowCount() == 2
     assert model.index(0, 2).data() == "41.250"
-    assert model.index(0, 7).data() == f"{F_PX * B_MM / 41.25:.1f}"  # range
+    assert model.index(0, 8).data() == f"{F_PX * B_MM / 41.25:.1f}"  # range
     assert model.index(1, VALID_COL).data().startswith("no: no valid pixels")
     assert "2 readings, 0 with a true distance" in tab.count_label.text()
 
@@ -320,3 +320,80 @@ def test_an_unreadable_kept_log_is_set_aside_and_said(qtbot, tmp_path):
     assert (tmp_path / "measurement-log.json.unreadable").read_text() == "{ half a log"
     assert ctx.measurements == []
     assert ctx.shutdown(2000)
+
+
+def test_one_reading_is_one_reading_not_one_readings(tab, ctx, questions):
+    """With one reading and one true distance the tab says "1 reading", "1 sample" and "of
+    1 reading" (it said "1 samples" and "of 1 readings"), and two are plural again."""
+    ctx.add_measurement(_record(41.0))
+    assert tab.table.model().setData(tab.table.model().index(0, TRUE_COL), "2000")
+    texts = [tab.count_label.text(), tab.sample_label.text(), tab.triangulation_label.text()]
+    joined = " | ".join(texts)
+    assert "1 reading," in texts[0] and texts[1].startswith("1 sample ")
+    assert "of 1 reading" in texts[2] and "1 readings" not in joined and "1 samples" not in joined
+    tab.clear_button.click()
+    assert "Remove the 1 reading (1 with a true distance)" in questions.asked[-1]
+    ctx.add_measurement(_record(30.0))
+    ctx.add_measurement(_record(20.0))
+    assert "2 readings," in tab.count_label.text()
+
+
+def test_how_many_says_a_count_in_the_right_number():
+    from stereo_gui.core.util import how_many
+
+    assert [how_many(n, "sample") for n in (0, 1, 2)] == ["0 samples", "1 sample", "2 samples"]
+    assert how_many(20000, "reading") == "20,000 readings"
+    assert how_many(1, "cleared reading is", "cleared readings are") == "1 cleared reading is"
+
+
+def test_a_note_is_typed_in_the_log_kept_exported_and_read_back(qtbot, tmp_path):
+    """The Note column says what was measured: typed in the table, kept across a restart,
+    written to the .xlsx and .csv exports (the last column), and read back from them; a CSV
+    written before notes existed still opens."""
+    from PySide6.QtCore import Qt
+
+    import dataclasses
+
+    from stereo_gui.files.spreadsheet import FILE_HEADERS, read_measurements, records_to_csv
+    from stereo_gui.qt.context import AppContext
+    from stereo_gui.qt.widgets.measurement_table import NOTE_COL
+
+    path = tmp_path / "data" / "measurement-log.json"
+    ctx = AppContext()
+    assert ctx.keep_log(path) == []
+    tab = MeasurementsTab(ctx)
+    qtbot.addWidget(tab)
+    ctx.add_measurement(_record(41.0))
+    ctx.add_measurement(_record(30.0))
+    model = tab.table.model()
+    assert model.headerData(NOTE_COL, Qt.Orientation.Horizontal) == "Note"
+    assert model.flags(model.index(0, NOTE_COL)) & Qt.ItemFlag.ItemIsEditable
+    assert model.setData(model.index(0, NOTE_COL), "door frame,\n left edge ")
+    assert model.index(0, NOTE_COL).data() == "door frame, left edge"
+    qtbot.waitUntil(lambda: path.is_file() and "door frame" in path.read_text(), timeout=5000)
+    assert ctx.shutdown(2000)
+
+    ctx2 = AppContext()
+    assert ctx2.keep_log(path) == []
+    assert [r.note for r in ctx2.measurements] == ["door frame, left edge", ""]
+    tab2 = MeasurementsTab(ctx2)
+    qtbot.addWidget(tab2)
+    assert tab2.table.model().index(0, NOTE_COL).data() == "door frame, left edge"
+    xlsx, csv = tmp_path / "log.xlsx", tmp_path / "log.csv"
+    with qtbot.waitSignal(tab2.exportFinished, timeout=30000):
+        assert tab2.export_xlsx(xlsx)
+    qtbot.waitUntil(lambda: tab2.xlsx_button.isEnabled(), timeout=30000)
+    assert tab2.export_csv(csv)
+    assert load_workbook(xlsx)["Measurements"].cell(row=1, column=len(FILE_HEADERS)).value == "Note"
+    assert csv.read_text().splitlines()[0].endswith(",Note")
+    assert [r.note for r in read_measurements(xlsx)] == ["door frame, left edge", ""]
+    assert [r.note for r in read_csv(csv)] == ["door frame, left edge", ""]
+    old = tmp_path / "old.csv"  # as written before the Note column
+    without = [dataclasses.replace(r, note="") for r in ctx2.measurements]
+    lines = records_to_csv(without).splitlines()
+    assert lines[0].endswith(",Note") and all(line.endswith(",") for line in lines[1:])
+    old.write_text("\n".join(line.rsplit(",", 1)[0] for line in lines) + "\n")
+    assert [r.note for r in read_csv(old)] == ["", ""]
+    assert [r.Z_mm for r in read_csv(old)] == pytest.approx([r.Z_mm for r in without], abs=0.05)
+    tab2.shutdown()
+    assert ctx2.shutdown(2000)

@@ -63,3 +63,27 @@ def test_sim_source_paces_frames(monkeypatch):
     times = [src.read().t_left for _ in range(3)]
     assert times == pytest.approx([100.0, 100.1, 100.2])
     assert sum(slept) == pytest.approx(0.2)
+
+
+@pytest.mark.parametrize("mode", ["mixed", "board"])
+def test_the_live_rigs_resting_poses_make_a_set_ready_to_calibrate(mode):
+    """Where the live board rests (every second frame with two frames a move), both cameras see
+    it whole, in front of the scene's objects, and three rounds of its places satisfy the Capture
+    tab's own readiness rule (random poses left image corners empty after 50 pairs)."""
+    from stereo_gui.core.board import BoardSpec
+    from stereo_gui.core.coverage import readiness
+    from stereo_gui.core.detect import detect_pair
+
+    rig = SimRig(RigConfig(supersample=2))
+    src = SimSource(rig, mode=mode, paced=False, seed=0, frames_per_move=2)
+    board = BoardSpec()
+    kept = []
+    for i in range(2 * len(SimRig.PLACES) * 3):
+        f = src.read()
+        if i % 2 == 0:
+            det = detect_pair(f"rest {i}", f.left, f.right, board)
+            assert det.found, f"frame {i}: {det.reason}"
+            kept.append(det)
+    src.close()
+    r = readiness(kept, board, rig.config.image_size)
+    assert r.ready, r.summary()
