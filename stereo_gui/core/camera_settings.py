@@ -103,6 +103,10 @@ class PairSettings:
     def empty(self) -> bool:
         return not (self.left.known or self.right.known)
 
+    def swapped(self) -> PairSettings:
+        """Left and right exchanged (for a calibration made with the images exchanged)."""
+        return PairSettings(self.right, self.left)
+
     def to_json(self) -> dict:
         return {"left": self.left.to_json(), "right": self.right.to_json()}
 

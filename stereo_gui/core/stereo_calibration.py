@@ -80,6 +80,9 @@ class StereoCalibration:
     # made from pairs whose left and right images were exchanged (the cameras were found
     # swapped): frames from the same source must be exchanged before they are rectified
     swapped_inputs: bool = False
+    # core.camera_settings.PairSettings: the cameras' controls (focus, exposure...) when the
+    # pairs were captured, as this calibration names the cameras; None when not known
+    camera_controls: object | None = None
 
     def ordered(self, left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """A source's (left, right) images in the order this calibration expects."""

@@ -171,6 +171,9 @@ def calibration_job(folder: Path, board: BoardSpec, alpha: float, method: str,
             origin=f"{folder}" + (" with left and right exchanged" if swapped else ""))
         if swapped:
             result = replace(result, calibration=result.calibration.with_updates(swapped_inputs=True))
+        if session.camera_controls is not None:
+            result = replace(result, calibration=result.calibration.with_updates(
+                camera_controls=session.calibration_controls()))
         control.check()
         yield Progress(n + 9, total, "computing rectification maps")
         maps = result.calibration.rectify_maps()
