@@ -146,9 +146,10 @@ def convention_for(backend: int | None, platform: str | None = None) -> Conventi
 
 @dataclass(frozen=True)
 class ControlReading:
-    """One control as read from a device: `available` False when the device lacks it (or
-    refused or ignored a write: `note` says which); `value` a bool for a switch, a number for a
-    value (None when unavailable); `lo`, `hi`, `step`, `unit` for its slider."""
+    """One control as read from a device: `available` False when it cannot be set (the device
+    lacks it, or refused or ignored a write: `note` says which); `value` a bool for a switch, a
+    number for a value (None when the device does not report one; a control that ignores
+    writes still reports what it is); `lo`, `hi`, `step`, `unit` for its slider."""
 
     name: str
     available: bool
@@ -181,12 +182,12 @@ class CameraState:
         raise KeyError(name)
 
     def value(self, name: str):
-        r = self.reading(name)
-        return r.value if r.available else None
+        """What control `name` reads now (None when the camera does not report it)."""
+        return self.reading(name).value
 
     def settings(self) -> CameraSettings:
         return CameraSettings(self.backend, **{r.name: r.value for r in self.readings
-                                               if r.available and r.value is not None})
+                                               if r.value is not None})
 
     def freed(self, name: str) -> bool:
         """Whether value `name` is held by hand now (its automatic switch is off or missing),
@@ -264,9 +265,10 @@ class CameraControls:
             why = self.convention.note or f"{self.backend} offers no {LABELS[name].lower()}"
             return ControlReading(name, False, note=why)
         base = dict(lo=spec.lo, hi=spec.hi, step=spec.step, unit=spec.unit)
-        if name in self._lost:
-            return ControlReading(name, False, note=self._lost[name], **base)
         raw = self._get(spec)
+        if name in self._lost:  # it cannot be set; what it reads is still what it is
+            value = None if raw is None or raw == MISSING else self._decode(spec, raw)
+            return ControlReading(name, False, value, note=self._lost[name], **base)
         if raw is None or raw == MISSING:
             return ControlReading(name, False, note="this camera does not have it", **base)
         value = self._decode(spec, raw)
