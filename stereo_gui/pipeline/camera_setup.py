@@ -150,6 +150,18 @@ def _log_units(r: ControlReading) -> bool:
     return r.unit.startswith("log2")
 
 
+def exposure_limit(reading: ControlReading, fps: float) -> float | None:
+    """The longest exposure (in `reading`'s units) that keeps `fps` frames per second: a
+    longer one would lower the frame rate and widen the cameras' skew."""
+    if not fps or fps <= 0 or not math.isfinite(fps):
+        return None
+    if _log_units(reading):
+        return float(math.floor(math.log2(1.0 / fps)))
+    if reading.unit.startswith("x100"):
+        return float(math.floor(1e4 / fps))
+    return None
+
+
 def begin_exposure_matching(pair: PairControls) -> list[WriteResult]:
     """Hold both cameras' exposure where it is (automatic exposure off): the left is the
     reference, the right is then set to match it; neither drifts afterwards."""
