@@ -128,7 +128,7 @@ class CaptureTab(SessionPairs, QWidget):
         ml.addWidget(self.playback)
         self.camera_controls = CameraControlsPanel(self.ctx, "capture")
         ml.addWidget(self.camera_controls)
-        self.pairSaved.connect(lambda _name: self.camera_controls.record_in(self.session))
+        self.pairSaved.connect(lambda _name: self.camera_controls.record_in(lambda: self.session))
         self.view = StereoPairView()
         ml.addWidget(self.view, 1)
 

@@ -138,14 +138,22 @@ class CameraSetup(QObject):
 
         self._run(begin, self._match_begun)
 
-    def record_in(self, session) -> None:
-        """Keep the controls now in capture session `session` (the pairs are taken with them)."""
-        if session is None or self.report is None:
-            return
-        try:
-            session.set_camera_controls(self.report.settings)
-        except Exception as exc:  # noqa: BLE001 - the pair is saved; only this note is lost
-            self.ctx.report_error(f"could not record the cameras' controls in the session: {exc}")
+    def record_in(self, session_of) -> None:
+        """Keep the controls in the capture session `session_of()` gives when they are read
+        (the tab's session then: it may have been opened again meanwhile): read again now,
+        since automatic modes move them between requests."""
+        def keep(report: setup.ControlsReport) -> None:
+            self._take_report(report)
+            session = session_of()
+            if session is None:
+                return
+            try:
+                session.set_camera_controls(report.settings)
+            except Exception as exc:  # noqa: BLE001 - the pair is saved; only this note is lost
+                self.ctx.report_error(f"could not record the cameras' controls in the session: "
+                                      f"{exc}")
+
+        self._run(lambda pair, calib, size, _s, _f: setup.read_controls(pair, calib, size), keep)
 
     # ---- answers (UI thread) -------------------------------------------------------------------
     def _answered(self, tid: int, result) -> None:
@@ -501,5 +509,6 @@ class CameraControlsPanel(QWidget):
         r = self.model.report
         return r.settings if r is not None else None
 
-    def record_in(self, session) -> None:
-        self.model.record_in(session)
+    def record_in(self, session_of) -> None:
+        """Keep the controls, read again, in the session `session_of()` gives."""
+        self.model.record_in(session_of)

@@ -185,5 +185,7 @@ def test_a_saved_pair_records_the_controls_in_the_session(qtbot, ctx, make_tab, 
     assert tab.state == "review"
     with qtbot.waitSignal(tab.pairSaved, timeout=WAIT):
         tab.save_button.click()
+    qtbot.waitUntil(lambda: CaptureSession.open(tmp_path / "s").camera_controls is not None,
+                    timeout=WAIT)
     kept = CaptureSession.open(tmp_path / "s").camera_controls
-    assert kept is not None and kept.left.focus == TRUE_FOCUS and kept.left.backend == "simulated"
+    assert kept.left.focus == TRUE_FOCUS and kept.left.backend == "simulated"
