@@ -43,13 +43,14 @@ class SkewStats:
         return limit is not None and abs(self.median_ms) > limit
 
     def text(self) -> str:
-        """'Skew 20.0 ms median, 21.3 ms worst (right after left) over the last second'."""
+        """'Skew 20.0 ms median, 21.3 ms worst (right after left) over the last second
+        (30 frames); a third of a frame is 11.1 ms'."""
         if self.frames == 0:
             return "Skew: no frames"
         order = ("right after left" if self.median_ms > 0 else "left after right"
                  if self.median_ms < 0 else "together")
         out = (f"Skew {abs(self.median_ms):.1f} ms median, {abs(self.worst_ms):.1f} ms worst "
-               f"({order}) over {self.frames} frames")
+               f"({order}) over the last second ({self.frames} frames)")
         if self.limit_ms is not None:
             out += f"; a third of a frame is {self.limit_ms:.1f} ms"
         return out

@@ -62,7 +62,7 @@ def test_the_session_keeps_the_controls_its_pairs_were_taken_with(tmp_path):
 
 
 def test_an_older_session_without_controls_opens(tmp_path):
-    s = CaptureSession.create(tmp_path / "s")
+    CaptureSession.create(tmp_path / "s")
     data = json.loads((tmp_path / "s" / MANIFEST).read_text())
     assert "camera_controls" not in data
     assert CaptureSession.open(tmp_path / "s").camera_controls is None

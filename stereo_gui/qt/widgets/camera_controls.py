@@ -372,7 +372,8 @@ class CameraControlsPanel(QWidget):
         grid = QGridLayout()
         grid.setHorizontalSpacing(8)
         grid.setVerticalSpacing(1)
-        self.left_title, self.right_title = QLabel("<b>Left camera</b>"), QLabel("<b>Right camera</b>")
+        self.left_title = QLabel("<b>Left camera</b>")
+        self.right_title = QLabel("<b>Right camera</b>")
         grid.addWidget(self.left_title, 0, 1)
         grid.addWidget(self.right_title, 0, 2)
         self.cells: dict[tuple[str, str], _CameraCell] = {}
@@ -452,7 +453,7 @@ class CameraControlsPanel(QWidget):
                                   if m.report.settings.side(s).focus is not None)
                 out.append(f"Autofocus is on ({_sides_text(af)}): the lens refocuses when the "
                            f"scene changes, and with it the focal length: {what}. Lock the "
-                           f"focus{' at ' + focus if focus else ''}.")
+                           f"focus where it is{' (last read: ' + focus + ')' if focus else ''}.")
         t = self.ctx.frames.timing()
         if t.too_large and self.purpose == "capture":
             out.append(f"The cameras take their pictures {abs(t.median_ms):.0f} ms apart, more "
