@@ -7,6 +7,8 @@ import json
 
 import cv2
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from stereo_gui.core.camera_settings import CameraSettings, PairSettings
 from stereo_gui.files.calibration_file import load_calibration, save_calibration
@@ -96,3 +98,22 @@ def test_the_calibrate_command_carries_the_sessions_controls(tmp_path, capsys, s
     assert code == 0, capsys.readouterr().err
     got = load_calibration(tmp_path / "c.yaml").camera_controls
     assert got == (CONTROLS.swapped() if swapped else CONTROLS)
+
+
+
+JSON = st.recursive(
+    st.none() | st.booleans() | st.floats(allow_nan=True) | st.integers() | st.text(max_size=8),
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(
+        st.sampled_from(["left", "right", "backend", "focus", "focus_auto", "exposure", "gain",
+                         "x"]), inner, max_size=5),
+    max_leaves=20)
+
+
+@settings(max_examples=300, deadline=None)
+@given(JSON)
+def test_any_json_gives_settings_or_a_clean_error(data):
+    try:
+        s = PairSettings.from_json(data)
+    except ValueError:
+        return
+    assert PairSettings.from_json(s.to_json()) == s

@@ -13,7 +13,6 @@ back. A control the camera does not have (or that refused or ignored a write) is
 from __future__ import annotations
 
 import logging
-import weakref
 
 from PySide6.QtCore import QObject, Qt, QTimer, Signal
 from PySide6.QtWidgets import (
@@ -57,18 +56,17 @@ class CameraSetup(QObject):
     came, or when the source has none: `unavailable` says why)."""
 
     changed = Signal()  # report, note, unavailable or matching changed
-    _registry: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+    OBJECT_NAME = "cameraSetup"
 
     @classmethod
     def of(cls, ctx) -> CameraSetup:
-        """The one CameraSetup of application context `ctx`."""
-        found = cls._registry.get(ctx)
-        if found is None:
-            found = cls._registry[ctx] = cls(ctx)
-        return found
+        """The one CameraSetup of application context `ctx` (its child: it lives as long)."""
+        found = ctx.findChild(cls, cls.OBJECT_NAME)
+        return found if found is not None else cls(ctx)
 
     def __init__(self, ctx) -> None:
         super().__init__(ctx)
+        self.setObjectName(self.OBJECT_NAME)
         self.ctx = ctx
         self.report: setup.ControlsReport | None = None
         self.unavailable = ""  # why there are no controls ("" when there are, or not known yet)

@@ -189,3 +189,10 @@ def test_a_saved_pair_records_the_controls_in_the_session(qtbot, ctx, make_tab, 
                     timeout=WAIT)
     kept = CaptureSession.open(tmp_path / "s").camera_controls
     assert kept.left.focus == TRUE_FOCUS and kept.left.backend == "simulated"
+
+
+def test_both_tabs_panels_share_one_model(qtbot, ctx):
+    a, b = CameraControlsPanel(ctx, "capture"), CameraControlsPanel(ctx, "live")
+    qtbot.addWidget(a)
+    qtbot.addWidget(b)
+    assert a.model is b.model
