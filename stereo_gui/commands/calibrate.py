@@ -267,6 +267,10 @@ def run(args: argparse.Namespace) -> int:
             if swap:
                 result = replace(result, calibration=result.calibration.with_updates(
                     swapped_inputs=True))
+            controls = session.camera_controls if session is not None else None
+            if controls is not None:  # the cameras' focus and exposure go with the calibration
+                result = replace(result, calibration=result.calibration.with_updates(
+                    camera_controls=controls.swapped() if swap else controls))
     finally:
         progress.clear()
     skipped = [RejectedPair(p.name, "excluded in the capture session")

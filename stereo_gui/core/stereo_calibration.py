@@ -83,6 +83,9 @@ class StereoCalibration:
     # (pair name, why) of the pairs it was not made from: rejected when it was made (no board
     # in both images, an outlier) or excluded by the technician
     left_out: tuple[tuple[str, str], ...] = ()
+    # core.camera_settings.PairSettings: the cameras' controls (focus, exposure...) when the
+    # pairs were captured, as this calibration names the cameras; None when not known
+    camera_controls: object | None = None
 
     def ordered(self, left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """A source's (left, right) images in the order this calibration expects."""

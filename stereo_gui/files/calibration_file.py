@@ -6,7 +6,11 @@ method, alpha, creation time and `format_version`. T and the P2/Q translation te
 
 The file also records the lens model (`lens_model`), how the calibration was made (`origin`),
 the warnings found then, and the parameters' 1-sigma covariance (`uncertainty_names`,
-`uncertainty_covariance`); files without them load as before (no uncertainty).
+`uncertainty_covariance`); files without them load as before (no uncertainty). It records the
+cameras' controls when the pairs were captured (`camera_controls`: `left` and `right` maps of
+backend, focus, exposure...; switches as 0/1), so that they can be restored and a changed focus
+noticed; files without them load as before, and a damaged `camera_controls` is left out with a
+warning in the log, the calibration itself still loads.
 
 ROS camera_info files (left.yaml, right.yaml) follow ROS's layout ({rows, cols, data} matrices,
 distortion_model plumb_bob, rational_polynomial or equidistant for fisheye lenses) and ROS's unit
@@ -25,6 +29,7 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.camera_settings import SWITCHES, PairSettings
 from stereo_gui.core.errors import CalibrationFileError, InputError
 from stereo_gui.core.stereo_calibration import (
     MATRIX_SHAPES,
@@ -75,6 +80,7 @@ def calibration_text(calib: StereoCalibration) -> str:
         if calib.board.target == "charuco":
             fs.write("board_dictionary", calib.board.dictionary)
     _write_lens_and_uncertainty(fs, calib)
+    _write_camera_controls(fs, calib)
     fs.write("rms_left", float(calib.rms_left))
     fs.write("rms_right", float(calib.rms_right))
     fs.write("rms_stereo", float(calib.rms_stereo))
@@ -97,7 +103,12 @@ def _same_calibration(a: StereoCalibration, b: StereoCalibration) -> bool:
                               np.asarray(getattr(b, name), np.float64).reshape(-1)):
             return False
     return (a.image_size == b.image_size and len(a.per_pair) == len(b.per_pair)
-            and a.board == b.board)
+            and a.board == b.board and _controls_of(a) == _controls_of(b))
+
+
+def _controls_of(calib: StereoCalibration):
+    c = calib.camera_controls
+    return None if c is None or c.empty else c
 
 
 def save_calibration(calib: StereoCalibration, path: str | Path) -> Path:
@@ -627,7 +638,57 @@ def _read_calibration(fs, where: str) -> StereoCalibration:
         epipolar_error_px=_real(fs, "epipolar_error_px", where, nan),
         per_pair=tuple(per_pair), method=method, alpha=_real(fs, "alpha", where, 0.0),
         optimal_M1=opt["optimal_M1"], optimal_M2=opt["optimal_M2"],
-        created=_string(fs, "created", ""), scaled_from=_scaled_from(fs, where), **extra)
+        created=_string(fs, "created", ""), scaled_from=_scaled_from(fs, where),
+        camera_controls=_read_camera_controls(fs, where), **extra)
+
+
+# ---- the cameras' controls ------------------------------------------------------------------
+def _write_camera_controls(fs, calib: StereoCalibration) -> None:
+    c = _controls_of(calib)
+    if c is None:
+        return
+    fs.startWriteStruct("camera_controls", cv2.FileNode_MAP)
+    for side in ("left", "right"):
+        s = c.side(side)
+        fs.startWriteStruct(side, cv2.FileNode_MAP)
+        if s.backend:
+            fs.write("backend", s.backend)
+        for name, v in s.known.items():
+            fs.write(name, int(v) if isinstance(v, bool) else float(v))
+        fs.endWriteStruct()
+    fs.endWriteStruct()
+
+
+def _read_camera_controls(fs, where: str) -> PairSettings | None:
+    """The `camera_controls` node, or None (missing, or damaged: then said in the log)."""
+    node = fs.getNode("camera_controls")
+    if node.empty() or node.isNone():
+        return None
+    try:
+        if not node.isMap():
+            raise ValueError("camera_controls should be a map with left and right")
+        sides = {}
+        for side in ("left", "right"):
+            n = node.getNode(side)
+            data: dict = {}
+            if not n.empty() and not n.isNone():
+                if not n.isMap():
+                    raise ValueError(f"camera_controls {side} should be a map")
+                for key in n.keys():
+                    v = n.getNode(key)
+                    if v.isString():
+                        data[key] = v.string()
+                    elif key in SWITCHES and v.isInt():
+                        data[key] = int(v.real()) != 0
+                    elif v.isInt() or v.isReal():
+                        data[key] = float(v.real())
+                    else:
+                        raise ValueError(f"camera_controls {side} {key} should be a number")
+            sides[side] = data
+        return PairSettings.from_json(sides, "camera_controls")
+    except ValueError as exc:
+        log.warning("%s: %s; the cameras' controls of this calibration are not known", where, exc)
+        return None
 
 
 # ---- lens model, uncertainty, origin and warnings (issue 10) ---------------------------------

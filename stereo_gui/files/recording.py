@@ -3,7 +3,8 @@
 A recording is a folder:
 
     recording.json     header: format version, image size, frame rate, source name, creation
-                       time, frame count, whether it was closed cleanly, what it holds
+                       time, frame count, whether it was closed cleanly, what it holds, and
+                       the skew between the cameras' frame times (median and worst, ms)
     frames.csv         one line per frame: index, t_left, t_right (seconds, the source's clock,
                        written with full float precision), left, right (image files, relative)
     left/000001.png    the raw left images (PNG: lossless), numbered from 1
@@ -36,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from stereo_gui.core.errors import InputError
+from stereo_gui.core.timing import SkewStats, skew_stats
 from stereo_gui.files.atomic import write_bytes_atomic, write_json_atomic
 from stereo_gui.files.readers import read_csv_rows, read_json_object
 
@@ -88,6 +90,12 @@ class Recording:
     @property
     def has_images(self) -> bool:
         return bool(self.frames) and all(f.left is not None for f in self.frames)
+
+    @property
+    def skew(self) -> SkewStats:
+        """How far apart in time the two cameras took their pictures, over the whole
+        recording (from each frame's t_left and t_right)."""
+        return skew_stats([f.t_left for f in self.frames], [f.t_right for f in self.frames])
 
 
 @dataclass(frozen=True, eq=False)
@@ -142,6 +150,7 @@ class RecordingWriter:
         self.size: tuple[int, int] | None = None
         self._count = 0
         self._t_span: tuple[float, float] | None = None  # first and last frame time, s
+        self._times: list[tuple[float, float]] = []  # (t_left, t_right) of each frame, s
         self._video = None
         self._video_tmp = self.folder / f".{VIDEO}.partial.avi"
         self._error: BaseException | None = None
@@ -275,6 +284,7 @@ class RecordingWriter:
                             lrel, rrel])
         self._csv_file.flush()
         t = float(frame.t_left)
+        self._times.append((t, float(frame.t_right)))
         self._t_span = (t, t) if self._t_span is None else (self._t_span[0], t)
         with self._lock:
             self._count += 1
@@ -336,6 +346,11 @@ class RecordingWriter:
             "video_codec": self.codec,
             "complete": complete,
         }
+        if self._times:
+            st = skew_stats(*zip(*self._times, strict=True))
+            # for people and other tools: the frames' own times say the same, frame by frame
+            header["skew_ms"] = {"median": round(st.median_ms, 3), "worst": round(st.worst_ms, 3),
+                                 "frames": st.frames}
         write_json_atomic(self.folder / HEADER, header)
 
 

@@ -3,7 +3,8 @@
 Each pair is written the moment it is saved (both images, then the manifest, each atomically),
 in the report's naming `chessboard-L{n}.png` / `chessboard-R{n}.png`, so a session folder is
 also a plain folder of pairs that `stereo-gui calibrate DIR` reads. The manifest holds the board,
-the resolution, the camera identities, each pair's name, files and time, and the excluded pairs.
+the resolution, the camera identities, each pair's name, files and time, the excluded pairs, and
+the cameras' controls (focus, exposure...) when the pairs were taken.
 
 A folder without a manifest (the report's own captures, `left{n}`/`right{n}`, ...) opens too; the
 manifest is written at its first change. Pairs whose images exist but which the manifest does not
@@ -24,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from stereo_gui.core.board import DEFAULT_DICTIONARY, BoardSpec
+from stereo_gui.core.camera_settings import PairSettings
 from stereo_gui.core.errors import InputError, StereoGuiError
 from stereo_gui.files.atomic import write_bytes_atomic, write_json_atomic
 
@@ -166,6 +168,9 @@ class CaptureSession:
         # the pairs' left and right images are to be exchanged when calibrating (the cameras
         # were found swapped); the saved images stay as they were taken
         self.swapped = False
+        # the cameras' controls when the pairs were taken (as the source names the cameras),
+        # None when not known (another program's pairs, a session before controls were kept)
+        self.camera_controls: PairSettings | None = None
         self._lock = threading.RLock()
 
     # ---- creating and opening ---------------------------------------------------------------
@@ -303,6 +308,14 @@ class CaptureSession:
         if not isinstance(swapped, bool):
             raise ValueError("swapped should be true or false")
         s.swapped = swapped
+        controls = data.get("camera_controls")
+        if controls is not None:
+            try:
+                s.camera_controls = PairSettings.from_json(controls, "camera_controls")
+            except ValueError as exc:  # the pairs still hold: only the controls are unknown
+                s.warnings.append(f"{folder / MANIFEST}: {exc}; the cameras' controls of this "
+                                  "session are not known")
+                log.warning("%s", s.warnings[-1])
         s._unreadable_manifest = dropped > 0  # what was left out is kept for the person
         return s
 
@@ -428,6 +441,24 @@ class CaptureSession:
                 self.swapped = old
                 raise
 
+    def set_camera_controls(self, controls: PairSettings | None) -> None:
+        """Remember the cameras' controls the pairs are taken with (written at once)."""
+        with self._lock:
+            if controls == self.camera_controls:
+                return
+            old, self.camera_controls = self.camera_controls, controls
+            try:
+                self._write_manifest()
+            except BaseException:
+                self.camera_controls = old
+                raise
+
+    def calibration_controls(self) -> PairSettings | None:
+        """The controls as a calibration of this session names the cameras (exchanged when
+        the session says the cameras are swapped)."""
+        c = self.camera_controls
+        return c.swapped() if c is not None and self.swapped else c
+
     def set_board(self, board: BoardSpec) -> None:
         with self._lock:
             old, self.board = self.board, board
@@ -457,6 +488,8 @@ class CaptureSession:
                        "right": rel(p.right), "time": p.time} for p in self._pairs],
             "excluded": [p.name for p in self._pairs if p.excluded],
             **({"swapped": True} if self.swapped else {}),
+            **({"camera_controls": self.camera_controls.to_json()}
+               if self.camera_controls is not None else {}),
         }
 
     def _unreadable_backup(self) -> Path:

@@ -179,6 +179,9 @@ def calibration_job(folder: Path, board: BoardSpec, alpha: float, method: str,
             calib = result.calibration
             result = replace(result, calibration=calib.with_updates(
                 left_out=tuple((name, EXCLUDED_BY_YOU) for name in excluded) + calib.left_out))
+        if session.camera_controls is not None:
+            result = replace(result, calibration=result.calibration.with_updates(
+                camera_controls=session.calibration_controls()))
         control.check()
         yield Progress(n + 9, total, "computing rectification maps")
         maps = result.calibration.rectify_maps()

@@ -39,6 +39,9 @@ STEADY_FRAMES = 4  # automatic capture: the board must hold still over this many
 STEADY_PX = 2.0  # ... moving its corners less than this, px
 STEADY_S = 0.1  # ... or over frames this long apart, s (when frames are processed slowly)
 STEADY_MAX_S = 0.5  # frames older than this do not count (a pause, a stalled source), s
+# the board may move at most this much between the two cameras' pictures (the skew), px:
+# about what a corner is found to, so that the skew adds no error of its own to a pair
+STILL_ACROSS_SKEW_PX = 0.25
 
 
 @dataclass(frozen=True, eq=False)
@@ -50,9 +53,17 @@ class CaptureOutput:
     detection: PairDetection
     board: BoardSpec
     time_s: float | None = None  # the frame's capture time (left camera), s; None if unknown
+    time_right_s: float | None = None  # the right camera's capture time, s; None if unknown
     # why the pair cannot be taken although both cameras see the board: a point of the target
     # lies off where its neighbours put it (core.corner_check); "" when every point agrees
     misplaced: str = ""
+
+    @property
+    def skew_s(self) -> float | None:
+        """How much later the right camera took its picture than the left, s."""
+        if self.time_s is None or self.time_right_s is None:
+            return None
+        return float(self.time_right_s - self.time_s)
 
     @property
     def pose(self) -> PoseDescriptor | None:
@@ -89,7 +100,8 @@ def detect_live(frame: StereoFrame, board: BoardSpec,
     # partly visible target counts when they share enough of its points
     pair = make_pair(f"frame {frame.index}", left, right, size, board)
     return CaptureOutput(display_rgb(frame.left), display_rgb(frame.right), pair, board,
-                         float(frame.t_left), misplaced_point(pair, board) if pair.found else "")
+                         float(frame.t_left), float(frame.t_right),
+                         misplaced_point(pair, board) if pair.found else "")
 
 
 def misplaced_point(pair: PairDetection, board: BoardSpec) -> str:
@@ -183,16 +195,46 @@ class CaptureRules:
     simulated rig's board, resting only a moment at each pose, hardly ever gave) in a pose that
     differs from those saved, or that reaches an image region still empty (then a smaller
     difference will do, though not the very same view).
+
+    Two webcams take their pictures at different moments (the skew, right time minus left
+    time). Automatic capture keeps a pair only when the board stood still across both
+    pictures: both cameras' corners steady over a stretch of time at least as long as the
+    skew, and the board's speed over it moving it less than STILL_ACROSS_SKEW_PX in the skew's
+    time. While the source's typical skew (`timing`, core.timing.SkewStats, kept current by the
+    tab) exceeds a third of a frame interval and the board moves, the prompt says so, and a
+    manual pair is not frozen until the board holds still.
     """
 
     def __init__(self) -> None:
         # (frame time s or None, left corners (N, 2)) of the recent frames, oldest first
         self.recent_corners: deque[tuple[float | None, np.ndarray]] = deque(maxlen=16)
+        # the same for the right camera: (its frame time s or None, right corners (N, 2))
+        self.recent_right: deque[tuple[float | None, np.ndarray]] = deque(maxlen=16)
         self.last_reviewed_pose: PoseDescriptor | None = None
+        self.timing = None  # core.timing.SkewStats of the source now, or None when unknown
+        self._last_seen: np.ndarray | None = None  # left corners of the frame before
 
     def reset_steadiness(self) -> None:
         """Forget the recent corners (the board, the mode or the view changed)."""
         self.recent_corners.clear()
+        self.recent_right.clear()
+        self._last_seen = None
+
+    def _skew_note(self) -> str:
+        t = self.timing
+        if t is None or not t.too_large:
+            return ""
+        return (f" The cameras take their pictures {abs(t.median_ms):.0f} ms apart (more than a "
+                "third of a frame): a moving board is seen at two moments.")
+
+    def _moving(self, out: CaptureOutput) -> bool | None:
+        """Whether the board moved since the frame before (left corners, STEADY_PX); None
+        when there is no frame before to tell."""
+        now = out.detection.left.corners.reshape(-1, 2)  # type: ignore[union-attr]
+        before, self._last_seen = self._last_seen, now
+        if before is None:
+            return None
+        return before.shape != now.shape or float(np.abs(before - now).max()) >= STEADY_PX
 
     def step(self, out: CaptureOutput, auto: bool,
              saved_poses: Callable[[], list[PoseDescriptor]], have_session: bool,
@@ -204,7 +246,7 @@ class CaptureRules:
         `empty_regions()` those still empty (core.coverage's readiness)."""
         det = out.detection
         if not det.found:
-            self.recent_corners.clear()
+            self.reset_steadiness()
             if det.left is None or det.right is None:
                 self.last_reviewed_pose = None  # the board left a view: the next pose is new
             return CaptureStep("show", live_hint(det, board))
@@ -213,6 +255,10 @@ class CaptureRules:
             return CaptureStep("show", f"Not taken: {out.misplaced} Move or turn the board a "
                                        "little")
         pose = out.pose
+        moving = self._moving(out)
+        if moving is not False and self._skew_note() and not auto:
+            # (a first sight cannot tell: one more frame says whether the board holds still)
+            return CaptureStep("show", "Hold the board still." + self._skew_note())
         if auto:
             return self._auto_step(out, pose, saved_poses(), have_session,
                                    fills(det) if fills is not None else {},
@@ -223,28 +269,34 @@ class CaptureRules:
         self.last_reviewed_pose = pose
         return CaptureStep("freeze", "")
 
-    def _steady(self) -> bool:
-        """The newest corners moved less than STEADY_PX from each of the frames before them,
-        back over STEADY_FRAMES frames or STEADY_S seconds, whichever comes first."""
-        t_now, now = self.recent_corners[-1]
-        frames = 1
-        for t, c in reversed(list(self.recent_corners)[:-1]):
-            dt = None if (t is None or t_now is None) else t_now - t
-            if dt is not None and dt > STEADY_MAX_S:
-                return False
-            if c.shape != now.shape or float(np.abs(c - now).max()) >= STEADY_PX:
-                return False
-            frames += 1
-            if frames >= STEADY_FRAMES or (dt is not None and dt >= STEADY_S):
-                return True
-        return False
+    def _steady(self, skew_s: float | None = None) -> bool:
+        """The board held still in both cameras' images (see the class doc)."""
+        skew = abs(skew_s or 0.0)
+        left = _steady_over(self.recent_corners, skew)
+        if left is None:
+            return False
+        if len(self.recent_right) != len(self.recent_corners):
+            return True  # (no right corners kept: the left camera's word)
+        right = _steady_over(self.recent_right, skew)
+        if right is None:
+            return False
+        # the board's speed over the stretch, times the skew: how far it moved between the
+        # two pictures of the pair
+        return skew == 0.0 or max(left, right) * skew < STILL_ACROSS_SKEW_PX
 
     def _auto_step(self, out: CaptureOutput, pose: PoseDescriptor | None,
                    saved: list[PoseDescriptor], have_session: bool,
                    fills: dict[str, list[str]], empty_regions) -> CaptureStep:
         corners = out.detection.left.corners.reshape(-1, 2)  # type: ignore[union-attr]
         self.recent_corners.append((out.time_s, corners))
-        steady = self._steady()
+        skew = out.skew_s
+        if skew is not None and abs(skew) <= STEADY_MAX_S:
+            self.recent_right.append((out.time_right_s,
+                                      out.detection.right.corners.reshape(-1, 2)))  # type: ignore[union-attr]
+        else:  # no right time, or one from another clock: the left camera's word alone
+            skew = None
+            self.recent_right.clear()
+        steady = self._steady(skew)
         distinct = is_new_pose(pose, saved, NEW_POSE_DISTANCE / 4)  # not the very same view
         new = (any(fills.values()) and distinct) or is_new_pose(pose, saved)
         if not (new and distinct):
@@ -256,8 +308,35 @@ class CaptureRules:
                 else "move or tilt the board somewhere new"))
         if not steady:
             reach = f" reaching {regions_in_words(fills)}" if any(fills.values()) else ""
-            return CaptureStep("show", f"New pose{reach}: hold the board still…")
+            return CaptureStep("show", f"New pose{reach}: hold the board still…"
+                               + self._skew_note())
         if not have_session:
             return CaptureStep("show", "Automatic capture needs a session: choose New session…")
         self.recent_corners.clear()
         return CaptureStep("save", "Pair taken. Move the board to the next pose")
+
+
+def _steady_over(recent, min_span_s: float = 0.0) -> float | None:
+    """Whether the newest corners of `recent` ((time s or None, corners) oldest first) moved
+    less than STEADY_PX from each of the frames before them, back over STEADY_FRAMES frames or
+    STEADY_S seconds, whichever comes first, and over at least `min_span_s`: the corners' speed
+    over that stretch (px/s; 0 without times), or None when they did not hold still."""
+    if not recent:
+        return None
+    t_now, now = recent[-1]
+    frames = 1
+    moved = 0.0
+    for t, c in reversed(list(recent)[:-1]):
+        dt = None if (t is None or t_now is None) else t_now - t
+        if dt is not None and dt > STEADY_MAX_S:
+            return None
+        if c.shape != now.shape:
+            return None
+        moved = max(moved, float(np.abs(c - now).max()))
+        if moved >= STEADY_PX:
+            return None
+        frames += 1
+        spanned = dt is None or dt >= min_span_s
+        if spanned and (frames >= STEADY_FRAMES or (dt is not None and dt >= STEADY_S)):
+            return moved / dt if dt else 0.0
+    return None

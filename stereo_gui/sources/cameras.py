@@ -234,6 +234,7 @@ class _Camera:
         self.role, self.index, self.size = role, int(index), size
         self.backend, self.identity = backend, identity
         self.cap = _open_camera(self.index, size, role, backend)
+        self._controls = None  # CameraControls of `cap`, made when first asked for
 
     @property
     def present(self) -> bool:
@@ -243,10 +244,31 @@ class _Camera:
         """'right camera 2 (HD Webcam C270 [046d:0825])', for messages."""
         return f"{self.role} camera {self.index}" + (f" ({self.identity})" if self.identity else "")
 
+    @property
+    def controls(self):
+        """The device's CameraControls (None while it is missing)."""
+        from stereo_gui.sources.camera_controls import CameraControls
+
+        if self.cap is None:
+            return None
+        if self._controls is None or self._controls.cap is not self.cap:
+            self._controls = CameraControls(self.cap, self.backend, self.role)
+        return self._controls
+
     def reopen(self, index: int, backend: int | None) -> None:
-        """Open the device again (at `index` now) at the size it had; SourceError if it fails."""
+        """Open the device again (at `index` now) at the size it had; SourceError if it fails.
+        The controls written before it vanished are written again: a webcam plugged in again
+        starts in its automatic modes."""
+        wanted = dict(self._controls.wanted) if self._controls is not None else {}
         self.cap = _open_camera(int(index), self.size, self.role, backend)
         self.index, self.backend = int(index), backend
+        if wanted:
+            from stereo_gui.core.camera_settings import CameraSettings
+
+            controls = self.controls
+            results = controls.apply(CameraSettings(controls.backend, **wanted))
+            log.info("%s: controls restored after reconnecting: %s", self.describe(),
+                     ", ".join(f"{r.name} {r.outcome}" for r in results))
 
     def release(self) -> None:
         cap, self.cap = self.cap, None
@@ -385,6 +407,14 @@ class TwoCameraSource(_CameraSource):
             raise
         self._renamed()
         self.nominal_fps = min(_fps(c.cap) for c in self._cams)
+
+    def camera_controls(self):
+        """The two cameras' controls (sources.camera_controls.PairControls), or None while one
+        of them is missing. Only the thread that reads frames may use them."""
+        from stereo_gui.sources.camera_controls import PairControls
+
+        left, right = (c.controls for c in self._cams)
+        return PairControls(left, right) if left is not None and right is not None else None
 
     @property
     def left_index(self) -> int:

@@ -96,6 +96,17 @@ class _SwappedSource:
     def close(self) -> None:
         self._inner.close()
 
+    def camera_controls(self):
+        """The inner source's camera controls with left and right exchanged (None if none)."""
+        inner = getattr(self._inner, "camera_controls", None)
+        pair = inner() if inner is not None else None
+        if pair is None:
+            return None
+        from stereo_gui.sources.camera_controls import PairControls
+
+        pair.left.side, pair.right.side = "right", "left"
+        return PairControls(pair.right, pair.left)
+
     def __getattr__(self, name):
         return getattr(self._inner, name)
 

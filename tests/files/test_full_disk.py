@@ -187,6 +187,40 @@ def _w_session_exclude(root, version):
         s.set_excluded(s.pairs[0].name, True)
 
 
+def _controls(version):
+    from stereo_gui.core.camera_settings import CameraSettings, PairSettings
+
+    cam = CameraSettings("V4L2", focus_auto=False, focus=30.0 + 5 * version,
+                         exposure_auto=False, exposure=156.0, gain=float(version))
+    return PairSettings(cam, cam)
+
+
+def _w_calibration_controls(root, version):
+    from stereo_gui.core.stereo_calibration import PairError
+    from stereo_gui.files.calibration_file import save_calibration
+
+    calib = _calib(0.0).with_updates(camera_controls=_controls(version))
+    if version:  # more than 4 KiB: it cannot fit
+        calib = calib.with_updates(per_pair=tuple(PairError(f"chessboard-{i}", 0.1 + i / 997,
+                                                            0.2 + i / 991) for i in range(80)))
+    save_calibration(calib, root / "calib.yaml")
+
+
+def _w_session_controls(root, version):
+    from stereo_gui.files.session import CaptureSession
+
+    if version == 0:
+        s = CaptureSession.create(root / "session", resolution=(64, 48))
+        s.add_pair(_noise(48, 64, 1), _noise(48, 64, 2))
+        s.set_camera_controls(_controls(0))
+    else:
+        s = CaptureSession.open(root / "session")
+        try:
+            s.set_camera_controls(_controls(1))
+        finally:  # the session in memory keeps what is on disk
+            assert s.camera_controls == _controls(0)
+
+
 def _w_xlsx(root, version):
     from stereo_gui.files.spreadsheet import write_workbook
 
@@ -258,6 +292,7 @@ WRITERS = {
     "xlsx": _w_xlsx, "xlsx-append": _w_xlsx_append, "csv": _w_csv, "png16": _w_png16,
     "depth-png16": _w_depth, "npy": _w_npy, "ply": _w_ply, "snapshot": _w_snapshot,
     "json": _w_truth, "measurement-log": _w_measurement_log,
+    "calibration-controls": _w_calibration_controls, "session-controls": _w_session_controls,
 }
 
 
@@ -273,7 +308,7 @@ def _restore_config_env():
 
 # the new data of these is smaller than 4 KiB, so they are run with 0 bytes free only (a
 # manifest that fits is rightly written); ROS writes two small files, which need two pages
-SMALL = {"session-exclude"}
+SMALL = {"session-exclude", "session-controls"}
 CASES = [(name, free) for name in sorted(WRITERS) for free in FREE
          if not (free and name in SMALL)]
 

@@ -229,3 +229,17 @@ def test_damaged_frame_lists_are_refused_naming_line_and_field(tmp_path, line, m
     fpath.write_text("\n".join(rows[:2] + [line] + rows[2:]) + "\n")
     with pytest.raises(InputError, match=f"frames.csv, line 3: .*{message}"):
         open_recording(tmp_path / "rec")
+
+
+def test_the_skew_between_the_cameras_is_recorded(tmp_path):
+    """The header says how far apart the cameras took their pictures (median and worst), and
+    the recording read back says it from the frames' own times."""
+    frames = _frames(6)
+    with RecordingWriter(tmp_path / "rec", fps=30.0, background=False) as w:
+        for f in frames:
+            w.write(f)
+    header = json.loads((tmp_path / "rec" / "recording.json").read_text())
+    assert header["skew_ms"] == {"median": pytest.approx(0.7), "worst": pytest.approx(0.7),
+                                 "frames": 6}
+    skew = open_recording(tmp_path / "rec").skew
+    assert skew.median_ms == pytest.approx(0.7) and skew.frames == 6

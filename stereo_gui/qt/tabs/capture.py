@@ -43,6 +43,7 @@ from stereo_gui.pipeline.capture import (
 )
 from stereo_gui.qt.tabs.capture_session import SessionPairs
 from stereo_gui.qt.widgets.board_row import BoardRow
+from stereo_gui.qt.widgets.camera_controls import CameraControlsPanel
 from stereo_gui.qt.widgets.helpers import pane, wrapping_label
 from stereo_gui.qt.widgets.saved_pairs import (
     SavedPairInfo,
@@ -130,6 +131,9 @@ class CaptureTab(SessionPairs, QWidget):
         self.playback = PlaybackBar(self.ctx)  # shown only for a recorded source
         self.playback.used.connect(self._playback_used)
         ml.addWidget(self.playback)
+        self.camera_controls = CameraControlsPanel(self.ctx, "capture")
+        ml.addWidget(self.camera_controls)
+        self.pairSaved.connect(lambda _name: self.camera_controls.record_in(lambda: self.session))
         self.view = StereoPairView()
         ml.addWidget(self.view, 1)
 
@@ -283,6 +287,7 @@ class CaptureTab(SessionPairs, QWidget):
         pf = self.ctx.frames.latest()
         if pf is None or not isinstance(pf.output, CaptureOutput):
             return
+        self.rules.timing = self.ctx.frames.timing()
         self.show_output(pf.output, pf.frame)
 
     def show_output(self, out: CaptureOutput, frame: StereoFrame) -> None:

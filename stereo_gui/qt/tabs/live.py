@@ -41,6 +41,7 @@ from stereo_gui.qt.tabs.live_readings import HOVER_HINT, LiveReadings
 from stereo_gui.qt.tabs.live_region import LiveRegion
 from stereo_gui.qt.tabs.live_views import COLOR_VIEWS, VIEWS, ViewGrid
 from stereo_gui.qt.widgets.calibration_health import CalibrationHealthPanel
+from stereo_gui.qt.widgets.camera_controls import CameraControlsPanel
 from stereo_gui.qt.widgets.flow_layout import FlowLayout
 from stereo_gui.qt.widgets.no_calibration_page import NoCalibrationPage
 from stereo_gui.qt.widgets.params_panel import MODIFIED, ParamsPanel, load_preset
@@ -186,6 +187,8 @@ class LiveTab(QWidget):
         vcol.setContentsMargins(4, 4, 4, 4)
         vcol.addWidget(self.toolbar)
         vcol.addWidget(self.playback)
+        self.camera_controls = CameraControlsPanel(ctx, "live")
+        vcol.addWidget(self.camera_controls)
         vcol.addWidget(self.calib_note)
         vcol.addWidget(self.scale_label)
         vcol.addWidget(self.views, 1)

@@ -24,6 +24,11 @@ kept and read again: the message is shown once, and `streamStatus` says "reconne
 "ok" when frames come again. Any other read error drops the source ("failed"; `sourceChanged("")`).
 The rates shown fall to 0 when no frame arrives.
 
+Only this worker's reader thread touches the source's devices: a camera's controls are read and
+written by tasks handed to it with `run_on_source(fn)` (run between two reads, their results
+come back with `sourceTaskDone` in the UI thread). It also keeps the skew between the two
+cameras' frame times over the last second (`timing()`, core.timing).
+
 A read that does not return (a camera that stopped answering) cannot be interrupted. A watchdog
 in the UI thread says so once it has blocked for READ_STALL_S; choosing another source then
 leaves the blocked reader behind and starts a new one; `stop()` waits at most its timeout and
@@ -41,7 +46,8 @@ from dataclasses import dataclass
 
 from PySide6.QtCore import QObject, QTimer, Signal
 
-from stereo_gui.core.errors import SourceUnavailable
+from stereo_gui.core.errors import SourceError, SourceUnavailable
+from stereo_gui.core.timing import SkewMeter, SkewStats
 from stereo_gui.pipeline.live import MAX_LANES
 from stereo_gui.qt.workers.threads import WorkerThread
 from stereo_gui.sources.base import FrameSource, StereoFrame
@@ -124,6 +130,9 @@ class FrameWorker(QObject):
     errorOccurred = Signal(str)  # a message for the user (source or processor failure)
     sourceChanged = Signal(str)  # the name of the new source ("" when none)
     streamStatus = Signal(object)  # StreamStatus, when the stream's state changes
+    # (task id, what run_on_source's function returned or the exception it raised); UI thread
+    sourceTaskDone = Signal(int, object)
+    _task_finished = Signal(object)  # reader -> UI thread (queued); never disconnected
 
     def __init__(self, parent: QObject | None = None) -> None:
         super().__init__(parent)
@@ -154,6 +163,10 @@ class FrameWorker(QObject):
         self._stream_state = "ok"  # StreamStatus.state of the stream now
         self._stream_source: FrameSource | None = None  # the source a problem was about
         self._reader_gen = 0  # a reader loop of an older generation ends after its read
+        self._skew = SkewMeter()  # the two cameras' frame times over the last second
+        self._tasks: list[_SourceTask] = []  # run_on_source's functions not yet run
+        self._task_ids = 0
+        self._last_frame: StereoFrame | None = None  # the newest frame read (for tasks)
         self._reader: WorkerThread | None = None
         self._workers: list[WorkerThread] = []  # the processing lanes
         self._left_behind: list[WorkerThread] = []  # blocked threads stop() could not join
@@ -161,6 +174,7 @@ class FrameWorker(QObject):
         self._watchdog.setInterval(_WATCHDOG_MS)
         self._watchdog.timeout.connect(self._check_read)
         self._published.connect(self._frame_delivered)  # queued: this object lives in the UI thread
+        self._task_finished.connect(self._task_delivered)
 
     # ---- control (UI thread) -----------------------------------------------------------------
     def set_source(self, source: FrameSource | None) -> None:
@@ -174,6 +188,8 @@ class FrameWorker(QObject):
             self._last_error = ""
             self._camera_rate.reset()
             self._proc_rate.reset()
+            self._skew.reset()
+            self._last_frame = None
             self._cond.notify_all()
         self.sourceChanged.emit(getattr(source, "name", "") if source is not None else "")
         self._replace_blocked_reader()
@@ -207,6 +223,58 @@ class FrameWorker(QObject):
     def frame_tap(self) -> Callable[[StereoFrame], None] | None:
         with self._cond:
             return self._tap
+
+    def timing(self) -> SkewStats:
+        """The skew between the two cameras' frame times over the last second."""
+        with self._cond:
+            return self._skew.stats()
+
+    def run_on_source(self, fn: Callable[[FrameSource, StereoFrame | None], object],
+                      after_frames: int = 0) -> int:
+        """Have the reader thread call `fn(source, frame)` with the source in use and the
+        newest frame read (None before the first), once `after_frames` more frames were read
+        (0: before the next read; while paused too). Returns the task's id; `sourceTaskDone(id,
+        result)` brings what `fn` returned, or the exception it raised, to the UI thread. A
+        task waiting when the source is replaced gets a SourceError instead of running on the
+        new one; so does one given while there is no source."""
+        with self._cond:
+            self._task_ids += 1
+            tid = self._task_ids
+            no_source = self._source is None and not self._source_pending
+            if not no_source:
+                self._tasks.append(_SourceTask(tid, fn, max(0, int(after_frames)),
+                                               self._source_gen))
+                self._cond.notify_all()
+        if no_source:
+            self._task_finished.emit((tid, SourceError("no source is open")))
+        return tid
+
+    def _task_delivered(self, done) -> None:
+        tid, result = done
+        self.sourceTaskDone.emit(tid, result)
+
+    def _due_tasks(self) -> bool:
+        """(With the lock held) whether a task may run before the next read."""
+        return any(t.frames_left == 0 for t in self._tasks)
+
+    def _run_tasks(self, source: FrameSource | None) -> None:
+        """Reader thread: run the tasks that are due on `source` (those of a source since
+        replaced, or with none, get a SourceError)."""
+        with self._cond:
+            due = [t for t in self._tasks if t.frames_left == 0]
+            self._tasks = [t for t in self._tasks if t.frames_left > 0]
+            gen, frame = self._source_gen, self._last_frame
+        for task in due:
+            if source is None or task.gen != gen:
+                result: object = SourceError("the source changed before the cameras were "
+                                             "reached")
+            else:
+                try:
+                    result = task.fn(source, frame)
+                except Exception as exc:  # noqa: BLE001 - the asker is told, the reader goes on
+                    log.debug("a source task failed", exc_info=True)
+                    result = exc
+            self._task_finished.emit((task.id, result))
 
     def latest(self) -> ProcessedFrame | None:
         """The newest frame processed by the processor now set (or None: a result of the one
@@ -419,7 +487,8 @@ class FrameWorker(QObject):
     def _read_loop(self, gen: int) -> None:
         while True:
             with self._cond:
-                while not self._stopping and gen == self._reader_gen and (self._paused or (
+                while not self._stopping and gen == self._reader_gen and (
+                        (self._paused and not self._due_tasks()) or (
                         self._source is None and not self._source_pending)):
                     self._cond.wait()
                 if self._stopping or gen != self._reader_gen:
@@ -430,9 +499,11 @@ class FrameWorker(QObject):
                     self._pending_source = None
                     self._source_pending = False
                 source = self._source
+                paused = self._paused
             if old is not None and old is not source:
                 close_quietly(old)
-            if source is None:
+            self._run_tasks(source)
+            if source is None or paused:
                 continue
             with self._cond:
                 self._read_started = time.monotonic()
@@ -489,6 +560,10 @@ class FrameWorker(QObject):
                 self._frames_read += 1
                 self._frame_seq = self._frames_read
                 self._camera_rate.tick(time.monotonic())
+                self._skew.add(frame.t_left, frame.t_right)
+                self._last_frame = frame
+                for task in self._tasks:
+                    task.frames_left = max(0, task.frames_left - 1)
                 self._cond.notify_all()
                 tap = self._tap
             self._stream_ok(source)
@@ -558,6 +633,16 @@ class FrameWorker(QObject):
                 self._notified = True
             if notify:
                 self._published.emit()
+
+
+@dataclass(eq=False)
+class _SourceTask:
+    """A function to run on the source in the reader thread (see run_on_source)."""
+
+    id: int
+    fn: Callable
+    frames_left: int
+    gen: int
 
 
 def _lanes_of(fn: Processor | None) -> int:

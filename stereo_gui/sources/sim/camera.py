@@ -91,6 +91,12 @@ class RigConfig:
     black_right: float = 0.0
     vignetting: float = 0.0
     jpeg_quality: int | None = None
+    # the right camera takes its picture this long after the left (s): two webcams are not
+    # synchronised, and a moving board is seen at two moments
+    time_offset_s: float = 0.0
+    # the cameras start as webcams do, in their automatic modes (autofocus, exposure, white
+    # balance: sim/controls.py); off, they hold the values the rig's truth was made with
+    auto_modes: bool = False
     board: BoardSpec = field(default_factory=BoardSpec)
     supersample: int = 3  # samples per pixel along each axis (anti-aliasing)
 
@@ -106,6 +112,8 @@ class RigConfig:
             raise InputError(f"vignetting must be from 0 to below 1, not {self.vignetting}")
         if self.jpeg_quality is not None and not 1 <= self.jpeg_quality <= 100:
             raise InputError(f"JPEG quality must be from 1 to 100, not {self.jpeg_quality}")
+        if not -1.0 < self.time_offset_s < 1.0:
+            raise InputError(f"the time offset must be under a second, not {self.time_offset_s}")
         if not -255.0 <= self.black_right <= 255.0:
             raise InputError(f"black level must be from -255 to 255, not {self.black_right}")
 

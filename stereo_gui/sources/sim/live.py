@@ -10,6 +10,8 @@ import numpy as np
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.sources.base import FramePacer, StereoFrame
+from stereo_gui.sources.camera_controls import PairControls
+from stereo_gui.sources.sim.controls import SimCameraDevice, sim_controls
 from stereo_gui.sources.sim.rig import SimFrameTruth, SimRig
 from stereo_gui.sources.sim.scene import BoardPose, Scene
 
@@ -32,6 +34,10 @@ class SimSource:
     poses, some of them behind the nearest box, left corners of the images empty for 50 pairs
     and more, and the guidance never said ready).
     With paced=True frames arrive at `fps` like a camera; paced=False returns them at once.
+
+    Each camera has controls (`camera_controls()`, sim/controls.py) that act on its images.
+    The right camera takes its picture the rig's `time_offset_s` after the left: its frame
+    time is that much later and it sees the board where it has moved by then.
     """
 
     MODES = ("mixed", "board", "scene")
@@ -51,12 +57,16 @@ class SimSource:
         self._rng = np.random.default_rng(seed + 1000003)
         self._pose_rng = np.random.default_rng(seed + 2000003)
         self._frames_per_move = max(2, int(frames_per_move))
-        self._from: BoardPose | None = None
-        self._to: BoardPose | None = None
-        # the next pose goes to PLACES[_moves % len(PLACES)]; the first one to the centre, in
-        # full view of both cameras (a far corner is a hard first sight of the board)
-        self._moves = SimRig.PLACES.index((0.5, 0.5))
+        self._waypoints: dict[int, BoardPose] = {}  # the poses the board moves between, in turn
+        self._next_waypoint = 0
+        # the m-th pose goes to PLACES[(_first_place + m) % len(PLACES)]: the first one to the
+        # centre, in full view of both cameras (a far corner is a hard first sight of the board)
+        self._first_place = SimRig.PLACES.index((0.5, 0.5))
         self._index = 0
+        auto = bool(self.rig.config.auto_modes)
+        self.devices = (SimCameraDevice(0, auto), SimCameraDevice(1, auto))
+        self._controls = (sim_controls(self.devices[0], "left"),
+                          sim_controls(self.devices[1], "right"))
         self._pacer = FramePacer()
         self._closed = False
         if self.scene is not None:
@@ -64,19 +74,28 @@ class SimSource:
             # whatever thread opens the source, so that read() always takes frame time
             self.rig._render(None, self.scene, np.random.default_rng(0))
 
-    def _pose(self, i: int) -> BoardPose:
-        k = i % self._frames_per_move
-        if self._to is None or k == 0:
-            self._from = self._to or self._next_pose()
-            self._to = self._next_pose()
-        f = k / self._frames_per_move
-        f = f * f * (3 - 2 * f)  # ease in and out: the board rests a moment at each pose
-        return _interpolate_pose(self._from, self._to, f)
+    def _waypoint(self, m: int) -> BoardPose:
+        """The board's m-th resting pose (drawn in order, so the sequence is the seed's)."""
+        while self._next_waypoint <= m:
+            self._waypoints[self._next_waypoint] = self.rig.place_pose(
+                self._pose_rng, self._first_place + self._next_waypoint, self.scene)
+            self._next_waypoint += 1
+        for old in [k for k in self._waypoints if k < m - 1]:
+            del self._waypoints[old]
+        return self._waypoints[m]
 
-    def _next_pose(self) -> BoardPose:
-        pose = self.rig.place_pose(self._pose_rng, self._moves, self.scene)
-        self._moves += 1
-        return pose
+    def _pose(self, x: float) -> BoardPose:
+        """The board's pose at frame position `x` (a fraction between frames: a camera that
+        takes its picture later sees it further on)."""
+        x = max(0.0, float(x))
+        m = int(x // self._frames_per_move)
+        f = (x - m * self._frames_per_move) / self._frames_per_move
+        f = f * f * (3 - 2 * f)  # ease in and out: the board rests a moment at each pose
+        return _interpolate_pose(self._waypoint(m), self._waypoint(m + 1), f)
+
+    def camera_controls(self) -> PairControls:
+        """The simulated cameras' controls (they answer as V4L2 webcams do)."""
+        return PairControls(*self._controls)
 
     def read(self) -> StereoFrame:
         from stereo_gui.core.errors import SourceError
@@ -85,11 +104,21 @@ class SimSource:
             raise SourceError("the simulated rig was closed")
         if self.paced:
             self._pacer.wait(self.nominal_fps)
-        pose = None if self.mode == "scene" else self._pose(self._index)
+        offset = float(self.rig.config.time_offset_s)
+        pose = pose_r = None
+        if self.mode != "scene":
+            pose = self._pose(self._index)
+            pose_r = pose if offset == 0 else self._pose(self._index + offset * self.nominal_fps)
         t = time.monotonic()
-        left, right = self.rig._render(pose, self.scene, self._rng)
-        frame = StereoFrame(left, right, t, t, self._index,
-                            SimFrameTruth(pose, self.scene, self.rig.truth))
+        looks = [d.look() for d in self.devices]
+        left = self.rig._render_camera(0, pose, self.scene, self._rng, looks[0])
+        right = self.rig._render_camera(1, pose_r, self.scene, self._rng, looks[1])
+        for dev, img, p in zip(self.devices, (left, right), (pose, pose_r), strict=True):
+            dev.follow(float(np.mean(cv2.mean(img)[:3])),
+                       None if p is None else float(np.linalg.norm(p.t)))
+        truth = SimFrameTruth(pose, self.scene, self.rig.truth, pose_r,
+                              (looks[0].focal_scale, looks[1].focal_scale))
+        frame = StereoFrame(left, right, t, t + offset, self._index, truth)
         self._index += 1
         return frame
 

@@ -36,6 +36,11 @@ class SimFrameTruth:
     pose: BoardPose | None
     scene: Scene | None
     truth: RigTruth
+    # the board's pose when the right camera took its picture (the cameras' time offset), and
+    # each camera's focal length relative to the truth's (its focus moved); the truth holds
+    # only where these are the board's pose and 1
+    pose_right: BoardPose | None = None
+    focal_scale: tuple[float, float] = (1.0, 1.0)
 
     def point_rectified(self, calib: StereoCalibration, x: float, y: float
                         ) -> np.ndarray | None:
@@ -567,7 +572,9 @@ class SimRig:
         return bank
 
     def _render_camera(self, cam: int, pose: BoardPose | None, scene: Scene | None,
-                       rng: np.random.Generator) -> np.ndarray:
+                       rng: np.random.Generator, look=None) -> np.ndarray:
+        """Camera `cam`'s image of the board at `pose` (None: none) and `scene`; `look`
+        (sim.controls.CameraLook) is what its controls do to the image (None: as built)."""
         s = self.config.supersample
         w, h = self.config.image_size
         bg, zb, small = self._background(cam, scene)
@@ -589,6 +596,10 @@ class SimRig:
         c = self.config
         gain = 1.0 if cam == 0 else float(c.gain_right)
         black = 0.0 if cam == 0 else float(c.black_right)
+        if look is not None and not look.neutral:
+            out = self._apply_look(cam, out, look)
+            gain *= look.gain
+            black += look.offset
         if c.vignetting > 0:
             out = cv2.multiply(out, self._vignette(), dtype=cv2.CV_8U)
         if c.noise_sigma > 0:
@@ -600,6 +611,19 @@ class SimRig:
         if c.jpeg_quality is not None:
             ok, data = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, int(c.jpeg_quality)])
             img = cv2.imdecode(data, cv2.IMREAD_COLOR)
+        return img
+
+    def _apply_look(self, cam: int, img: np.ndarray, look) -> np.ndarray:
+        """The focal length scaled about the principal point and the colour tint of `look`
+        (its gain and offset are applied with the sensor's)."""
+        if abs(look.focal_scale - 1.0) > 1e-9:
+            M = self.truth.M1 if cam == 0 else self.truth.M2
+            s, cx, cy = float(look.focal_scale), float(M[0, 2]), float(M[1, 2])
+            A = np.array([[s, 0.0, (1.0 - s) * cx], [0.0, s, (1.0 - s) * cy]])
+            img = cv2.warpAffine(img, A, (img.shape[1], img.shape[0]), flags=cv2.INTER_LINEAR,
+                                 borderMode=cv2.BORDER_REPLICATE)
+        if look.channels != (1.0, 1.0, 1.0):
+            img = cv2.multiply(img, (*look.channels, 0.0), dtype=cv2.CV_8U)
         return img
 
     def _vignette(self) -> np.ndarray:
