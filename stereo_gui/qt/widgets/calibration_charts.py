@@ -14,7 +14,9 @@ from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import QCheckBox, QComboBox, QHBoxLayout, QLabel, QVBoxLayout, QWidget
 
 LINE_EVERY_PX = 32  # rectification check: a horizontal line every this many rows
-LEGEND_HEADROOM = 1.5  # the error chart's y range over its tallest bar
+# the error chart's y range over its tallest bar: room for the selected pair's frame (5 %
+# higher) and the top tick's label; the legend has its own row above the plot
+Y_HEADROOM = 1.15
 _BAR_LEFT = "#4f8fd6"
 _BAR_RIGHT = "#e08a3c"
 _BAR_SELECTED = "#f5e342"
@@ -57,7 +59,13 @@ class ErrorBarChart(pg.PlotWidget):
         self.setMouseEnabled(x=False, y=False)
         self.hideButtons()
         self.setMenuEnabled(False)
-        self.addLegend(offset=(-10, 4), colCount=3)  # rows across the top, above the bars
+        # the legend goes above the plot, in a row of its own (anchored in the plot it sat
+        # over the bars and the lines, and was cut off when the chart was narrow)
+        self._legend = pg.LegendItem(colCount=5)
+        self._legend.setParentItem(self.plotItem)
+        self._legend.anchor(itemPos=(1, 0), parentPos=(1, 0), offset=(-8, 2))
+        self.plotItem.legend = self._legend  # items named on creation go into it
+        self.plotItem.geometryChanged.connect(self._fit_legend)
         self.names: list[str] = []
         self.selected: str | None = None
         self.excluded: set[str] = set()  # pairs excluded in the session (shown hatched)
@@ -101,8 +109,7 @@ class ErrorBarChart(pg.PlotWidget):
         ax.setTicks([[(i, _short(n)) for i, n in enumerate(names) if i % step == 0], []])
         top = max([*left, *right, 0.1])
         self.setXRange(-0.7, max(len(names) - 0.3, 0.5), padding=0)
-        # headroom above the tallest bar: the legend (top right) sits there, not on the bars
-        self.setYRange(0, top * LEGEND_HEADROOM, padding=0)
+        self.setYRange(0, top * Y_HEADROOM, padding=0)
         self.select(self.selected if self.selected in self.names else None)
         self.set_excluded(self.excluded)
         errs = np.asarray([*left, *right], float)
@@ -124,6 +131,24 @@ class ErrorBarChart(pg.PlotWidget):
             legend.addItem(self._mean_key, f"mean {self.mean_px:.3f}")
             legend.addItem(self._threshold_key, f"threshold {self.threshold_px:.3f}")
             self._lines_in_legend = True
+        self._fit_legend()
+
+    def _fit_legend(self) -> None:
+        """As many legend entries side by side as the chart's width holds, and the row above
+        the plot as high as the legend."""
+        legend = self._legend
+        entries = len(legend.items)
+        room = self.plotItem.width() - 16
+        for cols in range(max(entries, 1), 0, -1):
+            legend.setColumnCount(cols)
+            legend.updateSize()
+            if legend.width() <= room or cols == 1:
+                break
+        self.plotItem.layout.setRowFixedHeight(0, legend.height() + 4 if entries else 0)
+
+    def legend_rect(self):
+        """Where the legend is drawn, scene px."""
+        return self._legend.sceneBoundingRect()
 
     def set_threshold(self, px: float) -> None:
         """Put the threshold line at `px` (no thresholdMoved)."""
@@ -155,6 +180,7 @@ class ErrorBarChart(pg.PlotWidget):
         elif not idx and self._excluded_in_legend:
             legend.removeItem(self._excluded)
         self._excluded_in_legend = bool(idx)
+        self._fit_legend()
 
     def excluded_bars(self) -> list[str]:
         """Names of the pairs whose bars are marked excluded (for tests)."""

@@ -71,6 +71,13 @@ class StereoImageItem(pg.ImageItem):
 
 
 _LABEL_GAP_PX = 6  # between a point and its label, screen px
+_DOT_CLEAR_PX = 12  # a marker's dot (11 px): labels keep off it (its own label sits a gap away)
+# choose_offset's costs, in places further down label_offsets' order of preference: a label
+# crosses an edge of the region box rather than go 4 places further from its point, and hides
+# another label or a point (per px² hidden) only when nothing else fits in the view
+_EDGE_CROSSED = 3.5
+_HIDDEN_COST = 1000.0
+_EDGE_CLEAR_PX = 6  # the region box's 2 px outline and its handles' reach: labels keep off it
 
 
 def _label_item(text: str, color: str, x: float, y: float) -> QGraphicsRectItem:
@@ -128,24 +135,26 @@ def _overlap(rect: QRectF, taken: list[QRectF]) -> float:
 
 
 def choose_offset(anchor: QPointF, size: tuple[float, float], bounds: QRectF | None,
-                  taken: list[QRectF], centred: bool = False) -> tuple[float, float]:
-    """The first offset of `label_offsets` whose label rect (screen px, at `anchor` + offset)
-    lies inside `bounds` and overlaps none of `taken`; when every one inside overlaps, the one
-    that overlaps least; the first when none fits (`bounds` None: the view is not laid out)."""
+                  taken: list[QRectF], centred: bool = False,
+                  edges: list[QRectF] = ()) -> tuple[float, float]:
+    """Where a label goes: the offset of `label_offsets` whose label rect (screen px, at
+    `anchor` + offset) lies inside `bounds`, covers none of `taken` (labels, dots) and, among
+    those, costs least: crossing an edge of the region box (`edges`) is worth a few places
+    further down the order of preference, never a hidden label or point.
+    The first offset when none fits (`bounds` None: the view is not laid out)."""
     w, h = size
     offsets = label_offsets(w, h, centred)
     if bounds is None or bounds.isEmpty():
         return offsets[0]
-    best, best_overlap = None, math.inf
-    for dx, dy in offsets:
+    best, best_cost = None, math.inf
+    for k, (dx, dy) in enumerate(offsets):
         rect = QRectF(anchor.x() + dx, anchor.y() + dy, w, h)
         if not bounds.contains(rect):
             continue
-        covered = _overlap(rect, taken)
-        if covered == 0.0:
-            return dx, dy
-        if covered < best_overlap:
-            best, best_overlap = (dx, dy), covered
+        crossed = sum(1 for e in edges if rect.intersects(e))
+        cost = _HIDDEN_COST * _overlap(rect, taken) + _EDGE_CROSSED * crossed + k
+        if cost < best_cost:
+            best, best_cost = (dx, dy), cost
     return best if best is not None else offsets[0]
 
 
@@ -158,6 +167,8 @@ class _Marker:
         self.items = []
         self.labels: list[QGraphicsRectItem] = []
         self.centred: list[bool] = []  # per label: a ruler's middle label
+        # the image points drawn as dots (a ruler's partner has its own marker): no label covers
+        self.points = [(x + 0.5, y + 0.5)]
         if line_to is not None:
             line = pg.PlotCurveItem([line_to[0] + 0.5, x + 0.5], [line_to[1] + 0.5, y + 0.5],
                                     pen=pg.mkPen(color, width=2, style=Qt.PenStyle.DashLine))
@@ -177,7 +188,8 @@ class _Marker:
     def _add_label(self, panel: ImagePanel, text: str, color: str, x: float, y: float,
                    centred: bool = False) -> None:
         box = _label_item(text, color, x, y)
-        taken = panel.label_rects() + [panel.label_rect(b) for b in self.labels]
+        taken = (panel.dot_rects(self.points) + panel.label_rects()
+                 + [panel.label_rect(b) for b in self.labels])
         panel.place_label(box, taken, centred)
         self.items.append(box)
         self.labels.append(box)
@@ -360,6 +372,7 @@ class ImagePanel(pg.GraphicsLayoutWidget):
         where it stays inside the view and clear of the labels already there (as the view is
         zoomed now)."""
         self._markers.append(_Marker(self, x, y, text, color, line_to, line_text))
+        self._relayout_labels()  # the labels already there keep off the new point too
 
     # ---- label placement (screen px of the view's scene) --------------------------------------
     def screen_pos(self, x: float, y: float) -> QPointF:
@@ -377,13 +390,14 @@ class ImagePanel(pg.GraphicsLayoutWidget):
         """Move `box` beside its point, inside the view and clear of the `taken` rects."""
         r = box.rect()
         dx, dy = choose_offset(self.screen_pos(box.pos().x(), box.pos().y()),
-                               (r.width(), r.height()), self.view_rect(), taken, centred)
+                               (r.width(), r.height()), self.view_rect(), taken, centred,
+                               self.edge_rects())
         box.setTransform(QTransform.fromTranslate(dx, dy))
 
     def _relayout_labels(self, *_args) -> None:
         """Place every label again, oldest first: labels keep their size on screen, so a zoom
         or a resize of the view moves them relative to each other."""
-        taken: list[QRectF] = []
+        taken = self.dot_rects()
         for m in self._markers:
             for box, centred in zip(m.labels, m.centred, strict=True):
                 self.place_label(box, taken, centred)
@@ -395,6 +409,33 @@ class ImagePanel(pg.GraphicsLayoutWidget):
         p = self.screen_pos(box.pos().x(), box.pos().y())  # the point it labels
         r = box.rect()
         return QRectF(p.x() + t.dx(), p.y() + t.dy(), r.width(), r.height())
+
+    def dot_rects(self, more_points: list[tuple[float, float]] = ()) -> list[QRectF]:
+        """Where the markers' dots (and `more_points`, image coordinates) are drawn, scene px:
+        no label may hide a point."""
+        rects = []
+        points = [p for m in self._markers for p in m.points] + list(more_points)
+        half = _DOT_CLEAR_PX / 2
+        for x, y in points:
+            c = self.screen_pos(x, y)
+            rects.append(QRectF(c.x() - half, c.y() - half, 2 * half, 2 * half))
+        return rects
+
+    def edge_rects(self) -> list[QRectF]:
+        """The region box's outline as four strips, scene px: labels keep off its edges where
+        a place nearby is free."""
+        rects = []
+        box = self.region()
+        if box is not None:
+            a, b = self.screen_pos(box[0], box[1]), self.screen_pos(box[2], box[3])
+            x0, x1 = sorted((a.x(), b.x()))
+            y0, y1 = sorted((a.y(), b.y()))
+            e = _EDGE_CLEAR_PX / 2
+            rects += [QRectF(x0 - e, y0 - e, x1 - x0 + 2 * e, 2 * e),  # top
+                      QRectF(x0 - e, y1 - e, x1 - x0 + 2 * e, 2 * e),  # bottom
+                      QRectF(x0 - e, y0 - e, 2 * e, y1 - y0 + 2 * e),  # left
+                      QRectF(x1 - e, y0 - e, 2 * e, y1 - y0 + 2 * e)]  # right
+        return rects
 
     def label_rects(self) -> list[QRectF]:
         """The scene rects of the labels drawn now."""
@@ -408,6 +449,7 @@ class ImagePanel(pg.GraphicsLayoutWidget):
             if self.region_box is not None:
                 self.view.removeItem(self.region_box)
                 self.region_box = None
+                self._relayout_labels()
             return
         x0, y0, x1, y1 = box
         if self.region_box is None:
@@ -415,11 +457,13 @@ class ImagePanel(pg.GraphicsLayoutWidget):
                              snapSize=1.0, translateSnap=True, scaleSnap=True, movable=True)
             roi.setZValue(9)
             roi.sigRegionChangeFinished.connect(self._region_moved)
+            roi.sigRegionChangeFinished.connect(self._relayout_labels)
             self.view.addItem(roi)
             self.region_box = roi
         else:
             self.region_box.setPos((x0, y0), finish=False)
             self.region_box.setSize((x1 - x0, y1 - y0), finish=False)
+        self._relayout_labels()
 
     def region(self) -> tuple[int, int, int, int] | None:
         """(x0, y0, x1, y1) px of the region box, None without one."""

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stereo_gui.qt.widgets.calibration_charts import (LEGEND_HEADROOM, ErrorBarChart,
+from stereo_gui.qt.widgets.calibration_charts import (Y_HEADROOM, ErrorBarChart,
                                                       RectifiedPairView, anaglyph)
 
 
@@ -58,8 +58,25 @@ def test_anaglyph_and_blend_put_both_images_in_one(view):
     assert view.shown is None and view.images[0].image is None
 
 
-def test_error_chart_leaves_room_for_its_legend(qtbot):
+def test_error_chart_legend_sits_above_the_bars_whole(qtbot):
     chart = ErrorBarChart()
     qtbot.addWidget(chart)
-    chart.set_errors(["a", "b", "c"], [0.2, 0.4, 0.3], [0.25, 0.35, 0.5])
-    assert chart.viewRange()[1][1] == pytest.approx(0.5 * LEGEND_HEADROOM)
+    names = [f"pair-{i}" for i in range(12)]
+    chart.set_errors(names, [0.1] * 11 + [0.6], [0.12] * 12)
+    chart.set_excluded({"pair-3"})
+    chart.set_threshold(0.3)
+    chart.select("pair-11")  # the tallest bar, its frame 5 % higher still
+    assert chart.viewRange()[1][1] == pytest.approx(0.6 * Y_HEADROOM)
+    for width, height in ((700, 190), (420, 220)):  # the tab at 1366 px wide, and narrow
+        chart.resize(width, height)
+        chart.show()
+        qtbot.waitUntil(lambda w=width: chart.plotItem.width() > w - 30, timeout=5000)
+        # the row above the plot follows the legend's height once the layout has run
+        qtbot.waitUntil(lambda: chart.legend_rect().bottom()
+                        <= chart.plotItem.vb.sceneBoundingRect().top() + 1, timeout=5000)
+        legend = chart.legend_rect()
+        plot = chart.plotItem.vb.sceneBoundingRect()
+        whole = chart.plotItem.sceneBoundingRect()
+        assert len(chart.plotItem.legend.items) == 5
+        assert whole.contains(legend), (legend, whole)  # not cut off at either side
+        assert legend.bottom() <= plot.top() + 1, (legend, plot)  # over no bar nor line

@@ -175,3 +175,38 @@ def test_a_panel_is_freed_when_its_last_reference_goes(qtbot):
     del panel
     gc.collect()
     assert ref() is None
+
+
+def test_labels_keep_off_the_points_and_the_region_box(qtbot):
+    p = _image_panel(qtbot)
+    # the watched region at its default place, points next to its edges and to each other,
+    # and a ruler across it: no label hides a dot or another label
+    p.show_region((240, 180, 400, 300))
+    for x, y, text in ((236, 200, "3.002 m"), (256, 186, "2.996 m"), (290, 195, "2.990 m"),
+                       (396, 296, "1.234 m"), (320, 240, "A: 2.991 m")):
+        p.add_marker(x, y, text)
+    p.add_marker(380, 250, "B: 3.003 m", line_to=(320, 240), line_text="A–B 0.112 m")
+    labels = p.label_rects()
+    _assert_apart(labels, p.view_rect(), 7)
+    dots = p.dot_rects()
+    assert len(dots) == 6 and len(p.edge_rects()) == 4
+    _assert_clear(labels, dots)
+    # the box moved under the labels: they are placed again
+    p.show_region((200, 160, 300, 260))
+    _assert_clear(p.label_rects(), p.dot_rects())
+
+
+def test_a_label_goes_where_it_crosses_no_edge_of_the_region(qtbot):
+    p = _image_panel(qtbot)
+    p.show_region((240, 180, 400, 300))
+    # just inside the top edge: above-right (the first choice) would lie across the edge
+    p.add_marker(300, 186, "2.996 m")
+    # just inside the right edge: right of it would lie across the edge
+    p.add_marker(394, 240, "3.010 m")
+    _assert_clear(p.label_rects(), p.edge_rects())
+
+
+def _assert_clear(rects, obstacles):
+    for r in rects:
+        for o in obstacles:
+            assert r.intersected(o).isEmpty(), (r, o)
