@@ -26,8 +26,9 @@ import numpy as np
 
 from stereo_gui.core.board import TARGET_NAMES, BoardSpec
 from stereo_gui.core.bundle import BundleResult, View, refine_stereo
-from stereo_gui.core.detect import Cancel, PairDetection, Progress, check_cancel
+from stereo_gui.core.detect import PairDetection
 from stereo_gui.core.errors import CalibrationError
+from stereo_gui.core.jobs import Cancel, ProgressCallback, check_cancel
 from stereo_gui.core.lens import (
     DIST_COUNT,
     HIGHER_TERMS,
@@ -90,7 +91,7 @@ class CalibrationResult:
 
 
 # ---- helpers ---------------------------------------------------------------------------------
-def _progress(progress: Progress | None, step: int, total: int, text: str) -> None:
+def _progress(progress: ProgressCallback | None, step: int, total: int, text: str) -> None:
     if progress:
         progress(step, total, text)
 
@@ -192,7 +193,7 @@ def _relative_pose(rv_l, tv_l, rv_r, tv_r) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _solve(pairs: list[PairDetection], board: BoardSpec, image_size: tuple[int, int],
-           joint: bool, progress: Progress | None, cancel: Cancel, step0: int,
+           joint: bool, progress: ProgressCallback | None, cancel: Cancel, step0: int,
            total: int, model: str = "pinhole", fix_k3: bool = False) -> _Solve:
     obj_all = board.object_points_mm()
     ol = [p.left.object_points(board) for p in pairs]  # type: ignore[union-attr]
@@ -262,7 +263,7 @@ def _outliers(errors: list[tuple[float, float]], factor: float, floor_px: float)
 # ---- Bouguet --------------------------------------------------------------------------------
 def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
                      image_size: tuple[int, int] | None = None, alpha: float = 0.0,
-                     method: str = "bouguet", progress: Progress | None = None,
+                     method: str = "bouguet", progress: ProgressCallback | None = None,
                      cancel: Cancel = None, min_pairs: int = DEFAULT_MIN_PAIRS,
                      reject_outliers: bool = True, outlier_factor: float = 3.0,
                      outlier_floor_px: float = 1.0, joint_refinement: bool = True,
@@ -413,7 +414,7 @@ def _recover_pose(E, ul, ur, M1, M2):
 
 def calibrate_hartley(pairs: Sequence[PairDetection], board: BoardSpec | None,
                       image_size: tuple[int, int], alpha: float = 0.0, n_found: int | None = None,
-                      rejected: Sequence[RejectedPair] = (), progress: Progress | None = None,
+                      rejected: Sequence[RejectedPair] = (), progress: ProgressCallback | None = None,
                       cancel: Cancel = None) -> CalibrationResult:
     """Hartley rectification from the chessboard corners of usable pairs.
 
@@ -484,7 +485,7 @@ def match_features(left: np.ndarray, right: np.ndarray, max_features: int = 4000
 
 
 def calibrate_hartley_features(pairs: Sequence[tuple[str, np.ndarray, np.ndarray]],
-                               focal_px: float | None = None, progress: Progress | None = None,
+                               focal_px: float | None = None, progress: ProgressCallback | None = None,
                                cancel: Cancel = None) -> CalibrationResult:
     """Hartley rectification of a rig without a board, from features matched in scene pairs.
 
