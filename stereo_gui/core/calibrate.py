@@ -1,15 +1,15 @@
 """Stereo calibration from target detections (Bouguet) or matched points (Hartley).
 
-The Bouguet flow is the report's: `calibrateCamera` per camera (calibrateCameraExtended, or
-cv2.fisheye.calibrate for the fisheye model), `getOptimalNewCameraMatrix` (alpha 1, kept as
-optimal_M1/2 and shown as in the report), `stereoCalibrate` with fixed intrinsics, then a joint
-refinement of all parameters started from that solution (core.bundle: every point each camera
-saw, also the ChArUco corners only one camera saw, and the covariance of the result), and
-`stereoRectify` (CALIB_ZERO_DISPARITY, alpha configurable). The joint step is measured to help
-(scripts/bench_calibration.py, 50 rig pairs): relative rotation error 0.042 -> 0.008 deg, worst
-principal point error 0.23 % -> 0.03 %; on tuning seeds with 25 pairs the worst intrinsic error
-fell from 0.59 % to 0.36 %. Pairs whose reprojection error is far
-above the median are dropped and the calibration is repeated; they are reported as rejected.
+The Bouguet flow keeps the original scripts' steps, so that their figures can be compared:
+`calibrateCamera` per camera (calibrateCameraExtended, or cv2.fisheye.calibrate for the fisheye
+model), `getOptimalNewCameraMatrix` (alpha 1, kept as optimal_M1/2 and shown as those scripts
+showed it), `stereoCalibrate` with fixed intrinsics; then a joint refinement of all parameters
+started from that solution (core.bundle: every point each camera saw, also the ChArUco corners
+only one camera saw, and the covariance of the result), because it recovers the relative
+rotation, the principal points and the intrinsics more accurately (scripts/bench_calibration.py;
+figures in docs/guide.md), and `stereoRectify` (CALIB_ZERO_DISPARITY, alpha configurable).
+Pairs whose reprojection error is far above the median are dropped and the calibration is
+repeated; they are reported as rejected.
 
 Hartley's method (`stereoRectifyUncalibrated`) needs only matched points and gives row-aligned
 images but no metric scale: its results carry method="hartley", a unit baseline and a note.
@@ -80,7 +80,7 @@ class CalibrationReport:
     relative_rotation_deg: float
     method: str
     notes: tuple[str, ...] = ()
-    rms_stereo_fixed_intrinsics: float = float("nan")  # the report's step, before joint refinement
+    rms_stereo_fixed_intrinsics: float = float("nan")  # stereoCalibrate's, before joint refinement
     warnings: tuple[CalibrationWarning, ...] = ()  # what a person should know (core.uncertainty)
 
 
@@ -209,7 +209,7 @@ def _solve(pairs: list[PairDetection], board: BoardSpec, image_size: tuple[int, 
     _, M2, D2, rv2, tv2, std2 = _calibrate_mono(orr, ir, image_size, model, fix_k3)
     check_cancel(cancel)
     _progress(progress, step0 + 2, total, "calibrating the pair")
-    # the report's step: the relative pose with both cameras' intrinsics fixed
+    # the relative pose with both cameras' intrinsics fixed: the start of the joint refinement
     rms_fixed = float("nan")
     R, T = _relative_pose(rv1, tv1, rv2, tv2)
     try:

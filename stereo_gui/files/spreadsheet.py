@@ -7,7 +7,7 @@ A workbook written here has three sheets:
 - **Regression**: the (disparity, true distance) samples with each fitted model's prediction and
   residual, a table of the models (formula, R^2, coefficients), the fitted curves evaluated on a
   disparity grid (hidden columns) and a native Excel scatter chart of distance against disparity:
-  samples as markers, each fit as a line. This replaces the report's manual Excel step.
+  samples as markers, each fit as a line, so no fit has to be made by hand in Excel.
 - **Calibration**: the figures (RMS, baseline, board, date) and each camera's parameters, each
   with its 1-sigma uncertainty, the warnings, the pairs it was not made from, each pair's error,
   and the matrices M1 D1 M2 D2 R T P1 P2 Q as small tables.
