@@ -166,13 +166,11 @@ def test_no_zipfile_traceback_after_a_full_disk(tmp_path):
     openpyxl's ZipFile; its __del__ used to print a traceback after our clear message."""
     script = f"""
 import resource, signal, sys
-sys.path.insert(0, {str(Path(__file__).parent.parent / "files")!r})
-from stereo_gui.files.spreadsheet import write_workbook, MeasurementRecord
+sys.path.insert(0, {str(Path(__file__).parent.parent)!r})
+from stereo_gui.files.spreadsheet import write_workbook
 from stereo_gui.core.errors import StereoGuiError
 path = {str(tmp_path / 'log.xlsx')!r}
-from test_spreadsheet import _records
-def rec_list(n):
-    return _records(n)
+from factories import make_records as rec_list
 write_workbook(path, rec_list(3))
 before = open(path, "rb").read()
 signal.signal(signal.SIGXFSZ, signal.SIG_IGN)

@@ -114,7 +114,7 @@ def _fuzz(path, valid: bytes, doc, load, check, seed: int) -> int:
 
 # ---- the loaders ----------------------------------------------------------------------------
 def test_calibration_files(tmp_path):
-    from test_calibration_file import make_calibration
+    from factories import make_calibration
 
     from stereo_gui.files.calibration_file import check_calibration, load_calibration, save_calibration
 
@@ -125,7 +125,7 @@ def test_calibration_files(tmp_path):
 
 
 def test_ros_camera_info(tmp_path):
-    from test_calibration_file import make_calibration
+    from factories import make_calibration
 
     from stereo_gui.files.calibration_file import export_ros, import_ros
 
