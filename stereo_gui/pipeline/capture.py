@@ -70,7 +70,7 @@ class CaptureOutput:
         return pair_pose(self.detection, self.board)
 
 
-def _maybe_board(gray: np.ndarray, board: BoardSpec) -> bool:
+def may_show_board(gray: np.ndarray, board: BoardSpec) -> bool:
     """A quicker test whether a chessboard may be in the image, so live frames without a board
     stay cheaper: a full search that finds nothing takes more than twice as long as this check.
     With a board in view the check costs more than the search itself, so `detect_live` skips
@@ -93,7 +93,7 @@ def detect_live(frame: StereoFrame, board: BoardSpec,
     dets: list[Detection | None] = []
     for img, was_seen in zip((frame.left, frame.right), seen, strict=True):
         gray = to_gray(img)
-        dets.append(detect_board(gray, board) if was_seen or _maybe_board(gray, board) else None)
+        dets.append(detect_board(gray, board) if was_seen or may_show_board(gray, board) else None)
     left, right = dets
     # same rules as core.detect_pair: both cameras number the grid from the same end, and a
     # partly visible target counts when they share enough of its points
