@@ -154,7 +154,7 @@ def test_permission_denied_is_said_as_such(tmp_path, pair, capsys, monkeypatch):
 def test_opencv_log_lines_do_not_reach_the_terminal():
     """Probing a camera that is not there made OpenCV print '[ WARN:0@0.05] ... can't open
     camera by index' on every start; our own message says it instead."""
-    code = ("from stereo_gui.cli import _setup_logging; _setup_logging(False); "
+    code = ("from stereo_gui.cli import quiet_opencv; quiet_opencv(); "
             "import cv2; cv2.VideoCapture(97)")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=60)
