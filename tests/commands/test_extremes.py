@@ -1,4 +1,4 @@
-"""Extreme command-line values and messages (issue 13, items 8 and 10): exit 2 with one line."""
+"""Extreme command-line values and messages: exit 2 with one line."""
 
 from __future__ import annotations
 

@@ -222,7 +222,7 @@ def test_subfolder_layout_opens_and_names_match_discovery(tmp_path):
 
 
 def test_a_manifest_path_outside_the_folder_is_refused_and_never_deleted(tmp_path):
-    """Issue 13 item 7: `"left": "../victim.txt"` was accepted and Delete pair removed it."""
+    """A manifest naming `"left": "../victim.txt"` must not let Delete pair remove it."""
     import json
 
     s = _new(tmp_path)

@@ -139,9 +139,8 @@ def _at(out: CaptureOutput, t_s: float) -> CaptureOutput:
 
 
 def test_steadiness_is_time_not_frame_count_when_frames_come_slowly(board_output):
-    """Issue 12, item 11: at a few processed frames a second, four frames meant a second of
-    stillness; the board must hold still for STEADY_S (or STEADY_FRAMES frames), whichever
-    comes first."""
+    """At a few processed frames a second, four frames would mean a second of stillness; the
+    board must hold still for STEADY_S (or STEADY_FRAMES frames), whichever comes first."""
     from stereo_gui.pipeline.capture import STEADY_MAX_S, STEADY_S
 
     gap = 1.5 * STEADY_S
