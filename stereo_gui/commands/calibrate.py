@@ -123,7 +123,8 @@ def _camera(M, D, model: str = "pinhole") -> dict:
 
 
 def result_json(result: CalibrationResult, output: Path | None = None) -> dict:
-    """The --json object: issue 2's fields, plus a few more."""
+    """The --json object: the fields scripts depend on (a contract, like the options), plus a
+    few more."""
     c, r = result.calibration, result.report
     out = {
         "pairs_found": r.pairs_found,

@@ -1,6 +1,6 @@
 """`stereo-gui simulate OUT_DIR [--pairs N] [--scene] [--seed S] [--target T --board CxR ...]
-[--lens pinhole|fisheye]`: write images of the simulated rig (a calibration set in the report's
-naming, optional scene pairs) with its truth.json."""
+[--lens pinhole|fisheye]`: write images of the simulated rig (a calibration set named as a
+capture session names it, optional scene pairs) with its truth.json."""
 
 from __future__ import annotations
 

@@ -75,7 +75,7 @@ def _unpack_camera(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 # The rational model's numerator and denominator (k1..k3 and k4..k6) can grow together and
 # describe the same lens: its cost has a flat valley along which the solve drifts wherever
-# rounding leads it (measured: the same detections gave cx 322.66 or 321.90 px from run to run).
+# rounding leads it (the same detections can give principal points most of a pixel apart).
 # A weak prior at zero (1 sigma = RATIONAL_PRIOR, costing what PRIOR_PX of image error would)
 # makes the minimum unique without moving the lens it describes.
 RATIONAL_PRIOR = 1.0

@@ -1,15 +1,15 @@
 """Stereo calibration from target detections (Bouguet) or matched points (Hartley).
 
-The Bouguet flow is the report's: `calibrateCamera` per camera (calibrateCameraExtended, or
-cv2.fisheye.calibrate for the fisheye model), `getOptimalNewCameraMatrix` (alpha 1, kept as
-optimal_M1/2 and shown as in the report), `stereoCalibrate` with fixed intrinsics, then a joint
-refinement of all parameters started from that solution (core.bundle: every point each camera
-saw, also the ChArUco corners only one camera saw, and the covariance of the result), and
-`stereoRectify` (CALIB_ZERO_DISPARITY, alpha configurable). The joint step is measured to help
-(scripts/bench_calibration.py, 50 rig pairs): relative rotation error 0.042 -> 0.008 deg, worst
-principal point error 0.23 % -> 0.03 %; on tuning seeds with 25 pairs the worst intrinsic error
-fell from 0.59 % to 0.36 %. Pairs whose reprojection error is far
-above the median are dropped and the calibration is repeated; they are reported as rejected.
+The Bouguet flow keeps the original scripts' steps, so that their figures can be compared:
+`calibrateCamera` per camera (calibrateCameraExtended, or cv2.fisheye.calibrate for the fisheye
+model), `getOptimalNewCameraMatrix` (alpha 1, kept as optimal_M1/2 and shown as those scripts
+showed it), `stereoCalibrate` with fixed intrinsics; then a joint refinement of all parameters
+started from that solution (core.bundle: every point each camera saw, also the ChArUco corners
+only one camera saw, and the covariance of the result), because it recovers the relative
+rotation, the principal points and the intrinsics more accurately (scripts/bench_calibration.py;
+figures in docs/guide.md), and `stereoRectify` (CALIB_ZERO_DISPARITY, alpha configurable).
+Pairs whose reprojection error is far above the median are dropped and the calibration is
+repeated; they are reported as rejected.
 
 Hartley's method (`stereoRectifyUncalibrated`) needs only matched points and gives row-aligned
 images but no metric scale: its results carry method="hartley", a unit baseline and a note.
@@ -26,8 +26,9 @@ import numpy as np
 
 from stereo_gui.core.board import TARGET_NAMES, BoardSpec
 from stereo_gui.core.bundle import BundleResult, View, refine_stereo
-from stereo_gui.core.detect import Cancel, PairDetection, Progress, check_cancel
+from stereo_gui.core.detect import PairDetection
 from stereo_gui.core.errors import CalibrationError
+from stereo_gui.core.jobs import Cancel, ProgressCallback, check_cancel
 from stereo_gui.core.lens import (
     DIST_COUNT,
     HIGHER_TERMS,
@@ -79,7 +80,7 @@ class CalibrationReport:
     relative_rotation_deg: float
     method: str
     notes: tuple[str, ...] = ()
-    rms_stereo_fixed_intrinsics: float = float("nan")  # the report's step, before joint refinement
+    rms_stereo_fixed_intrinsics: float = float("nan")  # stereoCalibrate's, before joint refinement
     warnings: tuple[CalibrationWarning, ...] = ()  # what a person should know (core.uncertainty)
 
 
@@ -90,7 +91,7 @@ class CalibrationResult:
 
 
 # ---- helpers ---------------------------------------------------------------------------------
-def _progress(progress: Progress | None, step: int, total: int, text: str) -> None:
+def _progress(progress: ProgressCallback | None, step: int, total: int, text: str) -> None:
     if progress:
         progress(step, total, text)
 
@@ -192,7 +193,7 @@ def _relative_pose(rv_l, tv_l, rv_r, tv_r) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _solve(pairs: list[PairDetection], board: BoardSpec, image_size: tuple[int, int],
-           joint: bool, progress: Progress | None, cancel: Cancel, step0: int,
+           joint: bool, progress: ProgressCallback | None, cancel: Cancel, step0: int,
            total: int, model: str = "pinhole", fix_k3: bool = False) -> _Solve:
     obj_all = board.object_points_mm()
     ol = [p.left.object_points(board) for p in pairs]  # type: ignore[union-attr]
@@ -208,7 +209,7 @@ def _solve(pairs: list[PairDetection], board: BoardSpec, image_size: tuple[int, 
     _, M2, D2, rv2, tv2, std2 = _calibrate_mono(orr, ir, image_size, model, fix_k3)
     check_cancel(cancel)
     _progress(progress, step0 + 2, total, "calibrating the pair")
-    # the report's step: the relative pose with both cameras' intrinsics fixed
+    # the relative pose with both cameras' intrinsics fixed: the start of the joint refinement
     rms_fixed = float("nan")
     R, T = _relative_pose(rv1, tv1, rv2, tv2)
     try:
@@ -262,7 +263,7 @@ def _outliers(errors: list[tuple[float, float]], factor: float, floor_px: float)
 # ---- Bouguet --------------------------------------------------------------------------------
 def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
                      image_size: tuple[int, int] | None = None, alpha: float = 0.0,
-                     method: str = "bouguet", progress: Progress | None = None,
+                     method: str = "bouguet", progress: ProgressCallback | None = None,
                      cancel: Cancel = None, min_pairs: int = DEFAULT_MIN_PAIRS,
                      reject_outliers: bool = True, outlier_factor: float = 3.0,
                      outlier_floor_px: float = 1.0, joint_refinement: bool = True,
@@ -413,7 +414,7 @@ def _recover_pose(E, ul, ur, M1, M2):
 
 def calibrate_hartley(pairs: Sequence[PairDetection], board: BoardSpec | None,
                       image_size: tuple[int, int], alpha: float = 0.0, n_found: int | None = None,
-                      rejected: Sequence[RejectedPair] = (), progress: Progress | None = None,
+                      rejected: Sequence[RejectedPair] = (), progress: ProgressCallback | None = None,
                       cancel: Cancel = None) -> CalibrationResult:
     """Hartley rectification from the chessboard corners of usable pairs.
 
@@ -484,7 +485,7 @@ def match_features(left: np.ndarray, right: np.ndarray, max_features: int = 4000
 
 
 def calibrate_hartley_features(pairs: Sequence[tuple[str, np.ndarray, np.ndarray]],
-                               focal_px: float | None = None, progress: Progress | None = None,
+                               focal_px: float | None = None, progress: ProgressCallback | None = None,
                                cancel: Cancel = None) -> CalibrationResult:
     """Hartley rectification of a rig without a board, from features matched in scene pairs.
 

@@ -5,12 +5,10 @@ and ChArUco boards (`cv2.aruco.CharucoDetector`), of which a view may show any p
 point found carries its id, and a pair uses the corners both cameras found, matched by id.
 
 Chessboard detection defaults to OpenCV's classic detector (`findChessboardCorners`) followed by
-`cornerSubPix`; `findChessboardCornersSB` is offered as `method="sb"`. Measured
-(scripts/bench_calibration.py): on 50 simulated-rig pairs the classic detector gives a stereo
-RMS of 0.053 px against 0.108 px for SB (EXHAUSTIVE|ACCURACY), and takes 0.44 s against 12.8 s;
-on the real webcam set SB finds the board in both images of only 7 of 14 pairs (classic: 13), and
-on a partly hidden board (right09.jpg) it returns a grid shifted by one row where the classic
-detector rightly finds nothing.
+`cornerSubPix`; `findChessboardCornersSB` is offered as `method="sb"`. The classic detector is
+the default because it gives the more accurate calibration in a fraction of the time, finds the
+board in more real webcam pairs, and finds nothing on a partly hidden board where SB can return
+a grid shifted by one row (scripts/bench_calibration.py; figures in docs/guide.md).
 
 Coverage guidance follows ROS camera_calibration: each detection is reduced to a pose descriptor
 (x, y, size, skew, each normalised to 0..1), and the spread of the kept descriptors along each
@@ -22,7 +20,6 @@ from __future__ import annotations
 import logging
 import math
 import os
-import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass
@@ -31,39 +28,13 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.board import TARGET_NAMES, BoardSpec
-from stereo_gui.core.errors import InputError, StereoGuiError
+from stereo_gui.core.errors import InputError
+from stereo_gui.core.jobs import Cancel, Cancelled, ProgressCallback, check_cancel, is_cancelled
 from stereo_gui.core.util import to_gray
 
 log = logging.getLogger(__name__)
 
-# progress(done, total, text): called from the calling thread, never from a pool thread
-Progress = Callable[[int, int, str], None]
-# a threading.Event (set = cancel) or a callable returning True to cancel
-Cancel = threading.Event | Callable[[], bool] | None
-
 METHODS = ("classic", "sb")
-
-
-class Cancelled(StereoGuiError):
-    """The user cancelled a long detection or calibration."""
-
-    def __init__(self, message: str = "cancelled") -> None:
-        super().__init__(message)
-
-
-def is_cancelled(cancel: Cancel) -> bool:
-    """True when `cancel` (an Event or a callable) asks to stop."""
-    if cancel is None:
-        return False
-    if isinstance(cancel, threading.Event):
-        return cancel.is_set()
-    return bool(cancel())
-
-
-def check_cancel(cancel: Cancel) -> None:
-    """Raise Cancelled when `cancel` asks to stop."""
-    if is_cancelled(cancel):
-        raise Cancelled()
 
 
 # ---- single images ---------------------------------------------------------------------------
@@ -402,12 +373,11 @@ def default_workers() -> int:
 
 
 def detect_pairs(pairs: Sequence[PairInput | tuple], board: BoardSpec, method: str = "classic",
-                 progress: Progress | None = None, cancel: Cancel = None,
-                 workers: int | None = None) -> list[PairDetection]:
+                 progress: ProgressCallback | None = None,
+                 cancel: Cancel = None, workers: int | None = None) -> list[PairDetection]:
     """Detect the board in many pairs on a thread pool (OpenCV releases the GIL), in input order.
 
-    Threads beat a process pool here (no pickling of images, no start-up: 50 rig pairs 0.44 s
-    with threads vs 1.25 s with a spawned process pool, 0.69 s serially on 2 cores).
+    Threads rather than a process pool: no pickling of images and no start-up cost.
 
     `pairs` holds PairInput or (name, left, right) tuples. Progress is reported from the calling
     thread after each finished pair; cancelling stops at the next finished pair and raises
@@ -434,8 +404,8 @@ def detect_pairs(pairs: Sequence[PairInput | tuple], board: BoardSpec, method: s
         return results  # type: ignore[return-value]
 
     # cv2.setNumThreads is left alone on purpose: it is process-wide (it would also slow the live
-    # matcher running in another thread), and pinning OpenCV to 1 thread during detection made no
-    # measurable difference (50 rig pairs with PNG decoding: ~0.33 s either way, serial 0.6 s).
+    # matcher running in another thread), and pinning OpenCV to 1 thread during detection makes
+    # no measurable difference.
     with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="detect") as pool:
         futures = {pool.submit(job, item): i for i, item in enumerate(items)}
         done = 0

@@ -31,9 +31,8 @@ from stereo_gui.core.util import mutual_ratio_matches, to_gray
 DRIFT_WARN_PX = 0.5  # above this median vertical disparity the cameras moved since calibration
 MIN_MATCHES = 30
 # the live check finds its features on images at most this wide and places them on the full-size
-# ones (SIFT on 640x480: 0.33-0.41 s of CPU a check, 0.16-0.18 s at half size; on 1280x720 0.9 s,
-# 0.40 s at half size, 0.12 s at a quarter); the figure is the same to a few hundredths of a
-# pixel (tests/core/test_health.py)
+# ones: SIFT's cost falls about with the pixel count while the figure stays the same to a few
+# hundredths of a pixel (tests/core/test_health.py)
 HEALTH_DETECT_WIDTH = 320
 
 

@@ -1,6 +1,6 @@
 """Lens models, in one place: projection (with its Jacobian), undistortion, rectification maps.
 
-- "pinhole": OpenCV's standard model with 5 coefficients (k1 k2 p1 p2 k3), as the report used.
+- "pinhole": OpenCV's standard model with 5 coefficients (k1 k2 p1 p2 k3), the default.
 - "rational": the rational model, 8 coefficients (k1 k2 p1 p2 k3 k4 k5 k6; CALIB_RATIONAL_MODEL).
 - "fisheye": OpenCV's fisheye (equidistant) model, 4 coefficients (k1 k2 k3 k4), for wide-angle
   webcams; its functions live in cv2.fisheye.

@@ -4,13 +4,12 @@ All uncertainties here are 1 sigma (one standard deviation) and say so wherever 
 
 - `CalibrationUncertainty`: the covariance of the camera parameters from the joint refinement
   (core.bundle), with the standard deviation of every intrinsic and distortion parameter, of the
-  baseline and of the relative rotation. Measured on the simulated rig (scripts/
-  bench_uncertainty.py, 6 seeds, 20 chessboard pairs): the truth lies within 3 sigma for all 60
-  parameters (RMS z-score 0.92); a bootstrap over the pairs (20 resamples) gives the same sigmas
-  (median ratio 0.99) at about 20 times the cost (5.6 s against 0.3 s), so the Jacobian is used.
-  (ChArUco: 100 % within 3 sigma, ratio 0.89; fisheye: 98 %, ratio 0.84.) They are the joint
-  solve's, not calibrateCameraExtended's per-camera ones, which describe each camera calibrated
-  alone and come out 1.2-2.5 times larger (tests/core/test_uncertainty.py compares them).
+  baseline and of the relative rotation. The Jacobian's covariance is used rather than a
+  bootstrap over the pairs: on the simulated rig both give the same sigmas, which hold the truth
+  within 3 sigma, and the bootstrap costs about 20 times more (scripts/bench_uncertainty.py;
+  figures in docs/guide.md). They are the joint solve's, not calibrateCameraExtended's
+  per-camera ones, which describe each camera calibrated alone and come out larger
+  (tests/core/test_uncertainty.py compares them).
 - `depth_sigma_mm`: the calibration's part of a reading's error. The parameter covariance is
   propagated, linearised by central differences one parameter at a time, through rectification
   and triangulation: the raw pixels where the two cameras saw the point stay fixed, each
@@ -101,8 +100,8 @@ class CalibrationUncertainty:
     def distortion_identifiable(self) -> bool:
         """False for the rational model: its numerator and denominator coefficients trade off
         against each other (k1 with k4, ...), so that very different coefficients describe the
-        same lens, and a sigma per coefficient would mean nothing (measured on the simulated
-        rig: estimates 20-40 stated sigmas from the truth while the lens they describe is
+        same lens, and a sigma per coefficient would mean nothing (on the simulated rig the
+        estimates lie tens of stated sigmas from the truth while the lens they describe is
         right). Its uncertainty is stated where it means something: at the image corners."""
         return self.model != "rational"
 

@@ -13,8 +13,9 @@ the same checks after the library is done. Libraries that can write to memory (c
 openpyxl, numpy) should: the bytes then go through `write_bytes_atomic`, where every error of the
 disk is seen.
 
-The system calls go through `_ops` so that tests can make any step fail (tests/files/
-test_atomic.py); tests/files/test_full_disk.py runs every writer on a real full filesystem.
+The system calls go through `syscalls`, the one place where a test can make any step fail
+(tests/files/test_atomic.py); tests/files/test_full_disk.py runs every writer on a real full
+filesystem.
 """
 
 from __future__ import annotations
@@ -40,8 +41,9 @@ Verify = Callable[[Path], None]
 READ_BACK_LIMIT = 4 << 20  # bytes: files up to this size are read back and compared whole
 
 
-class _Ops:
-    """The system calls of a write, in one place so that a test can make any of them fail."""
+class SystemCalls:
+    """The system calls of a write, in one place so that a test can make any of them fail
+    (monkeypatch an attribute of `syscalls`)."""
 
     open = staticmethod(os.open)
     write = staticmethod(os.write)
@@ -50,7 +52,7 @@ class _Ops:
     replace = staticmethod(os.replace)
 
 
-_ops = _Ops()
+syscalls = SystemCalls()
 
 _WORDS = {
     errno.ENOSPC: "No space left on device (the disk is full)",
@@ -82,7 +84,7 @@ def _create_temp(target: Path, folder: Path, suffix: str) -> tuple[Path, int]:
     for _ in range(100):
         path = folder / f".{target.name}.{secrets.token_hex(4)}{suffix}"
         try:
-            fd = _ops.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0),
+            fd = syscalls.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0),
                            0o666)
         except FileExistsError:
             continue
@@ -130,7 +132,7 @@ def _run_verify(verify: Verify | None, tmp_path: Path, target: Path, existed: bo
 
 
 def _commit(tmp_path: Path, target: Path, folder: Path) -> None:
-    _ops.replace(tmp_path, target)
+    syscalls.replace(tmp_path, target)
     _sync_folder(folder)
 
 
@@ -145,15 +147,15 @@ def _prepare(target: Path, data: bytes, verify: Verify | None) -> Path:
             _keep_mode(target, tmp_path)
             done = 0
             while done < len(data):
-                n = _ops.write(fd, data[done:])
+                n = syscalls.write(fd, data[done:])
                 if not n or n < 0:  # a write that makes no progress: the device is full
                     raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
                 done += n
-            _ops.fsync(fd)
+            syscalls.fsync(fd)
         finally:
             # close even when a write failed; a close that fails loses data too
             closing, fd = fd, -1
-            _ops.close(closing)
+            syscalls.close(closing)
         size = tmp_path.stat().st_size
         if size != len(data):
             raise InputError(f"cannot write {target}: {size} of {len(data)} bytes reached the "
@@ -312,18 +314,18 @@ def atomic_path(target: str | os.PathLike, suffix: str | None = None,
     existed = target.exists()
     tmp_path, fd = _create_temp(target, folder, suffix or target.suffix or ".tmp")
     try:
-        _ops.close(fd)
+        syscalls.close(fd)
         fd = -1
         _keep_mode(target, tmp_path)
         yield tmp_path
         if not tmp_path.is_file() or tmp_path.stat().st_size == 0:
             raise InputError(f"cannot write {target}: nothing reached the disk; "
                              f"{_kept(target, existed)}")
-        sync_fd = _ops.open(tmp_path, os.O_RDONLY)
+        sync_fd = syscalls.open(tmp_path, os.O_RDONLY)
         try:
-            _ops.fsync(sync_fd)
+            syscalls.fsync(sync_fd)
         finally:
-            _ops.close(sync_fd)
+            syscalls.close(sync_fd)
         _run_verify(verify, tmp_path, target, existed)
         _commit(tmp_path, target, folder)
     except OSError as exc:

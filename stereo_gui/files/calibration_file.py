@@ -691,7 +691,7 @@ def _read_camera_controls(fs, where: str) -> PairSettings | None:
         return None
 
 
-# ---- lens model, uncertainty, origin and warnings (issue 10) ---------------------------------
+# ---- lens model, uncertainty, origin and warnings ------------------------------------------
 def _write_lens_and_uncertainty(fs, calib: StereoCalibration) -> None:
     """The lens model, where the calibration came from, its warnings and its 1-sigma covariance
     (names in order, then the matrix)."""

@@ -19,7 +19,7 @@ from stereo_gui.core.errors import InputError
 from stereo_gui.core.regression import FitResult, fit_from_dict, fit_to_dict
 from stereo_gui.files.atomic import write_text_atomic
 from stereo_gui.files.readers import set_aside
-from stereo_gui.files.spreadsheet import RULER_METHOD, MeasurementRecord
+from stereo_gui.files.measurement_record import RULER_METHOD, MeasurementRecord
 
 log = logging.getLogger(__name__)
 

@@ -2,8 +2,8 @@
 
 Three layouts are recognised (file names case-insensitive, any of png jpg jpeg bmp tif tiff, any
 zero padding of the number):
-- the report's naming: `chessboard-L1.png` / `chessboard-R1.png` (any prefix, then L or R and a
-  number);
+- the original capture script's naming, which our sessions keep: `chessboard-L1.png` /
+  `chessboard-R1.png` (any prefix, then L or R and a number);
 - `left01.jpg` / `right01.jpg` (any prefix, then left or right and a number);
 - `left/` and `right/` subfolders, paired by the (last) number in each file name.
 Files that do not pair up are reported, never silently dropped.

@@ -1,12 +1,12 @@
 """Capture sessions: a folder of calibration image pairs plus a `session.json` manifest.
 
 Each pair is written the moment it is saved (both images, then the manifest, each atomically),
-in the report's naming `chessboard-L{n}.png` / `chessboard-R{n}.png`, so a session folder is
-also a plain folder of pairs that `stereo-gui calibrate DIR` reads. The manifest holds the board,
+in the original capture script's naming `chessboard-L{n}.png` / `chessboard-R{n}.png`, so a
+session folder is also a plain folder of pairs that `stereo-gui calibrate DIR` reads. The manifest holds the board,
 the resolution, the camera identities, each pair's name, files and time, the excluded pairs, and
 the cameras' controls (focus, exposure...) when the pairs were taken.
 
-A folder without a manifest (the report's own captures, `left{n}`/`right{n}`, ...) opens too; the
+A folder without a manifest (the original script's captures, `left{n}`/`right{n}`, ...) opens too; the
 manifest is written at its first change. Pairs whose images exist but which the manifest does not
 list (a crash between the images and the manifest) are picked up again on opening, so nothing
 saved is lost.

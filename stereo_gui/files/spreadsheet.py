@@ -7,7 +7,7 @@ A workbook written here has three sheets:
 - **Regression**: the (disparity, true distance) samples with each fitted model's prediction and
   residual, a table of the models (formula, R^2, coefficients), the fitted curves evaluated on a
   disparity grid (hidden columns) and a native Excel scatter chart of distance against disparity:
-  samples as markers, each fit as a line. This replaces the report's manual Excel step.
+  samples as markers, each fit as a line, so no fit has to be made by hand in Excel.
 - **Calibration**: the figures (RMS, baseline, board, date) and each camera's parameters, each
   with its 1-sigma uncertainty, the warnings, the pairs it was not made from, each pair's error,
   and the matrices M1 D1 M2 D2 R T P1 P2 Q as small tables.
@@ -34,16 +34,18 @@ import os
 import zipfile
 import zlib
 from collections.abc import Iterable, Sequence
-from dataclasses import astuple, dataclass, fields
+from dataclasses import astuple, fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from stereo_gui.core.detect import check_cancel
 from stereo_gui.core.errors import InputError
+from stereo_gui.core.jobs import check_cancel
 from stereo_gui.core.util import how_many
 from stereo_gui.files.atomic import atomic_path, os_error_text, write_text_atomic
+# the record type and its derived error are defined with the log; imported from here too
+from stereo_gui.files.measurement_record import RULER_METHOD, MeasurementRecord, record_error
 from stereo_gui.files.readers import read_csv_rows
 
 if TYPE_CHECKING:  # only for annotations: the regression module is imported where used
@@ -58,49 +60,6 @@ CALIBRATION_SHEET = "Calibration"
 # written into the workbook's properties so that a workbook of ours can be recognised
 WORKBOOK_KEYWORDS = f"stereo-gui measurements v{FORMAT_VERSION}"
 CURVE_POINTS = 60  # points of each fitted curve drawn in the chart
-
-
-@dataclass(frozen=True)
-class MeasurementRecord:
-    """One entry of the measurement log (what a click in the GUI or `measure` produces).
-
-    Pixel coordinates are of the rectified left image; X/Y/Z are in the left rectified camera
-    frame, mm. Numbers that do not exist for an invalid reading are NaN.
-    """
-
-    time: str  # ISO 8601
-    x_px: float
-    y_px: float
-    disparity_px: float
-    X_mm: float
-    Y_mm: float
-    Z_mm: float
-    range_mm: float
-    valid: bool
-    reason: str = ""  # why the reading is invalid, empty when valid
-    valid_fraction: float = float("nan")  # share of valid pixels in the patch, 0..1
-    expected_error_mm: float = float("nan")
-    method: str = "triangulation"  # or the name of the fit used ("cubic", "inverse")
-    true_mm: float | None = None  # true distance entered by the technician
-    calibration_file: str = ""
-    calibration_rms_px: float = float("nan")
-    note: str = ""  # what was measured, in the technician's words
-
-    @classmethod
-    def from_measurement(cls, m, *, time: str | None = None, true_mm: float | None = None,
-                         calibration_file: str | os.PathLike = "",
-                         calibration_rms_px: float = float("nan")) -> MeasurementRecord:
-        """The log entry of a `stereo_gui.core.measure.Measurement` (time defaults to now)."""
-        if time is None:
-            time = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="milliseconds")
-        return cls(time=time, x_px=float(m.x), y_px=float(m.y),
-                   disparity_px=float(m.disparity_px), X_mm=float(m.X_mm), Y_mm=float(m.Y_mm),
-                   Z_mm=float(m.Z_mm), range_mm=float(m.range_mm), valid=bool(m.valid),
-                   reason=m.reason or "", valid_fraction=float(m.valid_fraction),
-                   expected_error_mm=float(m.expected_error_mm), method=str(m.method),
-                   true_mm=None if true_mm is None else float(true_mm),
-                   calibration_file=str(calibration_file),
-                   calibration_rms_px=float(calibration_rms_px))
 
 
 # (record field, header with unit, Excel number format, column width)
@@ -142,21 +101,6 @@ XLSX_TIME_HEADER = "Time (UTC)"
 XLSX_TIME_FORMAT = "yyyy-mm-dd hh:mm:ss.000"
 XLSX_HEADERS = tuple(XLSX_TIME_HEADER if name == "time" else header
                      for name, header, _, _ in COLUMNS) + ERROR_HEADERS + (NOTE_COLUMN[1],)
-
-
-# a ruler distance in the log: the method starts so; X/Y/Z are the components of B - A and
-# Range its length
-RULER_METHOD = "ruler A–B"
-
-
-def record_error(rec: MeasurementRecord) -> tuple[float, float]:
-    """(measured - true distance in mm, the same in % of the true distance); NaN without a true
-    distance or a valid reading. Measured is Z, or the length for a ruler distance."""
-    measured = rec.range_mm if rec.method.startswith(RULER_METHOD) else rec.Z_mm
-    if rec.true_mm is None or not rec.valid or not math.isfinite(measured) or rec.true_mm <= 0:
-        return float("nan"), float("nan")
-    err = float(measured) - float(rec.true_mm)
-    return err, 100.0 * err / float(rec.true_mm)
 
 
 # ---- cell values ----------------------------------------------------------------------------
@@ -247,7 +191,7 @@ def _write_measurements_sheet(ws, records: Sequence[MeasurementRecord], cancel=N
                               progress=None) -> int:
     """Stream the header and one row per record into a write-only sheet; return the count.
 
-    `cancel` (see core.detect.Cancel) is looked at and `progress(done, total, text)` called
+    `cancel` (see core.jobs.Cancel) is looked at and `progress(done, total, text)` called
     every _CANCEL_EVERY_ROWS rows."""
     from openpyxl.cell import WriteOnlyCell
     from openpyxl.utils import get_column_letter
@@ -781,7 +725,7 @@ def write_workbook(path: str | os.PathLike, records: Iterable[MeasurementRecord]
 
     `fits` are `stereo_gui.core.regression.FitResult`s; `calibration_file` names the file the
     calibration was loaded from (shown in the Calibration sheet). `cancel` (an Event or a
-    callable, see core.detect.Cancel) stops the export between rows with Cancelled: nothing is
+    callable, see core.jobs.Cancel) stops the export between rows with Cancelled: nothing is
     written, no temporary file is left, `path` stays as it was. `progress(done, total, text)`
     is told the rows written.
     """

@@ -1,7 +1,7 @@
 """The Calibration tab's job and texts, without Qt: detect the board in a session's included
 pairs and calibrate the rig (run by a JobWorker off the UI thread, with progress and cancel),
 each used pair's corners reprojected through the result (for the review), and the camera
-matrices as the report shows them."""
+matrices laid out as the original scripts printed them, so a user can compare the two."""
 
 from __future__ import annotations
 
@@ -216,7 +216,8 @@ def _dist_text(d: np.ndarray, model: str = "pinhole", sigmas=None) -> str:
 
 
 def matrices_text(calib: StereoCalibration) -> str:
-    """The camera matrices and distortion as the report shows them, plus the rectified ones."""
+    """The camera matrices and distortion in the original scripts' layout, plus the rectified
+    ones."""
     parts = []
     for side, M, opt, D, P in (("left", calib.M1, calib.optimal_M1, calib.D1, calib.P1),
                                ("right", calib.M2, calib.optimal_M2, calib.D2, calib.P2)):

@@ -70,11 +70,10 @@ class CaptureOutput:
         return pair_pose(self.detection, self.board)
 
 
-def _maybe_board(gray: np.ndarray, board: BoardSpec) -> bool:
+def may_show_board(gray: np.ndarray, board: BoardSpec) -> bool:
     """A quicker test whether a chessboard may be in the image, so live frames without a board
-    stay cheaper (on the simulated rig's textured scene, 640x480: a full search without a
-    board about 180 ms, this check about 80 ms). With a board in view it costs more than the
-    search itself (about 45 ms against 20 ms on a cluttered background), so `detect_live` skips
+    stay cheaper: a full search that finds nothing takes more than twice as long as this check.
+    With a board in view the check costs more than the search itself, so `detect_live` skips
     it while the board was found in the frame before. The other targets' detectors are quick to
     say no by themselves."""
     if board.target != "chessboard":
@@ -94,7 +93,7 @@ def detect_live(frame: StereoFrame, board: BoardSpec,
     dets: list[Detection | None] = []
     for img, was_seen in zip((frame.left, frame.right), seen, strict=True):
         gray = to_gray(img)
-        dets.append(detect_board(gray, board) if was_seen or _maybe_board(gray, board) else None)
+        dets.append(detect_board(gray, board) if was_seen or may_show_board(gray, board) else None)
     left, right = dets
     # same rules as core.detect_pair: both cameras number the grid from the same end, and a
     # partly visible target counts when they share enough of its points
@@ -191,8 +190,8 @@ class CaptureRules:
     reviewed last (until the board leaves a view). Automatic capture takes a pair once the board
     has held still (corners moving less than STEADY_PX over STEADY_FRAMES frames, or over frames
     STEADY_S apart when fewer are processed: the board must hold still for as long whatever the
-    processing rate; issue 12: at 3 fps four frames meant 1.3 s of stillness, which the
-    simulated rig's board, resting only a moment at each pose, hardly ever gave) in a pose that
+    processing rate, or a slow machine would ask for a stillness a hand-held board, or the
+    simulated rig's board resting only a moment at each pose, hardly ever gives) in a pose that
     differs from those saved, or that reaches an image region still empty (then a smaller
     difference will do, though not the very same view).
 

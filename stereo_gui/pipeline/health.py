@@ -2,10 +2,9 @@
 
 The frame worker hands each processed frame's rectified pair to `HealthMonitor.offer`; at most
 one check runs at a time, in a thread of the monitor's own, and only when the last one began
-`INTERVAL_S` ago, so the live views never wait for it (a check takes 0.17 s of CPU at 640x480 and
-0.10 s at 1280x720, with features found on images at most 320 px wide; OpenCV's brute-force
-matcher made them 0.24 and 0.14 s, medians of 6 runs alternating). `latest()`
-gives the newest finished figure. No Qt here.
+`INTERVAL_S` ago, so the live views never wait for it (a check takes a fifth of a second of
+CPU or less: features are found on images at most 320 px wide, and matched with
+core.util's one-product matcher). `latest()` gives the newest finished figure. No Qt here.
 """
 
 from __future__ import annotations
@@ -21,9 +20,9 @@ from stereo_gui.core.health import CalibrationHealth, calibration_health, health
 
 log = logging.getLogger(__name__)
 
-# a check costs a fifth of a second of CPU, and on 2 CPUs that CPU is the frame lanes': once a
-# second it took 8 % of the machine (live 640x480 at 40 fps: 4 ms a frame); a camera's turn is no
-# faster news than that
+# a check costs a fifth of a second of CPU, and on 2 CPUs that CPU is the frame lanes': checking
+# every two seconds halves what checking every second takes from the live views, and a camera's
+# turn is no faster news than that
 INTERVAL_S = 2.0
 
 

@@ -77,7 +77,7 @@ def computed_reports():
 
 @pytest.mark.slow
 def test_a_computed_calibration_reads_the_whole_frame_with_an_honest_bound(computed_reports):
-    """Issue 10: with a calibration from 20 pairs, RMS <= 0.6 % on every wall; the +- (95 %,
+    """With a calibration from 20 pairs, RMS <= 0.6 % on every wall; the +- (95 %,
     matching and calibration together) covers the true error at >= 90 % of the points, with a
     median <= 1 % of the distance at 3 m."""
     calib, reps = computed_reports

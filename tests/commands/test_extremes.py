@@ -1,4 +1,4 @@
-"""Extreme command-line values and messages (issue 13, items 8 and 10): exit 2 with one line."""
+"""Extreme command-line values and messages: exit 2 with one line."""
 
 from __future__ import annotations
 
@@ -154,7 +154,7 @@ def test_permission_denied_is_said_as_such(tmp_path, pair, capsys, monkeypatch):
 def test_opencv_log_lines_do_not_reach_the_terminal():
     """Probing a camera that is not there made OpenCV print '[ WARN:0@0.05] ... can't open
     camera by index' on every start; our own message says it instead."""
-    code = ("from stereo_gui.cli import _setup_logging; _setup_logging(False); "
+    code = ("from stereo_gui.cli import quiet_opencv; quiet_opencv(); "
             "import cv2; cv2.VideoCapture(97)")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=60)
@@ -166,13 +166,11 @@ def test_no_zipfile_traceback_after_a_full_disk(tmp_path):
     openpyxl's ZipFile; its __del__ used to print a traceback after our clear message."""
     script = f"""
 import resource, signal, sys
-sys.path.insert(0, {str(Path(__file__).parent.parent / "files")!r})
-from stereo_gui.files.spreadsheet import write_workbook, MeasurementRecord
+sys.path.insert(0, {str(Path(__file__).parent.parent)!r})
+from stereo_gui.files.spreadsheet import write_workbook
 from stereo_gui.core.errors import StereoGuiError
 path = {str(tmp_path / 'log.xlsx')!r}
-from test_spreadsheet import _records
-def rec_list(n):
-    return _records(n)
+from factories import make_records as rec_list
 write_workbook(path, rec_list(3))
 before = open(path, "rb").read()
 signal.signal(signal.SIGXFSZ, signal.SIG_IGN)

@@ -120,7 +120,7 @@ def test_full_disk_leaves_no_partial_file(tmp_path, capsys, monkeypatch):
     def disk_full(fd):
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr(atomic._ops, "fsync", disk_full)
+    monkeypatch.setattr(atomic.syscalls, "fsync", disk_full)
     assert main(["simulate", str(tmp_path / "w"), "--pairs", "1"]) == 2
     err = capsys.readouterr().err
     assert "cannot write" in err and "No space left" in err and len(err.strip().splitlines()) == 1

@@ -1,6 +1,5 @@
 """Every target with every lens model on the simulated rig (fisheye on a fisheye rig): the
-calibration recovers the rig, and its stated 1-sigma uncertainty is honest (issue 10's first two
-acceptance lines). Each case has its own rig seed, none of which was used while tuning."""
+calibration recovers the rig, and its stated 1-sigma uncertainty is honest. Each case has its own rig seed, none of which was used while tuning."""
 
 from __future__ import annotations
 

@@ -14,12 +14,12 @@ from stereo_gui.core.detect import (
     Detection,
     PairInput,
     PoseDescriptor,
-    _consistent_order,
     coverage,
     detect_board,
     detect_pair,
     detect_pairs,
     is_new_pose,
+    make_pair,
     pose_descriptor,
 )
 from stereo_gui.core.errors import InputError
@@ -107,9 +107,10 @@ def test_pair_of_different_sizes_is_refused_naming_files():
 def test_right_corners_are_numbered_like_the_left():
     img, _ = synthetic_board()
     det = detect_board(img, BOARD)
-    flipped = det.reversed()
-    assert np.array_equal(_consistent_order(det, flipped).corners, det.corners)
-    assert np.array_equal(_consistent_order(det, det).corners, det.corners)
+    size = (img.shape[1], img.shape[0])
+    for right in (det.reversed(), det):  # numbered from the other end, or the same one
+        pair = make_pair("p", det, right, size, BOARD)
+        assert np.array_equal(pair.right.corners, det.corners)
 
 
 def _inputs(n):

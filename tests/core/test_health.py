@@ -41,7 +41,7 @@ def test_a_fresh_calibration_is_healthy(rig_and_calib):
 
 
 def test_a_turned_right_camera_is_detected_and_refined_back(rig_and_calib):
-    """Issue 10: a 0.3 degree turn of the right camera is detected and refined back to an
+    """A 0.3 degree turn of the right camera is detected and refined back to an
     epipolar error below 0.2 px, intrinsics and baseline kept."""
     import dataclasses
 

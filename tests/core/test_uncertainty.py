@@ -14,14 +14,8 @@ from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.calibrate import calibrate_stereo
 from stereo_gui.core.detect import PairInput, detect_pairs
 from stereo_gui.core.stereo_calibration import StereoCalibration
-from stereo_gui.core.uncertainty import (
-    _params,
-    _perturbed,
-    _read,
-    corner_sigma_px,
-    depth_sigma_mm,
-    swapped,
-)
+from stereo_gui.core.lens import distortion_names, stereo_rectify, undistort_points
+from stereo_gui.core.uncertainty import corner_sigma_px, depth_sigma_mm, swapped
 from stereo_gui.sources.sim import SimRig
 
 SEED = 957  # not used while tuning
@@ -56,6 +50,7 @@ def test_linearised_depth_sigma_agrees_with_sampled_calibrations(good):
     u = c.uncertainty
     rng = np.random.default_rng(0)
     base = _params(c)
+    assert set(base) >= set(u.names)
     draws = rng.multivariate_normal(np.zeros(len(u.names)), u.covariance, size=160)
     f, b = c.focal_px, c.rectified_baseline_mm
     for x, y, z in ((320.0, 240.0, 1000.0), (40.0, 40.0, 2500.0), (600.0, 440.0, 600.0)):
@@ -70,29 +65,51 @@ def test_linearised_depth_sigma_agrees_with_sampled_calibrations(good):
         errs = []
         for dv in draws:
             pert = _perturbed_all(c, base, u.names, dv)
-            Xp = _read(pert, c.model, ul, ur)[0]
+            Xp = _read(pert, ul, ur)[0]
             errs.append(((Xp @ pert.R1 - X_left) @ pert.R1.T)[2])
         sampled = float(np.std(errs))
         assert lin == pytest.approx(sampled, rel=0.15), (x, y, z, lin, sampled)
         assert 0 < lin < 0.02 * z
 
 
+def _params(c) -> dict[str, float]:
+    """The calibration's parameters under the names of its covariance (`uncertainty.names`)."""
+    out = {}
+    for side, M, D in (("left", c.M1, c.D1), ("right", c.M2, c.D2)):
+        out |= {f"{side}.fx": M[0, 0], f"{side}.fy": M[1, 1], f"{side}.cx": M[0, 2],
+                f"{side}.cy": M[1, 2]}
+        d = np.asarray(D, np.float64).reshape(-1)
+        out |= {f"{side}.{n}": v for n, v in zip(distortion_names(c.model, d.size), d)}
+    out |= dict(zip(("rvec.x", "rvec.y", "rvec.z"), cv2.Rodrigues(c.R)[0].reshape(3)))
+    out |= dict(zip(("T.x", "T.y", "T.z"), np.asarray(c.T).reshape(3)))
+    return {k: float(v) for k, v in out.items()}
+
+
 def _perturbed_all(c, base, names, delta):
-    """A calibration with every parameter moved by `delta` at once (for sampling)."""
-    moved = c
+    """The calibration with every parameter moved by `delta` at once (for sampling), rectified
+    again."""
     p = dict(base)
     for n, v in zip(names, delta):
         p[n] += v
-    # _perturbed moves one parameter: apply the others through the calibration's fields
     M1 = np.array([[p["left.fx"], 0, p["left.cx"]], [0, p["left.fy"], p["left.cy"]], [0, 0, 1.0]])
-    M2 = np.array([[p["right.fx"], 0, p["right.cx"]], [0, p["right.fy"], p["right.cy"]], [0, 0, 1.0]])
+    M2 = np.array([[p["right.fx"], 0, p["right.cx"]], [0, p["right.fy"], p["right.cy"]],
+                   [0, 0, 1.0]])
     names5 = ("k1", "k2", "p1", "p2", "k3")
     D1 = np.array([[p.get(f"left.{k}", 0.0) for k in names5]])
     D2 = np.array([[p.get(f"right.{k}", 0.0) for k in names5]])
     R = cv2.Rodrigues(np.array([p["rvec.x"], p["rvec.y"], p["rvec.z"]]))[0]
     T = np.array([[p["T.x"]], [p["T.y"]], [p["T.z"]]])
-    moved = c.with_updates(M1=M1, M2=M2, D1=D1, D2=D2, R=R, T=T)
-    return _perturbed(moved, names[0], 0.0)
+    R1, R2, P1, P2, Q = stereo_rectify(c.model, M1, D1, M2, D2, c.image_size, R, T, c.alpha)
+    return c.with_updates(M1=M1, M2=M2, D1=D1, D2=D2, R=R, T=T, R1=R1, R2=R2, P1=P1, P2=P2, Q=Q)
+
+
+def _read(c, ul, ur) -> np.ndarray:
+    """Raw pixels seen by both cameras, rectified and triangulated with calibration `c`: (N, 3)
+    points in its rectified frame, mm."""
+    a = undistort_points(c.model, ul, c.M1, c.D1, R=c.R1, P=c.P1)
+    b = undistort_points(c.model, ur, c.M2, c.D2, R=c.R2, P=c.P2)
+    h = np.stack([a[:, 0], a[:, 1], a[:, 0] - b[:, 0], np.ones(len(a))], axis=1) @ c.Q.T
+    return h[:, :3] / h[:, 3:4]
 
 
 def test_readings_near_corners_the_board_never_reached_say_they_are_uncertain(central_images):
@@ -191,15 +208,23 @@ def test_the_real_set_with_left_and_right_exchanged_warns_swapped(shared_data):
 def test_joint_sigmas_agree_with_and_improve_on_opencvs_per_camera_ones(good):
     """calibrateCameraExtended's standard deviations describe each camera calibrated alone; the
     joint solve (both cameras, the shared board poses) determines them better, never worse."""
-    from stereo_gui.core import calibrate as C
-
     rig, _ = good
+    board = rig.config.board
     images = rig.calibration_set(16)
-    dets = detect_pairs([(f"{i + 1}", l, r) for i, (l, r) in enumerate(images)], rig.config.board)
-    sol = C._solve([d for d in dets if d.found], rig.config.board, (640, 480), True, None, None,
-                   0, 8)
-    u = C.uncertainty_from_bundle(sol.bundle, "pinhole")
-    for side, std in zip(("left", "right"), sol.mono_sigmas):
+    dets = detect_pairs([(f"{i + 1}", l, r) for i, (l, r) in enumerate(images)], board)
+    calib = calibrate_stereo(dets, board).calibration
+    u = calib.uncertainty
+    used = {p.name for p in calib.per_pair}
+    pairs = [d for d in dets if d.name in used]
+    assert len(pairs) >= 10
+    opencv = []  # each camera calibrated alone, from the same pairs
+    for side in ("left", "right"):
+        views = [getattr(d, side) for d in pairs]
+        *_, std, _, _ = cv2.calibrateCameraExtended(
+            [v.object_points(board) for v in views], [v.corners_cv for v in views], (640, 480),
+            None, None, criteria=(cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 100, 1e-6))
+        opencv.append(std.reshape(-1))
+    for side, std in zip(("left", "right"), opencv):
         for i, n in enumerate(("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")):
             ratio = u.sigma(f"{side}.{n}") / std[i]
             assert 0.2 < ratio <= 1.05, (side, n, ratio)

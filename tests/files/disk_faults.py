@@ -1,7 +1,7 @@
 """Fault injection for stereo_gui.files.atomic: make one step of the n-th file written fail.
 
-`FaultyDisk(step, nth)` installed on `atomic._ops` (monkeypatch) lets files 1..nth-1 through and
-makes the n-th file's `step` fail as a full disk does:
+`FaultyDisk(step, nth)` installed on `atomic.syscalls` (monkeypatch) lets files 1..nth-1
+through and makes the n-th file's `step` fail as a full disk does:
 
 - "open": the temporary file cannot be created (ENOSPC)
 - "write": half the data is written, then ENOSPC
@@ -99,5 +99,5 @@ def install(monkeypatch, step: str, nth: int = 1, rename: int | None = None) -> 
 
     disk = FaultyDisk(step, nth, rename)
     for name in ("open", "write", "fsync", "close", "replace"):
-        monkeypatch.setattr(atomic._ops, name, getattr(disk, name))
+        monkeypatch.setattr(atomic.syscalls, name, getattr(disk, name))
     return disk

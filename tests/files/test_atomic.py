@@ -136,7 +136,7 @@ def test_os_errors_are_said_in_words():
 
 def test_a_calibration_save_checks_what_filestorage_wrote(tmp_path, monkeypatch):
     """cv2.FileStorage reports no failed write; a torn file must not replace the good one."""
-    from test_calibration_file import make_calibration
+    from factories import make_calibration
 
     from stereo_gui.files import calibration_file as cf
 

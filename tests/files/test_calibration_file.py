@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 import yaml
 
-from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.errors import CalibrationError, CalibrationFileError
 from stereo_gui.core.stereo_calibration import PairError, StereoCalibration
 from stereo_gui.files.calibration_file import (
@@ -23,29 +22,7 @@ from stereo_gui.files.calibration_file import (
     save_calibration,
 )
 
-SIZE = (640, 480)
-
-
-def make_calibration(alpha: float = 0.0) -> StereoCalibration:
-    """A realistic calibration built with OpenCV from made-up (awkward) values."""
-    M1 = np.array([[752.123456789, 0.0, 323.6], [0.0, 748.5, 237.21], [0.0, 0.0, 1.0]])
-    M2 = np.array([[745.3, 0.0, 316.1], [0.0, 742.8, 243.4], [0.0, 0.0, 1.0]])
-    D1 = np.array([[-0.182, 0.061, 1.1e-3, -6.0e-4, -0.012]])
-    D2 = np.array([[-0.214, 0.083, -7.5e-4, 1.25e-3, -0.021]])
-    R, _ = cv2.Rodrigues(np.array([0.0061, -0.0118, 0.0042]))
-    T = np.array([[-109.99], [0.715], [-0.935]])
-    tx = np.array([[0, -T[2, 0], T[1, 0]], [T[2, 0], 0, -T[0, 0]], [-T[1, 0], T[0, 0], 0]])
-    E = tx @ R
-    F = np.linalg.inv(M2).T @ E @ np.linalg.inv(M1)
-    R1, R2, P1, P2, Q, _, _ = cv2.stereoRectify(M1, D1, M2, D2, SIZE, R, T,
-                                                flags=cv2.CALIB_ZERO_DISPARITY, alpha=alpha)
-    opt1, _ = cv2.getOptimalNewCameraMatrix(M1, D1, SIZE, 1, SIZE)
-    return StereoCalibration(SIZE, M1, D1, M2, D2, R, T, E, F, R1, R2, P1, P2, Q,
-                             board=BoardSpec(9, 6, 24.5), rms_left=0.1 / 3, rms_right=0.2718281828,
-                             rms_stereo=0.31415926535, epipolar_error_px=0.0123456789,
-                             per_pair=(PairError("chessboard-1", 0.1, 0.2),
-                                       PairError("07", 1 / 7, 2 / 7)),
-                             alpha=alpha, optimal_M1=opt1, optimal_M2=None)
+from factories import make_calibration
 
 
 def test_round_trip_is_exact(tmp_path):

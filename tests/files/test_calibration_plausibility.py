@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from test_calibration_file import make_calibration
+from factories import make_calibration
 
 from stereo_gui.core.errors import CalibrationFileError, StereoGuiError
 from stereo_gui.core.lens import project_points, undistort_points

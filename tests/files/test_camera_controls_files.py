@@ -14,7 +14,7 @@ from stereo_gui.core.camera_settings import CameraSettings, PairSettings
 from stereo_gui.files.calibration_file import load_calibration, save_calibration
 from stereo_gui.files.session import MANIFEST, CaptureSession
 
-from test_calibration_file import make_calibration  # tests/files/
+from factories import make_calibration
 
 CONTROLS = PairSettings(
     CameraSettings("V4L2", focus_auto=False, focus=30.0, exposure_auto=False, exposure=156.0,

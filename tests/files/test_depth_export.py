@@ -102,7 +102,7 @@ def test_errors_and_atomic_writes(tmp_path, result, monkeypatch):
 
     from stereo_gui.files import atomic
 
-    monkeypatch.setattr(atomic._ops, "write", boom)
+    monkeypatch.setattr(atomic.syscalls, "write", boom)
     with pytest.raises(InputError, match="(?i)no space"):
         depth_export.write_disparity_npy(target, r.final_px)
     assert target.read_bytes() == b"old"

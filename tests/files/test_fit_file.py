@@ -49,7 +49,7 @@ def test_failed_save_keeps_the_old_file(tmp_path, monkeypatch):
 
     from stereo_gui.files import atomic
 
-    monkeypatch.setattr(atomic._ops, "replace", boom)
+    monkeypatch.setattr(atomic.syscalls, "replace", boom)
     with pytest.raises(InputError, match="(?i)no space"):
         save_fit(fit_cubic(SAMPLES), path)
     assert path.read_text() == before

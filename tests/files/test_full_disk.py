@@ -22,6 +22,8 @@ import pytest
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.stereo_calibration import StereoCalibration
 
+from factories import make_calibration, make_records
+
 SIZE_KIB = 512
 FREE = (0, 4096)  # bytes left on the disk when the writer runs
 
@@ -92,12 +94,6 @@ def disk(mount_point):
 
 
 # ---- the writers ----------------------------------------------------------------------------
-def _calib(alpha=0.0):
-    from test_calibration_file import make_calibration
-
-    return make_calibration(alpha)
-
-
 def _noise(h, w, seed, channels=3):
     rng = np.random.default_rng(seed)
     shape = (h, w, channels) if channels > 1 else (h, w)
@@ -114,17 +110,11 @@ def _disparity(seed):
 IDENTITY = StereoCalibration.identity((80, 60), 300.0, 100.0)
 
 
-def _records(n, seed):
-    from test_spreadsheet import _records as records
-
-    return records(n)
-
-
 def _w_calibration(root, version):
     from stereo_gui.core.stereo_calibration import PairError
     from stereo_gui.files.calibration_file import save_calibration
 
-    calib = _calib(0.0 if version == 0 else 0.7)
+    calib = make_calibration(0.0 if version == 0 else 0.7)
     if version:  # more than 4 KiB: it cannot fit
         calib = calib.with_updates(per_pair=tuple(PairError(f"chessboard-{i}", 0.1 + i / 997,
                                                             0.2 + i / 991) for i in range(80)))
@@ -134,7 +124,7 @@ def _w_calibration(root, version):
 def _w_ros(root, version):
     from stereo_gui.files.calibration_file import export_ros
 
-    export_ros(_calib(0.0 if version == 0 else 0.7), root)
+    export_ros(make_calibration(0.0 if version == 0 else 0.7), root)
 
 
 def _w_preset(root, version):
@@ -199,7 +189,7 @@ def _w_calibration_controls(root, version):
     from stereo_gui.core.stereo_calibration import PairError
     from stereo_gui.files.calibration_file import save_calibration
 
-    calib = _calib(0.0).with_updates(camera_controls=_controls(version))
+    calib = make_calibration(0.0).with_updates(camera_controls=_controls(version))
     if version:  # more than 4 KiB: it cannot fit
         calib = calib.with_updates(per_pair=tuple(PairError(f"chessboard-{i}", 0.1 + i / 997,
                                                             0.2 + i / 991) for i in range(80)))
@@ -224,19 +214,20 @@ def _w_session_controls(root, version):
 def _w_xlsx(root, version):
     from stereo_gui.files.spreadsheet import write_workbook
 
-    write_workbook(root / "log.xlsx", _records(3 + 200 * version, version), calibration=_calib())
+    write_workbook(root / "log.xlsx", make_records(3 + 200 * version),
+                   calibration=make_calibration())
 
 
 def _w_xlsx_append(root, version):
     from stereo_gui.files.spreadsheet import append_measurements
 
-    append_measurements(root / "log.xlsx", _records(3 + 200 * version, version))
+    append_measurements(root / "log.xlsx", make_records(3 + 200 * version))
 
 
 def _w_csv(root, version):
     from stereo_gui.files.spreadsheet import write_csv
 
-    write_csv(root / "log.csv", _records(3 + 200 * version, version))
+    write_csv(root / "log.csv", make_records(3 + 200 * version))
 
 
 def _w_png16(root, version):
@@ -370,7 +361,7 @@ def test_calibrate_on_a_full_disk_exits_2_and_keeps_the_old_calibration(disk, tm
     target = disk.root / "calib.yaml"
     from stereo_gui.files.calibration_file import save_calibration
 
-    save_calibration(_calib(), target)
+    save_calibration(make_calibration(), target)
     before = target.read_bytes()
     disk.fill(4096)
     done = _cli("calibrate", pairs, "--board", "9x6", "--square-mm", "25", "-o", target,

@@ -170,8 +170,9 @@ def test_a_crashed_recording_opens_with_what_was_saved(tmp_path):
     for f in _frames(3):
         w.write(f)
     # no close(): the process died. A torn last line must not matter either.
-    w._csv_file.write("3,12.5")
-    w._csv_file.flush()
+    w.flush()
+    with open(tmp_path / "rec" / "frames.csv", "a", encoding="utf-8") as frames:
+        frames.write("3,12.5")
     rec = open_recording(tmp_path / "rec")
     assert len(rec.frames) == 3 and not rec.complete
     assert any("line 5" in x for x in rec.warnings)
@@ -190,13 +191,13 @@ def test_open_recording_refuses_other_folders(tmp_path):
 
 
 def test_a_torn_last_line_is_left_out_and_the_rest_plays(tmp_path):
-    """Issue 13 item 6: the last line cut after `left/000004.png,` made playback die at it."""
+    """A last line cut after `left/000004.png,` (a crash mid-write) must not stop playback."""
     from stereo_gui.sources.playback import PlaybackSource
 
     w = RecordingWriter(tmp_path / "rec", background=False)
     for f in _frames(4):
         w.write(f)
-    w._csv_file.flush()
+    w.flush()
     text = (tmp_path / "rec" / "frames.csv").read_text()
     last = text.rstrip("\n").rsplit("\n", 1)[1]
     torn = text[: len(text) - len(last) - 1] + last[: last.index(".png,") + 5] + "\n"

@@ -222,7 +222,7 @@ def test_subfolder_layout_opens_and_names_match_discovery(tmp_path):
 
 
 def test_a_manifest_path_outside_the_folder_is_refused_and_never_deleted(tmp_path):
-    """Issue 13 item 7: `"left": "../victim.txt"` was accepted and Delete pair removed it."""
+    """A manifest naming `"left": "../victim.txt"` must not let Delete pair remove it."""
     import json
 
     s = _new(tmp_path)
@@ -273,16 +273,16 @@ def test_an_entry_pointing_outside_is_left_out_alone(tmp_path):
 
 
 def test_delete_pair_refuses_a_file_outside_the_folder(tmp_path):
-    from dataclasses import replace
-
+    """A pair's image replaced, after the session was opened, by a link to a file elsewhere."""
     s = _new(tmp_path)
     entry = s.add_pair(_img(1), _img(2))
     victim = tmp_path / "victim.txt"
     victim.write_text("not yours")
-    s._pairs[0] = replace(entry, left=tmp_path / "s" / ".." / "victim.txt")
+    entry.left.unlink()
+    entry.left.symlink_to(victim)
     with pytest.raises(InputError, match="not inside the session folder"):
         s.delete_pair(entry.name)
-    assert victim.exists() and entry.right.exists()
+    assert victim.exists() and entry.left.is_symlink() and entry.right.exists()
 
 
 @pytest.mark.parametrize(("doc", "message"), [

@@ -1,6 +1,6 @@
-"""The Calibration tab's review: each used pair's corners reprojected through the calibration
-(issue 12, item 16). The board pose is fitted to both images as the joint refinement did, so the
-errors are the chart's."""
+"""The Calibration tab's review: each used pair's corners reprojected through the calibration.
+The board pose is fitted to both images as the joint refinement did, so the errors are the
+chart's."""
 
 from __future__ import annotations
 

@@ -21,6 +21,7 @@ from stereo_gui.pipeline.camera_setup import (
 from stereo_gui.sources.camera_controls import CameraControls, PairControls
 from stereo_gui.sources.sim import TRUE_FOCUS, RigConfig, SimRig, SimSource
 
+from factories import make_calibration
 from fake_cameras import FakeControlDevice
 
 
@@ -28,18 +29,11 @@ def _sim(**config) -> SimSource:
     return SimSource(SimRig(RigConfig(supersample=1, **config)), mode="scene", paced=False)
 
 
-def _calibrated_at(src: SimSource, focus: float = TRUE_FOCUS, swapped: bool = False):
-    held = CameraSettings("simulated", focus_auto=False, focus=focus, exposure_auto=False,
-                          exposure=150.0)
-    return src.rig.true_calibration().with_updates(
-        camera_controls=PairSettings(held, held), swapped_inputs=swapped)
-
-
 def test_restore_writes_the_calibrations_focus_back_and_then_nothing_differs():
     src = _sim(auto_modes=True)
     for _ in range(10):
         src.read()  # autofocus has wandered off the calibration's focus
-    calib = _calibrated_at(src)
+    calib = make_calibration(rig=src.rig, focus=TRUE_FOCUS)
     before = read_controls(src.camera_controls(), calib, (640, 480))
     assert {m.what for m in before.mismatches} == {"autofocus"}
     report = restore_calibration_controls(src.camera_controls(), calib, (640, 480))
@@ -57,7 +51,7 @@ def test_a_focus_the_camera_will_not_take_is_warned_about_in_the_technicians_wor
                         CameraControls(right, cv2.CAP_V4L2, "right"))
     held = CameraSettings("V4L2", focus_auto=False, focus=30.0)
     src = _sim()
-    calib = src.rig.true_calibration().with_updates(camera_controls=PairSettings(held, held))
+    calib = make_calibration(rig=src.rig, camera_controls=PairSettings(held, held))
     report = restore_calibration_controls(pair, calib, (640, 480))
     (m,) = report.mismatches
     assert m.what == "focus" and m.side == "left" and m.restorable
@@ -68,7 +62,8 @@ def test_a_focus_the_camera_will_not_take_is_warned_about_in_the_technicians_wor
 
 def test_another_resolution_is_said_and_cannot_be_restored_by_writing_controls():
     src = _sim()
-    report = read_controls(src.camera_controls(), _calibrated_at(src), (1280, 720))
+    calib = make_calibration(rig=src.rig, focus=TRUE_FOCUS)
+    report = read_controls(src.camera_controls(), calib, (1280, 720))
     (m,) = report.mismatches
     assert m.what == "resolution" and not m.restorable and "640x480" in m.message
 
@@ -77,8 +72,8 @@ def test_a_calibration_of_swapped_cameras_restores_each_camera_its_own_focus():
     src = _sim()
     left_cal = CameraSettings("simulated", focus_auto=False, focus=40.0)
     right_cal = CameraSettings("simulated", focus_auto=False, focus=50.0)
-    calib = src.rig.true_calibration().with_updates(
-        camera_controls=PairSettings(left_cal, right_cal), swapped_inputs=True)
+    calib = make_calibration(rig=src.rig, camera_controls=PairSettings(left_cal, right_cal),
+                             swapped_inputs=True)
     report = restore_calibration_controls(src.camera_controls(), calib, (640, 480))
     # the calibration's left camera is the source's right one
     assert report.settings.right.focus == 40.0 and report.settings.left.focus == 50.0

@@ -139,9 +139,8 @@ def _at(out: CaptureOutput, t_s: float) -> CaptureOutput:
 
 
 def test_steadiness_is_time_not_frame_count_when_frames_come_slowly(board_output):
-    """Issue 12, item 11: at a few processed frames a second, four frames meant a second of
-    stillness; the board must hold still for STEADY_S (or STEADY_FRAMES frames), whichever
-    comes first."""
+    """At a few processed frames a second, four frames would mean a second of stillness; the
+    board must hold still for STEADY_S (or STEADY_FRAMES frames), whichever comes first."""
     from stereo_gui.pipeline.capture import STEADY_MAX_S, STEADY_S
 
     gap = 1.5 * STEADY_S
@@ -163,13 +162,13 @@ def test_steadiness_is_time_not_frame_count_when_frames_come_slowly(board_output
 
 
 def test_the_processor_skips_the_quick_check_while_the_board_stays_in_view(monkeypatch):
-    """The pre-check costs more than the search when a board is in view (issue 12, item 11):
+    """The pre-check costs more than the search when a board is in view:
     once found, the next frame is searched at once."""
     import stereo_gui.pipeline.capture as capture
 
     calls = []
-    real = capture._maybe_board
-    monkeypatch.setattr(capture, "_maybe_board", lambda g, b: calls.append(1) or real(g, b))
+    real = capture.may_show_board
+    monkeypatch.setattr(capture, "may_show_board", lambda g, b: calls.append(1) or real(g, b))
     src = SimSource(SimRig(RigConfig(supersample=1)), mode="board", paced=False, seed=1,
                     frames_per_move=50)
     proc = make_capture_processor(BoardSpec())

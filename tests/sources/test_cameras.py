@@ -19,9 +19,17 @@ from fake_cameras import FakeCapture, unplug  # tests/fake_cameras.py
 
 @pytest.fixture
 def fake_cams(monkeypatch):
+    """The fake devices (`devices`, `log`); `opened` lists every capture opened, in order."""
     FakeCapture.devices = {0: {"value": 10}, 1: {"value": 100}}
     FakeCapture.log = []
-    monkeypatch.setattr(cameras.cv2, "VideoCapture", FakeCapture)
+    opened = []
+
+    def capture(index, *args):
+        opened.append(FakeCapture(index, *args))
+        return opened[-1]
+
+    monkeypatch.setattr(FakeCapture, "opened", opened, raising=False)
+    monkeypatch.setattr(cameras.cv2, "VideoCapture", capture)
     return FakeCapture
 
 
@@ -37,8 +45,8 @@ def test_two_cameras_grab_both_then_retrieve(fake_cams):
     assert f0.left[0, 0, 0] == 11 and f0.right[0, 0, 0] == 101
     assert f0.t_left <= f0.t_right <= f1.t_left <= f1.t_right
     # the requested size (and MJPG) was asked of both devices
-    cap = src._caps[0]
-    assert cap.props[cv2.CAP_PROP_FRAME_WIDTH] == 64 and cap.props[cv2.CAP_PROP_FRAME_HEIGHT] == 48
+    cap = fake_cams.opened[0]
+    assert cap.index == 0 and cap.props[cv2.CAP_PROP_FRAME_WIDTH] == 64 and cap.props[cv2.CAP_PROP_FRAME_HEIGHT] == 48
     # a grab of a camera that stops answering fails after a while instead of blocking for ever
     assert cap.props[cv2.CAP_PROP_READ_TIMEOUT_MSEC] == cameras.READ_TIMEOUT_MS
     src.close()
@@ -70,7 +78,8 @@ def test_camera_that_disappears_says_it_is_reconnecting(fake_cams, monkeypatch):
     with pytest.raises(SourceUnavailable, match=r"Reconnecting to right camera 1….*stopped "
                                                 r"delivering frames.*every 3 s"):
         src.read()
-    assert src._cams[1].cap is None and fake_cams.log[-1] == ("release", 1)
+    right = [c for c in fake_cams.opened if c.index == 1]
+    assert right[-1].released and fake_cams.log[-1] == ("release", 1)
 
 
 class Clock:
@@ -145,7 +154,8 @@ def test_a_vanished_camera_is_looked_for_every_few_seconds_and_resumes(fake_cams
     f = src.read()
     assert cams.calls == 2 and src.reconnects == 1
     assert f.right.shape == (60, 80, 3) and f.right[0, 0, 0] == 201 and f.index == 1
-    cap = src._cams[1].cap
+    cap = fake_cams.opened[-1]  # the right camera, opened again
+    assert cap.index == 1 and not cap.released
     assert (cap.props[cv2.CAP_PROP_FRAME_WIDTH], cap.props[cv2.CAP_PROP_FRAME_HEIGHT]) == (80, 60)
     assert src.name == "Cameras 0, 1"
 
@@ -168,7 +178,7 @@ def test_a_camera_back_under_another_index_is_found_by_name_not_its_twin(fake_ca
     clock.t += cameras.RECONNECT_INTERVAL_S
     with pytest.raises(SourceUnavailable):
         src.read()  # another camera is listed; it is not opened in its place
-    assert [c.index for c in src._cams] == [0, 2]
+    assert 3 not in [c.index for c in fake_cams.opened]
     fake_cams.devices[4] = {"value": 150}
     cams.present = [(0, "HD Webcam C270"), (3, "Other camera"), (4, "HD Webcam C270")]
     clock.t += cameras.RECONNECT_INTERVAL_S
@@ -247,7 +257,7 @@ def test_split_side_by_side():
 
 def test_side_by_side_camera(fake_cams, monkeypatch):
     fake_cams.devices[3] = {"value": 50, "size": (128, 48)}
-    src = SideBySideSource(3, size=(128, 48))
+    src = SideBySideSource(3, size=(128, 48), identity="Stereo cam [046d:0825]")
     f = src.read()
     assert f.left.shape == f.right.shape == (48, 64, 3)
     assert src.name == "Side-by-side camera 3" and f.t_left == f.t_right
@@ -256,7 +266,6 @@ def test_side_by_side_camera(fake_cams, monkeypatch):
     clock = Clock(monkeypatch)
     cams = listing((3, "Stereo cam"))
     monkeypatch.setattr(cameras, "list_cameras", cams)
-    src._cams[0].identity = "Stereo cam [046d:0825]"
     unplug(fake_cams.devices, 3)
     with pytest.raises(SourceUnavailable, match="Reconnecting to side-by-side camera 3.*stopped "
                                                 "delivering"):
@@ -399,7 +408,10 @@ def test_list_cameras_never_raises(monkeypatch, fake_cams):
     fake_cams.devices = {1: {"value": 0}}
     # the library failing: OpenCV indices are probed instead
     assert [c.index for c in list_cameras(enumerate_fn=broken, backends=(cv2.CAP_V4L2,))] == [1]
-    monkeypatch.setattr(cameras, "_probe", lambda n: 1 / 0)
+    def unopenable(*args):  # probing fails too
+        raise RuntimeError("no camera API")
+
+    monkeypatch.setattr(cameras.cv2, "VideoCapture", unopenable)
     assert list_cameras(enumerate_fn=broken, backends=(cv2.CAP_V4L2,)) == []
 
 
@@ -449,7 +461,7 @@ def test_opening_a_camera_keeps_opencvs_own_warnings_off_the_terminal(capfd):
     log.setLogLevel(log.LOG_LEVEL_WARNING)  # as with --verbose: the opening silences it itself
     try:
         with pytest.raises(SourceError, match="cannot open left camera 57.*choose other cameras"):
-            cameras._open_camera(57, (64, 48), "left")
+            TwoCameraSource(57, 58, size=(64, 48))
         err = capfd.readouterr().err
         assert "WARN" not in err and "libavdevice" not in err
         assert log.getLogLevel() == log.LOG_LEVEL_WARNING  # and puts the level back
@@ -459,5 +471,9 @@ def test_opening_a_camera_keeps_opencvs_own_warnings_off_the_terminal(capfd):
 
 def test_probe_lists_openable_indices(fake_cams):
     fake_cams.devices = {1: {"value": 0}, 2: {"value": 0}}
-    assert [c.index for c in cameras._probe(4)] == [1, 2]
+    def broken(backend):
+        raise PermissionError("denied")
+
+    cams = list_cameras(max_probe=4, enumerate_fn=broken, backends=(cv2.CAP_V4L2,))
+    assert [c.index for c in cams] == [1, 2]
     assert all(("release", i) in fake_cams.log for i in range(4))

@@ -1,5 +1,5 @@
-"""Calibration sets on disk: board pairs in the report's naming, optional scene pairs, and
-truth.json with everything the rig was built with."""
+"""Calibration sets on disk: board pairs named as a capture session names them, optional scene
+pairs, and truth.json with everything the rig was built with."""
 
 from __future__ import annotations
 
@@ -31,7 +31,8 @@ def calibration_set_names(n_pairs: int, scene: bool) -> list[str]:
 def write_calibration_set(out_dir, n_pairs: int = 20, seed: int = 0, scene: bool = False,
                           config: RigConfig | None = None, progress=None,
                           what: str | None = None) -> Path:
-    """Write a calibration set in the report's naming plus truth.json; return the folder.
+    """Write a calibration set named as a capture session names it, plus truth.json; return the
+    folder.
 
     chessboard-L{n}.png / chessboard-R{n}.png for n = 1..n_pairs; with `scene`, also
     scenes/scene-L{k}.png / scenes/scene-R{k}.png for walls at SCENE_WALL_DISTANCES_MM and the

@@ -523,7 +523,7 @@ class SimRig:
             zb = zbuf[y0 - oy:y1 - oy, x0 - ox:x1 - ox]
             cv2.bitwise_and(mask, cv2.compare(z, zb, cv2.CMP_LT), dst=mask)
             cv2.copyTo(z, mask, zb)
-        # (cvtColor drops the alpha channel some 40x faster than numpy's copy of a channel slice)
+        # (cvtColor drops the alpha channel much faster than numpy's copy of a channel slice)
         cv2.copyTo(cv2.cvtColor(sampled, cv2.COLOR_BGRA2BGR), mask,
                    img[y0 - oy:y1 - oy, x0 - ox:x1 - ox])
 

@@ -7,14 +7,18 @@ import numpy as np
 
 from stereo_gui.sources.sim import (
     CameraTruth,
+    ray_map,
     undistort_normalized,
 )
 
 
 def test_ray_map_inverts_the_distortion_model(rig):
-    """Projecting the stored rays with cv2.projectPoints gives back their sample positions."""
-    for cam, (M, D) in enumerate(((rig.truth.M1, rig.truth.D1), (rig.truth.M2, rig.truth.D2))):
-        rays = rig._rays[cam]
+    """Projecting the rays the rig renders with (ray_map of its cameras) with cv2.projectPoints
+    gives back their sample positions."""
+    c = rig.config
+    for cam, (truth, M, D) in enumerate(((c.left, rig.truth.M1, rig.truth.D1),
+                                         (c.right, rig.truth.M2, rig.truth.D2))):
+        rays = ray_map(truth, c.image_size, c.supersample)
         s = rays.supersample
         rng = np.random.default_rng(cam)
         iy = rng.integers(0, rays.xy.shape[0], 300)

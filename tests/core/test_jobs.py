@@ -1,8 +1,10 @@
 """Job progress and cancel without Qt."""
 
+import threading
+
 import pytest
 
-from stereo_gui.pipeline.jobs import JobCancelled, JobControl, Progress
+from stereo_gui.core.jobs import Cancelled, JobControl, Progress, check_cancel, is_cancelled
 
 
 def test_progress_percent():
@@ -19,5 +21,16 @@ def test_control_reports_progress_and_cancels():
     control.check()
     control.set()
     assert control() and control.is_set()
-    with pytest.raises(JobCancelled):
+    with pytest.raises(Cancelled):
         control.check()
+
+
+@pytest.mark.parametrize("make", [threading.Event, lambda: JobControl()])
+def test_an_event_or_a_control_cancels_core_work(make):
+    cancel = make()
+    assert not is_cancelled(cancel) and not is_cancelled(None)
+    check_cancel(cancel)
+    cancel.set()
+    assert is_cancelled(cancel)
+    with pytest.raises(Cancelled):
+        check_cancel(cancel)
