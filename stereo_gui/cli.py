@@ -85,7 +85,9 @@ class _UserFormatter(logging.Formatter):
         return f"{PREFIX}: {record.levelname.lower()}: {text}"
 
 
-def _setup_logging(verbose: bool) -> None:
+def setup_logging(verbose: bool) -> None:
+    """Messages as the command line shows them: warnings and errors in the user's words under
+    one prefix; with `verbose`, every level with the logger's name."""
     if verbose:
         logging.basicConfig(level=logging.DEBUG, format="%(levelname)s %(name)s: %(message)s")
     else:
@@ -111,10 +113,10 @@ def main(argv: list[str] | None = None) -> int:
         if argv and argv[0] in SUBCOMMANDS:
             parser, module = _sub_parser(argv[0])
             args = parser.parse_args(argv[1:])
-            _setup_logging(args.verbose)
+            setup_logging(args.verbose)
             return int(module.run(args) or 0)
         args = _gui_parser().parse_args(argv)
-        _setup_logging(args.verbose)
+        setup_logging(args.verbose)
         from stereo_gui.qt.preflight import check_gui_can_start
 
         check_gui_can_start()  # no display or a missing Qt library: one line, not Qt's abort

@@ -51,7 +51,7 @@ def test_bad_input_and_warnings_share_the_prefix(tmp_path, capsys):
     assert main(["measure", "--calib", str(tmp_path / "none.yaml"), "a.png", "b.png",
                  "--at", "1,1"]) == 2
     assert capsys.readouterr().err.startswith("stereo-gui: error: ")
-    code = ("import logging; from stereo_gui.cli import _setup_logging; _setup_logging(False); "
+    code = ("import logging; from stereo_gui.cli import setup_logging; setup_logging(False); "
             "logging.getLogger('stereo_gui.sources.open').warning('no cameras were found'); "
             "logging.getLogger('stereo_gui.x').info('not shown')")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
