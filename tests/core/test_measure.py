@@ -234,20 +234,20 @@ def test_reduced_resolution_preset_rematches_a_full_resolution_strip(rig, walls)
 
 
 def test_left_edge_strip_says_not_seen_and_the_seeds_band_not_searched(rig, walls):
-    from stereo_gui.core.measure import NOT_SEARCHED, NOT_SEEN
+    from stereo_gui.core.measure import Reason
 
     calib = rig.true_calibration()
     scene, (left, right) = walls[1000.0]  # d = f*B/Z = 82 px: the strip the right camera misses
     quality = StereoPipeline(calib, load_preset("quality")).process(left, right)
     seed = StereoPipeline(calib, load_preset("seed")).process(left, right)
     for y in (60, 240, 420):
-        assert measure_point(quality, 30, y).reason == NOT_SEEN
-        assert measure_point(seed, 30, y).reason == NOT_SEARCHED
+        assert measure_point(quality, 30, y).reason == Reason.NOT_SEEN
+        assert measure_point(seed, 30, y).reason == Reason.NOT_SEARCHED
         # right of the strip but inside the seed's 130 px dead band: quality reads it
         m = measure_point(quality, 110, y)
         true = rig.true_point_rectified(calib, scene, 110, y)[2]
         assert m.valid and m.Z_mm == pytest.approx(true, rel=0.01)
-        assert measure_point(seed, 110, y).reason == NOT_SEARCHED
+        assert measure_point(seed, 110, y).reason == Reason.NOT_SEARCHED
     # the view paints the strip as not seen, and a click there agrees with it
     assert quality.not_seen[240, :70].all() and not quality.not_seen[240, 100:].any()
 
