@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import MatcherParams, StereoPipeline
+from stereo_gui.core.matching import MatcherParams, Preset, StereoPipeline
 from stereo_gui.core.measure import (Z95, histogram_mode, measure_point, refine_disparity,
                                      triangulate)
 from stereo_gui.core.regression import fit_inverse
@@ -213,7 +213,7 @@ def test_bad_arguments():
         measure_point(disp, 5, 5, calibration=c, patch=0)
     with pytest.raises(InputError):
         measure_point(disp, 5, 5, calibration=c, mode="blob")
-    assert MatcherParams().name == "custom"
+    assert Preset().name == "custom"
 
 
 def test_reduced_resolution_preset_rematches_a_full_resolution_strip(rig, walls):

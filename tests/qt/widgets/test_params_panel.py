@@ -19,36 +19,36 @@ def panel(qtbot):
 def test_an_even_window_shows_the_odd_one_that_runs(panel):
     got = []
     panel.paramsChanged.connect(got.append)
-    panel.block_size.setValue(12)
-    assert panel.params().block_size == 13 and panel.block_size.value() == 13
-    panel.block_size.setValue(12)  # again: nothing new runs, the box still shows 13
-    assert panel.block_size.value() == 13
-    assert all(p.block_size % 2 for p in got)
+    panel.editors["block_size"].setValue(12)
+    assert panel.params().matcher.block_size == 13 and panel.editors["block_size"].value() == 13
+    panel.editors["block_size"].setValue(12)  # again: nothing new runs, the box still shows 13
+    assert panel.editors["block_size"].value() == 13
+    assert all(p.matcher.block_size % 2 for p in got)
 
 
 def test_p1_p2_follow_the_window_while_automatic(panel):
     panel.p_auto.setChecked(True)
-    panel.block_size.setValue(7)
-    assert (panel.p1.value(), panel.p2.value()) == (8 * 3 * 49, 32 * 3 * 49)
-    assert (panel.p1.value(), panel.p2.value()) == (panel.params().p1_value,
-                                                    panel.params().p2_value)
+    panel.editors["block_size"].setValue(7)
+    assert (panel.editors["p1"].value(), panel.editors["p2"].value()) == (8 * 3 * 49, 32 * 3 * 49)
+    assert (panel.editors["p1"].value(), panel.editors["p2"].value()) == (panel.params().matcher.p1_value,
+                                                    panel.params().matcher.p2_value)
 
 
 def test_range_from_working_distances_shows_the_range_it_gives(panel):
     calib = StereoCalibration.identity((640, 480), 700.0, 110.0)  # f*B = 77000 px*mm
     panel.set_calibration(calib)
     panel.range_from_z.setChecked(True)
-    panel.z_min.setValue(450.0)
-    panel.z_max.setValue(0.0)  # infinity
-    lo, num = panel.params().disparity_range(calib)
+    panel.editors["z_min_mm"].setValue(450.0)
+    panel.editors["z_max_mm"].setValue(0.0)  # infinity
+    lo, num = panel.params().matcher.disparity_range(calib)
     assert lo == 0 and num >= 77000 / 450  # about 0 .. 192, not the 2 / 128 of the seed
-    assert (panel.min_disparity.value(), panel.num_disparities.value()) == (lo, num)
-    assert "from the working distances" in panel.num_disparities.toolTip()
+    assert (panel.editors["min_disparity"].value(), panel.editors["num_disparities"].value()) == (lo, num)
+    assert "from the working distances" in panel.editors["num_disparities"].toolTip()
 
 
 def test_an_edited_preset_says_modified_and_choosing_it_again_restores_it(panel):
     assert panel.preset.currentText() == "live"
-    panel.uniqueness.setValue(panel.uniqueness.value() + 3)
+    panel.editors["uniqueness_ratio"].setValue(panel.editors["uniqueness_ratio"].value() + 3)
     assert panel.preset.currentText() == "live" + MODIFIED
     assert panel.params().name == "live" + MODIFIED
     assert panel.apply_preset("live")
