@@ -165,7 +165,6 @@ class MatcherParams:
     # neighbours
     wls_confident_only: bool = param(
         True, help="keep the WLS output only where its left-right confidence is above zero")
-    # the report's code did it without knowing
     wls_disables_checks: bool = param(
         False, help="OpenCV's WLS filter turns off the matcher's uniqueness, speckle and "
                     "left-right checks when made from it; True reproduces that")
@@ -243,7 +242,7 @@ class DisplayParams:
 
     colormap: str = param("ocean", choices=tuple(sorted(COLORMAPS)), label="colour map",
                           help="OpenCV colour map of the depth view")
-    # "minmax" normalises every frame as the report did, so colours drift with the scene
+    # "minmax" (the seed preset's) normalises every frame, so colours drift with the scene
     color_range: str = param("minmax", choices=COLOR_RANGES,
                              help="minmax: each frame's own range; fixed: a colour always means "
                                   "the same distance")
@@ -503,7 +502,7 @@ def _nan_image(h: int, w: int) -> np.ndarray:
 
 def blank(disparity_px: np.ndarray, mask: np.ndarray, cols: int | None = None) -> None:
     """Set the pixels of a float32 H x W map where `mask` (bool or uint8) is set to NaN, in
-    place (cv2.copyTo: 2-10x faster than numpy's boolean assignment at 1280x720, the more so
+    place (cv2.copyTo: many times faster than numpy's boolean assignment at 1280x720, the more so
     the more pixels are set). `cols`: the mask is set only in the leftmost `cols` columns (only
     those are looked at)."""
     if cols is not None and cols < disparity_px.shape[1]:
@@ -610,8 +609,8 @@ class StereoPipeline:
             num = max(16, int(math.ceil((top - lo + 1) / 16.0)) * 16)
             self._check = (cs, lo, num)
             # its window shrinks with the images (at least 3 px, odd), so that it covers about
-            # as much of the scene and reaches nearer the right edge (accuracy bench, live: grid
-            # points 9 px from the edge without a reading 6 -> 1 on seed 4242, 4 -> 3 on seed 7)
+            # as much of the scene and reaches nearer the right edge: points near the edge keep
+            # their reading
             block = max(3, math.ceil(p.block_size * cs) | 1)
             self._right = cv2.ximgproc.createRightMatcher(sgbm(lo, num, block))
         else:
@@ -619,8 +618,9 @@ class StereoPipeline:
         self._wls = None
         if p.wls:
             # createDisparityWLSFilter switches off the uniqueness, speckle and left-right checks
-            # of the matcher it is given (the report's raw map ran without them): unless the
-            # preset reproduces that, it gets a copy of the matcher to configure itself from
+            # of the matcher it is given: unless the preset asks for that (the seed preset
+            # reproduces the report's map, made so), it gets a copy of the matcher to configure
+            # itself from
             self._wls = cv2.ximgproc.createDisparityWLSFilter(
                 self._left if p.wls_disables_checks else sgbm())
             self._wls.setLambda(float(p.wls_lambda))
@@ -808,8 +808,9 @@ class StereoPipeline:
         lap("convert")
         wls_px = confidence = None
         if run_wls:
-            # the report filters the unclosed left disparity; a low-resolution map is enlarged by
-            # the filter itself (values scaled) against the full-resolution guide
+            # the filter takes the unclosed left disparity (as the seed preset must, to be the
+            # report's); a low-resolution map is enlarged by the filter itself (values scaled)
+            # against the full-resolution guide
             guide = gl if p.wls_full_resolution else ml
             if p.full_frame:
                 f16 = self._wls.filter(d16, guide, None, d16_right, (0, 0, mw, ml.shape[0]))

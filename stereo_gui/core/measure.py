@@ -2,10 +2,10 @@
 
 A click is a pixel (x, y) of the full-resolution rectified left image. Point mode takes the median
 of the valid disparities in a square patch; object mode takes the region the WLS view shows as
-one surface and reads the most frequent disparity in it (the report's first proposal). In point
-mode, when the rectified images are at hand, the disparity is then refined to a fraction of a pixel by a 1-D
-Lucas-Kanade alignment of the patch (SGBM's own subpixel estimate is biased towards whole pixels,
-"pixel locking", which at 3 m is worth several centimetres). A reduced-resolution preset's
+one surface and reads the most frequent disparity in it. In point mode, when the rectified
+images are at hand, the disparity is then refined to a fraction of a pixel by a 1-D Lucas-Kanade
+alignment of the patch (SGBM's own subpixel estimate is biased towards whole pixels, "pixel
+locking", which at 3 m is worth several centimetres). A reduced-resolution preset's
 estimate is first replaced by a full-resolution re-match of a strip around the clicked row.
 """
 
@@ -60,9 +60,8 @@ class Reason(StrEnum):
 AMBIGUOUS_SHARE = 0.25  # a reading whose 95 % bound exceeds this share of its distance
 Z95 = 1.959964  # two-sided 95 % quantile of the normal distribution
 # the parts of a reading's disparity uncertainty (1 sigma, px) that its refinement's own standard
-# error does not see, measured on the simulated rig (rig seeds 11-15: 17x13 grids on walls at
-# 0.5-3 m; 7-9: points on chessboards at 0.4-1.2 m in front of the demo scene; the tests and the
-# benchmark use other seeds): a floor (interpolation in rectification and resampling), a share
+# error does not see, measured on the simulated rig on walls and chessboards the tests and the
+# benchmark do not use: a floor (interpolation in rectification and resampling), a share
 # of the refinement's own correction (the rest of SGBM's bias towards whole pixels), a share of
 # the disagreement between the 13 and 9 px windows (sharp, repeating or sparse texture), and,
 # unrefined, SGBM's bias towards whole pixels
@@ -680,10 +679,9 @@ def with_calibration_uncertainty(bound_mm: float, calibration: StereoCalibration
 
     Added, not in quadrature: the calibration's error is the same for every reading made with
     it (systematic), so a bound that must hold for the calibration at hand cannot let the
-    random matching part average it away. Measured on the simulated rig (10 seeds, 20 pairs):
-    in quadrature the bound covered 83 % of the grid for a calibration whose focal lengths came
-    out 1.8 sigma high, added it covered >= 99 % on every seed, with a median of 0.53-0.59 % of
-    the distance at 3 m (0.43-0.45 % in quadrature)."""
+    random matching part average it away: in quadrature the bound falls short for a calibration
+    whose focal lengths came out a little high, added it holds, for a bound only slightly
+    wider."""
     if getattr(calibration, "uncertainty", None) is None or not math.isfinite(bound_mm):
         return bound_mm
     from stereo_gui.core.uncertainty import depth_sigma_mm

@@ -229,8 +229,8 @@ class ParamsPanel(QWidget):
             self.scale.addItem(f"{s:g}" + ("  (full)" if s == 1.0 else ""), s)
         self.scale.setToolTip(PRESET_PARAMS["scale"].help)
         self.color_fixed = QCheckBox("fixed colour range")
-        self.color_fixed.setToolTip("a colour always means the same distance (the report "
-                                    "normalised every frame, so colours drifted)")
+        self.color_fixed.setToolTip("a colour always means the same distance (min-max, as "
+                                    "the seed preset, normalises every frame: colours drift)")
         self.scale_note = QLabel("")  # the scale that runs when a large frame lowers it
         self.scale_note.setStyleSheet("color: gray")
         self.scale_note.hide()
