@@ -109,6 +109,9 @@ class SliderSpin(QWidget):
     def setValue(self, v: int) -> None:  # noqa: N802 - Qt naming
         self.spin.setValue(int(v))
 
+    def minimum(self) -> int:
+        return self.spin.minimum()
+
     def maximum(self) -> int:
         return self.spin.maximum()
 

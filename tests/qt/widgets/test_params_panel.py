@@ -55,3 +55,28 @@ def test_an_edited_preset_says_modified_and_choosing_it_again_restores_it(panel)
     assert panel.preset.currentText() == "live"
     assert panel.preset.findText("live" + MODIFIED) < 0  # the modified entry is gone
     assert panel.params() == load_preset("live").replace(name="live")
+
+
+def test_each_editor_offers_its_declared_range_words_and_choices(panel):
+    from PySide6.QtWidgets import QCheckBox, QComboBox
+
+    from stereo_gui.core.matching import PRESET_PARAMS
+
+    for key, editor in panel.editors.items():
+        spec = PRESET_PARAMS[key]
+        if key not in ("min_disparity", "num_disparities"):  # these say what the range gives
+            assert editor.toolTip() == spec.help, key
+        if isinstance(editor, QComboBox):
+            assert [editor.itemText(i) for i in range(editor.count())] == list(spec.choices)
+        elif not isinstance(editor, QCheckBox) and key != "num_disparities":
+            lo, hi, _step = spec.panel
+            assert (editor.minimum(), editor.maximum()) == (lo, hi), key
+
+
+def test_an_edit_changes_only_its_part_and_keeps_what_the_panel_does_not_show(panel):
+    before = panel.params()
+    panel.editors["colormap"].setCurrentText("jet")
+    after = panel.params()
+    assert after.display.colormap == "jet" and after.matcher == before.matcher
+    assert after.threads == before.threads
+    assert after.matcher.check_block_size == before.matcher.check_block_size == 5
