@@ -8,8 +8,8 @@ import pytest
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import MatcherParams, Preset, StereoPipeline
-from stereo_gui.core.measure import (Z95, histogram_mode, measure_point, refine_disparity,
-                                     triangulate)
+from stereo_gui.core.measure import (Z95, Reason, histogram_mode, measure_point,
+                                     refine_disparity, triangulate)
 from stereo_gui.core.regression import fit_inverse
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.presets import load_preset
@@ -114,6 +114,19 @@ def test_outside_the_image_and_no_valid_pixels():
     assert measure_point(disp, 10, 10, calibration=c).reason == "no valid pixels"
     with pytest.raises(InputError):
         measure_point(disp, 10, 10)  # a bare map needs the calibration
+
+
+def test_a_reason_is_an_enum_member_written_as_its_words():
+    import json
+
+    c = StereoCalibration.identity((64, 48), 500.0, 100.0)
+    m = measure_point(np.full((48, 64), np.nan, np.float32), 70, 10, calibration=c)
+    assert m.reason is Reason.OUTSIDE and m.reason == "outside the image"
+    assert f"{m.reason}" == "outside the image"
+    doc = json.loads(json.dumps(m.to_json_dict()))
+    assert doc["reason"] == "outside the image" and type(m.to_json_dict()["reason"]) is str
+    assert Reason.of("too near") is Reason.TOO_NEAR
+    assert Reason.of("a reason of an older version") is None and Reason.of("") is None
 
 
 def test_bare_map_triangulates_through_q_with_median_and_spread():
@@ -234,8 +247,6 @@ def test_reduced_resolution_preset_rematches_a_full_resolution_strip(rig, walls)
 
 
 def test_left_edge_strip_says_not_seen_and_the_seeds_band_not_searched(rig, walls):
-    from stereo_gui.core.measure import Reason
-
     calib = rig.true_calibration()
     scene, (left, right) = walls[1000.0]  # d = f*B/Z = 82 px: the strip the right camera misses
     quality = StereoPipeline(calib, load_preset("quality")).process(left, right)
