@@ -280,8 +280,8 @@ def plain_disparity(calib: StereoCalibration, left: np.ndarray, right: np.ndarra
     return plain_sgbm(rl, rr, num)
 
 
-def evaluate_wall(rig, calib: StereoCalibration, params: Preset | MatcherParams | str, wall_mm: float,
-                  seed: int, grid: tuple[int, int] = GRID, condition: Condition | None = None
+def evaluate_wall(rig, calib: StereoCalibration, params: Preset | MatcherParams | str,
+                  wall_mm: float, seed: int, grid: tuple[int, int] = GRID, condition: Condition | None = None
                   ) -> WallReport:
     """Render a wall at `wall_mm` (under `condition`, default the rig's usual texture), run one
     preset (or "report": the report's loop; "plain": plain OpenCV) and measure the grid."""

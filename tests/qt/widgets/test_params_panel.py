@@ -29,9 +29,9 @@ def test_an_even_window_shows_the_odd_one_that_runs(panel):
 def test_p1_p2_follow_the_window_while_automatic(panel):
     panel.p_auto.setChecked(True)
     panel.editors["block_size"].setValue(7)
-    assert (panel.editors["p1"].value(), panel.editors["p2"].value()) == (8 * 3 * 49, 32 * 3 * 49)
-    assert (panel.editors["p1"].value(), panel.editors["p2"].value()) == (panel.params().matcher.p1_value,
-                                                    panel.params().matcher.p2_value)
+    shown = (panel.editors["p1"].value(), panel.editors["p2"].value())
+    assert shown == (8 * 3 * 49, 32 * 3 * 49)
+    assert shown == (panel.params().matcher.p1_value, panel.params().matcher.p2_value)
 
 
 def test_range_from_working_distances_shows_the_range_it_gives(panel):
@@ -42,7 +42,8 @@ def test_range_from_working_distances_shows_the_range_it_gives(panel):
     panel.editors["z_max_mm"].setValue(0.0)  # infinity
     lo, num = panel.params().matcher.disparity_range(calib)
     assert lo == 0 and num >= 77000 / 450  # about 0 .. 192, not the 2 / 128 of the seed
-    assert (panel.editors["min_disparity"].value(), panel.editors["num_disparities"].value()) == (lo, num)
+    shown = (panel.editors["min_disparity"].value(), panel.editors["num_disparities"].value())
+    assert shown == (lo, num)
     assert "from the working distances" in panel.editors["num_disparities"].toolTip()
 
 
