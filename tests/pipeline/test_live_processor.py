@@ -147,8 +147,7 @@ def test_two_frames_at_once_each_get_a_pipeline_and_the_result_of_one_at_a_time(
         inside.wait()
         return real(self, *a, **k)
 
-    try:
-        expected = alone(frame).result.final_px
+    def two_at_once() -> list:
         outs = [None, None]
         live.StereoPipeline.process = meeting
         try:
@@ -160,14 +159,21 @@ def test_two_frames_at_once_each_get_a_pipeline_and_the_result_of_one_at_a_time(
                 t.join(60)
         finally:
             live.StereoPipeline.process = real
+        return outs
+
+    try:
+        expected = alone(frame).result.final_px
+        outs = two_at_once()
         assert len(used) == 2 and used[0] is not used[1]
         assert all(not p.params.threads.parallel for p in used)  # the lanes are the parallelism
         for out in outs:
             np.testing.assert_array_equal(out.result.final_px, expected)
+        first = set(used)
         proc.set_params(params.replace(block_size=7))
-        assert proc(frame).result.params.block_size == 7 and len(proc._idle) == 2
-        for pipeline in proc._idle:  # the one not used since: its next frame
-            assert (pipeline._pending or pipeline.params).matcher.block_size == 7
+        used.clear()
+        outs = two_at_once()  # the same two pipelines, changed while they were idle
+        assert set(used) == first
+        assert all(out.result.params.block_size == 7 for out in outs)
     finally:
         alone.close()
         proc.close()
