@@ -80,7 +80,7 @@ class Param:
             if self.zero_off:
                 what += " (or 0: none)"
             return what
-        return _describe(tp)
+        return describe_type(tp)
 
     # ---- checks --------------------------------------------------------------------------
     def problem(self, value) -> str | None:
@@ -231,10 +231,6 @@ def _num(v: float, tp) -> str:
     return str(int(v)) if tp is int else f"{v:g}"
 
 
-def _describe(tp) -> str:
-    return str(tp).replace("typing.", "").replace("<class '", "").replace("'>", "")
-
-
 def describe_type(tp) -> str:
     """A type as a person reads it ("int", "tuple[str, ...]", "str | None")."""
-    return _describe(tp)
+    return str(tp).replace("typing.", "").replace("<class '", "").replace("'>", "")
