@@ -37,7 +37,7 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import MatcherParams, StereoPipeline
+from stereo_gui.core.matching import MatcherParams, Preset, StereoPipeline
 from stereo_gui.core.measure import PATCH_PX, Measurement, measure_point
 from stereo_gui.core.stereo_calibration import StereoCalibration
 
@@ -280,8 +280,8 @@ def plain_disparity(calib: StereoCalibration, left: np.ndarray, right: np.ndarra
     return plain_sgbm(rl, rr, num)
 
 
-def evaluate_wall(rig, calib: StereoCalibration, params: MatcherParams | str, wall_mm: float,
-                  seed: int, grid: tuple[int, int] = GRID, condition: Condition | None = None
+def evaluate_wall(rig, calib: StereoCalibration, params: Preset | MatcherParams | str,
+                  wall_mm: float, seed: int, grid: tuple[int, int] = GRID, condition: Condition | None = None
                   ) -> WallReport:
     """Render a wall at `wall_mm` (under `condition`, default the rig's usual texture), run one
     preset (or "report": the report's loop; "plain": plain OpenCV) and measure the grid."""
@@ -306,6 +306,7 @@ def evaluate_wall(rig, calib: StereoCalibration, params: MatcherParams | str, wa
             from stereo_gui.files.presets import load_preset
 
             params = load_preset(params)
+        params = Preset.of(params)
         with StereoPipeline(calib, params) as pipe:
             result = pipe.process(left, right)
         name = params.name

@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import MatcherParams, PipelineResult, StereoPipeline
+from stereo_gui.core.matching import PipelineResult, Preset, StereoPipeline
 from stereo_gui.core.stereo_calibration import StereoCalibration
 
 log = logging.getLogger(__name__)
@@ -76,7 +76,7 @@ def read_pair(left: str, right: str, calibration: StereoCalibration) -> tuple[np
     return out[0], out[1]
 
 
-def load_params(name: str) -> MatcherParams:
+def load_params(name: str) -> Preset:
     from stereo_gui.files.presets import load_preset
 
     return load_preset(name)
@@ -166,6 +166,6 @@ def run(args) -> int:
     write_many_atomic(items, what="the set of outputs" if len(items) > 1 else None)
     valid = float(result.valid.mean()) * 100.0
     lo, hi = result.disparity_range_px
-    print(f"preset {result.params.name}: {valid:.1f}% valid, disparity range {lo:.0f}..{hi:.0f} px; "
+    print(f"preset {result.preset.name}: {valid:.1f}% valid, disparity range {lo:.0f}..{hi:.0f} px; "
           f"wrote {', '.join(written)}")
     return 0

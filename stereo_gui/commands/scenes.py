@@ -70,7 +70,7 @@ def run_scenes(list_path, presets=("live", "quality"), repeat: int = 1) -> dict:
             for name, p in params.items():
                 p = p.replace(z_min_mm=None, z_max_mm=None, min_disparity=0,
                               num_disparities=num, parallel=False, cv_threads=None)
-                scale = p.effective_scale(w)
+                scale = p.matcher.effective_scale(w)
                 base = baseline_of(name, scale)
                 compared[name] = base
                 if base not in methods:

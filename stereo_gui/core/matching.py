@@ -23,6 +23,8 @@ import logging
 import math
 import threading
 import time
+import types
+from collections.abc import Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
@@ -30,6 +32,7 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.errors import InputError
+from stereo_gui.core.params import Param, check_all, from_json, param, params_of
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.core.util import to_gray
 
@@ -60,149 +63,136 @@ INTERPOLATIONS: dict[str, int] = {"linear": cv2.INTER_LINEAR, "cubic": cv2.INTER
                                   "lanczos4": cv2.INTER_LANCZOS4}
 
 # the report's / OpenCV's names for some parameters, accepted when reading presets
-_ALIASES = {"window_size": "block_size", "minDisparity": "min_disparity",
-            "numDisparities": "num_disparities", "uniquenessRatio": "uniqueness_ratio",
-            "speckleWindowSize": "speckle_window_size", "speckleRange": "speckle_range",
-            "disp12MaxDiff": "disp12_max_diff", "P1": "p1", "P2": "p2", "lmbda": "wls_lambda"}
+ALIASES = {"window_size": "block_size", "minDisparity": "min_disparity",
+           "numDisparities": "num_disparities", "uniquenessRatio": "uniqueness_ratio",
+           "speckleWindowSize": "speckle_window_size", "speckleRange": "speckle_range",
+           "disp12MaxDiff": "disp12_max_diff", "P1": "p1", "P2": "p2", "lmbda": "wls_lambda"}
 
 
-# (smallest, largest) value of each number of MatcherParams; wider than the parameter panel's
-_RANGES: dict[str, tuple[float, float]] = {
-    "block_size": (1, 51), "min_disparity": (-1024, 1024), "num_disparities": (16, 2048),
-    "z_min_mm": (1.0, 1e6), "max_match_width": (64, 100_000), "z_max_mm": (1.0, 1e7), "uniqueness_ratio": (0, 100),
-    "speckle_window_size": (0, 10_000), "speckle_range": (0, 1000), "disp12_max_diff": (-1, 1000),
-    "p1": (0, 10_000_000), "p2": (0, 10_000_000), "pre_filter_cap": (0, 63),
-    "closing_kernel": (0, 51), "wls_lambda": (0.0, 1e7), "wls_sigma": (0.0, 100.0),
-    "bilateral_d": (0, 50), "bilateral_sigma_color": (0.0, 1000.0),
-    "bilateral_sigma_space": (0.0, 1000.0), "scale": (0.1, 1.0), "check_scale": (0.25, 1.0),
-    "color_z_near_mm": (1.0, 1e7), "color_z_far_mm": (1.0, 1e7), "cv_threads": (0, 256),
-    "check_block_size": (0, 51), "agree_px": (0.0, 64.0), "range_end_px": (0.0, 64.0),
-    "normalize_window": (0, 255),
-}
+def _multiple_of_16(v) -> bool:
+    return v % 16 == 0
 
 
-_OPTIONAL = ("z_min_mm", "z_max_mm", "p1", "p2", "cv_threads", "max_match_width")  # None means "not set"
+def _normalize_window(v) -> bool:
+    return v == 0 or (v >= 3 and v % 2 == 1)
 
 
 @dataclass(frozen=True)
 class MatcherParams:
-    """Everything that decides how a frame becomes a disparity map. Sizes in px of the matched image.
+    """Everything that decides how a frame becomes a disparity map. Sizes in px of the matched
+    image unless said otherwise. Each field's range, unit and meaning are declared with it (its
+    `Param`); building an object checks them once (InputError), nothing checks them per frame.
 
     Disparity range: `min_disparity`/`num_disparities` are full-resolution pixels; when
     `z_min_mm` is set the range is derived from the working distances instead (d = f*B/Z).
     """
 
-    name: str = "custom"
-    description: str = ""
-    block_size: int = 3  # SGBM window (the report's window_size), odd
-    min_disparity: int = 2  # px, full resolution
-    num_disparities: int = 128  # px, full resolution, multiple of 16
-    z_min_mm: float | None = None  # nearest working distance; sets the largest disparity
-    z_max_mm: float | None = None  # farthest working distance; sets the smallest (None: infinity)
-    uniqueness_ratio: int = 10
-    speckle_window_size: int = 100
-    speckle_range: int = 32
-    disp12_max_diff: int = 5
-    p1: int | None = None  # None: 8*3*w^2 as in the report
-    p2: int | None = None  # None: 32*3*w^2
-    pre_filter_cap: int = 63  # 0: OpenCV's default (15), as the report left it
-    mode: str = "sgbm"  # sgbm | 3way | hh | hh4
-    # a second SGBM with this window checks the first: the final map keeps a pixel only where
-    # both found a match and they agree within `agree_px` (px of the matched image), and holds
-    # their mean there. Two windows fail in different places (the small one on weak texture,
-    # the large one at depth edges), so a wrong match rarely survives both. 0: no second
-    # window (the final map is the WLS output, or the closed map without WLS)
-    check_block_size: int = 0
-    agree_px: float = 1.0
-    # matches within this many px (of the matched image) of either end of the searched range are
-    # dropped from the final map: the cost's minimum lay at the range's edge, so the surface may
-    # lie beyond it (a blank wall far away matches "at infinity" as well as anywhere)
-    range_end_px: float = 0.0
-    # both images matched after a local contrast normalisation over this window (px of the
-    # matched image; 0: as they are): each pixel's difference from the window's mean in units
-    # of the window's spread, so that the two cameras' own gain, black level and darker
-    # corners, and the slow shading of a smooth wall, do not decide the match
-    normalize_window: int = 0
-    # search the whole disparity range at every column: both images are padded for the matchers
-    # (SGBM leaves the first minDisparity + numDisparities columns empty otherwise); False keeps
-    # the report's dead band at the left edge (the seed preset)
-    full_frame: bool = True
-    remap_interpolation: str = "linear"  # linear | cubic | lanczos4 (the report's)
-    closing_kernel: int = 3  # side of the square closing kernel, px; 0 = no closing
-    wls: bool = True
-    wls_lambda: float = 80000.0
-    wls_sigma: float = 1.8
-    # filter against the full-resolution left image (False: at the matched resolution, then
-    # enlarged; 4x fewer pixels for a half-resolution preset)
-    wls_full_resolution: bool = True
-    # keep the WLS output only where its left-right confidence is above zero: elsewhere (no
-    # match, occlusions, failed consistency) the filter invents values from the neighbours
-    wls_confident_only: bool = True
-    # OpenCV's WLS filter turns off the matcher's uniqueness, speckle and left-right checks when
-    # it is made from it; True reproduces that (the report's code did it without knowing)
-    wls_disables_checks: bool = False
-    # the right matcher serves only the left-right check behind the WLS confidence: 0.5 runs it
-    # on images halved again (an eighth of the work: half the width, height and range), its map
-    # enlarged back for the check (1.0: at the matched resolution, as OpenCV's samples do)
-    check_scale: float = 1.0
-    bilateral: bool = False  # bilateral filter on the rectified images before matching
-    bilateral_d: int = 5
-    bilateral_sigma_color: float = 25.0
-    bilateral_sigma_space: float = 5.0
-    scale: float = 1.0  # 1.0 = full resolution; 0.5 = match on INTER_AREA-halved images
-    # match on images at most this wide: a larger camera frame lowers the scale further, so a
-    # preset keeps its speed at 1280x720 (None: `scale` alone)
-    max_match_width: int | None = None
-    colormap: str = "ocean"
-    color_range: str = "minmax"  # "minmax" per frame (the report) or "fixed" distance range
-    color_z_near_mm: float = 500.0  # fixed colour range: this distance gets the top colour
-    color_z_far_mm: float = 3000.0  # ... and this one the bottom colour
-    parallel: bool = False  # two cores: left and right matchers at once (Live: two frames at once)
-    cv_threads: int | None = None  # cv2.setNumThreads for the process (None: leave as is)
+    block_size: int = param(
+        3, lo=1, hi=51, odd=True, unit="px", label="window_size", panel=(1, 21, 1),
+        help="SGBM blockSize, odd (the report: window_size = 3)")
+    min_disparity: int = param(
+        2, lo=-1024, hi=1024, unit="px", label="min_disp (px)", panel=(0, 64, 1),
+        help="smallest disparity searched, full-resolution px")
+    num_disparities: int = param(
+        128, lo=16, hi=2048, unit="px", label="num_disp (px)", panel=(16, 256, 16),
+        check=_multiple_of_16, check_text="a multiple of 16 from 16 to 2048",
+        help="how many disparities are searched, full-resolution px")
+    z_min_mm: float | None = param(
+        None, lo=1.0, hi=1e6, unit="mm", label="nearest Z", panel=(50, 50000, 50),
+        help="nearest working distance: sets the largest disparity (None: min_disp/num_disp)")
+    z_max_mm: float | None = param(
+        None, lo=1.0, hi=1e7, unit="mm", label="farthest Z", panel=(0, 100000, 500),
+        help="farthest working distance: sets the smallest disparity (None: infinity)")
+    uniqueness_ratio: int = param(10, lo=0, hi=100, unit="%", label="uniquenessRatio",
+                                  panel=(0, 50, 1),
+                                  help="how much the best match must beat the second, %")
+    speckle_window_size: int = param(100, lo=0, hi=10_000, unit="px", label="speckleWindowSize",
+                                     panel=(0, 300, 1),
+                                     help="largest blob of disparities removed as speckle")
+    speckle_range: int = param(32, lo=0, hi=1000, label="speckleRange", panel=(0, 64, 1),
+                               help="disparity variation within a connected blob, x16 px")
+    disp12_max_diff: int = param(5, lo=-1, hi=1000, unit="px", label="disp12MaxDiff",
+                                 panel=(-1, 50, 1),
+                                 help="left-right check tolerance (-1: no check)")
+    p1: int | None = param(None, lo=0, hi=10_000_000, label="P1", panel=(0, 100000, 1),
+                           help="small smoothness penalty (None: 8*3*w^2 as in the report)")
+    p2: int | None = param(None, lo=0, hi=10_000_000, label="P2", panel=(0, 400000, 1),
+                           help="large smoothness penalty (None: 32*3*w^2)")
+    pre_filter_cap: int = param(63, lo=0, hi=63, label="preFilterCap", panel=(0, 63, 1),
+                                help="clip of the prefiltered image (0: OpenCV's default, 15, "
+                                     "as the report left it)")
+    mode: str = param("sgbm", choices=tuple(MODES), label="mode",
+                      help="SGBM's mode: sgbm, 3way, hh or hh4")
+    # two windows fail in different places (the small one on weak texture, the large one at
+    # depth edges), so a wrong match rarely survives both
+    check_block_size: int = param(
+        0, lo=0, hi=51, odd=True, zero_off=True, unit="px",
+        help="a second SGBM with this window checks the first: the final map keeps a pixel "
+             "only where both found a match that agree within agree_px, and holds their mean "
+             "(0: no second window; the final map is the WLS output, or the closed map)")
+    agree_px: float = param(1.0, lo=0.0, hi=64.0, unit="px",
+                            help="how far the two windows' matches may differ (matched image)")
+    # a blank wall far away matches "at infinity" as well as anywhere
+    range_end_px: float = param(
+        0.0, lo=0.0, hi=64.0, unit="px",
+        help="matches within this of either end of the searched range are dropped: the cost's "
+             "minimum lay at the range's edge, so the surface may lie beyond it")
+    # the cameras' own gain, black level and darker corners, and the slow shading of a smooth
+    # wall, should not decide a match
+    normalize_window: int = param(
+        0, lo=0, hi=255, unit="px", check=_normalize_window,
+        check_text="an odd whole number from 3 to 255 (or 0: none)",
+        help="match both images after a local contrast normalisation over this window: each "
+             "pixel's difference from the window's mean in units of its spread (0: as they are)")
+    # SGBM leaves the first minDisparity + numDisparities columns empty otherwise
+    full_frame: bool = param(
+        True, help="search the whole disparity range at every column (images padded for the "
+                   "matchers); False keeps the report's dead band at the left edge")
+    remap_interpolation: str = param("linear", choices=tuple(INTERPOLATIONS),
+                                     help="interpolation of the rectifying remap")
+    closing_kernel: int = param(3, lo=0, hi=51, unit="px", label="kernel (px)", panel=(0, 15, 1),
+                                help="side of the square closing kernel, px (report: 3); 0 = off")
+    wls: bool = param(True, label="WLS filter",
+                      help="right matcher + cv2.ximgproc.createDisparityWLSFilter, as the report")
+    wls_lambda: float = param(80000.0, lo=0.0, hi=1e7, label="lmbda", panel=(0, 1e6, 1000),
+                              help="WLS smoothness (the report's lmbda)")
+    wls_sigma: float = param(1.8, lo=0.0, hi=100.0, label="sigma", panel=(0.0, 10.0, 0.1),
+                             help="WLS sensitivity to the guide image's edges")
+    wls_full_resolution: bool = param(
+        True, help="filter against the full-resolution left image (False: at the matched "
+                   "resolution, then enlarged; 4x fewer pixels for a half-resolution preset)")
+    # elsewhere (no match, occlusions, failed consistency) the filter invents values from the
+    # neighbours
+    wls_confident_only: bool = param(
+        True, help="keep the WLS output only where its left-right confidence is above zero")
+    wls_disables_checks: bool = param(
+        False, help="OpenCV's WLS filter turns off the matcher's uniqueness, speckle and "
+                    "left-right checks when made from it; True reproduces that")
+    # an eighth of the work at 0.5: half the width, height and range
+    check_scale: float = param(
+        1.0, lo=0.25, hi=1.0,
+        help="the right matcher (the left-right check behind the WLS confidence) runs on images "
+             "made smaller by this, its map enlarged back (1.0: at the matched resolution, as "
+             "OpenCV's samples do)")
+    bilateral: bool = param(False, help="bilateral filter on the rectified images before matching")
+    bilateral_d: int = param(5, lo=0, hi=50, unit="px", help="bilateral filter's diameter")
+    bilateral_sigma_color: float = param(25.0, lo=0.0, hi=1000.0,
+                                         help="bilateral filter's sigma in grey levels")
+    bilateral_sigma_space: float = param(5.0, lo=0.0, hi=1000.0, unit="px",
+                                         help="bilateral filter's sigma in space")
+    scale: float = param(1.0, lo=0.1, hi=1.0, label="match at scale",
+                         help="1.0 = full resolution; 0.5 = match on INTER_AREA-halved images")
+    # so that a preset keeps its speed at 1280x720
+    max_match_width: int | None = param(
+        None, lo=64, hi=100_000, unit="px",
+        help="match on images at most this wide: a larger camera frame lowers the scale further "
+             "(None: scale alone)")
 
     def __post_init__(self) -> None:
-        problems = []
-        # every number finite and within what SGBM and the filters can take (a preset file can
-        # hold anything: NaN, 1e308, 1e-9)
-        for key, (lo, hi) in _RANGES.items():
-            v = getattr(self, key)
-            if v is None and key in _OPTIONAL:
-                continue
-            if isinstance(v, bool) or not isinstance(v, int | float) or \
-                    not (lo <= v <= hi) or (isinstance(v, float) and not math.isfinite(v)):
-                problems.append(f"{key} must be a number from {lo:g} to {hi:g}, not {v!r:.40}")
-        if problems:
-            raise InputError(f"matcher parameters of {self.name!r}: " + "; ".join(problems))
-        if self.block_size < 1 or self.block_size % 2 == 0:
-            problems.append(f"block_size must be odd and >= 1, not {self.block_size}")
-        if self.num_disparities <= 0 or self.num_disparities % 16:
-            problems.append(f"num_disparities must be a positive multiple of 16, not {self.num_disparities}")
-        if self.mode not in MODES:
-            problems.append(f"mode must be one of {', '.join(MODES)}, not {self.mode!r}")
-        if self.remap_interpolation not in INTERPOLATIONS:
-            problems.append(f"remap_interpolation must be one of {', '.join(INTERPOLATIONS)}, "
-                            f"not {self.remap_interpolation!r}")
-        if self.colormap not in COLORMAPS:
-            problems.append(f"unknown colormap {self.colormap!r}")
-        if self.color_range not in COLOR_RANGES:
-            problems.append(f"color_range must be minmax or fixed, not {self.color_range!r}")
-        if not 0.1 <= self.scale <= 1.0:
-            problems.append(f"scale must be between 0.1 and 1.0, not {self.scale}")
-        if self.closing_kernel < 0:
-            problems.append("closing_kernel must be >= 0")
-        if self.z_min_mm is not None and self.z_min_mm <= 0:
-            problems.append("z_min_mm must be positive")
+        check_all(self, "matcher parameters")
         if self.z_max_mm is not None and (self.z_min_mm is None or self.z_max_mm <= self.z_min_mm):
-            problems.append("z_max_mm needs z_min_mm and must be larger than it")
-        if self.color_z_far_mm <= self.color_z_near_mm or self.color_z_near_mm <= 0:
-            problems.append("color_z_far_mm must be larger than color_z_near_mm > 0")
-        if self.normalize_window and (self.normalize_window < 3 or self.normalize_window % 2 == 0):
-            problems.append(f"normalize_window must be odd and >= 3 (or 0: none), not "
-                            f"{self.normalize_window}")
-        if self.check_block_size and self.check_block_size % 2 == 0:
-            problems.append(f"check_block_size must be odd (or 0: none), not {self.check_block_size}")
-        if problems:
-            raise InputError(f"matcher parameters of {self.name!r}: " + "; ".join(problems))
+            raise InputError("matcher parameters: z_max_mm needs z_min_mm and must be larger "
+                             "than it")
 
     # ---- derived -------------------------------------------------------------------------
     @property
@@ -242,48 +232,128 @@ class MatcherParams:
         """(min_disparity, num_disparities) in full-resolution px for this calibration."""
         return self.matcher_range(calibration, 1.0)
 
-    # ---- persistence ---------------------------------------------------------------------
-    def to_dict(self) -> dict:
-        return dataclasses.asdict(self)
-
-    @classmethod
-    def from_dict(cls, data: dict, where: str = "preset") -> MatcherParams:
-        """Build from a dict; unknown keys are logged and skipped, bad values raise InputError."""
-        if not isinstance(data, dict):
-            raise InputError(f"{where}: expected a JSON object of matcher parameters")
-        names = {f.name: f for f in dataclasses.fields(cls)}
-        kwargs = {}
-        for key, value in data.items():
-            key = _ALIASES.get(key, key)
-            if key not in names:
-                log.warning("%s: unknown matcher parameter %r ignored", where, key)
-                continue
-            kwargs[key] = value
-        for key, v in kwargs.items():
-            if key in ("name", "description", "mode", "colormap", "color_range",
-                       "remap_interpolation"):
-                if not isinstance(v, str):
-                    raise InputError(f"{where}: {key} must be a string")
-            elif key in ("wls", "bilateral", "parallel", "full_frame", "wls_confident_only",
-                         "wls_disables_checks", "wls_full_resolution"):
-                if not isinstance(v, bool):
-                    raise InputError(f"{where}: {key} must be true or false")
-            elif v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
-                raise InputError(f"{where}: {key} must be a number, not {v!r}")
-        for key in ("block_size", "min_disparity", "num_disparities", "uniqueness_ratio",
-                    "speckle_window_size", "speckle_range", "disp12_max_diff", "closing_kernel",
-                    "bilateral_d", "pre_filter_cap", "max_match_width", "check_block_size",
-                    "normalize_window"):
-            v = kwargs.get(key)
-            if isinstance(v, float):
-                if not v.is_integer():
-                    raise InputError(f"{where}: {key} must be a whole number, not {v}")
-                kwargs[key] = int(v)
-        params = cls(**kwargs)
-        return params
-
     def replace(self, **changes) -> MatcherParams:
         return dataclasses.replace(self, **changes)
+
+
+@dataclass(frozen=True)
+class DisplayParams:
+    """How a disparity map is coloured for the views and exports."""
+
+    colormap: str = param("ocean", choices=tuple(sorted(COLORMAPS)), label="colour map",
+                          help="OpenCV colour map of the depth view")
+    # "minmax" (the seed preset's) normalises every frame, so colours drift with the scene
+    color_range: str = param("minmax", choices=COLOR_RANGES,
+                             help="minmax: each frame's own range; fixed: a colour always means "
+                                  "the same distance")
+    color_z_near_mm: float = param(500.0, lo=1.0, hi=1e7, unit="mm", label="near",
+                                   panel=(50, 50000, 1),
+                                   help="fixed colour range: this distance gets the top colour")
+    color_z_far_mm: float = param(3000.0, lo=1.0, hi=1e7, unit="mm", label="far",
+                                  panel=(100, 100000, 1),
+                                  help="fixed colour range: this distance gets the bottom colour")
+
+    def __post_init__(self) -> None:
+        check_all(self, "display parameters")
+        if self.color_z_far_mm <= self.color_z_near_mm:
+            raise InputError("display parameters: color_z_far_mm must be larger than "
+                             "color_z_near_mm")
+
+
+@dataclass(frozen=True)
+class ThreadParams:
+    """How many threads process frames: the Live tab's lanes and OpenCV's pool."""
+
+    parallel: bool = param(False, label="use two CPU cores",
+                           help="Live: two frames processed at once, one on each core; "
+                                "elsewhere the left and right matchers at once")
+    cv_threads: int | None = param(None, lo=0, hi=256,
+                                   help="cv2.setNumThreads for the process (None: leave as is)")
+
+    def __post_init__(self) -> None:
+        check_all(self, "thread parameters")
+
+
+_PARTS = {"matcher": MatcherParams, "display": DisplayParams, "threads": ThreadParams}
+# which part declares each flat key of a preset's parameters
+_PART_OF = {key: part for part, cls in _PARTS.items() for key in params_of(cls)}
+# every parameter of a preset by its flat name, with its declaration
+PRESET_PARAMS: Mapping[str, Param] = types.MappingProxyType(
+    {key: spec for cls in _PARTS.values() for key, spec in params_of(cls).items()})
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A named set of parameters: how to match (`matcher`), how to colour (`display`) and how
+    many threads to use (`threads`). Files hold them as one flat object of the three parts'
+    fields (`to_dict`/`from_dict`)."""
+
+    name: str = "custom"
+    description: str = ""
+    matcher: MatcherParams = field(default_factory=MatcherParams)
+    display: DisplayParams = field(default_factory=DisplayParams)
+    threads: ThreadParams = field(default_factory=ThreadParams)
+
+    def replace(self, **changes) -> Preset:
+        """This preset with `changes`: name, description, whole parts, or any part's field by
+        its own name (routed to the part that declares it)."""
+        top = {k: changes.pop(k) for k in list(changes) if k in _PARTS or k in ("name",
+                                                                                "description")}
+        unknown = set(changes) - set(_PART_OF)
+        if unknown:
+            raise TypeError(f"no preset parameter named {', '.join(sorted(unknown))}")
+        for part in _PARTS:
+            mine = {k: v for k, v in changes.items() if _PART_OF[k] == part}
+            if mine:
+                top[part] = dataclasses.replace(top.get(part, getattr(self, part)), **mine)
+        return dataclasses.replace(self, **top)
+
+    def get(self, key: str):
+        """The value of a part's field by its flat name (a key of PRESET_PARAMS)."""
+        return getattr(getattr(self, _PART_OF[key]), key)
+
+    @classmethod
+    def of(cls, params: Preset | MatcherParams | None) -> Preset:
+        """`params` as a preset (bare matcher parameters: with the default display and threads)."""
+        if params is None:
+            return cls()
+        return params if isinstance(params, Preset) else cls(matcher=params)
+
+    # ---- persistence ---------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        """The flat object files hold: name, description, then the matcher's, display's and
+        threads' fields."""
+        out = {"name": self.name, "description": self.description}
+        for part in _PARTS:
+            out.update(dataclasses.asdict(getattr(self, part)))
+        return out
+
+    @classmethod
+    def from_dict(cls, data: dict, where: str = "preset") -> Preset:
+        """Build from a flat object (the report's / OpenCV's names understood); unknown keys are
+        logged and skipped, bad values raise InputError naming `where`."""
+        if not isinstance(data, dict):
+            raise InputError(f"{where}: expected a JSON object of matcher parameters")
+        flat = {}
+        for key, value in data.items():
+            key = ALIASES.get(key, key)
+            if key not in _PART_OF and key not in ("name", "description"):
+                log.warning("%s: unknown matcher parameter %r ignored", where, key)
+                continue
+            flat[key] = value
+        top = {}
+        for key in ("name", "description"):
+            if key in flat:
+                if not isinstance(flat[key], str):
+                    raise InputError(f"{where}: {key} must be a string")
+                top[key] = flat[key]
+        for part, part_cls in _PARTS.items():
+            kwargs = from_json(part_cls, flat, where)
+            try:
+                top[part] = part_cls(**kwargs)
+            except InputError as exc:
+                raise InputError(f"{where}: {exc}") from None
+        return cls(**top)
 
 
 @dataclass(frozen=True, eq=False)
@@ -306,7 +376,7 @@ class PipelineResult:
     valid: np.ndarray
     timings_ms: dict[str, float]
     size: tuple[int, int]  # (width, height), px
-    params: MatcherParams = field(default_factory=MatcherParams)
+    preset: Preset = field(default_factory=lambda: Preset())
     disparity_range_px: tuple[float, float] = (0.0, 0.0)
     calibration: StereoCalibration | None = None
     color_scale: ColorScale | None = None  # how color_bgr was made from final_px
@@ -319,6 +389,11 @@ class PipelineResult:
     # so that the views paint only those (`unseen_columns`)
     not_seen_cols: int | None = None
     match_scale: float = 1.0  # the scale the images were matched at (MatcherParams.effective_scale)
+
+    @property
+    def params(self) -> MatcherParams:
+        """The matcher parameters the frame was made with."""
+        return self.preset.matcher
 
 
 def fixed_to_px(disp16: np.ndarray, min_disparity: float, factor: float = 1.0) -> np.ndarray:
@@ -365,7 +440,7 @@ class ColorScale:
         return float(self.level(np.float32(self.fb_mm_px / z_mm - self.doffs_px)))
 
 
-def color_scale(disparity_px: np.ndarray, params: MatcherParams,
+def color_scale(disparity_px: np.ndarray, params: DisplayParams,
                 calibration: StereoCalibration | None) -> ColorScale:
     """The colour scale of a frame: the preset's fixed distance range, or the frame's min-max."""
     fb = (calibration.focal_px * calibration.rectified_baseline_mm
@@ -427,7 +502,7 @@ def _nan_image(h: int, w: int) -> np.ndarray:
 
 def blank(disparity_px: np.ndarray, mask: np.ndarray, cols: int | None = None) -> None:
     """Set the pixels of a float32 H x W map where `mask` (bool or uint8) is set to NaN, in
-    place (cv2.copyTo: 2-10x faster than numpy's boolean assignment at 1280x720, the more so
+    place (cv2.copyTo: many times faster than numpy's boolean assignment at 1280x720, the more so
     the more pixels are set). `cols`: the mask is set only in the leftmost `cols` columns (only
     those are looked at)."""
     if cols is not None and cols < disparity_px.shape[1]:
@@ -469,24 +544,27 @@ class StereoPipeline:
     (or use the pipeline as a context manager) when done.
     """
 
-    def __init__(self, calibration: StereoCalibration, params: MatcherParams | None = None):
+    def __init__(self, calibration: StereoCalibration,
+                 params: Preset | MatcherParams | None = None):
         self.calibration = calibration
         self._lock = threading.Lock()
-        self._pending: MatcherParams | None = None
-        self._params = params or MatcherParams()
+        self._pending: Preset | None = None
+        self._preset = Preset.of(params)
+        self._params = self._preset.matcher
         self._maps = None if calibration.method == "identity" else calibration.rectify_maps()
         self._executor: ThreadPoolExecutor | None = None
         self._build()
 
     # ---- configuration -------------------------------------------------------------------
     @property
-    def params(self) -> MatcherParams:
-        return self._params
+    def params(self) -> Preset:
+        """The preset the next frame runs with (bare matcher parameters given: as a preset)."""
+        return self._preset
 
-    def set_params(self, params: MatcherParams) -> None:
+    def set_params(self, params: Preset | MatcherParams) -> None:
         """Use `params` from the next frame on."""
         with self._lock:
-            self._pending = params
+            self._pending = Preset.of(params)
 
     def close(self) -> None:
         if self._executor is not None:
@@ -505,9 +583,9 @@ class StereoPipeline:
         self.close()
 
     def _build(self) -> None:
-        p = self._params
-        if p.cv_threads is not None:
-            cv2.setNumThreads(int(p.cv_threads))
+        p, threads = self._params, self._preset.threads
+        if threads.cv_threads is not None:
+            cv2.setNumThreads(int(threads.cv_threads))
         s = self._scale = p.effective_scale(self.calibration.width)
         self._min_s, self._num_s = p.matcher_range(self.calibration, s)
         self._range_full = (self._min_s / s, (self._min_s + self._num_s - 1) / s)
@@ -531,8 +609,8 @@ class StereoPipeline:
             num = max(16, int(math.ceil((top - lo + 1) / 16.0)) * 16)
             self._check = (cs, lo, num)
             # its window shrinks with the images (at least 3 px, odd), so that it covers about
-            # as much of the scene and reaches nearer the right edge (accuracy bench, live: grid
-            # points 9 px from the edge without a reading 6 -> 1 on seed 4242, 4 -> 3 on seed 7)
+            # as much of the scene and reaches nearer the right edge: points near the edge keep
+            # their reading
             block = max(3, math.ceil(p.block_size * cs) | 1)
             self._right = cv2.ximgproc.createRightMatcher(sgbm(lo, num, block))
         else:
@@ -540,17 +618,18 @@ class StereoPipeline:
         self._wls = None
         if p.wls:
             # createDisparityWLSFilter switches off the uniqueness, speckle and left-right checks
-            # of the matcher it is given (the report's raw map ran without them): unless the
-            # preset reproduces that, it gets a copy of the matcher to configure itself from
+            # of the matcher it is given: unless the preset asks for that (the seed preset
+            # reproduces the report's map, made so), it gets a copy of the matcher to configure
+            # itself from
             self._wls = cv2.ximgproc.createDisparityWLSFilter(
                 self._left if p.wls_disables_checks else sgbm())
             self._wls.setLambda(float(p.wls_lambda))
             self._wls.setSigmaColor(float(p.wls_sigma))
         self._kernel = (np.ones((p.closing_kernel, p.closing_kernel), np.uint8)
                         if p.closing_kernel > 1 else None)
-        if p.parallel and self._executor is None:
+        if threads.parallel and self._executor is None:
             self._executor = ThreadPoolExecutor(1, thread_name_prefix="stereo-right")
-        elif not p.parallel and self._executor is not None:
+        elif not threads.parallel and self._executor is not None:
             self._executor.shutdown(wait=True)
             self._executor = None
 
@@ -563,8 +642,8 @@ class StereoPipeline:
     def _apply_pending(self) -> None:
         with self._lock:
             pending, self._pending = self._pending, None
-        if pending is not None and pending != self._params:
-            self._params = pending
+        if pending is not None and pending != self._preset:
+            self._preset, self._params = pending, pending.matcher
             self._build()
 
     # ---- processing ----------------------------------------------------------------------
@@ -729,8 +808,9 @@ class StereoPipeline:
         lap("convert")
         wls_px = confidence = None
         if run_wls:
-            # the report filters the unclosed left disparity; a low-resolution map is enlarged by
-            # the filter itself (values scaled) against the full-resolution guide
+            # the filter takes the unclosed left disparity (as the seed preset must, to be the
+            # report's); a low-resolution map is enlarged by the filter itself (values scaled)
+            # against the full-resolution guide
             guide = gl if p.wls_full_resolution else ml
             if p.full_frame:
                 f16 = self._wls.filter(d16, guide, None, d16_right, (0, 0, mw, ml.shape[0]))
@@ -779,14 +859,15 @@ class StereoPipeline:
             for m in {id(a): a for a in (raw, closed, wls_px, final) if a is not None}.values():
                 blank(m, not_seen, band)
         valid = np.isfinite(final)
-        colours = color_scale(final, p, self.calibration)
-        color = colorize(final, colours, p.colormap, not_seen, band)
+        display = self._preset.display
+        colours = color_scale(final, display, self.calibration)
+        color = colorize(final, colours, display.colormap, not_seen, band)
         lap("colormap")
         t["total"] = (time.perf_counter() - start) * 1000.0
         return PipelineResult(
             rectified_left=rl, rectified_right=rr, disparity_px=raw, closed_px=closed,
             wls_px=wls_px, final_px=final, color_bgr=color, valid=valid, timings_ms=t,
-            size=(w, h), params=p, disparity_range_px=self._range_full,
+            size=(w, h), preset=self._preset, disparity_range_px=self._range_full,
             calibration=self.calibration, color_scale=colours, wls_confidence=confidence,
             not_seen=not_seen, not_seen_cols=band, match_scale=scale)
 

@@ -2,10 +2,10 @@
 
 A click is a pixel (x, y) of the full-resolution rectified left image. Point mode takes the median
 of the valid disparities in a square patch; object mode takes the region the WLS view shows as
-one surface and reads the most frequent disparity in it (the report's first proposal). In point
-mode, when the rectified images are at hand, the disparity is then refined to a fraction of a pixel by a 1-D
-Lucas-Kanade alignment of the patch (SGBM's own subpixel estimate is biased towards whole pixels,
-"pixel locking", which at 3 m is worth several centimetres). A reduced-resolution preset's
+one surface and reads the most frequent disparity in it. In point mode, when the rectified
+images are at hand, the disparity is then refined to a fraction of a pixel by a 1-D Lucas-Kanade
+alignment of the patch (SGBM's own subpixel estimate is biased towards whole pixels, "pixel
+locking", which at 3 m is worth several centimetres). A reduced-resolution preset's
 estimate is first replaced by a full-resolution re-match of a strip around the clicked row.
 """
 
@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from enum import StrEnum
 
 import cv2
 import numpy as np
@@ -29,18 +30,38 @@ QUANTUM_PX = 1.0 / DISP_SCALE
 PATCH_PX = 9  # default side of the square patch a measurement looks at, px (odd)
 MAD_TO_SIGMA = 1.4826  # median absolute deviation -> standard deviation for normal noise
 
-NOT_SEEN = "not seen by the right camera"
-NOT_SEARCHED = "not searched (the report's dead band at the left edge)"
-TOO_FEW = "too few valid pixels"
-AMBIGUOUS = "ambiguous match"
+
+
+class Reason(StrEnum):
+    """Why a reading has no distance. The values are the words files, exports and the JSON of
+    `measure` carry, so a member equals (and is written as) its text."""
+
+    NO_VALID_PIXELS = "no valid pixels"
+    TOO_FEW = "too few valid pixels"
+    NOT_SEEN = "not seen by the right camera"
+    NOT_SEARCHED = "not searched (the report's dead band at the left edge)"
+    NO_TEXTURE = "no texture"
+    TOO_NEAR = "too near"
+    TOO_FAR = "too far"
+    OUTSIDE = "outside the image"
+    OUT_OF_FIT_RANGE = "out of disparity range"
+    NO_METRIC_SCALE = "no metric scale"
+    AMBIGUOUS = "ambiguous match"
+
+    @classmethod
+    def of(cls, text: str | None) -> Reason | None:
+        """The member whose text is `text` (a reason read back from a file), None for none or
+        for a text of no member."""
+        try:
+            return cls(text) if text else None
+        except ValueError:
+            return None
+
 AMBIGUOUS_SHARE = 0.25  # a reading whose 95 % bound exceeds this share of its distance
-REASONS = ("no valid pixels", TOO_FEW, NOT_SEEN, NOT_SEARCHED, "no texture", "too near", "too far",
-           "outside the image", "out of disparity range", "no metric scale", AMBIGUOUS)
 Z95 = 1.959964  # two-sided 95 % quantile of the normal distribution
 # the parts of a reading's disparity uncertainty (1 sigma, px) that its refinement's own standard
-# error does not see, measured on the simulated rig (rig seeds 11-15: 17x13 grids on walls at
-# 0.5-3 m; 7-9: points on chessboards at 0.4-1.2 m in front of the demo scene; the tests and the
-# benchmark use other seeds): a floor (interpolation in rectification and resampling), a share
+# error does not see, measured on the simulated rig on walls and chessboards the tests and the
+# benchmark do not use: a floor (interpolation in rectification and resampling), a share
 # of the refinement's own correction (the rest of SGBM's bias towards whole pixels), a share of
 # the disagreement between the 13 and 9 px windows (sharp, repeating or sparse texture), and,
 # unrefined, SGBM's bias towards whole pixels
@@ -75,7 +96,7 @@ TEXTURE_MIN_T = 3.0
 class Measurement:
     """A distance reading at rectified pixel (x, y). Lengths in mm in the left rectified frame.
 
-    `reason` says why `valid` is False (one of REASONS). `spread_px` is the robust standard
+    `reason` says why `valid` is False. `spread_px` is the robust standard
     deviation of the disparities used; `expected_error_mm` is a 95 % bound of the error of Z:
     the disparity moved by `disparity_bound_px` (`disparity_bound_px()`) towards the far side,
     through triangulation or the fit in use. `method` is "triangulation" or the fitted model.
@@ -84,7 +105,7 @@ class Measurement:
     x: float
     y: float
     valid: bool
-    reason: str | None = None
+    reason: Reason | None = None
     disparity_px: float = float("nan")
     X_mm: float = float("nan")
     Y_mm: float = float("nan")
@@ -105,7 +126,8 @@ class Measurement:
             return None if v is None or not math.isfinite(v) else float(v)
 
         return {
-            "x": self.x, "y": self.y, "valid": self.valid, "reason": self.reason,
+            "x": self.x, "y": self.y, "valid": self.valid,
+            "reason": None if self.reason is None else str(self.reason),
             "disparity_px": num(self.disparity_px), "X_mm": num(self.X_mm), "Y_mm": num(self.Y_mm),
             "Z_mm": num(self.Z_mm), "range_mm": num(self.range_mm),
             "valid_fraction": float(self.valid_fraction),
@@ -436,29 +458,29 @@ def is_blank(gray: np.ndarray, x: int, y: int) -> bool:
     return bool(mask[y - y0, x - x0])
 
 
-def _why_nothing(result: PipelineResult | None, x: int, y: int, half: int) -> str:
+def _why_nothing(result: PipelineResult | None, x: int, y: int, half: int) -> Reason:
     """Reason for a patch without a usable match: the right camera cannot see the point, nothing
     to match, the surface beyond the range, or no match."""
     if result is None:
-        return "no valid pixels"
+        return Reason.NO_VALID_PIXELS
     p = result.params
     if not p.full_frame and x < result.disparity_range_px[1] + 1 + p.block_size // 2:
-        return NOT_SEARCHED
+        return Reason.NOT_SEARCHED
     gl = to_gray(result.rectified_left)
     d_est = _estimate_from_right(result, x, y, half)
     if d_est is not None and x - d_est < half:
-        return NOT_SEEN
+        return Reason.NOT_SEEN
     if p.check_block_size and is_blank(gl, x, y):
-        return "no texture"
+        return Reason.NO_TEXTURE
     scan = best_match_disparity(gl, to_gray(result.rectified_right), x, y, max(half, 5))
     if scan is not None and scan[1] >= SCAN_PEAK_MIN:
         d_lo, d_hi = result.disparity_range_px
         step = 1.0 / result.match_scale
         if scan[0] > d_hi + step:
-            return "too near"
+            return Reason.TOO_NEAR
         if scan[0] < d_lo - step:
-            return "too far"
-    return "no valid pixels"
+            return Reason.TOO_FAR
+    return Reason.NO_VALID_PIXELS
 
 
 def disparity_bound_px(refinement: Refinement | None, spread_px: float) -> float:
@@ -515,19 +537,19 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
     h, w = disp.shape[:2]
     xi, yi = int(round(x)), int(round(y))
     if not (0 <= x <= w - 1 and 0 <= y <= h - 1):
-        return Measurement(x, y, False, "outside the image", mode=mode)
+        return Measurement(x, y, False, Reason.OUTSIDE, mode=mode)
     half = patch // 2
     y0, y1 = max(0, yi - half), min(h, yi + half + 1)
     x0, x1 = max(0, xi - half), min(w, xi + half + 1)
 
-    def invalid(reason: str, **fields) -> Measurement:
+    def invalid(reason: Reason, **fields) -> Measurement:
         return Measurement(x, y, False, reason, mode=mode, **fields)
 
     if result is not None and result.not_seen is not None and result.not_seen[yi, xi]:
-        return invalid(NOT_SEEN)  # as every view shows it
+        return invalid(Reason.NOT_SEEN)  # as every view shows it
     if (result is not None and not result.params.check_block_size
             and not has_texture(to_gray(result.rectified_left), xi, yi, half)):
-        return invalid("no texture")  # whatever matched there matched noise
+        return invalid(Reason.NO_TEXTURE)  # whatever matched there matched noise
 
     scaled = result is not None and result.match_scale < 1.0
     if mode == "point":
@@ -553,7 +575,7 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
         if valid_fraction < MIN_VALID_FRACTION:
             # a few pixels that passed where all around failed (an occlusion's edge, a
             # repeating pattern) are no reading
-            return invalid(TOO_FEW, valid_fraction=valid_fraction)
+            return invalid(Reason.TOO_FEW, valid_fraction=valid_fraction)
         d = float(np.median(values))
     else:
         view = result.final_px if result is not None else disp
@@ -564,7 +586,7 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
         values = values[np.isfinite(values)]
         valid_fraction = values.size / int(region.sum())
         if values.size == 0:
-            return invalid("no valid pixels", valid_fraction=0.0)
+            return invalid(Reason.NO_VALID_PIXELS, valid_fraction=0.0)
         d = histogram_mode(values)
     spread = robust_spread(values)
     raw_d = d
@@ -578,10 +600,10 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
         if ref is not None:
             if ref.correlation * math.sqrt(ref.pixels) < TEXTURE_MIN_T * STDERR_SCALE:
                 # the aligned windows share nothing the noise could not have given them
-                return invalid("no texture", disparity_px=d, **common)
+                return invalid(Reason.NO_TEXTURE, disparity_px=d, **common)
             d = ref.disparity_px
     if result is not None and xi - d < -0.5:
-        return invalid(NOT_SEEN, disparity_px=d, **common)
+        return invalid(Reason.NOT_SEEN, disparity_px=d, **common)
 
     # the matcher cannot report disparities outside its range: a surface nearer than the range
     # allows gives a wrong match somewhere inside it. An exhaustive correlation scan of the
@@ -599,15 +621,15 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
                            else -1.0)
             if (score_best >= SCAN_PEAK_MIN and score_best > at_estimate + SCAN_MARGIN
                     and not (d_lo - step <= d_best <= d_hi + step)):
-                return invalid("too near" if d_best > d_hi else "too far", disparity_px=d,
-                               **common)
+                return invalid(Reason.TOO_NEAR if d_best > d_hi else Reason.TOO_FAR,
+                               disparity_px=d, **common)
     if raw_d >= d_hi - step:
-        return invalid("too near", disparity_px=d, **common)
+        return invalid(Reason.TOO_NEAR, disparity_px=d, **common)
     if d_lo > 0 and raw_d <= d_lo + step:
-        return invalid("too far", disparity_px=d, **common)
+        return invalid(Reason.TOO_FAR, disparity_px=d, **common)
     xyz = triangulate(calibration, x, y, d)
     if xyz is None:
-        return invalid("too far", disparity_px=d, **common)
+        return invalid(Reason.TOO_FAR, disparity_px=d, **common)
     X, Y, Z = xyz
     method = "triangulation"
     bound_px = (disparity_bound_px(ref, spread) if result is not None
@@ -615,7 +637,7 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
     if fit is not None:
         lo_s, hi_s = fit.disparity_span
         if not lo_s <= d <= hi_s:
-            return invalid("out of disparity range", disparity_px=d, method=fit.model, **common)
+            return invalid(Reason.OUT_OF_FIT_RANGE, disparity_px=d, method=fit.model, **common)
         z_fit = float(fit.predict(d))
         k = z_fit / Z
         X, Y, Z = X * k, Y * k, z_fit
@@ -625,7 +647,7 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
     elif not calibration.metric:
         # Hartley's rectification has no scale: triangulation would give a number in unknown
         # units; a regression fitted on true distances gives millimetres
-        return invalid("no metric scale", disparity_px=d, **common)
+        return invalid(Reason.NO_METRIC_SCALE, disparity_px=d, **common)
     else:
         expected = _depth_bound_mm(calibration.focal_px * calibration.rectified_baseline_mm, d,
                                    bound_px) * (Z / _z_of(calibration, d))
@@ -634,7 +656,7 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
         # the match fits so loosely that its 95 % bound spans a large part of the distance
         # (texture near the sensor noise, shading both cameras share, a match into the strip
         # the right camera cannot see): a number that says so little is no reading
-        return invalid(AMBIGUOUS, disparity_px=d, method=method, **common)
+        return invalid(Reason.AMBIGUOUS, disparity_px=d, method=method, **common)
     rng = math.sqrt(X * X + Y * Y + Z * Z)
     return Measurement(x, y, True, None, disparity_px=d, X_mm=X, Y_mm=Y, Z_mm=Z, range_mm=rng,
                        valid_fraction=valid_fraction, spread_px=spread, expected_error_mm=expected,
@@ -657,10 +679,9 @@ def with_calibration_uncertainty(bound_mm: float, calibration: StereoCalibration
 
     Added, not in quadrature: the calibration's error is the same for every reading made with
     it (systematic), so a bound that must hold for the calibration at hand cannot let the
-    random matching part average it away. Measured on the simulated rig (10 seeds, 20 pairs):
-    in quadrature the bound covered 83 % of the grid for a calibration whose focal lengths came
-    out 1.8 sigma high, added it covered >= 99 % on every seed, with a median of 0.53-0.59 % of
-    the distance at 3 m (0.43-0.45 % in quadrature)."""
+    random matching part average it away: in quadrature the bound falls short for a calibration
+    whose focal lengths came out a little high, added it holds, for a bound only slightly
+    wider."""
     if getattr(calibration, "uncertainty", None) is None or not math.isfinite(bound_mm):
         return bound_mm
     from stereo_gui.core.uncertainty import depth_sigma_mm

@@ -1,7 +1,8 @@
 """Matcher presets: the built-in ones shipped in resources/presets/*.json, and the user's own,
 saved as JSON in the settings folder's `presets/` sub-folder.
 
-File format: {"format_version": 1, "name": ..., "description": ..., "params": {MatcherParams}}.
+File format: {"format_version": 1, "name": ..., "description": ..., "params": {...}}, the params
+one flat object of the matcher's, display's and threads' fields (`Preset.to_dict`).
 A built-in name cannot be overwritten by a user preset.
 """
 
@@ -13,7 +14,7 @@ import re
 from pathlib import Path
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import MatcherParams
+from stereo_gui.core.matching import Preset
 from stereo_gui.files.atomic import write_json_atomic
 from stereo_gui.files.readers import read_json_object
 from stereo_gui.resources import resource_path
@@ -36,7 +37,7 @@ def user_preset_dir() -> Path:
     return Path(platformdirs.user_config_dir("stereo-gui")) / "presets"
 
 
-def _read(path: Path) -> MatcherParams:
+def _read(path: Path) -> Preset:
     data = read_json_object(path, "preset")
     if not isinstance(data.get("params"), dict):
         raise InputError(f"preset {path} has no \"params\" object")
@@ -47,7 +48,7 @@ def _read(path: Path) -> MatcherParams:
     params = dict(data["params"])
     params["name"] = str(data.get("name", path.stem))
     params["description"] = str(data.get("description", ""))
-    return MatcherParams.from_dict(params, where=f"preset {path}")
+    return Preset.from_dict(params, where=f"preset {path}")
 
 
 def list_presets() -> list[str]:
@@ -59,7 +60,7 @@ def list_presets() -> list[str]:
     return names
 
 
-def load_preset(name: str) -> MatcherParams:
+def load_preset(name: str) -> Preset:
     """A preset by name (built-in or user), or from a path ending in .json."""
     if name.endswith(".json") and (os.sep in name or "/" in name or Path(name).is_file()):
         return _read(Path(name))
@@ -71,7 +72,7 @@ def load_preset(name: str) -> MatcherParams:
     raise InputError(f"unknown preset {name!r}; known presets: {', '.join(list_presets())}")
 
 
-def save_user_preset(params: MatcherParams, name: str | None = None) -> Path:
+def save_user_preset(params: Preset, name: str | None = None) -> Path:
     """Save `params` as the user's preset `name` (default: params.name); returns the file."""
     name = name or params.name
     if not _NAME.match(name or ""):

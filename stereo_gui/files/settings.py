@@ -3,29 +3,30 @@
 The folder is `$STEREO_GUI_CONFIG_DIR` when set (tests set it, so they never touch the real
 user's settings), else `platformdirs.user_config_dir("stereo-gui")`. Loading never raises: a
 corrupt file, an unknown format version, unknown keys and wrongly typed values are reported as
-warnings (and logged) and replaced by defaults, so a bad file never stops the application.
+warnings (and logged) and replaced by defaults, so a bad file never stops the application. What
+each setting may hold is declared with its field (`core.params`), once.
 """
 
 from __future__ import annotations
 
 import json
 import logging
-import math
 import os
 import re
-import types
-import typing
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 from stereo_gui.core.board import (
     MAX_BOARD_CORNERS,
     MAX_SQUARE_MM,
     MIN_SQUARE_MM,
+    TARGETS,
     BoardSpec,
 )
 from stereo_gui.core.errors import InputError
+from stereo_gui.core.lens import LENS_MODELS
 from stereo_gui.core.measure import PATCH_PX
+from stereo_gui.core.params import convert, describe_type, param, params_of
 from stereo_gui.files.atomic import write_json_atomic
 from stereo_gui.files.readers import set_aside
 
@@ -37,45 +38,89 @@ APP_NAME = "stereo-gui"
 RECENT_LIMIT = 10
 
 
+# ---- what a value may be ----------------------------------------------------------------------
+MAX_TEXT = 4096  # characters of a path or name; longer is a damaged file
+MAX_GEOMETRY = 65536  # characters of a base64 window geometry or state
+_BASE64 = re.compile(r"[A-Za-z0-9+/=]*")
+_TEXT = f"text of at most {MAX_TEXT} characters"
+
+
+def _text_ok(v) -> bool:
+    return v is None or (len(v) <= MAX_TEXT and "\0" not in v)
+
+
+def _base64_ok(v) -> bool:
+    # QByteArray.fromBase64 needs ASCII: anything else would stop the window from opening
+    return len(v) <= MAX_GEOMETRY and bool(_BASE64.fullmatch(v))
+
+
+def _text(default, help: str = ""):
+    return param(default, check=_text_ok, check_text=_TEXT, help=help)
+
+
 @dataclass(frozen=True)
 class Settings:
-    """Everything the application remembers between runs. Units are in the field names."""
+    """Everything the application remembers between runs. Units are in the field names; each
+    field's type, range and meaning are declared with it (a `Param`), and a file's value that
+    does not fit them is warned about and replaced by the default."""
 
-    source: str = "auto"  # as --source takes it: auto, sim, cams:L,R, sbs:N, a folder or a video
-    # the cameras of a cams:/sbs: source by name and USB ids (CameraInfo.identity), in the
-    # spec's order, so that one plugged in again under another index is found again
-    cameras: tuple[str, ...] = ()
-    resolution: tuple[int, int] = (640, 480)  # (width, height), px
+    source: str = _text("auto", "as --source takes it: auto, sim, cams:L,R, sbs:N, a folder or "
+                                "a video")
+    cameras: tuple[str, ...] = param(
+        (), help="the cameras of a cams:/sbs: source by name and USB ids (CameraInfo.identity), "
+                 "in the spec's order, so that one plugged in again under another index is "
+                 "found again")
+    resolution: tuple[int, int] = param(
+        (640, 480), unit="px", check=lambda v: 0 < v[0] <= 100_000 and 0 < v[1] <= 100_000,
+        check_text="two positive integers up to 100000", help="(width, height)")
     swap_lr: bool = False
-    board_cols: int = 9  # inner corners (chessboard), circles, or squares (ChArUco)
-    board_rows: int = 6
-    square_mm: float = 25.0
-    board_target: str = "chessboard"  # core.board.TARGETS
-    marker_mm: float = 0.0  # ChArUco marker side / circle diameter; 0: the target's default
-    board_dictionary: str = "DICT_4X4_50"  # ChArUco's ArUco dictionary
-    lens_model: str = "pinhole"  # core.lens.LENS_MODELS, the Calibration tab's choice
+    # circle grids can have 2 a side (BoardSpec checks each target's own least)
+    board_cols: int = param(9, lo=2, hi=MAX_BOARD_CORNERS,
+                            help="inner corners (chessboard), circles, or squares (ChArUco)")
+    board_rows: int = param(6, lo=2, hi=MAX_BOARD_CORNERS)
+    square_mm: float = param(25.0, lo=MIN_SQUARE_MM, hi=MAX_SQUARE_MM, unit="mm")
+    board_target: str = param("chessboard", choices=TARGETS)
+    marker_mm: float = param(0.0, lo=0.0, hi=MAX_SQUARE_MM, unit="mm",
+                             help="ChArUco marker side / circle diameter; 0: the target's default")
+    board_dictionary: str = param("DICT_4X4_50", help="ChArUco's ArUco dictionary")
+    lens_model: str = param("pinhole", choices=LENS_MODELS, help="the Calibration tab's choice")
     fix_k3: bool = False
-    nominal_baseline_mm: float = 110.0
-    preset: str = "live"  # matcher preset name
-    last_calibration: str | None = None  # path of the calibration loaded at start-up
-    # the calibration chosen last was the simulated rig's true one: used again whenever the rig
-    # is the source (last_calibration stays for other sources)
-    sim_true_calibration: bool = False
-    last_session: str | None = None  # path of the last capture session folder
-    last_export_dir: str | None = None
-    recordings_dir: str | None = None  # where new recordings go (None: ~/stereo-gui-recordings)
-    window_geometry: str = ""  # QMainWindow.saveGeometry() as base64
-    window_state: str = ""  # QMainWindow.saveState() as base64
-    recent_files: tuple[str, ...] = ()  # newest first
-    colormap: str = "ocean"
-    patch_size: int = PATCH_PX  # side of the square patch a click measures, px (odd)
+    nominal_baseline_mm: float = param(110.0, check=lambda v: 0 < v <= 1e5,
+                                       check_text="a positive number up to 100000", unit="mm")
+    preset: str = _text("live", "matcher preset name")
+    last_calibration: str | None = _text(None, "path of the calibration loaded at start-up")
+    # (last_calibration stays for other sources)
+    sim_true_calibration: bool = param(
+        False, help="the calibration chosen last was the simulated rig's true one: used again "
+                    "whenever the rig is the source")
+    last_session: str | None = _text(None, "path of the last capture session folder")
+    last_export_dir: str | None = _text(None)
+    recordings_dir: str | None = _text(None, "where new recordings go (None: "
+                                             "~/stereo-gui-recordings)")
+    window_geometry: str = param("", check=_base64_ok, check_text="base64 text",
+                                 help="QMainWindow.saveGeometry() as base64")
+    window_state: str = param("", check=_base64_ok, check_text="base64 text",
+                              help="QMainWindow.saveState() as base64")
+    recent_files: tuple[str, ...] = param(
+        (), check=lambda v: len(v) <= 100 and all(map(_text_ok, v)),
+        check_text="a list of at most 100 paths", help="newest first")
+    colormap: str = _text("ocean")
+    patch_size: int = param(PATCH_PX, lo=1, hi=101, odd=True, unit="px",
+                            help="side of the square patch a click measures")
     auto_capture: bool = False
-    measure_model: str = "triangulation"  # or the name of a fitted model ("cubic", "inverse")
-    visible_views: tuple[str, ...] = ()  # live views shown; empty means the window's default
-    # the Live tab's watched region: its box (x0, y0, x1, y1) px of the depth view, () for none,
-    # and its alarm distance (0: no alarm)
-    region_box: tuple[int, ...] = ()
-    region_alarm_m: float = 0.0
+    measure_model: str = _text("triangulation", "or the name of a fitted model (\"cubic\", "
+                                                "\"inverse\")")
+    visible_views: tuple[str, ...] = param(
+        (), check=lambda v: len(v) <= 100 and all(map(_text_ok, v)),
+        check_text="a list of view names", help="live views shown; empty: the window's default")
+    region_box: tuple[int, ...] = param(
+        (), unit="px", check=lambda v: v == () or (len(v) == 4 and 0 <= v[0] < v[2] <= 100_000
+                                                   and 0 <= v[1] < v[3] <= 100_000),
+        check_text="no box, or x0, y0, x1, y1 with x0 < x1 and y0 < y1 (px)",
+        help="the Live tab's watched region: its box (x0, y0, x1, y1) of the depth view, () "
+             "for none")
+    region_alarm_m: float = param(0.0, lo=0.0, hi=1000.0, unit="m",
+                                  help="the watched region's alarm distance (0: no alarm)")
 
     @property
     def board(self) -> BoardSpec:
@@ -117,122 +162,27 @@ def settings_path() -> Path:
     return config_dir() / SETTINGS_FILE
 
 
-# ---- validation -----------------------------------------------------------------------------
-# extra checks on values that have the right type; a failing check is reported like a bad type
-MAX_TEXT = 4096  # characters of a path or name; longer is a damaged file
-MAX_GEOMETRY = 65536  # characters of a base64 window geometry or state
-_BASE64 = re.compile(r"[A-Za-z0-9+/=]*")
-
-
-def _text_ok(v) -> bool:
-    return v is None or (len(v) <= MAX_TEXT and "\0" not in v)
-
-
-_CHECKS: dict[str, tuple[typing.Callable[[object], bool], str]] = {
-    "resolution": (lambda v: 0 < v[0] <= 100_000 and 0 < v[1] <= 100_000,
-                   "two positive integers up to 100000"),
-    # circle grids can have 2 a side (BoardSpec checks each target's own least)
-    "board_cols": (lambda v: 2 <= v <= MAX_BOARD_CORNERS,
-                   f"an integer from 2 to {MAX_BOARD_CORNERS}"),
-    "board_rows": (lambda v: 2 <= v <= MAX_BOARD_CORNERS,
-                   f"an integer from 2 to {MAX_BOARD_CORNERS}"),
-    "board_target": (lambda v: v in ("chessboard", "circles", "acircles", "charuco"),
-                     "chessboard, circles, acircles or charuco"),
-    "marker_mm": (lambda v: math.isfinite(v) and 0 <= v <= MAX_SQUARE_MM,
-                  f"a number of millimetres from 0 to {MAX_SQUARE_MM:g}"),
-    "lens_model": (lambda v: v in ("pinhole", "rational", "fisheye"), "pinhole, rational or fisheye"),
-    "square_mm": (lambda v: MIN_SQUARE_MM <= v <= MAX_SQUARE_MM,
-                  f"a number of millimetres from {MIN_SQUARE_MM:g} to {MAX_SQUARE_MM:g}"),
-    "nominal_baseline_mm": (lambda v: math.isfinite(v) and 0 < v <= 1e5,
-                            "a positive number up to 100000"),
-    "patch_size": (lambda v: 1 <= v <= 101 and v % 2 == 1, "an odd integer from 1 to 101"),
-    # QByteArray.fromBase64 needs ASCII: anything else would stop the window from opening
-    "window_geometry": (lambda v: len(v) <= MAX_GEOMETRY and bool(_BASE64.fullmatch(v)),
-                        "base64 text"),
-    "window_state": (lambda v: len(v) <= MAX_GEOMETRY and bool(_BASE64.fullmatch(v)),
-                     "base64 text"),
-    "recent_files": (lambda v: len(v) <= 100 and all(map(_text_ok, v)),
-                     "a list of at most 100 paths"),
-    "visible_views": (lambda v: len(v) <= 100 and all(map(_text_ok, v)),
-                      "a list of view names"),
-    "region_box": (lambda v: v == () or (len(v) == 4 and 0 <= v[0] < v[2] <= 100_000
-                                         and 0 <= v[1] < v[3] <= 100_000),
-                   "no box, or x0, y0, x1, y1 with x0 < x1 and y0 < y1 (px)"),
-    "region_alarm_m": (lambda v: math.isfinite(v) and 0 <= v <= 1000, "metres from 0 to 1000"),
-}
-for _key in ("source", "preset", "last_calibration", "last_session", "last_export_dir",
-             "recordings_dir", "colormap", "measure_model"):
-    _CHECKS[_key] = (_text_ok, f"text of at most {MAX_TEXT} characters")
-
-
-def _convert(value, tp):
-    """`value` (parsed JSON) converted to type `tp`, or raise TypeError."""
-    origin = typing.get_origin(tp)
-    if origin in (typing.Union, types.UnionType):
-        args = typing.get_args(tp)
-        if value is None and type(None) in args:
-            return None
-        for a in args:
-            if a is type(None):
-                continue
-            try:
-                return _convert(value, a)
-            except TypeError:
-                pass
-        raise TypeError
-    if origin is tuple:
-        args = typing.get_args(tp)
-        if not isinstance(value, list | tuple):
-            raise TypeError
-        if len(args) == 2 and args[1] is Ellipsis:
-            return tuple(_convert(v, args[0]) for v in value)
-        if len(value) != len(args):
-            raise TypeError
-        return tuple(_convert(v, a) for v, a in zip(value, args, strict=True))
-    if tp is bool:
-        if not isinstance(value, bool):
-            raise TypeError
-        return value
-    if tp is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise TypeError
-        return value
-    if tp is float:
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise TypeError
-        return float(value)
-    if tp is str:
-        if not isinstance(value, str):
-            raise TypeError
-        return value
-    raise TypeError
-
-
-def _describe(tp) -> str:
-    return str(tp).replace("typing.", "").replace("<class '", "").replace("'>", "")
-
-
 def settings_from_dict(data: dict) -> tuple[Settings, list[str]]:
     """Settings built from a parsed settings file, with a warning for every value not used."""
     warnings: list[str] = []
-    hints = typing.get_type_hints(Settings)
-    known = {f.name for f in fields(Settings)}
+    specs = params_of(Settings)
     values: dict[str, object] = {}
     for key, raw in data.items():
         if key == "format_version":
             continue
-        if key not in known:
+        spec = specs.get(key)
+        if spec is None:
             warnings.append(f"unknown setting {key!r} ignored")
             continue
         try:
-            value = _convert(raw, hints[key])
+            value = convert(raw, spec.type)
         except TypeError:
-            warnings.append(f"setting {key!r} should be {_describe(hints[key])}, "
+            warnings.append(f"setting {key!r} should be {describe_type(spec.type)}, "
                             f"found {raw!r}; default used")
             continue
-        check = _CHECKS.get(key)
-        if check and not check[0](value):
-            warnings.append(f"setting {key!r} should be {check[1]}, found {raw!r}; default used")
+        if spec.problem(value) is not None:
+            warnings.append(f"setting {key!r} should be {spec.wants()}, found {raw!r}; "
+                            "default used")
             continue
         values[key] = value
     return Settings(**values), warnings

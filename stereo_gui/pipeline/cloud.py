@@ -84,11 +84,11 @@ def cloud_points(result: PipelineResult, colouring: str = "image", step: int = 2
     else:  # near bright, as the colour view shows distance
         span = max(far - near, 1e-6)
         level = np.clip(255.0 * (far - z) / span, 0, 255).astype(np.uint8).reshape(-1, 1)
-        cmap = COLORMAPS.get(result.params.colormap, cv2.COLORMAP_OCEAN)
+        cmap = COLORMAPS.get(result.preset.display.colormap, cv2.COLORMAP_OCEAN)
         rgb = cv2.applyColorMap(level, cmap).reshape(-1, 3)[:, ::-1]
     rgba = np.empty((pts.shape[0], 4), np.float32)
     rgba[:, :3] = rgb.astype(np.float32) / 255.0
     rgba[:, 3] = 1.0
     background = (IMAGE_BACKGROUND_RGB if colouring == "image" else
-                  distance_background_rgb(result.params.colormap))
+                  distance_background_rgb(result.preset.display.colormap))
     return CloudPoints(pts, rgba, near, far, background)

@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.matching import (NO_MATCH_BGR, NOT_SEEN_BGR, MatcherParams,
-                                     PipelineResult, StereoPipeline, colorize, paint)
+                                     PipelineResult, Preset, StereoPipeline, colorize, paint)
 from stereo_gui.core.health import CalibrationHealth
 from stereo_gui.pipeline.health import HealthMonitor
 from stereo_gui.pipeline.images import display_rgb
@@ -68,27 +68,26 @@ def _wls_picture(r: PipelineResult) -> np.ndarray:
     depth view itself when the filter's output is the final map or there is none)."""
     if r.wls_px is None or r.wls_px is r.final_px or r.color_scale is None:
         return cv2.cvtColor(r.color_bgr, cv2.COLOR_BGR2RGB)
-    bgr = colorize(r.wls_px, r.color_scale, r.params.colormap, r.not_seen, r.not_seen_cols)
+    bgr = colorize(r.wls_px, r.color_scale, r.preset.display.colormap, r.not_seen,
+                   r.not_seen_cols)
     return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
 
-def frame_lanes(params: MatcherParams, cpus: int | None = None) -> int:
+def frame_lanes(params: Preset | MatcherParams, cpus: int | None = None) -> int:
     """How many frames the Live tab processes at once: one per CPU, at most MAX_LANES, when the
     preset is `parallel` (one frame on each core: frames in flight share no work, so they keep
     both cores busy without the hand-offs of splitting one frame); else 1."""
     cpus = (os.cpu_count() or 1) if cpus is None else cpus
-    return max(1, min(MAX_LANES, cpus)) if params.parallel else 1
+    return max(1, min(MAX_LANES, cpus)) if Preset.of(params).threads.parallel else 1
 
 
 def opencv_threads_beside_lanes(cpus: int | None = None) -> int:
     """The OpenCV thread count the application runs with: the CPUs the frame lanes leave, plus
     one (on 2 CPUs: 1, every OpenCV call in the thread that makes it, no pool of OpenCV's own).
     The application's own threads use the cores (the frame lanes, the health check, the
-    detection pool); OpenCV's pool on top of them only added hand-offs and spinning: on 2 CPUs,
-    live at 640x480 in two lanes took 38 ms of CPU a frame (median of 8 runs) against 42 ms with
-    OpenCV's 2 threads, and detection and calibration of 40 rig pairs 0.86-0.92 s against
-    0.98-1.00 s. (More CPUs were not measured: there, the first lane to call OpenCV gets its pool
-    and the other runs its call in its own thread.)"""
+    detection pool); OpenCV's pool on top of them only adds hand-offs and spinning, both in the
+    live lanes and in detection and calibration. (With more CPUs the first lane to call OpenCV
+    gets its pool and the other runs its call in its own thread.)"""
     cpus = (os.cpu_count() or 1) if cpus is None else cpus
     return max(1, cpus - MAX_LANES + 1)
 
@@ -114,7 +113,8 @@ class LiveProcessor:
     reason, for every frame, so it is never silently wrong.
     """
 
-    def __init__(self, calibration, params: MatcherParams) -> None:
+    def __init__(self, calibration, params: Preset | MatcherParams) -> None:
+        params = Preset.of(params)
         self.calibration = calibration
         self._lock = threading.Lock()
         self._lane_params = _one_lane(params)  # what each lane's pipeline runs (made once)
@@ -143,7 +143,8 @@ class LiveProcessor:
         with self._lock:
             self._views = keys
 
-    def set_params(self, params: MatcherParams) -> None:
+    def set_params(self, params: Preset | MatcherParams) -> None:
+        params = Preset.of(params)
         with self._lock:
             self._lane_params = lane = _one_lane(params)
             self._lanes = frame_lanes(params)
@@ -239,7 +240,7 @@ class LiveProcessor:
             pipeline.close()
 
 
-def _one_lane(params: MatcherParams) -> MatcherParams:
+def _one_lane(params: Preset) -> Preset:
     """The parameters a lane's pipeline runs: a frame's stages one after the other."""
-    return params.replace(parallel=False) if params.parallel else params
+    return params.replace(parallel=False) if params.threads.parallel else params
 

@@ -14,7 +14,7 @@ from stereo_gui.commands.accuracy import (
     format_table,
     grid_pixels,
 )
-from stereo_gui.core.measure import NOT_SEEN
+from stereo_gui.core.measure import Reason
 from stereo_gui.sources.sim import SimRig
 
 TEST_SEED = 31
@@ -60,7 +60,7 @@ def test_points_the_right_camera_cannot_see_say_so(reports):
         unseen = [g for r in reps for g in r.readings if not g.seen and math.isfinite(g.true_z_mm)]
         assert unseen  # the walls at 0.5-1 m leave a strip of 80-165 px at the left edge
         assert not any(g.read for g in unseen)
-        assert sum(g.reason == NOT_SEEN for g in unseen) >= 0.9 * len(unseen)
+        assert sum(g.reason == Reason.NOT_SEEN for g in unseen) >= 0.9 * len(unseen)
 
 
 @pytest.fixture(scope="module")

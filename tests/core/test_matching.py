@@ -7,8 +7,18 @@ import numpy as np
 import pytest
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import (NO_MATCH_BGR, NOT_SEEN_BGR, MatcherParams,
-                                      StereoPipeline, color_scale, colorize, fixed_to_px)
+from stereo_gui.core.matching import (
+    NO_MATCH_BGR,
+    NOT_SEEN_BGR,
+    DisplayParams,
+    MatcherParams,
+    Preset,
+    StereoPipeline,
+    ThreadParams,
+    color_scale,
+    colorize,
+    fixed_to_px,
+)
 from stereo_gui.core.stereo_calibration import StereoCalibration
 
 W, H, SHIFT = 240, 160, 12  # px; the synthetic pair is a plane at constant disparity SHIFT
@@ -35,17 +45,40 @@ def test_params_validate_and_round_trip():
         MatcherParams(num_disparities=100)
     with pytest.raises(InputError, match="mode"):
         MatcherParams(mode="fast")
-    p = MatcherParams(name="x", mode="3way", scale=0.5, z_min_mm=400.0)
-    assert MatcherParams.from_dict(p.to_dict()) == p
-    assert MatcherParams.from_dict({"block_size": 5, "no_such_key": 1}).block_size == 5
+    p = Preset("x", matcher=MatcherParams(mode="3way", scale=0.5, z_min_mm=400.0),
+               display=DisplayParams(colormap="jet"), threads=ThreadParams(parallel=True))
+    assert Preset.from_dict(p.to_dict()) == p
+    assert Preset.from_dict({"block_size": 5, "no_such_key": 1}).matcher.block_size == 5
     # the report's own names are understood
-    report = MatcherParams.from_dict({"window_size": 3, "minDisparity": 2, "numDisparities": 128,
-                                      "lmbda": 80000})
+    report = Preset.from_dict({"window_size": 3, "minDisparity": 2, "numDisparities": 128,
+                               "lmbda": 80000}).matcher
     assert (report.block_size, report.min_disparity, report.wls_lambda) == (3, 2, 80000)
     with pytest.raises(InputError, match="must be a number"):
-        MatcherParams.from_dict({"block_size": "5"})
+        Preset.from_dict({"block_size": "5"})
     with pytest.raises(InputError, match="true or false"):
-        MatcherParams.from_dict({"wls": 1})
+        Preset.from_dict({"wls": 1})
+    with pytest.raises(InputError, match="whole number"):
+        Preset.from_dict({"block_size": 3.5})
+    assert Preset.from_dict({"block_size": 5.0}).matcher.block_size == 5
+    with pytest.raises(InputError, match="color_z_far_mm"):
+        Preset.from_dict({"color_z_near_mm": 900, "color_z_far_mm": 800})
+    with pytest.raises(InputError, match="cv_threads"):
+        Preset.from_dict({"cv_threads": -1})
+
+
+def test_a_preset_is_a_flat_object_of_its_parts_fields_in_the_files_order():
+    """Files hold one flat object: the matcher's, display's and threads' fields after the name,
+    as before the parts were split; a flat change goes to the part that declares the field."""
+    d = Preset().to_dict()
+    assert list(d)[:3] == ["name", "description", "block_size"]
+    assert list(d)[-6:] == ["colormap", "color_range", "color_z_near_mm", "color_z_far_mm",
+                            "parallel", "cv_threads"]
+    p = Preset().replace(name="n", block_size=5, colormap="jet", parallel=True)
+    assert (p.name, p.matcher.block_size, p.display.colormap, p.threads.parallel) == \
+        ("n", 5, "jet", True)
+    assert p.get("colormap") == "jet" and p.get("block_size") == 5
+    with pytest.raises(TypeError):
+        Preset().replace(no_such_parameter=1)
 
 
 def test_default_penalties_are_the_reports():
@@ -73,8 +106,9 @@ def test_fixed_point_is_divided_once_and_invalid_is_nan():
 @pytest.mark.parametrize("scale,mode,parallel", [(1.0, "sgbm", False), (0.5, "3way", True)])
 def test_pipeline_recovers_a_constant_disparity(scale, mode, parallel):
     left, right = textured_pair()
-    p = MatcherParams(min_disparity=0, num_disparities=32, block_size=5, scale=scale, mode=mode,
-                      parallel=parallel, wls_lambda=8000.0)
+    p = Preset(matcher=MatcherParams(min_disparity=0, num_disparities=32, block_size=5,
+                                     scale=scale, mode=mode, wls_lambda=8000.0),
+               threads=ThreadParams(parallel=parallel))
     with StereoPipeline(calib(), p) as pipe:
         r = pipe.process(left, right)
     assert r.size == (W, H)
@@ -110,7 +144,7 @@ def test_parallel_matchers_give_the_same_result_as_sequential():
     left, right = textured_pair()
     base = MatcherParams(min_disparity=0, num_disparities=32, block_size=5)
     a = StereoPipeline(calib(), base).process(left, right)
-    with StereoPipeline(calib(), base.replace(parallel=True)) as pipe:
+    with StereoPipeline(calib(), Preset(matcher=base, threads=ThreadParams(parallel=True))) as pipe:
         b = pipe.process(left, right)
     np.testing.assert_array_equal(a.disparity_px, b.disparity_px)
     np.testing.assert_array_equal(a.wls_px, b.wls_px)
@@ -121,9 +155,9 @@ def test_set_params_applies_to_the_next_frame_and_without_wls_final_is_closed():
     pipe = StereoPipeline(calib(), MatcherParams(min_disparity=0, num_disparities=32))
     pipe.set_params(MatcherParams(min_disparity=0, num_disparities=32, wls=False, closing_kernel=0,
                                   bilateral=True))
-    assert pipe.params.wls  # not yet
+    assert pipe.params.matcher.wls  # not yet
     r = pipe.process(left, right)
-    assert not pipe.params.wls and r.wls_px is None
+    assert not pipe.params.matcher.wls and r.wls_px is None
     assert r.final_px is r.closed_px is r.disparity_px
     assert "bilateral" in r.timings_ms
 
@@ -138,7 +172,7 @@ def test_wrong_image_size_is_an_input_error():
 def test_fixed_colour_range_maps_a_distance_to_a_fixed_colour():
     c = calib(f=700.0, b=110.0)
     fb = 700.0 * 110.0
-    p = MatcherParams(color_range="fixed", color_z_near_mm=500.0, color_z_far_mm=3000.0)
+    p = DisplayParams(color_range="fixed", color_z_near_mm=500.0, color_z_far_mm=3000.0)
 
     def paint(d, params=p):
         d = np.asarray(d, np.float32)
@@ -155,7 +189,7 @@ def test_fixed_colour_range_maps_a_distance_to_a_fixed_colour():
     # linear in distance: 1.75 m, halfway between 0.5 and 3 m, gets the middle colour
     assert (paint(np.full((1, 1), fb / 1750.0))[0, 0] == ocean(127)).all()
     # min-max (the report): the same map with one farther pixel changes the colour of the rest
-    p2 = MatcherParams(color_range="minmax")
+    p2 = DisplayParams(color_range="minmax")
     d[2, 2] = 100.0
     d2 = d.copy()
     d2[3, 3] = 10.0
@@ -187,7 +221,7 @@ def test_switching_parallel_off_stops_the_helper_thread():
     left, right = textured_pair()
     base = MatcherParams(min_disparity=0, num_disparities=32)
     before = set(threading.enumerate())
-    pipe = StereoPipeline(calib(), base.replace(parallel=True))
+    pipe = StereoPipeline(calib(), Preset(matcher=base, threads=ThreadParams(parallel=True)))
     pipe.process(left, right)
     helpers = [t for t in set(threading.enumerate()) - before if t.name.startswith("stereo-right")]
     assert helpers
@@ -253,23 +287,18 @@ def test_seed_preset_is_the_reports_loop_pixel_for_pixel():
 
 def test_presets_keep_their_matcher_checks_with_wls():
     """OpenCV's createDisparityWLSFilter switches off the uniqueness, speckle and left-right
-    checks of the matcher it is made from (the report's raw map ran without them); live and
-    quality keep the checks their parameters name, the seed reproduces the report."""
+    checks of the matcher it is made from; live and quality keep the checks their parameters
+    name (their raw map is the one the same matcher gives without WLS), the seed reproduces the
+    report's raw map, made without them."""
     from stereo_gui.files.presets import load_preset
 
     left, right = textured_pair()
-
-    def invalid_raw(p):
-        with StereoPipeline(calib(), p) as pipe:
-            return int(np.isnan(pipe.process(left, right).disparity_px).sum())
-
-    for name in ("live", "quality"):
-        p = load_preset(name).replace(z_min_mm=None, min_disparity=0, num_disparities=32,
-                                      parallel=False)
-        assert not p.wls_disables_checks, name
-        # the checks still refuse matches in the raw map: more than once WLS has switched them off
-        assert invalid_raw(p) > invalid_raw(p.replace(wls_disables_checks=True)), name
-    assert load_preset("seed").wls_disables_checks
+    for name, kept in (("live", True), ("quality", True), ("seed", False)):
+        preset = load_preset(name).replace(z_min_mm=None, min_disparity=0, num_disparities=32,
+                                           parallel=False)
+        with_wls = StereoPipeline(calib(), preset).process(left, right).disparity_px
+        alone = StereoPipeline(calib(), preset.replace(wls=False)).process(left, right)
+        assert np.array_equal(with_wls, alone.disparity_px, equal_nan=True) is kept, name
 
 
 def test_every_column_is_searched_whatever_the_range():
@@ -293,7 +322,7 @@ def test_new_parameters_validate():
     with pytest.raises(InputError, match="pre_filter_cap"):
         MatcherParams(pre_filter_cap=64)
     with pytest.raises(InputError, match="true or false"):
-        MatcherParams.from_dict({"full_frame": "yes"})
+        Preset.from_dict({"full_frame": "yes"})
 
 
 def test_a_principal_point_offset_shifts_the_disparity_range_and_the_colours():
@@ -309,7 +338,7 @@ def test_a_principal_point_offset_shifts_the_disparity_range_and_the_colours():
     lo, num = MatcherParams(z_min_mm=500.0, z_max_mm=2000.0).disparity_range(c)
     assert lo == math.floor(fb / 2000.0 - doffs) and lo + num - 1 >= fb / 500.0 - doffs
     # fixed colours: the disparity of 1.75 m (halfway between 0.5 and 3 m) gets the middle colour
-    p = MatcherParams(color_range="fixed", color_z_near_mm=500.0, color_z_far_mm=3000.0)
+    p = DisplayParams(color_range="fixed", color_z_near_mm=500.0, color_z_far_mm=3000.0)
     d = np.full((2, 2), fb / 1750.0 - doffs, np.float32)
     scale = color_scale(d, p, c)
     assert scale.doffs_px == pytest.approx(doffs)
@@ -430,7 +459,7 @@ def test_the_masks_made_in_the_band_give_the_whole_frames_results(monkeypatch):
     gives for the maps' largest disparity: the results are those of masks over the whole width.
     On a wall at the working range's near end, where the strip is widest, and with a small WLS
     lambda, whose output overshoots the matcher's range (up to int16's limit)."""
-    import stereo_gui.core.matching as matching
+    from stereo_gui.core import matching
     from stereo_gui.files.presets import load_preset
     from stereo_gui.sources.sim import RigConfig, Scene, SimRig
 

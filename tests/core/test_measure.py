@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import MatcherParams, StereoPipeline
-from stereo_gui.core.measure import (Z95, histogram_mode, measure_point, refine_disparity,
-                                     triangulate)
+from stereo_gui.core.matching import MatcherParams, Preset, StereoPipeline
+from stereo_gui.core.measure import (Z95, Reason, histogram_mode, measure_point,
+                                     refine_disparity, triangulate)
 from stereo_gui.core.regression import fit_inverse
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.presets import load_preset
@@ -116,6 +116,19 @@ def test_outside_the_image_and_no_valid_pixels():
         measure_point(disp, 10, 10)  # a bare map needs the calibration
 
 
+def test_a_reason_is_an_enum_member_written_as_its_words():
+    import json
+
+    c = StereoCalibration.identity((64, 48), 500.0, 100.0)
+    m = measure_point(np.full((48, 64), np.nan, np.float32), 70, 10, calibration=c)
+    assert m.reason is Reason.OUTSIDE and m.reason == "outside the image"
+    assert f"{m.reason}" == "outside the image"
+    doc = json.loads(json.dumps(m.to_json_dict()))
+    assert doc["reason"] == "outside the image" and type(m.to_json_dict()["reason"]) is str
+    assert Reason.of("too near") is Reason.TOO_NEAR
+    assert Reason.of("a reason of an older version") is None and Reason.of("") is None
+
+
 def test_bare_map_triangulates_through_q_with_median_and_spread():
     f, b = 500.0, 100.0
     c = StereoCalibration.identity((64, 48), f, b)
@@ -213,7 +226,7 @@ def test_bad_arguments():
         measure_point(disp, 5, 5, calibration=c, patch=0)
     with pytest.raises(InputError):
         measure_point(disp, 5, 5, calibration=c, mode="blob")
-    assert MatcherParams().name == "custom"
+    assert Preset().name == "custom"
 
 
 def test_reduced_resolution_preset_rematches_a_full_resolution_strip(rig, walls):
@@ -234,20 +247,18 @@ def test_reduced_resolution_preset_rematches_a_full_resolution_strip(rig, walls)
 
 
 def test_left_edge_strip_says_not_seen_and_the_seeds_band_not_searched(rig, walls):
-    from stereo_gui.core.measure import NOT_SEARCHED, NOT_SEEN
-
     calib = rig.true_calibration()
     scene, (left, right) = walls[1000.0]  # d = f*B/Z = 82 px: the strip the right camera misses
     quality = StereoPipeline(calib, load_preset("quality")).process(left, right)
     seed = StereoPipeline(calib, load_preset("seed")).process(left, right)
     for y in (60, 240, 420):
-        assert measure_point(quality, 30, y).reason == NOT_SEEN
-        assert measure_point(seed, 30, y).reason == NOT_SEARCHED
+        assert measure_point(quality, 30, y).reason == Reason.NOT_SEEN
+        assert measure_point(seed, 30, y).reason == Reason.NOT_SEARCHED
         # right of the strip but inside the seed's 130 px dead band: quality reads it
         m = measure_point(quality, 110, y)
         true = rig.true_point_rectified(calib, scene, 110, y)[2]
         assert m.valid and m.Z_mm == pytest.approx(true, rel=0.01)
-        assert measure_point(seed, 110, y).reason == NOT_SEARCHED
+        assert measure_point(seed, 110, y).reason == Reason.NOT_SEARCHED
     # the view paints the strip as not seen, and a click there agrees with it
     assert quality.not_seen[240, :70].all() and not quality.not_seen[240, 100:].any()
 

@@ -128,12 +128,12 @@ def _w_ros(root, version):
 
 
 def _w_preset(root, version):
-    from stereo_gui.core.matching import MatcherParams
+    from stereo_gui.core.matching import MatcherParams, Preset
     from stereo_gui.files.presets import save_user_preset
 
     os.environ["STEREO_GUI_CONFIG_DIR"] = str(root / "config")
-    save_user_preset(MatcherParams(name="mine", block_size=5 + 2 * version,
-                                   description="x" * 3000 * (1 + version)))
+    save_user_preset(Preset("mine", "x" * 3000 * (1 + version),
+                            MatcherParams(block_size=5 + 2 * version)))
 
 
 def _w_fit(root, version):

@@ -152,15 +152,15 @@ def test_fits(tmp_path):
 
 
 def test_presets(tmp_path):
-    from stereo_gui.core.matching import MatcherParams
+    from stereo_gui.core.matching import Preset
     from stereo_gui.files.presets import load_preset
     from stereo_gui.resources import resource_path
 
     good = resource_path("presets", "live.json").read_bytes()
 
     def check(params):
-        assert isinstance(params, MatcherParams)
-        MatcherParams.from_dict(params.to_dict())  # what was accepted passes validation again
+        assert isinstance(params, Preset)
+        Preset.from_dict(params.to_dict())  # what was accepted passes validation again
 
     _fuzz(tmp_path / "p.json", good, json.loads(good), lambda p: load_preset(str(p)), check)
 

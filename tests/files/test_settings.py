@@ -169,3 +169,14 @@ def test_failed_save_keeps_the_old_file(monkeypatch):
         save_settings(Settings(preset="live"))
     assert settings_path().read_bytes() == before
     assert [p.name for p in settings_path().parent.iterdir()] == ["settings.json"]
+
+
+def test_a_bad_value_is_warned_about_in_its_declarations_words():
+    settings_path().write_text(json.dumps({"format_version": 1, "patch_size": 4,
+                                           "lens_model": "fish", "square_mm": 1e9}))
+    s, warnings = load_settings()
+    assert (s.patch_size, s.lens_model, s.square_mm) == (9, "pinhole", 25.0)
+    joined = "\n".join(warnings)
+    assert "'patch_size' should be an odd whole number from 1 to 101 px, found 4" in joined
+    assert "'lens_model' should be one of pinhole, rational, fisheye" in joined
+    assert "'square_mm' should be a number from" in joined and " mm, found 1000000000.0" in joined

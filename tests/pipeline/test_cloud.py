@@ -55,7 +55,7 @@ def test_points_coloured_by_distance_stand_out_from_their_background():
     near = _plane(shift=30)
     for colormap in ("ocean", "jet", "turbo", "viridis", "hot"):
         for res in (r, near):
-            res = dataclasses.replace(res, params=res.params.replace(colormap=colormap))
+            res = dataclasses.replace(res, preset=res.preset.replace(colormap=colormap))
             c = cloud_points(res, "distance")
             bg = np.asarray(c.background_rgb, float)
             gap = np.linalg.norm(255.0 * c.rgba[:, :3] - bg, axis=1).min()

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from stereo_gui.core.errors import CalibrationError
-from stereo_gui.core.matching import MatcherParams
+from stereo_gui.core.matching import MatcherParams, Preset
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.pipeline.live import NO_MATCH_RGB, NOT_SEEN_RGB, LiveOutput, LiveProcessor
 from stereo_gui.sources.base import StereoFrame
@@ -64,7 +64,7 @@ def test_the_not_seen_colour_is_no_colour_of_depth_in_any_view():
     assert np.linalg.norm(seen - np.asarray(NO_MATCH_RGB, float)) > 80
     ramp = np.arange(256, dtype=np.uint8).reshape(256, 1)
     for name in ("live", "quality", "seed"):
-        cmap = load_preset(name).colormap
+        cmap = load_preset(name).display.colormap
         lut = cv2.applyColorMap(ramp, COLORMAPS[cmap]).reshape(256, 3)[:, ::-1].astype(float)
         assert np.linalg.norm(lut - seen, axis=1).min() > 80, (name, cmap)
 
@@ -110,16 +110,16 @@ def test_only_the_views_shown_are_made_and_the_right_image_is_gray_unless_shown(
 def test_lanes_follow_the_parallel_setting_and_the_cpus():
     from stereo_gui.pipeline.live import MAX_LANES, frame_lanes
 
-    on, off = MatcherParams(parallel=True), MatcherParams(parallel=False)
+    on, off = Preset().replace(parallel=True), Preset()
     assert frame_lanes(on, cpus=2) == 2 and frame_lanes(on, cpus=8) == MAX_LANES
     assert frame_lanes(on, cpus=1) == 1 and frame_lanes(off, cpus=8) == 1
     calib = StereoCalibration.identity((W, H), 300.0, 100.0)
-    params = MatcherParams(num_disparities=32, block_size=5, parallel=False)
+    params = Preset(matcher=MatcherParams(num_disparities=32, block_size=5))
     proc = LiveProcessor(calib, params)
     try:
         assert proc.lanes == 1
         proc.set_params(params.replace(parallel=True))
-        assert proc.lanes == frame_lanes(MatcherParams(parallel=True))
+        assert proc.lanes == frame_lanes(on)
     finally:
         proc.close()
 
@@ -133,7 +133,8 @@ def test_two_frames_at_once_each_get_a_pipeline_and_the_result_of_one_at_a_time(
     from stereo_gui.pipeline import live
 
     calib = StereoCalibration.identity((W, H), 300.0, 100.0)
-    params = MatcherParams(num_disparities=32, block_size=5, parallel=True)
+    params = Preset(matcher=MatcherParams(num_disparities=32, block_size=5)).replace(
+        parallel=True)
     alone = LiveProcessor(calib, params)
     proc = LiveProcessor(calib, params)
     frame = _frame()
@@ -146,7 +147,7 @@ def test_two_frames_at_once_each_get_a_pipeline_and_the_result_of_one_at_a_time(
         inside.wait()
         return real(self, *a, **k)
 
-    def two_at_once():
+    def two_at_once() -> list:
         outs = [None, None]
         live.StereoPipeline.process = meeting
         try:
@@ -164,16 +165,15 @@ def test_two_frames_at_once_each_get_a_pipeline_and_the_result_of_one_at_a_time(
         expected = alone(frame).result.final_px
         outs = two_at_once()
         assert len(used) == 2 and used[0] is not used[1]
-        assert all(not p.params.parallel for p in used)  # the lanes are the parallelism
+        assert all(not p.params.threads.parallel for p in used)  # the lanes are the parallelism
         for out in outs:
             np.testing.assert_array_equal(out.result.final_px, expected)
-        first_two = set(used)
+        first = set(used)
         proc.set_params(params.replace(block_size=7))
-        assert proc(frame).result.params.block_size == 7
         used.clear()
-        outs = two_at_once()  # the pipeline idle since the change has it too
-        assert set(used) == first_two
-        assert [out.result.params.block_size for out in outs] == [7, 7]
+        outs = two_at_once()  # the same two pipelines, changed while they were idle
+        assert set(used) == first
+        assert all(out.result.params.block_size == 7 for out in outs)
     finally:
         alone.close()
         proc.close()

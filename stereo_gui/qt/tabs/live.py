@@ -32,7 +32,7 @@ from PySide6.QtWidgets import (
 )
 
 from stereo_gui.core.errors import StereoGuiError
-from stereo_gui.core.matching import COLORMAPS, MatcherParams
+from stereo_gui.core.matching import COLORMAPS, Preset
 from stereo_gui.pipeline.live import NO_MATCH_RGB, NOT_SEEN_RGB, LiveOutput, LiveProcessor
 from stereo_gui.qt.context import TRUE_CALIBRATION_NOTE
 from stereo_gui.qt.tabs.live_cloud import LiveCloud
@@ -227,7 +227,7 @@ class LiveTab(QWidget):
         self._calibration_changed(ctx.calibration)
 
     # ---- set-up ------------------------------------------------------------------------------
-    def _initial_params(self) -> MatcherParams:
+    def _initial_params(self) -> Preset:
         name = self.ctx.settings.preset or "live"
         failed = []
         for candidate in dict.fromkeys((name, "live", "seed")):
@@ -238,7 +238,7 @@ class LiveTab(QWidget):
                 continue
             break
         else:
-            params = MatcherParams(name="seed")
+            params = Preset(name="seed")
         if failed:  # said in the window: the preset chosen last is not what runs now
             self.ctx.report_error(f"The preset {name!r} chosen last could not be used "
                                   f"({'; '.join(failed)}); the {params.name!r} preset is used")
@@ -333,7 +333,7 @@ class LiveTab(QWidget):
         self.ctx.set_calibration(rig.true_calibration(), None, note=TRUE_CALIBRATION_NOTE)
         return True
 
-    def _params_changed(self, params: MatcherParams) -> None:
+    def _params_changed(self, params: Preset) -> None:
         if self._processor is not None:
             self._processor.set_params(params)
         if not params.name.endswith(MODIFIED):
@@ -403,7 +403,7 @@ class LiveTab(QWidget):
         for key in COLOR_VIEWS:
             bar = self.panels[key].color_bar
             if bar is not None and key in shown:
-                bar.set_scale(COLORMAPS[out.result.params.colormap], scale)
+                bar.set_scale(COLORMAPS[out.result.preset.display.colormap], scale)
 
     # ---- the 3D point cloud -----------------------------------------------------------------
     def show_cloud(self) -> QWidget:

@@ -17,6 +17,7 @@ import time
 
 from PySide6.QtCore import QObject, Signal
 
+from stereo_gui.core.measure import Reason
 from stereo_gui.files.spreadsheet import RULER_METHOD
 from stereo_gui.pipeline.readout import (
     MEASURABLE_VIEWS,
@@ -34,16 +35,24 @@ MEASURABLE = MEASURABLE_VIEWS  # views sharing the left image's pixel frame
 HOVER_REFRESH_S = 0.25  # a resting pointer's reading follows new frames at most this often
 HOVER_HINT = "Point at a view to read the distance there; double-click to log it."
 # marker labels stay short (the full reason is in the status bar and the log)
-_SHORT_REASONS = {"not seen by the right camera": "not seen", "no valid pixels": "no match",
-                  "outside the image": "outside", "out of disparity range": "out of fit range",
-                  "no metric scale": "no scale"}
+SHORT_REASONS: dict[Reason, str] = {
+    Reason.NO_VALID_PIXELS: "no match", Reason.TOO_FEW: "too few pixels",
+    Reason.NOT_SEEN: "not seen", Reason.NOT_SEARCHED: "not searched",
+    Reason.NO_TEXTURE: "no texture", Reason.TOO_NEAR: "too near", Reason.TOO_FAR: "too far",
+    Reason.OUTSIDE: "outside", Reason.OUT_OF_FIT_RANGE: "out of fit range",
+    Reason.NO_METRIC_SCALE: "no scale", Reason.AMBIGUOUS: "ambiguous match",
+}
 
 
-def short_reason(reason: str | None) -> str:
-    """A marker's few words for why a point has no distance."""
+def short_reason(reason: Reason | str | None) -> str:
+    """A marker's few words for why a point has no distance (a text of no Reason, as an older
+    log may hold, shortened)."""
+    known = Reason.of(reason)
+    if known is not None:
+        return SHORT_REASONS[known]
     if not reason:
         return "invalid"
-    return _SHORT_REASONS.get(reason, reason if len(reason) <= 16 else reason[:15] + "…")
+    return reason if len(reason) <= 16 else reason[:15] + "…"
 
 
 class LiveReadings(QObject):
@@ -223,7 +232,7 @@ class LiveReadings(QObject):
             time=_dt.datetime.now().astimezone().isoformat(timespec="seconds"),
             x_px=float(m.x), y_px=float(m.y), disparity_px=float(m.disparity_px),
             X_mm=float(m.X_mm), Y_mm=float(m.Y_mm), Z_mm=float(m.Z_mm),
-            range_mm=float(m.range_mm), valid=bool(m.valid), reason=m.reason or "",
+            range_mm=float(m.range_mm), valid=bool(m.valid), reason=str(m.reason or ""),
             valid_fraction=float(m.valid_fraction), expected_error_mm=float(m.expected_error_mm),
             method=m.method,
             calibration_file=str(path) if path else self.ctx.calibration_note,

@@ -1,8 +1,10 @@
 """The matcher parameter panel: SGBM, closing and WLS settings, presets, save-as-preset.
 
-Labels carry the report's own names (window_size, min_disp, num_disp, lmbda, sigma, ...) so a
-reader of the report finds them. Every edit emits `paramsChanged(MatcherParams)`; the Live tab
-hands it to the pipeline, which applies it from the next frame on.
+Each parameter's editor is made from its declaration (`core.matching.PRESET_PARAMS`: type, the
+range the panel offers, unit, label and help), so ranges and labels live in one place. Labels
+carry the report's own names (window_size, min_disp, num_disp, lmbda, sigma, ...) so a reader of
+the report finds them. Every edit emits `paramsChanged(Preset)`; the Live tab hands it to the
+pipeline, which applies it from the next frame on.
 """
 
 from __future__ import annotations
@@ -27,7 +29,8 @@ from PySide6.QtWidgets import (
 )
 
 from stereo_gui.core.errors import StereoGuiError
-from stereo_gui.core.matching import COLORMAPS, MODES, MatcherParams
+from stereo_gui.core.matching import PRESET_PARAMS, Preset
+from stereo_gui.core.params import Param
 
 log = logging.getLogger(__name__)
 
@@ -51,18 +54,18 @@ def preset_names() -> list[str]:
     return builtin + sorted(n for n in names if n not in BUILTIN_PRESETS)
 
 
-def load_preset(name: str) -> MatcherParams:
+def load_preset(name: str) -> Preset:
     """The preset's parameters; InputError if it does not exist or is broken."""
     try:
         from stereo_gui.files import presets
     except ImportError:
         if name == "seed":
-            return MatcherParams(name="seed")
+            return Preset(name="seed")
         raise StereoGuiError(f"preset {name!r}: presets are not available") from None
     return presets.load_preset(name)
 
 
-def save_user_preset(params: MatcherParams, name: str):
+def save_user_preset(params: Preset, name: str):
     from stereo_gui.files import presets
 
     return presets.save_user_preset(params.replace(name=name), name)
@@ -106,16 +109,95 @@ class SliderSpin(QWidget):
     def setValue(self, v: int) -> None:  # noqa: N802 - Qt naming
         self.spin.setValue(int(v))
 
+    def minimum(self) -> int:
+        return self.spin.minimum()
+
+    def maximum(self) -> int:
+        return self.spin.maximum()
+
+    def setMaximum(self, v: int) -> None:  # noqa: N802 - Qt naming
+        """Offer values up to `v` (a derived value may lie beyond the declared panel range)."""
+        self.spin.setMaximum(int(v))
+        self.slider.setMaximum(int(v) // self._step)
+
+
+# ---- an editor made from a parameter's declaration -------------------------------------------
+def make_editor(spec: Param) -> QWidget:
+    """The widget that edits one parameter: a check box, a list of its choices, a slider with a
+    spin box (whole numbers), a spin box (large whole numbers) or a decimal spin box, offering
+    the declaration's panel range and step, its unit as a suffix of decimals, its help as the
+    tool tip."""
+    tp = spec.base
+    if tp is bool:
+        w = QCheckBox(spec.label or spec.name)
+    elif spec.choices:
+        w = QComboBox()
+        w.addItems(list(spec.choices))
+    else:
+        lo, hi, step = spec.panel or (spec.lo, spec.hi, 1)
+        if tp is int and hi - lo <= 10_000:
+            w = SliderSpin(int(lo), int(hi), int(step))
+        elif tp is int:
+            w = QSpinBox()
+            w.setRange(int(lo), int(hi))
+        else:
+            w = QDoubleSpinBox()
+            w.setRange(lo, hi)
+            w.setDecimals(0 if step >= 1 else 2)
+            w.setSingleStep(step)
+            if spec.unit:
+                w.setSuffix(f" {spec.unit}")
+    w.setToolTip(spec.help)
+    return w
+
+
+def editor_value(w: QWidget):
+    """The value an editor of `make_editor` shows."""
+    if isinstance(w, QCheckBox):
+        return w.isChecked()
+    if isinstance(w, QComboBox):
+        return w.currentText()
+    return w.value()
+
+
+def show_value(w: QWidget, value) -> None:
+    """Show `value` in an editor of `make_editor`."""
+    if isinstance(w, QCheckBox):
+        w.setChecked(bool(value))
+    elif isinstance(w, QComboBox):
+        w.setCurrentText(value)
+    else:
+        w.setValue(value)
+
+
+def editor_changed(w: QWidget):
+    """The signal an editor of `make_editor` emits on an edit."""
+    if isinstance(w, QCheckBox):
+        return w.toggled
+    if isinstance(w, QComboBox):
+        return w.currentIndexChanged
+    return w.valueChanged
+
+
+# the parameters the panel edits, group by group (the rest keep the preset's values)
+SGBM_KEYS = ("block_size", "min_disparity", "num_disparities", "z_min_mm", "z_max_mm",
+             "uniqueness_ratio", "speckle_window_size", "speckle_range", "disp12_max_diff",
+             "pre_filter_cap", "p1", "p2", "mode", "parallel")
+CLOSING_KEYS = ("closing_kernel",)
+WLS_KEYS = ("wls", "wls_lambda", "wls_sigma", "colormap", "color_z_near_mm", "color_z_far_mm")
+Z_UNSET_MM = 450.0  # what the nearest-distance box shows for a preset without one
+
 
 class ParamsPanel(QWidget):
-    """Edits a MatcherParams. `params()` is the current value; `set_params()` shows one."""
+    """Edits a Preset. `params()` is the current value; `set_params()` shows one. `editors` maps
+    each edited parameter's name (a key of PRESET_PARAMS) to its widget."""
 
-    paramsChanged = Signal(object)  # MatcherParams
+    paramsChanged = Signal(object)  # Preset
     presetSaved = Signal(str)
 
-    def __init__(self, params: MatcherParams | None = None, parent: QWidget | None = None) -> None:
+    def __init__(self, params: Preset | None = None, parent: QWidget | None = None) -> None:
         super().__init__(parent)
-        self._params = params or MatcherParams()
+        self._params = params or Preset()
         self._calibration = None  # see set_calibration
         self._updating = False
         self.error_label = QLabel()
@@ -136,108 +218,55 @@ class ParamsPanel(QWidget):
         self.reload_presets()
         self.preset.activated.connect(self._preset_activated)
 
-        # SGBM
-        self.block_size = SliderSpin(1, 21)
-        self.block_size.setToolTip("SGBM blockSize, odd (the report: window_size = 3)")
-        self.min_disparity = SliderSpin(0, 64)
-        self.num_disparities = SliderSpin(16, 256, 16)
+        self.editors: dict[str, QWidget] = {
+            key: make_editor(PRESET_PARAMS[key]) for key in SGBM_KEYS + CLOSING_KEYS + WLS_KEYS}
+        ed = self.editors
+        ed["z_max_mm"].setSpecialValueText("∞ (infinity)")
         self.range_from_z = QCheckBox("range from working distances")
         self.range_from_z.setToolTip("derive min_disp and num_disp from the nearest and farthest "
                                      "distance through d = f·B/Z")
-        self.z_min = QDoubleSpinBox()
-        self.z_min.setRange(50, 50000)
-        self.z_min.setDecimals(0)
-        self.z_min.setSingleStep(50)
-        self.z_min.setSuffix(" mm")
-        self.z_max = QDoubleSpinBox()
-        self.z_max.setRange(0, 100000)
-        self.z_max.setDecimals(0)
-        self.z_max.setSingleStep(500)
-        self.z_max.setSuffix(" mm")
-        self.z_max.setSpecialValueText("∞ (infinity)")
-        self.uniqueness = SliderSpin(0, 50)
-        self.speckle_window = SliderSpin(0, 300)
-        self.speckle_range = SliderSpin(0, 64)
-        self.disp12 = SliderSpin(-1, 50)
-        self.pre_filter_cap = SliderSpin(0, 63)
         self.p_auto = QCheckBox("P1 = 8·3·w², P2 = 32·3·w²")
         self.p_auto.setToolTip("the report's smoothness penalties, from window_size w")
-        self.p1 = QSpinBox()
-        self.p1.setRange(0, 100000)
-        self.p2 = QSpinBox()
-        self.p2.setRange(0, 400000)
-        self.mode = QComboBox()
-        self.mode.addItems(list(MODES))
         self.scale = QComboBox()
         for s in (1.0, 0.75, 0.5, 0.25):
             self.scale.addItem(f"{s:g}" + ("  (full)" if s == 1.0 else ""), s)
-        self.parallel = QCheckBox("use two CPU cores")
-        self.parallel.setToolTip("Live: two frames processed at once, one on each core (about "
-                                 "1.4x the frames of one frame split over both cores)")
-        sgbm = QFormLayout()
-        sgbm.addRow("window_size", self.block_size)
-        sgbm.addRow("min_disp (px)", self.min_disparity)
-        sgbm.addRow("num_disp (px)", self.num_disparities)
-        sgbm.addRow(self.range_from_z)
-        sgbm.addRow("nearest Z", self.z_min)
-        sgbm.addRow("farthest Z", self.z_max)
-        sgbm.addRow("uniquenessRatio", self.uniqueness)
-        sgbm.addRow("speckleWindowSize", self.speckle_window)
-        sgbm.addRow("speckleRange", self.speckle_range)
-        sgbm.addRow("disp12MaxDiff", self.disp12)
-        sgbm.addRow("preFilterCap", self.pre_filter_cap)
-        sgbm.addRow(self.p_auto)
-        sgbm.addRow("P1", self.p1)
-        sgbm.addRow("P2", self.p2)
-        sgbm.addRow("mode", self.mode)
-        sgbm.addRow("match at scale", self.scale)
+        self.scale.setToolTip(PRESET_PARAMS["scale"].help)
+        self.color_fixed = QCheckBox("fixed colour range")
+        self.color_fixed.setToolTip("a colour always means the same distance (min-max, as "
+                                    "the seed preset, normalises every frame: colours drift)")
         self.scale_note = QLabel("")  # the scale that runs when a large frame lowers it
         self.scale_note.setStyleSheet("color: gray")
         self.scale_note.hide()
+
+        def rows(form: QFormLayout, keys) -> None:
+            for key in keys:
+                if isinstance(ed[key], QCheckBox):
+                    form.addRow(ed[key])
+                else:
+                    form.addRow(PRESET_PARAMS[key].label or key, ed[key])
+
+        sgbm = QFormLayout()
+        rows(sgbm, ("block_size", "min_disparity", "num_disparities"))
+        sgbm.addRow(self.range_from_z)
+        rows(sgbm, ("z_min_mm", "z_max_mm", "uniqueness_ratio", "speckle_window_size",
+                    "speckle_range", "disp12_max_diff", "pre_filter_cap"))
+        sgbm.addRow(self.p_auto)
+        rows(sgbm, ("p1", "p2", "mode"))
+        sgbm.addRow(PRESET_PARAMS["scale"].label, self.scale)
         sgbm.addRow("", self.scale_note)
-        sgbm.addRow(self.parallel)
+        rows(sgbm, ("parallel",))
         sgbm_box = QGroupBox("SGBM matcher")
         sgbm_box.setLayout(sgbm)
 
-        # closing
-        self.closing = SliderSpin(0, 15)
-        self.closing.setToolTip("side of the square closing kernel, px (report: 3); 0 = off")
         closing = QFormLayout()
-        closing.addRow("kernel (px)", self.closing)
+        rows(closing, CLOSING_KEYS)
         closing_box = QGroupBox("Closing filter")
         closing_box.setLayout(closing)
 
-        # WLS and colour
-        self.wls = QCheckBox("WLS filter")
-        self.wls.setToolTip("right matcher + cv2.ximgproc.createDisparityWLSFilter, as the report")
-        self.wls_lambda = QDoubleSpinBox()
-        self.wls_lambda.setRange(0, 1e6)
-        self.wls_lambda.setDecimals(0)
-        self.wls_lambda.setSingleStep(1000)
-        self.wls_sigma = QDoubleSpinBox()
-        self.wls_sigma.setRange(0.0, 10.0)
-        self.wls_sigma.setSingleStep(0.1)
-        self.colormap = QComboBox()
-        self.colormap.addItems(sorted(COLORMAPS))
-        self.color_fixed = QCheckBox("fixed colour range")
-        self.color_fixed.setToolTip("a colour always means the same distance (the report "
-                                    "normalised every frame, so colours drifted)")
-        self.z_near = QDoubleSpinBox()
-        self.z_near.setRange(50, 50000)
-        self.z_near.setSuffix(" mm")
-        self.z_near.setDecimals(0)
-        self.z_far = QDoubleSpinBox()
-        self.z_far.setRange(100, 100000)
-        self.z_far.setSuffix(" mm")
-        self.z_far.setDecimals(0)
         wls = QFormLayout()
-        wls.addRow(self.wls)
-        wls.addRow("lmbda", self.wls_lambda)
-        wls.addRow("sigma", self.wls_sigma)
-        wls.addRow("colour map", self.colormap)
+        rows(wls, ("wls", "wls_lambda", "wls_sigma", "colormap"))
         wls.addRow(self.color_fixed)
-        wls.addRow("near", self.z_near)
-        wls.addRow("far", self.z_far)
+        rows(wls, ("color_z_near_mm", "color_z_far_mm"))
         wls_box = QGroupBox("WLS filter and colours")
         wls_box.setLayout(wls)
 
@@ -250,14 +279,10 @@ class ParamsPanel(QWidget):
         col.addStretch(1)
 
         self._show(self._params)
-        for w in (self.block_size, self.min_disparity, self.num_disparities, self.uniqueness,
-                  self.speckle_window, self.speckle_range, self.disp12, self.pre_filter_cap,
-                  self.closing, self.p1, self.p2, self.wls_lambda, self.wls_sigma, self.z_near,
-                  self.z_far, self.z_min, self.z_max):
-            w.valueChanged.connect(self._edited)
-        for c in (self.mode, self.scale, self.colormap):
-            c.currentIndexChanged.connect(self._edited)
-        for b in (self.p_auto, self.wls, self.color_fixed, self.parallel, self.range_from_z):
+        for w in ed.values():
+            editor_changed(w).connect(self._edited)
+        self.scale.currentIndexChanged.connect(self._edited)
+        for b in (self.p_auto, self.color_fixed, self.range_from_z):
             b.toggled.connect(self._edited)
 
     # ---- presets -----------------------------------------------------------------------------
@@ -307,10 +332,10 @@ class ParamsPanel(QWidget):
         return True
 
     # ---- values ------------------------------------------------------------------------------
-    def params(self) -> MatcherParams:
+    def params(self) -> Preset:
         return self._params
 
-    def set_params(self, params: MatcherParams) -> None:
+    def set_params(self, params: Preset) -> None:
         """Show `params` without emitting paramsChanged."""
         self._params = params
         self._show(params)
@@ -321,35 +346,35 @@ class ParamsPanel(QWidget):
         self._calibration = calibration
         self._show_effective(self._params)
 
-    def _show_effective(self, p: MatcherParams) -> None:
+    def _show_effective(self, preset: Preset) -> None:
         """Show the values that run where the panel derives them: an odd window (SGBM's), the
         P1/P2 that follow it, the disparity range from working distances, and "(modified)"
         in the preset box after an edit."""
+        p, ed = preset.matcher, self.editors
         self._updating = True
         try:
-            self.block_size.setValue(p.block_size)
+            ed["block_size"].setValue(p.block_size)
             if p.p1 is None and p.p2 is None:
-                self.p1.setValue(p.p1_value)
-                self.p2.setValue(p.p2_value)
+                ed["p1"].setValue(p.p1_value)
+                ed["p2"].setValue(p.p2_value)
             if p.z_min_mm is not None and self._calibration is not None:
                 lo, num = p.disparity_range(self._calibration)
-                for spin, v in ((self.min_disparity, lo), (self.num_disparities, num)):
-                    if v > spin.spin.maximum():
-                        spin.spin.setMaximum(int(v))
-                        spin.slider.setMaximum(int(v) // spin._step)
-                    spin.setValue(int(v))
+                for key, v in (("min_disparity", lo), ("num_disparities", num)):
+                    if v > ed[key].maximum():
+                        ed[key].setMaximum(int(v))
+                    ed[key].setValue(int(v))
                 tip = (f"from the working distances: {lo} .. {lo + num - 1} px "
                        f"for this calibration")
             else:
                 tip = ""
-            for spin in (self.min_disparity, self.num_disparities):
-                spin.setToolTip(tip)
+            for key in ("min_disparity", "num_disparities"):
+                ed[key].setToolTip(tip or PRESET_PARAMS[key].help)
             width = self._calibration.width if self._calibration is not None else 0
             runs = p.effective_scale(width)
             self.scale_note.setText(f"runs at {runs:g}: {width} px frames are matched at most "
                                     f"{p.max_match_width} px wide" if runs != p.scale else "")
             self.scale_note.setVisible(runs != p.scale)
-            self._show_preset_name(p.name)
+            self._show_preset_name(preset.name)
         finally:
             self._updating = False
 
@@ -365,89 +390,62 @@ class ParamsPanel(QWidget):
             self.preset.setCurrentText(name)
         self.preset.blockSignals(False)
 
-    def _show(self, p: MatcherParams) -> None:
+    def _show(self, preset: Preset) -> None:
+        p = preset.matcher
         self._updating = True
         try:
-            self.block_size.setValue(p.block_size)
-            self.min_disparity.setValue(p.min_disparity)
-            self.num_disparities.setValue(p.num_disparities)
+            for key, w in self.editors.items():
+                if preset.get(key) is not None:
+                    show_value(w, preset.get(key))
+            # what a box shows for a parameter left unset (the check boxes say it is unset)
+            self.editors["z_min_mm"].setValue(p.z_min_mm if p.z_min_mm is not None
+                                              else Z_UNSET_MM)
+            self.editors["z_max_mm"].setValue(p.z_max_mm if p.z_max_mm is not None else 0.0)
+            self.editors["p1"].setValue(p.p1_value)
+            self.editors["p2"].setValue(p.p2_value)
             self.range_from_z.setChecked(p.z_min_mm is not None)
-            self.z_min.setValue(p.z_min_mm if p.z_min_mm is not None else 450.0)
-            self.z_max.setValue(p.z_max_mm if p.z_max_mm is not None else 0.0)
-            self.uniqueness.setValue(p.uniqueness_ratio)
-            self.speckle_window.setValue(p.speckle_window_size)
-            self.speckle_range.setValue(p.speckle_range)
-            self.disp12.setValue(p.disp12_max_diff)
-            self.pre_filter_cap.setValue(p.pre_filter_cap)
             self.p_auto.setChecked(p.p1 is None and p.p2 is None)
-            self.p1.setValue(p.p1_value)
-            self.p2.setValue(p.p2_value)
-            self.mode.setCurrentText(p.mode)
             i = self.scale.findData(p.scale)
             if i < 0:
                 self.scale.addItem(f"{p.scale:g}", p.scale)
                 i = self.scale.count() - 1
             self.scale.setCurrentIndex(i)
-            self.parallel.setChecked(p.parallel)
-            self.closing.setValue(p.closing_kernel)
-            self.wls.setChecked(p.wls)
-            self.wls_lambda.setValue(p.wls_lambda)
-            self.wls_sigma.setValue(p.wls_sigma)
-            self.colormap.setCurrentText(p.colormap)
-            self.color_fixed.setChecked(p.color_range == "fixed")
-            self.z_near.setValue(p.color_z_near_mm)
-            self.z_far.setValue(p.color_z_far_mm)
+            self.color_fixed.setChecked(preset.display.color_range == "fixed")
             self._sync_enabled()
         finally:
             self._updating = False
-        self._show_effective(p)
+        self._show_effective(preset)
         self.error_label.hide()
 
     def _sync_enabled(self) -> None:
+        ed = self.editors
         from_z = self.range_from_z.isChecked()
-        self.min_disparity.setEnabled(not from_z)
-        self.num_disparities.setEnabled(not from_z)
-        self.z_min.setEnabled(from_z)
-        self.z_max.setEnabled(from_z)
-        self.p1.setEnabled(not self.p_auto.isChecked())
-        self.p2.setEnabled(not self.p_auto.isChecked())
-        for w in (self.wls_lambda, self.wls_sigma):
-            w.setEnabled(self.wls.isChecked())
-        for w in (self.z_near, self.z_far):
-            w.setEnabled(self.color_fixed.isChecked())
+        for key in ("min_disparity", "num_disparities"):
+            ed[key].setEnabled(not from_z)
+        for key in ("z_min_mm", "z_max_mm"):
+            ed[key].setEnabled(from_z)
+        for key in ("p1", "p2"):
+            ed[key].setEnabled(not self.p_auto.isChecked())
+        for key in ("wls_lambda", "wls_sigma"):
+            ed[key].setEnabled(ed["wls"].isChecked())
+        for key in ("color_z_near_mm", "color_z_far_mm"):
+            ed[key].setEnabled(self.color_fixed.isChecked())
 
-    def _read(self) -> MatcherParams:
-        auto = self.p_auto.isChecked()
-        block = self.block_size.value()
-        if block % 2 == 0:
-            block += 1  # SGBM needs an odd window
+    def _read(self) -> Preset:
+        values = {key: editor_value(w) for key, w in self.editors.items()}
+        if values["block_size"] % 2 == 0:
+            values["block_size"] += 1  # SGBM needs an odd window
+        if not self.range_from_z.isChecked():
+            values["z_min_mm"] = values["z_max_mm"] = None
+        else:
+            values["z_max_mm"] = values["z_max_mm"] or None  # 0: infinity
+        if self.p_auto.isChecked():
+            values["p1"] = values["p2"] = None
+        values["scale"] = float(self.scale.currentData())
+        values["color_range"] = "fixed" if self.color_fixed.isChecked() else "minmax"
+        name = self._params.name
         return self._params.replace(
-            name=self._params.name if self._params.name.endswith(MODIFIED)
-            else f"{self._params.name}{MODIFIED}",
-            block_size=block,
-            min_disparity=self.min_disparity.value(),
-            num_disparities=self.num_disparities.value(),
-            z_min_mm=float(self.z_min.value()) if self.range_from_z.isChecked() else None,
-            z_max_mm=(float(self.z_max.value()) or None) if self.range_from_z.isChecked() else None,
-            uniqueness_ratio=self.uniqueness.value(),
-            speckle_window_size=self.speckle_window.value(),
-            speckle_range=self.speckle_range.value(),
-            disp12_max_diff=self.disp12.value(),
-            pre_filter_cap=self.pre_filter_cap.value(),
-            p1=None if auto else self.p1.value(),
-            p2=None if auto else self.p2.value(),
-            mode=self.mode.currentText(),
-            scale=float(self.scale.currentData()),
-            parallel=self.parallel.isChecked(),
-            closing_kernel=self.closing.value(),
-            wls=self.wls.isChecked(),
-            wls_lambda=float(self.wls_lambda.value()),
-            wls_sigma=float(self.wls_sigma.value()),
-            colormap=self.colormap.currentText(),
-            color_range="fixed" if self.color_fixed.isChecked() else "minmax",
-            color_z_near_mm=float(self.z_near.value()),
-            color_z_far_mm=float(self.z_far.value()),
-        )
+            name=name if name.endswith(MODIFIED) else f"{name}{MODIFIED}", **values)
 
     def _edited(self, *_args) -> None:
         if self._updating:

@@ -206,10 +206,10 @@ def test_parameter_change_applies_to_next_frame(qtbot, ctx, live, sim_rig, wall_
     _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
     before = live._output.result.params.closing_kernel
     new = 5 if before != 5 else 7
-    live.params_panel.closing.setValue(new)
+    live.params_panel.editors["closing_kernel"].setValue(new)
     qtbot.waitUntil(lambda: live._output.result.params.closing_kernel == new, timeout=30000)
     # and switching the WLS filter off leaves its view showing the depth, and saying so
-    live.params_panel.wls.setChecked(False)
+    live.params_panel.editors["wls"].setChecked(False)
     qtbot.waitUntil(lambda: live._output.result.wls_px is None, timeout=30000)
     assert "No WLS" in live.panels["wls"].title.text
 
@@ -221,8 +221,9 @@ def test_preset_chooser_and_save_as(qtbot, ctx, live):
     got = []
     panel.paramsChanged.connect(got.append)
     assert panel.apply_preset("seed")
-    assert got[-1].block_size == 3 and got[-1].num_disparities == 128 and got[-1].wls_lambda == 80000
-    assert panel.block_size.value() == 3
+    seed = got[-1].matcher
+    assert seed.block_size == 3 and seed.num_disparities == 128 and seed.wls_lambda == 80000
+    assert panel.editors["block_size"].value() == 3
     assert panel.save_as("my bench")
     assert panel.preset.findText("my bench") >= 0
     assert not panel.save_as("live")  # built-in names are refused with a message

@@ -19,39 +19,65 @@ def panel(qtbot):
 def test_an_even_window_shows_the_odd_one_that_runs(panel):
     got = []
     panel.paramsChanged.connect(got.append)
-    panel.block_size.setValue(12)
-    assert panel.params().block_size == 13 and panel.block_size.value() == 13
-    panel.block_size.setValue(12)  # again: nothing new runs, the box still shows 13
-    assert panel.block_size.value() == 13
-    assert all(p.block_size % 2 for p in got)
+    panel.editors["block_size"].setValue(12)
+    assert panel.params().matcher.block_size == 13 and panel.editors["block_size"].value() == 13
+    panel.editors["block_size"].setValue(12)  # again: nothing new runs, the box still shows 13
+    assert panel.editors["block_size"].value() == 13
+    assert all(p.matcher.block_size % 2 for p in got)
 
 
 def test_p1_p2_follow_the_window_while_automatic(panel):
     panel.p_auto.setChecked(True)
-    panel.block_size.setValue(7)
-    assert (panel.p1.value(), panel.p2.value()) == (8 * 3 * 49, 32 * 3 * 49)
-    assert (panel.p1.value(), panel.p2.value()) == (panel.params().p1_value,
-                                                    panel.params().p2_value)
+    panel.editors["block_size"].setValue(7)
+    shown = (panel.editors["p1"].value(), panel.editors["p2"].value())
+    assert shown == (8 * 3 * 49, 32 * 3 * 49)
+    assert shown == (panel.params().matcher.p1_value, panel.params().matcher.p2_value)
 
 
 def test_range_from_working_distances_shows_the_range_it_gives(panel):
     calib = StereoCalibration.identity((640, 480), 700.0, 110.0)  # f*B = 77000 px*mm
     panel.set_calibration(calib)
     panel.range_from_z.setChecked(True)
-    panel.z_min.setValue(450.0)
-    panel.z_max.setValue(0.0)  # infinity
-    lo, num = panel.params().disparity_range(calib)
+    panel.editors["z_min_mm"].setValue(450.0)
+    panel.editors["z_max_mm"].setValue(0.0)  # infinity
+    lo, num = panel.params().matcher.disparity_range(calib)
     assert lo == 0 and num >= 77000 / 450  # about 0 .. 192, not the 2 / 128 of the seed
-    assert (panel.min_disparity.value(), panel.num_disparities.value()) == (lo, num)
-    assert "from the working distances" in panel.num_disparities.toolTip()
+    shown = (panel.editors["min_disparity"].value(), panel.editors["num_disparities"].value())
+    assert shown == (lo, num)
+    assert "from the working distances" in panel.editors["num_disparities"].toolTip()
 
 
 def test_an_edited_preset_says_modified_and_choosing_it_again_restores_it(panel):
     assert panel.preset.currentText() == "live"
-    panel.uniqueness.setValue(panel.uniqueness.value() + 3)
+    panel.editors["uniqueness_ratio"].setValue(panel.editors["uniqueness_ratio"].value() + 3)
     assert panel.preset.currentText() == "live" + MODIFIED
     assert panel.params().name == "live" + MODIFIED
     assert panel.apply_preset("live")
     assert panel.preset.currentText() == "live"
     assert panel.preset.findText("live" + MODIFIED) < 0  # the modified entry is gone
     assert panel.params() == load_preset("live").replace(name="live")
+
+
+def test_each_editor_offers_its_declared_range_words_and_choices(panel):
+    from PySide6.QtWidgets import QCheckBox, QComboBox
+
+    from stereo_gui.core.matching import PRESET_PARAMS
+
+    for key, editor in panel.editors.items():
+        spec = PRESET_PARAMS[key]
+        if key not in ("min_disparity", "num_disparities"):  # these say what the range gives
+            assert editor.toolTip() == spec.help, key
+        if isinstance(editor, QComboBox):
+            assert [editor.itemText(i) for i in range(editor.count())] == list(spec.choices)
+        elif not isinstance(editor, QCheckBox) and key != "num_disparities":
+            lo, hi, _step = spec.panel
+            assert (editor.minimum(), editor.maximum()) == (lo, hi), key
+
+
+def test_an_edit_changes_only_its_part_and_keeps_what_the_panel_does_not_show(panel):
+    before = panel.params()
+    panel.editors["colormap"].setCurrentText("jet")
+    after = panel.params()
+    assert after.display.colormap == "jet" and after.matcher == before.matcher
+    assert after.threads == before.threads
+    assert after.matcher.check_block_size == before.matcher.check_block_size == 5
