@@ -140,7 +140,7 @@ def test_save_and_load_calibration_file(tab, ctx, qtbot, session_folder, tmp_pat
     assert "Saved as calib.yaml" in tab.progress_label.text()
     # the file saved here is the one loaded at the next start, as from the File menu
     assert ctx.settings.last_calibration == str(path.resolve())
-    ctx.set_calibration(None)
+    ctx.calibration_model.set(None)
     assert tab.figures.rms_stereo_label.text() == "—" and tab.chart.bar_count() == 0
     assert tab.load_calibration(path)
     assert ctx.calibration.rms_stereo == pytest.approx(run.result.calibration.rms_stereo)
@@ -200,8 +200,8 @@ def test_exclusions_are_shown_before_recalibration_and_after_a_restart(
     assert f"{name}: excluded (Recalibrate leaves it out)" in tab.rejected_lines()
     assert tab.save_calibration(tmp_path / "calib.yaml")
     # a restart: a new tab, the calibration loaded from its file, no run
-    ctx.set_calibration(None)
-    assert ctx.open_calibration_file(tmp_path / "calib.yaml")
+    ctx.calibration_model.set(None)
+    assert ctx.calibration_model.open_file(tmp_path / "calib.yaml")
     again = make_tab(CalibrationTab)
     again.folder_edit.setText(str(session_folder))
     assert again.run is None

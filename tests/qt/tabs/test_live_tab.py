@@ -27,7 +27,7 @@ def double_click(qtbot, widget, pos):
 def _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source):
     scene, left, right = wall_pair
     calib = sim_rig.true_calibration()
-    ctx.set_calibration(calib, None, note=TRUE_CALIBRATION_NOTE)
+    ctx.calibration_model.set(calib, None, note=TRUE_CALIBRATION_NOTE)
     ctx.frames.set_source(array_source(left, right, fps=30))
     with qtbot.waitSignal(live.frameShown, timeout=30000):
         pass
@@ -37,7 +37,7 @@ def _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source):
 def test_live_view_updates_on_the_sim_rig(qtbot, ctx, live, sim_rig):
     from stereo_gui.sources.sim import SimSource
 
-    ctx.set_calibration(sim_rig.true_calibration())
+    ctx.calibration_model.set(sim_rig.true_calibration())
     assert live.stack.currentIndex() == 1
     ctx.frames.set_source(SimSource(rig=sim_rig, mode="scene", fps=30))
     qtbot.waitUntil(lambda: live.frames_shown >= 2, timeout=60000)
@@ -67,8 +67,8 @@ def test_double_click_reports_a_known_distance_within_1_percent(
     assert truth is not None
     assert m.Z_mm == pytest.approx(truth[2], rel=0.01)
     # logged for the Measurements tab, a marker on every view that shares the left's pixels
-    assert len(ctx.measurements) == 1
-    rec = ctx.measurements[0]
+    assert len(ctx.measurement_log.records) == 1
+    rec = ctx.measurement_log.records[0]
     assert rec.Z_mm == pytest.approx(m.Z_mm) and rec.valid
     assert rec.calibration_file == TRUE_CALIBRATION_NOTE
     assert panel.marker_count() == 1 and live.panels["raw"].marker_count() == 1
@@ -82,7 +82,8 @@ def test_invalid_point_says_why(qtbot, ctx, live, sim_rig, wall_pair, array_sour
         live.measure_at(-5.0, 10.0)
     m = sig.args[0]
     assert not m.valid and m.reason == "outside the image"
-    assert not ctx.measurements[-1].valid and ctx.measurements[-1].reason == "outside the image"
+    last = ctx.measurement_log.records[-1]
+    assert not last.valid and last.reason == "outside the image"
 
 
 def test_ruler_measures_3d_distance_between_two_points(
@@ -97,8 +98,8 @@ def test_ruler_measures_3d_distance_between_two_points(
     tb = sim_rig.true_point_rectified(calib, scene, *b)
     assert live.last_ruler_mm == pytest.approx(float(np.linalg.norm(ta - tb)), rel=0.02)
     # both points and the distance between them are in the log
-    assert len(ctx.measurements) == 3
-    rec = ctx.measurements[-1]
+    assert len(ctx.measurement_log.records) == 3
+    rec = ctx.measurement_log.records[-1]
     assert rec.method.startswith("ruler A–B") and rec.valid
     assert rec.range_mm == pytest.approx(live.last_ruler_mm)
     assert rec.expected_error_mm > 0 and math.isnan(rec.disparity_px)  # not a regression sample
@@ -123,8 +124,8 @@ def test_ruler_says_when_a_point_has_no_distance(qtbot, ctx, live, sim_rig, wall
     with qtbot.waitSignal(live.measured, timeout=30000):
         live.measure_at(440.0, 240.0)
     assert "A–B" in statuses[-1] and "logged" in statuses[-1]
-    assert ctx.measurements[-1].method.startswith("ruler A–B")
-    assert ctx.measurements[-1].x_px == pytest.approx(440.0)
+    assert ctx.measurement_log.records[-1].method.startswith("ruler A–B")
+    assert ctx.measurement_log.records[-1].x_px == pytest.approx(440.0)
 
 
 def _hover(qtbot, live, key, x, y):
@@ -188,7 +189,7 @@ def test_hover_on_the_simulated_rig_shows_the_true_distance_labelled(
 
     scene, left, right = wall_pair
     calib = sim_rig.true_calibration()
-    ctx.set_calibration(calib, None, note=TRUE_CALIBRATION_NOTE)
+    ctx.calibration_model.set(calib, None, note=TRUE_CALIBRATION_NOTE)
     ctx.frames.set_source(array_source(left, right, fps=30,
                                        truth=SimFrameTruth(None, scene, sim_rig.truth)))
     with qtbot.waitSignal(live.frameShown, timeout=30000):
@@ -278,13 +279,13 @@ def test_readings_use_the_active_fit(qtbot, ctx, live, sim_rig, wall_pair, array
     # a deliberately wrong model (every distance 10 % longer) shows that readings follow it
     d = np.array([20.0, 40.0, 60.0, 80.0, 100.0])
     fit = fit_inverse(list(zip(d, 1.1 * fb / d)))
-    ctx.set_active_fit(fit)
+    ctx.measurement_log.set_active_fit(fit)
     with qtbot.waitSignal(live.measured, timeout=30000) as sig:
         live.measure_at(320.0, 240.0)
     m = sig.args[0]
     assert m.valid and m.method == fit.model
     assert m.Z_mm == pytest.approx(1.1 * 1500.0, rel=0.02)
-    assert ctx.measurements[-1].method == fit.model
+    assert ctx.measurement_log.records[-1].method == fit.model
     live.set_paused(True)
     reading = _hover(qtbot, live, "wls", 320.0, 240.0)
     assert reading.measurement.method == fit.model and "fit" in live.readout_text()
@@ -348,7 +349,7 @@ def test_hidden_views_belong_to_the_window_too(qtbot, ctx):
     top-level widget left to the interpreter's exit)."""
     from stereo_gui.qt.tabs.live import LiveTab
 
-    ctx.update_settings(visible_views=("left",))
+    ctx.settings_model.update(visible_views=("left",))
     tab = LiveTab(ctx)
     qtbot.addWidget(tab)
     tab.show()
@@ -396,12 +397,12 @@ def test_a_new_calibration_closes_the_processor_it_replaces(qtbot, ctx, live, si
 
     errors = []
     ctx.frames.errorOccurred.connect(errors.append)
-    ctx.set_calibration(sim_rig.true_calibration())
+    ctx.calibration_model.set(sim_rig.true_calibration())
     ctx.frames.set_source(SimSource(rig=sim_rig, mode="scene", fps=30))
     qtbot.waitUntil(lambda: live.frames_shown >= 2, timeout=60000)
     for _ in range(3):  # while frames are in work
         old = live._processor
-        ctx.set_calibration(sim_rig.true_calibration())
+        ctx.calibration_model.set(sim_rig.true_calibration())
         assert live._processor is not old and ctx.frames.processor() is live._processor
         assert old._closed and old.health._closed
         shown = live.frames_shown

@@ -17,7 +17,8 @@ def test_record_play_back_step_and_measure_the_same_distance(qtbot, ctx, window,
 
     window.resize(1280, 860)
     live = window.live_tab
-    ctx.set_calibration(sim_rig.true_calibration(), None, note="simulated rig's TRUE calibration")
+    ctx.calibration_model.set(sim_rig.true_calibration(), None,
+                              note="simulated rig's TRUE calibration")
     window.show_tab("live")
     window.use_source(SimSource(rig=sim_rig, mode="scene", fps=15), SourceChoice("sim:scene"))
     assert not live.playback.isVisibleTo(window)  # a live source has no playback controls
