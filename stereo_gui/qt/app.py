@@ -41,8 +41,8 @@ def quit_after_seconds() -> float | None:
 def freeze_startup_objects() -> int:
     """Move every object alive now (modules, Qt wrappers, the window's widgets) out of the
     garbage collector's reach; return how many. They live until the process ends, yet every
-    full collection walked them all again: on the UI thread, a pause of 17-24 ms each time while
-    live (the UI-stall benchmark). Objects made later are collected as usual."""
+    full collection would walk them all again, a pause on the UI thread each time while live.
+    Objects made later are collected as usual."""
     gc.collect()
     gc.freeze()
     return gc.get_freeze_count()

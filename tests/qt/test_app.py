@@ -156,7 +156,7 @@ def test_the_simulated_rigs_true_calibration_is_chosen_again_after_a_restart(
         window.close()
 
 
-# ---- remembered files that are bad never block the start (issue 13, item 4) -----------------
+# ---- remembered files that are bad never block the start -----------------------------------
 def _bad_header_calibration(sim_rig, path):
     """A calibration whose M1 header says 4 rows but holds 9 numbers."""
     from stereo_gui.files.calibration_file import save_calibration

@@ -32,30 +32,30 @@ class Dialogs:
 
     def __init__(self):
         self.seen: list[tuple[str, str]] = []
-        self._queue: list[tuple[str, object]] = []
-        self._timer = QTimer()
-        self._timer.setInterval(20)
-        self._timer.timeout.connect(self._look)
-        self._timer.start()
+        self.queue: list[tuple[str, object]] = []
+        self.timer = QTimer()
+        self.timer.setInterval(20)
+        self.timer.timeout.connect(self.look)
+        self.timer.start()
 
     def answer(self, name: str, press) -> None:
-        self._queue.append((name, press))
+        self.queue.append((name, press))
 
-    def _look(self) -> None:
-        if not self._queue:
+    def look(self) -> None:
+        if not self.queue:
             return
         dlg = QApplication.activeModalWidget()
-        name, press = self._queue[0]
+        name, press = self.queue[0]
         if dlg is None or dlg.objectName() != name or not dlg.isVisible():
             return
-        self._queue.pop(0)
+        self.queue.pop(0)
         text = dlg.text() + "\n" + dlg.informativeText() if isinstance(dlg, QMessageBox) \
             else dlg.label.text()
         self.seen.append((name, text))
         press(dlg)
 
     def stop(self) -> None:
-        self._timer.stop()
+        self.timer.stop()
 
 
 @pytest.fixture
@@ -63,7 +63,7 @@ def dialogs(qtbot):
     d = Dialogs()
     yield d
     d.stop()
-    assert not d._queue, f"dialogs never shown: {[n for n, _ in d._queue]}"
+    assert not d.queue, f"dialogs never shown: {[n for n, _ in d.queue]}"
 
 
 def button(std):

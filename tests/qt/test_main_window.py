@@ -58,7 +58,7 @@ def test_open_source_runs_off_the_ui_thread(qtbot, ctx, window):
     with qtbot.waitSignal(window.sourceOpened, timeout=120000) as sig:
         window.open_source(SourceChoice("sim"))
     assert sig.args == ["sim"]
-    # chosen, not fallen back to: the banner says SIMULATED all the same (issue 12, item 10)
+    # chosen, not fallen back to: the banner says SIMULATED all the same
     assert window.banner.isVisibleTo(window) and "chosen" in window.banner.label.text()
 
 
@@ -274,7 +274,7 @@ def test_open_recent_lists_calibrations_sessions_and_recordings(qtbot, ctx, wind
     recent = ctx.settings.recent_files
     assert recent[:3] == (str(session), str(tmp_path / "rec"), str(calib))
     assert [recent_entry(p)[0] for p in recent[:3]] == ["session", "recording", "calibration"]
-    window._fill_recent_menu()
+    window.recent_menu.aboutToShow.emit()  # as when File > Open recent opens
     texts = [a.text() for a in window.recent_menu.actions()]
     assert texts[0].startswith("Session: session") and texts[2].startswith("Calibration: rig")
     ctx.calibration_model.set(None)

@@ -1,5 +1,5 @@
 """Switching tabs in the window: every tab that shows live frames draws new ones whichever tabs
-were shown before it (issue 12, item 1)."""
+were shown before it."""
 
 from __future__ import annotations
 

@@ -507,7 +507,7 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
             f"Exclude {n_above} pair{'s' if n_above != 1 else ''} above")
         self.exclude_above_button.setEnabled(n_above > 0)
         if known:
-            excluded = bool(getattr(pair, "excluded", False))
+            excluded = pair is not None and pair.excluded
             self.exclude_button.setText("Include pair again" if excluded else "Exclude pair")
 
 

@@ -265,9 +265,9 @@ class CaptureTab(SessionPairs, QWidget):
             self.saved_panel.select(self.shown_pair)
 
     def _source_changed(self, name: str) -> None:
-        """Another source: a pair frozen from the previous one is no pair of this one (issue 12:
-        a folder without a board still offered the old pair with Save enabled), and what is on
-        screen until its first frame is not this source's picture."""
+        """Another source: a pair frozen from the previous one is no pair of this one (Save must
+        not offer it, even for a folder without a board), and what is on screen until its first
+        frame is not this source's picture."""
         self.rules.reset_steadiness()
         self.rules.last_reviewed_pose = None
         self._last_output = None

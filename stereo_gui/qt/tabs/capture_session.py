@@ -41,8 +41,8 @@ class SessionPairs:
 
     def _confirm_session_folder(self, folder: Path) -> bool:
         """New session…: a folder that already holds files but no session is written into only
-        when the technician says so (issue 12: session.json appeared in a folder without a
-        word); a folder that holds a session is offered for opening instead."""
+        when the technician says so (a manifest must never appear in a folder without a word);
+        a folder that holds a session is offered for opening instead."""
         from stereo_gui.files.session import MANIFEST, CaptureSession
 
         if (folder / MANIFEST).exists():

@@ -196,7 +196,7 @@ class LiveTab(QWidget):
         vcol.addWidget(self.legend)
         vcol.addWidget(self.region_label)
         vcol.addWidget(self.readout)
-        self.health = CalibrationHealthPanel(ctx)  # issue 10: drift figure and refinement
+        self.health = CalibrationHealthPanel(ctx)  # drift figure and refinement
         vcol.addWidget(self.health)
 
         self.no_calib = NoCalibrationPage()
@@ -352,11 +352,16 @@ class LiveTab(QWidget):
         self.shown_frame = pf.frame
         self.show_output(pf.output)
 
+    @property
+    def shown_output(self) -> LiveOutput | None:
+        """The processed frame the views show (or are being given), None when cleared."""
+        return self._output
+
     def show_output(self, out: LiveOutput) -> None:
         """Draw one processed frame (UI thread: array hand-over only). The views get their
         images one event-loop turn apart, so that each is painted on its own and the window
-        answers in between (four views painted in one go held it up to 40-60 ms on a busy
-        machine); frameShown follows the last one."""
+        answers in between (four views painted in one go would hold it up for a visible
+        moment on a busy machine); frameShown follows the last one."""
         self._output = out
         # (a view ticked after this frame was made is left out: the next frame has it)
         self._to_draw = [k for k in self.visible_views() if k in out.images]

@@ -1,5 +1,5 @@
 """The Live tab's 3D point-cloud window: the cloud of the frame shown, made on a thread of its own
-a few times a second while the window is open (issue 12, item 14)."""
+a few times a second while the window is open."""
 
 from __future__ import annotations
 

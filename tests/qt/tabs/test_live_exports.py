@@ -16,7 +16,7 @@ def _show_wall(qtbot, ctx, live, calib, wall_pair, array_source):
     with qtbot.waitSignal(live.frameShown, timeout=30000):
         pass
     live.set_paused(True)
-    return live._output.result
+    return live.shown_output.result
 
 
 def _read_ply(path):
@@ -124,4 +124,4 @@ def test_a_calibration_of_another_aspect_ratio_is_refused_with_the_reason(
         ctx.frames.set_source(array_source(left, right, fps=30))
     text = sig.args[0]
     assert "1280x720" in text and "640x480" in text and "aspect ratio" in text
-    assert live.frames_shown == 0 and live._output is None  # nothing silently wrong is shown
+    assert live.frames_shown == 0 and live.shown_output is None  # nothing silently wrong is shown
