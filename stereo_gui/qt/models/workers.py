@@ -55,7 +55,7 @@ class WorkerRegistry(QObject):
             left_ms = max(1, int((deadline - time.monotonic()) * 1000))
             try:
                 ok = bool(w.stop(timeout_ms=left_ms)) and ok
-            except Exception:  # noqa: BLE001 - one broken worker must not keep others running
+            except Exception:  # one broken worker must not keep the others running
                 log.warning("stopping %r failed", w, exc_info=True)
                 ok = False
         return ok
