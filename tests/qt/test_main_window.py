@@ -37,6 +37,9 @@ def test_four_tabs_and_the_simulated_rig_banner(qtbot, ctx, window, sim_rig):
     assert "SIMULATED" in window.banner.label.text()
     assert window.source_label.text() == "Source: Simulated rig"
     assert ctx.settings.source == "auto"
+    from stereo_gui.qt.tabs.tab import WindowTab
+
+    assert all(isinstance(window.tabs.widget(i), WindowTab) for i in range(window.tabs.count()))
     for name in TAB_NAMES:
         window.show_tab(name)
         assert window.current_tab_name() == name
