@@ -119,6 +119,8 @@ def _format_rms(value) -> str:
 
 
 class ClosePhase(Enum):
+    """Where the window is on its way to closing."""
+
     OPEN = "open"  # not closing, or closing was called off
     WAITING = "waiting"  # the CloseWaiter waits for running work to end
     CLOSING = "closing"  # the tabs and workers are being stopped; the window goes
@@ -369,8 +371,9 @@ class MainWindow(QMainWindow):
         return TAB_NAMES[i] if 0 <= i < len(TAB_NAMES) else ""
 
     def _tab_changed(self, index: int) -> None:
-        for i, page in enumerate(self._pages):  # the hidden ones first: the shown one owns
-            if i != index:                      # the frame worker's processor
+        # the hidden ones first: the shown one owns the frame worker's processor
+        for i, page in enumerate(self._pages):
+            if i != index:
                 page.set_active(False)
         if 0 <= index < len(self._pages):
             self._pages[index].set_active(True)
@@ -445,7 +448,7 @@ class MainWindow(QMainWindow):
             if message:
                 self.statusBar().showMessage(message, 8000)
         self.ctx.settings_model.update(source=choice.spec, resolution=tuple(choice.size),
-                                 swap_lr=bool(choice.swap), cameras=tuple(cameras))
+                                       swap_lr=bool(choice.swap), cameras=tuple(cameras))
         if Path(choice.spec).expanduser().exists():  # a recording, a folder or a video
             self.remember_recent(choice.spec)
         self.ctx.frames.set_source(source)
@@ -627,9 +630,10 @@ class MainWindow(QMainWindow):
 
     def close_without_asking(self) -> None:
         """Close now: an unsaved calibration is discarded and running work cancelled."""
-        if self._close.waiter is not None:
-            self._close.waiter.dismiss()
-        self._close = CloseState(calibration_discarded=True, work_settled=True)
+        if self._close.phase is not ClosePhase.CLOSING:
+            if self._close.waiter is not None:
+                self._close.waiter.dismiss()
+            self._close = CloseState(calibration_discarded=True, work_settled=True)
         self.close()
 
     def _keep_or_save_calibration(self) -> bool:
@@ -690,9 +694,10 @@ class MainWindow(QMainWindow):
         self.close()
 
     def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802 - Qt API
-        if self._close.phase is ClosePhase.WAITING:  # closed again while waiting: the user
-            event.ignore()                           # insists
-            # after this event: a close() from within closeEvent would be refused
+        if self._close.phase is ClosePhase.WAITING:
+            # closed again while waiting: the user insists. After this event, since a close()
+            # from within closeEvent would be refused
+            event.ignore()
             QTimer.singleShot(0, self._close.waiter.insist)
             return
         if self._close.phase is ClosePhase.OPEN:

@@ -6,8 +6,8 @@ attribute names.
 - `ControllableSource`: offers the two cameras' controls (`camera_controls()`);
 - `PlaybackSource`: plays a recording, a folder of pairs or a video (pause, step, seek, loop).
 
-A wrapper that forwards attributes to the source it wraps (left and right swapped) has the
-capabilities of what it wraps.
+A wrapper has a capability when its class declares it: from Python 3.12 on, isinstance against
+these protocols looks attributes up statically, so one forwarded by `__getattr__` is not seen.
 """
 
 from __future__ import annotations
