@@ -284,7 +284,7 @@ def test_a_log_that_cannot_be_read_is_set_aside_said_and_the_start_goes_on(qtbot
     _write_settings({"format_version": 1, "source": "sim"})
     ctx, window = _start(qtbot)
     try:
-        assert ctx.measurement_log.records == []
+        assert ctx.measurement_log.records == ()
         said = [m for m in window.error_bar.messages() if "measurement log" in m]
         assert len(said) == 1 and "measurement-log.json.unreadable" in said[0]
         assert log.with_name(log.name + ".unreadable").read_text() == LOGS[kind]

@@ -35,6 +35,7 @@ class MeasurementLog(QObject):
         super().__init__(parent)
         self._report = report
         self._records: list[MeasurementRecord] = []
+        self._snapshot: tuple[MeasurementRecord, ...] | None = None  # `records` until a change
         self._cleared: list[MeasurementRecord] = []
         self._active_fit: FitResult | None = None
         self._path: Path | None = None  # where the log is kept, None: nowhere
@@ -45,13 +46,16 @@ class MeasurementLog(QObject):
 
     # ---- reading ------------------------------------------------------------------------------
     @property
-    def records(self) -> list[MeasurementRecord]:
-        """A copy of the readings, oldest first."""
-        return list(self._records)
+    def records(self) -> tuple[MeasurementRecord, ...]:
+        """The readings, oldest first (the same tuple until the log changes: a table may
+        index it for every cell it paints)."""
+        if self._snapshot is None:
+            self._snapshot = tuple(self._records)
+        return self._snapshot
 
     @property
-    def cleared(self) -> list[MeasurementRecord]:
-        return list(self._cleared)
+    def cleared(self) -> tuple[MeasurementRecord, ...]:
+        return tuple(self._cleared)
 
     @property
     def active_fit(self) -> FitResult | None:
@@ -127,6 +131,7 @@ class MeasurementLog(QObject):
         self._path = None  # restoring is no change to save
         self._records = list(kept.records)
         self._cleared = list(kept.cleared)
+        self._snapshot = None
         self.changed.emit()
         if kept.active_fit is not None:
             self.set_active_fit(kept.active_fit)
@@ -149,6 +154,7 @@ class MeasurementLog(QObject):
         return True
 
     def _changed(self) -> None:
+        self._snapshot = None
         self.changed.emit()
         self._schedule_save()
 

@@ -84,7 +84,7 @@ def test_clear_can_be_undone_until_the_next_reading(ctx):
     log.add(_record(1000.0))
     log.add(_record(2000.0))
     log.clear()
-    assert log.records == [] and log.can_undo_clear
+    assert log.records == () and log.can_undo_clear
     assert log.undo_clear() and [r.Z_mm for r in log.records] == [1000.0, 2000.0]
     log.clear()
     log.add(_record(3000.0))  # a reading after Clear: the cleared ones are gone for good

@@ -199,7 +199,7 @@ def test_clear_log_asks_first(tab, ctx, questions):
     assert len(ctx.measurement_log.records) == n and f"all {n} readings" in questions.asked[-1]
     questions.reply = QMessageBox.StandardButton.Yes
     tab.clear_button.click()
-    assert ctx.measurement_log.records == []
+    assert ctx.measurement_log.records == ()
 
 
 def test_error_columns_and_triangulation_rms_beside_each_fit(tab, ctx):
@@ -242,7 +242,7 @@ def test_clear_log_is_undoable_until_the_next_reading(tab, ctx, monkeypatch):
     monkeypatch.setattr(QMessageBox, "question",
                         lambda *a, **k: QMessageBox.StandardButton.Yes)
     tab.clear_button.click()
-    assert ctx.measurement_log.records == [] and tab.undo_button.isVisibleTo(tab)
+    assert ctx.measurement_log.records == () and tab.undo_button.isVisibleTo(tab)
     tab.undo_button.click()
     assert len(ctx.measurement_log.records) == n and not tab.undo_button.isVisibleTo(tab)
     assert tab.r2("cubic") is not None  # the true distances came back with them
@@ -307,7 +307,7 @@ def test_log_and_active_fit_survive_a_restart(qtbot, tmp_path):
 
     ctx3 = AppContext()
     assert ctx3.measurement_log.keep(path) == []
-    assert ctx3.measurement_log.records == [] and ctx3.measurement_log.can_undo_clear
+    assert ctx3.measurement_log.records == () and ctx3.measurement_log.can_undo_clear
     assert ctx3.measurement_log.undo_clear() and len(ctx3.measurement_log.records) == n
     assert ctx3.shutdown(2000)
 
@@ -321,7 +321,7 @@ def test_an_unreadable_kept_log_is_set_aside_and_said(qtbot, tmp_path):
     warnings = ctx.measurement_log.keep(path)
     assert len(warnings) == 1 and "could not be restored" in warnings[0]
     assert (tmp_path / "measurement-log.json.unreadable").read_text() == "{ half a log"
-    assert ctx.measurement_log.records == []
+    assert ctx.measurement_log.records == ()
     assert ctx.shutdown(2000)
 
 
