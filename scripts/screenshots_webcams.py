@@ -92,7 +92,7 @@ def main(argv: list[str] | None = None) -> int:
                            exposure=150.0))
         src.camera_controls().left.write("focus", 45)
         ctx.calibration_model.set(src.rig.true_calibration().with_updates(camera_controls=held),
-                            None, note="")
+                                  None, note="")
         window.show_tab("live")
         live = window.live_tab
         live_panel = live.camera_controls

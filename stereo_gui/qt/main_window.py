@@ -199,7 +199,7 @@ class MainWindow(QMainWindow):
         self.live_tab = LiveTab(ctx)
         self.measurements_tab = MeasurementsTab(ctx)
         self._pages: tuple[WindowTab, ...] = (self.capture_tab, self.calibration_tab,
-                                               self.live_tab, self.measurements_tab)
+                                              self.live_tab, self.measurements_tab)
         for name, tab in zip(TAB_NAMES, self._pages, strict=True):
             self.tabs.addTab(tab, name.capitalize())
         self.tabs.currentChanged.connect(self._tab_changed)

@@ -90,4 +90,4 @@ def test_the_platform_qt_will_load():
     assert preflight.platform_name({"DISPLAY": ":0"}) == "xcb"
     assert preflight.platform_name({"WAYLAND_DISPLAY": "wayland-0"}) == "wayland"
     assert preflight.platform_name({"WAYLAND_DISPLAY": "w", "DISPLAY": ":0",
-                                     "XDG_SESSION_TYPE": "wayland"}) == "wayland"
+                                    "XDG_SESSION_TYPE": "wayland"}) == "wayland"

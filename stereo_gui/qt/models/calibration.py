@@ -135,7 +135,7 @@ class CalibrationModel(QObject):
             return None
         extra = "" if calib.metric else " (Hartley calibration: the baseline is not metric)"
         self._report.show_status(f"Exported ROS camera_info {paths[0].name} and "
-                                   f"{paths[1].name} into {folder}{extra}")
+                                 f"{paths[1].name} into {folder}{extra}")
         return paths
 
     def import_ros(self, left: str | Path, right: str | Path) -> bool:

@@ -200,8 +200,9 @@ class CaptureTab(SessionPairs, QWidget):
     def _board_edited(self) -> None:
         board = self.board
         self.ctx.settings_model.update(board_cols=board.cols, board_rows=board.rows,
-                                 square_mm=board.square_mm, board_target=board.target,
-                                 marker_mm=board.marker_mm, board_dictionary=board.dictionary)
+                                       square_mm=board.square_mm, board_target=board.target,
+                                       marker_mm=board.marker_mm,
+                                       board_dictionary=board.dictionary)
         self.rules.reset_steadiness()
         self._show_board_on_sim(board)
         if self.state == "live":
