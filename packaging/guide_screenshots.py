@@ -147,7 +147,7 @@ def main(argv: list[str]) -> int:
     live.pause_button.setChecked(True)
     pump(0.5)
     w, h = ctx.calibration.image_size
-    points = _pick_points(live._output.result.valid, live._output.result.final_px)
+    points = _pick_points(live.shown_output.result.valid, live.shown_output.result.final_px)
     for x, y in points["single"]:
         live.measure_at(x, y)
         pump(1.0)
@@ -191,7 +191,7 @@ def main(argv: list[str]) -> int:
     live.pause_button.setChecked(False)
     live.clear_markers()
     table = window.measurements_tab
-    table_start = len(ctx.measurements)
+    table_start = len(ctx.measurement_log.records)
     for scene in scenes:
         if not scene["name"].startswith("wall-"):
             continue
@@ -204,10 +204,10 @@ def main(argv: list[str]) -> int:
         shown = live.frames_shown
         wait_for(f"frames of {scene['name']}", lambda: live.frames_shown > shown + 3)
         for fx, fy in ((0.5, 0.5), (0.62, 0.38)):
-            n = len(ctx.measurements)
+            n = len(ctx.measurement_log.records)
             live.measure_at(fx * w, fy * h)
-            wait_for("a reading", lambda: len(ctx.measurements) > n, 20)
-            index = table.model.index(len(ctx.measurements) - 1, TRUE_COL)
+            wait_for("a reading", lambda: len(ctx.measurement_log.records) > n, 20)
+            index = table.model.index(len(ctx.measurement_log.records) - 1, TRUE_COL)
             table.model.setData(index, f"{scene['distance_mm']:g}")
     # the recording made above, played back as a source: the playback bar appears
     window.show_tab("live")
@@ -225,7 +225,8 @@ def main(argv: list[str]) -> int:
     for path in (work / "measurements.xlsx", work / "measurements.csv"):
         ok = table.export_xlsx(path) if path.suffix == ".xlsx" else table.export_csv(path)
         wait_for(f"the export {path.name}", lambda: path.exists(), 30)
-        print(f"exported {path} ({ok}, {len(ctx.measurements) - table_start} new readings)")
+        new = len(ctx.measurement_log.records) - table_start
+        print(f"exported {path} ({ok}, {new} new readings)")
 
     window.close()
     pump(0.5)

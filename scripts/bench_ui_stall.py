@@ -53,7 +53,8 @@ def main(argv: list[str] | None = None) -> int:
     window = MainWindow(ctx)
     window.resize(1400, 900)
     window.show()
-    ctx.set_calibration(source.rig.true_calibration(), None, note="simulated rig's TRUE calibration")
+    ctx.calibration_model.set(source.rig.true_calibration(), None,
+                              note="simulated rig's TRUE calibration")
     window.live_tab.params_panel.apply_preset(args.preset)
     window.show_tab("live")
     freeze_startup_objects()  # as run_app does once the window is shown

@@ -133,18 +133,19 @@ def main(argv: list[str] | None = None) -> int:
         points = [(420, 215), (300, 345), (560, 70), (585, 420), (250, 90)]
         for x, y in points:
             live.measure_at(x, y)
-        _wait(app, lambda: len(ctx.measurements) >= len(points), 60, "measurements")
+        _wait(app, lambda: len(ctx.measurement_log.records) >= len(points), 60, "measurements")
         live.ruler_button.setChecked(True)
         for x, y in ((235, 392), (515, 128)):
             live.measure_at(x, y)
-        _wait(app, lambda: len(ctx.measurements) >= len(points) + 3, 60, "ruler")
+        _wait(app, lambda: len(ctx.measurement_log.records) >= len(points) + 3, 60, "ruler")
         live.ruler_button.setChecked(False)
         # the technician's tape-measure distances (here: the rig's truth) make regression samples
         rig = ctx.frames.source().rig
-        for i, rec in enumerate(list(ctx.measurements)):
+        for i, rec in enumerate(list(ctx.measurement_log.records)):
             truth = rig.true_point_rectified(calib, scene, rec.x_px, rec.y_px)
             if rec.valid and truth is not None:
-                ctx.update_measurement(i, dataclasses.replace(rec, true_mm=round(float(truth[2]), 0)))
+                true = dataclasses.replace(rec, true_mm=round(float(truth[2]), 0))
+                ctx.measurement_log.update(i, true)
         live.readings.hovered("wls", 455.0, 180.0)  # the readout line as if the pointer were on the panel
         _wait(app, lambda: live.last_reading is not None, 60, "the pointer's reading")
         _pump(app, 1.0)
@@ -173,9 +174,10 @@ def main(argv: list[str] | None = None) -> int:
         live.playback.toggle_play()
         live.playback.step(-3)
         _pump(app, 1.5)
-        n = len(ctx.measurements)
+        n = len(ctx.measurement_log.records)
         live.measure_at(420, 215)
-        _wait(app, lambda: len(ctx.measurements) > n, 60, "a measurement on the recording")
+        _wait(app, lambda: len(ctx.measurement_log.records) > n, 60,
+              "a measurement on the recording")
         live.readings.hovered("wls", 420.0, 215.0)
         _pump(app, 1.0)
         _capture(app, window, out / "screenshot-playback.png")

@@ -116,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
         window.open_source(SourceChoice("sim:scene"))
         _wait(app, lambda: getattr(ctx.frames.source(), "mode", "") == "scene", 120, "scene")
         rig = ctx.frames.source().rig
-        ctx.set_calibration(rig.true_calibration(), None, note="")
+        ctx.calibration_model.set(rig.true_calibration(), None, note="")
         window.show_tab("live")
         live = window.live_tab
         panel = live.health

@@ -91,8 +91,8 @@ def main(argv: list[str] | None = None) -> int:
             CameraSettings("simulated", focus_auto=False, focus=30.0, exposure_auto=False,
                            exposure=150.0))
         src.camera_controls().left.write("focus", 45)
-        ctx.set_calibration(src.rig.true_calibration().with_updates(camera_controls=held),
-                            None, note="")
+        ctx.calibration_model.set(src.rig.true_calibration().with_updates(camera_controls=held),
+                                  None, note="")
         window.show_tab("live")
         live = window.live_tab
         live_panel = live.camera_controls

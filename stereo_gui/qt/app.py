@@ -10,8 +10,12 @@ import gc
 import logging
 import os
 import sys
+from typing import TYPE_CHECKING
 
 from stereo_gui.core.errors import InputError, StereoGuiError
+
+if TYPE_CHECKING:
+    from stereo_gui.qt.context import AppContext
 
 log = logging.getLogger(__name__)
 
@@ -37,8 +41,8 @@ def quit_after_seconds() -> float | None:
 def freeze_startup_objects() -> int:
     """Move every object alive now (modules, Qt wrappers, the window's widgets) out of the
     garbage collector's reach; return how many. They live until the process ends, yet every
-    full collection walked them all again: on the UI thread, a pause of 17-24 ms each time while
-    live (the UI-stall benchmark). Objects made later are collected as usual."""
+    full collection would walk them all again, a pause on the UI thread each time while live.
+    Objects made later are collected as usual."""
     gc.collect()
     gc.freeze()
     return gc.get_freeze_count()
@@ -59,7 +63,7 @@ def configure_pyqtgraph() -> None:
                         background="#202020", foreground="#dddddd")
 
 
-def _install_excepthook(ctx) -> None:
+def _install_excepthook(ctx: AppContext) -> None:
     """An unexpected exception in a slot becomes a message in the window, not a lost traceback."""
     previous = sys.excepthook
 
@@ -115,18 +119,18 @@ def build_window(source: str | None = None, calib: str | None = None):
     window = MainWindow(ctx)
     _install_excepthook(ctx)
     if loaded is not None and loaded.path is not None:
-        ctx.set_calibration(loaded.calibration, loaded.path.resolve(), remember=False)
-        ctx.settings = ctx.settings.with_updates(last_calibration=str(loaded.path.resolve()))
+        ctx.calibration_model.set(loaded.calibration, loaded.path.resolve(), remember=False)
+        ctx.settings_model.update(last_calibration=str(loaded.path.resolve()))
     elif loaded is not None:  # rectified:F,B[,DOFFS] is remembered as written
-        ctx.set_calibration(loaded.calibration, None, note=loaded.description, remember=False)
-        ctx.settings = ctx.settings.with_updates(last_calibration=calib or
-                                                 settings.last_calibration)
+        ctx.calibration_model.set(loaded.calibration, None, note=loaded.description,
+                                  remember=False)
+        ctx.settings_model.update(last_calibration=calib or settings.last_calibration)
     # opening takes seconds (devices, the simulated rig's ray maps): done off the UI thread
     window.open_source(SourceChoice(spec, size, settings.swap_lr), fallback_to_auto=not source)
     from stereo_gui.files.measurement_log import default_log_path
 
     # the log, the readings of the last Clear log and the active fit of the last run
-    warnings = [*warnings, *ctx.keep_log(default_log_path())]
+    warnings = [*warnings, *ctx.measurement_log.keep(default_log_path())]
     problems = [w for w in warnings] + ([calib_error] if calib_error else [])
     for text in problems:  # each kept in the error bar's list, beside what the tabs reported
         window.show_error(text)

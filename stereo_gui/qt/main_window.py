@@ -7,10 +7,10 @@ the user sees (a red bar above the tabs, also written to the status bar).
 
 from __future__ import annotations
 
-import inspect
 import logging
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
+from enum import Enum
 from pathlib import Path
 
 from PySide6.QtCore import QByteArray, Qt, QTimer, Signal
@@ -27,16 +27,18 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.qt.context import AppContext
+from stereo_gui.qt.dialogs.closing import CloseWaiter
 from stereo_gui.qt.dialogs.source_dialog import SourceChoice, SourceDialog, describe_spec
+from stereo_gui.qt.models.calibration import order_left_right
+from stereo_gui.qt.source_capabilities import playback_of, simulated_rig
 from stereo_gui.qt.tabs.calibration import CalibrationTab
 from stereo_gui.qt.tabs.capture import CaptureTab
 from stereo_gui.qt.tabs.live import LiveTab
 from stereo_gui.qt.tabs.measurements import MeasurementsTab
+from stereo_gui.qt.tabs.tab import WindowTab
 from stereo_gui.qt.widgets.error_bar import ErrorBar
 from stereo_gui.qt.widgets.helpers import pane
-from stereo_gui.qt.widgets.playback_bar import playback_of
 from stereo_gui.qt.workers.job_runner import JobRunner
 
 log = logging.getLogger(__name__)
@@ -105,7 +107,7 @@ def _quietly(fn, default=False):
 
 def is_simulated(source) -> bool:
     """Whether `source` renders the simulated rig (its frames are of no real scene)."""
-    return hasattr(getattr(source, "rig", None), "true_calibration")
+    return simulated_rig(source) is not None
 
 
 def _format_rms(value) -> str:
@@ -116,13 +118,23 @@ def _format_rms(value) -> str:
     return "?" if v != v else f"{v:.3f} px"
 
 
-def _order_left_right(files) -> tuple[str, str]:
-    """(left, right) of two chosen files: by "left"/"right" in the names, else in name order."""
-    a, b = sorted(files, key=lambda f: Path(f).name)
-    na, nb = Path(a).name.lower(), Path(b).name.lower()
-    if "right" in na and "right" not in nb or "left" in nb and "left" not in na:
-        return b, a
-    return a, b
+class ClosePhase(Enum):
+    """Where the window is on its way to closing."""
+
+    OPEN = "open"  # not closing, or closing was called off
+    WAITING = "waiting"  # the CloseWaiter waits for running work to end
+    CLOSING = "closing"  # the tabs and workers are being stopped; the window goes
+
+
+@dataclass
+class CloseState:
+    """Where closing the window stands. The answers hold for one attempt to close: keeping
+    the window open (Don't close) forgets them."""
+
+    phase: ClosePhase = ClosePhase.OPEN
+    waiter: CloseWaiter | None = None  # shown while WAITING
+    calibration_discarded: bool = False  # "Discard" was answered for the unsaved calibration
+    work_settled: bool = False  # the running work ended or was cancelled: do not wait again
 
 
 class _MessageBar(QWidget):
@@ -166,16 +178,13 @@ class MainWindow(QMainWindow):
         collect = early_errors.append
         ctx.errorOccurred.connect(collect)
         self.source_choice = self._choice_from_settings()
-        self._closing = False
-        self._close_waiter = None  # the CloseWaiter while closing waits for exports
-        self._calibration_answered = False  # "Discard" said once for this close
-        self._work_settled = False  # exports were cancelled for this close: do not wait again
+        self._close = CloseState()
         self._opening: tuple[SourceChoice, bool] = (self.source_choice, False)
         self._opening_id = 0
         self._opener = JobRunner("source-opener", self)
         self._opener.finished.connect(self._source_opened)
         self._opener.failed.connect(self._source_failed)
-        ctx.register_worker(self._opener)
+        ctx.workers.register(self._opener)
         self.setWindowTitle("Stereo GUI")
         self.resize(*default_window_size(self._available_geometry()))
 
@@ -189,8 +198,9 @@ class MainWindow(QMainWindow):
         self.calibration_tab = CalibrationTab(ctx)
         self.live_tab = LiveTab(ctx)
         self.measurements_tab = MeasurementsTab(ctx)
-        for name, tab in zip(TAB_NAMES, (self.capture_tab, self.calibration_tab, self.live_tab,
-                                         self.measurements_tab), strict=True):
+        self._pages: tuple[WindowTab, ...] = (self.capture_tab, self.calibration_tab,
+                                              self.live_tab, self.measurements_tab)
+        for name, tab in zip(TAB_NAMES, self._pages, strict=True):
             self.tabs.addTab(tab, name.capitalize())
         self.tabs.currentChanged.connect(self._tab_changed)
         self.live_tab.calibrateRequested.connect(lambda: self.show_tab("calibration"))
@@ -206,14 +216,14 @@ class MainWindow(QMainWindow):
         self._last_session_seen = ctx.settings.last_session
         self._build_menus()
         self._build_status_bar()
-        ctx.settingsChanged.connect(self._settings_changed)
+        ctx.settings_model.changed.connect(self._settings_changed)
 
         ctx.errorOccurred.disconnect(collect)
         ctx.errorOccurred.connect(self.show_error)
         for text in early_errors:
             self.show_error(text)
         ctx.statusMessage.connect(lambda text: self.statusBar().showMessage(text, 8000))
-        ctx.calibrationChanged.connect(self._update_calibration_label)
+        ctx.calibration_model.changed.connect(self._update_calibration_label)
         ctx.frames.sourceChanged.connect(self._update_source_label)
         ctx.frames.streamStatus.connect(self._stream_status)
         self._stream_error = ""  # the error bar's text about the stream, while it is wrong
@@ -285,19 +295,12 @@ class MainWindow(QMainWindow):
     def toggle_live_pause(self) -> None:
         """Pause or resume what the Live tab shows: the playback when a recording plays, else
         the live view."""
-        live = self.live_tab
-        if live.playback.source() is not None:
-            live.playback.toggle_play()
-        else:
-            live.set_paused(not live.pause_button.isChecked())
+        self.live_tab.toggle_pause()
 
     # ---- recent files ----------------------------------------------------------------------
     def remember_recent(self, path: str | Path) -> None:
         """Put `path` (a calibration, session, recording or video) first in File > Open recent."""
-        p = str(Path(path).expanduser().resolve())
-        if self.ctx.settings.recent_files[:1] != (p,):
-            self.ctx.settings = self.ctx.settings.with_recent(p)
-            self.ctx.settingsChanged.emit(self.ctx.settings)
+        self.ctx.settings_model.remember_recent(str(Path(path).expanduser().resolve()))
 
     def _recording_stopped(self, result) -> None:
         """A recording just made is in File > Open recent at once, not only once played."""
@@ -368,14 +371,12 @@ class MainWindow(QMainWindow):
         return TAB_NAMES[i] if 0 <= i < len(TAB_NAMES) else ""
 
     def _tab_changed(self, index: int) -> None:
-        for i in range(self.tabs.count()):
-            w = self.tabs.widget(i)
-            if hasattr(w, "set_active") and i != index:
-                w.set_active(False)
-        w = self.tabs.widget(index)
-        if hasattr(w, "set_active"):
-            w.set_active(True)
-        self.ctx.set_current_tab(self.current_tab_name())
+        # the hidden ones first: the shown one owns the frame worker's processor
+        for i, page in enumerate(self._pages):
+            if i != index:
+                page.set_active(False)
+        if 0 <= index < len(self._pages):
+            self._pages[index].set_active(True)
         self.pause_shortcut.setEnabled(self.current_tab_name() == "live")
 
     # ---- source ------------------------------------------------------------------------------
@@ -408,7 +409,7 @@ class MainWindow(QMainWindow):
         return self._opener.is_busy()
 
     def _source_opened(self, job_id: int, opened) -> None:
-        if job_id != self._opening_id or self._closing:
+        if job_id != self._opening_id or self._close.phase is ClosePhase.CLOSING:
             _close_source(opened.source)  # a newer request or the window closed meanwhile
             return
         self.statusBar().clearMessage()
@@ -421,11 +422,12 @@ class MainWindow(QMainWindow):
                         cameras=opened.cameras)
 
     def _source_failed(self, job_id: int, message: str) -> None:
-        if job_id != self._opening_id or self._closing:
+        if job_id != self._opening_id or self._close.phase is ClosePhase.CLOSING:
             return
         choice, fallback = self._opening
         self.ctx.report_error(f"Cannot open the source {describe_spec(choice.spec)}: {message}")
-        self._update_source_label(getattr(self.ctx.frames.source(), "name", ""))
+        current = self.ctx.frames.source()
+        self._update_source_label(current.name if current is not None else "")
         if fallback and choice.spec != "auto":
             self.open_source(SourceChoice("auto", choice.size, choice.swap))
 
@@ -434,7 +436,6 @@ class MainWindow(QMainWindow):
         """Use an already opened source (remembered in the settings, with the identities of its
         cameras)."""
         self.source_choice = choice
-        self.ctx.source_fell_back_to_sim = bool(fell_back_to_sim)
         if fell_back_to_sim:
             why = (message or "no cameras were found").split(";")[0].strip()
             self.banner.show_text(SIM_BANNER.format(why=why))
@@ -446,8 +447,8 @@ class MainWindow(QMainWindow):
             self.banner.hide()
             if message:
                 self.statusBar().showMessage(message, 8000)
-        self.ctx.update_settings(source=choice.spec, resolution=tuple(choice.size),
-                                 swap_lr=bool(choice.swap), cameras=tuple(cameras))
+        self.ctx.settings_model.update(source=choice.spec, resolution=tuple(choice.size),
+                                       swap_lr=bool(choice.swap), cameras=tuple(cameras))
         if Path(choice.spec).expanduser().exists():  # a recording, a folder or a video
             self.remember_recent(choice.spec)
         self.ctx.frames.set_source(source)
@@ -533,7 +534,7 @@ class MainWindow(QMainWindow):
                                                   CALIB_FILTER)
             if not path:
                 return False
-        return self.ctx.open_calibration_file(path)
+        return self.ctx.calibration_model.open_file(path)
 
     def save_calibration(self, path: str | None = None) -> bool:
         """Save the current calibration (asks where without `path`); True when written."""
@@ -546,13 +547,12 @@ class MainWindow(QMainWindow):
             path, _ = QFileDialog.getSaveFileName(self, "Save calibration", start, CALIB_FILTER)
             if not path:
                 return False
-        return self.ctx.save_calibration_file(calib, path)
+        return self.ctx.calibration_model.save_file(calib, path)
 
     def export_ros(self, folder: str | None = None) -> tuple[Path, Path] | None:
         """Write the calibration as ROS camera_info left.yaml and right.yaml into `folder`
         (asks for it without); returns both paths, or None (with a message)."""
-        calib = self.ctx.calibration
-        if calib is None:
+        if self.ctx.calibration is None:
             self.ctx.report_error("There is no calibration to export: calibrate or open one first.")
             return None
         if not folder:
@@ -560,17 +560,7 @@ class MainWindow(QMainWindow):
                 self, "Export ROS camera_info (left.yaml, right.yaml) into", self._start_dir())
             if not folder:
                 return None
-        from stereo_gui.files.calibration_file import export_ros
-
-        try:
-            paths = export_ros(calib, folder)
-        except (StereoGuiError, OSError) as exc:
-            self.ctx.report_error(f"Cannot export ROS camera_info into {folder}: {exc}")
-            return None
-        extra = "" if calib.metric else " (Hartley calibration: the baseline is not metric)"
-        self.statusBar().showMessage(f"Exported ROS camera_info {paths[0].name} and "
-                                     f"{paths[1].name} into {folder}{extra}", 8000)
-        return paths
+        return self.ctx.calibration_model.export_ros(folder)
 
     def import_ros(self, left: str | None = None, right: str | None = None) -> bool:
         """Use the calibration of a ROS camera_info pair (asks for the two files without them);
@@ -585,21 +575,8 @@ class MainWindow(QMainWindow):
                 self.ctx.report_error(f"Choose exactly two ROS camera_info files (left and right), "
                                       f"not {len(files)}.")
                 return False
-            left, right = _order_left_right(files)
-        from stereo_gui.files.calibration_file import import_ros
-
-        try:
-            calib = import_ros(left, right)
-        except (StereoGuiError, OSError) as exc:
-            self.ctx.report_error(f"Cannot import ROS camera_info {left} + {right}: {exc}")
-            return False
-        note = f"ROS {Path(left).name} + {Path(right).name}"
-        self.ctx.set_calibration(calib, None, note=note)
-        self.statusBar().showMessage(
-            f"Imported ROS camera_info {left} + {right}: baseline {calib.baseline_mm:.1f} mm, "
-            f"{calib.width}x{calib.height} px (save it with File > Save calibration as…)", 10000)
-        return True
-
+            left, right = order_left_right(files)
+        return self.ctx.calibration_model.import_ros(left, right)
 
     # ---- messages ----------------------------------------------------------------------------
     def show_error(self, text: str) -> None:
@@ -633,36 +610,37 @@ class MainWindow(QMainWindow):
             if not avail.intersects(self.frameGeometry()):
                 self.move(avail.topLeft())
             if avail.width() < NARROW_SCREEN_PX:
-                self.live_tab.params_button.setChecked(False)  # the views need the width
+                self.live_tab.show_parameters(False)  # the views need the width
 
     def save_settings(self) -> None:
         """Store geometry (and whatever the tabs changed) in the settings file."""
         geometry = bytes(self.saveGeometry().toBase64()).decode("ascii")
         state = bytes(self.saveState().toBase64()).decode("ascii")
-        self.ctx.settings = self.ctx.settings.with_updates(window_geometry=geometry,
-                                                           window_state=state)
-        from stereo_gui.files.settings import save_settings
-
-        try:
-            save_settings(self.ctx.settings)
-        except (StereoGuiError, OSError) as exc:
-            log.warning("settings not saved: %s", exc)
+        self.ctx.settings_model.update(window_geometry=geometry, window_state=state)
+        self.ctx.settings_model.save()
 
     # ---- closing without losing work ---------------------------------------------------------
     def unfinished_work(self) -> list[str]:
         """What closing now would cut short (the tabs' running exports), for a person."""
-        work: list[str] = []
-        for i in range(self.tabs.count()):
-            w = self.tabs.widget(i)
-            if hasattr(w, "unfinished_work"):
-                work.extend(w.unfinished_work())
-        return work
+        return [line for page in self._pages for line in page.unfinished_work()]
+
+    def close_waiter(self) -> CloseWaiter | None:
+        """The dialog shown while closing waits for running work, else None."""
+        return self._close.waiter
+
+    def close_without_asking(self) -> None:
+        """Close now: an unsaved calibration is discarded and running work cancelled."""
+        if self._close.phase is not ClosePhase.CLOSING:
+            if self._close.waiter is not None:
+                self._close.waiter.dismiss()
+            self._close = CloseState(calibration_discarded=True, work_settled=True)
+        self.close()
 
     def _keep_or_save_calibration(self) -> bool:
         """Ask Save / Discard / Cancel for a computed calibration not saved; False to stay open
         (Cancel, or Save that was not done)."""
         what = self.calibration_tab.unsaved_calibration()
-        if not what or self._calibration_answered:
+        if not what or self._close.calibration_discarded:
             return True
         from stereo_gui.qt.dialogs.closing import ask_unsaved_calibration
 
@@ -670,7 +648,7 @@ class MainWindow(QMainWindow):
         if answer == QMessageBox.StandardButton.Save:
             return self.save_calibration()
         if answer == QMessageBox.StandardButton.Discard:
-            self._calibration_answered = True
+            self._close.calibration_discarded = True
             log.info("closing: the unsaved calibration (%s) was discarded", what)
             return True
         return False
@@ -678,79 +656,74 @@ class MainWindow(QMainWindow):
     def _wait_for_work(self) -> bool:
         """With exports still running: show the CloseWaiter and close when they are done (or
         cancel them, see `_cancel_work_and_close`); False when nothing runs."""
-        if self._work_settled or not self.unfinished_work():
+        if self._close.work_settled or not self.unfinished_work():
             return False
-        from stereo_gui.qt.dialogs.closing import CloseWaiter
-
         waiter = CloseWaiter(self, self.unfinished_work)
         waiter.done.connect(self._work_done_close)
         waiter.cancelRequested.connect(self._cancel_work_and_close)
         waiter.aborted.connect(self._close_aborted)
-        self._close_waiter = waiter
+        self._close.phase, self._close.waiter = ClosePhase.WAITING, waiter
         self.statusBar().showMessage("Closing as soon as the export is written…")
         waiter.open()
         return True
 
     def _work_done_close(self) -> None:
-        self._close_waiter = None
-        self._work_settled = True
+        self._close.phase, self._close.waiter = ClosePhase.OPEN, None
+        self._close.work_settled = True
         self.close()
 
     def _close_aborted(self) -> None:
-        self._close_waiter = None
-        self._calibration_answered = False
+        self._close = CloseState()
         self.statusBar().showMessage("Not closed: the export goes on", 8000)
 
     def _cancel_work_and_close(self, timed_out: bool) -> None:
         from stereo_gui.qt.dialogs.closing import tell_cancelled
 
-        waited_s = self._close_waiter.wait_s if self._close_waiter is not None else None
-        self._close_waiter = None
+        waiter = self._close.waiter
+        waited_s = waiter.wait_s if waiter is not None and timed_out else None
+        self._close.phase, self._close.waiter = ClosePhase.OPEN, None
         deadline = time.monotonic() + CLOSE_TIMEOUT_MS / 1000.0
         said: list[str] = []
-        for i in range(self.tabs.count()):
-            w = self.tabs.widget(i)
-            if hasattr(w, "cancel_unfinished_work"):
-                left = max(1, int((deadline - time.monotonic()) * 1000))
-                said.extend(w.cancel_unfinished_work(timeout_ms=left))
+        for page in self._pages:
+            left = max(1, int((deadline - time.monotonic()) * 1000))
+            said.extend(page.cancel_unfinished_work(timeout_ms=left))
         for line in said:
             log.warning("closing: %s", line)
-        self._work_settled = True
-        tell_cancelled(self, said, waited_s if timed_out else None)
+        self._close.work_settled = True
+        tell_cancelled(self, said, waited_s)
         self.close()
 
     def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802 - Qt API
-        if not self._closing:
+        if self._close.phase is ClosePhase.WAITING:
+            # closed again while waiting: the user insists. After this event, since a close()
+            # from within closeEvent would be refused
+            event.ignore()
+            QTimer.singleShot(0, self._close.waiter.insist)
+            return
+        if self._close.phase is ClosePhase.OPEN:
             # a true distance still being typed belongs in the log that is kept
             self.measurements_tab.commit_edits()
-            if self._close_waiter is not None:  # closed again while waiting: the user insists
-                event.ignore()
-                # after this event: a close() from within closeEvent would be refused
-                QTimer.singleShot(0, self._close_waiter.insist)
-                return
             if not self._keep_or_save_calibration() or self._wait_for_work():
                 event.ignore()
                 return
-        if not self._closing:
-            self._closing = True
-            self._fps_timer.stop()
-            # one deadline for everything: a blocked worker never makes closing take longer
-            deadline = time.monotonic() + CLOSE_TIMEOUT_MS / 1000.0
-
-            def left_ms() -> int:
-                return max(1, int((deadline - time.monotonic()) * 1000))
-
-            for i in range(self.tabs.count()):
-                w = self.tabs.widget(i)
-                if hasattr(w, "shutdown"):
-                    try:
-                        if "timeout_ms" in inspect.signature(w.shutdown).parameters:
-                            w.shutdown(timeout_ms=left_ms())
-                        else:
-                            w.shutdown()
-                    except Exception:  # noqa: BLE001 - a tab's failure must not block closing
-                        log.warning("shutting down a tab failed", exc_info=True)
-            self.save_settings()
-            if not self.ctx.shutdown(left_ms()):
-                log.warning("some workers did not stop within %d ms", CLOSE_TIMEOUT_MS)
+            self._stop_everything()
         super().closeEvent(event)
+
+    def _stop_everything(self) -> None:
+        """Stop the tabs and every worker within one deadline, and save the settings: a blocked
+        worker never makes closing take longer than CLOSE_TIMEOUT_MS."""
+        self._close.phase = ClosePhase.CLOSING
+        self._fps_timer.stop()
+        deadline = time.monotonic() + CLOSE_TIMEOUT_MS / 1000.0
+
+        def left_ms() -> int:
+            return max(1, int((deadline - time.monotonic()) * 1000))
+
+        for page in self._pages:
+            try:
+                page.shutdown(timeout_ms=left_ms())
+            except Exception:  # noqa: BLE001 - a tab's failure must not block closing
+                log.warning("shutting down a tab failed", exc_info=True)
+        self.save_settings()
+        if not self.ctx.shutdown(left_ms()):
+            log.warning("some workers did not stop within %d ms", CLOSE_TIMEOUT_MS)

@@ -71,7 +71,7 @@ class PreflightError(StereoGuiError):
     """Qt cannot start here; the message is the one line to show (exit status 2)."""
 
 
-def _platform_name(env) -> str:
+def platform_name(env) -> str:
     """The Qt platform plugin Qt will load: QT_QPA_PLATFORM's first, else xcb or wayland."""
     chosen = env.get("QT_QPA_PLATFORM", "").strip()
     if chosen:
@@ -112,7 +112,7 @@ def missing_libraries(load=ctypes.CDLL, env=None) -> list[str]:
     if root is None:
         return []
     qt = root / "Qt"
-    name = _platform_name(env)
+    name = platform_name(env)
     candidates = sorted((root.glob("QtWidgets.*")))[:1] + [qt / "plugins" / "platforms" /
                                                            f"libq{name}.so"]
     for path in candidates:
@@ -178,7 +178,7 @@ def check_gui_can_start(env=None, platform: str | None = None, load=ctypes.CDLL)
         libs = []
     if libs:
         raise PreflightError(libraries_message(libs))
-    if _platform_name(env) == "xcb" and env.get("DISPLAY"):
+    if platform_name(env) == "xcb" and env.get("DISPLAY"):
         try:
             answers = _can_connect_x(env["DISPLAY"], load)
         except Exception:  # noqa: BLE001

@@ -88,8 +88,7 @@ def make_tab(qtbot, ctx):
 
     yield make
     for tab in made:
-        # CaptureTab.shutdown returns None (it stops without waiting), the others a join result
-        assert tab.shutdown() is not False, f"{type(tab).__name__} did not stop within 2 s"
+        assert tab.shutdown(timeout_ms=2000), f"{type(tab).__name__} did not stop within 2 s"
 
 
 @pytest.fixture

@@ -9,6 +9,8 @@ import sys
 import pytest
 from PySide6.QtCore import QObject, Signal
 
+from stereo_gui.qt.source_capabilities import simulated_rig
+
 
 class _Emitter(QObject):
     ping = Signal()
@@ -125,8 +127,9 @@ def test_the_simulated_rigs_true_calibration_is_chosen_again_after_a_restart(
     save_settings(Settings(source="sim", last_calibration=str(good)))
     ctx, window = _start(qtbot)
     try:
-        qtbot.waitUntil(lambda: window.live_tab._sim_rig() is not None, timeout=60000)
-        qtbot.wait(200)
+        qtbot.waitUntil(lambda: simulated_rig(ctx.frames.source()) is not None, timeout=60000)
+        # frames are shown, and the calibration chosen at the start is still the one in use
+        qtbot.waitUntil(lambda: window.live_tab.frames_shown > 0, timeout=60000)
         assert ctx.calibration_path == good.resolve()  # nothing chosen yet: the file
         assert window.live_tab.use_true_calibration()
     finally:
@@ -138,21 +141,22 @@ def test_the_simulated_rigs_true_calibration_is_chosen_again_after_a_restart(
     try:
         qtbot.waitUntil(lambda: ctx.calibration_note == TRUE_CALIBRATION_NOTE, timeout=60000)
         assert ctx.calibration_path is None and window.live_tab.calib_note.isVisibleTo(window)
-        assert ctx.open_calibration_file(good)  # another choice ends it
+        assert ctx.calibration_model.open_file(good)  # another choice ends it
         assert not ctx.settings.sim_true_calibration
     finally:
         window.close()
 
     ctx, window = _start(qtbot)
     try:
-        qtbot.waitUntil(lambda: window.live_tab._sim_rig() is not None, timeout=60000)
-        qtbot.wait(200)
+        qtbot.waitUntil(lambda: simulated_rig(ctx.frames.source()) is not None, timeout=60000)
+        # frames are shown, and the calibration chosen at the start is still the one in use
+        qtbot.waitUntil(lambda: window.live_tab.frames_shown > 0, timeout=60000)
         assert ctx.calibration_path == good.resolve() and ctx.calibration_note == ""
     finally:
         window.close()
 
 
-# ---- remembered files that are bad never block the start (issue 13, item 4) -----------------
+# ---- remembered files that are bad never block the start -----------------------------------
 def _bad_header_calibration(sim_rig, path):
     """A calibration whose M1 header says 4 rows but holds 9 numbers."""
     from stereo_gui.files.calibration_file import save_calibration
@@ -280,7 +284,7 @@ def test_a_log_that_cannot_be_read_is_set_aside_said_and_the_start_goes_on(qtbot
     _write_settings({"format_version": 1, "source": "sim"})
     ctx, window = _start(qtbot)
     try:
-        assert ctx.measurements == []
+        assert ctx.measurement_log.records == ()
         said = [m for m in window.error_bar.messages() if "measurement log" in m]
         assert len(said) == 1 and "measurement-log.json.unreadable" in said[0]
         assert log.with_name(log.name + ".unreadable").read_text() == LOGS[kind]

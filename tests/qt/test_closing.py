@@ -32,30 +32,30 @@ class Dialogs:
 
     def __init__(self):
         self.seen: list[tuple[str, str]] = []
-        self._queue: list[tuple[str, object]] = []
-        self._timer = QTimer()
-        self._timer.setInterval(20)
-        self._timer.timeout.connect(self._look)
-        self._timer.start()
+        self.queue: list[tuple[str, object]] = []
+        self.timer = QTimer()
+        self.timer.setInterval(20)
+        self.timer.timeout.connect(self.look)
+        self.timer.start()
 
     def answer(self, name: str, press) -> None:
-        self._queue.append((name, press))
+        self.queue.append((name, press))
 
-    def _look(self) -> None:
-        if not self._queue:
+    def look(self) -> None:
+        if not self.queue:
             return
         dlg = QApplication.activeModalWidget()
-        name, press = self._queue[0]
+        name, press = self.queue[0]
         if dlg is None or dlg.objectName() != name or not dlg.isVisible():
             return
-        self._queue.pop(0)
+        self.queue.pop(0)
         text = dlg.text() + "\n" + dlg.informativeText() if isinstance(dlg, QMessageBox) \
             else dlg.label.text()
         self.seen.append((name, text))
         press(dlg)
 
     def stop(self) -> None:
-        self._timer.stop()
+        self.timer.stop()
 
 
 @pytest.fixture
@@ -63,7 +63,7 @@ def dialogs(qtbot):
     d = Dialogs()
     yield d
     d.stop()
-    assert not d._queue, f"dialogs never shown: {[n for n, _ in d._queue]}"
+    assert not d.queue, f"dialogs never shown: {[n for n, _ in d.queue]}"
 
 
 def button(std):
@@ -88,11 +88,8 @@ def win(qtbot, ctx):
     w.show()
     qtbot.waitExposed(w)
     yield w
-    if w._close_waiter is not None:
-        w._close_waiter._end(lambda: None)
     if w.isVisible():  # left open by the test: close without asking again
-        w._calibration_answered = w._work_settled = True
-        w.close()
+        w.close_without_asking()
     w.deleteLater()
 
 
@@ -102,7 +99,7 @@ def closed(w) -> bool:
 
 # ---- an unsaved calibration ------------------------------------------------------------------
 def test_unsaved_calibration_cancel_keeps_the_window_open(win, ctx, calibration_run, dialogs):
-    win.calibration_tab._finished(calibration_run)  # what the tab does when its job is done
+    win.calibration_tab.use_run(calibration_run)  # what the tab does when its job is done
     assert "calibrated from" in win.calibration_tab.unsaved_calibration()
     dialogs.answer("unsaved-calibration", button(QMessageBox.StandardButton.Cancel))
     win.close()
@@ -112,7 +109,7 @@ def test_unsaved_calibration_cancel_keeps_the_window_open(win, ctx, calibration_
 
 
 def test_unsaved_calibration_discard_closes(qtbot, win, ctx, calibration_run, dialogs):
-    win.calibration_tab._finished(calibration_run)
+    win.calibration_tab.use_run(calibration_run)
     dialogs.answer("unsaved-calibration", button(QMessageBox.StandardButton.Discard))
     win.close()
     assert closed(win) and len(dialogs.seen) == 1
@@ -123,7 +120,7 @@ def test_unsaved_calibration_save_writes_it_then_closes(qtbot, win, ctx, calibra
     import stereo_gui.qt.main_window as mw
     from stereo_gui.files.calibration_file import load_calibration
 
-    win.calibration_tab._finished(calibration_run)
+    win.calibration_tab.use_run(calibration_run)
     # Save, but the file dialog is cancelled: nothing written, the window stays
     monkeypatch.setattr(mw.QFileDialog, "getSaveFileName", lambda *a, **k: ("", ""))
     dialogs.answer("unsaved-calibration", button(QMessageBox.StandardButton.Save))
@@ -141,10 +138,11 @@ def test_unsaved_calibration_save_writes_it_then_closes(qtbot, win, ctx, calibra
 
 def test_a_saved_or_loaded_calibration_closes_without_asking(win, ctx, calibration_run, dialogs,
                                                              tmp_path, sim_rig):
-    win.calibration_tab._finished(calibration_run)
+    win.calibration_tab.use_run(calibration_run)
     assert win.save_calibration(str(tmp_path / "c.yaml"))
     assert win.calibration_tab.unsaved_calibration() == ""
-    ctx.set_calibration(sim_rig.true_calibration(), None, note="simulated rig's TRUE calibration")
+    ctx.calibration_model.set(sim_rig.true_calibration(), None,
+                              note="simulated rig's TRUE calibration")
     assert win.calibration_tab.unsaved_calibration() == ""  # not the tab's work: nothing lost
     win.close()
     assert closed(win) and not dialogs.seen
@@ -160,9 +158,9 @@ def _reading(i: int, true_mm=None) -> MeasurementRecord:
 
 def test_a_true_distance_typed_just_before_closing_is_kept(qtbot, win, ctx, tmp_path):
     log = tmp_path / "log.json"
-    ctx.keep_log(log)
+    ctx.measurement_log.keep(log)
     for i in range(3):
-        ctx.add_measurement(_reading(i))
+        ctx.measurement_log.add(_reading(i))
     table = win.measurements_tab.table
     model = table.model()
     # entered (Enter pressed) and the window closed at once, before the log's save timer
@@ -204,16 +202,16 @@ def held_export(monkeypatch):
 
 
 def _start_export(qtbot, win, ctx, path, n=2000):
-    ctx.add_measurements([_reading(i, 1500.0 if i % 2 else None) for i in range(n)])
+    ctx.measurement_log.add_many([_reading(i, 1500.0 if i % 2 else None) for i in range(n)])
     assert win.measurements_tab.export_xlsx(path)
     qtbot.waitUntil(lambda: "500 of 2,000 rows" in " ".join(win.unfinished_work()),
                     timeout=30000)
 
 
 def _waiter(qtbot, win):
-    qtbot.waitUntil(lambda: win._close_waiter is not None and win._close_waiter.isVisible(),
+    qtbot.waitUntil(lambda: win.close_waiter() is not None and win.close_waiter().isVisible(),
                     timeout=10000)
-    return win._close_waiter
+    return win.close_waiter()
 
 
 def test_closing_waits_for_a_running_export_then_closes(qtbot, win, ctx, held_export, tmp_path):
@@ -277,7 +275,7 @@ def test_dont_close_keeps_the_window_and_the_export(qtbot, win, ctx, held_export
     win.close()
     waiter = _waiter(qtbot, win)
     waiter.keep_button.click()
-    assert not closed(win) and win._close_waiter is None
+    assert not closed(win) and win.close_waiter() is None
     with qtbot.waitSignal(win.measurements_tab.exportFinished, timeout=60000):
         held_export.set()
     assert path.is_file()
@@ -288,7 +286,7 @@ def test_dont_close_keeps_the_window_and_the_export(qtbot, win, ctx, held_export
 def test_a_queued_snapshot_is_waited_for_or_cancelled(qtbot, win, ctx, sim_rig, wall_pair,
                                                      array_source, tmp_path, dialogs):
     _scene, left, right = wall_pair
-    ctx.set_calibration(sim_rig.true_calibration(), None)
+    ctx.calibration_model.set(sim_rig.true_calibration(), None)
     win.show_tab("live")
     with qtbot.waitSignal(win.live_tab.frameShown, timeout=60000):
         ctx.frames.set_source(array_source(left, right, fps=30))

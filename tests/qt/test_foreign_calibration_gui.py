@@ -34,7 +34,7 @@ def test_open_calibration_takes_the_size_of_the_frames_shown(qtbot, ctx, array_s
     qtbot.waitUntil(lambda: ctx.frames.latest() is not None, timeout=5000)
     statuses = []
     ctx.statusMessage.connect(statuses.append)
-    assert ctx.open_calibration_file(tmp_path / "extrinsics.yml")
+    assert ctx.calibration_model.open_file(tmp_path / "extrinsics.yml")
     assert ctx.calibration.image_size == (320, 240)
     assert ctx.calibration_path == tmp_path / "extrinsics.yml"
     assert "OpenCV stereo calibration" in statuses[-1]
@@ -47,7 +47,7 @@ def test_open_calibration_reports_a_foreign_file_it_cannot_use(qtbot, ctx, tmp_p
     fs.release()
     errors = []
     ctx.errorOccurred.connect(errors.append)
-    assert not ctx.open_calibration_file(tmp_path / "intrinsics.yml")
+    assert not ctx.calibration_model.open_file(tmp_path / "intrinsics.yml")
     assert ctx.calibration is None and "missing" in errors[-1]
 
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from PySide6.QtWidgets import QApplication
 
-from stereo_gui.qt.main_window import TAB_NAMES, MainWindow
 from stereo_gui.qt.dialogs.source_dialog import SourceChoice, SourceDialog
+from stereo_gui.qt.main_window import TAB_NAMES, MainWindow
 
 
 def _assert_no_thread_destroyed_warning(qtlog):
@@ -37,13 +37,17 @@ def test_four_tabs_and_the_simulated_rig_banner(qtbot, ctx, window, sim_rig):
     assert "SIMULATED" in window.banner.label.text()
     assert window.source_label.text() == "Source: Simulated rig"
     assert ctx.settings.source == "auto"
+    from stereo_gui.qt.tabs.tab import WindowTab
+
+    assert all(isinstance(window.tabs.widget(i), WindowTab) for i in range(window.tabs.count()))
     for name in TAB_NAMES:
         window.show_tab(name)
-        assert ctx.current_tab == name
+        assert window.current_tab_name() == name
 
 
 def test_status_bar_shows_frame_rates(qtbot, ctx, window, sim_rig):
-    ctx.set_calibration(sim_rig.true_calibration(), None, note="simulated rig's TRUE calibration")
+    ctx.calibration_model.set(sim_rig.true_calibration(), None,
+                              note="simulated rig's TRUE calibration")
     window.show_tab("live")
     window.use_source(_sim_source(sim_rig), SourceChoice("sim"))
     qtbot.waitUntil(lambda: window.live_tab.frames_shown >= 3, timeout=60000)
@@ -57,7 +61,7 @@ def test_open_source_runs_off_the_ui_thread(qtbot, ctx, window):
     with qtbot.waitSignal(window.sourceOpened, timeout=120000) as sig:
         window.open_source(SourceChoice("sim"))
     assert sig.args == ["sim"]
-    # chosen, not fallen back to: the banner says SIMULATED all the same (issue 12, item 10)
+    # chosen, not fallen back to: the banner says SIMULATED all the same
     assert window.banner.isVisibleTo(window) and "chosen" in window.banner.label.text()
 
 
@@ -77,10 +81,10 @@ def test_errors_become_a_visible_message(qtbot, ctx, window):
 
 def test_save_and_open_calibration(qtbot, ctx, window, sim_rig, tmp_path):
     assert not window.save_calibration(str(tmp_path / "none.yaml"))  # nothing to save yet
-    ctx.set_calibration(sim_rig.true_calibration())
+    ctx.calibration_model.set(sim_rig.true_calibration())
     path = tmp_path / "rig.yaml"
     assert window.save_calibration(str(path)) and path.is_file()
-    ctx.set_calibration(None)
+    ctx.calibration_model.set(None)
     assert window.calibration_label.text() == "No calibration"
     assert window.open_calibration(str(path))
     assert ctx.calibration is not None and ctx.calibration_path.name == "rig.yaml"
@@ -95,7 +99,7 @@ def test_save_and_open_calibration(qtbot, ctx, window, sim_rig, tmp_path):
 def test_closing_while_live_ends_quickly_without_thread_warnings(qtbot, ctx, sim_rig, qtlog):
     w = MainWindow(ctx)
     w.show()
-    ctx.set_calibration(sim_rig.true_calibration())
+    ctx.calibration_model.set(sim_rig.true_calibration())
     w.show_tab("live")
     w.use_source(_sim_source(sim_rig), SourceChoice("sim"))
     qtbot.waitUntil(lambda: w.live_tab.frames_shown >= 1, timeout=60000)
@@ -162,7 +166,7 @@ def test_export_and_import_ros_camera_info(qtbot, ctx, window, sim_rig, tmp_path
     ctx.errorOccurred.connect(errors.append)
     assert window.export_ros(str(tmp_path)) is None and "no calibration" in errors[-1]
     calib = sim_rig.true_calibration()
-    ctx.set_calibration(calib)
+    ctx.calibration_model.set(calib)
     left, right = window.export_ros(str(tmp_path))
     assert (left.name, right.name) == ("left.yaml", "right.yaml")
     doc = yaml.safe_load(right.read_text())
@@ -171,7 +175,7 @@ def test_export_and_import_ros_camera_info(qtbot, ctx, window, sim_rig, tmp_path
     assert P2[0, 3] == pytest.approx(calib.P2[0, 3] / 1000.0)  # ROS: metres
     assert "left.yaml" in window.statusBar().currentMessage()
 
-    ctx.set_calibration(None)
+    ctx.calibration_model.set(None)
     assert window.import_ros(str(left), str(right))
     back = ctx.calibration
     assert back is not None and back.image_size == calib.image_size
@@ -184,11 +188,11 @@ def test_export_and_import_ros_camera_info(qtbot, ctx, window, sim_rig, tmp_path
 
 
 def test_ros_files_are_told_apart_by_name():
-    from stereo_gui.qt.main_window import _order_left_right
+    from stereo_gui.qt.models.calibration import order_left_right
 
-    assert _order_left_right(["/a/cam_right.yaml", "/a/cam_left.yaml"]) == \
+    assert order_left_right(["/a/cam_right.yaml", "/a/cam_left.yaml"]) == \
         ("/a/cam_left.yaml", "/a/cam_right.yaml")
-    assert _order_left_right(["/a/b.yaml", "/a/a.yaml"]) == ("/a/a.yaml", "/a/b.yaml")
+    assert order_left_right(["/a/b.yaml", "/a/a.yaml"]) == ("/a/a.yaml", "/a/b.yaml")
 
 
 def test_help_about_opens_the_about_dialog(window, qtbot):
@@ -226,7 +230,7 @@ def test_the_window_fits_laptop_screens(qtbot, ctx, window, sim_rig):
         window.show_tab(name)
         hint = window.minimumSizeHint()
         assert hint.width() <= 1024 and hint.height() <= 768 - 32, (name, hint)
-    ctx.set_calibration(sim_rig.true_calibration())  # the Live tab shows its views
+    ctx.calibration_model.set(sim_rig.true_calibration())  # the Live tab shows its views
     window.show_tab("live")
     live = window.live_tab
     window.banner.show_text("SIMULATED " * 40)  # a banner of two lines takes its room too
@@ -269,14 +273,14 @@ def test_open_recent_lists_calibrations_sessions_and_recordings(qtbot, ctx, wind
     session = tmp_path / "session"
     session.mkdir()
     (session / MANIFEST).write_text("{}")
-    ctx.update_settings(last_session=str(session))  # what the Capture tab does
+    ctx.settings_model.update(last_session=str(session))  # what the Capture tab does
     recent = ctx.settings.recent_files
     assert recent[:3] == (str(session), str(tmp_path / "rec"), str(calib))
     assert [recent_entry(p)[0] for p in recent[:3]] == ["session", "recording", "calibration"]
-    window._fill_recent_menu()
+    window.recent_menu.aboutToShow.emit()  # as when File > Open recent opens
     texts = [a.text() for a in window.recent_menu.actions()]
     assert texts[0].startswith("Session: session") and texts[2].startswith("Calibration: rig")
-    ctx.set_calibration(None)
+    ctx.calibration_model.set(None)
     assert window.open_recent(str(calib)) and ctx.calibration is not None
     assert recent_entry(str(tmp_path / "gone.yaml"))[0] == "missing"
     assert not window.open_recent(str(tmp_path / "gone.yaml"))

@@ -85,9 +85,9 @@ def test_other_systems_and_unknown_libraries():
 
 
 def test_the_platform_qt_will_load():
-    assert preflight._platform_name({"QT_QPA_PLATFORM": "vnc:size=800x600"}) == "vnc"
-    assert preflight._platform_name({"QT_QPA_PLATFORM": "wayland;xcb"}) == "wayland"
-    assert preflight._platform_name({"DISPLAY": ":0"}) == "xcb"
-    assert preflight._platform_name({"WAYLAND_DISPLAY": "wayland-0"}) == "wayland"
-    assert preflight._platform_name({"WAYLAND_DISPLAY": "w", "DISPLAY": ":0",
-                                     "XDG_SESSION_TYPE": "wayland"}) == "wayland"
+    assert preflight.platform_name({"QT_QPA_PLATFORM": "vnc:size=800x600"}) == "vnc"
+    assert preflight.platform_name({"QT_QPA_PLATFORM": "wayland;xcb"}) == "wayland"
+    assert preflight.platform_name({"DISPLAY": ":0"}) == "xcb"
+    assert preflight.platform_name({"WAYLAND_DISPLAY": "wayland-0"}) == "wayland"
+    assert preflight.platform_name({"WAYLAND_DISPLAY": "w", "DISPLAY": ":0",
+                                    "XDG_SESSION_TYPE": "wayland"}) == "wayland"

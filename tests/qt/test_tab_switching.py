@@ -1,5 +1,5 @@
 """Switching tabs in the window: every tab that shows live frames draws new ones whichever tabs
-were shown before it (issue 12, item 1)."""
+were shown before it."""
 
 from __future__ import annotations
 
@@ -52,7 +52,7 @@ def test_capture_shows_frames_after_measurements_and_calibration(qtbot, ctx, win
 
 def test_live_draws_again_after_capture_froze_a_pair(qtbot, ctx, window, sim_rig):
     """Capture froze a pair (its processor is off) -> Measurements -> Live: Live draws."""
-    ctx.set_calibration(sim_rig.true_calibration(), None)
+    ctx.calibration_model.set(sim_rig.true_calibration(), None)
     window.use_source(_board_source(sim_rig), SourceChoice("sim"))
     capture = window.capture_tab
     window.show_tab("capture")
@@ -68,7 +68,8 @@ def test_live_draws_again_after_capture_froze_a_pair(qtbot, ctx, window, sim_rig
 def test_a_paused_live_view_stays_paused_across_a_tab_switch(qtbot, ctx, window, sim_rig):
     """Live, Pause, Measurements, Live: still paused (the button says Resume, no frame is read);
     the other tab got frames meanwhile; Resume goes on."""
-    ctx.set_calibration(sim_rig.true_calibration(), None, note="simulated rig's TRUE calibration")
+    ctx.calibration_model.set(sim_rig.true_calibration(), None,
+                              note="simulated rig's TRUE calibration")
     window.use_source(_board_source(sim_rig), SourceChoice("sim"))
     live = window.live_tab
     window.show_tab("live")

@@ -14,7 +14,8 @@ TITLE_BAR_PX = 32  # what a window manager's frame takes of the height
 
 
 def test_showing_more_views_never_makes_the_window_taller(qtbot, ctx, window, sim_rig):
-    ctx.set_calibration(sim_rig.true_calibration(), None, note="simulated rig's TRUE calibration")
+    ctx.calibration_model.set(sim_rig.true_calibration(), None,
+                              note="simulated rig's TRUE calibration")
     window.show_tab("live")
     # everything that can stand above and below the views at once
     window.banner.show_text("Running on the SIMULATED stereo rig: a long banner " * 3)

@@ -49,6 +49,7 @@ def versions() -> dict[str, str]:
         "numpy": numpy.__version__,
         "pyqtgraph": pyqtgraph.__version__,
         "System": f"{platform.system()} {platform.release()} ({platform.machine()})",
+        # PyInstaller sets sys.frozen in a bundle; a plain interpreter has no such attribute
         "Bundled": "yes" if getattr(sys, "frozen", False) else "no",
     }
 

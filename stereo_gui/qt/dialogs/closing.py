@@ -116,6 +116,10 @@ class CloseWaiter(QDialog):
         """Cancel the work and close now (the button, or closing the window again)."""
         self._end(lambda: self.cancelRequested.emit(False))
 
+    def dismiss(self) -> None:
+        """Stop waiting and hide, announcing nothing (the window closes without asking)."""
+        self._end(lambda: None)
+
     def _keep_working(self) -> None:
         self._end(self.aborted.emit)
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QFont
@@ -59,6 +60,9 @@ from stereo_gui.qt.widgets.helpers import VerticalScroll, pane
 from stereo_gui.qt.workers.job_runner import JobRunner
 from stereo_gui.qt.workers.job_worker import JobWorker
 
+if TYPE_CHECKING:
+    from stereo_gui.qt.context import AppContext
+
 log = logging.getLogger(__name__)
 
 _MONO = QFont("Monospace")
@@ -70,7 +74,7 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
 
     calibrationFinished = Signal(object)  # CalibrationRun
 
-    def __init__(self, ctx, parent: QWidget | None = None) -> None:
+    def __init__(self, ctx: AppContext, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.ctx = ctx
         self.worker: JobWorker | None = None
@@ -80,7 +84,7 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
         self._maps_for: StereoCalibration | None = None
         self.selected_pair: str | None = None
         self._pair_jobs = JobRunner("pair-view", self)  # reads and rectifies the pair clicked
-        ctx.register_worker(self._pair_jobs)
+        ctx.workers.register(self._pair_jobs)
         self._pair_jobs.finished.connect(self._pair_ready)
         self._pair_jobs.failed.connect(self._pair_failed)
         self._pair_job: int | None = None
@@ -93,9 +97,8 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
         self.folder_edit.textChanged.connect(self._folder_changed)
         if s.last_session:
             self.folder_edit.setText(str(s.last_session))
-        ctx.calibrationChanged.connect(self._calibration_changed)
-        ctx.settingsChanged.connect(self._settings_changed)
-        ctx.currentTabChanged.connect(lambda name: self.set_active(name == "calibration"))
+        ctx.calibration_model.changed.connect(self._calibration_changed)
+        ctx.settings_model.changed.connect(self._settings_changed)
         if ctx.calibration is not None:
             self._calibration_changed(ctx.calibration)
         else:
@@ -134,11 +137,12 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
         self.model_combo.setToolTip("Lens model: pinhole with 5 distortion coefficients (usual "
                                     "webcams), rational with 8, or fisheye for wide-angle webcams")
         self.model_combo.currentIndexChanged.connect(
-            lambda: self.ctx.update_settings(lens_model=self.model_combo.currentData()))
+            lambda: self.ctx.settings_model.update(lens_model=self.model_combo.currentData()))
         self.fix_k3_check = QCheckBox("Fix k3")
         self.fix_k3_check.setToolTip("Hold k3 (and the higher terms) at zero when the pairs cannot "
                                      "determine them; the warnings say when")
-        self.fix_k3_check.toggled.connect(lambda on: self.ctx.update_settings(fix_k3=bool(on)))
+        self.fix_k3_check.toggled.connect(
+            lambda on: self.ctx.settings_model.update(fix_k3=bool(on)))
         group(QLabel("Lens:"), self.model_combo, self.fix_k3_check)
         self.swap_check = QCheckBox("Swap L/R")
         self.swap_check.setToolTip("The cameras are swapped: exchange the left and right images "
@@ -273,7 +277,7 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
 
     def _baseline_edited(self, v: float) -> None:
         if float(self.ctx.settings.nominal_baseline_mm) != v:
-            self.ctx.update_settings(nominal_baseline_mm=float(v))
+            self.ctx.settings_model.update(nominal_baseline_mm=float(v))
         self._show_figures()
 
     def set_active(self, active: bool) -> None:
@@ -310,11 +314,11 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
                               self.fix_k3_check.isChecked())
         w = JobWorker(job, "calibration")
         w.progress.connect(self._progress)
-        w.finished_ok.connect(self._finished)
+        w.finished_ok.connect(self.use_run)
         w.failed.connect(self._failed)
         w.cancelled.connect(self._cancelled)
         w.done.connect(self._worker_done)
-        self.ctx.register_worker(w)
+        self.ctx.workers.register(w)
         self.worker = w
         self.progress.setValue(0)
         self.progress_label.setText(f"Calibrating {folder} with a {board.label()} board…")
@@ -327,7 +331,7 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
         try:
             from stereo_gui.files.session import CaptureSession
 
-            b = getattr(CaptureSession.open(folder), "board", None)
+            b = CaptureSession.open(folder).board
         except (StereoGuiError, OSError):
             return None
         return b if isinstance(b, BoardSpec) else None
@@ -358,7 +362,9 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
         if p.text:
             self.progress_label.setText(p.text)
 
-    def _finished(self, run: CalibrationRun) -> None:
+    def use_run(self, run: CalibrationRun) -> None:
+        """Show a finished calibration run and use its calibration at once (what the tab does
+        when its job ends)."""
         self.run = run
         self._maps = run.maps
         self._maps_for = run.result.calibration
@@ -370,7 +376,7 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
             f"Done: {rep.pairs_used} of {rep.pairs_found} pairs used, {quality}. "
             f"Not saved yet: use Save calibration… to keep it.")
         # the new calibration is in use at once (live view, measurements)
-        self.ctx.set_calibration(run.result.calibration, None)
+        self.ctx.calibration_model.set(run.result.calibration, None)
         self.ctx.show_status(f"Calibrated from {rep.pairs_used} pairs in {run.folder}")
         self.calibrationFinished.emit(run)
 
@@ -387,10 +393,18 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
         w = self.worker
         self.worker = None
         if w is not None:
-            self.ctx.unregister_worker(w)
+            self.ctx.workers.unregister(w)
             w.wait(2000)
             w.deleteLater()
         self._update_buttons()
+
+    def unfinished_work(self) -> list[str]:
+        """Nothing to wait for: a running calibration is cancelled on close (a computed one not
+        saved is asked about, see `unsaved_calibration`)."""
+        return []
+
+    def cancel_unfinished_work(self, timeout_ms: int = 2000) -> list[str]:
+        return []
 
     def shutdown(self, timeout_ms: int = 2000) -> bool:
         """Cancel a running calibration and join its thread."""
@@ -474,7 +488,7 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
             return ()
         if self.run is not None and self.run.result.calibration is calib:
             return self.run.result.report.warnings
-        return tuple(getattr(calib, "warnings", ()))
+        return tuple(calib.warnings)
 
     def _update_buttons(self) -> None:
         running = self.worker is not None
@@ -493,7 +507,7 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
             f"Exclude {n_above} pair{'s' if n_above != 1 else ''} above")
         self.exclude_above_button.setEnabled(n_above > 0)
         if known:
-            excluded = bool(getattr(pair, "excluded", False))
+            excluded = pair is not None and pair.excluded
             self.exclude_button.setText("Include pair again" if excluded else "Exclude pair")
 
 

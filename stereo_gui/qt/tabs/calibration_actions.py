@@ -33,7 +33,7 @@ class CalibrationActions:
 
     def _session_swapped(self) -> bool | None:
         try:
-            return bool(getattr(self._session(), "swapped", False))
+            return bool(self._session().swapped)
         except (StereoGuiError, OSError):
             return None
 
@@ -47,7 +47,7 @@ class CalibrationActions:
     def _swap_toggled(self, on: bool) -> None:
         try:
             session = self._session()
-            if bool(getattr(session, "swapped", False)) != on:
+            if bool(session.swapped) != on:
                 session.set_swapped(on)
         except (StereoGuiError, OSError) as exc:
             self.ctx.report_error(f"could not record the swap in the session: {exc}")
@@ -68,7 +68,7 @@ class CalibrationActions:
             self.save_calibration(path)
 
     def save_calibration(self, path: str | Path) -> bool:
-        return self.ctx.save_calibration_file(self.calibration, path)
+        return self.ctx.calibration_model.save_file(self.calibration, path)
 
     def _choose_load(self) -> None:
         cp = self.ctx.calibration_path
@@ -80,4 +80,4 @@ class CalibrationActions:
             self.load_calibration(path)
 
     def load_calibration(self, path: str | Path) -> bool:
-        return self.ctx.open_calibration_file(path)
+        return self.ctx.calibration_model.open_file(path)

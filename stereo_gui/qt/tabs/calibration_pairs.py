@@ -113,7 +113,8 @@ class PairReview:
             return None
 
     def _is_excluded(self, name: str) -> bool:
-        return bool(getattr(self._session_pair(name), "excluded", False))
+        pair = self._session_pair(name)
+        return pair is not None and pair.excluded
 
     def _toggle_exclude_selected(self) -> None:
         name = self.selected_pair
@@ -140,7 +141,7 @@ class PairReview:
         if self.run is None and not self.folder_edit.text().strip():
             return []
         try:
-            return [p.name for p in self._session().pairs if getattr(p, "excluded", False)]
+            return [p.name for p in self._session().pairs if p.excluded]
         except (StereoGuiError, OSError):
             return []
 

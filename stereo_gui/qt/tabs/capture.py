@@ -15,15 +15,16 @@ from __future__ import annotations
 import logging
 from datetime import datetime
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QFontMetrics
 from PySide6.QtWidgets import (
     QHBoxLayout,
-    QVBoxLayout,
     QLabel,
     QPushButton,
     QSplitter,
+    QVBoxLayout,
     QWidget,
 )
 
@@ -41,6 +42,7 @@ from stereo_gui.pipeline.capture import (
     CaptureRules,
     make_capture_processor,
 )
+from stereo_gui.qt.source_capabilities import simulated_rig
 from stereo_gui.qt.tabs.capture_session import SessionPairs
 from stereo_gui.qt.widgets.board_row import BoardRow
 from stereo_gui.qt.widgets.camera_controls import CameraControlsPanel
@@ -54,6 +56,9 @@ from stereo_gui.qt.widgets.stereo_pair_view import StereoPairView
 from stereo_gui.qt.workers.job_worker import JobWorker
 from stereo_gui.sources.base import StereoFrame
 
+if TYPE_CHECKING:
+    from stereo_gui.qt.context import AppContext
+
 log = logging.getLogger(__name__)
 
 
@@ -65,7 +70,7 @@ class CaptureTab(SessionPairs, QWidget):
     sessionChanged = Signal(object)  # the CaptureSession now open, or None
     pairSaved = Signal(str)  # name of the pair just written
 
-    def __init__(self, ctx, parent: QWidget | None = None) -> None:
+    def __init__(self, ctx: AppContext, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.ctx = ctx
         self.session = None  # files.session.CaptureSession
@@ -86,7 +91,6 @@ class CaptureTab(SessionPairs, QWidget):
         self._load_board_settings()
         ctx.frames.frameReady.connect(self._on_frame_ready)
         ctx.frames.sourceChanged.connect(self._source_changed)
-        ctx.currentTabChanged.connect(lambda name: self.set_active(name == "capture"))
         last = ctx.settings.last_session
         if last and Path(last).is_dir():
             try:
@@ -195,14 +199,15 @@ class CaptureTab(SessionPairs, QWidget):
 
     def _board_edited(self) -> None:
         board = self.board
-        self.ctx.update_settings(board_cols=board.cols, board_rows=board.rows,
-                                 square_mm=board.square_mm, board_target=board.target,
-                                 marker_mm=board.marker_mm, board_dictionary=board.dictionary)
+        self.ctx.settings_model.update(board_cols=board.cols, board_rows=board.rows,
+                                       square_mm=board.square_mm, board_target=board.target,
+                                       marker_mm=board.marker_mm,
+                                       board_dictionary=board.dictionary)
         self.rules.reset_steadiness()
         self._show_board_on_sim(board)
         if self.state == "live":
             self._set_processing(True)
-        if self.session is not None and getattr(self.session, "board", None) != board:
+        if self.session is not None and self.session.board != board:
             try:  # the session records the target its pairs show
                 self.session.set_board(board)
             except (StereoGuiError, OSError) as exc:
@@ -210,9 +215,8 @@ class CaptureTab(SessionPairs, QWidget):
 
     def _show_board_on_sim(self, board: BoardSpec) -> None:
         """On the simulated rig, show the target chosen (it renders every target)."""
-        src = self.ctx.frames.source()
-        rig = getattr(src, "rig", None) if src is not None else None
-        if rig is not None and hasattr(rig, "set_board") and rig.config.board != board:
+        rig = simulated_rig(self.ctx.frames.source())
+        if rig is not None and rig.config.board != board:
             rig.set_board(board)
 
     def open_target_dialog(self) -> None:
@@ -225,7 +229,7 @@ class CaptureTab(SessionPairs, QWidget):
         dlg.exec()
 
     def _auto_toggled(self, on: bool) -> None:
-        self.ctx.update_settings(auto_capture=bool(on))
+        self.ctx.settings_model.update(auto_capture=bool(on))
         self.rules.reset_steadiness()
         if on and self.state == "review":
             self.cancel_frozen()
@@ -262,9 +266,9 @@ class CaptureTab(SessionPairs, QWidget):
             self.saved_panel.select(self.shown_pair)
 
     def _source_changed(self, name: str) -> None:
-        """Another source: a pair frozen from the previous one is no pair of this one (issue 12:
-        a folder without a board still offered the old pair with Save enabled), and what is on
-        screen until its first frame is not this source's picture."""
+        """Another source: a pair frozen from the previous one is no pair of this one (Save must
+        not offer it, even for a folder without a board), and what is on screen until its first
+        frame is not this source's picture."""
         self.rules.reset_steadiness()
         self.rules.last_reviewed_pose = None
         self._last_output = None
@@ -365,7 +369,7 @@ class CaptureTab(SessionPairs, QWidget):
         except (StereoGuiError, OSError) as exc:
             self.ctx.report_error(f"could not save the pair: {exc}")
             return None
-        name = getattr(pair, "name", str(pair))
+        name = pair.name
         info = SavedPairInfo(name, det, pair_thumbnail(frame.left, frame.right))
         self._saved[name] = info
         self._add_list_item(info)
@@ -389,9 +393,17 @@ class CaptureTab(SessionPairs, QWidget):
         if review:
             self.save_button.setDefault(True)
 
-    def shutdown(self) -> None:
+    def unfinished_work(self) -> list[str]:
+        """Nothing here is cut short by closing: pairs are written as they are saved."""
+        return []
+
+    def cancel_unfinished_work(self, timeout_ms: int = 2000) -> list[str]:
+        return []
+
+    def shutdown(self, timeout_ms: int = 2000) -> bool:
         """Cancel a session scan; the context joins its thread (it is registered there)."""
         if self._scan is not None:
             self._scan.cancel()
             self._scan = None
+        return True
 

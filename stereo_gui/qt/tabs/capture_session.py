@@ -10,7 +10,6 @@ from pathlib import Path
 
 from PySide6.QtWidgets import QFileDialog, QMessageBox
 
-from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.coverage import cell_counts, readiness, regions_filled
 from stereo_gui.core.detect import PairDetection, PoseDescriptor, coverage, pair_pose
 from stereo_gui.core.errors import StereoGuiError
@@ -42,8 +41,8 @@ class SessionPairs:
 
     def _confirm_session_folder(self, folder: Path) -> bool:
         """New session…: a folder that already holds files but no session is written into only
-        when the technician says so (issue 12: session.json appeared in a folder without a
-        word); a folder that holds a session is offered for opening instead."""
+        when the technician says so (a manifest must never appear in a folder without a word);
+        a folder that holds a session is offered for opening instead."""
         from stereo_gui.files.session import MANIFEST, CaptureSession
 
         if (folder / MANIFEST).exists():
@@ -90,7 +89,7 @@ class SessionPairs:
 
     def _camera_names(self) -> tuple[str, str]:
         src = self.ctx.frames.source()
-        name = getattr(src, "name", "") if src is not None else ""
+        name = src.name if src is not None else ""
         return (f"{name} left", f"{name} right") if name else ("left", "right")
 
     def new_session(self, folder: str | Path) -> None:
@@ -117,10 +116,10 @@ class SessionPairs:
             self._scan.stop()
             self._scan = None
         self.session = session
-        board = getattr(session, "board", None)
-        if isinstance(board, BoardSpec) and board != self.board:
+        board = session.board
+        if board is not None and board != self.board:
             self.set_board(board)
-        self.ctx.update_settings(last_session=str(session.folder))
+        self.ctx.settings_model.update(last_session=str(session.folder))
         self.session_label.setText(f"Session: {session.folder}")
         if self.state == "review":  # the prompt no longer needs to warn that Save asks for one
             self._show_review_prompt()
@@ -133,7 +132,7 @@ class SessionPairs:
         self._update_controls()
 
     def _image_size(self) -> tuple[int, int]:
-        res = getattr(self.session, "resolution", None)
+        res = self.session.resolution if self.session is not None else None
         if res:
             return (int(res[0]), int(res[1]))
         if self._last_output is not None:
@@ -152,8 +151,8 @@ class SessionPairs:
         worker = JobWorker(job, "reading the session")
         worker.finished_ok.connect(self._scan_done)
         worker.failed.connect(self.ctx.report_error)
-        worker.done.connect(lambda: self.ctx.unregister_worker(worker))
-        self.ctx.register_worker(worker)
+        worker.done.connect(lambda: self.ctx.workers.unregister(worker))
+        self.ctx.workers.register(worker)
         self._scan = worker
         worker.start()
 
@@ -189,7 +188,7 @@ class SessionPairs:
         if self.session is not None:
             for p in self.session.pairs:
                 if p.name == info.name:
-                    excluded = bool(getattr(p, "excluded", False))
+                    excluded = p.excluded
         self.saved_panel.add_item(info, excluded)
 
     def _saved_poses(self) -> list[PoseDescriptor]:
@@ -208,11 +207,11 @@ class SessionPairs:
         """The empty regions of each image that the detection's points would reach."""
         size = det.image_size
         out = {}
-        for side in ("left", "right"):
-            d = getattr(det, side)
-            kept = [getattr(k, side).corners for k in self._kept_detections()]
+        kept = self._kept_detections()
+        for side, d, kept_side in (("left", det.left, [k.left.corners for k in kept]),
+                                   ("right", det.right, [k.right.corners for k in kept])):
             out[side] = ([] if d is None else
-                         regions_filled(d.corners, cell_counts(kept, size), size))
+                         regions_filled(d.corners, cell_counts(kept_side, size), size))
         return out
 
     def _update_coverage(self) -> None:

@@ -34,7 +34,8 @@ from PySide6.QtWidgets import (
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.matching import COLORMAPS, Preset
 from stereo_gui.pipeline.live import NO_MATCH_RGB, NOT_SEEN_RGB, LiveOutput, LiveProcessor
-from stereo_gui.qt.context import TRUE_CALIBRATION_NOTE
+from stereo_gui.qt.context import TRUE_CALIBRATION_NOTE, AppContext
+from stereo_gui.qt.source_capabilities import simulated_rig
 from stereo_gui.qt.tabs.live_cloud import LiveCloud
 from stereo_gui.qt.tabs.live_exports import EXPORTS, LiveExports
 from stereo_gui.qt.tabs.live_readings import HOVER_HINT, LiveReadings
@@ -86,7 +87,7 @@ class LiveTab(QWidget):
     hoverRead = Signal(object)  # PointerReading, after the readout line shows it
     cloudShown = Signal(object)  # CloudPoints, after the 3D view drew them
 
-    def __init__(self, ctx, parent: QWidget | None = None) -> None:
+    def __init__(self, ctx: AppContext, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.ctx = ctx
         self._active = False
@@ -195,7 +196,7 @@ class LiveTab(QWidget):
         vcol.addWidget(self.legend)
         vcol.addWidget(self.region_label)
         vcol.addWidget(self.readout)
-        self.health = CalibrationHealthPanel(ctx)  # issue 10: drift figure and refinement
+        self.health = CalibrationHealthPanel(ctx)  # drift figure and refinement
         vcol.addWidget(self.health)
 
         self.no_calib = NoCalibrationPage()
@@ -221,7 +222,7 @@ class LiveTab(QWidget):
         self.views.changed.connect(self._views_changed)
         self.views.lay_out()
         self.region.restore()
-        ctx.calibrationChanged.connect(self._calibration_changed)
+        ctx.calibration_model.changed.connect(self._calibration_changed)
         ctx.frames.frameReady.connect(self._frame_ready)
         ctx.frames.sourceChanged.connect(self._source_changed)
         self._calibration_changed(ctx.calibration)
@@ -245,7 +246,7 @@ class LiveTab(QWidget):
         return params
 
     def _views_changed(self, keys: list[str]) -> None:
-        self.ctx.update_settings(visible_views=tuple(keys)) if self.ctx.settings else None
+        self.ctx.settings_model.update(visible_views=tuple(keys)) if self.ctx.settings else None
         if self._processor is not None:
             self._processor.set_views(self._processed_views())
 
@@ -321,8 +322,7 @@ class LiveTab(QWidget):
         self.no_calib.use_true.setVisible(self._sim_rig() is not None)
 
     def _sim_rig(self):
-        rig = getattr(self.ctx.frames.source(), "rig", None)
-        return rig if hasattr(rig, "true_calibration") else None
+        return simulated_rig(self.ctx.frames.source())
 
     def use_true_calibration(self) -> bool:
         """On the simulated rig: use the calibration it was built with (clearly labelled)."""
@@ -330,14 +330,14 @@ class LiveTab(QWidget):
         if rig is None:
             self.ctx.report_error("The true calibration exists only for the simulated rig.")
             return False
-        self.ctx.set_calibration(rig.true_calibration(), None, note=TRUE_CALIBRATION_NOTE)
+        self.ctx.calibration_model.set(rig.true_calibration(), None, note=TRUE_CALIBRATION_NOTE)
         return True
 
     def _params_changed(self, params: Preset) -> None:
         if self._processor is not None:
             self._processor.set_params(params)
         if not params.name.endswith(MODIFIED):
-            self.ctx.update_settings(preset=params.name)
+            self.ctx.settings_model.update(preset=params.name)
 
     # ---- drawing -----------------------------------------------------------------------------
     def _frame_ready(self) -> None:
@@ -352,11 +352,16 @@ class LiveTab(QWidget):
         self.shown_frame = pf.frame
         self.show_output(pf.output)
 
+    @property
+    def shown_output(self) -> LiveOutput | None:
+        """The processed frame the views show (or are being given), None when cleared."""
+        return self._output
+
     def show_output(self, out: LiveOutput) -> None:
         """Draw one processed frame (UI thread: array hand-over only). The views get their
         images one event-loop turn apart, so that each is painted on its own and the window
-        answers in between (four views painted in one go held it up to 40-60 ms on a busy
-        machine); frameShown follows the last one."""
+        answers in between (four views painted in one go would hold it up for a visible
+        moment on a busy machine); frameShown follows the last one."""
         self._output = out
         # (a view ticked after this frame was made is left out: the next frame has it)
         self._to_draw = [k for k in self.visible_views() if k in out.images]
@@ -473,6 +478,18 @@ class LiveTab(QWidget):
         else:
             self.ctx.frames.resume()
 
+    def toggle_pause(self) -> None:
+        """Pause or resume what the tab shows: the playback when a recording plays, else the
+        live view."""
+        if self.playback.source() is not None:
+            self.playback.toggle_play()
+        else:
+            self.set_paused(not self.pause_button.isChecked())
+
+    def show_parameters(self, shown: bool) -> None:
+        """Show or hide the matcher parameters beside the views (narrow screens hide them)."""
+        self.params_button.setChecked(shown)
+
     def snapshot(self, folder: str | Path) -> int | None:
         """Save the views shown as PNG files in `folder` (see LiveExports.snapshot)."""
         return self.exports.snapshot(folder)
@@ -502,8 +519,10 @@ class LiveTab(QWidget):
     def stop_recording(self) -> int | None:
         return self.record_button.stop_recording()
 
-    def shutdown(self) -> None:
-        """Called by the main window on close."""
+    def shutdown(self, timeout_ms: int = 2000) -> bool:
+        """Called by the main window on close: the tab's helpers are stopped (the cloud's jobs
+        are joined by the context, where they are registered)."""
         self.cloud.shutdown()
         self.health.shutdown()
         self._retire(self._processor)
+        return True

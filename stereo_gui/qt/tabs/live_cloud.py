@@ -1,14 +1,18 @@
 """The Live tab's 3D point-cloud window: the cloud of the frame shown, made on a thread of its own
-a few times a second while the window is open (issue 12, item 14)."""
+a few times a second while the window is open."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from PySide6.QtCore import QObject, Qt, QTimer, Signal
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 
 from stereo_gui.qt.workers.job_runner import JobRunner
+
+if TYPE_CHECKING:
+    from stereo_gui.qt.context import AppContext
 
 CLOUD_INTERVAL_MS = 400  # the 3D view follows the frames at most this often
 
@@ -19,14 +23,14 @@ class LiveCloud(QObject):
 
     shown = Signal(object)  # CloudPoints, after the 3D view drew them
 
-    def __init__(self, ctx, owner: QWidget, output: Callable[[], object]) -> None:
+    def __init__(self, ctx: AppContext, owner: QWidget, output: Callable[[], object]) -> None:
         super().__init__(owner)
         self._owner = owner
         self._output = output
         self.window: QWidget | None = None
         self.view = None  # the CloudView, once the window exists
         self._jobs = JobRunner("cloud", self)  # its own thread: clicks do not wait on it
-        ctx.register_worker(self._jobs)
+        ctx.workers.register(self._jobs)
         self._jobs.finished.connect(self._done)
         self._jobs.failed.connect(self._failed)
         self._job: int | None = None

@@ -6,6 +6,7 @@ from __future__ import annotations
 import datetime as _dt
 import threading
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import cv2
 from PySide6.QtCore import QObject
@@ -13,6 +14,9 @@ from PySide6.QtWidgets import QFileDialog, QMenu, QToolButton, QWidget
 
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.util import how_many
+
+if TYPE_CHECKING:
+    from stereo_gui.qt.context import AppContext
 
 # depth exports of the frame shown: key -> (menu text, file suffix, what the file holds)
 EXPORTS: dict[str, tuple[str, str, str]] = {
@@ -35,7 +39,7 @@ class LiveExports(QObject):
     first frame); `views()` lists the views shown, which a snapshot saves. File dialogs open
     over `parent`; results and failures reach the user through the context."""
 
-    def __init__(self, ctx, parent: QWidget, current, views) -> None:
+    def __init__(self, ctx: AppContext, parent: QWidget, current, views) -> None:
         super().__init__(parent)
         self.ctx = ctx
         self._parent = parent
@@ -128,7 +132,7 @@ class LiveExports(QObject):
         folder = QFileDialog.getExistingDirectory(self._parent, "Save snapshot into", start)
         if folder:
             self.snapshot(folder)
-            self.ctx.update_settings(last_export_dir=folder)
+            self.ctx.settings_model.update(last_export_dir=folder)
 
     def snapshot(self, folder: str | Path) -> int | None:
         """Save the views shown as PNG files in `folder` (atomically, off the UI thread).
@@ -185,7 +189,7 @@ class LiveExports(QObject):
             if not path.lower().endswith(ext):
                 path += ext
             self.export_frame(path, kinds=(kind,))
-            self.ctx.update_settings(last_export_dir=str(Path(path).parent))
+            self.ctx.settings_model.update(last_export_dir=str(Path(path).parent))
 
     def _export_all_clicked(self) -> None:
         if self._current() is None:
@@ -195,7 +199,7 @@ class LiveExports(QObject):
                                                   self._export_start_dir())
         if folder:
             self.export_frame(folder)
-            self.ctx.update_settings(last_export_dir=folder)
+            self.ctx.settings_model.update(last_export_dir=folder)
 
     def export_frame(self, target: str | Path, kinds=tuple(EXPORTS)) -> int | None:
         """Write the shown frame's depth off the UI thread; returns the job id.

@@ -14,6 +14,7 @@ import datetime as _dt
 import logging
 import math
 import time
+from typing import TYPE_CHECKING
 
 from PySide6.QtCore import QObject, Signal
 
@@ -28,6 +29,9 @@ from stereo_gui.pipeline.readout import (
     readout_line,
 )
 from stereo_gui.qt.widgets.image_view import marker_color
+
+if TYPE_CHECKING:
+    from stereo_gui.qt.context import AppContext
 
 log = logging.getLogger(__name__)
 
@@ -62,7 +66,7 @@ class LiveReadings(QObject):
     measured = Signal(object)  # Measurement, after its marker was drawn
     hoverRead = Signal(object)  # PointerReading, after the readout line shows it
 
-    def __init__(self, ctx, tab) -> None:
+    def __init__(self, ctx: AppContext, tab) -> None:
         super().__init__(tab)
         self.ctx = ctx
         self._tab = tab

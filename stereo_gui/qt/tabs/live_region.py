@@ -7,6 +7,7 @@ alarm box and line, and what they hand to the processor."""
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from PySide6.QtCore import QObject, Qt
 from PySide6.QtWidgets import QCheckBox, QDoubleSpinBox, QLabel, QPushButton, QSizePolicy, QWidget
@@ -15,12 +16,15 @@ from stereo_gui.pipeline.readout import format_distance
 from stereo_gui.pipeline.region import Region
 from stereo_gui.qt.widgets.image_view import ImagePanel
 
+if TYPE_CHECKING:
+    from stereo_gui.qt.context import AppContext
+
 
 class LiveRegion(QObject):
     """Owns the Region button, the alarm box and the region line. `panel` is the view carrying
     the box, `view_check` its Show box, `processor` returns the LiveProcessor in use (or None)."""
 
-    def __init__(self, ctx, owner: QWidget, panel: ImagePanel, view_check: QCheckBox,
+    def __init__(self, ctx: AppContext, owner: QWidget, panel: ImagePanel, view_check: QCheckBox,
                  processor: Callable[[], object]) -> None:
         super().__init__(owner)
         self.ctx = ctx
@@ -50,7 +54,7 @@ class LiveRegion(QObject):
         self.label.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
         self.label.hide()
         panel.regionChanged.connect(lambda _box: self.apply())
-        ctx.activeFitChanged.connect(lambda _fit: self.apply())
+        ctx.measurement_log.activeFitChanged.connect(lambda _fit: self.apply())
 
     def restore(self) -> None:
         """The region and alarm of the last run (the settings); called once the button, the
@@ -71,7 +75,7 @@ class LiveRegion(QObject):
         alarm = float(self.alarm_spin.value())
         kept = (tuple(box) if box else (), alarm)
         if kept != (tuple(self.ctx.settings.region_box), self.ctx.settings.region_alarm_m):
-            self.ctx.update_settings(region_box=kept[0], region_alarm_m=alarm)
+            self.ctx.settings_model.update(region_box=kept[0], region_alarm_m=alarm)
 
     def _toggled(self, on: bool) -> None:
         if on:

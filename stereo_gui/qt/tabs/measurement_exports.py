@@ -39,7 +39,7 @@ class MeasurementExports:
             return False
         from stereo_gui.files.spreadsheet import write_workbook
 
-        records = list(self.ctx.measurements)
+        records = list(self.ctx.measurement_log.records)
         fits = [self.fits[m] for m in MODELS if m in self.fits]
         calib, calib_path = self.ctx.calibration, self.ctx.calibration_path
         path = Path(path)
@@ -56,7 +56,7 @@ class MeasurementExports:
             f"Export to {path} cancelled: nothing was written"))
         w.progress.connect(self._export_progressed)
         w.done.connect(self._export_ended)
-        self.ctx.register_worker(w)
+        self.ctx.workers.register(w)
         self._export = w
         self._export_path = path
         self._export_progress = how_many(len(records), "row")
@@ -78,7 +78,7 @@ class MeasurementExports:
         w, self._export = self._export, None
         self._export_path = None
         if w is not None:
-            self.ctx.unregister_worker(w)
+            self.ctx.workers.unregister(w)
             w.wait(2000)
             w.deleteLater()
         self.xlsx_button.setEnabled(True)
@@ -96,12 +96,13 @@ class MeasurementExports:
         from stereo_gui.files.spreadsheet import write_csv
 
         try:
-            write_csv(path, list(self.ctx.measurements))
+            write_csv(path, list(self.ctx.measurement_log.records))
         except (StereoGuiError, OSError) as exc:
             self.ctx.report_error(f"could not write {path}: {exc}")
             return False
         self._remember_dir(path)
-        self.ctx.show_status(f"Exported {how_many(len(self.ctx.measurements), 'reading')} to {path}")
+        n = len(self.ctx.measurement_log.records)
+        self.ctx.show_status(f"Exported {how_many(n, 'reading')} to {path}")
         return True
 
     def unfinished_work(self) -> list[str]:

@@ -1,10 +1,10 @@
 """The Measurements tab: the log of readings, the regression the report did in Excel, exports.
 
-The log is `ctx.measurements` (MeasurementRecord). Entering the true distance of a reading (the
+The log is `ctx.measurement_log` (MeasurementRecord). Entering the true distance of a reading (the
 editable column) makes it a regression sample (disparity px, true distance mm); both models are
 fitted again at once: the report's cubic and Z = a / (d - d0). The plot shows samples, both
 curves and the residuals with R^2. The model chosen for live readings goes to
-`ctx.set_active_fit`. Exports (`measurement_exports`): the log and regression to .xlsx (in a
+`ctx.measurement_log.set_active_fit`. Exports (`measurement_exports`): the log and regression to .xlsx (in a
 worker) and CSV; Open log... brings back a log exported before (CSV or xlsx). Beside each fit,
 triangulation's own RMS against the same true distances shows whether the fit helps.
 """
@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from PySide6.QtCore import Qt, Signal
@@ -37,10 +38,17 @@ from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.util import how_many
 from stereo_gui.qt.tabs.measurement_exports import MeasurementExports
 from stereo_gui.qt.widgets.helpers import pane, wrapping_label
-from stereo_gui.qt.widgets.measurement_table import (NOTE_COL, MeasurementModel, samples_from,
-                                                     triangulation_errors_mm)
+from stereo_gui.qt.widgets.measurement_table import (
+    NOTE_COL,
+    MeasurementModel,
+    samples_from,
+    triangulation_errors_mm,
+)
 from stereo_gui.qt.widgets.regression_plot import MODELS, RegressionPlot
 from stereo_gui.qt.workers.job_worker import JobWorker
+
+if TYPE_CHECKING:
+    from stereo_gui.qt.context import AppContext
 
 log = logging.getLogger(__name__)
 
@@ -56,7 +64,7 @@ class MeasurementsTab(MeasurementExports, QWidget):
     fitsChanged = Signal()
     exportFinished = Signal(str)  # path written
 
-    def __init__(self, ctx, parent: QWidget | None = None) -> None:
+    def __init__(self, ctx: AppContext, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.ctx = ctx
         self.fits: dict[str, object] = {}  # model name -> FitResult
@@ -66,11 +74,10 @@ class MeasurementsTab(MeasurementExports, QWidget):
         self._export_path: Path | None = None
         self._export_progress = ""  # "12,000 of 20,000 rows"
         self._build()
-        ctx.measurementsChanged.connect(self.refit)
-        ctx.measurementsChanged.connect(self._update_undo)
-        ctx.calibrationChanged.connect(lambda _c: self.refit())
-        ctx.activeFitChanged.connect(self._active_fit_changed)
-        ctx.currentTabChanged.connect(lambda name: self.set_active(name == "measurements"))
+        ctx.measurement_log.changed.connect(self.refit)
+        ctx.measurement_log.changed.connect(self._update_undo)
+        ctx.calibration_model.changed.connect(lambda _c: self.refit())
+        ctx.measurement_log.activeFitChanged.connect(self._active_fit_changed)
         self.refit()
 
     # ---- layout ------------------------------------------------------------------------------
@@ -175,7 +182,7 @@ class MeasurementsTab(MeasurementExports, QWidget):
         """Fit both models to the current samples and show them."""
         from stereo_gui.core import regression
 
-        recs = self.ctx.measurements
+        recs = self.ctx.measurement_log.records
         n_true = sum(1 for r in recs if r.true_mm is not None)
         samples = samples_from(recs)
         self.count_label.setText(
@@ -225,7 +232,7 @@ class MeasurementsTab(MeasurementExports, QWidget):
             if new is not None and new == self.ctx.active_fit:
                 self.fits[key] = self.ctx.active_fit  # same samples, same fit: no new announcement
             elif new is not self.ctx.active_fit:
-                self.ctx.set_active_fit(new)
+                self.ctx.measurement_log.set_active_fit(new)
         self.save_fit_button.setEnabled(bool(self.fits))
         self.fitsChanged.emit()
 
@@ -257,12 +264,12 @@ class MeasurementsTab(MeasurementExports, QWidget):
             self.model_combo.setCurrentIndex(0)
             return
         if fit is not self.ctx.active_fit:
-            self.ctx.set_active_fit(fit)
+            self.ctx.measurement_log.set_active_fit(fit)
         if self.ctx.settings.measure_model != key:
-            self.ctx.update_settings(measure_model=key)
+            self.ctx.settings_model.update(measure_model=key)
 
     def _active_fit_changed(self, fit) -> None:
-        key = "triangulation" if fit is None else getattr(fit, "model", "triangulation")
+        key = "triangulation" if fit is None else fit.model
         if fit is not None and key in MODELS and self.fits.get(key) != fit:
             # a fit that the log does not give (loaded from a file, restored at start-up)
             self._loaded_fit = fit
@@ -278,28 +285,28 @@ class MeasurementsTab(MeasurementExports, QWidget):
     # ---- log editing ---------------------------------------------------------------------------
     def _clear_log(self) -> None:
         """Empty the log after asking: the true distances typed in exist nowhere else."""
-        n = len(self.ctx.measurements)
+        n = len(self.ctx.measurement_log.records)
         if not n:
             return
-        with_truth = sum(r.true_mm is not None for r in self.ctx.measurements)
+        with_truth = sum(r.true_mm is not None for r in self.ctx.measurement_log.records)
         answer = QMessageBox.question(
             self, "Clear the log",
             f"Remove {'the' if n == 1 else 'all'} {how_many(n, 'reading')} ({with_truth} with a "
             "true distance) from the log? "
             "Readings not exported are lost.")
         if answer == QMessageBox.StandardButton.Yes:
-            self.ctx.clear_measurements()
+            self.ctx.measurement_log.clear()
             self.ctx.show_status(f"Cleared {how_many(n, 'reading')} (Undo clear brings them back until the "
                                  f"next reading)")
 
     def _undo_clear(self) -> None:
-        n = len(self.ctx.cleared_measurements)
-        if self.ctx.undo_clear():
+        n = len(self.ctx.measurement_log.cleared)
+        if self.ctx.measurement_log.undo_clear():
             self.ctx.show_status(f"{how_many(n, 'cleared reading is', 'cleared readings are')} "
                                  "back in the log")
 
     def _update_undo(self) -> None:
-        self.undo_button.setVisible(self.ctx.can_undo_clear)
+        self.undo_button.setVisible(self.ctx.measurement_log.can_undo_clear)
 
     # ---- a log exported before -----------------------------------------------------------------
     def _choose_open_log(self) -> None:
@@ -309,9 +316,10 @@ class MeasurementsTab(MeasurementExports, QWidget):
         if not path:
             return
         replace = False
-        if self.ctx.measurements:
+        n = len(self.ctx.measurement_log.records)
+        if n:
             box = QMessageBox(QMessageBox.Icon.Question, "Open log",
-                              f"The log holds {how_many(len(self.ctx.measurements), 'reading')}. Add the "
+                              f"The log holds {how_many(n, 'reading')}. Add the "
                               f"readings of {Path(path).name} after them, or replace them?",
                               parent=self)
             add = box.addButton("Add", QMessageBox.ButtonRole.AcceptRole)
@@ -335,9 +343,9 @@ class MeasurementsTab(MeasurementExports, QWidget):
         except (StereoGuiError, OSError) as exc:
             self.ctx.report_error(f"Cannot open the log {path}: {exc}")
             return False
-        if replace and self.ctx.measurements:
-            self.ctx.clear_measurements()  # undoable, like Clear log
-        self.ctx.add_measurements(records)
+        if replace and self.ctx.measurement_log.records:
+            self.ctx.measurement_log.clear()  # undoable, like Clear log
+        self.ctx.measurement_log.add_many(records)
         self._remember_dir(path)
         self.ctx.show_status(f"Opened {how_many(len(records), 'reading')} from {path}")
         return True
@@ -345,14 +353,14 @@ class MeasurementsTab(MeasurementExports, QWidget):
     def _remove_selected(self) -> None:
         rows = sorted({i.row() for i in self.table.selectionModel().selectedRows()}, reverse=True)
         for r in rows:
-            self.ctx.remove_measurement(r)
+            self.ctx.measurement_log.remove(r)
 
     # ---- fits as files -------------------------------------------------------------------------
     def _start_dir(self) -> str:
         return self.ctx.settings.last_export_dir or str(Path.home())
 
     def _remember_dir(self, path) -> None:
-        self.ctx.update_settings(last_export_dir=str(Path(path).parent))
+        self.ctx.settings_model.update(last_export_dir=str(Path(path).parent))
 
     def _choose_save_fit(self) -> None:
         key = self.model_combo.currentData()
@@ -399,7 +407,7 @@ class MeasurementsTab(MeasurementExports, QWidget):
         self.fits[fit.model] = fit  # the loaded one wins over a refit from the log
         self._update_model_choices()
         self.use_model(fit.model)
-        self.ctx.set_active_fit(fit)
+        self.ctx.measurement_log.set_active_fit(fit)
         self._remember_dir(path)
         self.ctx.show_status(f"Loaded the {fit.model} fit from {path}; live readings use it")
         return True
@@ -417,6 +425,7 @@ class MeasurementsTab(MeasurementExports, QWidget):
             self.table.closeEditor(editor, QAbstractItemDelegate.EndEditHint.NoHint)
 
     def shutdown(self, timeout_ms: int = 2000) -> bool:
+        """Put an edit still open into the log and stop a running export (joined)."""
         self.commit_edits()
         if self._export is not None:
             return self._export.stop(timeout_ms)

@@ -168,7 +168,7 @@ class ErrorBarChart(pg.PlotWidget):
 
     def set_excluded(self, names) -> None:
         """Hatch the bars of the pairs excluded in the session: they are still part of this
-        calibration until Recalibrate (issue 12: they were not marked until then)."""
+        calibration until Recalibrate, and the chart must say which ones will go."""
         self.excluded = set(names)
         idx = [i for i, n in enumerate(self.names) if n in self.excluded]
         lh, rh = self.heights()

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import (
@@ -24,7 +25,11 @@ from PySide6.QtWidgets import (
 )
 
 from stereo_gui.pipeline.jobs import Progress
+from stereo_gui.qt.source_capabilities import simulated_rig
 from stereo_gui.qt.workers.job_worker import JobWorker
+
+if TYPE_CHECKING:
+    from stereo_gui.qt.context import AppContext
 
 log = logging.getLogger(__name__)
 
@@ -51,7 +56,7 @@ class CalibrationHealthPanel(QFrame):
 
     refined = Signal(object)  # core.health.Refinement
 
-    def __init__(self, ctx, parent: QWidget | None = None) -> None:
+    def __init__(self, ctx: AppContext, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.ctx = ctx
         self.health = None
@@ -100,7 +105,7 @@ class CalibrationHealthPanel(QFrame):
         sim.addWidget(self.turned_label)
         sim.addStretch(1)
         lay.addWidget(self.sim_row)
-        ctx.calibrationChanged.connect(lambda _c: self._calibration_changed())
+        ctx.calibration_model.changed.connect(lambda _c: self._calibration_changed())
         ctx.frames.sourceChanged.connect(lambda _name: self._update_sim_row())
         self._update_sim_row()
         self._update_buttons()
@@ -109,7 +114,7 @@ class CalibrationHealthPanel(QFrame):
     def show_output(self, out, frame) -> None:
         """Called with every frame the Live tab draws (UI thread: text only)."""
         self._frame = frame
-        h = getattr(out, "health", None)
+        h = out.health
         if h is not None and h is not self.health:
             self.health = h
             self.label.setText(h.text())
@@ -134,14 +139,14 @@ class CalibrationHealthPanel(QFrame):
         if self._worker is not None or calib is None or frame is None:
             return False
         src = self.ctx.frames.source()
-        name = getattr(src, "name", "") if src is not None else ""
+        name = src.name if src is not None else ""
         job = refine_job(calib, frame.left.copy(), frame.right.copy(),
                          f"frame {frame.index}" + (f" of {name}" if name else ""))
         w = JobWorker(job, "refine rectification")
         w.finished_ok.connect(self._refined)
         w.failed.connect(self.ctx.report_error)
         w.done.connect(self._worker_done)
-        self.ctx.register_worker(w)
+        self.ctx.workers.register(w)
         self._worker = w
         self.refine_button.setText("Refining…")
         self._update_buttons()
@@ -151,7 +156,7 @@ class CalibrationHealthPanel(QFrame):
     def _worker_done(self) -> None:
         w, self._worker = self._worker, None
         if w is not None:
-            self.ctx.unregister_worker(w)
+            self.ctx.workers.unregister(w)
         self.refine_button.setText("Refine rectification from the scene")
         self._update_buttons()
 
@@ -164,10 +169,11 @@ class CalibrationHealthPanel(QFrame):
             path, _ = QFileDialog.getSaveFileName(self, "Save the refined calibration",
                                                   str(start), "OpenCV YAML (*.yaml *.yml)")
         if path:
-            if not self.ctx.save_calibration_file(ref.calibration, path):
+            if not self.ctx.calibration_model.save_file(ref.calibration, path):
                 return
         else:  # not saved: used until something else is loaded
-            self.ctx.set_calibration(ref.calibration, None, note="refined from the scene, not saved")
+            self.ctx.calibration_model.set(ref.calibration, None,
+                                           note="refined from the scene, not saved")
         self.ctx.show_status(
             f"Refined from {ref.matches} matches: vertical disparity {ref.before_px:.2f} px -> "
             f"{ref.after_px:.2f} px; intrinsics and baseline kept"
@@ -179,9 +185,7 @@ class CalibrationHealthPanel(QFrame):
 
     # ---- the simulated rig -----------------------------------------------------------------
     def _sim_rig(self):
-        src = self.ctx.frames.source()
-        rig = getattr(src, "rig", None) if src is not None else None
-        return rig if hasattr(rig, "turn_right_camera") else None
+        return simulated_rig(self.ctx.frames.source())
 
     def _update_sim_row(self) -> None:
         rig = self._sim_rig()

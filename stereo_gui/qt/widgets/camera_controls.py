@@ -13,6 +13,7 @@ back. A control the camera does not have (or that refused or ignored a write) is
 from __future__ import annotations
 
 import logging
+from typing import TYPE_CHECKING
 
 from PySide6.QtCore import QObject, Qt, QTimer, Signal
 from PySide6.QtWidgets import (
@@ -31,7 +32,11 @@ from PySide6.QtWidgets import (
 
 from stereo_gui.core.camera_settings import PairSettings
 from stereo_gui.pipeline import camera_setup as setup
+from stereo_gui.qt.source_capabilities import camera_controls_of
 from stereo_gui.sources.camera_controls import ControlReading
+
+if TYPE_CHECKING:
+    from stereo_gui.qt.context import AppContext
 
 log = logging.getLogger(__name__)
 
@@ -59,12 +64,12 @@ class CameraSetup(QObject):
     OBJECT_NAME = "cameraSetup"
 
     @classmethod
-    def of(cls, ctx) -> CameraSetup:
+    def of(cls, ctx: AppContext) -> CameraSetup:
         """The one CameraSetup of application context `ctx` (its child: it lives as long)."""
         found = ctx.findChild(cls, cls.OBJECT_NAME)
         return found if found is not None else cls(ctx)
 
-    def __init__(self, ctx) -> None:
+    def __init__(self, ctx: AppContext) -> None:
         super().__init__(ctx)
         self.setObjectName(self.OBJECT_NAME)
         self.ctx = ctx
@@ -78,15 +83,14 @@ class CameraSetup(QObject):
         self._queued_write: tuple | None = None  # the newest write asked while one was under way
         ctx.frames.sourceTaskDone.connect(self._answered)
         ctx.frames.sourceChanged.connect(self._source_changed)
-        ctx.calibrationChanged.connect(lambda _c: self.refresh())
+        ctx.calibration_model.changed.connect(lambda _c: self.refresh())
 
     # ---- requests (UI thread) ------------------------------------------------------------------
     def _run(self, fn, on_answer, after_frames: int = 0) -> int:
         calib = self.ctx.calibration
 
         def task(source, frame):
-            get = getattr(source, "camera_controls", None)
-            pair = get() if get is not None else None
+            pair = camera_controls_of(source)
             if pair is None:
                 return None
             size = frame.size if frame is not None else None
@@ -195,7 +199,7 @@ class CameraSetup(QObject):
             if frame is None:
                 return setup.MatchStep(float("nan"), True, "no frame to measure")
             limit = setup.exposure_limit(pair.right.read_one("exposure"),
-                                         float(getattr(source, "nominal_fps", 0.0) or 0.0))
+                                         float(source.nominal_fps or 0.0))
             out = setup.exposure_match_step(pair, frame.left, frame.right, limit)
             return out, setup.read_controls(pair, calib, size)
 
@@ -321,7 +325,8 @@ class CameraControlsPanel(QWidget):
     and, unfolded, a row per control with the left and right camera side by side. `purpose`
     is "capture" (calibration pairs) or "live" (measuring): it words the autofocus warning."""
 
-    def __init__(self, ctx, purpose: str = "capture", parent: QWidget | None = None) -> None:
+    def __init__(self, ctx: AppContext, purpose: str = "capture",
+                 parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.ctx = ctx
         self.purpose = purpose

@@ -38,7 +38,7 @@ GRID_ROWS = GRID
 
 
 def pairs_kept(n: int) -> str:
-    """"1 pair kept", "2 pairs kept" (issue 12: "1 pairs kept")."""
+    """"1 pair kept", "2 pairs kept": the noun agrees with the number."""
     return f"{n} pair{'' if n == 1 else 's'} kept"
 
 

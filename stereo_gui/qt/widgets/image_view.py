@@ -284,7 +284,13 @@ class DistanceColorBar(pg.PlotItem):
         self.setYRange(-_BAR_END_ROOM, 256 + _BAR_END_ROOM, padding=0)
         self.getViewBox().invertY(False)
         # no ticks until a frame gives the range (the axis' own 0..250 meant nothing)
+        self._ticks: list[tuple[float, str]] = []
         self.getAxis("right").setTicks([[], []])
+
+    @property
+    def ticks(self) -> list[tuple[float, str]]:
+        """The (bar position, label) ticks the axis shows; empty before the first range."""
+        return list(self._ticks)
 
     def set_scale(self, colormap_id: int, scale: ColorScale) -> None:
         """Show the colour map with distance ticks placed as `scale` maps them (called every
@@ -298,8 +304,8 @@ class DistanceColorBar(pg.PlotItem):
         if shown == self._ticks_of:
             return
         self._ticks_of = shown
-        ticks = distance_ticks(scale)
-        self.getAxis("right").setTicks([[(t + 0.5, s) for t, s in ticks], []])
+        self._ticks = [(t + 0.5, s) for t, s in distance_ticks(scale)]
+        self.getAxis("right").setTicks([self._ticks, []])
 
 
 class ImagePanel(pg.GraphicsLayoutWidget):

@@ -1,4 +1,4 @@
-"""The measurement log as a Qt table model over `ctx.measurements` (MeasurementRecord); the
+"""The measurement log as a Qt table model over `ctx.measurement_log` (MeasurementRecord); the
 true-distance column is editable and makes a reading a regression sample, the note column says
 what was measured."""
 
@@ -7,11 +7,15 @@ from __future__ import annotations
 import datetime as _dt
 import math
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 from PySide6.QtCore import QAbstractTableModel, QModelIndex, Qt
 from PySide6.QtGui import QBrush, QColor
 
 from stereo_gui.files.spreadsheet import RULER_METHOD, record_error
+
+if TYPE_CHECKING:
+    from stereo_gui.qt.context import AppContext
 
 
 def _num(v, digits: int = 1) -> str:
@@ -74,16 +78,16 @@ NOTE_MAX_CHARS = 500  # a note is a few words; longer text is cut there
 
 
 class MeasurementModel(QAbstractTableModel):
-    """A table over ctx.measurements; the true-distance column is editable."""
+    """A table over ctx.measurement_log.records; the true-distance column is editable."""
 
-    def __init__(self, ctx, parent=None) -> None:
+    def __init__(self, ctx: AppContext, parent=None) -> None:
         super().__init__(parent)
         self.ctx = ctx
-        self._rows = len(ctx.measurements)
-        ctx.measurementsChanged.connect(self._reset)
+        self._rows = len(ctx.measurement_log.records)
+        ctx.measurement_log.changed.connect(self._reset)
 
     def _reset(self) -> None:
-        n = len(self.ctx.measurements)
+        n = len(self.ctx.measurement_log.records)
         if n == self._rows:
             # a reading changed (a true distance was entered): a reset would destroy the cell
             # editor committing it and lose the current cell, so Down no longer led to the next
@@ -95,7 +99,7 @@ class MeasurementModel(QAbstractTableModel):
         self.endResetModel()
 
     def rowCount(self, parent=QModelIndex()) -> int:  # noqa: N802 - Qt API
-        return 0 if parent.isValid() else len(self.ctx.measurements)
+        return 0 if parent.isValid() else len(self.ctx.measurement_log.records)
 
     def columnCount(self, parent=QModelIndex()) -> int:  # noqa: N802 - Qt API
         return 0 if parent.isValid() else len(COLUMNS)
@@ -113,7 +117,7 @@ class MeasurementModel(QAbstractTableModel):
     def data(self, index, role=Qt.ItemDataRole.DisplayRole):
         if not index.isValid():
             return None
-        rec = self.ctx.measurements[index.row()]
+        rec = self.ctx.measurement_log.records[index.row()]
         col = index.column()
         if role == Qt.ItemDataRole.DisplayRole:
             return COLUMNS[col][1](rec)
@@ -145,9 +149,9 @@ class MeasurementModel(QAbstractTableModel):
         if index.column() == NOTE_COL:
             # one line of text: a line break or tab would split the row of a CSV export reader
             note = " ".join(str(value or "").split())[:NOTE_MAX_CHARS]
-            rec = self.ctx.measurements[index.row()]
+            rec = self.ctx.measurement_log.records[index.row()]
             if note != rec.note:
-                self.ctx.update_measurement(index.row(), replace(rec, note=note))
+                self.ctx.measurement_log.update(index.row(), replace(rec, note=note))
             return True
         text = str(value).strip().replace(",", ".")
         if text == "":
@@ -161,8 +165,8 @@ class MeasurementModel(QAbstractTableModel):
             if not math.isfinite(true_mm) or true_mm <= 0:
                 self.ctx.report_error(f"true distance must be a positive number of mm, not {value}")
                 return False
-        rec = self.ctx.measurements[index.row()]
-        self.ctx.update_measurement(index.row(), replace(rec, true_mm=true_mm))
+        rec = self.ctx.measurement_log.records[index.row()]
+        self.ctx.measurement_log.update(index.row(), replace(rec, true_mm=true_mm))
         return True
 
 
@@ -188,7 +192,7 @@ def triangulation_errors_mm(records, calibration=None) -> list[float]:
             continue
         if r.method == "triangulation":
             z = r.Z_mm
-        elif calibration is not None and getattr(calibration, "metric", False):
+        elif calibration is not None and calibration.metric:
             xyz = triangulate(calibration, r.x_px, r.y_px, r.disparity_px)
             z = float("nan") if xyz is None else xyz[2]
         else:

@@ -10,6 +10,7 @@ thread loads the frame); the position is polled a few times a second while shown
 from __future__ import annotations
 
 import logging
+from typing import TYPE_CHECKING
 
 from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtWidgets import (
@@ -24,9 +25,15 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from stereo_gui.qt.source_capabilities import PlaybackSource, playback_of
+
+if TYPE_CHECKING:
+    from stereo_gui.qt.context import AppContext
+
 log = logging.getLogger(__name__)
 
-_CONTROLS = ("frame_count", "position", "paused", "pause", "resume", "step", "seek", "set_loop")
+__all__ = ["PlaybackBar", "playback_of"]
+
 POLL_MS = 100
 SPEEDS = (0.25, 0.5, 1.0, 2.0, 4.0)  # playback speeds offered, times the recorded pace
 
@@ -60,26 +67,16 @@ class SeekSlider(QSlider):
         super().mousePressEvent(ev)
 
 
-def playback_of(source):
-    """`source` if it is a playback source (pause/step/seek/loop), else None."""
-    if source is None:
-        return None
-    try:
-        return source if all(hasattr(source, a) for a in _CONTROLS) else None
-    except Exception:  # noqa: BLE001 - a property of a closed source may raise
-        return None
-
-
 class PlaybackBar(QWidget):
     """Playback controls bound to the context's frame worker source. `used` is emitted when the
     user moves playback (a paused view then resumes, or the step would not be seen)."""
 
     used = Signal()
 
-    def __init__(self, ctx, parent: QWidget | None = None) -> None:
+    def __init__(self, ctx: AppContext, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.ctx = ctx
-        self._source = None
+        self._source: PlaybackSource | None = None
 
         def button(text: str, tip: str) -> QToolButton:
             b = QToolButton()
@@ -142,9 +139,9 @@ class PlaybackBar(QWidget):
         self.slider.setPageStep(max(1, n // 10))
         self.slider.blockSignals(False)
         self.loop_check.blockSignals(True)
-        self.loop_check.setChecked(bool(getattr(self._source, "loop", True)))
+        self.loop_check.setChecked(bool(self._source.loop))
         self.loop_check.blockSignals(False)
-        self.speed_combo.setEnabled(hasattr(self._source, "set_speed"))
+        self.speed_combo.setEnabled(True)
         self._speed_chosen()  # a new recording plays at the speed chosen
         self._timer.start()
         self.refresh()
@@ -192,7 +189,7 @@ class PlaybackBar(QWidget):
 
     def _speed_chosen(self, *_args) -> None:
         s = self._source
-        if s is not None and hasattr(s, "set_speed"):
+        if s is not None:
             s.set_speed(float(self.speed_combo.currentData()))
 
     def _loop_toggled(self, on: bool) -> None:
@@ -206,18 +203,17 @@ class PlaybackBar(QWidget):
             return
         try:
             n, pos, paused = int(s.frame_count), int(s.position), bool(s.paused)
-            finished = bool(getattr(s, "finished", False))
+            finished = bool(s.finished)
         except Exception:  # noqa: BLE001 - the source may have been closed meanwhile
             return
         self.play_button.setText("Play" if paused else "Pause")
         end = " (end)" if finished else ""
         when = ""
-        if hasattr(s, "time_s"):
-            try:
-                when = (f"   {s.time_s(pos):.3f} s of "
-                        f"{s.time_s(n - 1):.1f} s" if n else "")
-            except Exception:  # noqa: BLE001 - the source may have been closed meanwhile
-                when = ""
+        try:
+            when = (f"   {s.time_s(pos):.3f} s of "
+                    f"{s.time_s(n - 1):.1f} s" if n else "")
+        except Exception:  # noqa: BLE001 - the source may have been closed meanwhile
+            when = ""
         self.label.setText(f"frame {pos + 1} of {n}{end}{when}")
         if not self.slider.isSliderDown() and self.slider.value() != pos:
             self.slider.blockSignals(True)

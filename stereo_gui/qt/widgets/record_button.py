@@ -5,6 +5,7 @@ changes the folder new recordings go into."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from PySide6.QtCore import QTimer
 from PySide6.QtWidgets import QMenu, QToolButton
@@ -18,13 +19,16 @@ from stereo_gui.qt.workers.recorder import (
     recordings_dir,
 )
 
+if TYPE_CHECKING:
+    from stereo_gui.qt.context import AppContext
+
 RECORD_TEXT = "● Record"
 
 
 class RecordButton(QToolButton):
     """Record / Stop for `ctx.recorder`; checked while recording."""
 
-    def __init__(self, ctx, parent=None) -> None:
+    def __init__(self, ctx: AppContext, parent=None) -> None:
         super().__init__(parent)
         self.ctx = ctx
         self.setText(RECORD_TEXT)
@@ -76,7 +80,7 @@ class RecordButton(QToolButton):
         folder = folder_dialog.choose_folder(self, "Folder for new recordings",
                                              str(recordings_dir(self.ctx.settings)))
         if folder:
-            self.ctx.update_settings(recordings_dir=folder)
+            self.ctx.settings_model.update(recordings_dir=folder)
             self._update_record_tooltip()
 
     def start_recording(self, folder: str | Path | None = None) -> Path | None:
@@ -90,8 +94,8 @@ class RecordButton(QToolButton):
         if folder is None:
             folder = new_recording_folder(recordings_dir(self.ctx.settings))
         try:
-            path = self.ctx.recorder.start(folder, source_name=getattr(src, "name", ""),
-                                           fps=float(getattr(src, "nominal_fps", 30.0) or 30.0))
+            path = self.ctx.recorder.start(folder, source_name=src.name,
+                                           fps=float(src.nominal_fps or 30.0))
         except StereoGuiError as exc:
             self.ctx.report_error(f"Cannot start recording: {exc}")
             self._sync_record_button()

@@ -11,12 +11,12 @@ from stereo_gui.qt.tabs.live import TRUE_CALIBRATION_NOTE
 
 def _show_wall(qtbot, ctx, live, calib, wall_pair, array_source):
     _scene, left, right = wall_pair
-    ctx.set_calibration(calib, None, note=TRUE_CALIBRATION_NOTE)
+    ctx.calibration_model.set(calib, None, note=TRUE_CALIBRATION_NOTE)
     ctx.frames.set_source(array_source(left, right, fps=30))
     with qtbot.waitSignal(live.frameShown, timeout=30000):
         pass
     live.set_paused(True)
-    return live._output.result
+    return live.shown_output.result
 
 
 def _read_ply(path):
@@ -119,9 +119,9 @@ def test_a_calibration_of_another_aspect_ratio_is_refused_with_the_reason(
         qtbot, ctx, live, sim_rig, wall_pair, array_source):
     _scene, left, right = wall_pair
     wide = sim_rig.true_calibration().scaled_to((1280, 960)).with_updates(image_size=(1280, 720))
-    ctx.set_calibration(wide)
+    ctx.calibration_model.set(wide)
     with qtbot.waitSignal(ctx.errorOccurred, timeout=30000) as sig:
         ctx.frames.set_source(array_source(left, right, fps=30))
     text = sig.args[0]
     assert "1280x720" in text and "640x480" in text and "aspect ratio" in text
-    assert live.frames_shown == 0 and live._output is None  # nothing silently wrong is shown
+    assert live.frames_shown == 0 and live.shown_output is None  # nothing silently wrong is shown

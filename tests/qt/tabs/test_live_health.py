@@ -11,7 +11,7 @@ from stereo_gui.sources.sim import SimRig, SimSource
 def test_drift_is_shown_live_and_refined_away(qtbot, ctx, live, tmp_path):
     rig = SimRig(seed=29)  # its own rig: the test turns its right camera
     calib = rig.true_calibration()
-    ctx.set_calibration(calib)
+    ctx.calibration_model.set(calib)
     ctx.frames.set_source(SimSource(rig=rig, mode="scene", fps=15))
     panel = live.health
     qtbot.waitUntil(lambda: panel.health is not None, timeout=60000)

@@ -27,7 +27,7 @@ def double_click(qtbot, widget, pos):
 def _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source):
     scene, left, right = wall_pair
     calib = sim_rig.true_calibration()
-    ctx.set_calibration(calib, None, note=TRUE_CALIBRATION_NOTE)
+    ctx.calibration_model.set(calib, None, note=TRUE_CALIBRATION_NOTE)
     ctx.frames.set_source(array_source(left, right, fps=30))
     with qtbot.waitSignal(live.frameShown, timeout=30000):
         pass
@@ -37,19 +37,19 @@ def _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source):
 def test_live_view_updates_on_the_sim_rig(qtbot, ctx, live, sim_rig):
     from stereo_gui.sources.sim import SimSource
 
-    ctx.set_calibration(sim_rig.true_calibration())
+    ctx.calibration_model.set(sim_rig.true_calibration())
     assert live.stack.currentIndex() == 1
     ctx.frames.set_source(SimSource(rig=sim_rig, mode="scene", fps=30))
     qtbot.waitUntil(lambda: live.frames_shown >= 2, timeout=60000)
-    out = live._output
+    out = live.shown_output
     assert isinstance(out, LiveOutput)
     for key in live.visible_views():
         img = live.panels[key].item.image
         assert img is not None and img.dtype == np.uint8
         assert img.shape[:2] == (480, 640)
     # the demo scene lies within the colour bar's range, so the bar carries distance ticks
-    ticks = live.panels["wls"].color_bar.getAxis("right")._tickLevels
-    assert ticks and any(label.endswith("m") for _pos, label in ticks[0])
+    ticks = live.panels["wls"].color_bar.ticks
+    assert ticks and any(label.endswith("m") for _pos, label in ticks)
 
 
 def test_double_click_reports_a_known_distance_within_1_percent(
@@ -67,8 +67,8 @@ def test_double_click_reports_a_known_distance_within_1_percent(
     assert truth is not None
     assert m.Z_mm == pytest.approx(truth[2], rel=0.01)
     # logged for the Measurements tab, a marker on every view that shares the left's pixels
-    assert len(ctx.measurements) == 1
-    rec = ctx.measurements[0]
+    assert len(ctx.measurement_log.records) == 1
+    rec = ctx.measurement_log.records[0]
     assert rec.Z_mm == pytest.approx(m.Z_mm) and rec.valid
     assert rec.calibration_file == TRUE_CALIBRATION_NOTE
     assert panel.marker_count() == 1 and live.panels["raw"].marker_count() == 1
@@ -82,7 +82,8 @@ def test_invalid_point_says_why(qtbot, ctx, live, sim_rig, wall_pair, array_sour
         live.measure_at(-5.0, 10.0)
     m = sig.args[0]
     assert not m.valid and m.reason == "outside the image"
-    assert not ctx.measurements[-1].valid and ctx.measurements[-1].reason == "outside the image"
+    last = ctx.measurement_log.records[-1]
+    assert not last.valid and last.reason == "outside the image"
 
 
 def test_ruler_measures_3d_distance_between_two_points(
@@ -97,8 +98,8 @@ def test_ruler_measures_3d_distance_between_two_points(
     tb = sim_rig.true_point_rectified(calib, scene, *b)
     assert live.last_ruler_mm == pytest.approx(float(np.linalg.norm(ta - tb)), rel=0.02)
     # both points and the distance between them are in the log
-    assert len(ctx.measurements) == 3
-    rec = ctx.measurements[-1]
+    assert len(ctx.measurement_log.records) == 3
+    rec = ctx.measurement_log.records[-1]
     assert rec.method.startswith("ruler A–B") and rec.valid
     assert rec.range_mm == pytest.approx(live.last_ruler_mm)
     assert rec.expected_error_mm > 0 and math.isnan(rec.disparity_px)  # not a regression sample
@@ -123,8 +124,8 @@ def test_ruler_says_when_a_point_has_no_distance(qtbot, ctx, live, sim_rig, wall
     with qtbot.waitSignal(live.measured, timeout=30000):
         live.measure_at(440.0, 240.0)
     assert "A–B" in statuses[-1] and "logged" in statuses[-1]
-    assert ctx.measurements[-1].method.startswith("ruler A–B")
-    assert ctx.measurements[-1].x_px == pytest.approx(440.0)
+    assert ctx.measurement_log.records[-1].method.startswith("ruler A–B")
+    assert ctx.measurement_log.records[-1].x_px == pytest.approx(440.0)
 
 
 def _hover(qtbot, live, key, x, y):
@@ -188,7 +189,7 @@ def test_hover_on_the_simulated_rig_shows_the_true_distance_labelled(
 
     scene, left, right = wall_pair
     calib = sim_rig.true_calibration()
-    ctx.set_calibration(calib, None, note=TRUE_CALIBRATION_NOTE)
+    ctx.calibration_model.set(calib, None, note=TRUE_CALIBRATION_NOTE)
     ctx.frames.set_source(array_source(left, right, fps=30,
                                        truth=SimFrameTruth(None, scene, sim_rig.truth)))
     with qtbot.waitSignal(live.frameShown, timeout=30000):
@@ -204,13 +205,13 @@ def test_hover_on_the_simulated_rig_shows_the_true_distance_labelled(
 def test_parameter_change_applies_to_next_frame(qtbot, ctx, live, sim_rig, wall_pair,
                                                 array_source):
     _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
-    before = live._output.result.params.closing_kernel
+    before = live.shown_output.result.params.closing_kernel
     new = 5 if before != 5 else 7
     live.params_panel.editors["closing_kernel"].setValue(new)
-    qtbot.waitUntil(lambda: live._output.result.params.closing_kernel == new, timeout=30000)
+    qtbot.waitUntil(lambda: live.shown_output.result.params.closing_kernel == new, timeout=30000)
     # and switching the WLS filter off leaves its view showing the depth, and saying so
     live.params_panel.editors["wls"].setChecked(False)
-    qtbot.waitUntil(lambda: live._output.result.wls_px is None, timeout=30000)
+    qtbot.waitUntil(lambda: live.shown_output.result.wls_px is None, timeout=30000)
     assert "No WLS" in live.panels["wls"].title.text
 
 
@@ -279,13 +280,13 @@ def test_readings_use_the_active_fit(qtbot, ctx, live, sim_rig, wall_pair, array
     # a deliberately wrong model (every distance 10 % longer) shows that readings follow it
     d = np.array([20.0, 40.0, 60.0, 80.0, 100.0])
     fit = fit_inverse(list(zip(d, 1.1 * fb / d)))
-    ctx.set_active_fit(fit)
+    ctx.measurement_log.set_active_fit(fit)
     with qtbot.waitSignal(live.measured, timeout=30000) as sig:
         live.measure_at(320.0, 240.0)
     m = sig.args[0]
     assert m.valid and m.method == fit.model
     assert m.Z_mm == pytest.approx(1.1 * 1500.0, rel=0.02)
-    assert ctx.measurements[-1].method == fit.model
+    assert ctx.measurement_log.records[-1].method == fit.model
     live.set_paused(True)
     reading = _hover(qtbot, live, "wls", 320.0, 240.0)
     assert reading.measurement.method == fit.model and "fit" in live.readout_text()
@@ -349,7 +350,7 @@ def test_hidden_views_belong_to_the_window_too(qtbot, ctx):
     top-level widget left to the interpreter's exit)."""
     from stereo_gui.qt.tabs.live import LiveTab
 
-    ctx.update_settings(visible_views=("left",))
+    ctx.settings_model.update(visible_views=("left",))
     tab = LiveTab(ctx)
     qtbot.addWidget(tab)
     tab.show()
@@ -362,16 +363,33 @@ def test_hidden_views_belong_to_the_window_too(qtbot, ctx):
     assert [k for k, p in tab.panels.items() if p.isVisibleTo(tab.views)] == ["left", "wls"]
 
 
+def _event_loop_turns(qtbot, n: int) -> None:
+    """Return after `n` turns of the event loop: a chain of n zero-time timers, each started by
+    the one before, ends after every chain of that length started earlier."""
+    from PySide6.QtCore import QTimer
+
+    left = [n]
+
+    def turn():
+        left[0] -= 1
+        if left[0] > 0:
+            QTimer.singleShot(0, turn)
+
+    QTimer.singleShot(0, turn)
+    qtbot.waitUntil(lambda: left[0] == 0, timeout=10000)
+
+
 def test_views_are_drawn_one_event_loop_turn_apart_and_the_newest_frame_wins(
         qtbot, ctx, live, sim_rig, wall_pair, array_source):
     """Each view gets its image in a turn of its own (each is painted on its own, the window
     answers in between); frameShown follows the last view; a frame that comes meanwhile is
     the one the remaining views show; a new calibration drops what was still to be drawn."""
     _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
-    ctx.frames.pause()
-    qtbot.wait(200)
-    first = live._output
+    live.set_paused(True)  # no frame is shown any more; the one being drawn is finished
+    first = live.shown_output
     keys = [k for k in live.visible_views() if k in first.images]
+    qtbot.waitUntil(lambda: all(np.array_equal(live.panels[k].item.image, first.images[k])
+                                for k in keys), timeout=30000)
     assert len(keys) >= 2
     blank = {k: np.zeros_like(first.images[k]) for k in keys}
     newer = dataclasses.replace(first, images=blank)
@@ -386,8 +404,10 @@ def test_views_are_drawn_one_event_loop_turn_apart_and_the_newest_frame_wins(
     for k in keys[1:]:
         assert not live.panels[k].item.image.any()  # the newer frame's
     live.show_output(first)
-    live._calibration_changed(ctx.calibration)  # clears the views' frame
-    qtbot.wait(100)  # the remaining turns find nothing to draw, and raise nothing
+    # a new calibration clears the views' frame
+    ctx.calibration_model.set(ctx.calibration, ctx.calibration_path, ctx.calibration_note)
+    assert live.shown_output is None
+    _event_loop_turns(qtbot, len(keys) + 1)  # the remaining turns draw nothing, raise nothing
 
 
 def test_a_new_calibration_closes_the_processor_it_replaces(qtbot, ctx, live, sim_rig):
@@ -397,14 +417,17 @@ def test_a_new_calibration_closes_the_processor_it_replaces(qtbot, ctx, live, si
 
     errors = []
     ctx.frames.errorOccurred.connect(errors.append)
-    ctx.set_calibration(sim_rig.true_calibration())
+    ctx.calibration_model.set(sim_rig.true_calibration())
     ctx.frames.set_source(SimSource(rig=sim_rig, mode="scene", fps=30))
     qtbot.waitUntil(lambda: live.frames_shown >= 2, timeout=60000)
     for _ in range(3):  # while frames are in work
-        old = live._processor
-        ctx.set_calibration(sim_rig.true_calibration())
-        assert live._processor is not old and ctx.frames.processor() is live._processor
-        assert old._closed and old.health._closed
+        old = ctx.frames.processor()
+        frame = live.shown_frame
+        ctx.calibration_model.set(sim_rig.true_calibration())
+        assert ctx.frames.processor() is not None and ctx.frames.processor() is not old
+        with pytest.raises(RuntimeError, match="closed"):
+            old(frame)
+        assert not old.health.offer(frame.left, frame.right, now=1e12)
         shown = live.frames_shown
         qtbot.waitUntil(lambda: live.frames_shown >= shown + 2, timeout=60000)
     assert not errors
@@ -422,14 +445,23 @@ def test_views_share_the_width_evenly_whatever_they_are(qtbot):
     grid.lay_out()
     for panel in grid.panels.values():
         panel.set_image(np.zeros((480, 640, 3), np.uint8))
-    qtbot.wait(50)
+
+    def shown_as_checked() -> bool:
+        keys = grid.visible()
+        return all(p.isVisible() == (k in keys) for k, p in grid.panels.items())
+
+    def even(keys) -> bool:
+        widths = [grid.panels[k].width() for k in keys]
+        return max(widths) - min(widths) <= 2
+
+    qtbot.waitUntil(shown_as_checked, timeout=10000)
     grid.checks["right"].setChecked(True)  # as a person does it: Right on (five views), Raw off
-    qtbot.wait(50)
+    qtbot.waitUntil(shown_as_checked, timeout=10000)
     grid.checks["raw"].setChecked(False)
-    qtbot.wait(50)
+    qtbot.waitUntil(shown_as_checked, timeout=10000)
     for shown in (["left", "right", "closed", "wls"], ["left", "wls"], ["raw", "closed"]):
         if shown != grid.visible():
             grid.set_visible(shown)
-        qtbot.wait(50)
+        qtbot.waitUntil(lambda shown=shown: shown_as_checked() and even(shown), timeout=10000)
         widths = [grid.panels[k].width() for k in shown]
         assert max(widths) - min(widths) <= 2, (shown, widths)

@@ -33,8 +33,8 @@ DISPARITIES = [20.0, 30.0, 41.0, 55.0, 70.0, 90.0]
 
 def _log_with_truth(ctx, tab, truth_offset_mm=15.0):
     for d in DISPARITIES:
-        ctx.add_measurement(_record(d))
-    ctx.add_measurement(_record(0.0, valid=False))
+        ctx.measurement_log.add(_record(d))
+    ctx.measurement_log.add(_record(0.0, valid=False))
     model = tab.table.model()
     for row, d in enumerate(DISPARITIES):
         # the true distance differs a little from triangulation (what a technician finds)
@@ -44,8 +44,8 @@ def _log_with_truth(ctx, tab, truth_offset_mm=15.0):
 
 
 def test_log_table_shows_readings(tab, ctx):
-    ctx.add_measurement(_record(41.25))
-    ctx.add_measurement(_record(0.0, valid=False))
+    ctx.measurement_log.add(_record(41.25))
+    ctx.measurement_log.add(_record(0.0, valid=False))
     model = tab.table.model()
     assert model.rowCount() == 2
     assert model.index(0, 2).data() == "41.250"
@@ -56,7 +56,8 @@ def test_log_table_shows_readings(tab, ctx):
 
 def test_entering_true_distances_fits_both_models_with_r2(tab, ctx):
     _log_with_truth(ctx, tab)
-    assert ctx.measurements[0].true_mm == pytest.approx(F_PX * B_MM / 20.0 + 15.0, abs=0.1)
+    first = ctx.measurement_log.records[0]
+    assert first.true_mm == pytest.approx(F_PX * B_MM / 20.0 + 15.0, abs=0.1)
     assert tab.r2("cubic") is not None and tab.r2("inverse") is not None
     assert tab.r2("inverse") > 0.999
     assert "R² = " in tab.r2_labels["cubic"].text() and "R² = " in tab.r2_labels["inverse"].text()
@@ -66,18 +67,18 @@ def test_entering_true_distances_fits_both_models_with_r2(tab, ctx):
 def test_bad_true_distance_is_refused(tab, ctx):
     errors = []
     ctx.errorOccurred.connect(errors.append)
-    ctx.add_measurement(_record(40.0))
+    ctx.measurement_log.add(_record(40.0))
     model = tab.table.model()
     assert not model.setData(model.index(0, TRUE_COL), "two metres")
     assert not model.setData(model.index(0, TRUE_COL), "-5")
-    assert ctx.measurements[0].true_mm is None and len(errors) == 2
+    assert ctx.measurement_log.records[0].true_mm is None and len(errors) == 2
     assert model.setData(model.index(0, TRUE_COL), "1500")
     assert model.setData(model.index(0, TRUE_COL), "")  # clearing is allowed
-    assert ctx.measurements[0].true_mm is None
+    assert ctx.measurement_log.records[0].true_mm is None
 
 
 def test_too_few_samples_explains(tab, ctx):
-    ctx.add_measurement(_record(40.0))
+    ctx.measurement_log.add(_record(40.0))
     tab.table.model().setData(tab.table.model().index(0, TRUE_COL), "2000")
     assert tab.r2("cubic") is None
     assert "not fitted" in tab.r2_labels["cubic"].text()
@@ -87,7 +88,7 @@ def test_too_few_samples_explains(tab, ctx):
 def test_model_choice_sets_active_fit(tab, ctx):
     _log_with_truth(ctx, tab)
     with_fit = []
-    ctx.activeFitChanged.connect(with_fit.append)
+    ctx.measurement_log.activeFitChanged.connect(with_fit.append)
     tab.use_model("inverse")
     assert ctx.active_fit is tab.fits["inverse"] and with_fit[-1].model == "inverse"
     assert ctx.settings.measure_model == "inverse"
@@ -108,10 +109,10 @@ def test_export_xlsx_and_csv_hold_logged_values(tab, ctx, qtbot, tmp_path):
     wb = load_workbook(path)
     ws = wb["Measurements"]
     rows = list(ws.iter_rows(min_row=2, values_only=True))
-    assert len(rows) == len(ctx.measurements)
+    assert len(rows) == len(ctx.measurement_log.records)
     headers = [c.value for c in ws[1]]
     d_col, t_col = headers.index("Disparity (px)"), headers.index("True distance (mm)")
-    for row, rec in zip(rows, ctx.measurements, strict=True):
+    for row, rec in zip(rows, ctx.measurement_log.records, strict=True):
         if math.isfinite(rec.disparity_px):
             assert row[d_col] == pytest.approx(rec.disparity_px)
         assert (row[t_col] is None) == (rec.true_mm is None)
@@ -129,7 +130,7 @@ def test_save_and_load_fit(tab, ctx, tmp_path):
     fit = tab.fits["cubic"]
     path = tmp_path / "cubic.json"
     assert tab.save_fit(fit, path) and path.exists()
-    ctx.clear_measurements()
+    ctx.measurement_log.clear()
     assert tab.r2("cubic") is None
     assert tab.load_fit(path)
     assert ctx.active_fit is not None and ctx.active_fit.model == "cubic"
@@ -143,8 +144,9 @@ def test_new_reading_without_truth_keeps_the_active_fit(tab, ctx):
     tab.use_model("cubic")
     fit = ctx.active_fit
     changes = []
-    ctx.activeFitChanged.connect(changes.append)
-    ctx.add_measurement(_record(33.0))  # a live click: no true distance, the samples are the same
+    ctx.measurement_log.activeFitChanged.connect(changes.append)
+    # a live click: no true distance, the samples are the same
+    ctx.measurement_log.add(_record(33.0))
     assert ctx.active_fit is fit and changes == []
 
 
@@ -167,7 +169,7 @@ def test_entering_a_true_distance_keeps_the_current_cell(tab, ctx, qtbot):
     from PySide6.QtWidgets import QLineEdit
 
     for d in DISPARITIES[:3]:
-        ctx.add_measurement(_record(d))
+        ctx.measurement_log.add(_record(d))
     tab.resize(1000, 600)
     tab.show()
     table = tab.table
@@ -178,11 +180,11 @@ def test_entering_a_true_distance_keeps_the_current_cell(tab, ctx, qtbot):
     assert editor is not None
     qtbot.keyClicks(editor, "1000")
     qtbot.keyClick(editor, Qt.Key.Key_Return)  # the delegate commits in a queued call
-    qtbot.waitUntil(lambda: ctx.measurements[0].true_mm == 1000.0, timeout=5000)
+    qtbot.waitUntil(lambda: ctx.measurement_log.records[0].true_mm == 1000.0, timeout=5000)
     assert (table.currentIndex().row(), table.currentIndex().column()) == (0, TRUE_COL)
     qtbot.keyClick(table, Qt.Key.Key_Down)
     assert (table.currentIndex().row(), table.currentIndex().column()) == (1, TRUE_COL)
-    ctx.add_measurement(_record(DISPARITIES[3]))  # a new reading still appears as a new row
+    ctx.measurement_log.add(_record(DISPARITIES[3]))  # a new reading still appears as a new row
     assert table.model().rowCount() == 4
 
 
@@ -191,13 +193,13 @@ def test_clear_log_asks_first(tab, ctx, questions):
     from PySide6.QtWidgets import QMessageBox
 
     _log_with_truth(ctx, tab)
-    n = len(ctx.measurements)
+    n = len(ctx.measurement_log.records)
     questions.reply = QMessageBox.StandardButton.No
     tab.clear_button.click()
-    assert len(ctx.measurements) == n and f"all {n} readings" in questions.asked[-1]
+    assert len(ctx.measurement_log.records) == n and f"all {n} readings" in questions.asked[-1]
     questions.reply = QMessageBox.StandardButton.Yes
     tab.clear_button.click()
-    assert ctx.measurements == []
+    assert ctx.measurement_log.records == ()
 
 
 def test_error_columns_and_triangulation_rms_beside_each_fit(tab, ctx):
@@ -220,14 +222,14 @@ def test_too_few_true_distances_say_so_instead_of_a_perfect_fit(tab, ctx):
     model = tab.table.model()
     for row, (d, true) in enumerate(((40.0, 2000.0), (40.5, 2000.0), (20.0, 4000.0),
                                      (20.2, 4000.0))):
-        ctx.add_measurement(_record(d))
+        ctx.measurement_log.add(_record(d))
         model.setData(model.index(row, TRUE_COL), f"{true}")
     assert tab.r2("cubic") is None  # not R^2 1.00000 and RMS 0.0 mm
     assert "4 or more different distances, got 2" in tab.r2_labels["cubic"].text()
     assert tab.r2("inverse") is not None  # two parameters, two distances, four readings
-    ctx.clear_measurements()
+    ctx.measurement_log.clear()
     for row, (d, true) in enumerate(((40.0, 2000.0), (20.0, 4000.0))):
-        ctx.add_measurement(_record(d))
+        ctx.measurement_log.add(_record(d))
         model.setData(model.index(row, TRUE_COL), f"{true}")
     assert "passes exactly through its 2 samples" in tab.r2_labels["inverse"].text()
 
@@ -236,29 +238,29 @@ def test_clear_log_is_undoable_until_the_next_reading(tab, ctx, monkeypatch):
     from PySide6.QtWidgets import QMessageBox
 
     _log_with_truth(ctx, tab)
-    n = len(ctx.measurements)
+    n = len(ctx.measurement_log.records)
     monkeypatch.setattr(QMessageBox, "question",
                         lambda *a, **k: QMessageBox.StandardButton.Yes)
     tab.clear_button.click()
-    assert ctx.measurements == [] and tab.undo_button.isVisibleTo(tab)
+    assert ctx.measurement_log.records == () and tab.undo_button.isVisibleTo(tab)
     tab.undo_button.click()
-    assert len(ctx.measurements) == n and not tab.undo_button.isVisibleTo(tab)
+    assert len(ctx.measurement_log.records) == n and not tab.undo_button.isVisibleTo(tab)
     assert tab.r2("cubic") is not None  # the true distances came back with them
     tab.clear_button.click()
-    ctx.add_measurement(_record(33.0))
-    assert not ctx.can_undo_clear and not tab.undo_button.isVisibleTo(tab)
-    assert not ctx.undo_clear() and len(ctx.measurements) == 1
+    ctx.measurement_log.add(_record(33.0))
+    assert not ctx.measurement_log.can_undo_clear and not tab.undo_button.isVisibleTo(tab)
+    assert not ctx.measurement_log.undo_clear() and len(ctx.measurement_log.records) == 1
 
 
 def test_open_log_brings_back_an_exported_csv_or_xlsx(tab, ctx, qtbot, tmp_path):
     _log_with_truth(ctx, tab)
-    before = [(r.disparity_px, r.true_mm, r.valid) for r in ctx.measurements]
+    before = [(r.disparity_px, r.true_mm, r.valid) for r in ctx.measurement_log.records]
     assert tab.export_csv(tmp_path / "log.csv")
     with qtbot.waitSignal(tab.exportFinished, timeout=30000):
         assert tab.export_xlsx(tmp_path / "log.xlsx")
     for name in ("log.csv", "log.xlsx"):
         assert tab.open_log(tmp_path / name, replace=True)
-        after = [(r.disparity_px, r.true_mm, r.valid) for r in ctx.measurements]
+        after = [(r.disparity_px, r.true_mm, r.valid) for r in ctx.measurement_log.records]
         assert len(after) == len(before)
         for a, b in zip(after, before, strict=True):
             assert a[2] == b[2] and (a[1] is None) == (b[1] is None)
@@ -268,10 +270,10 @@ def test_open_log_brings_back_an_exported_csv_or_xlsx(tab, ctx, qtbot, tmp_path)
                 assert a[1] == pytest.approx(b[1], abs=0.05)
         assert tab.r2("inverse") is not None
     assert tab.open_log(tmp_path / "log.csv")  # added after the readings there
-    assert len(ctx.measurements) == 2 * len(before)
+    assert len(ctx.measurement_log.records) == 2 * len(before)
     (tmp_path / "other.csv").write_text("a,b\n1,2\n")
     assert not tab.open_log(tmp_path / "other.csv")
-    assert len(ctx.measurements) == 2 * len(before)
+    assert len(ctx.measurement_log.records) == 2 * len(before)
 
 
 def test_log_and_active_fit_survive_a_restart(qtbot, tmp_path):
@@ -281,7 +283,7 @@ def test_log_and_active_fit_survive_a_restart(qtbot, tmp_path):
 
     path = tmp_path / "data" / "measurement-log.json"
     ctx = AppContext()
-    assert ctx.keep_log(path) == []
+    assert ctx.measurement_log.keep(path) == []
     tab = MeasurementsTab(ctx)
     qtbot.addWidget(tab)
     _log_with_truth(ctx, tab)
@@ -289,23 +291,24 @@ def test_log_and_active_fit_survive_a_restart(qtbot, tmp_path):
     fit = ctx.active_fit
     assert fit is not None and fit.model == "inverse"
     qtbot.waitUntil(lambda: path.is_file() and "inverse" in path.read_text(), timeout=5000)
-    n = len(ctx.measurements)
+    n = len(ctx.measurement_log.records)
     assert ctx.shutdown(2000)
 
     ctx2 = AppContext()
     tab2 = MeasurementsTab(ctx2)
     qtbot.addWidget(tab2)
-    assert ctx2.keep_log(path) == []
-    assert len(ctx2.measurements) == n
-    assert ctx2.measurements[0].true_mm == ctx.measurements[0].true_mm
+    assert ctx2.measurement_log.keep(path) == []
+    assert len(ctx2.measurement_log.records) == n
+    assert ctx2.measurement_log.records[0].true_mm == ctx.measurement_log.records[0].true_mm
     assert ctx2.active_fit == fit
     assert tab2.model_combo.currentData() == "inverse"
-    ctx2.clear_measurements()
+    ctx2.measurement_log.clear()
     assert ctx2.shutdown(2000)  # a pending save is written on the way out
 
     ctx3 = AppContext()
-    assert ctx3.keep_log(path) == [] and ctx3.measurements == [] and ctx3.can_undo_clear
-    assert ctx3.undo_clear() and len(ctx3.measurements) == n
+    assert ctx3.measurement_log.keep(path) == []
+    assert ctx3.measurement_log.records == () and ctx3.measurement_log.can_undo_clear
+    assert ctx3.measurement_log.undo_clear() and len(ctx3.measurement_log.records) == n
     assert ctx3.shutdown(2000)
 
 
@@ -315,17 +318,17 @@ def test_an_unreadable_kept_log_is_set_aside_and_said(qtbot, tmp_path):
     path = tmp_path / "measurement-log.json"
     path.write_text("{ half a log")
     ctx = AppContext()
-    warnings = ctx.keep_log(path)
+    warnings = ctx.measurement_log.keep(path)
     assert len(warnings) == 1 and "could not be restored" in warnings[0]
     assert (tmp_path / "measurement-log.json.unreadable").read_text() == "{ half a log"
-    assert ctx.measurements == []
+    assert ctx.measurement_log.records == ()
     assert ctx.shutdown(2000)
 
 
 def test_one_reading_is_one_reading_not_one_readings(tab, ctx, questions):
     """With one reading and one true distance the tab says "1 reading", "1 sample" and "of
     1 reading" (it said "1 samples" and "of 1 readings"), and two are plural again."""
-    ctx.add_measurement(_record(41.0))
+    ctx.measurement_log.add(_record(41.0))
     assert tab.table.model().setData(tab.table.model().index(0, TRUE_COL), "2000")
     texts = [tab.count_label.text(), tab.sample_label.text(), tab.triangulation_label.text()]
     joined = " | ".join(texts)
@@ -333,8 +336,8 @@ def test_one_reading_is_one_reading_not_one_readings(tab, ctx, questions):
     assert "of 1 reading" in texts[2] and "1 readings" not in joined and "1 samples" not in joined
     tab.clear_button.click()
     assert "Remove the 1 reading (1 with a true distance)" in questions.asked[-1]
-    ctx.add_measurement(_record(30.0))
-    ctx.add_measurement(_record(20.0))
+    ctx.measurement_log.add(_record(30.0))
+    ctx.measurement_log.add(_record(20.0))
     assert "2 readings," in tab.count_label.text()
 
 
@@ -350,9 +353,9 @@ def test_a_note_is_typed_in_the_log_kept_exported_and_read_back(qtbot, tmp_path)
     """The Note column says what was measured: typed in the table, kept across a restart,
     written to the .xlsx and .csv exports (the last column), and read back from them; a CSV
     written before notes existed still opens."""
-    from PySide6.QtCore import Qt
-
     import dataclasses
+
+    from PySide6.QtCore import Qt
 
     from stereo_gui.files.spreadsheet import FILE_HEADERS, read_measurements, records_to_csv
     from stereo_gui.qt.context import AppContext
@@ -360,11 +363,11 @@ def test_a_note_is_typed_in_the_log_kept_exported_and_read_back(qtbot, tmp_path)
 
     path = tmp_path / "data" / "measurement-log.json"
     ctx = AppContext()
-    assert ctx.keep_log(path) == []
+    assert ctx.measurement_log.keep(path) == []
     tab = MeasurementsTab(ctx)
     qtbot.addWidget(tab)
-    ctx.add_measurement(_record(41.0))
-    ctx.add_measurement(_record(30.0))
+    ctx.measurement_log.add(_record(41.0))
+    ctx.measurement_log.add(_record(30.0))
     model = tab.table.model()
     assert model.headerData(NOTE_COL, Qt.Orientation.Horizontal) == "Note"
     assert model.flags(model.index(0, NOTE_COL)) & Qt.ItemFlag.ItemIsEditable
@@ -374,8 +377,8 @@ def test_a_note_is_typed_in_the_log_kept_exported_and_read_back(qtbot, tmp_path)
     assert ctx.shutdown(2000)
 
     ctx2 = AppContext()
-    assert ctx2.keep_log(path) == []
-    assert [r.note for r in ctx2.measurements] == ["door frame, left edge", ""]
+    assert ctx2.measurement_log.keep(path) == []
+    assert [r.note for r in ctx2.measurement_log.records] == ["door frame, left edge", ""]
     tab2 = MeasurementsTab(ctx2)
     qtbot.addWidget(tab2)
     assert tab2.table.model().index(0, NOTE_COL).data() == "door frame, left edge"
@@ -389,7 +392,7 @@ def test_a_note_is_typed_in_the_log_kept_exported_and_read_back(qtbot, tmp_path)
     assert [r.note for r in read_measurements(xlsx)] == ["door frame, left edge", ""]
     assert [r.note for r in read_csv(csv)] == ["door frame, left edge", ""]
     old = tmp_path / "old.csv"  # as written before the Note column
-    without = [dataclasses.replace(r, note="") for r in ctx2.measurements]
+    without = [dataclasses.replace(r, note="") for r in ctx2.measurement_log.records]
     lines = records_to_csv(without).splitlines()
     assert lines[0].endswith(",Note") and all(line.endswith(",") for line in lines[1:])
     old.write_text("\n".join(line.rsplit(",", 1)[0] for line in lines) + "\n")

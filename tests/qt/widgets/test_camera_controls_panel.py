@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import cv2
 import pytest
+from fake_cameras import FakeCapture, FakeControlDevice
 
 import stereo_gui.sources.cameras as cameras
 from stereo_gui.core.camera_settings import CameraSettings, PairSettings
@@ -14,8 +15,6 @@ from stereo_gui.pipeline.camera_setup import overlap_brightness
 from stereo_gui.qt.widgets.camera_controls import NO_CONTROLS, CameraControlsPanel
 from stereo_gui.sources.cameras import TwoCameraSource
 from stereo_gui.sources.sim import TRUE_FOCUS, RigConfig, SimRig, SimSource
-
-from fake_cameras import FakeCapture, FakeControlDevice
 
 WAIT = 60000
 
@@ -98,7 +97,7 @@ def _calibration(src: SimSource, focus: float = TRUE_FOCUS):
 
 def test_opening_the_cameras_restores_the_calibrations_controls(qtbot, ctx, panel):
     src = _sim(auto_modes=True)  # fresh webcams: autofocus and auto exposure on
-    ctx.set_calibration(_calibration(src))
+    ctx.calibration_model.set(_calibration(src))
     ctx.frames.set_source(src)
     report = _wait_report(qtbot, panel)
     assert report.settings.left.focus_auto is False and report.settings.left.focus == TRUE_FOCUS
@@ -110,7 +109,7 @@ def test_a_changed_focus_is_warned_about_and_one_click_restores_it(qtbot, ctx, p
     ctx.frames.set_source(src)
     _wait_report(qtbot, panel)
     src.camera_controls().left.write("focus", 45)  # someone turned the focus since
-    ctx.set_calibration(_calibration(src))
+    ctx.calibration_model.set(_calibration(src))
     qtbot.waitUntil(lambda: panel.warning_row.isVisible(), timeout=WAIT)
     assert ("The calibration was made at focus 30; the left camera is at 45: distances will be "
             "wrong.") in panel.warning.text()

@@ -26,7 +26,7 @@ def test_the_live_tab_draws_the_frames_cloud(qtbot, ctx, live, sim_rig, wall_pai
     if problem:
         pytest.skip(problem)
     scene, left, right = wall_pair
-    ctx.set_calibration(sim_rig.true_calibration(), None, note=TRUE_CALIBRATION_NOTE)
+    ctx.calibration_model.set(sim_rig.true_calibration(), None, note=TRUE_CALIBRATION_NOTE)
     ctx.frames.set_source(array_source(left, right, fps=30))
     with qtbot.waitSignal(live.frameShown, timeout=30000):
         pass
