@@ -11,7 +11,6 @@ threads the application gives it.
 
 from __future__ import annotations
 
-import json
 import math
 import statistics
 import time

@@ -44,8 +44,9 @@ from stereo_gui.core.errors import InputError
 from stereo_gui.core.jobs import check_cancel
 from stereo_gui.core.util import how_many
 from stereo_gui.files.atomic import atomic_path, os_error_text, write_text_atomic
+
 # the record type and its derived error are defined with the log; imported from here too
-from stereo_gui.files.measurement_record import RULER_METHOD, MeasurementRecord, record_error
+from stereo_gui.files.measurement_record import MeasurementRecord, record_error
 from stereo_gui.files.readers import read_csv_rows
 
 if TYPE_CHECKING:  # only for annotations: the regression module is imported where used

@@ -8,8 +8,14 @@ import pytest
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import MatcherParams, Preset, StereoPipeline
-from stereo_gui.core.measure import (Z95, Reason, histogram_mode, measure_point,
-                                     refine_disparity, triangulate)
+from stereo_gui.core.measure import (
+    Z95,
+    Reason,
+    histogram_mode,
+    measure_point,
+    refine_disparity,
+    triangulate,
+)
 from stereo_gui.core.regression import fit_inverse
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.presets import load_preset
@@ -264,7 +270,6 @@ def test_left_edge_strip_says_not_seen_and_the_seeds_band_not_searched(rig, wall
 
 
 def test_a_flat_surface_has_no_texture():
-    from stereo_gui.core.matching import MatcherParams
 
     c = StereoCalibration.identity((200, 120), 500.0, 100.0)
     rng = np.random.default_rng(3)

@@ -1,7 +1,6 @@
 """Fit files: JSON round trip, errors that name the file, atomic writes."""
 
 import json
-import os
 
 import pytest
 

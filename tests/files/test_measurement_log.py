@@ -2,10 +2,8 @@
 
 from __future__ import annotations
 
-import errno
 import json
 import math
-import os
 
 import pytest
 from disk_faults import STEPS, install

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 from PySide6.QtCore import QObject, Signal
 
 from stereo_gui.core.measure import Reason
-from stereo_gui.files.spreadsheet import RULER_METHOD
+from stereo_gui.files.measurement_record import RULER_METHOD
 from stereo_gui.pipeline.readout import (
     MEASURABLE_VIEWS,
     PointerReading,

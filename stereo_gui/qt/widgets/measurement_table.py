@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 from PySide6.QtCore import QAbstractTableModel, QModelIndex, Qt
 from PySide6.QtGui import QBrush, QColor
 
-from stereo_gui.files.spreadsheet import RULER_METHOD, record_error
+from stereo_gui.files.measurement_record import RULER_METHOD, record_error
 
 if TYPE_CHECKING:
     from stereo_gui.qt.context import AppContext
