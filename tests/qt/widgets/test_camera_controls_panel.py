@@ -7,10 +7,10 @@ from __future__ import annotations
 
 import cv2
 import pytest
+from factories import make_calibration
 from fake_cameras import FakeCapture, FakeControlDevice
 
 import stereo_gui.sources.cameras as cameras
-from stereo_gui.core.camera_settings import CameraSettings, PairSettings
 from stereo_gui.pipeline.camera_setup import overlap_brightness
 from stereo_gui.qt.widgets.camera_controls import NO_CONTROLS, CameraControlsPanel
 from stereo_gui.sources.cameras import TwoCameraSource
@@ -90,9 +90,7 @@ def test_a_source_without_controls_says_so(qtbot, ctx, panel, array_source):
 
 
 def _calibration(src: SimSource, focus: float = TRUE_FOCUS):
-    held = CameraSettings("simulated", focus_auto=False, focus=focus, exposure_auto=False,
-                          exposure=150.0)
-    return src.rig.true_calibration().with_updates(camera_controls=PairSettings(held, held))
+    return make_calibration(rig=src.rig, focus=focus)
 
 
 def test_opening_the_cameras_restores_the_calibrations_controls(qtbot, ctx, panel):
