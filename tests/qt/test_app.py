@@ -7,14 +7,8 @@ import subprocess
 import sys
 
 import pytest
-from PySide6.QtCore import QObject, Signal
 
 from stereo_gui.qt.source_capabilities import simulated_rig
-
-
-class _Emitter(QObject):
-    ping = Signal()
-    value = Signal(object)
 
 
 def _env(tmp_path, **extra):
