@@ -1,4 +1,4 @@
-"""The application shell: start and auto-quit, the Qt binding's soundness, start-up arguments."""
+"""The application shell: start and auto-quit, start-up arguments."""
 
 from __future__ import annotations
 
