@@ -85,8 +85,7 @@ class CameraSetup(QObject):
         calib = self.ctx.calibration
 
         def task(source, frame):
-            get = getattr(source, "camera_controls", None)
-            pair = get() if get is not None else None
+            pair = source.camera_controls()
             if pair is None:
                 return None
             size = frame.size if frame is not None else None

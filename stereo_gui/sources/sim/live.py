@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.sources.base import FramePacer, StereoFrame
+from stereo_gui.sources.base import FramePacer, FrameSource, StereoFrame
 from stereo_gui.sources.camera_controls import PairControls
 from stereo_gui.sources.sim.controls import SimCameraDevice, sim_controls
 from stereo_gui.sources.sim.rig import SimFrameTruth, SimRig
@@ -24,7 +24,7 @@ def _interpolate_pose(p0: BoardPose, p1: BoardPose, f: float) -> BoardPose:
     return BoardPose(R, (1 - f) * p0.t + f * p1.t)
 
 
-class SimSource:
+class SimSource(FrameSource):
     """The simulated rig as a live frame source.
 
     mode "board": a board moving smoothly between poses in front of a plain background;
