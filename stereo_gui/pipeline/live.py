@@ -7,7 +7,6 @@ displayable uint8 image, so the UI thread only hands arrays to pyqtgraph. No Qt 
 from __future__ import annotations
 
 import logging
-import os
 import threading
 from dataclasses import dataclass
 
@@ -17,6 +16,7 @@ import numpy as np
 from stereo_gui.core.matching import (NO_MATCH_BGR, NOT_SEEN_BGR, MatcherParams,
                                      PipelineResult, StereoPipeline, colorize, paint)
 from stereo_gui.core.health import CalibrationHealth
+from stereo_gui.pipeline.concurrency import MAX_LANES, lanes_for  # noqa: F401 - re-exported
 from stereo_gui.pipeline.health import HealthMonitor
 from stereo_gui.pipeline.images import display_rgb
 from stereo_gui.pipeline.region import Region, RegionStats, region_stats
@@ -44,7 +44,6 @@ class LiveOutput:
 
 VIEW_KEYS = ("left", "right", "raw", "closed", "depth", "wls")  # the images a LiveOutput can hold
 DEFAULT_VIEWS = ("left", "raw", "depth", "wls")  # what the Live tab shows at first
-MAX_LANES = 2  # frames processed at once (the frame worker has as many lanes; measured on 2 CPUs)
 
 
 def _gray_disparity(disp_px: np.ndarray, lo: float, hi: float,
@@ -73,32 +72,8 @@ def _wls_picture(r: PipelineResult) -> np.ndarray:
 
 
 def frame_lanes(params: MatcherParams, cpus: int | None = None) -> int:
-    """How many frames the Live tab processes at once: one per CPU, at most MAX_LANES, when the
-    preset is `parallel` (one frame on each core: frames in flight share no work, so they keep
-    both cores busy without the hand-offs of splitting one frame); else 1."""
-    cpus = (os.cpu_count() or 1) if cpus is None else cpus
-    return max(1, min(MAX_LANES, cpus)) if params.parallel else 1
-
-
-def opencv_threads_beside_lanes(cpus: int | None = None) -> int:
-    """The OpenCV thread count the application runs with: the CPUs the frame lanes leave, plus
-    one (on 2 CPUs: 1, every OpenCV call in the thread that makes it, no pool of OpenCV's own).
-    The application's own threads use the cores (the frame lanes, the health check, the
-    detection pool); OpenCV's pool on top of them only added hand-offs and spinning: on 2 CPUs,
-    live at 640x480 in two lanes took 38 ms of CPU a frame (median of 8 runs) against 42 ms with
-    OpenCV's 2 threads, and detection and calibration of 40 rig pairs 0.86-0.92 s against
-    0.98-1.00 s. (More CPUs were not measured: there, the first lane to call OpenCV gets its pool
-    and the other runs its call in its own thread.)"""
-    cpus = (os.cpu_count() or 1) if cpus is None else cpus
-    return max(1, cpus - MAX_LANES + 1)
-
-
-def use_opencv_threads_beside_lanes() -> int:
-    """Set `opencv_threads_beside_lanes()` (`run_app`, and `bench` for the presets); return the
-    thread count set before."""
-    before = cv2.getNumThreads()
-    cv2.setNumThreads(opencv_threads_beside_lanes())
-    return before
+    """How many frames the Live tab processes at once for `params` (pipeline.concurrency)."""
+    return lanes_for(params.parallel, cpus)
 
 
 class LiveProcessor:

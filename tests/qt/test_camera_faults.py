@@ -37,26 +37,26 @@ def test_a_bad_frame_and_a_vanished_camera_in_the_window(qtbot, ctx, window, fak
     src.reconnect_interval_s = 0.2
     fake_cams.devices[1]["undecodable"] = (3,)
     window.use_source(src, SourceChoice("cams:0,1", (64, 48), False), cameras=IDENT)
-    qtbot.waitUntil(lambda: ctx.frames.frames_read > 5, timeout=30000)
+    qtbot.waitUntil(lambda: ctx.frames.status().frames_read > 5, timeout=30000)
     window._update_fps()
     assert window.camera_fps_label.text().endswith("fps, 1 bad frame skipped")
     assert window.source_label.text() == "Source: Cameras 0, 1"
     assert not window.error_bar.isVisible()
 
     unplug(fake_cams.devices, 1)
-    qtbot.waitUntil(lambda: ctx.frames.stream_state == "reconnecting", timeout=30000)
+    qtbot.waitUntil(lambda: ctx.frames.status().stream == "reconnecting", timeout=30000)
     qtbot.waitUntil(lambda: window.error_bar.isVisible(), timeout=30000)
     assert "Reconnecting to right camera 1 (Fake cam R [1234:0002])" in \
         window.error_bar.label.text()
     assert window.source_label.text() == "Source: Cameras 0, 1 (reconnecting…)"
     # no frame arrives: the rate shown falls to 0 instead of keeping the last one
-    qtbot.waitUntil(lambda: ctx.frames.fps_camera == 0.0, timeout=30000)
+    qtbot.waitUntil(lambda: ctx.frames.status().camera_fps == 0.0, timeout=30000)
     window._update_fps()
     assert window.camera_fps_label.text().startswith("Camera: 0.0 fps")
 
-    n = ctx.frames.frames_read
+    n = ctx.frames.status().frames_read
     fake_cams.devices[1] = {"value": 200, "period_s": 1 / 50}  # plugged in again
-    qtbot.waitUntil(lambda: ctx.frames.frames_read > n + 3, timeout=30000)
+    qtbot.waitUntil(lambda: ctx.frames.status().frames_read > n + 3, timeout=30000)
     qtbot.waitUntil(lambda: not window.error_bar.isVisible(), timeout=30000)
     assert window.source_label.text() == "Source: Cameras 0, 1"
     assert window.statusBar().currentMessage() == "Cameras 0, 1: frames again"
@@ -69,7 +69,7 @@ def test_a_newer_error_stays_when_the_stream_recovers(qtbot, ctx, window, fake_c
     src = TwoCameraSource(0, 1, size=(64, 48), identities=IDENT)
     src.reconnect_interval_s = 0.2
     window.use_source(src, SourceChoice("cams:0,1", (64, 48), False), cameras=IDENT)
-    qtbot.waitUntil(lambda: ctx.frames.frames_read > 2, timeout=30000)
+    qtbot.waitUntil(lambda: ctx.frames.status().frames_read > 2, timeout=30000)
     unplug(fake_cams.devices, 0)
     qtbot.waitUntil(lambda: window.error_bar.isVisible(), timeout=30000)
     ctx.report_error("Cannot save calibration x.yaml: permission denied")
@@ -83,9 +83,9 @@ def test_a_newer_error_stays_when_the_stream_recovers(qtbot, ctx, window, fake_c
 def test_a_source_that_stops_leaves_the_status_bar(qtbot, ctx, window, fake_cams):
     src = TwoCameraSource(0, 1, size=(64, 48), identities=IDENT)
     window.use_source(src, SourceChoice("cams:0,1", (64, 48), False), cameras=IDENT)
-    qtbot.waitUntil(lambda: ctx.frames.frames_read > 2, timeout=30000)
+    qtbot.waitUntil(lambda: ctx.frames.status().frames_read > 2, timeout=30000)
     fake_cams.devices[1]["size"] = (32, 24)  # a frame the other camera's size does not match
-    qtbot.waitUntil(lambda: ctx.frames.stream_state == "failed", timeout=30000)
+    qtbot.waitUntil(lambda: ctx.frames.status().stream == "failed", timeout=30000)
     qtbot.waitUntil(lambda: window.source_label.text() == "Source: none (Cameras 0, 1 stopped)",
                     timeout=30000)
     assert "different image sizes" in window.error_bar.label.text()

@@ -25,8 +25,9 @@ def test_a_queued_job_can_be_cancelled_a_running_one_not(qtbot):
     gate = threading.Event()
     ran = []
     try:
-        first = jobs.submit(lambda: gate.wait(30))
-        qtbot.waitUntil(lambda: jobs.is_busy() and not jobs._jobs, timeout=30000)
+        running = threading.Event()
+        first = jobs.submit(lambda: (running.set(), gate.wait(30))[1])
+        assert running.wait(30)
         second = jobs.submit(lambda: ran.append("second"))
         assert not jobs.cancel(first)  # running: it goes on
         assert jobs.cancel(second) and not jobs.cancel(second)
