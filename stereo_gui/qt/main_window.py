@@ -172,7 +172,9 @@ class MainWindow(QMainWindow):
         self._work_settled = False  # exports were cancelled for this close: do not wait again
         self._opening: tuple[SourceChoice, bool] = (self.source_choice, False)
         self._opening_id = 0
-        self._opener = JobRunner("source-opener", self)
+        # a source opened after the window closed is closed, not leaked
+        self._opener = JobRunner("source-opener", self,
+                                 dispose=lambda opened: _close_source(opened.source))
         self._opener.finished.connect(self._source_opened)
         self._opener.failed.connect(self._source_failed)
         ctx.register_worker(self._opener)

@@ -51,7 +51,7 @@ def _lower_thread_priority() -> None:
     while thread priorities do nothing under the default scheduler. Elsewhere the threads run
     at normal priority.
     """
-    if hasattr(os, "setpriority") and sys.platform.startswith("linux"):
+    if sys.platform.startswith("linux"):
         try:
             tid = threading.get_native_id()
             current = os.getpriority(os.PRIO_PROCESS, tid)
