@@ -105,7 +105,7 @@ def _quietly(fn, default=False):
 
 def is_simulated(source) -> bool:
     """Whether `source` renders the simulated rig (its frames are of no real scene)."""
-    return hasattr(getattr(source, "rig", None), "true_calibration")
+    return source.simulated_rig() is not None
 
 
 def _format_rms(value) -> str:

@@ -10,6 +10,8 @@ import numpy as np
 
 if TYPE_CHECKING:
     from stereo_gui.sources.camera_controls import PairControls
+    from stereo_gui.sources.playback import PlaybackSource
+    from stereo_gui.sources.sim.rig import SimRig
 
 
 @dataclass(frozen=True, eq=False)
@@ -58,6 +60,15 @@ class FrameSource(Protocol):
     def camera_controls(self) -> PairControls | None:
         """The two cameras' controls (only the thread that reads frames may use them), or None
         for a source without any (or while a camera is missing)."""
+        return None
+
+    def playback(self) -> PlaybackSource | None:
+        """The playback controls (pause, step, seek, loop) of a recording, or None."""
+        return None
+
+    def simulated_rig(self) -> SimRig | None:
+        """The simulated rig the frames are rendered by (its true calibration, the board it
+        shows, a camera turned on purpose), or None for frames of a real scene."""
         return None
 
 

@@ -96,9 +96,16 @@ class _SwappedSource(FrameSource):
     def close(self) -> None:
         self._inner.close()
 
+    # (the capabilities are forwarded explicitly: FrameSource's defaults would hide them)
     @property
-    def skipped_frames(self) -> int:  # (the class default would hide the inner source's)
+    def skipped_frames(self) -> int:
         return self._inner.skipped_frames
+
+    def playback(self):
+        return self._inner.playback()
+
+    def simulated_rig(self):
+        return self._inner.simulated_rig()
 
     def camera_controls(self):
         """The inner source's camera controls with left and right exchanged (None if none)."""

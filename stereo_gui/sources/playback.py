@@ -323,6 +323,9 @@ class PlaybackSource(FrameSource):
         return i % n if self._loop else min(max(i, 0), n - 1)
 
     # ---- FrameSource --------------------------------------------------------------------
+    def playback(self) -> PlaybackSource:
+        return self
+
     def read(self) -> StereoFrame:
         with self._cond:
             i = self._next_index()

@@ -211,8 +211,8 @@ class CaptureTab(SessionPairs, QWidget):
     def _show_board_on_sim(self, board: BoardSpec) -> None:
         """On the simulated rig, show the target chosen (it renders every target)."""
         src = self.ctx.frames.source()
-        rig = getattr(src, "rig", None) if src is not None else None
-        if rig is not None and hasattr(rig, "set_board") and rig.config.board != board:
+        rig = src.simulated_rig() if src is not None else None
+        if rig is not None and rig.config.board != board:
             rig.set_board(board)
 
     def open_target_dialog(self) -> None:

@@ -322,8 +322,8 @@ class LiveTab(QWidget):
         self.no_calib.use_true.setVisible(self._sim_rig() is not None)
 
     def _sim_rig(self):
-        rig = getattr(self.ctx.frames.source(), "rig", None)
-        return rig if hasattr(rig, "true_calibration") else None
+        src = self.ctx.frames.source()
+        return src.simulated_rig() if src is not None else None
 
     def use_true_calibration(self) -> bool:
         """On the simulated rig: use the calibration it was built with (clearly labelled)."""

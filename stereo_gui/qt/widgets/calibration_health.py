@@ -180,8 +180,7 @@ class CalibrationHealthPanel(QFrame):
     # ---- the simulated rig -----------------------------------------------------------------
     def _sim_rig(self):
         src = self.ctx.frames.source()
-        rig = getattr(src, "rig", None) if src is not None else None
-        return rig if hasattr(rig, "turn_right_camera") else None
+        return src.simulated_rig() if src is not None else None
 
     def _update_sim_row(self) -> None:
         rig = self._sim_rig()

@@ -26,7 +26,6 @@ from PySide6.QtWidgets import (
 
 log = logging.getLogger(__name__)
 
-_CONTROLS = ("frame_count", "position", "paused", "pause", "resume", "step", "seek", "set_loop")
 POLL_MS = 100
 SPEEDS = (0.25, 0.5, 1.0, 2.0, 4.0)  # playback speeds offered, times the recorded pace
 
@@ -61,13 +60,8 @@ class SeekSlider(QSlider):
 
 
 def playback_of(source):
-    """`source` if it is a playback source (pause/step/seek/loop), else None."""
-    if source is None:
-        return None
-    try:
-        return source if all(hasattr(source, a) for a in _CONTROLS) else None
-    except Exception:  # noqa: BLE001 - a property of a closed source may raise
-        return None
+    """The playback controls (pause/step/seek/loop) of `source`, a recording, or None."""
+    return source.playback() if source is not None else None
 
 
 class PlaybackBar(QWidget):
@@ -142,9 +136,9 @@ class PlaybackBar(QWidget):
         self.slider.setPageStep(max(1, n // 10))
         self.slider.blockSignals(False)
         self.loop_check.blockSignals(True)
-        self.loop_check.setChecked(bool(getattr(self._source, "loop", True)))
+        self.loop_check.setChecked(self._source.loop)
         self.loop_check.blockSignals(False)
-        self.speed_combo.setEnabled(hasattr(self._source, "set_speed"))
+        self.speed_combo.setEnabled(True)
         self._speed_chosen()  # a new recording plays at the speed chosen
         self._timer.start()
         self.refresh()

@@ -97,6 +97,9 @@ class SimSource(FrameSource):
         """The simulated cameras' controls (they answer as V4L2 webcams do)."""
         return PairControls(*self._controls)
 
+    def simulated_rig(self) -> SimRig:
+        return self.rig
+
     def read(self) -> StereoFrame:
         from stereo_gui.core.errors import SourceError
 
