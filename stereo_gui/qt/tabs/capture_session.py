@@ -90,7 +90,7 @@ class SessionPairs:
 
     def _camera_names(self) -> tuple[str, str]:
         src = self.ctx.frames.source()
-        name = getattr(src, "name", "") if src is not None else ""
+        name = src.name if src is not None else ""
         return (f"{name} left", f"{name} right") if name else ("left", "right")
 
     def new_session(self, folder: str | Path) -> None:

@@ -134,7 +134,7 @@ class CalibrationHealthPanel(QFrame):
         if self._worker is not None or calib is None or frame is None:
             return False
         src = self.ctx.frames.source()
-        name = getattr(src, "name", "") if src is not None else ""
+        name = src.name if src is not None else ""
         job = refine_job(calib, frame.left.copy(), frame.right.copy(),
                          f"frame {frame.index}" + (f" of {name}" if name else ""))
         w = JobWorker(job, "refine rectification")

@@ -194,7 +194,7 @@ class CameraSetup(QObject):
             if frame is None:
                 return setup.MatchStep(float("nan"), True, "no frame to measure")
             limit = setup.exposure_limit(pair.right.read_one("exposure"),
-                                         float(getattr(source, "nominal_fps", 0.0) or 0.0))
+                                         float(source.nominal_fps))
             out = setup.exposure_match_step(pair, frame.left, frame.right, limit)
             return out, setup.read_controls(pair, calib, size)
 
