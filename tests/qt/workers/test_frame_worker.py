@@ -203,6 +203,23 @@ def test_pause_stops_processing(qtbot, worker, array_source):
     qtbot.waitUntil(lambda: worker.status().frames_processed > n + 2, timeout=30000)
 
 
+def test_the_status_is_one_frozen_snapshot(qtbot, worker, array_source):
+    import dataclasses
+
+    assert worker.status().source_name == "" and worker.status().frames_read == 0
+    worker.set_processor(lambda f: None)
+    worker.set_source(array_source())
+    qtbot.waitUntil(lambda: worker.status().frames_processed >= 3, timeout=30000)
+    s = worker.status()
+    assert s.source_name == "test pair" and s.stream is StreamState.OK and not s.paused
+    assert s.frames_read >= s.frames_processed >= 3 and s.pending_frames in (0, 1)
+    assert s.skipped_frames == 0 and s.camera_fps > 0
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        s.frames_read = 0  # type: ignore[misc]
+    worker.pause()
+    assert worker.status().paused and not s.paused  # a new snapshot; the old one stays
+
+
 def test_stop_joins_quickly_and_can_restart(qtbot, worker, array_source):
     worker.set_source(array_source(fps=30))
     qtbot.waitUntil(lambda: worker.status().frames_processed > 0, timeout=30000)
@@ -234,12 +251,18 @@ def test_a_blocked_read_is_reported_and_a_new_source_does_not_wait_for_it(
 
     w = FrameWorker()
     stuck = Stuck()
+    states = []
+    w.streamStatus.connect(states.append)
     try:
         with qtbot.waitSignal(w.errorOccurred, timeout=10000) as sig:
             w.set_source(stuck)
         assert "stuck camera" in sig.args[0] and "not answering" in sig.args[0]
+        qtbot.waitUntil(lambda: bool(states), timeout=10000)
+        assert (states[0].state, states[0].source_name) == (StreamState.STALLED, "stuck camera")
+        assert w.status().stream is StreamState.STALLED
         w.set_source(array_source())
         qtbot.waitUntil(lambda: w.status().frames_read >= 3, timeout=30000)  # read by a new reader
+        assert w.status().stream is StreamState.OK and states[-1].message == ""  # another source
         assert not stuck.closed  # never closed under its own blocked read
         release.set()
         qtbot.waitUntil(lambda: stuck.closed, timeout=10000)  # by the reader left behind
