@@ -106,7 +106,8 @@ class LiveProcessor:
 
     @property
     def lanes(self) -> int:
-        """How many calls may run at once (the frame worker reads it before each frame)."""
+        """How many calls may run at once (the Live tab gives it to the frame worker with the
+        processor)."""
         with self._lock:
             return self._lanes
 

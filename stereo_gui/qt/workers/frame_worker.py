@@ -382,14 +382,12 @@ class FrameWorker(QObject):
     def set_processor(self, fn: Processor | None, lanes: int = 1) -> None:
         """Run `fn(frame)` on every frame from the next one on (None: frames pass unprocessed),
         at most `lanes` frames at once (in as many lanes; at most LANES). Calling it again with
-        the same `fn` changes only `lanes`."""
+        the same `fn` keeps its newest result; its error, if it fails, is said again."""
         with self._lanes_cv:
-            changed = fn is not self._processor
             self._processor = fn
             self._lane_count = max(1, min(LANES, int(lanes)))
             self._lanes_cv.notify_all()
-        if changed:
-            self._stream.forget_said()
+        self._stream.forget_said()
 
     def processor(self) -> Processor | None:
         with self._lanes_cv:
