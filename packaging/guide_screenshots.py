@@ -78,7 +78,7 @@ def main(argv: list[str]) -> int:
 
     # 1. start-up: automatic source (the simulated rig here), no calibration yet
     wait_for("the first frames", lambda: ctx.frames.source() is not None and
-             ctx.frames.fps_camera > 0)
+             ctx.frames.status().camera_fps > 0)
     pump(2.0)
     shot("start")
 
