@@ -16,7 +16,7 @@ import numpy as np
 from stereo_gui.core.matching import (NO_MATCH_BGR, NOT_SEEN_BGR, MatcherParams,
                                      PipelineResult, StereoPipeline, colorize, paint)
 from stereo_gui.core.health import CalibrationHealth
-from stereo_gui.pipeline.concurrency import MAX_LANES, lanes_for  # noqa: F401 - re-exported
+from stereo_gui.pipeline.concurrency import lanes_for
 from stereo_gui.pipeline.health import HealthMonitor
 from stereo_gui.pipeline.images import display_rgb
 from stereo_gui.pipeline.region import Region, RegionStats, region_stats

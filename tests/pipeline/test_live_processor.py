@@ -108,7 +108,8 @@ def test_only_the_views_shown_are_made_and_the_right_image_is_gray_unless_shown(
 
 
 def test_lanes_follow_the_parallel_setting_and_the_cpus():
-    from stereo_gui.pipeline.live import MAX_LANES, frame_lanes
+    from stereo_gui.pipeline.concurrency import MAX_LANES
+    from stereo_gui.pipeline.live import frame_lanes
 
     on, off = MatcherParams(parallel=True), MatcherParams(parallel=False)
     assert frame_lanes(on, cpus=2) == 2 and frame_lanes(on, cpus=8) == MAX_LANES

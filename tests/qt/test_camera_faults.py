@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 from fake_cameras import FakeCapture, unplug
 
-import stereo_gui.qt.workers.frame_worker as frame_worker
+import stereo_gui.qt.workers.frame_status as frame_status
 import stereo_gui.sources.cameras as cameras
 from stereo_gui.qt.dialogs.source_dialog import SourceChoice
 from stereo_gui.sources.cameras import CameraInfo, TwoCameraSource
@@ -28,7 +28,7 @@ def fake_cams(monkeypatch):
                 for i in sorted(FakeCapture.devices) if i in (0, 1)]
 
     monkeypatch.setattr(cameras, "list_cameras", listed)
-    monkeypatch.setattr(frame_worker, "RATE_STALE_S", 0.3)  # the test need not wait 2 s
+    monkeypatch.setattr(frame_status, "RATE_STALE_S", 0.3)  # the test need not wait 2 s
     return FakeCapture
 
 

@@ -379,9 +379,9 @@ def test_a_source_that_fails_is_dropped_by_name(qtbot, worker, array_source):
 def test_the_rate_falls_to_zero_when_no_frame_arrives(qtbot, worker, array_source,
                                                      monkeypatch):
     """A read that does not return must not keep showing the last rate."""
-    import stereo_gui.qt.workers.frame_worker as fw
+    import stereo_gui.qt.workers.frame_status as fs
 
-    monkeypatch.setattr(fw, "RATE_STALE_S", 0.3)  # the test need not wait 2 s
+    monkeypatch.setattr(fs, "RATE_STALE_S", 0.3)  # the test need not wait 2 s
     release = threading.Event()
     inner = array_source(fps=100)
 
