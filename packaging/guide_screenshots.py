@@ -78,7 +78,7 @@ def main(argv: list[str]) -> int:
 
     # 1. start-up: automatic source (the simulated rig here), no calibration yet
     wait_for("the first frames", lambda: ctx.frames.source() is not None and
-             ctx.frames.fps_camera > 0)
+             ctx.frames.status().camera_fps > 0)
     pump(2.0)
     shot("start")
 
@@ -182,8 +182,8 @@ def main(argv: list[str]) -> int:
 
     # 7. regression: a flat target at known distances (the simulated walls, played back as
     #    recorded folders), two readings on each, the true distance typed into the log
-    from stereo_gui.qt.widgets.measurement_table import TRUE_COL
     from stereo_gui.qt.dialogs.source_dialog import SourceChoice
+    from stereo_gui.qt.widgets.measurement_table import TRUE_COL
 
     walls = work / "walls"
     simulate.run(p.parse_args([str(walls), "--pairs", "1", "--scene"]))
@@ -236,7 +236,6 @@ def main(argv: list[str]) -> int:
 def _pick_points(valid, disp_px) -> dict[str, list[tuple[float, float]]]:
     """Pixels to click for the pictures: two valid points at different distances, one point
     with no match (to show how an invalid reading looks), and a ruler pair on valid pixels."""
-    import numpy as np
 
     h, w = valid.shape
     good = []

@@ -36,11 +36,11 @@ def main(argv: list[str] | None = None) -> int:
     from PySide6.QtCore import QElapsedTimer, Qt, QTimer
     from PySide6.QtWidgets import QApplication
 
+    from stereo_gui.pipeline.concurrency import use_opencv_threads_beside_lanes
     from stereo_gui.qt.app import configure_pyqtgraph, freeze_startup_objects
     from stereo_gui.qt.context import AppContext
-    from stereo_gui.qt.main_window import MainWindow
     from stereo_gui.qt.dialogs.source_dialog import SourceChoice
-    from stereo_gui.pipeline.live import use_opencv_threads_beside_lanes
+    from stereo_gui.qt.main_window import MainWindow
     from stereo_gui.sources.open import open_source
 
     use_opencv_threads_beside_lanes()  # as run_app does first
@@ -85,8 +85,8 @@ def main(argv: list[str] | None = None) -> int:
     cam_fps, proc_fps = [], []
 
     def sample_fps() -> None:
-        cam_fps.append(ctx.frames.fps_camera)
-        proc_fps.append(ctx.frames.fps_processing)
+        cam_fps.append(ctx.frames.status().camera_fps)
+        proc_fps.append(ctx.frames.status().processing_fps)
 
     fps_timer = QTimer()
     fps_timer.setInterval(500)

@@ -169,7 +169,7 @@ def bench_preset(calib, params, left, right, frames: int, warmup: int = 2,
     health check keeps its own schedule over several calls), else one made and closed here."""
     import cv2
 
-    from stereo_gui.pipeline.live import use_opencv_threads_beside_lanes
+    from stereo_gui.pipeline.concurrency import use_opencv_threads_beside_lanes
     from stereo_gui.sources.base import StereoFrame
 
     frame = StereoFrame(left, right, 0.0, 0.0, 0)
@@ -236,7 +236,7 @@ def run_bench(args) -> dict:
     source, calib, left, right = _input(args)
     import cv2
 
-    from stereo_gui.pipeline.live import opencv_threads_beside_lanes
+    from stereo_gui.pipeline.concurrency import opencv_threads_beside_lanes
 
     out = {"source": source, "size": list(calib.image_size), "frames": args.frames,
            "rounds": rounds, "cv_threads": cv2.getNumThreads(), "reference": REFERENCE,

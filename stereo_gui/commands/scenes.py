@@ -49,7 +49,7 @@ def run_scenes(list_path, presets=("live", "quality"), repeat: int = 1) -> dict:
     from stereo_gui.core.stereo_calibration import StereoCalibration
     from stereo_gui.files.presets import load_preset
     from stereo_gui.files.scenes import load_scene, read_scene_list
-    from stereo_gui.pipeline.live import use_opencv_threads_beside_lanes
+    from stereo_gui.pipeline.concurrency import use_opencv_threads_beside_lanes
 
     if not 1 <= repeat <= 100:
         raise InputError(f"--frames must be between 1 and 100 with --scenes, not {repeat}")

@@ -25,7 +25,6 @@ import threading
 import time
 import types
 from collections.abc import Mapping
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import cv2
@@ -539,9 +538,10 @@ def _rows_contiguous(a: np.ndarray) -> bool:
 class StereoPipeline:
     """Turns raw stereo frames into `PipelineResult`s for one calibration and preset.
 
-    Not for concurrent use by several threads; `set_params` may be called from any thread and
-    takes effect with the next frame. A `parallel` preset owns one helper thread: call `close()`
-    (or use the pipeline as a context manager) when done.
+    Runs a frame's stages one after the other in the calling thread (frames in flight are the
+    parallelism, pipeline.concurrency), so it is not for use by several threads at once;
+    `set_params` may be called from any thread and takes effect with the next frame. `close()`
+    (or the pipeline as a context manager) ends its use.
     """
 
     def __init__(self, calibration: StereoCalibration,
@@ -552,7 +552,6 @@ class StereoPipeline:
         self._preset = Preset.of(params)
         self._params = self._preset.matcher
         self._maps = None if calibration.method == "identity" else calibration.rectify_maps()
-        self._executor: ThreadPoolExecutor | None = None
         self._build()
 
     # ---- configuration -------------------------------------------------------------------
@@ -567,14 +566,7 @@ class StereoPipeline:
             self._pending = Preset.of(params)
 
     def close(self) -> None:
-        if self._executor is not None:
-            self._executor.shutdown(wait=True)
-            self._executor = None
-
-    def __del__(self) -> None:
-        ex = getattr(self, "_executor", None)
-        if ex is not None:
-            ex.shutdown(wait=False)
+        """Nothing to release today; kept so that callers end a pipeline's use explicitly."""
 
     def __enter__(self) -> StereoPipeline:
         return self
@@ -627,11 +619,6 @@ class StereoPipeline:
             self._wls.setSigmaColor(float(p.wls_sigma))
         self._kernel = (np.ones((p.closing_kernel, p.closing_kernel), np.uint8)
                         if p.closing_kernel > 1 else None)
-        if threads.parallel and self._executor is None:
-            self._executor = ThreadPoolExecutor(1, thread_name_prefix="stereo-right")
-        elif not threads.parallel and self._executor is not None:
-            self._executor.shutdown(wait=True)
-            self._executor = None
 
     @property
     def edge_margin_px(self) -> float:
@@ -666,10 +653,6 @@ class StereoPipeline:
             return left_bgr, right_bgr
         m = self._maps
         interp = INTERPOLATIONS[self._params.remap_interpolation]
-        if self._executor is not None:
-            fut = self._executor.submit(cv2.remap, right_bgr, m.right_x, m.right_y, interp)
-            rl = cv2.remap(left_bgr, m.left_x, m.left_y, interp)
-            return rl, fut.result()
         rl = cv2.remap(left_bgr, m.left_x, m.left_y, interp)
         rr = cv2.remap(right_bgr, m.right_x, m.right_y, interp)
         return rl, rr
@@ -686,21 +669,13 @@ class StereoPipeline:
         (`unseen_mask`); black never resembles texture, so they are rare.
         """
         pad = self._min_s + self._num_s if self._params.full_frame else 0
-        jobs = []
-        if self._second is not None:
-            jobs.append(lambda: compute_padded(self._second, ml, mr, pad, "left"))
+        d16 = compute_padded(self._left, ml, mr, pad, "left")
+        d16_second = (compute_padded(self._second, ml, mr, pad, "left")
+                      if self._second is not None else None)
+        d16_right = None
         if right and self._right is not None:
             match_right = self._match_right if self._check is not None else compute_padded
-            jobs.append(lambda: match_right(self._right, mr, ml, pad, "right"))
-        if self._executor is not None and jobs:
-            fut = self._executor.submit(lambda: [job() for job in jobs])
-            d16 = compute_padded(self._left, ml, mr, pad, "left")
-            others = fut.result()
-        else:
-            d16 = compute_padded(self._left, ml, mr, pad, "left")
-            others = [job() for job in jobs]
-        d16_second = others.pop(0) if self._second is not None else None
-        d16_right = others.pop(0) if others else None
+            d16_right = match_right(self._right, mr, ml, pad, "right")
         return d16, d16_second, d16_right
 
     def _match_right(self, matcher, mr: np.ndarray, ml: np.ndarray, pad: int, side: str

@@ -7,16 +7,24 @@ displayable uint8 image, so the UI thread only hands arrays to pyqtgraph. No Qt 
 from __future__ import annotations
 
 import logging
-import os
 import threading
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
-from stereo_gui.core.matching import (NO_MATCH_BGR, NOT_SEEN_BGR, MatcherParams,
-                                     PipelineResult, Preset, StereoPipeline, colorize, paint)
 from stereo_gui.core.health import CalibrationHealth
+from stereo_gui.core.matching import (
+    NO_MATCH_BGR,
+    NOT_SEEN_BGR,
+    MatcherParams,
+    PipelineResult,
+    Preset,
+    StereoPipeline,
+    colorize,
+    paint,
+)
+from stereo_gui.pipeline.concurrency import lanes_for
 from stereo_gui.pipeline.health import HealthMonitor
 from stereo_gui.pipeline.images import display_rgb
 from stereo_gui.pipeline.region import Region, RegionStats, region_stats
@@ -44,7 +52,6 @@ class LiveOutput:
 
 VIEW_KEYS = ("left", "right", "raw", "closed", "depth", "wls")  # the images a LiveOutput can hold
 DEFAULT_VIEWS = ("left", "raw", "depth", "wls")  # what the Live tab shows at first
-MAX_LANES = 2  # frames processed at once (the frame worker has as many lanes; measured on 2 CPUs)
 
 
 def _gray_disparity(disp_px: np.ndarray, lo: float, hi: float,
@@ -74,30 +81,8 @@ def _wls_picture(r: PipelineResult) -> np.ndarray:
 
 
 def frame_lanes(params: Preset | MatcherParams, cpus: int | None = None) -> int:
-    """How many frames the Live tab processes at once: one per CPU, at most MAX_LANES, when the
-    preset is `parallel` (one frame on each core: frames in flight share no work, so they keep
-    both cores busy without the hand-offs of splitting one frame); else 1."""
-    cpus = (os.cpu_count() or 1) if cpus is None else cpus
-    return max(1, min(MAX_LANES, cpus)) if Preset.of(params).threads.parallel else 1
-
-
-def opencv_threads_beside_lanes(cpus: int | None = None) -> int:
-    """The OpenCV thread count the application runs with: the CPUs the frame lanes leave, plus
-    one (on 2 CPUs: 1, every OpenCV call in the thread that makes it, no pool of OpenCV's own).
-    The application's own threads use the cores (the frame lanes, the health check, the
-    detection pool); OpenCV's pool on top of them only adds hand-offs and spinning, both in the
-    live lanes and in detection and calibration. (With more CPUs the first lane to call OpenCV
-    gets its pool and the other runs its call in its own thread.)"""
-    cpus = (os.cpu_count() or 1) if cpus is None else cpus
-    return max(1, cpus - MAX_LANES + 1)
-
-
-def use_opencv_threads_beside_lanes() -> int:
-    """Set `opencv_threads_beside_lanes()` (`run_app`, and `bench` for the presets); return the
-    thread count set before."""
-    before = cv2.getNumThreads()
-    cv2.setNumThreads(opencv_threads_beside_lanes())
-    return before
+    """How many frames the Live tab processes at once for `params` (pipeline.concurrency)."""
+    return lanes_for(Preset.of(params).threads.parallel, cpus)
 
 
 class LiveProcessor:
@@ -117,7 +102,7 @@ class LiveProcessor:
         params = Preset.of(params)
         self.calibration = calibration
         self._lock = threading.Lock()
-        self._lane_params = _one_lane(params)  # what each lane's pipeline runs (made once)
+        self._lane_params = params  # what each lane's pipeline runs
         self._lanes = frame_lanes(params)
         self._idle: list[StereoPipeline] = []  # pipelines for frames of self._size, not in use
         self._busy: set[StereoPipeline] = set()
@@ -131,7 +116,8 @@ class LiveProcessor:
 
     @property
     def lanes(self) -> int:
-        """How many calls may run at once (the frame worker reads it before each frame)."""
+        """How many calls may run at once (the Live tab gives it to the frame worker with the
+        processor)."""
         with self._lock:
             return self._lanes
 
@@ -146,7 +132,7 @@ class LiveProcessor:
     def set_params(self, params: Preset | MatcherParams) -> None:
         params = Preset.of(params)
         with self._lock:
-            self._lane_params = lane = _one_lane(params)
+            self._lane_params = lane = params
             self._lanes = frame_lanes(params)
             for pipeline in (*self._idle, *self._busy):
                 pipeline.set_params(lane)
@@ -238,9 +224,3 @@ class LiveProcessor:
             idle, self._idle = self._idle, []
         for pipeline in idle:
             pipeline.close()
-
-
-def _one_lane(params: Preset) -> Preset:
-    """The parameters a lane's pipeline runs: a frame's stages one after the other."""
-    return params.replace(parallel=False) if params.threads.parallel else params
-

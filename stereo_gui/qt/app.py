@@ -142,7 +142,7 @@ def run_app(source: str | None = None, calib: str | None = None) -> int:
     from PySide6.QtCore import QTimer
     from PySide6.QtWidgets import QApplication
 
-    from stereo_gui.pipeline.live import use_opencv_threads_beside_lanes
+    from stereo_gui.pipeline.concurrency import use_opencv_threads_beside_lanes
 
     use_opencv_threads_beside_lanes()  # our threads (the frame lanes first) share the cores
     quit_after = quit_after_seconds()

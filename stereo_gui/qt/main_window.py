@@ -181,7 +181,9 @@ class MainWindow(QMainWindow):
         self._close = CloseState()
         self._opening: tuple[SourceChoice, bool] = (self.source_choice, False)
         self._opening_id = 0
-        self._opener = JobRunner("source-opener", self)
+        # a source opened after the window closed is closed, not leaked
+        self._opener = JobRunner("source-opener", self,
+                                 dispose=lambda opened: _close_source(opened.source))
         self._opener.finished.connect(self._source_opened)
         self._opener.failed.connect(self._source_failed)
         ctx.workers.register(self._opener)
@@ -426,8 +428,7 @@ class MainWindow(QMainWindow):
             return
         choice, fallback = self._opening
         self.ctx.report_error(f"Cannot open the source {describe_spec(choice.spec)}: {message}")
-        current = self.ctx.frames.source()
-        self._update_source_label(current.name if current is not None else "")
+        self._update_source_label(self.ctx.frames.status().source_name)
         if fallback and choice.spec != "auto":
             self.open_source(SourceChoice("auto", choice.size, choice.swap))
 
@@ -489,23 +490,23 @@ class MainWindow(QMainWindow):
 
     def _update_fps(self) -> None:
         self._update_recording_label()
-        f = self.ctx.frames
-        if f.paused:
+        s = self.ctx.frames.status()
+        if s.paused:
             self.camera_fps_label.setText("Camera: paused")
             self.processing_fps_label.setText("Processing: paused")
             return
-        playback = playback_of(f.source())
+        playback = playback_of(self.ctx.frames.source())
         if playback is not None and _quietly(lambda: bool(playback.paused)):
             # the reader re-delivers the paused frame: its rate is no camera's
             self.camera_fps_label.setText("Playback: paused")
-            self.processing_fps_label.setText(f"Processing: {f.fps_processing:.1f} fps")
+            self.processing_fps_label.setText(f"Processing: {s.processing_fps:.1f} fps")
             return
-        skipped = f.skipped_frames
-        self.camera_fps_label.setText(f"Camera: {f.fps_camera:.1f} fps" + (
+        skipped = s.skipped_frames
+        self.camera_fps_label.setText(f"Camera: {s.camera_fps:.1f} fps" + (
             f", {skipped} bad frame{'s' if skipped != 1 else ''} skipped" if skipped else ""))
         self.camera_fps_label.setToolTip("Frames that could not be decoded are left out"
                                          if skipped else "")
-        self.processing_fps_label.setText(f"Processing: {f.fps_processing:.1f} fps")
+        self.processing_fps_label.setText(f"Processing: {s.processing_fps:.1f} fps")
 
     # ---- calibration files -------------------------------------------------------------------
     def _update_calibration_label(self, *_args) -> None:

@@ -4,9 +4,14 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from stereo_gui.sources.camera_controls import PairControls
+    from stereo_gui.sources.playback import PlaybackSource
+    from stereo_gui.sources.sim.rig import SimRig
 
 
 @dataclass(frozen=True, eq=False)
@@ -32,18 +37,39 @@ class StereoFrame:
 
 @runtime_checkable
 class FrameSource(Protocol):
-    """A source of stereo frames. `read()` blocks until the next frame (or raises SourceError).
+    """What a source of stereo frames offers the frame worker and the window.
 
-    Sources are used from one worker thread at a time; `close()` releases devices and may be
-    called more than once.
+    Every source has a `name`, a `nominal_fps`, `read()` (blocks until the next frame; raises
+    SourceError when it cannot give one, SourceUnavailable while a vanished device is looked for
+    again) and `close()` (releases devices; may be called more than once). Sources are used from
+    one worker thread at a time.
+
+    The optional capabilities are members too, so that nobody has to probe for them: a source
+    states them by deriving from FrameSource (which gives the "has none" answers below) and
+    overriding what it has.
     """
 
     name: str  # what the status bar shows, e.g. "Simulated rig" or "Cameras 0, 1"
     nominal_fps: float  # the rate the source is meant to deliver, frames per second
+    skipped_frames: int = 0  # frames it could not decode and left out (0: it does not count)
 
     def read(self) -> StereoFrame: ...
 
     def close(self) -> None: ...
+
+    def camera_controls(self) -> PairControls | None:
+        """The two cameras' controls (only the thread that reads frames may use them), or None
+        for a source without any (or while a camera is missing)."""
+        return None
+
+    def playback(self) -> PlaybackSource | None:
+        """The playback controls (pause, step, seek, loop) of a recording, or None."""
+        return None
+
+    def simulated_rig(self) -> SimRig | None:
+        """The simulated rig the frames are rendered by (its true calibration, the board it
+        shows, a camera turned on purpose), or None for frames of a real scene."""
+        return None
 
 
 class FramePacer:

@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.errors import SourceError, SourceUnavailable
-from stereo_gui.sources.base import FramePacer, StereoFrame
+from stereo_gui.sources.base import FramePacer, FrameSource, StereoFrame
 
 log = logging.getLogger(__name__)
 
@@ -279,7 +279,7 @@ class _Camera:
                 pass
 
 
-class _CameraSource:
+class _CameraSource(FrameSource):
     """What the camera sources share: bad frames skipped and counted, and cameras that come back.
 
     A frame that cannot be decoded is skipped (`skipped_frames` counts them) and the next one
@@ -482,7 +482,7 @@ def split_side_by_side(frame: np.ndarray, swap: bool = False) -> tuple[np.ndarra
     return (b, a) if swap else (a, b)
 
 
-class _SideBySideCapture:
+class _SideBySideCapture(FrameSource):
     """What the sources reading side-by-side frames from one cv2.VideoCapture share."""
 
     _cap: cv2.VideoCapture | None

@@ -80,7 +80,7 @@ def parse_source_spec(spec: str | None) -> SourceSpec:
                      f"{SPEC_HELP}")
 
 
-class _SwappedSource:
+class _SwappedSource(FrameSource):
     """Wraps a source so that its left and right images trade places (other attributes, e.g.
     a playback source's pause/step, pass through)."""
 
@@ -96,10 +96,20 @@ class _SwappedSource:
     def close(self) -> None:
         self._inner.close()
 
+    # (the capabilities are forwarded explicitly: FrameSource's defaults would hide them)
+    @property
+    def skipped_frames(self) -> int:
+        return self._inner.skipped_frames
+
+    def playback(self):
+        return self._inner.playback()
+
+    def simulated_rig(self):
+        return self._inner.simulated_rig()
+
     def camera_controls(self):
         """The inner source's camera controls with left and right exchanged (None if none)."""
-        inner = getattr(self._inner, "camera_controls", None)
-        pair = inner() if inner is not None else None
+        pair = self._inner.camera_controls()
         if pair is None:
             return None
         from stereo_gui.sources.camera_controls import PairControls

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from stereo_gui.core.errors import SourceError, StereoGuiError
-from stereo_gui.sources.base import StereoFrame
+from stereo_gui.sources.base import FrameSource, StereoFrame
 
 log = logging.getLogger(__name__)
 
@@ -120,7 +120,7 @@ class _VideoStore:
 
 
 # ---- the source -----------------------------------------------------------------------------
-class PlaybackSource:
+class PlaybackSource(FrameSource):
     """A recording, a folder of pairs or a side-by-side video as a FrameSource (see module doc).
 
     `fps` overrides the recorded timing (frames per second); `paced=False` returns frames as fast
@@ -323,6 +323,9 @@ class PlaybackSource:
         return i % n if self._loop else min(max(i, 0), n - 1)
 
     # ---- FrameSource --------------------------------------------------------------------
+    def playback(self) -> PlaybackSource:
+        return self
+
     def read(self) -> StereoFrame:
         with self._cond:
             i = self._next_index()

@@ -42,7 +42,8 @@ def test_bench_runs_a_parallel_preset_in_the_frame_lanes_and_restores_opencv(fil
     import cv2
 
     from stereo_gui.files.presets import load_preset
-    from stereo_gui.pipeline.live import frame_lanes, opencv_threads_beside_lanes
+    from stereo_gui.pipeline.concurrency import opencv_threads_beside_lanes
+    from stereo_gui.pipeline.live import frame_lanes
 
     before = cv2.getNumThreads()
     assert main(["bench", "--calib", str(files / "c.yaml"), str(files / "l.png"),

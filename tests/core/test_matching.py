@@ -215,22 +215,6 @@ def test_final_output_is_never_worse_than_the_seeds_raw_sgbm_on_middlebury(share
             assert final.bad < raw.bad, (pair, preset, final, raw)
 
 
-def test_switching_parallel_off_stops_the_helper_thread():
-    import threading
-
-    left, right = textured_pair()
-    base = MatcherParams(min_disparity=0, num_disparities=32)
-    before = set(threading.enumerate())
-    pipe = StereoPipeline(calib(), Preset(matcher=base, threads=ThreadParams(parallel=True)))
-    pipe.process(left, right)
-    helpers = [t for t in set(threading.enumerate()) - before if t.name.startswith("stereo-right")]
-    assert helpers
-    pipe.set_params(base)
-    pipe.process(left, right)
-    assert not any(t.is_alive() for t in helpers)
-    pipe.close()
-
-
 @pytest.mark.parametrize("kind, far, near", [("distance", 3000.0, 500.0),
                                              ("disparity", 20.0, 160.0)])
 def test_colorize_paints_the_levels_of_its_scale(kind, far, near):

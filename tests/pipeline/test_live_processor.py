@@ -108,7 +108,8 @@ def test_only_the_views_shown_are_made_and_the_right_image_is_gray_unless_shown(
 
 
 def test_lanes_follow_the_parallel_setting_and_the_cpus():
-    from stereo_gui.pipeline.live import MAX_LANES, frame_lanes
+    from stereo_gui.pipeline.concurrency import MAX_LANES
+    from stereo_gui.pipeline.live import frame_lanes
 
     on, off = Preset().replace(parallel=True), Preset()
     assert frame_lanes(on, cpus=2) == 2 and frame_lanes(on, cpus=8) == MAX_LANES
@@ -165,7 +166,6 @@ def test_two_frames_at_once_each_get_a_pipeline_and_the_result_of_one_at_a_time(
         expected = alone(frame).result.final_px
         outs = two_at_once()
         assert len(used) == 2 and used[0] is not used[1]
-        assert all(not p.params.threads.parallel for p in used)  # the lanes are the parallelism
         for out in outs:
             np.testing.assert_array_equal(out.result.final_px, expected)
         first = set(used)

@@ -8,10 +8,10 @@ import time
 import numpy as np
 import pytest
 
-from stereo_gui.sources.base import StereoFrame
+from stereo_gui.sources.base import FrameSource, StereoFrame
 
 
-class ArraySource:
+class ArraySource(FrameSource):
     """A frame source that repeats one stereo pair (made in the test), optionally paced.
 
     Sources are real FrameSource implementations; this one exists because tests need a source

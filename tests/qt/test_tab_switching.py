@@ -13,8 +13,8 @@ def _board_source(sim_rig):
 
 def _frames_pass(qtbot, ctx, n=3):
     """Wait until `n` more frames went through the worker (the tab shown sees them)."""
-    done = ctx.frames.frames_processed
-    qtbot.waitUntil(lambda: ctx.frames.frames_processed >= done + n, timeout=30000)
+    done = ctx.frames.status().frames_processed
+    qtbot.waitUntil(lambda: ctx.frames.status().frames_processed >= done + n, timeout=30000)
 
 
 def test_capture_goes_live_again_after_the_calibration_tab(qtbot, ctx, window, sim_rig):

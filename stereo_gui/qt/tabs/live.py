@@ -275,7 +275,8 @@ class LiveTab(QWidget):
 
     def _install_processor(self) -> None:
         if self._active:
-            self.ctx.frames.set_processor(self._processor)
+            p = self._processor
+            self.ctx.frames.set_processor(p, lanes=p.lanes if p is not None else 1)
 
     def _retire(self, processor: LiveProcessor | None) -> None:
         """Off the frame worker (if still on it) and closed: its pipelines and health thread
@@ -336,6 +337,7 @@ class LiveTab(QWidget):
     def _params_changed(self, params: Preset) -> None:
         if self._processor is not None:
             self._processor.set_params(params)
+            self._install_processor()  # (how many frames it may take at once may change)
         if not params.name.endswith(MODIFIED):
             self.ctx.settings_model.update(preset=params.name)
 

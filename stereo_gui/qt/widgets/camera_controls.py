@@ -32,7 +32,6 @@ from PySide6.QtWidgets import (
 
 from stereo_gui.core.camera_settings import PairSettings
 from stereo_gui.pipeline import camera_setup as setup
-from stereo_gui.qt.source_capabilities import camera_controls_of
 from stereo_gui.sources.camera_controls import ControlReading
 
 if TYPE_CHECKING:
@@ -90,7 +89,7 @@ class CameraSetup(QObject):
         calib = self.ctx.calibration
 
         def task(source, frame):
-            pair = camera_controls_of(source)
+            pair = source.camera_controls()
             if pair is None:
                 return None
             size = frame.size if frame is not None else None
@@ -199,7 +198,7 @@ class CameraSetup(QObject):
             if frame is None:
                 return setup.MatchStep(float("nan"), True, "no frame to measure")
             limit = setup.exposure_limit(pair.right.read_one("exposure"),
-                                         float(source.nominal_fps or 0.0))
+                                         float(source.nominal_fps))
             out = setup.exposure_match_step(pair, frame.left, frame.right, limit)
             return out, setup.read_controls(pair, calib, size)
 

@@ -25,14 +25,13 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from stereo_gui.qt.source_capabilities import PlaybackSource, playback_of
+from stereo_gui.qt.source_capabilities import playback_of
 
 if TYPE_CHECKING:
     from stereo_gui.qt.context import AppContext
+    from stereo_gui.sources.playback import PlaybackSource
 
 log = logging.getLogger(__name__)
-
-__all__ = ["PlaybackBar", "playback_of"]
 
 POLL_MS = 100
 SPEEDS = (0.25, 0.5, 1.0, 2.0, 4.0)  # playback speeds offered, times the recorded pace
@@ -139,7 +138,7 @@ class PlaybackBar(QWidget):
         self.slider.setPageStep(max(1, n // 10))
         self.slider.blockSignals(False)
         self.loop_check.blockSignals(True)
-        self.loop_check.setChecked(bool(self._source.loop))
+        self.loop_check.setChecked(self._source.loop)
         self.loop_check.blockSignals(False)
         self.speed_combo.setEnabled(True)
         self._speed_chosen()  # a new recording plays at the speed chosen

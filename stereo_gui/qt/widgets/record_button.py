@@ -94,8 +94,7 @@ class RecordButton(QToolButton):
         if folder is None:
             folder = new_recording_folder(recordings_dir(self.ctx.settings))
         try:
-            path = self.ctx.recorder.start(folder, source_name=src.name,
-                                           fps=float(src.nominal_fps or 30.0))
+            path = self.ctx.recorder.start(folder, source_name=src.name, fps=src.nominal_fps)
         except StereoGuiError as exc:
             self.ctx.report_error(f"Cannot start recording: {exc}")
             self._sync_record_button()

@@ -10,7 +10,6 @@ from collections.abc import Callable
 
 from PySide6.QtCore import QObject, Signal
 
-from stereo_gui.qt.workers.frame_worker import close_quietly
 from stereo_gui.qt.workers.threads import WorkerThread
 
 log = logging.getLogger(__name__)
@@ -23,14 +22,18 @@ class JobRunner(QObject):
 
     Jobs run in order; `submit` returns the job's id so a caller can drop a stale answer. The
     thread is a `threads.WorkerThread`: a job that cannot be interrupted (opening a device) and
-    outlives `stop()` is left to end on its own; it is never deleted while it runs.
+    outlives `stop()` is left to end on its own; it is never deleted while it runs. `dispose`,
+    if given, is called in the job's thread with a result that ends after `stop()` and so is
+    never delivered (an opened source to close).
     """
 
     finished = Signal(int, object)
     failed = Signal(int, str)
 
-    def __init__(self, name: str = "jobs", parent: QObject | None = None) -> None:
+    def __init__(self, name: str = "jobs", parent: QObject | None = None,
+                 dispose: Callable[[object], None] | None = None) -> None:
         super().__init__(parent)
+        self._dispose = dispose
         self._cond = threading.Condition()
         self._jobs: list[tuple[int, Callable[[], object]]] = []
         self._next_id = 1
@@ -129,12 +132,9 @@ class JobRunner(QObject):
                 stopping = self._stopping
             if not stopping:
                 self._emit(self.finished, job_id, result)
-            else:
-                _dispose(result)
-
-
-def _dispose(result) -> None:
-    """Release what a job produced after nobody wants it (an opened source)."""
-    source = getattr(result, "source", result)
-    if hasattr(source, "close") and hasattr(source, "read"):
-        close_quietly(source)
+            elif self._dispose is not None:
+                try:
+                    self._dispose(result)
+                except Exception:  # noqa: BLE001 - releasing must not end the thread unlogged
+                    log.warning("%s: releasing an undelivered result failed", self._name,
+                                exc_info=True)

@@ -19,6 +19,7 @@ from pathlib import Path
 from PySide6.QtCore import QObject, Signal
 
 from stereo_gui.core.errors import InputError, StereoGuiError
+from stereo_gui.files.settings import Settings
 from stereo_gui.qt.workers.frame_worker import FrameWorker
 from stereo_gui.qt.workers.job_runner import JobRunner
 
@@ -27,9 +28,9 @@ log = logging.getLogger(__name__)
 DEFAULT_RECORDINGS_DIR = Path.home() / "stereo-gui-recordings"
 
 
-def recordings_dir(settings) -> Path:
+def recordings_dir(settings: Settings) -> Path:
     """The folder new recordings go into by default (remembered in the settings)."""
-    remembered = getattr(settings, "recordings_dir", None)
+    remembered = settings.recordings_dir
     return Path(remembered) if remembered else DEFAULT_RECORDINGS_DIR
 
 

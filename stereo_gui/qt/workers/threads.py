@@ -19,7 +19,7 @@ window waits at closing. So:
 
 Threads run at a lower priority on Linux (niceness WORKER_NICE, per thread): under CPU load the
 UI thread wins. On 2 CPUs OpenCV starts no pool of its own in the application
-(`pipeline.live.opencv_threads_beside_lanes`): its calls run in, and at the niceness of, the
+(`pipeline.concurrency`): its calls run in, and at the niceness of, the
 thread that makes them.
 """
 
@@ -51,7 +51,7 @@ def _lower_thread_priority() -> None:
     while thread priorities do nothing under the default scheduler. Elsewhere the threads run
     at normal priority.
     """
-    if hasattr(os, "setpriority") and sys.platform.startswith("linux"):
+    if sys.platform.startswith("linux"):
         try:
             tid = threading.get_native_id()
             current = os.getpriority(os.PRIO_PROCESS, tid)

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.sources.base import FramePacer, StereoFrame
+from stereo_gui.sources.base import FramePacer, FrameSource, StereoFrame
 from stereo_gui.sources.camera_controls import PairControls
 from stereo_gui.sources.sim.controls import SimCameraDevice, sim_controls
 from stereo_gui.sources.sim.rig import SimFrameTruth, SimRig
@@ -24,7 +24,7 @@ def _interpolate_pose(p0: BoardPose, p1: BoardPose, f: float) -> BoardPose:
     return BoardPose(R, (1 - f) * p0.t + f * p1.t)
 
 
-class SimSource:
+class SimSource(FrameSource):
     """The simulated rig as a live frame source.
 
     mode "board": a board moving smoothly between poses in front of a plain background;
@@ -96,6 +96,9 @@ class SimSource:
     def camera_controls(self) -> PairControls:
         """The simulated cameras' controls (they answer as V4L2 webcams do)."""
         return PairControls(*self._controls)
+
+    def simulated_rig(self) -> SimRig:
+        return self.rig
 
     def read(self) -> StereoFrame:
         from stereo_gui.core.errors import SourceError

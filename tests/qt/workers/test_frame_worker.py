@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from PySide6.QtWidgets import QApplication
 
-from stereo_gui.qt.workers.frame_worker import FrameWorker, ProcessedFrame
+from stereo_gui.qt.workers.frame_worker import FrameWorker, ProcessedFrame, StreamState
+from stereo_gui.sources.base import FrameSource
 
 
 @pytest.fixture
@@ -36,13 +37,13 @@ def test_delivers_processed_frames_off_the_ui_thread(qtbot, worker, array_source
     assert isinstance(pf, ProcessedFrame)
     assert pf.output == pytest.approx(float(src.left.mean()))
     assert seen_threads and ui_thread not in seen_threads
-    qtbot.waitUntil(lambda: worker.fps_camera > 0 and worker.fps_processing > 0, timeout=30000)
+    qtbot.waitUntil(lambda: worker.status().camera_fps > 0 and worker.status().processing_fps > 0, timeout=30000)
 
 
 def test_frame_ready_is_coalesced_while_the_ui_thread_is_busy(qtbot, worker, array_source):
     """However many results are made while the UI thread handles no events, one notification
     waits for it, not a backlog; and one that nobody answered with latest() (the tab shown draws
-    no frames) does not silence the worker for the tab shown next (issue 12, item 1)."""
+    no frames) does not silence the worker for the tab shown next."""
     count = []
     worker.frameReady.connect(lambda: count.append(1))
     calls = []
@@ -73,7 +74,7 @@ def test_frame_ready_is_coalesced_while_the_ui_thread_is_busy(qtbot, worker, arr
 def test_a_frame_of_the_previous_source_in_processing_is_not_published(qtbot, worker,
                                                                        array_source):
     """A frame of source A still being processed when source B is chosen must not become the
-    newest result (issue 12, item 4: Capture froze a stale pair of the old source)."""
+    newest result (Capture would freeze a stale pair of the old source)."""
     a = array_source(left=np.zeros((48, 64, 3), np.uint8))
     b = array_source(left=np.full((48, 64, 3), 200, np.uint8))
     inside_a, inside_b = threading.Event(), threading.Event()
@@ -156,7 +157,10 @@ def test_a_replaced_processor_that_fails_is_not_reported(qtbot, worker, array_so
     release.set()
     qtbot.waitUntil(lambda: worker.latest() is not None and worker.latest().output == "new",
                     timeout=30000)
-    qtbot.wait(50)  # (an error would be emitted in the lane, delivered queued)
+    # an error would have been emitted in the lane before the result, so it would arrive in
+    # this thread before the next result's notification
+    with qtbot.waitSignal(worker.frameReady, timeout=30000):
+        worker.latest()
     assert errors == []
 
 
@@ -183,24 +187,46 @@ def test_new_source_closes_the_old_one(qtbot, worker, array_source):
 
 def test_pause_stops_processing(qtbot, worker, array_source):
     worker.set_source(array_source())
-    qtbot.waitUntil(lambda: worker.frames_processed > 2, timeout=30000)
+    qtbot.waitUntil(lambda: worker.status().frames_processed > 2, timeout=30000)
     worker.pause()
-    assert worker.paused
-    n = worker.frames_processed
-    # after pausing, at most the frame being processed at that moment is added
-    qtbot.wait(50)
-    assert worker.frames_processed <= n + 1
+    assert worker.paused and worker.status().paused
+    n = worker.status().frames_processed
+    # after pausing, at most the frame being processed at that moment is added; the reader
+    # runs tasks while paused, and answers them in order (three round trips while paused)
+    answered = []
+    worker.sourceTaskDone.connect(lambda tid, result: answered.append(tid))
+    for _ in range(3):
+        with qtbot.waitSignal(worker.sourceTaskDone, timeout=30000):
+            worker.run_on_source(lambda source, frame: None)
+    assert worker.status().frames_processed <= n + 1 and len(answered) == 3
     worker.resume()
-    qtbot.waitUntil(lambda: worker.frames_processed > n + 2, timeout=30000)
+    qtbot.waitUntil(lambda: worker.status().frames_processed > n + 2, timeout=30000)
+
+
+def test_the_status_is_one_frozen_snapshot(qtbot, worker, array_source):
+    import dataclasses
+
+    assert worker.status().source_name == "" and worker.status().frames_read == 0
+    worker.set_processor(lambda f: None)
+    worker.set_source(array_source())
+    qtbot.waitUntil(lambda: worker.status().frames_processed >= 3, timeout=30000)
+    s = worker.status()
+    assert s.source_name == "test pair" and s.stream is StreamState.OK and not s.paused
+    assert s.frames_read >= s.frames_processed >= 3 and s.pending_frames in (0, 1)
+    assert s.skipped_frames == 0 and s.camera_fps > 0
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        s.frames_read = 0  # type: ignore[misc]
+    worker.pause()
+    assert worker.status().paused and not s.paused  # a new snapshot; the old one stays
 
 
 def test_stop_joins_quickly_and_can_restart(qtbot, worker, array_source):
     worker.set_source(array_source(fps=30))
-    qtbot.waitUntil(lambda: worker.frames_processed > 0, timeout=30000)
+    qtbot.waitUntil(lambda: worker.status().frames_processed > 0, timeout=30000)
     assert worker.stop(2000)
     assert not worker.is_running()
     worker.set_source(array_source())
-    qtbot.waitUntil(lambda: worker.frames_processed > 2, timeout=30000)
+    qtbot.waitUntil(lambda: worker.status().frames_processed > 2, timeout=30000)
 
 
 def test_a_blocked_read_is_reported_and_a_new_source_does_not_wait_for_it(
@@ -211,7 +237,7 @@ def test_a_blocked_read_is_reported_and_a_new_source_does_not_wait_for_it(
     monkeypatch.setattr(fw, "READ_STALL_S", 0.2)
     release = threading.Event()
 
-    class Stuck:
+    class Stuck(FrameSource):
         name = "stuck camera"
         nominal_fps = 30.0
         closed = False
@@ -225,12 +251,18 @@ def test_a_blocked_read_is_reported_and_a_new_source_does_not_wait_for_it(
 
     w = FrameWorker()
     stuck = Stuck()
+    states = []
+    w.streamStatus.connect(states.append)
     try:
         with qtbot.waitSignal(w.errorOccurred, timeout=10000) as sig:
             w.set_source(stuck)
         assert "stuck camera" in sig.args[0] and "not answering" in sig.args[0]
+        qtbot.waitUntil(lambda: bool(states), timeout=10000)
+        assert (states[0].state, states[0].source_name) == (StreamState.STALLED, "stuck camera")
+        assert w.status().stream is StreamState.STALLED
         w.set_source(array_source())
-        qtbot.waitUntil(lambda: w.frames_read >= 3, timeout=30000)  # read by a new reader
+        qtbot.waitUntil(lambda: w.status().frames_read >= 3, timeout=30000)  # read by a new reader
+        assert w.status().stream is StreamState.OK and states[-1].message == ""  # another source
         assert not stuck.closed  # never closed under its own blocked read
         release.set()
         qtbot.waitUntil(lambda: stuck.closed, timeout=10000)  # by the reader left behind
@@ -250,9 +282,10 @@ def test_exit_while_a_read_blocks_does_not_abort(tmp_path):
         "import threading, time\n"
         "from PySide6.QtWidgets import QApplication\n"
         "from stereo_gui.qt.workers.frame_worker import FrameWorker\n"
+        "from stereo_gui.sources.base import FrameSource\n"
         "app = QApplication([])\n"
         "entered = threading.Event()\n"
-        "class Stuck:\n"
+        "class Stuck(FrameSource):\n"
         "    name = 'stuck camera'; nominal_fps = 30.0\n"
         "    def read(self):\n"
         "        entered.set(); time.sleep(30)\n"
@@ -272,7 +305,7 @@ def test_exit_while_a_read_blocks_does_not_abort(tmp_path):
     assert "QThread: Destroyed" not in proc.stderr and "Abort" not in proc.stderr
 
 
-class FlakySource:
+class FlakySource(FrameSource):
     """Frames, then SourceUnavailable while `unavailable` is set (a camera being reconnected),
     then frames again; `fail` makes the next read raise a plain SourceError."""
 
@@ -309,7 +342,7 @@ def _start_flaky(qtbot, worker, array_source, frames: int):
     worker.sourceChanged.connect(names.append)
     worker.streamStatus.connect(states.append)
     worker.set_source(src)
-    qtbot.waitUntil(lambda: worker.frames_read > frames, timeout=30000)
+    qtbot.waitUntil(lambda: worker.status().frames_read > frames, timeout=30000)
     return src, errors, names, states
 
 
@@ -322,11 +355,11 @@ def test_a_reconnecting_source_is_kept_said_once_and_resumes(qtbot, worker, arra
     qtbot.waitUntil(lambda: src.unavailable_reads >= 5, timeout=30000)
     assert worker.source() is src and not src.closed.is_set()  # kept, read again
     assert errors == ["flaky cameras: Reconnecting to right camera 2…"]  # said once
-    n = worker.frames_read
+    n = worker.status().frames_read
     with qtbot.waitSignal(worker.streamStatus, timeout=30000) as sig:
         src.unavailable.clear()
     assert (sig.args[0].state, sig.args[0].message) == ("ok", "flaky cameras: frames again")
-    qtbot.waitUntil(lambda: worker.frames_read > n + 2, timeout=30000)
+    qtbot.waitUntil(lambda: worker.status().frames_read > n + 2, timeout=30000)
     assert [s.state for s in states] == ["reconnecting", "ok"] and len(errors) == 1
 
 
@@ -336,27 +369,44 @@ def test_a_source_that_fails_is_dropped_by_name(qtbot, worker, array_source):
         src.fail.set()
     assert sig.args[0].state == "failed" and "gone for good" in sig.args[0].message
     assert names == ["flaky cameras", ""] and worker.source() is None
-    assert src.closed.is_set() and worker.stream_state == "failed"
+    assert src.closed.is_set() and worker.status().stream == "failed"
     # another source: its first frame ends the failed state (no "frames again" for it)
     with qtbot.waitSignal(worker.streamStatus, timeout=30000) as sig:
         worker.set_source(array_source())
     assert (sig.args[0].state, sig.args[0].message) == ("ok", "")
 
 
-def test_the_rate_falls_to_zero_when_no_frame_arrives(monkeypatch):
-    import stereo_gui.qt.workers.frame_worker as fw
+def test_the_rate_falls_to_zero_when_no_frame_arrives(qtbot, worker, array_source,
+                                                     monkeypatch):
+    """A read that does not return must not keep showing the last rate."""
+    import stereo_gui.qt.workers.frame_status as fs
 
-    clock = {"t": 10.0}
-    monkeypatch.setattr(fw.time, "monotonic", lambda: clock["t"])
-    meter = fw._RateMeter()
-    for _ in range(30):
-        meter.tick(clock["t"])
-        clock["t"] += 1 / 30
-    assert meter.fps == pytest.approx(30.0, rel=0.01)
-    clock["t"] += 0.5  # a read stuck for half a second: at most 2 frames a second
-    assert meter.fps == pytest.approx(1 / (0.5 + 1 / 30), rel=0.01)
-    clock["t"] += fw.RATE_STALE_S
-    assert meter.fps == 0.0
+    monkeypatch.setattr(fs, "RATE_STALE_S", 0.3)  # the test need not wait 2 s
+    release = threading.Event()
+    inner = array_source(fps=100)
+
+    class Hanging(FrameSource):
+        name = "hanging camera"
+        nominal_fps = 100.0
+        hang = threading.Event()
+
+        def read(self):
+            if self.hang.is_set():
+                release.wait(30)
+            return inner.read()
+
+        def close(self):
+            inner.close()
+
+    src = Hanging()
+    worker.set_source(src)
+    try:
+        qtbot.waitUntil(lambda: worker.status().camera_fps > 0, timeout=30000)
+        src.hang.set()
+        qtbot.waitUntil(lambda: worker.status().camera_fps == 0.0, timeout=30000)
+        assert worker.status().stream is StreamState.OK  # (not yet for READ_STALL_S)
+    finally:
+        release.set()
 
 
 def test_frame_ready_is_emitted_in_the_ui_thread_only(qtbot, worker, array_source):
@@ -374,12 +424,10 @@ def test_frame_ready_is_emitted_in_the_ui_thread_only(qtbot, worker, array_sourc
 
 
 class _TwoLanes:
-    """A processor that lets two frames in at once. The first two calls meet at a barrier (so
+    """A processor for two lanes (two frames at once). The first two calls meet at a barrier (so
     they must run at the same time); the first is held until the test has seen the second's
     result kept, the later calls until the first has ended: the first's result is then older
     than the one kept, and must be dropped."""
-
-    lanes = 2
 
     def __init__(self) -> None:
         self.meet = threading.Barrier(2, timeout=30)
@@ -415,7 +463,7 @@ class _TwoLanes:
 def test_a_processor_with_two_lanes_gets_two_frames_at_once_and_the_newest_wins(
         qtbot, worker, array_source):
     proc = _TwoLanes()
-    worker.set_processor(proc)
+    worker.set_processor(proc, lanes=2)
     worker.set_source(array_source(fps=500))
     try:
         qtbot.waitUntil(lambda: worker.latest() is not None, timeout=30000)
@@ -424,9 +472,10 @@ def test_a_processor_with_two_lanes_gets_two_frames_at_once_and_the_newest_wins(
         assert second == proc.calls[1] > proc.calls[0]
         proc.second_kept.set()  # the first call, an older frame, ends now
         assert proc.first_done.wait(30)
-        qtbot.wait(50)
+        # its lane has handed its result in once it is in a fourth call (held by `rest`)
+        qtbot.waitUntil(lambda: len(proc.calls) >= 4, timeout=30000)
         assert worker.latest().frame.index == second  # not replaced by the older frame
-        assert worker.pending_frames <= 1 and proc.active <= 2
+        assert worker.status().pending_frames <= 1 and proc.active <= 2
     finally:
         proc.second_kept.set()
         proc.rest.set()
@@ -448,5 +497,5 @@ def test_a_processor_without_lanes_is_never_called_twice_at_once(qtbot, worker, 
 
     worker.set_processor(proc)
     worker.set_source(array_source(fps=500))
-    qtbot.waitUntil(lambda: worker.frames_processed >= 30, timeout=30000)
+    qtbot.waitUntil(lambda: worker.status().frames_processed >= 30, timeout=30000)
     assert most[0] == 1

@@ -25,8 +25,9 @@ def test_a_queued_job_can_be_cancelled_a_running_one_not(qtbot):
     gate = threading.Event()
     ran = []
     try:
-        first = jobs.submit(lambda: gate.wait(30))
-        qtbot.waitUntil(lambda: jobs.is_busy() and not jobs._jobs, timeout=30000)
+        running = threading.Event()
+        first = jobs.submit(lambda: (running.set(), gate.wait(30))[1])
+        assert running.wait(30)
         second = jobs.submit(lambda: ran.append("second"))
         assert not jobs.cancel(first)  # running: it goes on
         assert jobs.cancel(second) and not jobs.cancel(second)
@@ -39,3 +40,23 @@ def test_a_queued_job_can_be_cancelled_a_running_one_not(qtbot):
     finally:
         gate.set()
         assert jobs.stop(2000)
+
+
+def test_a_result_that_ends_after_stop_is_disposed_not_delivered(qtbot):
+    """An opened source that comes back after the window closed is handed to `dispose`."""
+    import threading
+
+    disposed, delivered = [], []
+    jobs = JobRunner("opener", dispose=disposed.append)
+    jobs.finished.connect(lambda job_id, result: delivered.append(result))
+    running, gate = threading.Event(), threading.Event()
+    try:
+        jobs.submit(lambda: (running.set(), gate.wait(30), "an opened source")[2])
+        assert running.wait(30)
+        assert not jobs.stop(1)  # the job is still running: left to end on its own
+        gate.set()
+        qtbot.waitUntil(lambda: disposed == ["an opened source"], timeout=30000)
+    finally:
+        gate.set()
+        qtbot.waitUntil(lambda: not jobs.is_running(), timeout=30000)
+    assert delivered == []

@@ -40,8 +40,8 @@ def test_record_button_writes_raw_frames_with_timestamps(qtbot, ctx, live, array
     assert folder.startswith(str(tmp_path / "recs")) and "rec-" in folder
     assert live.record_button.isChecked() and ctx.recorder.is_recording
     qtbot.waitUntil(lambda: ctx.recorder.frames_written >= 4, timeout=20000)
-    live.record_button._update_record_button()
-    assert live.record_button.text().startswith("■ Stop 0:")  # the time; the count:
+    # the button says how long and how much it has recorded (updated by its own timer)
+    qtbot.waitUntil(lambda: live.record_button.text().startswith("■ Stop 0:"), timeout=20000)
     assert "frames written" in live.record_button.toolTip()
     with qtbot.waitSignal(ctx.recorder.stopped, timeout=20000) as sig:
         live.record_button.click()  # off: the writer closes on its own thread

@@ -16,9 +16,10 @@ from stereo_gui.qt.workers.frame_worker import LANES, FrameWorker
 from stereo_gui.qt.workers.job_runner import JobRunner
 from stereo_gui.qt.workers.job_worker import JobWorker
 from stereo_gui.qt.workers.threads import WorkerThread, live_threads
+from stereo_gui.sources.base import FrameSource
 
 
-class _Recording:
+class _Recording(FrameSource):
     """A source wrapper that records the thread each read runs in."""
 
     def __init__(self, source) -> None:
@@ -52,7 +53,7 @@ def test_frames_are_read_and_processed_in_our_qthreads(qtbot, array_source):
     try:
         worker.set_processor(processor)
         worker.set_source(source)
-        qtbot.waitUntil(lambda: worker.frames_processed >= 3, timeout=30000)
+        qtbot.waitUntil(lambda: worker.status().frames_processed >= 3, timeout=30000)
         reader, *lanes = worker.threads()
         assert {type(t) for t in (reader, *lanes)} == {WorkerThread}
         assert len(lanes) == LANES and reader not in lanes and _main_thread() not in lanes
@@ -97,7 +98,7 @@ def test_a_fast_source_and_a_slow_processor_build_no_backlog(qtbot, array_source
     pending_seen: list[int] = []
 
     def slow(frame):
-        pending_seen.append(worker.pending_frames)
+        pending_seen.append(worker.status().pending_frames)
         gate.wait(10)  # the test opens the gate; a bound so that a failure cannot hang it
         gate.clear()
         processed.append(frame.index)
@@ -108,23 +109,23 @@ def test_a_fast_source_and_a_slow_processor_build_no_backlog(qtbot, array_source
     try:
         worker.set_processor(slow)
         worker.set_source(array_source(fps=1000.0))
-        qtbot.waitUntil(lambda: worker.frames_read >= 1 and bool(pending_seen), timeout=30000)
-        first_read = worker.frames_read
-        qtbot.waitUntil(lambda: worker.frames_read >= first_read + 30, timeout=30000)
-        assert worker.pending_frames == 1  # one slot, not a queue
+        qtbot.waitUntil(lambda: worker.status().frames_read >= 1 and bool(pending_seen), timeout=30000)
+        first_read = worker.status().frames_read
+        qtbot.waitUntil(lambda: worker.status().frames_read >= first_read + 30, timeout=30000)
+        assert worker.status().pending_frames == 1  # one slot, not a queue
         for _ in range(3):
             n = len(processed)
             gate.set()
             qtbot.waitUntil(lambda n=n: len(processed) > n, timeout=30000)
-            read_now = worker.frames_read
-            qtbot.waitUntil(lambda r=read_now: worker.frames_read >= r + 10, timeout=30000)
+            read_now = worker.status().frames_read
+            qtbot.waitUntil(lambda r=read_now: worker.status().frames_read >= r + 10, timeout=30000)
         assert all(p <= 1 for p in pending_seen)
         # frames were skipped: each processed frame is far newer than the one before
         assert all(b - a >= 10 for a, b in zip(processed, processed[1:], strict=False))
-        assert worker.frames_processed <= len(processed) < worker.frames_read / 5
+        assert worker.status().frames_processed <= len(processed) < worker.status().frames_read / 5
         qtbot.waitUntil(lambda: bool(notified), timeout=30000)
         # never more notifications than results: nothing queues up in the UI thread
-        assert 1 <= len(notified) <= worker.frames_processed
+        assert 1 <= len(notified) <= worker.status().frames_processed
         assert worker.latest().output == processed[-1]
     finally:
         gate.set()
@@ -135,10 +136,11 @@ def test_a_fast_source_and_a_slow_processor_build_no_backlog(qtbot, array_source
 CLOSE_WHILE_BLOCKED = r"""
 import sys, threading, time
 import stereo_gui.sources.open as opening
+from stereo_gui.sources.base import FrameSource
 
 entered = threading.Event()
 
-class Stuck:
+class Stuck(FrameSource):
     name = "stuck camera"
     nominal_fps = 30.0
     def read(self):
@@ -201,7 +203,7 @@ def test_closing_during_a_blocked_read_exits_0_within_3_s(tmp_path):
 _POOL_PROBE = """
 import os, sys
 import cv2, numpy as np
-from stereo_gui.pipeline.live import use_opencv_threads_beside_lanes
+from stereo_gui.pipeline.concurrency import use_opencv_threads_beside_lanes
 before = set(os.listdir("/proc/self/task"))
 if sys.argv[1] == "calling":
     use_opencv_threads_beside_lanes()
@@ -218,7 +220,7 @@ def test_opencv_threads_leave_the_cpus_to_the_frame_lanes_as_run_app_sets_them()
     import cv2
     import pytest
 
-    from stereo_gui.pipeline.live import opencv_threads_beside_lanes
+    from stereo_gui.pipeline.concurrency import opencv_threads_beside_lanes
 
     assert [opencv_threads_beside_lanes(n) for n in (1, 2, 4, 8)] == [1, 1, 3, 7]
     if not sys.platform.startswith("linux") or os.cpu_count() != 2 or cv2.getNumThreads() < 2:

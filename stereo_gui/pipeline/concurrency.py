@@ -1,0 +1,61 @@
+"""How the application uses the CPU's cores: the one concurrency model, stated here.
+
+Frames are processed in *lanes*. A lane is one thread that processes one frame at a time, from
+start to end: rectify, match, filter, colour map, display images. Frames in flight are the only
+parallelism of the frame path:
+- the frame worker (`qt.workers.frame_worker`) has one reader thread and MAX_LANES lanes; the
+  processor is set with how many of them it may use (`lanes_for`): "parallel" (a preset's
+  `parallel`, "use two CPU cores" in the parameter panel) means one frame in flight per CPU, at
+  most MAX_LANES; otherwise one. Frames in flight share no work, so they keep the cores busy
+  without hand-offs, and the newest frame wins: nothing queues up;
+- within a frame nothing runs in parallel of ours: `core.matching.StereoPipeline` runs the
+  stages one after the other in the calling thread. It is not safe for two threads at once,
+  so the Live tab's processor (`pipeline.live.LiveProcessor`) gives each frame in flight a
+  pipeline of its own (a pool with one pipeline per lane in use: resources, not a level of
+  concurrency);
+- OpenCV's own thread pool gets the CPUs the lanes leave (`opencv_threads_beside_lanes`): on
+  2 CPUs none, every OpenCV call then runs in the lane that makes it. The command line, which
+  processes one frame at a time without lanes, leaves OpenCV its default pool (all CPUs).
+
+Batch work runs in one job thread (`qt.workers`), the same way: chessboard detection over saved
+pairs (`core.detect.detect_pairs`) is the one batch that splits into a pool of threads, one
+pair per thread (pairs, like frames, share no work).
+
+Beside the frame path run threads that wait most of the time: the calibration health check
+(`pipeline.health`, one check every few seconds), the job runner and generator jobs
+(`qt.workers`), a recording's writer (`files.recording`). Worker threads run at a lower priority
+than the UI thread (`qt.workers.threads`). No Qt here.
+"""
+
+from __future__ import annotations
+
+import os
+
+import cv2
+
+MAX_LANES = 2  # frames processed at once at most (the frame worker has as many lanes)
+
+
+def lanes_for(parallel: bool, cpus: int | None = None) -> int:
+    """How many frames to process at once: one per CPU, at most MAX_LANES, when `parallel`;
+    else 1."""
+    cpus = (os.cpu_count() or 1) if cpus is None else cpus
+    return max(1, min(MAX_LANES, cpus)) if parallel else 1
+
+
+def opencv_threads_beside_lanes(cpus: int | None = None) -> int:
+    """The OpenCV thread count the application runs with: the CPUs the lanes leave, plus one
+    (on 2 CPUs: 1, every OpenCV call in the thread that makes it, no pool of OpenCV's own).
+    OpenCV's pool on top of the lanes only adds hand-offs and spinning. With more CPUs, the
+    first lane to call OpenCV gets its pool and the others run their calls in their own
+    threads."""
+    cpus = (os.cpu_count() or 1) if cpus is None else cpus
+    return max(1, cpus - MAX_LANES + 1)
+
+
+def use_opencv_threads_beside_lanes() -> int:
+    """Set `opencv_threads_beside_lanes()` (`run_app`, and `bench` for the presets); return the
+    thread count set before."""
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(opencv_threads_beside_lanes())
+    return before
