@@ -114,8 +114,9 @@ class LiveReadings(QObject):
             if self._hover_job is not None:
                 self._hover_next = None  # the reading running is of this very pixel
             return  # the same pixel of the same frame: the line says (or will say) it
+        frame = self._tab.shown_frame
         request = (out, key, x, y, fit, int(self.ctx.settings.patch_size),
-                   getattr(self._tab.shown_frame, "truth", None))
+                   frame.truth if frame is not None else None)
         if self._hover_job is not None:
             self._hover_next = request
             return
@@ -228,7 +229,7 @@ class LiveReadings(QObject):
                 f"disparity {m.disparity_px:.2f} px, {m.valid_fraction:.0%} valid ({m.method})")
 
     def _record(self, m):
-        from stereo_gui.files.spreadsheet import MeasurementRecord
+        from stereo_gui.files.measurement_record import MeasurementRecord
 
         calib = self.ctx.calibration
         path = self.ctx.calibration_path
@@ -240,13 +241,13 @@ class LiveReadings(QObject):
             valid_fraction=float(m.valid_fraction), expected_error_mm=float(m.expected_error_mm),
             method=m.method,
             calibration_file=str(path) if path else self.ctx.calibration_note,
-            calibration_rms_px=float(getattr(calib, "rms_stereo", float("nan"))),
+            calibration_rms_px=float(calib.rms_stereo) if calib is not None else float("nan"),
         )
 
     def _ruler_record(self, a, b, dist_mm: float, bound_mm: float):
         """The log entry of a ruler distance: at B's pixel, X/Y/Z the components of B - A
         (mm), Range the length |B - A|, ± the two points' bounds added in quadrature."""
-        from stereo_gui.files.spreadsheet import MeasurementRecord
+        from stereo_gui.files.measurement_record import MeasurementRecord
 
         rec = self._record(b)
         return MeasurementRecord(**{
