@@ -192,14 +192,8 @@ class SimRig:
             return False  # too small to place its points to a fraction of a pixel
         if self.config.board.partial:
             return self._enough_corners_visible(pose, margin_px)
-        a0, b0, a1, b1 = self.board_outline_mm()
         # densely sample the outline: the distorted image of a straight edge is curved
-        k = np.linspace(0.0, 1.0, 17)
-        edge = np.concatenate([
-            np.stack([a0 + (a1 - a0) * k, np.full_like(k, b0)], 1),
-            np.stack([a0 + (a1 - a0) * k, np.full_like(k, b1)], 1),
-            np.stack([np.full_like(k, a0), b0 + (b1 - b0) * k], 1),
-            np.stack([np.full_like(k, a1), b0 + (b1 - b0) * k], 1)])
+        edge = self._outline_samples(17)
         pts = np.concatenate([edge, np.zeros((len(edge), 1))], 1) @ pose.R.T + pose.t
         w, h = self.config.image_size
         for cam in (0, 1):
@@ -284,16 +278,20 @@ class SimRig:
     PLACES = ((0.0, 0.0), (1.0, 1.0), (1.0, 0.0), (0.0, 1.0), (0.5, 0.5), (0.5, 0.0),
               (0.0, 0.5), (1.0, 0.5), (0.5, 1.0))
 
-    def _hidden_by(self, pose: BoardPose, scene: Scene) -> bool:
-        """Whether an object of `scene` stands between a camera and part of the board (its
-        outline or its points): a board held behind an object is not seen whole."""
+    def _outline_samples(self, n: int) -> np.ndarray:
+        """n points along each edge of the board's outline, (4n, 2) mm in the board's plane."""
         a0, b0, a1, b1 = self.board_outline_mm()
-        k = np.linspace(0.0, 1.0, 9)
-        plane = np.concatenate([
+        k = np.linspace(0.0, 1.0, n)
+        return np.concatenate([
             np.stack([a0 + (a1 - a0) * k, np.full_like(k, b0)], 1),
             np.stack([a0 + (a1 - a0) * k, np.full_like(k, b1)], 1),
             np.stack([np.full_like(k, a0), b0 + (b1 - b0) * k], 1),
             np.stack([np.full_like(k, a1), b0 + (b1 - b0) * k], 1)])
+
+    def _hidden_by(self, pose: BoardPose, scene: Scene) -> bool:
+        """Whether an object of `scene` stands between a camera and part of the board (its
+        outline or its points): a board held behind an object is not seen whole."""
+        plane = self._outline_samples(9)
         pts = np.concatenate([np.concatenate([plane, np.zeros((len(plane), 1))], 1)
                               @ pose.R.T + pose.t, pose.corners_left_mm(self.config.board)])
         t = self.truth
@@ -332,13 +330,8 @@ class SimRig:
         margin = 4.0
         centre_board = b.object_points_mm().astype(np.float64).mean(0)
         centre_board[2] = 0.0
-        a0, b0, a1, b1 = self.board_outline_mm()
-        k = np.linspace(0.0, 1.0, 9)  # the outline's image is curved: sample its edges
-        outline = np.concatenate([
-            np.stack([a0 + (a1 - a0) * k, np.full_like(k, b0), 0 * k], 1),
-            np.stack([a0 + (a1 - a0) * k, np.full_like(k, b1), 0 * k], 1),
-            np.stack([np.full_like(k, a0), b0 + (b1 - b0) * k, 0 * k], 1),
-            np.stack([np.full_like(k, a1), b0 + (b1 - b0) * k, 0 * k], 1)])
+        edges = self._outline_samples(9)  # the outline's image is curved: sample its edges
+        outline = np.concatenate([edges, np.zeros((len(edges), 1))], 1)
         f = float(self.truth.M1[0, 0])
         # (see below) the outer edges of the left image and of the right one are seen by both cameras only
         # when the board is far (the other camera sees it shifted by the disparity): poses of a

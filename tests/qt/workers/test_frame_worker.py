@@ -12,14 +12,6 @@ from stereo_gui.qt.workers.frame_worker import FrameWorker, ProcessedFrame, Stre
 from stereo_gui.sources.base import FrameSource
 
 
-@pytest.fixture
-def worker(qtbot):
-    w = FrameWorker()
-    yield w
-    assert w.stop(2000)
-    assert not w.is_running()
-
-
 def test_delivers_processed_frames_off_the_ui_thread(qtbot, worker, array_source):
     ui_thread = threading.get_ident()
     seen_threads = []

@@ -8,16 +8,7 @@ import threading
 import pytest
 
 from stereo_gui.core.errors import SourceError
-from stereo_gui.qt.workers.frame_worker import FrameWorker
 from stereo_gui.sources.sim import RigConfig, SimRig, SimSource
-
-
-@pytest.fixture
-def worker(qtbot):
-    w = FrameWorker()
-    yield w
-    assert w.stop(2000)
-    assert not w.is_running()
 
 
 def _run(qtbot, worker, fn, after_frames=0):
