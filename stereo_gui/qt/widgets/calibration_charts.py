@@ -14,8 +14,8 @@ from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import QCheckBox, QComboBox, QHBoxLayout, QLabel, QVBoxLayout, QWidget
 
 LINE_EVERY_PX = 32  # rectification check: a horizontal line every this many rows
-# the error chart's y range over its tallest bar: room for the selected pair's frame (5 %
-# higher) and the top tick's label; the legend has its own row above the plot
+# the error chart's y range over its tallest bar (or the threshold line, if higher): room for
+# the selected pair's frame (5 % higher) and the top tick's label; the legend has its own row
 Y_HEADROOM = 1.15
 _BAR_LEFT = "#4f8fd6"
 _BAR_RIGHT = "#e08a3c"
@@ -67,6 +67,7 @@ class ErrorBarChart(pg.PlotWidget):
         self.plotItem.legend = self._legend  # items named on creation go into it
         self.plotItem.geometryChanged.connect(self._fit_legend)
         self.names: list[str] = []
+        self._bars_top = 0.1  # the tallest bar, px
         self.selected: str | None = None
         self.excluded: set[str] = set()  # pairs excluded in the session (shown hatched)
         self._left = pg.BarGraphItem(x=[], height=[], width=0.38, brush=_BAR_LEFT, name="left")
@@ -107,9 +108,8 @@ class ErrorBarChart(pg.PlotWidget):
         ax = self.getAxis("bottom")
         step = max(1, math.ceil(len(names) / 25))
         ax.setTicks([[(i, _short(n)) for i, n in enumerate(names) if i % step == 0], []])
-        top = max([*left, *right, 0.1])
+        self._bars_top = max([*left, *right, 0.1])
         self.setXRange(-0.7, max(len(names) - 0.3, 0.5), padding=0)
-        self.setYRange(0, top * Y_HEADROOM, padding=0)
         self.select(self.selected if self.selected in self.names else None)
         self.set_excluded(self.excluded)
         errs = np.asarray([*left, *right], float)
@@ -120,6 +120,7 @@ class ErrorBarChart(pg.PlotWidget):
         if self.mean_px is not None:
             self._mean.setValue(self.mean_px)
         self._update_line_legend()
+        self._fit_y()
 
     def _update_line_legend(self) -> None:
         legend = self.plotItem.legend
@@ -156,6 +157,15 @@ class ErrorBarChart(pg.PlotWidget):
         self._threshold.setValue(float(px))
         self._threshold.blockSignals(False)
         self._update_line_legend()
+        self._fit_y()
+
+    def _fit_y(self) -> None:
+        """The y range: the tallest bar and the threshold line, with room above them (not
+        while the line is dragged: the scale would move under the pointer)."""
+        top = self._bars_top
+        if self._threshold.isVisible():
+            top = max(top, self.threshold_px)
+        self.setYRange(0, top * Y_HEADROOM, padding=0)
 
     @property
     def threshold_px(self) -> float:

@@ -67,6 +67,9 @@ def test_error_chart_legend_sits_above_the_bars_whole(qtbot):
     chart.set_threshold(0.3)
     chart.select("pair-11")  # the tallest bar, its frame 5 % higher still
     assert chart.viewRange()[1][1] == pytest.approx(0.6 * Y_HEADROOM)
+    chart.set_threshold(0.9)  # above every bar: the line stays in view, to be dragged down
+    assert chart.viewRange()[1][1] == pytest.approx(0.9 * Y_HEADROOM)
+    chart.set_threshold(0.3)
     for width, height in ((700, 190), (420, 220)):  # the tab at 1366 px wide, and narrow
         chart.resize(width, height)
         chart.show()
