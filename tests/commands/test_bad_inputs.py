@@ -11,6 +11,7 @@ import zlib
 import cv2
 import numpy as np
 import pytest
+from cli_output import one_line
 
 from stereo_gui.cli import main
 from stereo_gui.files import images
@@ -33,15 +34,7 @@ def _run(argv) -> int:
 
 
 def _one_line(capfd, code, *words) -> str:
-    """The command's exit status is 2 and the terminal (file descriptor 2, where libraries
-    write too) got one line holding `words`."""
-    err = capfd.readouterr().err
-    assert code == 2, err
-    lines = err.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in err, err
-    for w in words:
-        assert w in lines[0], lines[0]
-    return lines[0]
+    return one_line(capfd.readouterr().err, code, *words)
 
 
 def _png_claiming(w: int, h: int) -> bytes:

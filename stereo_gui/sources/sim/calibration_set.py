@@ -56,22 +56,23 @@ def write_calibration_set(out_dir, n_pairs: int = 20, seed: int = 0, scene: bool
     if scene:
         (out / SCENE_FOLDER).mkdir(exist_ok=True)
 
+    def pair_files(lname: str, rname: str, left, right):
+        """A rendered pair as write_many_atomic takes it: (path, encoded bytes, None) twice."""
+        yield out / lname, encode_image(out / lname, left), None
+        yield out / rname, encode_image(out / rname, right), None
+
     def files():  # rendered one pair at a time, as write_many_atomic takes them
         pairs = []
         for n, pose in enumerate(poses, start=1):
-            left, right = rig.render_board_pair(pose, rng)
             lname, rname = f"chessboard-L{n}.png", f"chessboard-R{n}.png"
-            yield out / lname, encode_image(out / lname, left), None
-            yield out / rname, encode_image(out / rname, right), None
+            yield from pair_files(lname, rname, *rig.render_board_pair(pose, rng))
             pairs.append({"n": n, "left": lname, "right": rname, **pose.to_json()})
             if progress:
                 progress(n, total)
         scene_entries = []
         for k, sc in enumerate(scenes, start=1):
-            left, right = rig.render_scene(sc, rng)
             lname, rname = f"{SCENE_FOLDER}/scene-L{k}.png", f"{SCENE_FOLDER}/scene-R{k}.png"
-            yield out / lname, encode_image(out / lname, left), None
-            yield out / rname, encode_image(out / rname, right), None
+            yield from pair_files(lname, rname, *rig.render_scene(sc, rng))
             entry = {"name": sc.name, "left": lname, "right": rname}
             if len(sc.objects) == 1:
                 entry["distance_mm"] = float(sc.objects[0].center[2])
