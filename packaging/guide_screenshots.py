@@ -82,11 +82,10 @@ def main(argv: list[str]) -> int:
     pump(2.0)
     shot("start")
 
-    # 2. the source chooser, with "Two cameras" picked to show the camera lists
-    from stereo_gui.qt.dialogs.source_dialog import SourceDialog
+    # 2. the source chooser, with the simulated rig looking at a painted wall
+    from stereo_gui.qt.dialogs.source_dialog import SourceChoice, SourceDialog
 
-    dlg = SourceDialog(window.source_choice, parent=window)
-    dlg.cams.setChecked(True)
+    dlg = SourceDialog(SourceChoice("sim:wall:weak:1.5"), parent=window)
     dlg.show()
     dlg.move(200, 150)
     pump(0.5)

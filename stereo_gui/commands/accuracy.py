@@ -40,52 +40,12 @@ from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import MatcherParams, Preset, StereoPipeline
 from stereo_gui.core.measure import PATCH_PX, Measurement, measure_point
 from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.sources.sim.conditions import CONDITIONS, Condition
 
 WALLS_MM = (500.0, 1000.0, 2000.0, 3000.0)
 PLAIN = "plain"  # plain OpenCV SGBM with a left-right check, read as the 9x9 patch's median
 
 
-@dataclass(frozen=True)
-class Condition:
-    """How a wall is rendered: its texture's contrast (1: the rig's usual texture), the sensor
-    noise (grey levels), and the webcam effects of `RigConfig` (right camera's gain and black
-    level, vignetting, JPEG quality)."""
-
-    name: str
-    contrast: float = 1.0
-    noise_sigma: float | None = None  # None: the rig's own
-    gain_right: float | None = None
-    black_right: float = 0.0
-    vignetting: float = 0.0
-    jpeg_quality: int | None = None
-    description: str = ""
-
-    def rig_config(self, base):
-        from dataclasses import replace
-
-        changes = {"black_right": self.black_right, "vignetting": self.vignetting,
-                   "jpeg_quality": self.jpeg_quality}
-        if self.noise_sigma is not None:
-            changes["noise_sigma"] = self.noise_sigma
-        if self.gain_right is not None:
-            changes["gain_right"] = self.gain_right
-        return replace(base, **changes)
-
-
-# a painted wall: a 9x9 window's grey-level spread about 2.5 with the sensor noise of 1.5
-WEAK_CONTRAST = 0.12
-CONDITIONS = {c.name: c for c in (
-    Condition("rig", description="the rig's usual texture"),
-    Condition("weak", WEAK_CONTRAST, 1.5, description="a smooth painted wall: 9x9 spread ~2.5 "
-              "grey levels with noise 1.5"),
-    Condition("half", WEAK_CONTRAST / 2, 1.5, description="the painted wall at half contrast"),
-    Condition("quarter", WEAK_CONTRAST / 4, 1.5,
-              description="the painted wall at a quarter of its contrast"),
-    Condition("webcams", WEAK_CONTRAST / 2, 1.5, gain_right=0.8, black_right=12.0,
-              vignetting=0.35, jpeg_quality=75,
-              description="half contrast, the right camera's gain 0.8 and black level +12, "
-              "corners 35 % darker, MJPG at quality 75"),
-)}
 GRID = (9, 7)  # columns, rows
 GRID_MARGIN_PX = PATCH_PX // 2 + 4  # the outermost grid points sit this far inside the image
 BENCH_SEED = 4242  # the benchmark's rig; tests use other seeds, so nothing is tuned to its scene
@@ -392,12 +352,13 @@ def condition_totals(reports: list[WallReport]) -> dict[tuple[str, str], dict]:
 def format_table(label: str, reports: list[WallReport]) -> str:
     """A plain-text table of one calibration's reports: wall by wall, then each condition's and
     preset's whole grid over all walls."""
+    cw = max([8, *(len(r.condition) for r in reports)])  # the condition column's width
     lines = [f"calibration: {label}",
-             f"{'cond':>8} {'wall':>6} {'preset':>8} {'cover':>7} {'worst%':>7} {'rms%':>6} "
+             f"{'cond':>{cw}} {'wall':>6} {'preset':>8} {'cover':>7} {'worst%':>7} {'rms%':>6} "
              f"{'+-cov':>6} {'med+-%':>7}  no reading (seen points)"]
 
     def row(cond: str, wall: str, preset: str, t: dict, tail: str) -> str:
-        return (f"{cond:>8} {wall:>6} {preset:>8} {_num(100 * t['coverage'], 1):>6}% "
+        return (f"{cond:>{cw}} {wall:>6} {preset:>8} {_num(100 * t['coverage'], 1):>6}% "
                 f"{_num(t['worst_pct']):>7} {_num(t['rms_pct']):>6} "
                 f"{_num(100 * t['covered_fraction'], 0):>5}% {_num(t['median_bound_pct']):>7}"
                 f"{tail}")

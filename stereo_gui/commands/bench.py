@@ -74,7 +74,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="with --accuracy: how the walls are rendered (repeatable): rig (the "
                         "rig's usual texture), weak (a smooth painted wall), half, quarter (its "
                         "contrast halved, quartered), webcams (half contrast with the right "
-                        "camera's own gain and black level, MJPG, darker corners), or all "
+                        "camera's own gain and black level, MJPG, darker corners), exposure, "
+                        "vignetting, mjpg (each of those alone at half contrast), or all "
                         "(default rig)")
     parser.add_argument("--scenes", metavar="FILE",
                         help="instead of speed: the presets' final maps beside plain OpenCV SGBM "

@@ -1,4 +1,5 @@
-"""Open a frame source from its command-line spec: auto | sim | cams:L,R | sbs:N | DIR | VIDEO."""
+"""Open a frame source from its command-line spec: auto | sim[:MODE] | cams:L,R | sbs:N | DIR |
+VIDEO."""
 
 from __future__ import annotations
 
@@ -12,12 +13,14 @@ from stereo_gui.sources.base import FrameSource, StereoFrame
 
 log = logging.getLogger(__name__)
 
-SPEC_HELP = ("auto, sim, cams:L,R (two camera indices), sbs:N (one side-by-side camera), "
-             "a folder of recorded pairs, or a side-by-side video file")
+SPEC_HELP = ("auto, sim (sim:board, sim:scene, or sim:wall:CONDITION:METRES for a painted wall "
+             "under a condition of `bench --accuracy`), cams:L,R (two camera indices), sbs:N (one "
+             "side-by-side camera), a folder of recorded pairs, or a side-by-side video file")
 
 _CAMS = re.compile(r"^cams:\s*(\d+)\s*,\s*(\d+)\s*$")
 _SBS = re.compile(r"^sbs:\s*(\d+)\s*$")
 _SIM = re.compile(r"^sim(?::(mixed|board|scene))?$")
+_SIM_WALL = re.compile(r"^sim:wall(?::([^:]*))?(?::(.*))?$")
 
 
 @dataclass(frozen=True)
@@ -47,6 +50,8 @@ class SourceSpec:
     indices: tuple[int, ...] = ()
     path: Path | None = None
     mode: str = "mixed"  # for sim
+    condition: str = "rig"  # for sim:wall: how the wall is rendered (sim/conditions.py)
+    wall_mm: float = 1000.0  # ... and how far away it is
 
 
 def parse_source_spec(spec: str | None) -> SourceSpec:
@@ -58,6 +63,9 @@ def parse_source_spec(spec: str | None) -> SourceSpec:
     m = _SIM.match(low)
     if m:
         return SourceSpec("sim", mode=m.group(1) or "mixed")
+    m = _SIM_WALL.match(low)
+    if m:
+        return _sim_wall_spec(text, m.group(1) or "rig", m.group(2))
     if low.startswith("cams:"):
         m = _CAMS.match(low)
         if not m:
@@ -121,13 +129,36 @@ class _SwappedSource(FrameSource):
         return getattr(self._inner, name)
 
 
-def _sim(mode: str, size: tuple[int, int], swap: bool) -> FrameSource:
+def _sim_wall_spec(text: str, condition: str, metres: str | None) -> SourceSpec:
+    """sim:wall[:CONDITION[:METRES]], checked: a known condition, a distance the rig can show."""
+    import math
+
+    from stereo_gui.sources.sim.conditions import condition_named
+    from stereo_gui.sources.sim.live import SimSource
+
+    try:
+        condition_named(condition)
+    except InputError as exc:
+        raise InputError(f"source {text!r}: {exc}") from None
+    lo, hi = (v / 1000.0 for v in SimSource.WALL_MM)
+    try:
+        z = 1.0 if metres is None else float(metres)
+    except ValueError:
+        z = math.nan
+    if not (math.isfinite(z) and lo <= z <= hi):
+        raise InputError(f"source {text!r}: give the wall's distance in metres, from {lo:g} to "
+                         f"{hi:g}, for example sim:wall:{condition}:1.5")
+    return SourceSpec("sim", mode="wall", condition=condition, wall_mm=z * 1000.0)
+
+
+def _sim(spec: SourceSpec, size: tuple[int, int], swap: bool) -> FrameSource:
     from stereo_gui.sources.sim import RigConfig, SimRig, SimSource
 
     # live, 2x2 anti-aliasing is plenty and halves the rendering time, leaving the CPU to the
     # pipeline (the ground-truth sets of `simulate` and the tests keep 3x3)
     config = replace(RigConfig.for_size(size), supersample=2)
-    source = SimSource(SimRig(config), mode=mode)
+    source = SimSource(SimRig(config), mode=spec.mode, condition=spec.condition,
+                       wall_mm=spec.wall_mm)
     return _SwappedSource(source) if swap else source
 
 
@@ -151,7 +182,7 @@ def _auto(size: tuple[int, int], swap: bool) -> OpenedSource:
     # said on the terminal too (not only in the window's banner), without -v
     log.warning("%s; showing the simulated rig (choose cameras with File > Choose source, or "
                 "--source cams:L,R)", why)
-    return OpenedSource(_sim("mixed", size, swap), True, f"{why}; showing the simulated rig")
+    return OpenedSource(_sim(SourceSpec("sim"), size, swap), True, f"{why}; showing the simulated rig")
 
 
 def expected_frame_size(spec: str | None, size: tuple[int, int] = (640, 480)
@@ -213,7 +244,7 @@ def open_source(spec: str | None, size: tuple[int, int] = (640, 480), swap: bool
     if s.kind == "auto":
         return _auto(size, swap)
     if s.kind == "sim":
-        return OpenedSource(_sim(s.mode, size, swap), False, "simulated rig")
+        return OpenedSource(_sim(s, size, swap), False, "simulated rig")
     if s.kind == "cams":
         from stereo_gui.sources.cameras import TwoCameraSource
 

@@ -166,3 +166,45 @@ def test_falling_back_to_the_simulated_rig_is_said_as_a_warning(monkeypatch, cap
     warned = [r for r in caplog.records if r.levelno == logging.WARNING]
     assert warned and "showing the simulated rig" in warned[0].getMessage()
     assert "no cameras were found" in warned[0].getMessage()
+
+
+def test_sim_wall_specs():
+    s = parse_source_spec("sim:wall")
+    assert (s.kind, s.mode, s.condition, s.wall_mm) == ("sim", "wall", "rig", 1000.0)
+    s = parse_source_spec("Sim:Wall:webcams:2.5")
+    assert (s.condition, s.wall_mm) == ("webcams", 2500.0)
+    assert parse_source_spec("sim:wall:weak").wall_mm == 1000.0
+
+
+@pytest.mark.parametrize("spec, words", [
+    ("sim:wall:paint", "choose one of rig, weak"), ("sim:wall:weak:0.1", "from 0.4 to 8"),
+    ("sim:wall:weak:far", "in metres"), ("sim:wall:weak:nan", "in metres"),
+    ("sim:wall:weak:1:2", "in metres"),
+])
+def test_bad_sim_wall_specs_name_the_choices(spec, words):
+    with pytest.raises(InputError, match=words) as exc:
+        parse_source_spec(spec)
+    assert "\n" not in str(exc.value)
+
+
+def test_sim_wall_source_shows_the_wall_under_its_condition():
+    from stereo_gui.sources.sim.conditions import CONDITIONS
+
+    src = open_source("sim:wall:webcams:1.5", size=(320, 240)).source
+    assert isinstance(src, SimSource) and src.condition is CONDITIONS["webcams"]
+    assert "1.5 m" in src.name and "MJPG" in src.name
+    f = src.read()
+    assert f.truth.pose is None  # no chessboard in front of the wall
+    calib = src.rig.true_calibration()
+    w, h = calib.image_size
+    assert f.truth.point_rectified(calib, w / 2, h / 2)[2] == pytest.approx(1500.0, rel=0.01)
+    gray = [cv2.cvtColor(img, cv2.COLOR_BGR2GRAY).astype(np.float32) for img in (f.left, f.right)]
+    centre = [float(g[h // 3:2 * h // 3, w // 3:2 * w // 3].mean()) for g in gray]
+    corner = float(gray[0][:h // 8, :w // 8].mean())
+    assert corner < 0.85 * centre[0]  # vignetting: the corners 35 % darker at the very corner
+    assert centre[1] < centre[0] - 8  # the right camera's gain 0.8 (black level +12)
+    # a smooth painted wall at half contrast: little texture left in the middle
+    assert float(gray[0][h // 3:2 * h // 3, w // 3:2 * w // 3].std()) < 6.0
+    rich = open_source("sim:wall:rig:1.5", size=(320, 240)).source.read()
+    rich_gray = cv2.cvtColor(rich.left, cv2.COLOR_BGR2GRAY).astype(np.float32)
+    assert float(rich_gray[h // 3:2 * h // 3, w // 3:2 * w // 3].std()) > 12.0

@@ -1,7 +1,9 @@
 """The source chooser: automatic, simulated rig, two cameras, one side-by-side camera, a recording.
 
 The dialog edits a `SourceChoice`; its `spec` is the same string `--source` takes
-(auto, sim, cams:L,R, sbs:N, a folder or a video), so the command line and the settings agree.
+(auto, sim[:MODE], cams:L,R, sbs:N, a folder or a video), so the command line and the settings
+agree. The simulated rig can look at the demo scene, the chessboard, or a painted wall rendered
+under one of the conditions `stereo-gui bench --accuracy` measures (weak texture, webcam effects).
 """
 
 from __future__ import annotations
@@ -9,12 +11,14 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass
 
+from PySide6.QtCore import Qt
 from PySide6.QtWidgets import (
     QButtonGroup,
     QCheckBox,
     QComboBox,
     QDialog,
     QDialogButtonBox,
+    QDoubleSpinBox,
     QFileDialog,
     QGridLayout,
     QHBoxLayout,
@@ -26,7 +30,20 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from stereo_gui.core.errors import InputError
+from stereo_gui.sources.open import parse_source_spec
+from stereo_gui.sources.sim.conditions import CONDITIONS
+from stereo_gui.sources.sim.live import SimSource
+
 log = logging.getLogger(__name__)
+
+# what the simulated rig can look at: (label, spec); a wall's spec takes ":METRES" after it
+SIM_VIEWS: tuple[tuple[str, str], ...] = (
+    ("the demo scene, with a chessboard moving in front", "sim"),
+    ("the demo scene alone", "sim:scene"),
+    ("the chessboard alone", "sim:board"),
+    *((c.label, f"sim:wall:{name}") for name, c in CONDITIONS.items()),
+)
 
 RESOLUTIONS: tuple[tuple[int, int], ...] = ((640, 480), (320, 240), (800, 600), (1280, 720),
                                              (1280, 960), (1920, 1080))
@@ -45,8 +62,15 @@ def describe_spec(spec: str) -> str:
     """A short human description of a source spec, for menus and the status bar."""
     if spec in ("", "auto"):
         return "Automatic"
-    if spec == "sim":
-        return "Simulated rig"
+    if spec == "sim" or spec.startswith("sim:"):
+        try:
+            s = parse_source_spec(spec)
+        except InputError:
+            return f"Simulated rig ({spec})"
+        if s.mode == "wall":
+            return f"Simulated rig: a wall ({s.condition}) at {s.wall_mm / 1000:g} m"
+        return {"board": "Simulated rig: the chessboard",
+                "scene": "Simulated rig: the demo scene"}.get(s.mode, "Simulated rig")
     if spec.startswith("cams:"):
         return f"Cameras {spec[5:]}"
     if spec.startswith("sbs:"):
@@ -92,6 +116,28 @@ class SourceDialog(QDialog):
         self.sbs_cam = self._camera_combo()
         if self.right_cam.count() > 1:
             self.right_cam.setCurrentIndex(1)
+        self.sim_view = QComboBox()
+        for label, spec in SIM_VIEWS:
+            self.sim_view.addItem(label, spec)
+            if spec.startswith("sim:wall:"):
+                condition = CONDITIONS[spec.split(":")[2]]
+                self.sim_view.setItemData(self.sim_view.count() - 1, condition.description,
+                                          Qt.ItemDataRole.ToolTipRole)
+        self.sim_view.setSizeAdjustPolicy(
+            QComboBox.SizeAdjustPolicy.AdjustToMinimumContentsLengthWithIcon)
+        self.sim_view.setMinimumContentsLength(36)
+        self.sim_view.setToolTip("What the simulated cameras see. The walls are the ones "
+                                 "stereo-gui bench --accuracy measures: a smooth painted wall at "
+                                 "lower contrast, and what two cheap webcams add")
+        lo, hi = (v / 1000.0 for v in SimSource.WALL_MM)
+        self.wall_distance = QDoubleSpinBox()
+        self.wall_distance.setRange(lo, hi)
+        self.wall_distance.setDecimals(2)
+        self.wall_distance.setSingleStep(0.1)
+        self.wall_distance.setValue(1.0)
+        self.wall_distance.setSuffix(" m")
+        self.wall_distance.setToolTip("How far the wall is from the cameras")
+        self.sim_view.currentIndexChanged.connect(self._update_enabled)
         self.path_edit = QLineEdit()
         self.path_edit.setPlaceholderText("recording or folder of image pairs, or a video file")
         browse = QPushButton("Folder…")
@@ -109,22 +155,25 @@ class SourceDialog(QDialog):
         grid = QGridLayout()
         grid.addWidget(self.auto, 0, 0, 1, 4)
         grid.addWidget(self.sim, 1, 0, 1, 4)
-        grid.addWidget(self.cams, 2, 0, 1, 4)
-        grid.addWidget(QLabel("    Left:"), 3, 0)
-        grid.addWidget(self.left_cam, 3, 1, 1, 3)
-        grid.addWidget(QLabel("    Right:"), 4, 0)
-        grid.addWidget(self.right_cam, 4, 1, 1, 3)
-        grid.addWidget(self.sbs, 5, 0, 1, 4)
-        grid.addWidget(QLabel("    Camera:"), 6, 0)
-        grid.addWidget(self.sbs_cam, 6, 1, 1, 3)
-        grid.addWidget(self.folder, 7, 0, 1, 4)
-        grid.addWidget(self.path_edit, 8, 1)
-        grid.addWidget(browse, 8, 2)
-        grid.addWidget(browse_video, 8, 3)
+        grid.addWidget(QLabel("    Looking at:"), 2, 0)
+        grid.addWidget(self.sim_view, 2, 1, 1, 2)
+        grid.addWidget(self.wall_distance, 2, 3)
+        grid.addWidget(self.cams, 3, 0, 1, 4)
+        grid.addWidget(QLabel("    Left:"), 4, 0)
+        grid.addWidget(self.left_cam, 4, 1, 1, 3)
+        grid.addWidget(QLabel("    Right:"), 5, 0)
+        grid.addWidget(self.right_cam, 5, 1, 1, 3)
+        grid.addWidget(self.sbs, 6, 0, 1, 4)
+        grid.addWidget(QLabel("    Camera:"), 7, 0)
+        grid.addWidget(self.sbs_cam, 7, 1, 1, 3)
+        grid.addWidget(self.folder, 8, 0, 1, 4)
+        grid.addWidget(self.path_edit, 9, 1)
+        grid.addWidget(browse, 9, 2)
+        grid.addWidget(browse_video, 9, 3)
         if not self._cameras:
             note = QLabel("No cameras were found on this computer.")
             note.setStyleSheet("color: #a05000")
-            grid.addWidget(note, 9, 0, 1, 4)
+            grid.addWidget(note, 10, 0, 1, 4)
 
         opts = QHBoxLayout()
         opts.addWidget(QLabel("Resolution:"))
@@ -169,6 +218,9 @@ class SourceDialog(QDialog):
             self.folder.setChecked(True)
 
     def _update_enabled(self, *_args) -> None:
+        self.sim_view.setEnabled(self.sim.isChecked())
+        self.wall_distance.setEnabled(self.sim.isChecked()
+                                      and str(self.sim_view.currentData()).startswith("sim:wall"))
         self.left_cam.setEnabled(self.cams.isChecked())
         self.right_cam.setEnabled(self.cams.isChecked())
         self.sbs_cam.setEnabled(self.sbs.isChecked())
@@ -187,8 +239,8 @@ class SourceDialog(QDialog):
         try:
             if spec == "auto":
                 self.auto.setChecked(True)
-            elif spec == "sim":
-                self.sim.setChecked(True)
+            elif spec == "sim" or spec.startswith("sim:"):
+                self._set_sim_view(spec)
             elif spec.startswith("cams:"):
                 left, right = (int(v) for v in spec[5:].split(","))
                 self.cams.setChecked(True)
@@ -210,9 +262,23 @@ class SourceDialog(QDialog):
         self.swap.setChecked(choice.swap)
         self._update_enabled()
 
+    def _set_sim_view(self, spec: str) -> None:
+        try:
+            s = parse_source_spec(spec)
+        except InputError:
+            s = parse_source_spec("sim")
+        view = f"sim:wall:{s.condition}" if s.mode == "wall" else (
+            "sim" if s.mode == "mixed" else f"sim:{s.mode}")
+        self.sim_view.setCurrentIndex(max(0, self.sim_view.findData(view)))
+        if s.mode == "wall":
+            self.wall_distance.setValue(s.wall_mm / 1000.0)
+        self.sim.setChecked(True)
+
     def choice(self) -> SourceChoice:
         if self.sim.isChecked():
-            spec = "sim"
+            spec = str(self.sim_view.currentData())
+            if spec.startswith("sim:wall"):
+                spec += f":{self.wall_distance.value():g}"
         elif self.cams.isChecked():
             spec = f"cams:{self.left_cam.currentData()},{self.right_cam.currentData()}"
         elif self.sbs.isChecked():

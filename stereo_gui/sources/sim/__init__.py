@@ -12,8 +12,8 @@ convention as cv2.stereoCalibrate.
 The package, by room: `camera` (the rig's description and truth), `rays` (distortion inversion,
 ray maps), `textures` (board and object textures), `scene` (board poses, scene objects),
 `rig` (SimRig: poses, rendering, ground truth), `calibration_set` (sets on disk with
-truth.json), `controls` (the cameras' controls and what they do to the images) and `live`
-(SimSource). Every public name is importable from here.
+truth.json), `controls` (the cameras' controls and what they do to the images), `conditions` (how
+a wall is rendered: weak texture, webcam effects) and `live` (SimSource). Every public name is importable from here.
 """
 
 from stereo_gui.sources.sim.calibration_set import (
@@ -29,6 +29,7 @@ from stereo_gui.sources.sim.camera import (
     RigTruth,
     load_truth,
 )
+from stereo_gui.sources.sim.conditions import CONDITIONS, WEAK_CONTRAST, Condition, condition_named
 from stereo_gui.sources.sim.controls import (
     AUTO_TARGET,
     AUTO_WB_K,
@@ -45,15 +46,14 @@ from stereo_gui.sources.sim.controls import (
 )
 from stereo_gui.sources.sim.live import SimSource
 from stereo_gui.sources.sim.rays import RayMap, ray_map, undistort_normalized
-from stereo_gui.sources.sim.rig import (MIN_POINT_SPACING_PX, BoardOutOfView, SimFrameTruth,
-                                        SimRig)
+from stereo_gui.sources.sim.rig import MIN_POINT_SPACING_PX, BoardOutOfView, SimFrameTruth, SimRig
 from stereo_gui.sources.sim.scene import BoardPose, Scene, SceneObject
 from stereo_gui.sources.sim.textures import OCTAVES
 
 __all__ = [
     "AUTO_TARGET", "AUTO_WB_K", "AUTOFOCUS_RATE", "FOCAL_CHANGE_PER_STEP", "MAX_AUTO_EXPOSURE",
     "NEUTRAL_WB_K", "REFERENCE_EXPOSURE", "SIM_CONVENTION", "TRUE_FOCUS", "CameraLook",
-    "SimCameraDevice", "sim_controls",
+    "SimCameraDevice", "sim_controls", "CONDITIONS", "WEAK_CONTRAST", "Condition", "condition_named",
     "MIN_POINT_SPACING_PX", "OCTAVES", "SCENE_FOLDER", "SCENE_WALL_DISTANCES_MM", "TRUTH_FORMAT_VERSION", "BoardOutOfView",
     "BoardPose",
     "CameraTruth", "RayMap", "RigConfig", "RigTruth", "Scene", "SceneObject", "SimFrameTruth",

@@ -11,6 +11,7 @@ import numpy as np
 from stereo_gui.core.errors import InputError
 from stereo_gui.sources.base import FramePacer, FrameSource, StereoFrame
 from stereo_gui.sources.camera_controls import PairControls
+from stereo_gui.sources.sim.conditions import condition_named
 from stereo_gui.sources.sim.controls import SimCameraDevice, sim_controls
 from stereo_gui.sources.sim.rig import SimFrameTruth, SimRig
 from stereo_gui.sources.sim.scene import BoardPose, Scene
@@ -28,7 +29,9 @@ class SimSource(FrameSource):
     """The simulated rig as a live frame source.
 
     mode "board": a board moving smoothly between poses in front of a plain background;
-    "scene": the demo scene alone; "mixed": the board moving in front of the demo scene. The
+    "scene": the demo scene alone; "mixed": the board moving in front of the demo scene; "wall": a
+    painted wall `wall_mm` away rendered under `condition` (sim/conditions.py: its texture's
+    contrast, and the webcam effects applied to the rig's cameras). The
     poses visit the image corners, edges and centre in turn (SimRig.PLACES), as a technician
     following the coverage guidance does, and always in front of the scene's objects (random
     poses, some of them behind the nearest box, left corners of the images empty for 50 pairs
@@ -40,10 +43,12 @@ class SimSource(FrameSource):
     time is that much later and it sees the board where it has moved by then.
     """
 
-    MODES = ("mixed", "board", "scene")
+    MODES = ("mixed", "board", "scene", "wall")
+    WALL_MM = (400.0, 8000.0)  # the distances a wall may be put at
 
     def __init__(self, rig: SimRig | None = None, mode: str = "mixed", fps: float = 30.0,
-                 paced: bool = True, seed: int = 0, frames_per_move: int = 75):
+                 paced: bool = True, seed: int = 0, frames_per_move: int = 75,
+                 condition: str = "rig", wall_mm: float = 1000.0):
         if mode not in self.MODES:
             raise InputError(f"simulated source mode must be one of {', '.join(self.MODES)}, not {mode!r}")
         if not fps > 0:
@@ -53,7 +58,19 @@ class SimSource(FrameSource):
         self.nominal_fps = float(fps)
         self.paced = bool(paced)
         self.name = "Simulated rig"
-        self.scene = Scene.demo() if mode in ("mixed", "scene") else None
+        self.condition = None
+        if mode == "wall":
+            lo, hi = self.WALL_MM
+            if not lo <= wall_mm <= hi:
+                raise InputError(f"the simulated wall must be from {lo / 1000:g} to {hi / 1000:g} m "
+                                 f"away, not {wall_mm / 1000:g} m")
+            self.condition = condition_named(condition)
+            self.rig.set_sensor(self.condition)
+            self.name = f"Simulated rig: a wall at {wall_mm / 1000:g} m, {self.condition.description}"
+            self.scene = Scene.wall(wall_mm, seed=seed + int(wall_mm),
+                                    contrast=self.condition.contrast)
+        else:
+            self.scene = Scene.demo() if mode in ("mixed", "scene") else None
         self._rng = np.random.default_rng(seed + 1000003)
         self._pose_rng = np.random.default_rng(seed + 2000003)
         self._frames_per_move = max(2, int(frames_per_move))
@@ -109,7 +126,7 @@ class SimSource(FrameSource):
             self._pacer.wait(self.nominal_fps)
         offset = float(self.rig.config.time_offset_s)
         pose = pose_r = None
-        if self.mode != "scene":
+        if self.mode in ("mixed", "board"):
             pose = self._pose(self._index)
             pose_r = pose if offset == 0 else self._pose(self._index + offset * self.nominal_fps)
         t = time.monotonic()

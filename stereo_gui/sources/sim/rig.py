@@ -122,6 +122,13 @@ class SimRig:
             self.config = replace(self.config, board=board)
             self.truth = replace(self.truth, board=board)
 
+    def set_sensor(self, condition) -> None:
+        """Render from the next frame on with the sensor and webcam effects of `condition`
+        (sim/conditions.py: noise, the right camera's gain and black level, vignetting, JPEG)."""
+        with self._lock:
+            self.config = condition.rig_config(self.config)
+            self._noise.clear()  # the noise banks and the vignette follow the new settings
+
     TURN_AXES = {"tilt": 0, "pan": 1, "roll": 2}  # about the right camera's x, y, z axes
 
     def turn_right_camera(self, angle_deg: float, axis: str = "tilt") -> None:
