@@ -290,18 +290,26 @@ def computed_calibration(rig, pairs: int = 20, seed: int = BENCH_SEED) -> Stereo
     """A calibration computed the way the application does from `pairs` rendered board pairs."""
     from stereo_gui.core.calibrate import calibrate_stereo
     from stereo_gui.core.detect import detect_pairs
+    from stereo_gui.core.shading import measure_pair_shading
 
     images = rig.calibration_set(pairs, seed=seed)
-    detections = detect_pairs([(f"pair{i}", l, r) for i, (l, r) in enumerate(images)],
-                              rig.config.board)
-    return calibrate_stereo(detections, rig.config.board, rig.config.image_size).calibration
+    board = rig.config.board
+    detections = detect_pairs([(f"pair{i}", l, r) for i, (l, r) in enumerate(images)], board)
+    calib = calibrate_stereo(detections, board, rig.config.image_size).calibration
+    shading = measure_pair_shading([(d, (lambda a=a: a), (lambda b=b: b))
+                                    for d, (a, b) in zip(detections, images, strict=True)],
+                                   board.cols, board.rows)
+    return calib.with_updates(lens_shading=shading)
 
 
 def run_accuracy(presets=("report", "seed", "live", "quality"), walls=WALLS_MM,
                  seed: int = BENCH_SEED, calibrations=("true", "computed"),
                  pairs: int = 20, conditions=("rig",)) -> dict[str, list[WallReport]]:
     """Every preset on every wall under every condition, for each calibration; {calibration
-    label: [WallReport]} (the calibration is computed once, from the rig's usual images)."""
+    label: [WallReport]}. Under a condition with webcam effects the calibration is that of its
+    cameras (true: with their lens shading; computed: from board pairs they rendered, as a
+    technician calibrates the cameras they measure with); otherwise the rig's own, computed
+    once."""
     from stereo_gui.sources.sim import SimRig
 
     if not walls:
@@ -314,13 +322,17 @@ def run_accuracy(presets=("report", "seed", "live", "quality"), walls=WALLS_MM,
             for c in conditions}
     out: dict[str, list[WallReport]] = {}
     for label in calibrations:
-        if label == "true":
-            calib = base.true_calibration()
-        elif label == "computed":
-            calib = computed_calibration(base, pairs, seed)
-        else:
+        if label not in ("true", "computed"):
             raise InputError(f"unknown calibration {label!r}: true or computed")
-        out[label] = [evaluate_wall(rigs[c], calib, p, z, seed, condition=CONDITIONS[c])
+        calibs: dict[str, StereoCalibration] = {}
+        for c in conditions:
+            cameras = rigs[c] if CONDITIONS[c].changes_cameras else base
+            key = c if CONDITIONS[c].changes_cameras else "rig"
+            if key not in calibs:
+                calibs[key] = (cameras.true_calibration() if label == "true"
+                               else computed_calibration(cameras, pairs, seed))
+            calibs[c] = calibs[key]
+        out[label] = [evaluate_wall(rigs[c], calibs[c], p, z, seed, condition=CONDITIONS[c])
                       for c in conditions for z in walls for p in presets]
     return out
 

@@ -27,6 +27,7 @@ from stereo_gui.core.detect import METHODS as DETECTORS
 from stereo_gui.core.detect import PairInput, detect_pairs
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.lens import LENS_MODELS, distortion_names
+from stereo_gui.core.shading import shading_words, with_measured_shading
 from stereo_gui.files.calibration_file import export_ros, save_calibration
 from stereo_gui.files.pairs import check_same_size, discover_pairs, load_image
 
@@ -151,6 +152,10 @@ def result_json(result: CalibrationResult, output: Path | None = None) -> dict:
         "method": c.method,
         "alpha": c.alpha,
         "notes": list(r.notes),
+        "lens_shading": None if c.lens_shading is None else {
+            side: {"k1": getattr(c.lens_shading, side).k1, "k2": getattr(c.lens_shading, side).k2,
+                   "corner_loss": getattr(c.lens_shading, side).corner_loss}
+            for side in ("left", "right")},
     }
     if output is not None:
         out["output"] = str(output)
@@ -189,6 +194,8 @@ def summary_text(result: CalibrationResult, output: Path, seconds: float) -> str
     lines.append(f"RMS reprojection error: left {px(r.rms_left)}, right {px(r.rms_right)}, "
                  f"stereo {px(r.rms_stereo)}")
     lines.append(f"epipolar error after rectification: {r.epipolar_error_px:.3f} px")
+    if c.method == "bouguet":
+        lines.append(shading_words(c.lens_shading))
     if c.metric and u is not None:
         lines.append(f"baseline {r.baseline_mm:.2f} ± {u.baseline_sigma_mm(c.T):.2f} mm, relative "
                      f"rotation {r.relative_rotation_deg:.3f} ± {u.rotation_sigma_deg(c.R):.3f} "
@@ -268,6 +275,8 @@ def run(args: argparse.Namespace) -> int:
             if swap:
                 result = replace(result, calibration=result.calibration.with_updates(
                     swapped_inputs=True))
+            result = replace(result, calibration=with_measured_shading(
+                result.calibration, detections, items, board))
             controls = session.camera_controls if session is not None else None
             if controls is not None:  # the cameras' focus and exposure go with the calibration
                 result = replace(result, calibration=result.calibration.with_updates(

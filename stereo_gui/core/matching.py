@@ -388,11 +388,23 @@ class PipelineResult:
     # so that the views paint only those (`unseen_columns`)
     not_seen_cols: int | None = None
     match_scale: float = 1.0  # the scale the images were matched at (MatcherParams.effective_scale)
+    # gains (float32, H x W, left and right) that undo the lens shading in the rectified images
+    # (the calibration's core.shading), None when it had none worth undoing
+    shading_gains: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def params(self) -> MatcherParams:
         """The matcher parameters the frame was made with."""
         return self.preset.matcher
+
+    def matched_gray(self) -> tuple[np.ndarray, np.ndarray]:
+        """The rectified images in gray as the matcher saw them (the lens shading undone), at
+        full resolution: what a re-match or a refinement of a reading must compare."""
+        gl, gr = to_gray(self.rectified_left), to_gray(self.rectified_right)
+        if self.shading_gains is not None:
+            gl = cv2.multiply(gl, self.shading_gains[0], dtype=cv2.CV_8U)
+            gr = cv2.multiply(gr, self.shading_gains[1], dtype=cv2.CV_8U)
+        return gl, gr
 
 
 def fixed_to_px(disp16: np.ndarray, min_disparity: float, factor: float = 1.0) -> np.ndarray:
@@ -619,6 +631,31 @@ class StereoPipeline:
             self._wls.setSigmaColor(float(p.wls_sigma))
         self._kernel = (np.ones((p.closing_kernel, p.closing_kernel), np.uint8)
                         if p.closing_kernel > 1 else None)
+        self._shading_full = self._shading_gain_maps()
+        self._shading_gains = self._shading_full
+        if self._shading_full is not None and s < 1.0:
+            w, h = self.calibration.image_size
+            size_s = (max(1, round(w * s)), max(1, round(h * s)))
+            self._shading_gains = tuple(cv2.resize(g, size_s, interpolation=cv2.INTER_AREA)
+                                        for g in self._shading_full)
+
+    def _shading_gain_maps(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Per-pixel gains that undo each camera's lens shading (core.shading) in the full-size
+        rectified images, or None when the calibration has none worth undoing."""
+        shading = self.calibration.lens_shading
+        if shading is None or shading.negligible:
+            return None
+        size = self.calibration.image_size
+        m = self._maps
+        gains = []
+        for lens, maps in ((shading.left, None if m is None else (m.left_x, m.left_y)),
+                           (shading.right, None if m is None else (m.right_x, m.right_y))):
+            g = lens.gain_map(size)
+            if maps is not None:  # a rectified pixel shows the raw pixel its map points at
+                g = cv2.remap(g, maps[0], maps[1], cv2.INTER_LINEAR,
+                              borderMode=cv2.BORDER_REPLICATE)
+            gains.append(g)
+        return gains[0], gains[1]
 
     @property
     def edge_margin_px(self) -> float:
@@ -729,6 +766,10 @@ class StereoPipeline:
             lap("resize")
         else:
             ml, mr = gl, gr
+        if self._shading_gains is not None:
+            ml = cv2.multiply(ml, self._shading_gains[0], dtype=cv2.CV_8U)
+            mr = cv2.multiply(mr, self._shading_gains[1], dtype=cv2.CV_8U)
+            lap("shading")
         mw = ml.shape[1]
         if not p.full_frame and mw - (self._min_s + self._num_s) <= p.block_size // 2:
             raise InputError(
@@ -844,7 +885,8 @@ class StereoPipeline:
             wls_px=wls_px, final_px=final, color_bgr=color, valid=valid, timings_ms=t,
             size=(w, h), preset=self._preset, disparity_range_px=self._range_full,
             calibration=self.calibration, color_scale=colours, wls_confidence=confidence,
-            not_seen=not_seen, not_seen_cols=band, match_scale=scale)
+            not_seen=not_seen, not_seen_cols=band, match_scale=scale,
+            shading_gains=self._shading_full)
 
 
 # a window is blank (nothing but sensor noise) when its pixels correlate with their neighbours

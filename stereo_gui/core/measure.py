@@ -23,7 +23,6 @@ from stereo_gui.core.matching import (BLANK_HALF_PX, BLANK_LAG_PX, DISP_SCALE, P
                                      agreement, blank_mask, compute_padded, fixed_to_px,
                                      local_contrast, unseen_mask)
 from stereo_gui.core.stereo_calibration import StereoCalibration
-from stereo_gui.core.util import to_gray
 
 # SGBM reports disparity in steps of 1/16 px: no estimate is better than that without refinement
 QUANTUM_PX = 1.0 / DISP_SCALE
@@ -293,7 +292,7 @@ def rematch_strip(result: PipelineResult, y: int, half: int) -> np.ndarray | Non
     Returns the band's disparity (rows y-half .. y+half clipped), or None without a result.
     """
     p = result.params
-    gl, gr = to_gray(result.rectified_left), to_gray(result.rectified_right)
+    gl, gr = result.matched_gray()
     h = gl.shape[0]
     # rows beyond the patch give SGBM's vertical paths and the block window something to work on
     pad = half + 2 * max(p.block_size, p.check_block_size) + 8
@@ -466,13 +465,13 @@ def _why_nothing(result: PipelineResult | None, x: int, y: int, half: int) -> Re
     p = result.params
     if not p.full_frame and x < result.disparity_range_px[1] + 1 + p.block_size // 2:
         return Reason.NOT_SEARCHED
-    gl = to_gray(result.rectified_left)
+    gl, gr = result.matched_gray()
     d_est = _estimate_from_right(result, x, y, half)
     if d_est is not None and x - d_est < half:
         return Reason.NOT_SEEN
     if p.check_block_size and is_blank(gl, x, y):
         return Reason.NO_TEXTURE
-    scan = best_match_disparity(gl, to_gray(result.rectified_right), x, y, max(half, 5))
+    scan = best_match_disparity(gl, gr, x, y, max(half, 5))
     if scan is not None and scan[1] >= SCAN_PEAK_MIN:
         d_lo, d_hi = result.disparity_range_px
         step = 1.0 / result.match_scale
@@ -548,7 +547,7 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
     if result is not None and result.not_seen is not None and result.not_seen[yi, xi]:
         return invalid(Reason.NOT_SEEN)  # as every view shows it
     if (result is not None and not result.params.check_block_size
-            and not has_texture(to_gray(result.rectified_left), xi, yi, half)):
+            and not has_texture(result.matched_gray()[0], xi, yi, half)):
         return invalid(Reason.NO_TEXTURE)  # whatever matched there matched noise
 
     scaled = result is not None and result.match_scale < 1.0
@@ -594,7 +593,7 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
 
     ref = None
     if result is not None:
-        gl, gr = to_gray(result.rectified_left), to_gray(result.rectified_right)
+        gl, gr = result.matched_gray()
     if refine and result is not None and mode == "point":
         ref = refine_point(gl, gr, xi, yi, d, half, surface=disp)
         if ref is not None:

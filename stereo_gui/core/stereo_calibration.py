@@ -86,6 +86,9 @@ class StereoCalibration:
     # core.camera_settings.PairSettings: the cameras' controls (focus, exposure...) when the
     # pairs were captured, as this calibration names the cameras; None when not known
     camera_controls: object | None = None
+    # core.shading.PairShading: how much darker each camera's corners are, measured on the white
+    # squares of the pairs (undone before matching); None when not measured
+    lens_shading: object | None = None
 
     def ordered(self, left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """A source's (left, right) images in the order this calibration expects."""

@@ -81,6 +81,7 @@ def calibration_text(calib: StereoCalibration) -> str:
             fs.write("board_dictionary", calib.board.dictionary)
     _write_lens_and_uncertainty(fs, calib)
     _write_camera_controls(fs, calib)
+    _write_lens_shading(fs, calib)
     fs.write("rms_left", float(calib.rms_left))
     fs.write("rms_right", float(calib.rms_right))
     fs.write("rms_stereo", float(calib.rms_stereo))
@@ -103,7 +104,16 @@ def _same_calibration(a: StereoCalibration, b: StereoCalibration) -> bool:
                               np.asarray(getattr(b, name), np.float64).reshape(-1)):
             return False
     return (a.image_size == b.image_size and len(a.per_pair) == len(b.per_pair)
-            and a.board == b.board and _controls_of(a) == _controls_of(b))
+            and a.board == b.board and _controls_of(a) == _controls_of(b)
+            and _same_shading(a.lens_shading, b.lens_shading))
+
+
+def _same_shading(a, b) -> bool:
+    if a is None or b is None:
+        return a is b
+    return all(math.isclose(getattr(getattr(a, side), k), getattr(getattr(b, side), k),
+                            rel_tol=1e-9, abs_tol=1e-12)
+               for side in ("left", "right") for k in ("k1", "k2"))
 
 
 def _controls_of(calib: StereoCalibration):
@@ -639,7 +649,61 @@ def _read_calibration(fs, where: str) -> StereoCalibration:
         per_pair=tuple(per_pair), method=method, alpha=_real(fs, "alpha", where, 0.0),
         optimal_M1=opt["optimal_M1"], optimal_M2=opt["optimal_M2"],
         created=_string(fs, "created", ""), scaled_from=_scaled_from(fs, where),
-        camera_controls=_read_camera_controls(fs, where), **extra)
+        camera_controls=_read_camera_controls(fs, where),
+        lens_shading=_read_lens_shading(fs, where), **extra)
+
+
+# ---- lens shading ---------------------------------------------------------------------------
+def _write_lens_shading(fs, calib: StereoCalibration) -> None:
+    shading = calib.lens_shading
+    if shading is None:
+        return
+    fs.startWriteStruct("lens_shading", cv2.FileNode_MAP)
+    for side in ("left", "right"):
+        lens = getattr(shading, side)
+        fs.startWriteStruct(side, cv2.FileNode_MAP)
+        fs.write("k1", float(lens.k1))
+        fs.write("k2", float(lens.k2))
+        fs.endWriteStruct()
+    fs.write("samples", int(shading.samples))
+    fs.write("images", int(shading.images))
+    fs.endWriteStruct()
+
+
+def _read_lens_shading(fs, where: str):
+    """The `lens_shading` node as a core.shading.PairShading, or None (missing; or damaged: then
+    said in the log, and the images are matched as they come)."""
+    from stereo_gui.core.shading import MAX_LOSS, LensShading, PairShading
+
+    node = fs.getNode("lens_shading")
+    if node.empty() or node.isNone():
+        return None
+    try:
+        if not node.isMap():
+            raise ValueError("lens_shading should be a map with left and right")
+        lenses = []
+        for side in ("left", "right"):
+            n = node.getNode(side)
+            if n.empty() or not n.isMap():
+                raise ValueError(f"lens_shading has no {side} map")
+            k = []
+            for name in ("k1", "k2"):
+                v = n.getNode(name)
+                if v.empty() or not (v.isReal() or v.isInt()) or not math.isfinite(v.real()):
+                    raise ValueError(f"lens_shading {side} {name} should be a finite number")
+                k.append(float(v.real()))
+            lens = LensShading(*k)
+            corner = lens.brightness(np.linspace(0.0, 1.0, 21))
+            if corner.min() <= 1.0 - MAX_LOSS or corner.max() >= 1.0 + MAX_LOSS:
+                raise ValueError(f"lens_shading {side} darkens or brightens the image by more "
+                                 f"than {100 * MAX_LOSS:.0f} %")
+            lenses.append(lens)
+        counts = [int(node.getNode(n).real()) if node.getNode(n).isInt() else 0
+                  for n in ("samples", "images")]
+        return PairShading(lenses[0], lenses[1], *counts)
+    except ValueError as exc:
+        log.warning("%s: %s; the lens shading of this calibration is not used", where, exc)
+        return None
 
 
 # ---- the cameras' controls ------------------------------------------------------------------

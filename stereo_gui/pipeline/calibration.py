@@ -17,6 +17,7 @@ from stereo_gui.core.calibrate import CalibrationResult, calibrate_stereo
 from stereo_gui.core.detect import PairDetection, PairInput, detect_pairs
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.lens import project_points, undistort_points
+from stereo_gui.core.shading import with_measured_shading
 from stereo_gui.core.stereo_calibration import RectifyMaps, StereoCalibration
 from stereo_gui.core.util import how_many
 from stereo_gui.pipeline.jobs import JobControl, Progress
@@ -173,6 +174,10 @@ def calibration_job(folder: Path, board: BoardSpec, alpha: float, method: str,
             dets, board, alpha=alpha, method=method, cancel=control, model=model, fix_k3=fix_k3,
             progress=lambda d, t, s: control.report(n + round(9 * d / max(t, 1)), total, s),
             origin=f"{folder}" + (" with left and right exchanged" if swapped else ""))
+        yield Progress(n + 8, total, "measuring the lens shading")
+        result = replace(result, calibration=with_measured_shading(
+            result.calibration, dets, inputs, board))
+        control.check()
         if swapped:
             result = replace(result, calibration=result.calibration.with_updates(swapped_inputs=True))
         if excluded:  # recorded with the calibration, beside the pairs it rejected

@@ -263,3 +263,31 @@ def test_hartley_without_a_board_uses_scene_features(tmp_path, capsys):
     assert calib.epipolar_error_px < 1.0
     # the same folder with the default (metric) method has no board to work with
     _assert_one_error_line(*_run([d, "-o", tmp_path / "b.yaml"], capsys), "no chessboard")
+
+
+def test_lens_shading_is_measured_and_kept_with_the_calibration(tmp_path, capsys):
+    from dataclasses import replace as _replace
+
+    from stereo_gui.sources.sim import RigConfig
+
+    (tmp_path / "dark-corners").mkdir()
+    folder = write_calibration_set(tmp_path / "dark-corners", n_pairs=N_PAIRS, seed=31,
+                                   config=_replace(RigConfig(), vignetting=0.3))
+    out_file = tmp_path / "calib.yaml"
+    code, out, err = _run([folder, "--board", "9x6", "--square-mm", "25", "-o", out_file,
+                           "--json"], capsys)
+    assert code == 0, err
+    data = json.loads(out)
+    for side in ("left", "right"):
+        assert data["lens_shading"][side]["corner_loss"] == pytest.approx(0.3, abs=0.04)
+    assert load_calibration(out_file).lens_shading.left.corner_loss == pytest.approx(
+        data["lens_shading"]["left"]["corner_loss"])
+    code, out, err = _run([folder, "--board", "9x6", "--square-mm", "25", "-o", out_file],
+                          capsys)
+    assert code == 0 and "lens shading: corners 3" in out and "undone before matching" in out
+
+
+def test_a_rig_without_dark_corners_says_so(rig_dir, tmp_path, capsys):
+    code, out, err = _run([rig_dir, "--board", "9x6", "--square-mm", "25", "-o",
+                           tmp_path / "c.yaml"], capsys)
+    assert code == 0 and "lens shading: none worth undoing" in out

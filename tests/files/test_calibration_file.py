@@ -259,3 +259,23 @@ def test_the_pairs_left_out_are_kept_in_the_file(tmp_path):
     text = path.read_text().replace("name: chessboard-9", "name: 9")
     path.write_text(text)
     assert load_calibration(path).left_out == (("chessboard-4", "excluded by you"),)
+
+
+def test_lens_shading_round_trips_and_a_damaged_one_is_dropped_with_a_warning(tmp_path, caplog):
+    from stereo_gui.core.shading import LensShading, PairShading
+
+    shading = PairShading(LensShading(-0.3371234567891, -0.0193), LensShading(-0.318, 0.0041),
+                          samples=800, images=40)
+    c = make_calibration().with_updates(lens_shading=shading)
+    path = save_calibration(c, tmp_path / "calib.yaml")
+    assert load_calibration(path).lens_shading == shading
+    assert load_calibration(save_calibration(make_calibration(), tmp_path / "plain.yaml")
+                            ).lens_shading is None  # older files have none
+    text = path.read_text()
+    for bad in ("-8.0", ".Nan"):  # corners 800 % darker; not a number
+        damaged = tmp_path / "damaged.yaml"
+        damaged.write_text(re.sub(r"k1: [-0-9.e]+", f"k1: {bad}", text, count=1))
+        caplog.clear()
+        back = load_calibration(damaged)
+        assert back.lens_shading is None and back.M1 is not None
+        assert "lens shading of this calibration is not used" in caplog.text

@@ -1,6 +1,6 @@
 """The Calibration tab's figures a person can check: RMS per camera and stereo, epipolar error,
 baseline against the nominal one, rotation between the cameras, each camera's intrinsics, pairs
-used; each value with its 1-sigma uncertainty beside it when the calibration has one."""
+used, the lens shading; each value with its 1-sigma uncertainty beside it when the calibration has one."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import math
 from PySide6.QtWidgets import QFormLayout, QGroupBox, QLabel
 
 from stereo_gui.core.calibrate import HARTLEY_NOTE
+from stereo_gui.core.shading import shading_text
 from stereo_gui.qt.widgets.helpers import wrapping_label
 
 
@@ -33,6 +34,12 @@ class CalibrationFigures(QGroupBox):
         self.left_label = QLabel()
         self.right_label = QLabel()
         self.corners_label = QLabel()
+        self.shading_label = wrapping_label()
+        self.shading_label.setToolTip(
+            "How much darker each camera's image gets towards its corners, measured on the "
+            "white squares of the chessboard pairs. Undone before matching: two cameras see a "
+            "point at different distances from their corners, and on a smooth wall that "
+            "brightness difference would outweigh the wall's faint texture")
         self.corners_label.setToolTip("How uncertain each camera's lens model is at the image "
                                       "corners (1 sigma, px): large where the board never went")
         for lab in (self.left_label, self.right_label):
@@ -51,6 +58,7 @@ class CalibrationFigures(QGroupBox):
         form.addRow("Left camera:", self.left_label)
         form.addRow("Right camera:", self.right_label)
         form.addRow("Lens at the corners:", self.corners_label)
+        form.addRow("Lens shading:", self.shading_label)
         form.addRow("Pairs:", self.pairs_label)
         self.note_label = wrapping_label()
         self.note_label.setStyleSheet("color: #b03a2e; font-weight: bold")
@@ -64,7 +72,7 @@ class CalibrationFigures(QGroupBox):
         for lab in (self.rms_left_label, self.rms_right_label, self.rms_stereo_label,
                     self.epipolar_label, self.baseline_label, self.rotation_label,
                     self.model_label, self.left_label, self.right_label, self.corners_label,
-                    self.pairs_label):
+                    self.shading_label, self.pairs_label):
             lab.setText("—")
         self.source_label.setText("none yet: calibrate, or load a calibration file")
         self.note_label.setText("")
@@ -101,6 +109,8 @@ class CalibrationFigures(QGroupBox):
         self.left_label.setText(camera_text(c, "left"))
         self.right_label.setText(camera_text(c, "right"))
         self.corners_label.setText(corners_text(c))
+        self.shading_label.setText(shading_text(c.lens_shading) if c.method == "bouguet"
+                                   else "—")
         self.pairs_label.setText(pairs)
 
 

@@ -26,6 +26,13 @@ class Condition:
     description: str = ""
     label: str = ""  # a few words for a menu
 
+    @property
+    def changes_cameras(self) -> bool:
+        """Whether the condition changes what the cameras do to any image (a calibration made
+        with them differs), not only the wall."""
+        return bool(self.gain_right is not None or self.black_right or self.vignetting
+                    or self.jpeg_quality is not None)
+
     def rig_config(self, base):
         """`base` (a RigConfig) with this condition's sensor and webcam effects."""
         changes = {"black_right": self.black_right, "vignetting": self.vignetting,

@@ -677,7 +677,18 @@ class SimRig:
                                  t.R.copy(), t.T.copy(), E, F, R1, R2, P1, P2, Q, board=t.board,
                                  rms_left=0.0, rms_right=0.0, rms_stereo=0.0,
                                  epipolar_error_px=0.0, method="bouguet", alpha=float(alpha),
-                                 model=t.model, origin="the simulated rig's truth")
+                                 model=t.model, origin="the simulated rig's truth",
+                                 lens_shading=self.true_shading())
+
+    def true_shading(self):
+        """Both cameras' true lens shading (core.shading.PairShading), None without vignetting:
+        the rig darkens both cameras' corners alike, 1 - vignetting * r^2 of the raw image."""
+        v = float(self.config.vignetting)
+        if v <= 0.0:
+            return None
+        from stereo_gui.core.shading import LensShading, PairShading
+
+        return PairShading(LensShading(-v, 0.0), LensShading(-v, 0.0))
 
     def true_point_rectified(self, calib: StereoCalibration, scene: Scene, x: float, y: float
                              ) -> np.ndarray | None:

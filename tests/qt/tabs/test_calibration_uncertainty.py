@@ -53,6 +53,7 @@ def test_values_show_their_uncertainty_and_the_model(make_tab, qtbot, calib_set,
     sigma = c.uncertainty.sigma("left.fx")
     assert f"±{sigma:.2f}" in f.left_label.text()
     assert "px left" in f.corners_label.text()
+    assert "none worth undoing" in f.shading_label.text()  # the rig's corners are not darker
     assert "1 sigma" in f.model_label.text() and "pinhole" in f.model_label.text()
     assert "± 1 sigma" in tab.matrices_text.toPlainText()
     assert "swapped" not in [w.code for w in run.result.report.warnings]
@@ -90,3 +91,21 @@ def test_fix_k3_remedy_recalibrates_with_k3_held(make_tab, ctx, qtbot, calib_set
     c = run.result.calibration
     assert c.D1[0, 4] == 0.0 and c.uncertainty.index("left.k3") is None
     assert "k3 fixed" in c.origin
+
+
+def test_the_lens_shading_is_measured_and_shown(make_tab, qtbot, tmp_path):
+    from dataclasses import replace
+
+    from stereo_gui.sources.sim import RigConfig
+
+    folder = tmp_path / "dark-corners"
+    folder.mkdir()
+    write_calibration_set(folder, n_pairs=10, seed=23,
+                          config=replace(RigConfig(), vignetting=0.3))
+    tab = make_tab(CalibrationTab)
+    tab.folder_edit.setText(str(folder))
+    run = _calibrate(tab, qtbot)
+    shading = run.result.calibration.lens_shading
+    assert shading is not None and abs(shading.left.corner_loss - 0.3) < 0.04
+    text = tab.figures.shading_label.text()
+    assert "darker than the centre" in text and "undone before matching" in text

@@ -1,0 +1,154 @@
+"""Lens shading: measured on the white squares of rendered chessboard pairs, stored with the
+calibration, and undone before matching so that a vignetted weak wall is read as well as a plain
+one."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from stereo_gui.core.detect import PairInput, detect_pairs
+from stereo_gui.core.matching import StereoPipeline
+from stereo_gui.core.shading import (
+    LensShading,
+    PairShading,
+    fit_shading,
+    measure_pair_shading,
+    radius2_map,
+    shading_words,
+    with_measured_shading,
+)
+from stereo_gui.core.stereo_calibration import PairError
+from stereo_gui.files.presets import load_preset
+from stereo_gui.sources.sim import RigConfig, SimRig, SimSource
+
+SEED = 17
+
+
+def _samples(shading: LensShading, n_images: int, rng, reach: float = 1.0):
+    out = []
+    for _ in range(n_images):
+        r2 = rng.uniform(0.0, reach, 40) ** 2
+        a = rng.uniform(120.0, 220.0)  # each image's own exposure and lighting
+        b = a * shading.brightness(r2) * (1 + rng.normal(0, 0.01, r2.size))
+        out.append((r2, b))
+    return out
+
+
+def test_fit_recovers_a_known_falloff_whatever_each_images_brightness():
+    rng = np.random.default_rng(SEED)
+    truth = LensShading(-0.30, -0.08)
+    got = fit_shading(_samples(truth, 12, rng))
+    assert got is not None
+    assert got.corner_loss == pytest.approx(truth.corner_loss, abs=0.01)
+    assert got.brightness(0.5) == pytest.approx(truth.brightness(0.5), abs=0.01)
+
+
+def test_fit_leaves_out_reflections_and_clipped_samples():
+    rng = np.random.default_rng(SEED)
+    truth = LensShading(-0.35, 0.0)
+    parts = _samples(truth, 12, rng)
+    r2, b = parts[0]
+    b = b.copy()
+    b[:5] = 255.0  # clipped
+    b[5:8] *= 1.6  # a reflection
+    parts[0] = (r2, b)
+    assert fit_shading(parts).corner_loss == pytest.approx(0.35, abs=0.01)
+
+
+def test_no_fit_from_too_little():
+    rng = np.random.default_rng(SEED)
+    truth = LensShading(-0.35, 0.0)
+    assert fit_shading(_samples(truth, 2, rng)) is None  # too few images
+    assert fit_shading(_samples(truth, 12, rng, reach=0.3)) is None  # only the middle seen
+
+
+def test_gain_map_undoes_the_falloff():
+    lens = LensShading(-0.35, 0.0)
+    size = (64, 48)
+    g = lens.gain_map(size)
+    np.testing.assert_allclose(g * lens.brightness(radius2_map(size)), 1.0, rtol=1e-5)
+    assert g[0, 0] == pytest.approx(1 / 0.65, rel=1e-3) and g[24, 32] == pytest.approx(1.0, abs=2e-3)
+
+
+@pytest.fixture(scope="module")
+def vignetted_pairs():
+    rig = SimRig(replace(RigConfig(), vignetting=0.35), seed=SEED)
+    images = rig.calibration_set(12, seed=SEED)
+    inputs = [PairInput(f"pair{i}", left, right) for i, (left, right) in enumerate(images)]
+    return rig, inputs, detect_pairs(inputs, rig.config.board)
+
+
+def test_measured_on_the_white_squares_of_rendered_boards(vignetted_pairs):
+    rig, inputs, dets = vignetted_pairs
+    board = rig.config.board
+    got = measure_pair_shading([(d, (lambda i=i: i.left), (lambda i=i: i.right))
+                                for d, i in zip(dets, inputs, strict=True)], board.cols, board.rows)
+    assert got is not None and got.images >= 20
+    for lens in (got.left, got.right):
+        assert lens.corner_loss == pytest.approx(0.35, abs=0.04)
+    assert "undone before matching" in shading_words(got)
+
+
+def test_none_measured_where_there_is_none():
+    rig = SimRig(seed=SEED)
+    images = rig.calibration_set(8, seed=SEED)
+    inputs = [PairInput(f"pair{i}", left, right) for i, (left, right) in enumerate(images)]
+    dets = detect_pairs(inputs, rig.config.board)
+    board = rig.config.board
+    got = measure_pair_shading([(d, (lambda i=i: i.left), (lambda i=i: i.right))
+                                for d, i in zip(dets, inputs, strict=True)], board.cols, board.rows)
+    assert got is not None and got.negligible
+    assert "none worth undoing" in shading_words(got)
+
+
+def test_calibration_flows_attach_it_only_for_a_chessboard(vignetted_pairs):
+    rig, inputs, dets = vignetted_pairs
+    # as calibrate_stereo leaves it: made from these pairs, no shading yet
+    calib = rig.true_calibration().with_updates(
+        lens_shading=None, per_pair=tuple(PairError(d.name, 0.1, 0.1) for d in dets))
+    got = with_measured_shading(calib, dets, inputs, rig.config.board)
+    assert got.lens_shading is not None
+    assert got.lens_shading.left.corner_loss == pytest.approx(0.35, abs=0.04)
+    charuco = replace(rig.config.board, target="charuco")
+    assert with_measured_shading(calib, dets, inputs, charuco).lens_shading is None
+
+
+def _left_columns_density(condition: str, shading: bool) -> float:
+    """Density of the live preset's final map over the second and third sixths of the width
+    (left of centre, where the right camera sees the wall nearer its darker corner) on a
+    weak wall at 1 m."""
+    src = SimSource(SimRig(seed=SEED), mode="wall", condition=condition, wall_mm=1000.0,
+                    paced=False, seed=SEED)
+    calib = src.rig.true_calibration()
+    if not shading:
+        calib = calib.with_updates(lens_shading=None)
+    frame = src.read()
+    with StereoPipeline(calib, load_preset("live")) as pipe:
+        final = pipe.process(frame.left, frame.right).final_px
+    w = final.shape[1]
+    return float(np.isfinite(final[:, w // 6:w // 2]).mean())
+
+
+def test_undoing_the_shading_gives_a_vignetted_weak_wall_back_its_readings():
+    plain = _left_columns_density("half", shading=True)  # no vignetting: nothing to undo
+    assert plain > 0.9
+    assert _left_columns_density("vignetting", shading=True) > plain - 0.05
+    assert _left_columns_density("vignetting", shading=False) < plain - 0.2
+
+
+def test_a_calibration_without_shading_changes_nothing():
+    calib = SimRig(seed=SEED).true_calibration()
+    assert calib.lens_shading is None
+    pipe = StereoPipeline(calib, load_preset("live"))
+    flat = PairShading(LensShading(-0.01, 0.0), LensShading(0.0, 0.0))
+    assert flat.negligible
+    src = SimSource(SimRig(seed=SEED), mode="scene", paced=False, seed=SEED)
+    f = src.read()
+    a = pipe.process(f.left, f.right).final_px
+    b = StereoPipeline(calib.with_updates(lens_shading=flat), load_preset("live")).process(
+        f.left, f.right).final_px
+    np.testing.assert_array_equal(np.isnan(a), np.isnan(b))
+    np.testing.assert_array_equal(a[np.isfinite(a)], b[np.isfinite(b)])
