@@ -3,6 +3,7 @@ mode, refinement, fits."""
 
 import math
 
+import cv2
 import numpy as np
 import pytest
 
@@ -381,3 +382,49 @@ def test_a_blank_wall_is_refused_for_having_no_texture(weak_rig, preset):
     readings = [measure_point(result, x, y) for x, y in POINTS]
     assert not any(m.valid for m in readings), readings
     assert sum(m.reason == "no texture" for m in readings) >= len(POINTS) - 1, readings
+
+
+def test_correlated_stderr_counts_residuals_that_move_together():
+    """Independent residuals: about the usual standard error. Residuals shared by 8 x 8 blocks
+    (what MJPG leaves): several times more, as the fit has far fewer independent pixels."""
+    from stereo_gui.core.measure import correlated_stderr
+
+    rng = np.random.default_rng(3)
+    shape = (32, 32)
+    # a texture's gradient changes smoothly from pixel to pixel
+    g = cv2.GaussianBlur(rng.normal(0, 10, shape), (0, 0), 3.0)
+    g *= 10 / g.std()
+    A = np.column_stack([rng.normal(100, 5, g.size), np.ones(g.size), g.reshape(-1)])
+    inv = np.linalg.inv(A.T @ A)
+    ratios = []
+    for blocky in (False, True):
+        if blocky:
+            resid = np.kron(rng.normal(0, 2, (4, 4)), np.ones((8, 8))).reshape(-1)
+            resid += rng.normal(0, 0.2, resid.size)
+        else:
+            resid = rng.normal(0, 2, g.size)
+        iid = np.sqrt(resid @ resid / (g.size - 3) * inv[2, 2])
+        ratios.append(correlated_stderr(A, resid, shape) / iid)
+    assert 0.6 < ratios[0] < 1.4, ratios
+    assert ratios[1] > 2.0, ratios
+
+
+@pytest.mark.parametrize("preset", ["live", "quality"])
+def test_on_an_mjpg_wall_the_plus_minus_still_covers_the_truth(preset):
+    """MJPG at quality 75 on a painted wall at half contrast: the blocks move the readings by
+    more than independent pixels would, and the +- says so (it counts the residuals'
+    correlation): it covers the true error at 95 % or more of the points read (counting the
+    pixels as independent it covered 90-91 % here)."""
+    from stereo_gui.commands.accuracy import evaluate_wall
+    from stereo_gui.sources.sim.conditions import CONDITIONS
+
+    condition = CONDITIONS["mjpg"]
+    base = SimRig(seed=31)
+    rig = SimRig(condition.rig_config(base.config), seed=31)
+    calib = rig.true_calibration()
+    read = covered = 0
+    for wall in (1000.0, 2000.0):
+        report = evaluate_wall(rig, calib, preset, wall, 31, condition=condition)
+        read += sum(g.read for g in report.seen)
+        covered += sum(g.covered for g in report.seen if g.read)
+    assert read > 60 and covered >= 0.95 * read, (covered, read)
