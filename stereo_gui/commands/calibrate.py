@@ -154,6 +154,7 @@ def result_json(result: CalibrationResult, output: Path | None = None) -> dict:
         "notes": list(r.notes),
         "lens_shading": None if c.lens_shading is None else {
             side: {"k1": getattr(c.lens_shading, side).k1, "k2": getattr(c.lens_shading, side).k2,
+                   "black": getattr(c.lens_shading, side).black,
                    "corner_loss": getattr(c.lens_shading, side).corner_loss}
             for side in ("left", "right")},
     }

@@ -32,6 +32,7 @@ import numpy as np
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.params import Param, check_all, from_json, param, params_of
+from stereo_gui.core.shading import undo_shading
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.core.util import to_gray
 
@@ -355,6 +356,10 @@ class Preset:
         return cls(**top)
 
 
+# per camera (left, right): the gain and offset maps that undo its lens shading (core.shading)
+ShadingMaps = tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
 @dataclass(frozen=True, eq=False)
 class PipelineResult:
     """One processed frame. Images are full-resolution rectified (H x W); disparities float32 px.
@@ -388,9 +393,10 @@ class PipelineResult:
     # so that the views paint only those (`unseen_columns`)
     not_seen_cols: int | None = None
     match_scale: float = 1.0  # the scale the images were matched at (MatcherParams.effective_scale)
-    # gains (float32, H x W, left and right) that undo the lens shading in the rectified images
-    # (the calibration's core.shading), None when it had none worth undoing
-    shading_gains: tuple[np.ndarray, np.ndarray] | None = None
+    # (gain, offset) maps (float32, H x W) of the left and right camera that undo the lens
+    # shading in the rectified images (the calibration's core.shading), None when it had none
+    # worth undoing
+    shading_gains: ShadingMaps | None = None
 
     @property
     def params(self) -> MatcherParams:
@@ -402,8 +408,8 @@ class PipelineResult:
         full resolution: what a re-match or a refinement of a reading must compare."""
         gl, gr = to_gray(self.rectified_left), to_gray(self.rectified_right)
         if self.shading_gains is not None:
-            gl = cv2.multiply(gl, self.shading_gains[0], dtype=cv2.CV_8U)
-            gr = cv2.multiply(gr, self.shading_gains[1], dtype=cv2.CV_8U)
+            gl = undo_shading(gl, *self.shading_gains[0])
+            gr = undo_shading(gr, *self.shading_gains[1])
         return gl, gr
 
 
@@ -631,31 +637,30 @@ class StereoPipeline:
             self._wls.setSigmaColor(float(p.wls_sigma))
         self._kernel = (np.ones((p.closing_kernel, p.closing_kernel), np.uint8)
                         if p.closing_kernel > 1 else None)
-        self._shading_full = self._shading_gain_maps()
-        self._shading_gains = self._shading_full
-        if self._shading_full is not None and s < 1.0:
-            w, h = self.calibration.image_size
-            size_s = (max(1, round(w * s)), max(1, round(h * s)))
-            self._shading_gains = tuple(cv2.resize(g, size_s, interpolation=cv2.INTER_AREA)
-                                        for g in self._shading_full)
+        self._shading_full = self._shading_maps(1.0)
+        self._shading_gains = self._shading_full if s >= 1.0 else self._shading_maps(s)
 
-    def _shading_gain_maps(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """Per-pixel gains that undo each camera's lens shading (core.shading) in the full-size
-        rectified images, or None when the calibration has none worth undoing."""
+    def _shading_maps(self, scale: float) -> ShadingMaps | None:
+        """(gain, offset) per camera that undo its lens shading (core.shading) in the rectified
+        images at `scale`, or None when the calibration has none worth undoing."""
         shading = self.calibration.lens_shading
         if shading is None or shading.negligible:
             return None
         size = self.calibration.image_size
+        w, h = size
+        size_s = (max(1, round(w * scale)), max(1, round(h * scale)))
         m = self._maps
-        gains = []
+        out = []
         for lens, maps in ((shading.left, None if m is None else (m.left_x, m.left_y)),
                            (shading.right, None if m is None else (m.right_x, m.right_y))):
             g = lens.gain_map(size)
             if maps is not None:  # a rectified pixel shows the raw pixel its map points at
                 g = cv2.remap(g, maps[0], maps[1], cv2.INTER_LINEAR,
                               borderMode=cv2.BORDER_REPLICATE)
-            gains.append(g)
-        return gains[0], gains[1]
+            if scale < 1.0:
+                g = cv2.resize(g, size_s, interpolation=cv2.INTER_AREA)
+            out.append((g, lens.offset_map(g)))
+        return out[0], out[1]
 
     @property
     def edge_margin_px(self) -> float:
@@ -767,8 +772,8 @@ class StereoPipeline:
         else:
             ml, mr = gl, gr
         if self._shading_gains is not None:
-            ml = cv2.multiply(ml, self._shading_gains[0], dtype=cv2.CV_8U)
-            mr = cv2.multiply(mr, self._shading_gains[1], dtype=cv2.CV_8U)
+            ml = undo_shading(ml, *self._shading_gains[0])
+            mr = undo_shading(mr, *self._shading_gains[1])
             lap("shading")
         mw = ml.shape[1]
         if not p.full_frame and mw - (self._min_s + self._num_s) <= p.block_size // 2:

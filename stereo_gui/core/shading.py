@@ -8,13 +8,14 @@ brightness by an amount that changes across the frame. On weak texture that diff
 the texture and pulls matches towards no disparity: on the simulated rig's painted wall at half
 contrast with corners 35 % darker, a click reads at 66-70 % of the grid instead of 97 %.
 
-The model, per camera: relative brightness V(r) = 1 + k1 r^2 + k2 r^4 of the raw image, r the
-distance from the image centre divided by the half-diagonal (1 in the corners). It is measured as
-follows. In every pair the board's white squares are sampled at their centres (a window of a
-fifth of a square); each image has its own overall brightness A (its exposure and lighting), so
-the samples b = A V(r) are fitted by alternating least squares: A per image given V, then k1, k2
-given every A. Samples that are clipped (>= 250) or far off the fit (a reflection, a shadow) are
-left out. A board held at many places across the frame, as the capture guidance asks for, gives
+The model, per camera: relative brightness V(r) = 1 + k1 r^2 + k2 r^4 of what the sensor records
+above its black level c, r the distance from the image centre divided by the half-diagonal (1 in
+the corners); undone as (I - c) / V + c. It is measured as follows. In every pair the board's
+squares are sampled at their centres (a window of a fifth of a square); each image's white and
+black squares have their own brightness S (its exposure and lighting), so the samples
+b = S V(r) + c are fitted by alternating least squares: every S and c given V, then k1, k2 given
+those (the black squares, whose S is small, fix c). Samples that are clipped (>= 250) or far off
+the fit (a reflection, a shadow) are left out. A board held at many places across the frame, as the capture guidance asks for, gives
 V over the whole frame; when the boards' samples do not reach far enough from the centre (less
 than half the half-diagonal), no shading is measured.
 """
@@ -37,14 +38,17 @@ MIN_SAMPLES = 60  # ... and be at least this many, over at least MIN_IMAGES imag
 MIN_IMAGES = 3
 NEGLIGIBLE = 0.02  # corners less than 2 % darker: no correction is applied
 MAX_LOSS = 0.8  # a fit with corners more than 80 % darker is not believed
+MIN_BLACK, MAX_BLACK = -16.0, 64.0  # grey levels: a black level outside is not believed
 
 
 @dataclass(frozen=True)
 class LensShading:
-    """One camera's relative brightness V(r) = 1 + k1 r^2 + k2 r^4 (r = 1 in the corners)."""
+    """One camera's relative brightness V(r) = 1 + k1 r^2 + k2 r^4 (r = 1 in the corners) of
+    what its sensor records above its black level `black` (grey levels: what black gives)."""
 
     k1: float = 0.0
     k2: float = 0.0
+    black: float = 0.0
 
     def brightness(self, r2: np.ndarray | float) -> np.ndarray | float:
         """V at squared normalised radius r2."""
@@ -63,6 +67,19 @@ class LensShading:
         """1 / V at every pixel of a raw image of `size` (w, h), float32."""
         return (1.0 / self.brightness(radius2_map(size))).astype(np.float32)
 
+    def offset_map(self, gain: np.ndarray) -> np.ndarray:
+        """What to add after multiplying by `gain` (a gain map, possibly resampled) so that the
+        black level stays where it was: black * (1 - gain), float32."""
+        return (np.float32(self.black) * (np.float32(1.0) - gain)).astype(np.float32)
+
+
+def undo_shading(gray: np.ndarray, gain: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """A uint8 image with its lens shading undone: (I - black) / V + black, as gray * gain +
+    offset (`LensShading.gain_map`, `offset_map`, both the image's size)."""
+    out = cv2.multiply(gray, gain, dtype=cv2.CV_32F)
+    cv2.add(out, offset, out)
+    return cv2.convertScaleAbs(out)
+
 
 @dataclass(frozen=True)
 class PairShading:
@@ -78,8 +95,11 @@ class PairShading:
         return self.left.negligible and self.right.negligible
 
     def describe(self) -> str:
-        return (f"corners {100 * self.left.corner_loss:.0f} % (left) and "
-                f"{100 * self.right.corner_loss:.0f} % (right) darker than the centre")
+        pct = [int(round(100 * lens.corner_loss)) + 0 for lens in (self.left, self.right)]
+        if min(pct) >= 0:
+            return f"corners {pct[0]} % (left) and {pct[1]} % (right) darker than the centre"
+        words = [f"{abs(v)} % {'darker' if v >= 0 else 'brighter'}" for v in pct]
+        return f"corners {words[0]} (left) and {words[1]} (right) than the centre"
 
 
 def radius2_map(size: tuple[int, int]) -> np.ndarray:
@@ -96,11 +116,21 @@ def radius2(x: np.ndarray, y: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     return ((x - cx) ** 2 + (y - cy) ** 2) / (cx * cx + cy * cy)
 
 
-def white_square_samples(gray: np.ndarray, corners: np.ndarray, cols: int, rows: int
-                         ) -> tuple[np.ndarray, np.ndarray]:
-    """(r2, brightness) at the centres of a chessboard's white squares between its inner corners:
-    `corners` (cols * rows, 2) in row order, as a full chessboard detection gives them. Which
-    squares are white is found from the image (the brighter of the two alternating sets)."""
+@dataclass(frozen=True)
+class BoardSamples:
+    """One image's samples of a chessboard: squared normalised radius and mean grey level at the
+    centres of its white squares and of its black squares."""
+
+    r2_white: np.ndarray
+    white: np.ndarray
+    r2_black: np.ndarray
+    black: np.ndarray
+
+
+def board_samples(gray: np.ndarray, corners: np.ndarray, cols: int, rows: int) -> BoardSamples:
+    """The samples at the centres of a chessboard's squares between its inner corners: `corners`
+    (cols * rows, 2) in row order, as a full chessboard detection gives them. Which squares are
+    white is found from the image (the brighter of the two alternating sets)."""
     g = gray if gray.ndim == 2 else cv2.cvtColor(gray, cv2.COLOR_BGR2GRAY)
     pts = np.asarray(corners, np.float64).reshape(rows, cols, 2)
     centres = 0.25 * (pts[:-1, :-1] + pts[:-1, 1:] + pts[1:, :-1] + pts[1:, 1:])
@@ -118,43 +148,71 @@ def white_square_samples(gray: np.ndarray, corners: np.ndarray, cols: int, rows:
     parity = (np.add.outer(np.arange(rows - 1), np.arange(cols - 1)) % 2).astype(bool)
     white = parity if mean[parity].mean() > mean[~parity].mean() else ~parity
     r2 = radius2(centres[..., 0], centres[..., 1], (w, h))
-    return r2[white], mean[white]
+    return BoardSamples(r2[white], mean[white], r2[~white], mean[~white])
 
 
-def fit_shading(samples: Sequence[tuple[np.ndarray, np.ndarray]]) -> LensShading | None:
-    """V from each image's (r2, brightness) samples (see the module's docstring); None when
-    they are too few or do not reach far enough from the centre to say."""
-    parts = [(np.asarray(r, np.float64), np.asarray(b, np.float64)) for r, b in samples]
-    parts = [(r[b < CLIPPED], b[b < CLIPPED]) for r, b in parts]
-    parts = [(r, b) for r, b in parts if len(b) >= 4 and float(b.mean()) > 8.0]
-    if len(parts) < MIN_IMAGES or sum(len(b) for _, b in parts) < MIN_SAMPLES:
+def fit_shading(samples: Sequence[BoardSamples]) -> LensShading | None:
+    """V and the black level from each image's board samples (see the module's docstring); None
+    when they are too few or do not reach far enough from the centre to say.
+
+    Every image has its own brightness S (exposure, lighting); its black squares reflect a share
+    rho of what its white squares do, the same for every image of one board; all share V and the
+    camera's black level c: a white sample is S V(r) + c, a black one rho S V(r) + c (that the
+    black squares are darker by the same share everywhere is what tells c from S). Alternating
+    least squares: every S and c given V and rho, rho given those, then V; samples far off the
+    fit (a reflection, a shadow) are left out and the fit made again."""
+    images = []
+    for s in samples:
+        w_ok, b_ok = s.white < CLIPPED, s.black < CLIPPED
+        if w_ok.sum() >= 4 and b_ok.sum() >= 4 and float(s.white[w_ok].mean()) > 8.0:
+            images.append((np.asarray(s.r2_white, np.float64)[w_ok],
+                           np.asarray(s.white, np.float64)[w_ok],
+                           np.asarray(s.r2_black, np.float64)[b_ok],
+                           np.asarray(s.black, np.float64)[b_ok]))
+    if len(images) < MIN_IMAGES or sum(len(im[1]) for im in images) < MIN_SAMPLES:
         return None
-    r2 = np.concatenate([r for r, _ in parts])
-    if math.sqrt(float(np.percentile(r2, 95))) < MIN_REACH:
+    if math.sqrt(float(np.percentile(np.concatenate([im[0] for im in images]), 95))) < MIN_REACH:
         return None
-    image = np.concatenate([np.full(len(b), i) for i, (_, b) in enumerate(parts)])
-    b = np.concatenate([bb for _, bb in parts])
+    r2 = np.concatenate([np.concatenate([im[0], im[2]]) for im in images])
+    b = np.concatenate([np.concatenate([im[1], im[3]]) for im in images])
+    image = np.concatenate([np.full(len(im[1]) + len(im[3]), i) for i, im in enumerate(images)])
+    is_black = np.concatenate([np.r_[np.zeros(len(im[1]), bool), np.ones(len(im[3]), bool)]
+                               for im in images])
+    n = len(images)
     keep = np.ones(len(b), bool)
     k = np.zeros(2)
+    black = 0.0
+    rho = float(np.mean(b[is_black]) / np.mean(b[~is_black]))
+    scale = np.ones(n)
     for _ in range(4):  # trim outliers, then fit again
-        for _ in range(20):
+        for _ in range(50):
             v = 1.0 + k[0] * r2 + k[1] * r2 * r2
-            scale = np.ones(len(parts))
-            for i in range(len(parts)):
-                sel = keep & (image == i)
-                if sel.any():
-                    scale[i] = float(np.sum(b[sel] * v[sel]) / np.sum(v[sel] ** 2))
-            a = scale[image]
-            design = np.stack([a * r2, a * r2 * r2], axis=1)[keep]
-            k_new = np.linalg.lstsq(design, (b - a)[keep], rcond=None)[0]
-            done = np.max(np.abs(k_new - k)) < 1e-6
+            share = np.where(is_black, rho, 1.0)
+            # every image's S and the black level, given V and rho
+            design = np.zeros((int(keep.sum()), n + 1))
+            design[np.arange(design.shape[0]), image[keep]] = (share * v)[keep]
+            design[:, n] = 1.0
+            sol = np.linalg.lstsq(design, b[keep], rcond=None)[0]
+            scale, black = sol[:n], float(sol[n])
+            # rho, given those
+            sv = (scale[image] * v)[keep & is_black]
+            rho = float(np.sum((b - black)[keep & is_black] * sv) / max(np.sum(sv * sv), 1e-9))
+            # V, given those: b - c - S' = S' (k1 r^2 + k2 r^4), S' = S (white) or rho S (black)
+            a = scale[image] * np.where(is_black, rho, 1.0)
+            k_new = np.linalg.lstsq(np.stack([a * r2, a * r2 * r2], axis=1)[keep],
+                                    (b - black - a)[keep], rcond=None)[0]
+            done = np.max(np.abs(k_new - k)) < 1e-7
             k = k_new
             if done:
                 break
-        rel = b / (scale[image] * (1.0 + k[0] * r2 + k[1] * r2 * r2)) - 1.0
-        spread = 1.4826 * float(np.median(np.abs(rel[keep]))) + 1e-4
-        keep = np.abs(rel) <= max(4.0 * spread, 0.02)
-    shading = LensShading(float(k[0]), float(k[1]))
+        fit = scale[image] * np.where(is_black, rho, 1.0) * (1.0 + k[0] * r2 + k[1] * r2 * r2)
+        resid = b - (fit + black)
+        spread = 1.4826 * float(np.median(np.abs(resid[keep]))) + 1e-3
+        keep = np.abs(resid) <= max(4.0 * spread, 2.0)
+    if not MIN_BLACK <= black <= MAX_BLACK:
+        log.info("lens shading: black level %.1f out of bounds: not used", black)
+        return None
+    shading = LensShading(float(k[0]), float(k[1]), black)
     # V must stay positive and fall no more than MAX_LOSS anywhere in the frame
     v = shading.brightness(np.linspace(0.0, 1.0, 21))
     if not (np.all(np.isfinite(v)) and v.min() > 1.0 - MAX_LOSS and v.max() < 1.0 + MAX_LOSS):
@@ -178,11 +236,11 @@ def measure_pair_shading(pairs: Sequence[tuple[object, Callable[[], np.ndarray],
             img = load()
             if img is None:
                 continue
-            out.append(white_square_samples(img, d.corners, cols, rows))
+            out.append(board_samples(img, d.corners, cols, rows))
     fits = fit_shading(left), fit_shading(right)
     if fits[0] is None or fits[1] is None:
         return None
-    return PairShading(fits[0], fits[1], samples=sum(len(b) for _, b in left + right),
+    return PairShading(fits[0], fits[1], samples=sum(len(x.white) + len(x.black) for x in left + right),
                        images=len(left) + len(right))
 
 

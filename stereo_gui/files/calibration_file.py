@@ -113,7 +113,7 @@ def _same_shading(a, b) -> bool:
         return a is b
     return all(math.isclose(getattr(getattr(a, side), k), getattr(getattr(b, side), k),
                             rel_tol=1e-9, abs_tol=1e-12)
-               for side in ("left", "right") for k in ("k1", "k2"))
+               for side in ("left", "right") for k in ("k1", "k2", "black"))
 
 
 def _controls_of(calib: StereoCalibration):
@@ -664,6 +664,7 @@ def _write_lens_shading(fs, calib: StereoCalibration) -> None:
         fs.startWriteStruct(side, cv2.FileNode_MAP)
         fs.write("k1", float(lens.k1))
         fs.write("k2", float(lens.k2))
+        fs.write("black", float(lens.black))
         fs.endWriteStruct()
     fs.write("samples", int(shading.samples))
     fs.write("images", int(shading.images))
@@ -673,7 +674,7 @@ def _write_lens_shading(fs, calib: StereoCalibration) -> None:
 def _read_lens_shading(fs, where: str):
     """The `lens_shading` node as a core.shading.PairShading, or None (missing; or damaged: then
     said in the log, and the images are matched as they come)."""
-    from stereo_gui.core.shading import MAX_LOSS, LensShading, PairShading
+    from stereo_gui.core.shading import MAX_BLACK, MAX_LOSS, MIN_BLACK, LensShading, PairShading
 
     node = fs.getNode("lens_shading")
     if node.empty() or node.isNone():
@@ -687,11 +688,17 @@ def _read_lens_shading(fs, where: str):
             if n.empty() or not n.isMap():
                 raise ValueError(f"lens_shading has no {side} map")
             k = []
-            for name in ("k1", "k2"):
+            for name in ("k1", "k2", "black"):
                 v = n.getNode(name)
+                if name == "black" and (v.empty() or v.isNone()):
+                    k.append(0.0)
+                    continue
                 if v.empty() or not (v.isReal() or v.isInt()) or not math.isfinite(v.real()):
                     raise ValueError(f"lens_shading {side} {name} should be a finite number")
                 k.append(float(v.real()))
+            if not MIN_BLACK <= k[2] <= MAX_BLACK:
+                raise ValueError(f"lens_shading {side} black should be from {MIN_BLACK:g} to "
+                                 f"{MAX_BLACK:g} grey levels")
             lens = LensShading(*k)
             corner = lens.brightness(np.linspace(0.0, 1.0, 21))
             if corner.min() <= 1.0 - MAX_LOSS or corner.max() >= 1.0 + MAX_LOSS:

@@ -12,12 +12,14 @@ import pytest
 from stereo_gui.core.detect import PairInput, detect_pairs
 from stereo_gui.core.matching import StereoPipeline
 from stereo_gui.core.shading import (
+    BoardSamples,
     LensShading,
     PairShading,
     fit_shading,
     measure_pair_shading,
     radius2_map,
     shading_words,
+    undo_shading,
     with_measured_shading,
 )
 from stereo_gui.core.stereo_calibration import PairError
@@ -27,34 +29,41 @@ from stereo_gui.sources.sim import RigConfig, SimRig, SimSource
 SEED = 17
 
 
-def _samples(shading: LensShading, n_images: int, rng, reach: float = 1.0):
+def _samples(shading: LensShading, n_images: int, rng, reach: float = 1.0, rho: float = 0.15):
+    """Boards seen by a camera with `shading`: each image its own exposure and lighting, its
+    black squares reflecting `rho` of what its white ones do, 1 % noise."""
     out = []
     for _ in range(n_images):
         r2 = rng.uniform(0.0, reach, 40) ** 2
-        a = rng.uniform(120.0, 220.0)  # each image's own exposure and lighting
-        b = a * shading.brightness(r2) * (1 + rng.normal(0, 0.01, r2.size))
-        out.append((r2, b))
+        a = rng.uniform(120.0, 220.0)
+
+        def seen(share):
+            v = a * share * shading.brightness(r2) + shading.black
+            return v * (1 + rng.normal(0, 0.01, r2.size))
+
+        out.append(BoardSamples(r2, seen(1.0), r2.copy(), seen(rho)))
     return out
 
 
-def test_fit_recovers_a_known_falloff_whatever_each_images_brightness():
+@pytest.mark.parametrize("black", [0.0, 12.0])
+def test_fit_recovers_a_known_falloff_and_black_level_whatever_each_images_brightness(black):
     rng = np.random.default_rng(SEED)
-    truth = LensShading(-0.30, -0.08)
+    truth = LensShading(-0.30, -0.08, black)
     got = fit_shading(_samples(truth, 12, rng))
     assert got is not None
     assert got.corner_loss == pytest.approx(truth.corner_loss, abs=0.01)
     assert got.brightness(0.5) == pytest.approx(truth.brightness(0.5), abs=0.01)
+    assert got.black == pytest.approx(black, abs=2.0)
 
 
 def test_fit_leaves_out_reflections_and_clipped_samples():
     rng = np.random.default_rng(SEED)
     truth = LensShading(-0.35, 0.0)
     parts = _samples(truth, 12, rng)
-    r2, b = parts[0]
-    b = b.copy()
-    b[:5] = 255.0  # clipped
-    b[5:8] *= 1.6  # a reflection
-    parts[0] = (r2, b)
+    white = parts[0].white.copy()
+    white[:5] = 255.0  # clipped
+    white[5:8] *= 1.6  # a reflection
+    parts[0] = replace(parts[0], white=white)
     assert fit_shading(parts).corner_loss == pytest.approx(0.35, abs=0.01)
 
 
@@ -71,6 +80,12 @@ def test_gain_map_undoes_the_falloff():
     g = lens.gain_map(size)
     np.testing.assert_allclose(g * lens.brightness(radius2_map(size)), 1.0, rtol=1e-5)
     assert g[0, 0] == pytest.approx(1 / 0.65, rel=1e-3) and g[24, 32] == pytest.approx(1.0, abs=2e-3)
+    # above a black level of 12: (I - 12) / V + 12, so that black stays black
+    dark = LensShading(-0.35, 0.0, 12.0)
+    g = dark.gain_map(size)
+    seen = np.full((48, 64), 12.0) + 100.0 * dark.brightness(radius2_map(size))
+    undone = undo_shading(np.rint(seen).astype(np.uint8), g, dark.offset_map(g))
+    assert np.abs(undone.astype(float) - 112.0).max() <= 1.0
 
 
 @pytest.fixture(scope="module")
@@ -101,7 +116,7 @@ def test_none_measured_where_there_is_none():
     got = measure_pair_shading([(d, (lambda i=i: i.left), (lambda i=i: i.right))
                                 for d, i in zip(dets, inputs, strict=True)], board.cols, board.rows)
     assert got is not None and got.negligible
-    assert "none worth undoing" in shading_words(got)
+    assert "none worth undoing" in shading_words(got) and "-0" not in shading_words(got)
 
 
 def test_calibration_flows_attach_it_only_for_a_chessboard(vignetted_pairs):

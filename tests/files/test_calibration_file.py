@@ -264,7 +264,7 @@ def test_the_pairs_left_out_are_kept_in_the_file(tmp_path):
 def test_lens_shading_round_trips_and_a_damaged_one_is_dropped_with_a_warning(tmp_path, caplog):
     from stereo_gui.core.shading import LensShading, PairShading
 
-    shading = PairShading(LensShading(-0.3371234567891, -0.0193), LensShading(-0.318, 0.0041),
+    shading = PairShading(LensShading(-0.3371234567891, -0.0193), LensShading(-0.318, 0.0041, 12.5),
                           samples=800, images=40)
     c = make_calibration().with_updates(lens_shading=shading)
     path = save_calibration(c, tmp_path / "calib.yaml")
@@ -272,10 +272,14 @@ def test_lens_shading_round_trips_and_a_damaged_one_is_dropped_with_a_warning(tm
     assert load_calibration(save_calibration(make_calibration(), tmp_path / "plain.yaml")
                             ).lens_shading is None  # older files have none
     text = path.read_text()
-    for bad in ("-8.0", ".Nan"):  # corners 800 % darker; not a number
+    for bad in ("-8.0", ".Nan"):  # corners 800 % darker; not a number (and a black level below)
         damaged = tmp_path / "damaged.yaml"
         damaged.write_text(re.sub(r"k1: [-0-9.e]+", f"k1: {bad}", text, count=1))
         caplog.clear()
         back = load_calibration(damaged)
         assert back.lens_shading is None and back.M1 is not None
         assert "lens shading of this calibration is not used" in caplog.text
+    damaged.write_text(text.replace("black: 12.5", "black: 300."))
+    caplog.clear()
+    assert load_calibration(damaged).lens_shading is None
+    assert "black should be from" in caplog.text

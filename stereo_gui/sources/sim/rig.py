@@ -682,13 +682,15 @@ class SimRig:
 
     def true_shading(self):
         """Both cameras' true lens shading (core.shading.PairShading), None without vignetting:
-        the rig darkens both cameras' corners alike, 1 - vignetting * r^2 of the raw image."""
+        the rig darkens both cameras' corners alike, 1 - vignetting * r^2 of the raw image,
+        before each camera's gain and black level."""
         v = float(self.config.vignetting)
         if v <= 0.0:
             return None
         from stereo_gui.core.shading import LensShading, PairShading
 
-        return PairShading(LensShading(-v, 0.0), LensShading(-v, 0.0))
+        return PairShading(LensShading(-v, 0.0, 0.0),
+                           LensShading(-v, 0.0, float(self.config.black_right)))
 
     def true_point_rectified(self, calib: StereoCalibration, scene: Scene, x: float, y: float
                              ) -> np.ndarray | None:
