@@ -361,6 +361,38 @@ def rematch_strip(result: PipelineResult, y: int, half: int) -> np.ndarray | Non
     return band[r0:r1]
 
 
+def hidden_by_nearer(view_px: np.ndarray, x: int, y0: int, y1: int, d: float, tol: float) -> bool:
+    """Whether a reading of disparity `d` at column x (rows y0..y1 of its patch) is of a point the
+    right camera cannot see: in most of the rows, a surface to its right nearer by more than
+    `tol` px matches at the right image's column x - d or left of it (so the right camera sees
+    that surface there, not the point), the nearest such surface taken to go on under the empty
+    pixels left of it (down to the last valued pixel after x), as the not-seen strip takes it.
+
+    A wrong far match at the left edge of the image, where the right camera sees nothing of the
+    near surface, passes every check of its own, and even narrows the not-seen strip the views
+    paint; this is what gives it away."""
+    h, w = view_px.shape
+    if not 0 <= x < w - 1:
+        return False
+    u = x - d
+    cols = np.arange(x + 1, w, dtype=np.float64)
+    rows = view_px[max(0, y0):min(h, y1), x + 1:]
+    hidden = 0
+    for row in rows:
+        valued = np.isfinite(row)
+        with np.errstate(invalid="ignore"):
+            nearer = valued & (row > d + tol)
+        if not nearer.any():
+            continue
+        j = int(np.argmax(nearer))
+        before = np.flatnonzero(valued[:j])
+        start = int(before[-1]) + 1 if before.size else 0  # the empty run before j begins here
+        leftmost = min(float(np.min(cols[nearer] - row[nearer])), x + 1 + start - float(row[j]))
+        if leftmost <= u + 0.5:
+            hidden += 1
+    return 2 * hidden > max(1, len(rows))
+
+
 def best_match_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int,
                          half: int) -> tuple[float, float, np.ndarray] | None:
     """Scan every disparity the image allows (0 .. x) for the window at (x, y) by normalised
@@ -612,6 +644,9 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
             # repeating pattern) are no reading
             return invalid(Reason.TOO_FEW, valid_fraction=valid_fraction)
         d = float(np.median(values))
+        if result is not None and result.params.full_frame and hidden_by_nearer(
+                result.final_px, xi, y0, y1, d, max(1.0, 2.0 / result.match_scale)):
+            return invalid(Reason.NOT_SEEN, valid_fraction=valid_fraction)
     else:
         view = result.final_px if result is not None else disp
         region = surface_region(view, xi, yi, window=max(4 * patch, 16))

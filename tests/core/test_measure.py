@@ -428,3 +428,37 @@ def test_on_an_mjpg_wall_the_plus_minus_still_covers_the_truth(preset):
         read += sum(g.read for g in report.seen)
         covered += sum(g.covered for g in report.seen if g.read)
     assert read > 60 and covered >= 0.95 * read, (covered, read)
+
+
+def test_a_far_match_left_of_a_nearer_surface_is_not_seen():
+    """A wall at disparity 27 px from column 40 on; at the image's left edge a cluster of wrong
+    matches at 4 px (a point 7 times farther) with nothing between: the right camera sees the
+    wall at that cluster's column, so the cluster's point is not seen. A background that is
+    matched all the way to a nearer object is seen; so is the wall itself."""
+    from stereo_gui.core.measure import hidden_by_nearer
+
+    m = np.full((9, 200), np.nan, np.float32)
+    m[:, 40:] = 27.0
+    m[:, 4:13] = 4.0
+    assert hidden_by_nearer(m, 8, 0, 9, 4.0, 1.0)
+    assert not hidden_by_nearer(m, 60, 0, 9, 27.0, 1.0)
+    scene = np.full((9, 200), 10.0, np.float32)
+    scene[:, 100:] = 80.0  # a near object right of a far background, both matched
+    assert not hidden_by_nearer(scene, 20, 0, 9, 10.0, 1.0)
+    assert hidden_by_nearer(scene, 95, 0, 9, 10.0, 1.0)  # the object covers its match (u = 85)
+
+
+def test_a_wrong_far_reading_at_the_left_edge_is_refused():
+    """On the webcams' wall at 3 m a wrong match 8 px from the left edge read 21 m; now it says
+    the right camera cannot see the point."""
+    from stereo_gui.commands.accuracy import BENCH_SEED, evaluate_wall
+    from stereo_gui.sources.sim.conditions import CONDITIONS
+
+    condition = CONDITIONS["webcams"]
+    rig = SimRig(condition.rig_config(SimRig(seed=BENCH_SEED).config), seed=BENCH_SEED)
+    report = evaluate_wall(rig, rig.true_calibration(), "live", 3000.0, BENCH_SEED,
+                           condition=condition)
+    assert report.unseen_read == 0
+    edge = [g for g in report.readings if g.x < 20]
+    assert edge and not any(g.read and abs(g.z_mm - g.true_z_mm) > 0.1 * g.true_z_mm
+                            for g in edge)
