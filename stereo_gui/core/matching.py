@@ -637,28 +637,29 @@ class StereoPipeline:
             self._wls.setSigmaColor(float(p.wls_sigma))
         self._kernel = (np.ones((p.closing_kernel, p.closing_kernel), np.uint8)
                         if p.closing_kernel > 1 else None)
-        self._shading_full = self._shading_maps(1.0)
-        self._shading_gains = self._shading_full if s >= 1.0 else self._shading_maps(s)
+        self._shading_full = self._shading_maps()
+        self._shading_gains = self._shading_full
+        if self._shading_full is not None and s < 1.0:
+            w, h = self.calibration.image_size
+            size_s = (max(1, round(w * s)), max(1, round(h * s)))
+            self._shading_gains = tuple(  # the full-size maps, shrunk as the images are
+                tuple(cv2.resize(m, size_s, interpolation=cv2.INTER_AREA) for m in maps)
+                for maps in self._shading_full)
 
-    def _shading_maps(self, scale: float) -> ShadingMaps | None:
-        """(gain, offset) per camera that undo its lens shading (core.shading) in the rectified
-        images at `scale`, or None when the calibration has none worth undoing."""
+    def _shading_maps(self) -> ShadingMaps | None:
+        """(gain, offset) per camera that undo its lens shading (core.shading) in the full-size
+        rectified images, or None when the calibration has none worth undoing."""
         shading = self.calibration.lens_shading
         if shading is None or shading.negligible:
             return None
-        size = self.calibration.image_size
-        w, h = size
-        size_s = (max(1, round(w * scale)), max(1, round(h * scale)))
         m = self._maps
         out = []
         for lens, maps in ((shading.left, None if m is None else (m.left_x, m.left_y)),
                            (shading.right, None if m is None else (m.right_x, m.right_y))):
-            g = lens.gain_map(size)
+            g = lens.gain_map(self.calibration.image_size)
             if maps is not None:  # a rectified pixel shows the raw pixel its map points at
                 g = cv2.remap(g, maps[0], maps[1], cv2.INTER_LINEAR,
                               borderMode=cv2.BORDER_REPLICATE)
-            if scale < 1.0:
-                g = cv2.resize(g, size_s, interpolation=cv2.INTER_AREA)
             out.append((g, lens.offset_map(g)))
         return out[0], out[1]
 
