@@ -82,7 +82,9 @@ CORRELATED_STDERR_SCALE = STDERR_SCALE
 REFINE_MAX_SHIFT_PX = 2.0  # how far the refinement may move from the matcher's estimate
 REFINE_HALF_PX = 6  # the refinement aligns a 13 x 13 window around the point
 # ... and where that is not precise to REFINE_PRECISE_PX (weak texture), windows of these halves
-REFINE_GROWTH = (12, 24)
+# (up to 97 x 97: on MJPG walls the error is shared within 8 x 8 blocks, and only many blocks
+# average it out; `bench --accuracy`, MJPG at 3 m: RMS 1.17 % with 49 x 49, 0.61 % with 97 x 97)
+REFINE_GROWTH = (12, 24, 48)
 REFINE_PRECISE_PX = 0.03
 MIN_VALID_FRACTION = 0.1  # share of the patch whose match must pass the checks
 EDGE_SPREAD_PX = 1.0  # a patch spread above this straddles surfaces (walls: at most 0.4 px)
@@ -173,6 +175,9 @@ class Refinement:
     # the standard error with the residuals' correlation between neighbouring pixels counted
     # (`correlated_stderr`): what the bound uses; NaN where not computed
     stderr_correlated_px: float = float("nan")
+    # the alignment moved further than it may from the starting estimate: the images put the
+    # surface elsewhere than the matcher did
+    ran_off: bool = False
 
 
 def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, d0: float,
@@ -195,7 +200,9 @@ def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: i
     # refined (with a narrower window) instead of being read off the matcher's whole pixels
     x0 = max(0, x - half, int(math.ceil(d0 + margin)))
     x1 = min(w, x + half + 1, int(math.floor(w + d0 - margin)))
-    if not x0 <= x < x1:
+    # (a point the right camera sees within the margin of its edge is refined on the window's
+    # columns beside it: the same surface, a few pixels over)
+    if not x0 - margin <= x < x1:
         return Refinement(d0, float("inf"), False)
     L = left_gray[y0:y1, x0:x1].astype(np.float32)
     if L.size < 9 or x1 - x0 < 3:
@@ -231,7 +238,7 @@ def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: i
         delta = -c / a
         d += delta
         if abs(d - d0) > max_shift_px:
-            return Refinement(d0, float("inf"), False)
+            return Refinement(d0, float("inf"), False, ran_off=True)
         resid = Lf - A @ sol
         dof = max(1, L.size - 3)
         s2 = float(resid @ resid) / dof
@@ -278,34 +285,50 @@ def refine_point(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, 
     more texture, measured to be more accurate on walls and on the chessboard), checked against
     the same alignment of the patch's own window; `windows_px` is how far the two disagree (on a
     surface that matches cleanly they agree to a few hundredths of a pixel; on sharp, repeating
-    or sparse texture they do not, and the bound says so). None when it does not converge.
+    or sparse texture they do not, and the bound says so).
 
-    Where the texture is weak (the alignment's standard error above REFINE_PRECISE_PX) the
-    window grows (REFINE_GROWTH) as long as the disparity map `surface` (px, NaN invalid) holds
-    one surface in it; a grown window's `windows_px` is the part of its disagreement with the
-    window before that the smaller window's own noise does not explain."""
+    Where the texture is weak (the alignment's standard error above REFINE_PRECISE_PX, or no
+    convergence at all) the window grows (REFINE_GROWTH) as long as the disparity map `surface`
+    (px, NaN invalid) holds one surface in it; a grown window's `windows_px` is the part of its
+    disagreement with the window before that the smaller window's own noise does not explain.
+
+    None when no window converges; an unconverged Refinement with `ran_off` when none converges
+    and one was pulled further than REFINE_MAX_SHIFT_PX from `d0` (the images contradict it)."""
     big = refine_disparity(left_gray, right_gray, x, y, d0, max(half, REFINE_HALF_PX),
                            max_shift_px=REFINE_MAX_SHIFT_PX)
-    if not (big.converged and math.isfinite(big.stderr_px)):
-        return None
-    small = refine_disparity(left_gray, right_gray, x, y, d0, max(half, 3),
-                             max_shift_px=REFINE_MAX_SHIFT_PX)
-    apart = (abs(big.disparity_px - small.disparity_px) if small.converged
-             else big.moved_px)  # the small window alone found nothing: as unsure as the move
-    best = replace(big, windows_px=apart)
+    best = None
+    ran_off = big.ran_off
+    if big.converged and math.isfinite(big.stderr_px):
+        small = refine_disparity(left_gray, right_gray, x, y, d0, max(half, 3),
+                                 max_shift_px=REFINE_MAX_SHIFT_PX)
+        apart = (abs(big.disparity_px - small.disparity_px) if small.converged
+                 else big.moved_px)  # the small window alone found nothing: as unsure as the move
+        best = replace(big, windows_px=apart)
     for grown in REFINE_GROWTH:
-        if best.stderr_px <= REFINE_PRECISE_PX or surface is None:
+        if surface is None or (best is not None and best.stderr_px <= REFINE_PRECISE_PX):
             break
         h = max(half, grown)
         if not one_surface(surface, x, y, h):
             break
         wider = refine_disparity(left_gray, right_gray, x, y, d0, h,
                                  max_shift_px=REFINE_MAX_SHIFT_PX)
-        if not (wider.converged and wider.stderr_px < best.stderr_px):
+        if not (wider.converged and math.isfinite(wider.stderr_px)):
+            ran_off = ran_off or wider.ran_off
+            if best is None:
+                continue  # texture too weak for this window too: a larger one may hold enough
+            break
+        if best is None:
+            # no smaller window to check it against: as unsure as its own correction
+            best = replace(wider, windows_px=wider.moved_px)
+            continue
+        if not wider.stderr_px < best.stderr_px:
             break
         unexplained = max(0.0, abs(wider.disparity_px - best.disparity_px)
                           - Z95 * best.stderr_px)
         best = replace(wider, windows_px=unexplained)
+    if best is None and ran_off:
+        # no window converged near the estimate, and one was pulled away from it
+        return Refinement(d0, float("inf"), False, ran_off=True)
     return best
 
 
@@ -476,6 +499,26 @@ def consistent_pixels(result: PipelineResult, y0: int, y1: int, x0: int, x1: int
     if conf is None or result.params.check_block_size:
         return None
     return conf[y0:y1, x0:x1] > 0
+
+
+def window_correlation(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, d: float,
+                       half: int) -> tuple[float, int]:
+    """Correlation of the left window at (x, y) (clipped to the image) with the right image
+    shifted by disparity `d` (bicubic), and the window's pixel count; (0, 0) where the shifted
+    window leaves the right image or either window is flat."""
+    h, w = left_gray.shape[:2]
+    y0, y1 = max(0, y - half), min(h, y + half + 1)
+    x0, x1 = max(0, x - half, int(math.ceil(d + 2))), min(w, x + half + 1, int(w + d - 2))
+    if x1 - x0 < 3 or y1 - y0 < 1:
+        return 0.0, 0
+    left = left_gray[y0:y1, x0:x1].astype(np.float32)
+    map_x = np.tile(np.arange(x0, x1, dtype=np.float32) - np.float32(d), (y1 - y0, 1))
+    map_y = np.repeat(np.arange(y0, y1, dtype=np.float32)[:, None], x1 - x0, axis=1)
+    right = cv2.remap(right_gray, map_x, map_y, cv2.INTER_CUBIC,
+                      borderMode=cv2.BORDER_REPLICATE).astype(np.float32)
+    a, b = left - left.mean(), right - right.mean()
+    denom = math.sqrt(float((a * a).sum()) * float((b * b).sum()))
+    return (float((a * b).sum()) / denom if denom > 0 else 0.0), int(left.size)
 
 
 def has_texture(gray: np.ndarray, x: int, y: int, half: int) -> bool:
@@ -667,10 +710,25 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
         gl, gr = result.matched_gray()
     if refine and result is not None and mode == "point":
         ref = refine_point(gl, gr, xi, yi, d, half, surface=disp)
+        if ref is not None and not ref.converged:
+            # the images pull the match away from the matcher's estimate, and nowhere near it
+            # do they settle: the estimate is contradicted, no reading
+            return invalid(Reason.AMBIGUOUS, disparity_px=d, **common)
         if ref is not None:
-            if ref.correlation * math.sqrt(ref.pixels) < TEXTURE_MIN_T * STDERR_SCALE:
-                # the aligned windows share nothing the noise could not have given them
-                return invalid(Reason.NO_TEXTURE, disparity_px=d, **common)
+            corr, pixels = ref.correlation, ref.pixels
+        else:
+            # not refined (no window converged): the match still has to show in the images,
+            # over the largest window the refinement would have used on this surface
+            h_t = max(half, REFINE_HALF_PX)
+            for grown in REFINE_GROWTH:
+                if not one_surface(disp, xi, yi, max(half, grown)):
+                    break
+                h_t = max(half, grown)
+            corr, pixels = window_correlation(gl, gr, xi, yi, d, h_t)
+        if corr * math.sqrt(pixels) < TEXTURE_MIN_T * STDERR_SCALE:
+            # the aligned windows share nothing the noise could not have given them
+            return invalid(Reason.NO_TEXTURE, disparity_px=d, **common)
+        if ref is not None:
             d = ref.disparity_px
     if result is not None and xi - d < -0.5:
         return invalid(Reason.NOT_SEEN, disparity_px=d, **common)

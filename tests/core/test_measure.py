@@ -15,6 +15,8 @@ from stereo_gui.core.measure import (
     histogram_mode,
     measure_point,
     refine_disparity,
+    refine_point,
+    window_correlation,
     triangulate,
 )
 from stereo_gui.core.regression import fit_inverse
@@ -290,6 +292,35 @@ def test_refinement_near_the_right_images_edge_uses_a_narrower_window():
     r = refine_disparity(left, right, 26, 30, 20.0, 4, max_shift_px=2.0)
     assert r.converged and r.disparity_px == pytest.approx(true_d, abs=0.05)
     assert r.moved_px == pytest.approx(abs(r.disparity_px - 20.0))
+
+
+def test_a_point_within_the_margin_of_the_right_images_edge_is_refined_beside_it():
+    true_d = 20.37
+    left, right = _shifted_pair(true_d)
+    # x - d = 2 px: no window centred on the point fits with the margin; the columns just right
+    # of it (the same surface) give the disparity
+    r = refine_disparity(left, right, 22, 30, 20.0, 6, max_shift_px=2.0)
+    assert r.converged and r.disparity_px == pytest.approx(true_d, abs=0.05)
+    # further than the margin from the usable columns there is nothing to refine
+    far = refine_disparity(left, right, 14, 30, 20.0, 6, max_shift_px=2.0)
+    assert not far.converged and not far.ran_off
+
+
+def test_an_estimate_the_images_pull_away_from_is_contradicted():
+    left, right = _shifted_pair(20.37)
+    ref = refine_point(left, right, 150, 30, 23.5, 4)  # the matcher 3 px off
+    assert ref is not None and not ref.converged and ref.ran_off
+    good = refine_point(left, right, 150, 30, 20.0, 4)
+    assert good is not None and good.converged and not good.ran_off
+    assert good.disparity_px == pytest.approx(20.37, abs=0.03)
+
+
+def test_window_correlation_is_high_at_the_match_and_low_off_it():
+    left, right = _shifted_pair(20.37)
+    at, n = window_correlation(left, right, 150, 30, 20.37, 6)
+    off, _ = window_correlation(left, right, 150, 30, 26.0, 6)
+    assert n == 13 * 13 and at > 0.99 and off < 0.5
+    assert window_correlation(left, right, 5, 30, 20.0, 6) == (0.0, 0)  # left of the right image
 
 
 def test_a_chessboard_is_read_not_refused_for_its_repeating_squares(rig):
