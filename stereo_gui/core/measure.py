@@ -19,9 +19,18 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import (BLANK_HALF_PX, BLANK_LAG_PX, DISP_SCALE, PipelineResult,
-                                     agreement, blank_mask, compute_padded, fixed_to_px,
-                                     local_contrast, unseen_mask)
+from stereo_gui.core.matching import (
+    BLANK_HALF_PX,
+    BLANK_LAG_PX,
+    DISP_SCALE,
+    PipelineResult,
+    agreement,
+    blank_mask,
+    compute_padded,
+    fixed_to_px,
+    local_contrast,
+    unseen_mask,
+)
 from stereo_gui.core.stereo_calibration import StereoCalibration
 
 # SGBM reports disparity in steps of 1/16 px: no estimate is better than that without refinement
@@ -178,6 +187,10 @@ class Refinement:
     # the alignment moved further than it may from the starting estimate: the images put the
     # surface elsewhere than the matcher did
     ran_off: bool = False
+    # mean squared residual of the fit in the REFINE_HALF_PX window around the point over that
+    # of the rest of the window: about 1 where the point lies on the surface the window aligned,
+    # large where it does not (NaN for a window no larger than that)
+    centre_residual_ratio: float = float("nan")
 
 
 def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, d0: float,
@@ -255,8 +268,14 @@ def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: i
     corr = float(np.mean((rc - rc.mean()) * (Lf - Lf.mean())) / denom) if denom > 0 else 0.0
     correlated = (correlated_stderr(A, resid, L.shape) / abs(a) if converged
                   else float("nan"))
+    r2 = (resid * resid).reshape(L.shape)
+    centre = np.zeros(L.shape, bool)
+    centre[max(0, y - REFINE_HALF_PX - y0):y + REFINE_HALF_PX + 1 - y0,
+           max(0, x - REFINE_HALF_PX - x0):max(0, x + REFINE_HALF_PX + 1 - x0)] = True
+    ratio = (float(r2[centre].mean() / max(r2[~centre].mean(), 1e-12))
+             if centre.any() and (~centre).sum() >= centre.sum() else float("nan"))
     return Refinement(d, stderr, converged, abs(d - d0), corr, int(Lf.size),
-                      stderr_correlated_px=correlated)
+                      stderr_correlated_px=correlated, centre_residual_ratio=ratio)
 
 
 def correlated_stderr(A: np.ndarray, resid: np.ndarray, shape: tuple[int, int],
@@ -313,9 +332,19 @@ def refine_point(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, 
         wider = refine_disparity(left_gray, right_gray, x, y, d0, h,
                                  max_shift_px=REFINE_MAX_SHIFT_PX)
         if not (wider.converged and math.isfinite(wider.stderr_px)):
-            ran_off = ran_off or wider.ran_off
             if best is None:
+                ran_off = ran_off or wider.ran_off
                 continue  # texture too weak for this window too: a larger one may hold enough
+            if wider.ran_off:
+                # where does the wider window settle, allowed twice as far? A few pixels from
+                # where the smaller one did: that was a local fit to the wrong place, not the
+                # surface. Much further off (or nowhere): the wider window reached across a
+                # depth edge to another surface, and the smaller one stands.
+                again = refine_disparity(left_gray, right_gray, x, y, d0, h,
+                                         max_shift_px=2 * REFINE_MAX_SHIFT_PX)
+                if (again.converged and math.isfinite(again.stderr_px)
+                        and abs(again.disparity_px - best.disparity_px) > REFINE_MAX_SHIFT_PX):
+                    return Refinement(d0, float("inf"), False, ran_off=True)
             break
         if best is None:
             # no smaller window to check it against: as unsure as its own correction
@@ -424,16 +453,59 @@ def best_match_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, 
     This is independent of the matcher's range, so it tells whether the surface lies beyond it.
     """
     h, w = left_gray.shape[:2]
-    if y - half < 0 or y + half >= h or x - half < 0 or x + half >= w:
+    if not (0 <= x < w and 0 <= y < h):
         return None
-    tpl = left_gray[y - half:y + half + 1, x - half:x + half + 1]
-    if float(tpl.std()) == 0.0:
+    # the window clipped to the image: its disparities keep counting from the click's column
+    y0, y1 = max(0, y - half), min(h, y + half + 1)
+    x0, x1 = max(0, x - half), min(w, x + half + 1)
+    tpl = left_gray[y0:y1, x0:x1]
+    if tpl.size < 9 or float(tpl.std()) == 0.0:
         return None
-    band = right_gray[y - half:y + half + 1, 0:x + half + 1]
-    scores = cv2.matchTemplate(band, tpl, cv2.TM_CCOEFF_NORMED)[0]  # index = x - half - d
+    band = right_gray[y0:y1, 0:x1]
+    scores = cv2.matchTemplate(band, tpl, cv2.TM_CCOEFF_NORMED)[0]  # index = x0 - d
     by_d = scores[::-1]  # index = disparity
     k = int(np.nanargmax(by_d))
     return float(k), float(by_d[k]), by_d
+
+
+def _centre_agrees(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int,
+                   refinement: Refinement) -> bool:
+    """Whether the REFINE_HALF_PX window at (x, y) correlates at the refined disparity about as
+    well as the (larger) window the refinement aligned: at least SURROUND_CENTRE_MIN, and not
+    more than SURROUND_CENTRE_DROP below it."""
+    corr, _ = window_correlation(left_gray, right_gray, x, y, refinement.disparity_px,
+                                 REFINE_HALF_PX)
+    return corr >= max(SURROUND_CENTRE_MIN, refinement.correlation - SURROUND_CENTRE_DROP)
+
+
+def _beyond_range(left_gray: np.ndarray, right_gray: np.ndarray, disp: np.ndarray, x: int, y: int,
+                  d: float | None, half: int, span: tuple[float, float]) -> Reason | None:
+    """TOO_NEAR or TOO_FAR when an exhaustive correlation scan puts the surface at (x, y) clearly
+    beyond the matcher's `span` (px) and clearly better than at the estimate `d` (if any); else
+    None.
+
+    A small window on weak texture can correlate with a stretch of the right image far off by
+    chance (MJPG's flat blocks do so at 0.7 and more), so a verdict beyond the range must hold
+    for the largest window, up to the refinement's, over which the map shows one surface."""
+    verdict = None
+    for grown in (0,) + REFINE_GROWTH:
+        h = max(half, 5, grown)
+        if grown and verdict is None:
+            break
+        if grown and not one_surface(disp, x, y, h):
+            continue
+        scan = best_match_disparity(left_gray, right_gray, x, y, h)
+        if scan is None:
+            break
+        d_best, score_best, by_d = scan
+        k = -1 if d is None else int(round(d))
+        at_estimate = (float(np.nanmax(by_d[max(0, k - 1):k + 2])) if 0 <= k < by_d.size
+                       else -1.0)
+        verdict = None
+        if (score_best >= SCAN_PEAK_MIN and score_best > at_estimate + SCAN_MARGIN
+                and not span[0] <= d_best <= span[1]):
+            verdict = Reason.TOO_NEAR if d_best > span[1] else Reason.TOO_FAR
+    return verdict
 
 
 # ---- object mode ---------------------------------------------------------------------------
@@ -499,6 +571,69 @@ def consistent_pixels(result: PipelineResult, y0: int, y1: int, x0: int, x1: int
     if conf is None or result.params.check_block_size:
         return None
     return conf[y0:y1, x0:x1] > 0
+
+
+SURROUND_GROWTH = (12, 24, 48)  # half-sizes of the region around a click whose patch is empty
+SURROUND_MIN_SHARE = 0.2  # share of that region that must hold checked matches
+SURROUND_INLIERS = 0.8  # share of those that must lie on one plane
+SURROUND_FILL_PX = 3.0  # the filled view nearer than the surface by more than this: refused
+# the click's own 13 px window must correlate at the reading at least this well, and not more
+# than SURROUND_CENTRE_DROP below the window that aligned it (an object the matcher missed in
+# front of the surface correlates about 0 there; measured: see the guide)
+SURROUND_CENTRE_MIN = 0.25
+SURROUND_CENTRE_DROP = 0.35
+
+
+def surrounding_estimate(result: PipelineResult, x: int, y: int) -> float | None:
+    """Disparity (px) at (x, y) of the plane the checked matches around it lie on, from the
+    smallest region (SURROUND_GROWTH) that holds enough of them on one plane; None when no region
+    does. For a click whose own patch the matcher left empty: a starting estimate only, which
+    the images must confirm (`refine_point`)."""
+    disp = reading_map(result)
+    h, w = disp.shape
+    for grown in SURROUND_GROWTH:
+        y0, y1 = max(0, y - grown), min(h, y + grown + 1)
+        x0, x1 = max(0, x - grown), min(w, x + grown + 1)
+        win = disp[y0:y1, x0:x1]
+        usable = np.isfinite(win)
+        checked = consistent_pixels(result, y0, y1, x0, x1)
+        if checked is not None:
+            usable &= checked
+        n = int(usable.sum())
+        if n < max(9, SURROUND_MIN_SHARE * win.size):
+            continue
+        vy, vx = np.nonzero(usable)
+        A = np.column_stack([np.ones(n), vx + x0 - x, vy + y0 - y]).astype(np.float64)
+        b = win[usable].astype(np.float64)
+        keep = np.ones(n, bool)
+        for _ in range(3):
+            sol, *_ = np.linalg.lstsq(A[keep], b[keep], rcond=None)
+            resid = b - A @ sol
+            scale = max(MAD_TO_SIGMA * float(np.median(np.abs(resid[keep]))), QUANTUM_PX)
+            keep = np.abs(resid) <= 3.0 * scale
+        if not (keep.mean() >= SURROUND_INLIERS and robust_spread(resid[keep]) <= EDGE_SPREAD_PX):
+            continue
+        # the surface must lie on both sides of the click (where the image goes on): beside a
+        # near object, the strip the object hides from the right camera has the object on one
+        # side only
+        cols = vx[keep] + x0
+        if (x0 > 0 and not (cols < x).any()) or (x1 < w and not (cols > x).any()):
+            continue
+        estimate = float(sol[0])
+        # the filled view (WLS: guided by the left image's edges, it spreads what the matcher
+        # half-saw) shows nothing clearly nearer at the click: an object in front of the surface
+        # that the checks threw out entirely still pulls the fill towards itself
+        fill = result.wls_px
+        if fill is None:
+            return None
+        h6 = REFINE_HALF_PX
+        near = fill[max(0, y - h6):y + h6 + 1, max(0, x - h6):x + h6 + 1]
+        near = near[np.isfinite(near)]
+        tol = max(SURROUND_FILL_PX, 2.0 / result.match_scale)
+        if near.size and float(np.median(near)) > estimate + tol:
+            return None
+        return estimate
+    return None
 
 
 def window_correlation(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, d: float,
@@ -579,15 +714,11 @@ def _why_nothing(result: PipelineResult | None, x: int, y: int, half: int) -> Re
         return Reason.NOT_SEEN
     if p.check_block_size and is_blank(gl, x, y):
         return Reason.NO_TEXTURE
-    scan = best_match_disparity(gl, gr, x, y, max(half, 5))
-    if scan is not None and scan[1] >= SCAN_PEAK_MIN:
-        d_lo, d_hi = result.disparity_range_px
-        step = 1.0 / result.match_scale
-        if scan[0] > d_hi + step:
-            return Reason.TOO_NEAR
-        if scan[0] < d_lo - step:
-            return Reason.TOO_FAR
-    return Reason.NO_VALID_PIXELS
+    d_lo, d_hi = result.disparity_range_px
+    step = 1.0 / result.match_scale
+    beyond = _beyond_range(gl, gr, reading_map(result), x, y, None, half,
+                           (d_lo - step, d_hi + step))
+    return beyond or Reason.NO_VALID_PIXELS
 
 
 def disparity_bound_px(refinement: Refinement | None, spread_px: float) -> float:
@@ -680,12 +811,19 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
                 usable &= np.isfinite(window)
         values = window[usable]
         valid_fraction = values.size / window.size
-        if values.size == 0:
-            return invalid(_why_nothing(result, xi, yi, half), valid_fraction=0.0)
+        surround = empty = None
         if valid_fraction < MIN_VALID_FRACTION:
-            # a few pixels that passed where all around failed (an occlusion's edge, a
-            # repeating pattern) are no reading
-            return invalid(Reason.TOO_FEW, valid_fraction=valid_fraction)
+            # nothing, or a few pixels that passed where all around failed (an occlusion's
+            # edge, a repeating pattern): no reading of the patch's own
+            empty = (_why_nothing(result, xi, yi, half) if values.size == 0
+                     else Reason.TOO_FEW)
+            if empty in (Reason.NO_VALID_PIXELS, Reason.TOO_FEW) and refine and result is not None:
+                # the matcher found the surface all around: where the images confirm it
+                # (below), the click reads it too
+                surround = surrounding_estimate(result, xi, yi)
+            if surround is None:
+                return invalid(empty, valid_fraction=valid_fraction)
+            values = np.array([surround], np.float32)
         d = float(np.median(values))
         if result is not None and result.params.full_frame and hidden_by_nearer(
                 result.final_px, xi, y0, y1, d, max(1.0, 2.0 / result.match_scale)):
@@ -710,6 +848,12 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
         gl, gr = result.matched_gray()
     if refine and result is not None and mode == "point":
         ref = refine_point(gl, gr, xi, yi, d, half, surface=disp)
+        if empty is not None and (ref is None or not ref.converged):
+            return invalid(empty, valid_fraction=valid_fraction)
+        if empty is not None and not _centre_agrees(gl, gr, xi, yi, ref):
+            # the click's own window does not show the surface the larger window aligned: an
+            # object in front of it that the matcher missed, not that surface
+            return invalid(empty, valid_fraction=valid_fraction)
         if ref is not None and not ref.converged:
             # the images pull the match away from the matcher's estimate, and nowhere near it
             # do they settle: the estimate is contradicted, no reading
@@ -741,16 +885,9 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
     # the range is what the left-right check is for.)
     step = 1.0 if result is None else 1.0 / result.match_scale
     if result is not None and mode == "point":
-        scan = best_match_disparity(gl, gr, xi, yi, max(half, 5))
-        if scan is not None:
-            d_best, score_best, by_d = scan
-            k = int(round(d))
-            at_estimate = (float(np.nanmax(by_d[max(0, k - 1):k + 2])) if 0 <= k < by_d.size
-                           else -1.0)
-            if (score_best >= SCAN_PEAK_MIN and score_best > at_estimate + SCAN_MARGIN
-                    and not (d_lo - step <= d_best <= d_hi + step)):
-                return invalid(Reason.TOO_NEAR if d_best > d_hi else Reason.TOO_FAR,
-                               disparity_px=d, **common)
+        beyond = _beyond_range(gl, gr, disp, xi, yi, d, half, (d_lo - step, d_hi + step))
+        if beyond is not None:
+            return invalid(beyond, disparity_px=d, **common)
     if raw_d >= d_hi - step:
         return invalid(Reason.TOO_NEAR, disparity_px=d, **common)
     if d_lo > 0 and raw_d <= d_lo + step:

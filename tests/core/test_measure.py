@@ -16,8 +16,8 @@ from stereo_gui.core.measure import (
     measure_point,
     refine_disparity,
     refine_point,
-    window_correlation,
     triangulate,
+    window_correlation,
 )
 from stereo_gui.core.regression import fit_inverse
 from stereo_gui.core.stereo_calibration import StereoCalibration
@@ -493,3 +493,76 @@ def test_a_wrong_far_reading_at_the_left_edge_is_refused():
     edge = [g for g in report.readings if g.x < 20]
     assert edge and not any(g.read and abs(g.z_mm - g.true_z_mm) > 0.1 * g.true_z_mm
                             for g in edge)
+
+
+def _blank(result, x0: int, x1: int, y0: int = 0, y1: int | None = None) -> None:
+    """Empty the maps a reading takes its values from in the given block (a patch the matcher
+    left empty), and their left-right checks."""
+    for arr in (result.final_px, result.disparity_px):
+        arr[y0:y1, x0:x1] = np.nan
+    if result.wls_confidence is not None:
+        result.wls_confidence[y0:y1, x0:x1] = 0
+
+
+@pytest.mark.parametrize("preset", ["live", "quality"])
+def test_a_patch_the_matcher_left_empty_is_read_from_the_surface_around_it(weak_rig, preset):
+    """On a painted wall, a click whose own patch has no valid pixels (17 px of the map emptied
+    around it) is read from the surface around it, once the images confirm it there; within
+    its +-, and the +- says the alignment carried it."""
+    calib = weak_rig.true_calibration()
+    scene = Scene.wall(1000.0, seed=21, contrast=0.3)
+    left, right = weak_rig.render_scene(scene, np.random.default_rng(4))
+    with StereoPipeline(calib, load_preset(preset)) as pipe:
+        result = pipe.process(left, right)
+    read = 0
+    for x, y in POINTS:
+        _blank(result, x - 8, x + 9, y - 8, y + 9)
+        m = measure_point(result, x, y, rematch=False)
+        if m.valid:
+            read += 1
+            true = weak_rig.true_point_rectified(calib, scene, x, y)[2]
+            assert m.refined and abs(m.Z_mm - true) <= m.expected_error_mm, (x, y, m)
+        else:
+            assert m.reason == Reason.NO_VALID_PIXELS
+    assert read >= len(POINTS) - 1
+
+
+@pytest.mark.parametrize("contrast", [0.0, 1.0])
+def test_an_object_the_matcher_missed_is_not_read_as_the_wall_behind_it(rig, contrast):
+    """A pole 40 mm wide at 1 m in front of a wall at 2 m, which the map misses entirely (its
+    columns emptied): clicks on the pole are refused, never read as the wall behind it."""
+    from stereo_gui.sources.sim.scene import SceneObject
+
+    calib = rig.true_calibration()
+    wall = Scene.wall(2000.0, seed=4).objects[0]
+    pole = SceneObject("pole", np.array([0.0, 0.0, 1000.0]), np.array([1.0, 0.0, 0.0]),
+                       np.array([0.0, 1.0, 0.0]), 40.0, 3000.0, seed=77, contrast=contrast)
+    scene = Scene((wall, pole))
+    left, right = rig.render_scene(scene, np.random.default_rng(5))
+    on_pole = [x for x in range(200, 450)
+               if rig.true_point_rectified(calib, scene, x, 240)[2] < 1001.0]
+    for preset in ("live", "quality"):
+        with StereoPipeline(calib, load_preset(preset)) as pipe:
+            result = pipe.process(left, right)
+        _blank(result, on_pole[0] - 2, on_pole[-1] + 3)
+        for y in range(40, 440, 40):
+            for x in range(on_pole[0] + 3, on_pole[-1] - 2, 4):  # inside the pole
+                m = measure_point(result, x, y, rematch=False)
+                assert not m.valid or m.Z_mm < 1500.0, (preset, x, y, m)
+
+
+@pytest.mark.parametrize("wall", [2000.0, 3000.0])
+def test_a_chance_peak_of_a_small_window_is_not_called_too_near(wall):
+    """On the webcams' wall (MJPG blocks, shading, weak texture) an 11 px window correlates at
+    0.7-0.8 with stretches of the right image far beyond the range by chance; a wall at 2 or 3 m
+    lies well inside it. Where the map shows one surface, a larger window settles it: no grid
+    point is called too near (before, 2-4 per wall were)."""
+    from stereo_gui.commands.accuracy import evaluate_wall
+    from stereo_gui.sources.sim.conditions import CONDITIONS
+
+    condition = CONDITIONS["webcams"]
+    rig = SimRig(condition.rig_config(SimRig(seed=11).config), seed=11)
+    calib = rig.true_calibration()
+    for preset in ("live", "quality"):
+        report = evaluate_wall(rig, calib, preset, wall, 11, condition=condition)
+        assert not any(g.reason == Reason.TOO_NEAR for g in report.seen), (preset, report.reasons)
