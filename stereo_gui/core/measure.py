@@ -574,9 +574,9 @@ def consistent_pixels(result: PipelineResult, y0: int, y1: int, x0: int, x1: int
 
 
 SURROUND_GROWTH = (12, 24, 48)  # half-sizes of the region around a click whose patch is empty
-SURROUND_MIN_SHARE = 0.2  # share of that region that must hold checked matches
+SURROUND_MIN_SHARE = 0.1  # share of that region that must hold checked matches
 SURROUND_INLIERS = 0.8  # share of those that must lie on one plane
-SURROUND_FILL_PX = 3.0  # the filled view nearer than the surface by more than this: refused
+SURROUND_FILL_PX = 2.0  # the filled view nearer than the surface by more than this: refused
 # the click's own 13 px window must correlate at the reading at least this well, and not more
 # than SURROUND_CENTRE_DROP below the window that aligned it (an object the matcher missed in
 # front of the surface correlates about 0 there; measured: see the guide)
@@ -613,13 +613,15 @@ def surrounding_estimate(result: PipelineResult, x: int, y: int) -> float | None
             keep = np.abs(resid) <= 3.0 * scale
         if not (keep.mean() >= SURROUND_INLIERS and robust_spread(resid[keep]) <= EDGE_SPREAD_PX):
             continue
-        # the surface must lie on both sides of the click (where the image goes on): beside a
-        # near object, the strip the object hides from the right camera has the object on one
-        # side only
-        cols = vx[keep] + x0
-        if (x0 > 0 and not (cols < x).any()) or (x1 < w and not (cols > x).any()):
-            continue
         estimate = float(sol[0])
+        # the surface must lie on both sides of the click where either camera sees on: beside a
+        # near object, the strip the object hides from the right camera has the object on one
+        # side only (left of the click, the right camera sees nothing within `estimate` of the
+        # image's edge)
+        cols = vx[keep] + x0
+        left_seen = x0 > 0 and x - grown > estimate
+        if (left_seen and not (cols < x).any()) or (x1 < w and not (cols > x).any()):
+            continue
         # the filled view (WLS: guided by the left image's edges, it spreads what the matcher
         # half-saw) shows nothing clearly nearer at the click: an object in front of the surface
         # that the checks threw out entirely still pulls the fill towards itself
@@ -629,8 +631,7 @@ def surrounding_estimate(result: PipelineResult, x: int, y: int) -> float | None
         h6 = REFINE_HALF_PX
         near = fill[max(0, y - h6):y + h6 + 1, max(0, x - h6):x + h6 + 1]
         near = near[np.isfinite(near)]
-        tol = max(SURROUND_FILL_PX, 2.0 / result.match_scale)
-        if near.size and float(np.median(near)) > estimate + tol:
+        if near.size and float(np.median(near)) > estimate + SURROUND_FILL_PX:
             return None
         return estimate
     return None
