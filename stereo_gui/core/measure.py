@@ -584,6 +584,11 @@ SURROUND_CENTRE_MIN = 0.25
 SURROUND_CENTRE_DROP = 0.35
 
 
+# refusals of an empty patch that the surface around it may still answer: no match there, or the
+# matches beside it put its match a few pixels inside the right image's edge (the images decide)
+SURROUND_READS = (Reason.NO_VALID_PIXELS, Reason.TOO_FEW, Reason.NOT_SEEN)
+
+
 def surrounding_estimate(result: PipelineResult, x: int, y: int) -> float | None:
     """Disparity (px) at (x, y) of the plane the checked matches around it lie on, from the
     smallest region (SURROUND_GROWTH) that holds enough of them on one plane; None when no region
@@ -818,7 +823,7 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
             # edge, a repeating pattern): no reading of the patch's own
             empty = (_why_nothing(result, xi, yi, half) if values.size == 0
                      else Reason.TOO_FEW)
-            if empty in (Reason.NO_VALID_PIXELS, Reason.TOO_FEW) and refine and result is not None:
+            if empty in SURROUND_READS and refine and result is not None:
                 # the matcher found the surface all around: where the images confirm it
                 # (below), the click reads it too
                 surround = surrounding_estimate(result, xi, yi)
