@@ -187,10 +187,6 @@ class Refinement:
     # the alignment moved further than it may from the starting estimate: the images put the
     # surface elsewhere than the matcher did
     ran_off: bool = False
-    # mean squared residual of the fit in the REFINE_HALF_PX window around the point over that
-    # of the rest of the window: about 1 where the point lies on the surface the window aligned,
-    # large where it does not (NaN for a window no larger than that)
-    centre_residual_ratio: float = float("nan")
 
 
 def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, d0: float,
@@ -268,14 +264,8 @@ def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: i
     corr = float(np.mean((rc - rc.mean()) * (Lf - Lf.mean())) / denom) if denom > 0 else 0.0
     correlated = (correlated_stderr(A, resid, L.shape) / abs(a) if converged
                   else float("nan"))
-    r2 = (resid * resid).reshape(L.shape)
-    centre = np.zeros(L.shape, bool)
-    centre[max(0, y - REFINE_HALF_PX - y0):y + REFINE_HALF_PX + 1 - y0,
-           max(0, x - REFINE_HALF_PX - x0):max(0, x + REFINE_HALF_PX + 1 - x0)] = True
-    ratio = (float(r2[centre].mean() / max(r2[~centre].mean(), 1e-12))
-             if centre.any() and (~centre).sum() >= centre.sum() else float("nan"))
     return Refinement(d, stderr, converged, abs(d - d0), corr, int(Lf.size),
-                      stderr_correlated_px=correlated, centre_residual_ratio=ratio)
+                      stderr_correlated_px=correlated)
 
 
 def correlated_stderr(A: np.ndarray, resid: np.ndarray, shape: tuple[int, int],
@@ -312,7 +302,8 @@ def refine_point(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, 
     disagreement with the window before that the smaller window's own noise does not explain.
 
     None when no window converges; an unconverged Refinement with `ran_off` when none converges
-    and one was pulled further than REFINE_MAX_SHIFT_PX from `d0` (the images contradict it)."""
+    and one was pulled further than REFINE_MAX_SHIFT_PX from `d0` (the images contradict it), or
+    when a wider window settles more than that from where a smaller one did."""
     big = refine_disparity(left_gray, right_gray, x, y, d0, max(half, REFINE_HALF_PX),
                            max_shift_px=REFINE_MAX_SHIFT_PX)
     best = None
