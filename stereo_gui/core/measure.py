@@ -585,6 +585,9 @@ def surrounding_estimate(result: PipelineResult, x: int, y: int) -> float | None
     smallest region (SURROUND_GROWTH) that holds enough of them on one plane; None when no region
     does. For a click whose own patch the matcher left empty: a starting estimate only, which
     the images must confirm (`refine_point`)."""
+    fill = result.wls_px  # the filled view: without it, no check for a missed object (below)
+    if fill is None:
+        return None
     disp = reading_map(result)
     h, w = disp.shape
     for grown in SURROUND_GROWTH:
@@ -621,9 +624,6 @@ def surrounding_estimate(result: PipelineResult, x: int, y: int) -> float | None
         # the filled view (WLS: guided by the left image's edges, it spreads what the matcher
         # half-saw) shows nothing clearly nearer at the click: an object in front of the surface
         # that the checks threw out entirely still pulls the fill towards itself
-        fill = result.wls_px
-        if fill is None:
-            return None
         h6 = REFINE_HALF_PX
         near = fill[max(0, y - h6):y + h6 + 1, max(0, x - h6):x + h6 + 1]
         near = near[np.isfinite(near)]
