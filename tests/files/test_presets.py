@@ -108,5 +108,11 @@ def test_a_preset_saved_before_the_split_loads_and_saves_as_it_was(_isolated_con
     path.unlink()
     save_user_preset(p, "mine")
     again = json.loads(path.read_text())
-    assert again == OLD_USER_PRESET
-    assert list(again["params"]) == list(OLD_USER_PRESET["params"])  # the same order too
+    # as it was, with the fields added since at their defaults (in their places)
+    params = {}
+    for key, value in OLD_USER_PRESET["params"].items():
+        params[key] = value
+        if key == "normalize_window":
+            params["fill_scale"] = 0.0
+    assert again == {**OLD_USER_PRESET, "params": params}
+    assert list(again["params"]) == list(params)  # the same order too
