@@ -885,6 +885,7 @@ class StereoPipeline:
                                      max(1, round(BLANK_LAG_PX * scale))))
             if scale < 1.0:
                 agreed = enlarge(agreed, (w, h), p.agree_px) * np.float32(factor)
+            lap("agreement")
             if self._fill is not None:
                 fill_top = self._fill_holes(agreed, nl, nr, ml)
                 lap("fill")
