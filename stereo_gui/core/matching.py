@@ -747,8 +747,9 @@ class StereoPipeline:
         FILL_DEPTH_PX: with the agreement of the same two windows on images made smaller by
         `fill_scale` (a window covers that much more of the scene), under the same checks (the
         left-right check, agreement within the same full-resolution distance, the range's ends,
-        occlusion, blank surfaces, what the right camera cannot see). The largest disparity
-        filled in (full-resolution px; 0 for none).
+        occlusion, blank surfaces, what the right camera cannot see), and never farther than
+        the map on both sides of the hole. The largest disparity filled in (full-resolution px;
+        0 for none).
 
         Only the inside of a hole is filled: at its rim a hole is mostly a depth edge, where a
         larger window takes the nearer surface's disparity past the edge, and the small windows
@@ -783,6 +784,10 @@ class StereoPipeline:
                          np.where(holes > 0, -np.inf, agreed).max(axis=1))
         margin = (p.check_block_size // 2 + 1) / self._scale / fs
         take &= np.arange(w, dtype=np.float32)[None, :] >= (top + margin)[:, None]
+        # nor a value farther than the map on both sides of the hole, along its row or its
+        # column: a smooth object in front of a wall (a pole, a bar) is such a hole, and the
+        # larger windows carry the wall's disparity in from around it
+        take &= ~_sunk(coarse, agreed, p.agree_px / self._scale)
         if not take.any():
             return 0.0
         agreed[take] = coarse[take]
@@ -1135,6 +1140,31 @@ def compute_padded(matcher, reference: np.ndarray, other: np.ndarray, pad: int, 
     d = matcher.compute(cv2.copyMakeBorder(reference, *border, value=0),
                         cv2.copyMakeBorder(other, *border, value=0))
     return np.ascontiguousarray(d[:, left:left + w])
+
+
+def _nearest_value_before(disparity_px: np.ndarray) -> np.ndarray:
+    """Each pixel's nearest value at or left of it in its row (NaN where there is none)."""
+    h, w = disparity_px.shape
+    at = np.where(np.isnan(disparity_px), -1, np.arange(w)[None, :])
+    at = np.maximum.accumulate(at, axis=1)
+    out = np.take_along_axis(disparity_px, np.maximum(at, 0), axis=1)
+    out[at < 0] = np.nan
+    return out
+
+
+def _sunk(values: np.ndarray, disparity_px: np.ndarray, tolerance_px: float) -> np.ndarray:
+    """Where `values` lie farther (smaller) by more than `tolerance_px` than the nearest values of
+    the map `disparity_px` (NaN holes) on both sides: left and right in the row, or above and
+    below in the column. Bool mask."""
+    out = np.zeros(values.shape, np.bool_)
+    with np.errstate(invalid="ignore"):
+        for m in (disparity_px, disparity_px.T):
+            v = values if m is disparity_px else values.T
+            before = _nearest_value_before(m)
+            after = _nearest_value_before(m[:, ::-1])[:, ::-1]
+            both = (before - v > tolerance_px) & (after - v > tolerance_px)
+            out |= both if m is disparity_px else both.T
+    return out
 
 
 def unseen_columns(largest_disparity_px: float, margin_px: float, width: int) -> int:
