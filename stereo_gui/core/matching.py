@@ -982,7 +982,7 @@ class StereoPipeline:
 # (full-resolution px): at a hole's rim the larger windows carry a nearer surface past its edge.
 # `stereo-gui bench --scenes` (13 scenes), quality with fill_scale 0.5: filling every hole
 # raised the mean bad-2 from 8.7 % to 11.7 % and left 7 scenes outside their margins (2
-# before); from 3 px in, 9.4 % at 1.4 points more density, every scene's verdict unchanged
+# before); from 3 px in, 9.3 % at 1.2 points more density, every scene's verdict unchanged
 FILL_DEPTH_PX = 3.0
 
 # a window is blank (nothing but sensor noise) when its pixels correlate with their neighbours
