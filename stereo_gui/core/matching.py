@@ -1144,8 +1144,7 @@ def compute_padded(matcher, reference: np.ndarray, other: np.ndarray, pad: int, 
 
 def _nearest_value_before(disparity_px: np.ndarray) -> np.ndarray:
     """Each pixel's nearest value at or left of it in its row (NaN where there is none)."""
-    h, w = disparity_px.shape
-    at = np.where(np.isnan(disparity_px), -1, np.arange(w)[None, :])
+    at = np.where(np.isnan(disparity_px), -1, np.arange(disparity_px.shape[1])[None, :])
     at = np.maximum.accumulate(at, axis=1)
     out = np.take_along_axis(disparity_px, np.maximum(at, 0), axis=1)
     out[at < 0] = np.nan
@@ -1156,15 +1155,13 @@ def _sunk(values: np.ndarray, disparity_px: np.ndarray, tolerance_px: float) -> 
     """Where `values` lie farther (smaller) by more than `tolerance_px` than the nearest values of
     the map `disparity_px` (NaN holes) on both sides: left and right in the row, or above and
     below in the column. Bool mask."""
-    out = np.zeros(values.shape, np.bool_)
-    with np.errstate(invalid="ignore"):
-        for m in (disparity_px, disparity_px.T):
-            v = values if m is disparity_px else values.T
-            before = _nearest_value_before(m)
-            after = _nearest_value_before(m[:, ::-1])[:, ::-1]
-            both = (before - v > tolerance_px) & (after - v > tolerance_px)
-            out |= both if m is disparity_px else both.T
-    return out
+    def along_rows(v: np.ndarray, m: np.ndarray) -> np.ndarray:
+        before = _nearest_value_before(m)
+        after = _nearest_value_before(m[:, ::-1])[:, ::-1]
+        return (before - v > tolerance_px) & (after - v > tolerance_px)
+
+    with np.errstate(invalid="ignore"):  # (NaN compares False: no value on a side)
+        return along_rows(values, disparity_px) | along_rows(values.T, disparity_px.T).T
 
 
 def unseen_columns(largest_disparity_px: float, margin_px: float, width: int) -> int:
