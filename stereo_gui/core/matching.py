@@ -772,6 +772,7 @@ class StereoPipeline:
                                  max(1, round(BLANK_LAG_PX * total))))
         if p.full_frame:  # matches whose window reached into the padding
             blank(coarse, unseen_mask(coarse, p.check_block_size // 2 + 1))
+        small = coarse * np.float32(1.0 / total)  # full-resolution px, at the fill's size
         coarse = enlarge(coarse, (w, h), tol) * np.float32(1.0 / total)
         holes = cv2.compare(agreed, agreed, cv2.CMP_NE)  # 255 where NaN
         inside = cv2.distanceTransform(holes, cv2.DIST_L2, 3) >= np.float32(FILL_DEPTH_PX)
@@ -787,7 +788,14 @@ class StereoPipeline:
         # nor a value farther than the map on both sides of the hole, along its row or its
         # column: a smooth object in front of a wall (a pole, a bar) is such a hole, and the
         # larger windows carry the wall's disparity in from around it
-        take &= ~_sunk(coarse, agreed, p.agree_px / self._scale)
+        # (tested at the fill's size, a quarter of the pixels: the map there holds the nearest
+        # value of each pixel's block, so that no edge of an object is lost)
+        nearest = cv2.dilate(np.where(holes > 0, np.float32(-np.inf), agreed),
+                             np.ones((math.ceil(1 / total),) * 2, np.uint8), anchor=(0, 0))
+        nearest = cv2.resize(nearest, small.shape[::-1], interpolation=cv2.INTER_NEAREST)
+        nearest[np.isneginf(nearest)] = np.nan
+        sunk = _sunk(small, nearest, p.agree_px / self._scale).astype(np.uint8)
+        take &= cv2.resize(sunk, (w, h), interpolation=cv2.INTER_NEAREST) == 0
         if not take.any():
             return 0.0
         agreed[take] = coarse[take]
@@ -1144,9 +1152,12 @@ def compute_padded(matcher, reference: np.ndarray, other: np.ndarray, pad: int, 
 
 def _nearest_value_before(disparity_px: np.ndarray) -> np.ndarray:
     """Each pixel's nearest value at or left of it in its row (NaN where there is none)."""
-    at = np.where(np.isnan(disparity_px), -1, np.arange(disparity_px.shape[1])[None, :])
-    at = np.maximum.accumulate(at, axis=1)
-    out = np.take_along_axis(disparity_px, np.maximum(at, 0), axis=1)
+    h, w = disparity_px.shape
+    d = np.ascontiguousarray(disparity_px)
+    at = np.where(np.isnan(d), np.int32(-1), np.arange(w, dtype=np.int32)[None, :])
+    np.maximum.accumulate(at, axis=1, out=at)
+    out = d.ravel()[(np.maximum(at, 0) + (np.arange(h, dtype=np.int32) * w)[:, None]).ravel()]
+    out = out.reshape(h, w)
     out[at < 0] = np.nan
     return out
 
