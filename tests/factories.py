@@ -94,3 +94,16 @@ def make_records(n: int = 6) -> list[MeasurementRecord]:
            for i in range(n)]
     out.append(make_record(n, valid=False))
     return out
+
+
+def pole_before_wall(pole_mm: float, wall_mm: float = 2000.0, width_mm: float = 40.0,
+                     contrast: float = 1.0):
+    """A simulated scene: a vertical pole `width_mm` wide and 3 m tall, centred on the optical
+    axis at `pole_mm`, before a textured wall at `wall_mm` (its texture at `contrast`)."""
+    from stereo_gui.sources.sim import Scene
+    from stereo_gui.sources.sim.scene import SceneObject
+
+    wall = Scene.wall(wall_mm, seed=4).objects[0]
+    pole = SceneObject("pole", np.array([0.0, 0.0, pole_mm]), np.array([1.0, 0.0, 0.0]),
+                       np.array([0.0, 1.0, 0.0]), width_mm, 3000.0, seed=77, contrast=contrast)
+    return Scene((wall, pole))

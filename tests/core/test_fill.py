@@ -101,14 +101,11 @@ def test_a_smooth_pole_in_front_of_a_wall_is_not_filled_with_the_wall(contrast):
     small windows find little on it, and the larger ones carry the wall's disparity in from
     around it. None of that may land on the pole (it did on 20 of 813 sampled pole pixels of a
     flat pole before the rule): what the fill adds on the pole is the pole's own distance."""
-    from stereo_gui.sources.sim.scene import SceneObject
+    from factories import pole_before_wall
 
     rig = SimRig(seed=3)
     calib = rig.true_calibration()
-    wall = Scene.wall(2000.0, seed=4).objects[0]
-    pole = SceneObject("pole", np.array([0.0, 0.0, 1500.0]), np.array([1.0, 0.0, 0.0]),
-                       np.array([0.0, 1.0, 0.0]), 40.0, 3000.0, seed=77, contrast=contrast)
-    scene = Scene((wall, pole))
+    scene = pole_before_wall(1500.0, contrast=contrast)
     left, right = rig.render_scene(scene, np.random.default_rng(5))
     quality = load_preset("quality")
     with StereoPipeline(calib, quality) as pipe:

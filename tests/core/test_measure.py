@@ -531,13 +531,10 @@ def test_a_patch_the_matcher_left_empty_is_read_from_the_surface_around_it(weak_
 def test_an_object_the_matcher_missed_is_not_read_as_the_wall_behind_it(rig, contrast):
     """A pole 40 mm wide at 1 m in front of a wall at 2 m, which the map misses entirely (its
     columns emptied): clicks on the pole are refused, never read as the wall behind it."""
-    from stereo_gui.sources.sim.scene import SceneObject
+    from factories import pole_before_wall
 
     calib = rig.true_calibration()
-    wall = Scene.wall(2000.0, seed=4).objects[0]
-    pole = SceneObject("pole", np.array([0.0, 0.0, 1000.0]), np.array([1.0, 0.0, 0.0]),
-                       np.array([0.0, 1.0, 0.0]), 40.0, 3000.0, seed=77, contrast=contrast)
-    scene = Scene((wall, pole))
+    scene = pole_before_wall(1000.0, contrast=contrast)
     left, right = rig.render_scene(scene, np.random.default_rng(5))
     on_pole = [x for x in range(200, 450)
                if rig.true_point_rectified(calib, scene, x, 240)[2] < 1001.0]
