@@ -757,6 +757,15 @@ class StereoPipeline:
         fs, lo, num, first, second = self._fill
         p = self._params
         h, w = agreed.shape
+        holes = cv2.compare(agreed, agreed, cv2.CMP_NE)  # 255 where NaN
+        inside = cv2.distanceTransform(holes, cv2.DIST_L2, 3) >= np.float32(FILL_DEPTH_PX)
+        mapped = np.where(holes > 0, np.float32(-np.inf), agreed)
+        cols = np.arange(w, dtype=np.float32)[None, :]
+        margin = (p.check_block_size // 2 + 1) / self._scale / fs
+        # (the columns the right camera may not see, below, can only widen: with none left
+        # there is nothing to fill, and the larger windows need not run, as on a textured scene)
+        if not (inside & (cols >= (mapped.max(axis=1) + margin)[:, None])).any():
+            return 0.0
         mh, mw = nl.shape[:2]
         size = (max(1, round(mw * fs)), max(1, round(mh * fs)))
         sl, sr = (cv2.resize(m, size, interpolation=cv2.INTER_AREA) for m in (nl, nr))
@@ -774,24 +783,19 @@ class StereoPipeline:
             blank(coarse, unseen_mask(coarse, p.check_block_size // 2 + 1))
         small = coarse * np.float32(1.0 / total)  # full-resolution px, at the fill's size
         coarse = enlarge(coarse, (w, h), tol) * np.float32(1.0 / total)
-        holes = cv2.compare(agreed, agreed, cv2.CMP_NE)  # 255 where NaN
-        inside = cv2.distanceTransform(holes, cv2.DIST_L2, 3) >= np.float32(FILL_DEPTH_PX)
         take = inside & ~np.isnan(coarse)
         # nothing in the columns of a row that the right camera may not see: left of the row's
         # largest disparity (either map's) and the windows' margin. Weak texture in the strip
         # at the left edge matches far surfaces at random, and a row of a weak wall rarely has
         # values enough right of the strip to show that a nearer surface hides them
-        top = np.maximum(np.where(take, coarse, -np.inf).max(axis=1),
-                         np.where(holes > 0, -np.inf, agreed).max(axis=1))
-        margin = (p.check_block_size // 2 + 1) / self._scale / fs
-        take &= np.arange(w, dtype=np.float32)[None, :] >= (top + margin)[:, None]
+        top = np.maximum(np.where(take, coarse, -np.inf).max(axis=1), mapped.max(axis=1))
+        take &= cols >= (top + margin)[:, None]
         # nor a value farther than the map on both sides of the hole, along its row or its
         # column: a smooth object in front of a wall (a pole, a bar) is such a hole, and the
         # larger windows carry the wall's disparity in from around it
         # (tested at the fill's size, a quarter of the pixels: the map there holds the nearest
         # value of each pixel's block, so that no edge of an object is lost)
-        nearest = cv2.dilate(np.where(holes > 0, np.float32(-np.inf), agreed),
-                             np.ones((math.ceil(1 / total),) * 2, np.uint8), anchor=(0, 0))
+        nearest = cv2.dilate(mapped, np.ones((math.ceil(1 / total),) * 2, np.uint8), anchor=(0, 0))
         nearest = cv2.resize(nearest, small.shape[::-1], interpolation=cv2.INTER_NEAREST)
         nearest[np.isneginf(nearest)] = np.nan
         sunk = _sunk(small, nearest, p.agree_px / self._scale).astype(np.uint8)
