@@ -1109,8 +1109,7 @@ def occluded(disparity_px: np.ndarray, tolerance_px: float = 1.0, reach_px: int 
         # each empty pixel takes the disparity of the next valued pixel to its right, if that
         # lies within reach
         valued = ~np.isnan(d)
-        nxt = np.where(valued, np.arange(w)[None, :], w)
-        nxt = np.minimum.accumulate(nxt[:, ::-1], axis=1)[:, ::-1]
+        nxt = _next_valued_column(valued)
         near = (~valued) & (nxt - np.arange(w)[None, :] <= reach_px) & (nxt < w)
         rows = np.nonzero(near)
         d = d.copy()
@@ -1154,15 +1153,22 @@ def compute_padded(matcher, reference: np.ndarray, other: np.ndarray, pad: int, 
     return np.ascontiguousarray(d[:, left:left + w])
 
 
-def _nearest_value_before(disparity_px: np.ndarray) -> np.ndarray:
-    """Each pixel's nearest value at or left of it in its row (NaN where there is none)."""
-    h, w = disparity_px.shape
+def _next_valued_column(valued: np.ndarray) -> np.ndarray:
+    """Each pixel's column of the nearest valued pixel at or right of it in its row (the row's
+    width where there is none)."""
+    w = valued.shape[1]
+    nxt = np.where(valued, np.arange(w, dtype=np.int32)[None, :], np.int32(w))
+    return np.minimum.accumulate(nxt[:, ::-1], axis=1)[:, ::-1]
+
+
+def _nearest_value_after(disparity_px: np.ndarray) -> np.ndarray:
+    """Each pixel's nearest value at or right of it in its row (NaN where there is none)."""
     d = np.ascontiguousarray(disparity_px)
-    at = np.where(np.isnan(d), np.int32(-1), np.arange(w, dtype=np.int32)[None, :])
-    np.maximum.accumulate(at, axis=1, out=at)
-    out = d.ravel()[(np.maximum(at, 0) + (np.arange(h, dtype=np.int32) * w)[:, None]).ravel()]
-    out = out.reshape(h, w)
-    out[at < 0] = np.nan
+    h, w = d.shape
+    nxt = _next_valued_column(~np.isnan(d))
+    flat = np.minimum(nxt, w - 1) + (np.arange(h, dtype=np.int32) * w)[:, None]
+    out = d.ravel()[flat.ravel()].reshape(h, w)
+    out[nxt == w] = np.nan
     return out
 
 
@@ -1171,8 +1177,8 @@ def _sunk(values: np.ndarray, disparity_px: np.ndarray, tolerance_px: float) -> 
     the map `disparity_px` (NaN holes) on both sides: left and right in the row, or above and
     below in the column. Bool mask."""
     def along_rows(v: np.ndarray, m: np.ndarray) -> np.ndarray:
-        before = _nearest_value_before(m)
-        after = _nearest_value_before(m[:, ::-1])[:, ::-1]
+        before = _nearest_value_after(m[:, ::-1])[:, ::-1]
+        after = _nearest_value_after(m)
         return (before - v > tolerance_px) & (after - v > tolerance_px)
 
     with np.errstate(invalid="ignore"):  # (NaN compares False: no value on a side)
