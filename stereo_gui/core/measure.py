@@ -95,8 +95,19 @@ REFINE_HALF_PX = 6  # the refinement aligns a 13 x 13 window around the point
 # average it out; `bench --accuracy`, MJPG at 3 m: RMS 1.17 % with 49 x 49, 0.61 % with 97 x 97)
 REFINE_GROWTH = (12, 24, 48)
 REFINE_PRECISE_PX = 0.03
+# a smaller window that settled further than this from the matcher's estimate is where a larger
+# window starts again when it does not settle from the estimate
+REFINE_RESTART_PX = 0.5
+# Gauss-Newton steps an alignment may take: on weak MJPG texture a 49 px window closes in on its
+# minimum slowly (each step a fifth of the way), and one stopped at 20 steps was taken for
+# unsettled while the wrong smaller window stood
+REFINE_ITERATIONS = 60
 MIN_VALID_FRACTION = 0.1  # share of the patch whose match must pass the checks
 EDGE_SPREAD_PX = 1.0  # a patch spread above this straddles surfaces (walls: at most 0.4 px)
+# a window of the map holds one surface when this share of its values lies within this distance
+# of their median (`one_surface`)
+SURFACE_SHARE = 0.8
+SURFACE_BAND_PX = 2.0
 SCAN_MARGIN = 0.1  # correlation (NCC) by which a peak beyond the range must beat the estimate
 # ... and the least correlation that peak needs to count at all: on a smooth wall whose texture
 # is near the sensor noise every window's best correlation is 0.2-0.5, wherever it lies
@@ -190,7 +201,8 @@ class Refinement:
 
 
 def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, d0: float,
-                     half: int, max_shift_px: float | None = None, iterations: int = 20) -> Refinement:
+                     half: int, max_shift_px: float | None = None,
+                     iterations: int | None = None) -> Refinement:
     """1-D Lucas-Kanade alignment of the left window centred on (x, y) with the right image.
 
     Model: L(u, v) = a * R(u - d, v) + b over the window (a, b absorb gain and offset differences
@@ -199,6 +211,8 @@ def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: i
     `max_shift_px` (default: half the window) bounds how far it may move from d0.
     """
     h, w = left_gray.shape[:2]
+    if iterations is None:
+        iterations = REFINE_ITERATIONS
     if max_shift_px is None:
         max_shift_px = float(half)
     # right-image strip that can hold every shifted window, with a margin for the cubic kernel
@@ -298,12 +312,17 @@ def refine_point(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, 
 
     Where the texture is weak (the alignment's standard error above REFINE_PRECISE_PX, or no
     convergence at all) the window grows (REFINE_GROWTH) as long as the disparity map `surface`
-    (px, NaN invalid) holds one surface in it; a grown window's `windows_px` is the part of its
-    disagreement with the window before that the smaller window's own noise does not explain.
+    (px, NaN invalid) holds one surface in it (`one_surface`), and the surest window (the least
+    standard error) is the reading: a window no surer than a smaller one does not stop the
+    growth, since on MJPG blocks the next may gather enough. A larger window that does not
+    settle from `d0` starts again where the smaller one settled. A grown window's `windows_px`
+    is the part of its disagreement with the surest smaller window that that one's own noise
+    does not explain.
 
     None when no window converges; an unconverged Refinement with `ran_off` when none converges
     and one was pulled further than REFINE_MAX_SHIFT_PX from `d0` (the images contradict it), or
-    when a wider window settles more than that from where a smaller one did."""
+    when a wider window is pulled that far and, allowed twice as far, settles: somewhere else
+    than the smaller one did."""
     big = refine_disparity(left_gray, right_gray, x, y, d0, max(half, REFINE_HALF_PX),
                            max_shift_px=REFINE_MAX_SHIFT_PX)
     best = None
@@ -322,19 +341,28 @@ def refine_point(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, 
             break
         wider = refine_disparity(left_gray, right_gray, x, y, d0, h,
                                  max_shift_px=REFINE_MAX_SHIFT_PX)
+        if (not wider.converged and best is not None
+                and abs(best.disparity_px - d0) > REFINE_RESTART_PX):
+            # the matcher's estimate was off (a blob of wrong matches on a weak MJPG wall: 3 px
+            # at 2 m) and the smaller window has moved away from it: the wider one starts where
+            # that one settled
+            restarted = refine_disparity(left_gray, right_gray, x, y, best.disparity_px, h,
+                                         max_shift_px=REFINE_MAX_SHIFT_PX)
+            if restarted.converged:
+                wider = replace(restarted, moved_px=abs(restarted.disparity_px - d0))
         if not (wider.converged and math.isfinite(wider.stderr_px)):
             if best is None:
                 ran_off = ran_off or wider.ran_off
                 continue  # texture too weak for this window too: a larger one may hold enough
             if wider.ran_off:
-                # where does the wider window settle, allowed twice as far? A few pixels from
-                # where the smaller one did: that was a local fit to the wrong place, not the
-                # surface. Much further off (or nowhere): the wider window reached across a
-                # depth edge to another surface, and the smaller one stands.
+                # where does the wider window settle, allowed twice as far? Anywhere: the
+                # images put the surface somewhere else than the smaller window did (that one
+                # fitted a wrong place, or a depth edge the map does not show is near), and the
+                # reading is refused. Nowhere: the wider window reached onto another surface or
+                # into nothing, and the smaller one stands.
                 again = refine_disparity(left_gray, right_gray, x, y, d0, h,
                                          max_shift_px=2 * REFINE_MAX_SHIFT_PX)
-                if (again.converged and math.isfinite(again.stderr_px)
-                        and abs(again.disparity_px - best.disparity_px) > REFINE_MAX_SHIFT_PX):
+                if again.converged and math.isfinite(again.stderr_px):
                     return Refinement(d0, float("inf"), False, ran_off=True)
             break
         if best is None:
@@ -342,7 +370,7 @@ def refine_point(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, 
             best = replace(wider, windows_px=wider.moved_px)
             continue
         if not wider.stderr_px < best.stderr_px:
-            break
+            continue  # no surer than the smaller window: the next larger one may be
         unexplained = max(0.0, abs(wider.disparity_px - best.disparity_px)
                           - Z95 * best.stderr_px)
         best = replace(wider, windows_px=unexplained)
@@ -354,11 +382,16 @@ def refine_point(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, 
 
 def one_surface(disparity_px: np.ndarray, x: int, y: int, half: int) -> bool:
     """Whether the map's valid disparities in the window of `half` around (x, y) (clipped to
-    the map) lie on one surface: a robust spread of at most EDGE_SPREAD_PX."""
-    h, w = disparity_px.shape[:2]
+    the map) lie on one surface: at least SURFACE_SHARE of them within SURFACE_BAND_PX of their
+    median. (Not their spread: on a weak MJPG wall the map is one surface whose values scatter
+    by a robust 1-1.2 px in blobs of wrong matches; a second surface more than SURFACE_BAND_PX
+    away that fills more than a fifth of the window breaks the share wherever it lies.)"""
     values = disparity_px[max(0, y - half):y + half + 1, max(0, x - half):x + half + 1]
     values = values[np.isfinite(values)]
-    return values.size >= 9 and robust_spread(values) <= EDGE_SPREAD_PX
+    if values.size < 9:
+        return False
+    near = np.abs(values - np.median(values)) <= SURFACE_BAND_PX
+    return float(near.mean()) >= SURFACE_SHARE
 
 
 def rematch_strip(result: PipelineResult, y: int, half: int) -> np.ndarray | None:
