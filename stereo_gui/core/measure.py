@@ -91,9 +91,11 @@ CORRELATED_STDERR_SCALE = STDERR_SCALE
 REFINE_MAX_SHIFT_PX = 2.0  # how far the refinement may move from the matcher's estimate
 REFINE_HALF_PX = 6  # the refinement aligns a 13 x 13 window around the point
 # ... and where that is not precise to REFINE_PRECISE_PX (weak texture), windows of these halves
-# (up to 97 x 97: on MJPG walls the error is shared within 8 x 8 blocks, and only many blocks
-# average it out; `bench --accuracy`, MJPG at 3 m: RMS 1.17 % with 49 x 49, 0.61 % with 97 x 97)
-REFINE_GROWTH = (12, 24, 48)
+# (up to 193 x 193: on MJPG walls the error is shared within 8 x 8 blocks, and only many blocks
+# average it out; `bench --accuracy`, MJPG at 3 m: RMS 1.17 % with 49 x 49, 0.61-0.64 % with
+# 97 x 97, 0.44-0.45 % with 193 x 193; two webcams' wall at 0.5-3 m: RMS 0.44-0.49 % with 97 x 97,
+# 0.26-0.29 % with 193 x 193)
+REFINE_GROWTH = (12, 24, 48, 96)
 REFINE_PRECISE_PX = 0.03
 # a smaller window that settled further than this from the matcher's estimate is where a larger
 # window starts again when it does not settle from the estimate
