@@ -323,8 +323,8 @@ def refine_point(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, 
 
     None when no window converges; an unconverged Refinement with `ran_off` when none converges
     and one was pulled further than REFINE_MAX_SHIFT_PX from `d0` (the images contradict it), or
-    when a wider window is pulled that far and, allowed twice as far, settles: somewhere else
-    than the smaller one did."""
+    when a wider window is pulled that far from `d0` and, allowed twice as far, settles (the
+    images put the surface elsewhere than the smaller window did)."""
     big = refine_disparity(left_gray, right_gray, x, y, d0, max(half, REFINE_HALF_PX),
                            max_shift_px=REFINE_MAX_SHIFT_PX)
     best = None

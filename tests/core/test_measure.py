@@ -567,8 +567,8 @@ def test_a_chance_peak_of_a_small_window_is_not_called_too_near(wall):
 
 
 def test_one_surface_holds_a_scattered_wall_and_not_two_surfaces():
-    """A wall at 27 px whose matches scatter as on a weak MJPG wall (1.2 px, a tenth of them in
-    blobs 3 px off) is one surface; the same window with 30 % of it on a pole at 40 px is not,
+    """A wall at 27 px whose matches scatter as on a weak MJPG wall (1.2 px, a tenth of them 3 px
+    off) is one surface; the same window with 30 % of it on a pole at 40 px is not,
     though the pole is a minority that a robust spread alone would not notice."""
     rng = np.random.default_rng(3)
     wall = 27.0 + rng.normal(0.0, 1.2, (97, 97)).astype(np.float32)
@@ -584,8 +584,8 @@ def test_one_surface_holds_a_scattered_wall_and_not_two_surfaces():
 def test_on_the_webcams_wall_far_off_the_window_grows_until_it_is_sure():
     """Two webcams' wall (half contrast, the right camera's own gain and black level, darker
     corners, MJPG) at 2 and 3 m, a rig seed no benchmark uses: the matcher's map scatters in
-    blobs up to 3 px off, and a 13 or 25 px window fitted such a blob (7.7 % off at 3 m, inside
-    its +-). Now the window keeps growing while the map shows one surface, starts again where a
+    blobs up to 3 px off, and a 13 or 25 px window fitted such a blob (7.7 % off at 3 m, beyond
+    its +- of 5.4 %). Now the window keeps growing while the map shows one surface, starts again where a
     smaller window settled, and a wider window that settles elsewhere refuses the reading:
     every reading within 2 %, at 90 % of the points or more, the +- covering 95 %."""
     from stereo_gui.commands.accuracy import evaluate_wall
