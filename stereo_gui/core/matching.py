@@ -637,6 +637,9 @@ class StereoPipeline:
             self._right = cv2.ximgproc.createRightMatcher(sgbm(lo, num, block))
         else:
             self._right = cv2.ximgproc.createRightMatcher(self._left) if p.wls else None
+        # how far right of an empty pixel the occlusion test looks for a nearer surface: the
+        # larger window's half
+        self._reach = max(p.block_size, p.check_block_size) // 2 + 1
         self._fill = None  # (scale, min, num, first, second) of the hole-filling pair
         if self._second is not None and p.fill_scale > 0:
             fs = p.fill_scale
@@ -764,7 +767,8 @@ class StereoPipeline:
         margin = (p.check_block_size // 2 + 1) / self._scale / fs
         # (the columns the right camera may not see, below, can only widen: with none left
         # there is nothing to fill, and the larger windows need not run, as on a textured scene)
-        if not (inside & (cols >= (mapped.max(axis=1) + margin)[:, None])).any():
+        row_top = mapped.max(axis=1)  # each row's largest disparity of the map
+        if not (inside & (cols >= (row_top + margin)[:, None])).any():
             return 0.0
         mh, mw = nl.shape[:2]
         size = (max(1, round(mw * fs)), max(1, round(mh * fs)))
@@ -775,7 +779,7 @@ class StereoPipeline:
         coarse = agreement(compute_padded(first, sl, sr, pad, "left"),
                            compute_padded(second, sl, sr, pad, "left"), lo, tol,
                            (lo + p.range_end_px, lo + num - 1 - p.range_end_px))
-        blank(coarse, occluded(coarse, tol, max(p.block_size, p.check_block_size) // 2 + 1))
+        blank(coarse, occluded(coarse, tol, self._reach))
         total = self._scale * fs
         blank(coarse, blank_mask(sm, max(4, round(BLANK_HALF_PX * total)),
                                  max(1, round(BLANK_LAG_PX * total))))
@@ -788,7 +792,7 @@ class StereoPipeline:
         # largest disparity (either map's) and the windows' margin. Weak texture in the strip
         # at the left edge matches far surfaces at random, and a row of a weak wall rarely has
         # values enough right of the strip to show that a nearer surface hides them
-        top = np.maximum(np.where(take, coarse, -np.inf).max(axis=1), mapped.max(axis=1))
+        top = np.maximum(np.where(take, coarse, -np.inf).max(axis=1), row_top)
         take &= cols >= (top + margin)[:, None]
         # nor a value farther than the map on both sides of the hole, along its row or its
         # column: a smooth object in front of a wall (a pole, a bar) is such a hole, and the
@@ -805,8 +809,7 @@ class StereoPipeline:
         agreed[take] = coarse[take]
         # a value filled in where the right camera sees a nearer surface of the map instead (in
         # the strip at the left edge that it cannot see, weak texture matches at random)
-        hidden = take & occluded(agreed, p.agree_px / self._scale,
-                                 max(p.block_size, p.check_block_size) // 2 + 1)
+        hidden = take & occluded(agreed, p.agree_px / self._scale, self._reach)
         agreed[hidden] = np.nan
         take &= ~hidden
         return float(coarse[take].max()) if take.any() else 0.0
@@ -895,8 +898,7 @@ class StereoPipeline:
             agreed = agreement(d16, d16_second, self._min_s, p.agree_px,
                                (self._min_s + p.range_end_px,
                                 self._min_s + self._num_s - 1 - p.range_end_px))
-            blank(agreed, occluded(agreed, p.agree_px,
-                                   max(p.block_size, p.check_block_size) // 2 + 1))
+            blank(agreed, occluded(agreed, p.agree_px, self._reach))
             # what matched on a blank surface matched noise, however well the windows agree
             blank(agreed, blank_mask(ml, max(4, round(BLANK_HALF_PX * scale)),
                                      max(1, round(BLANK_LAG_PX * scale))))

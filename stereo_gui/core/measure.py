@@ -105,7 +105,9 @@ REFINE_RESTART_PX = 0.5
 # unsettled while the wrong smaller window stood
 REFINE_ITERATIONS = 60
 MIN_VALID_FRACTION = 0.1  # share of the patch whose match must pass the checks
-EDGE_SPREAD_PX = 1.0  # a patch spread above this straddles surfaces (walls: at most 0.4 px)
+# a patch spread above this straddles surfaces (the rig's walls: at most 0.4 px; on a weak MJPG
+# wall the map scatters more, which `one_surface` allows for)
+EDGE_SPREAD_PX = 1.0
 # a window of the map holds one surface when this share of its values lies within this distance
 # of their median (`one_surface`)
 SURFACE_SHARE = 0.8
