@@ -77,6 +77,11 @@ def _fill_scale(v) -> bool:
     return v == 0 or 0.25 <= v <= 0.5
 
 
+def _fill_modes(v) -> bool:
+    modes = v.split(",")
+    return 1 <= len(modes) <= 3 and all(m.strip() in MODES for m in modes)
+
+
 def _normalize_window(v) -> bool:
     return v == 0 or (v >= 3 and v % 2 == 1)
 
@@ -153,9 +158,17 @@ class MatcherParams:
     fill_scale: float = param(
         0.0, lo=0.0, hi=0.5, check=_fill_scale,
         check_text="0 (off) or a number from 0.25 to 0.5",
-        help="with a second window: the final map's holes (beyond FILL_DEPTH_PX of any value) "
+        help="with a second window: the final map's holes (beyond fill_depth_px of any value) "
              "take the two windows' agreement found on images made smaller by this, where it "
              "passes the same checks (0: off)")
+    # a hole the first smaller size leaves may lie on texture fainter still; eight directions
+    # (hh) carry a surface's match across weak texture that three passes lose, and cost little
+    # on small images
+    fill_modes: str = param(
+        "3way", check=_fill_modes, check_text="one to three of SGBM's modes (sgbm, 3way, hh, "
+                                               "hh4), separated by commas",
+        help="SGBM's mode at each size the fill tries, finest first, each size fill_scale "
+             "times the one before: each fills only what the ones before left")
     # SGBM leaves the first minDisparity + numDisparities columns empty otherwise
     full_frame: bool = param(
         True, help="search the whole disparity range at every column (images padded for the "
@@ -611,15 +624,15 @@ class StereoPipeline:
         s = self._scale = p.effective_scale(self.calibration.width)
         self._min_s, self._num_s = p.matcher_range(self.calibration, s)
         self._range_full = (self._min_s / s, (self._min_s + self._num_s - 1) / s)
-        def sgbm(lo=self._min_s, num=self._num_s, block=p.block_size):
-            area = (block / p.block_size) ** 2  # the penalties grow with the window's area
+        def sgbm(lo=self._min_s, num=self._num_s, block=p.block_size, q=p):
+            area = (block / q.block_size) ** 2  # the penalties grow with the window's area
             return cv2.StereoSGBM_create(
                 minDisparity=lo, numDisparities=num, blockSize=block,
-                P1=round(p.p1_value * area), P2=round(p.p2_value * area),
-                disp12MaxDiff=p.disp12_max_diff,
-                preFilterCap=p.pre_filter_cap, uniquenessRatio=p.uniqueness_ratio,
-                speckleWindowSize=p.speckle_window_size, speckleRange=p.speckle_range,
-                mode=MODES[p.mode])
+                P1=round(q.p1_value * area), P2=round(q.p2_value * area),
+                disp12MaxDiff=q.disp12_max_diff,
+                preFilterCap=q.pre_filter_cap, uniquenessRatio=q.uniqueness_ratio,
+                speckleWindowSize=q.speckle_window_size, speckleRange=q.speckle_range,
+                mode=MODES[q.mode])
 
         self._left = sgbm()
         self._second = sgbm(block=p.check_block_size) if p.check_block_size else None
@@ -640,14 +653,17 @@ class StereoPipeline:
         # how far right of an empty pixel the occlusion test looks for a nearer surface: the
         # larger window's half
         self._reach = max(p.block_size, p.check_block_size) // 2 + 1
-        self._fill = None  # (scale, min, num, first, second) of the hole-filling pair
+        # (scale, min, num, first, second) of each size the fill tries, finest first
+        self._fills: list[tuple] = []
         if self._second is not None and p.fill_scale > 0:
-            fs = p.fill_scale
-            lo = int(math.floor(self._min_s * fs))
-            top = (self._min_s + self._num_s - 1) * fs
-            num = max(16, int(math.ceil((top - lo + 1) / 16.0)) * 16)
-            self._fill = (fs, lo, num, sgbm(lo, num, p.block_size),
-                          sgbm(lo, num, p.check_block_size))
+            for level, mode in enumerate(p.fill_modes.split(","), start=1):
+                fill_p = dataclasses.replace(p, mode=mode.strip())
+                fs = p.fill_scale ** level
+                lo = int(math.floor(self._min_s * fs))
+                top = (self._min_s + self._num_s - 1) * fs
+                num = max(16, int(math.ceil((top - lo + 1) / 16.0)) * 16)
+                self._fills.append((fs, lo, num, sgbm(lo, num, p.block_size, fill_p),
+                                    sgbm(lo, num, p.check_block_size, fill_p)))
         self._wls = None
         if p.wls:
             # createDisparityWLSFilter switches off the uniqueness, speckle and left-right checks
@@ -744,34 +760,35 @@ class StereoPipeline:
             d16_right = match_right(self._right, mr, ml, pad, "right")
         return d16, d16_second, d16_right
 
-    def _fill_holes(self, agreed: np.ndarray, nl: np.ndarray, nr: np.ndarray, ml: np.ndarray
-                    ) -> float:
-        """Fill `agreed` (full-resolution px, NaN holes; in place) where it has no value within
-        FILL_DEPTH_PX: with the agreement of the same two windows on images made smaller by
-        `fill_scale` (a window covers that much more of the scene), under the same checks (the
-        left-right check, agreement within the same full-resolution distance, the range's ends,
-        occlusion, blank surfaces, what the right camera cannot see), and never farther than
-        the map on both sides of the hole. The largest disparity filled in (full-resolution px;
-        0 for none).
+    def _fill_holes(self, fill: tuple, agreed: np.ndarray, nl: np.ndarray, nr: np.ndarray,
+                    ml: np.ndarray) -> float:
+        """Fill `agreed` (the matched images' size and px, NaN holes; in place) where it has no
+        value within `fill_depth_px`: with the agreement of the same two windows (`fill`, one of
+        self._fills) on images made smaller by its scale (a window covers that much more of the
+        scene), under the same checks (the left-right check, agreement within the same
+        distance, the range's ends, occlusion, blank surfaces, what the right camera cannot
+        see), and never farther than the map on both sides of the hole. The largest disparity
+        filled in (full-resolution px; 0 for none).
 
         Only the inside of a hole is filled: at its rim a hole is mostly a depth edge, where a
         larger window takes the nearer surface's disparity past the edge, and the small windows
         already read what they can there."""
-        fs, lo, num, first, second = self._fill
+        fs, lo, num, first, second = fill
         p = self._params
         h, w = agreed.shape
         holes = cv2.compare(agreed, agreed, cv2.CMP_NE)  # 255 where NaN
-        inside = cv2.distanceTransform(holes, cv2.DIST_L2, 3) >= np.float32(FILL_DEPTH_PX)
+        total = self._scale * fs  # the fill's images against the full-resolution ones
+        depth = fill_depth_px(total) * self._scale
+        inside = cv2.distanceTransform(holes, cv2.DIST_L2, 3) >= np.float32(depth)
         mapped = np.where(holes > 0, np.float32(-np.inf), agreed)
         cols = np.arange(w, dtype=np.float32)[None, :]
-        margin = (p.check_block_size // 2 + 1) / self._scale / fs
+        margin = (p.check_block_size // 2 + 1) / fs
         # (the columns the right camera may not see, below, can only widen: with none left
         # there is nothing to fill, and the larger windows need not run, as on a textured scene)
         row_top = mapped.max(axis=1)  # each row's largest disparity of the map
         if not (inside & (cols >= (row_top + margin)[:, None])).any():
             return 0.0
-        mh, mw = nl.shape[:2]
-        size = (max(1, round(mw * fs)), max(1, round(mh * fs)))
+        size = (max(1, round(w * fs)), max(1, round(h * fs)))
         sl, sr = (cv2.resize(m, size, interpolation=cv2.INTER_AREA) for m in (nl, nr))
         sm = sl if ml is nl else cv2.resize(ml, size, interpolation=cv2.INTER_AREA)
         pad = lo + num if p.full_frame else 0
@@ -780,13 +797,12 @@ class StereoPipeline:
                            compute_padded(second, sl, sr, pad, "left"), lo, tol,
                            (lo + p.range_end_px, lo + num - 1 - p.range_end_px))
         blank(coarse, occluded(coarse, tol, self._reach))
-        total = self._scale * fs
         blank(coarse, blank_mask(sm, max(4, round(BLANK_HALF_PX * total)),
                                  max(1, round(BLANK_LAG_PX * total))))
         if p.full_frame:  # matches whose window reached into the padding
             blank(coarse, unseen_mask(coarse, p.check_block_size // 2 + 1))
-        small = coarse * np.float32(1.0 / total)  # full-resolution px, at the fill's size
-        coarse = enlarge(coarse, (w, h), tol) * np.float32(1.0 / total)
+        small = coarse * np.float32(1.0 / fs)  # the map's px, at the fill's size
+        coarse = enlarge(coarse, (w, h), tol) * np.float32(1.0 / fs)
         take = inside & ~np.isnan(coarse)
         # nothing in the columns of a row that the right camera may not see: left of the row's
         # largest disparity (either map's) and the windows' margin. Weak texture in the strip
@@ -797,22 +813,22 @@ class StereoPipeline:
         # nor a value farther than the map on both sides of the hole, along its row or its
         # column: a smooth object in front of a wall (a pole, a bar) is such a hole, and the
         # larger windows carry the wall's disparity in from around it
-        # (tested at the fill's size, a quarter of the pixels: the map there holds the nearest
-        # value of each pixel's block, so that no edge of an object is lost)
-        nearest = cv2.dilate(mapped, np.ones((math.ceil(1 / total),) * 2, np.uint8), anchor=(0, 0))
+        # (tested at the fill's size, fewer pixels: the map there holds the nearest value of
+        # each pixel's block, so that no edge of an object is lost)
+        nearest = cv2.dilate(mapped, np.ones((math.ceil(1 / fs),) * 2, np.uint8), anchor=(0, 0))
         nearest = cv2.resize(nearest, small.shape[::-1], interpolation=cv2.INTER_NEAREST)
         nearest[np.isneginf(nearest)] = np.nan
-        sunk = _sunk(small, nearest, p.agree_px / self._scale).astype(np.uint8)
+        sunk = _sunk(small, nearest, p.agree_px).astype(np.uint8)
         take &= cv2.resize(sunk, (w, h), interpolation=cv2.INTER_NEAREST) == 0
         if not take.any():
             return 0.0
         agreed[take] = coarse[take]
         # a value filled in where the right camera sees a nearer surface of the map instead (in
         # the strip at the left edge that it cannot see, weak texture matches at random)
-        hidden = take & occluded(agreed, p.agree_px / self._scale, self._reach)
+        hidden = take & occluded(agreed, p.agree_px, self._reach)
         agreed[hidden] = np.nan
         take &= ~hidden
-        return float(coarse[take].max()) if take.any() else 0.0
+        return float(coarse[take].max()) / self._scale if take.any() else 0.0
 
     def _match_right(self, matcher, mr: np.ndarray, ml: np.ndarray, pad: int, side: str
                      ) -> np.ndarray:
@@ -902,12 +918,13 @@ class StereoPipeline:
             # what matched on a blank surface matched noise, however well the windows agree
             blank(agreed, blank_mask(ml, max(4, round(BLANK_HALF_PX * scale)),
                                      max(1, round(BLANK_LAG_PX * scale))))
+            lap("agreement")
+            if self._fills:
+                for fill in self._fills:  # each size fills what the ones before left
+                    fill_top = max(fill_top, self._fill_holes(fill, agreed, nl, nr, ml))
+                lap("fill")
             if scale < 1.0:
                 agreed = enlarge(agreed, (w, h), p.agree_px) * np.float32(factor)
-            lap("agreement")
-            if self._fill is not None:
-                fill_top = self._fill_holes(agreed, nl, nr, ml)
-                lap("fill")
         edge = self.edge_margin_px
         # what the right camera cannot see lies in the leftmost `band` columns, found from the
         # largest disparity of the maps (at the matched resolution: the enlargements take or
@@ -996,8 +1013,16 @@ class StereoPipeline:
 # (full-resolution px): at a hole's rim the larger windows carry a nearer surface past its edge.
 # `stereo-gui bench --scenes` (13 scenes), quality with fill_scale 0.5: filling every hole
 # raised the mean bad-2 from 8.7 % to 11.7 % and left 7 scenes outside their margins (2
-# before); from 3 px in, 9.3 % at 1.2 points more density, every scene's verdict unchanged
+# before); from 3 px in, 9.3 % at 1.2 points more density, every scene's verdict unchanged.
+# That is for a fill on images at half the full resolution; on smaller ones the windows cover
+# more of the scene and carry a surface as much farther past its edge (`fill_depth_px`)
 FILL_DEPTH_PX = 3.0
+
+
+def fill_depth_px(total_scale: float) -> float:
+    """How far inside a hole (full-resolution px) a fill on images at `total_scale` of the full
+    resolution may write: FILL_DEPTH_PX at a half, twice that at a quarter."""
+    return FILL_DEPTH_PX * max(1.0, 0.5 / total_scale)
 
 # a window is blank (nothing but sensor noise) when its pixels correlate with their neighbours
 # BLANK_LAG_PX away by less than BLANK_MIN_CORRELATION, over windows of BLANK_HALF_PX (full-

@@ -63,11 +63,13 @@ def test_a_missing_scene_list_is_one_clear_line(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_presets_hold_beside_plain_opencv_on_two_real_scenes(shared_data, tmp_path, capsys):
-    """A regression check on two scenes nobody tuned on (a slanted, smooth one with a lampshade,
-    and a 2014 scene with a PFM truth): both presets within the margins of their baselines."""
+    """A regression check on scenes nobody tuned on (a slanted, smooth one with a lampshade, a
+    2014 scene with a PFM truth): both presets within the margins of their baselines. On a room
+    whose pale wall is too faint for the small windows, quality is within them too: its fill
+    on a quarter of the full size brings it within the density margin (live is not, yet)."""
     lines = [line for line in (shared_data / "scenes.tsv").read_text().splitlines()
-             if line.split("\t")[0] in ("Lampshade1", "Adirondack")]
-    assert len(lines) == 2
+             if line.split("\t")[0] in ("Lampshade1", "Adirondack", "Midd1")]
+    assert len(lines) == 3
     rows = []
     for line in lines:
         name, *paths, div = line.split("\t")
@@ -76,6 +78,9 @@ def test_presets_hold_beside_plain_opencv_on_two_real_scenes(shared_data, tmp_pa
     assert main(["bench", "--scenes", str(tmp_path / "two.tsv"), "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     for scene in doc["scenes"]:
+        if scene["name"] == "Midd1":
+            assert scene["within_margins"]["quality"], scene
+            continue
         assert scene["within_margins"] == {"live": True, "quality": True}, scene
         q, plain = scene["methods"]["quality"], scene["methods"]["plain"]
         assert q["bad2"] < plain["bad2"], scene["name"]

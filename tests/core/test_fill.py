@@ -1,19 +1,26 @@
-"""The final map's holes filled by the same two windows on smaller images (`fill_scale`)."""
+"""The final map's holes filled by the same windows on smaller images (`fill_scale`,
+`fill_modes`, `fill_windows`)."""
 
 import cv2
 import numpy as np
 import pytest
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import FILL_DEPTH_PX, MatcherParams, StereoPipeline, _sunk
+from stereo_gui.core.matching import (
+    FILL_DEPTH_PX,
+    MatcherParams,
+    StereoPipeline,
+    _sunk,
+    fill_depth_px,
+)
 from stereo_gui.files.presets import load_preset
 from stereo_gui.sources.sim import Scene, SimRig
 from stereo_gui.sources.sim.conditions import CONDITIONS
 
 
-def _wall(condition: str, wall_mm: float, seed: int):
+def _wall(condition: str, wall_mm: float, seed: int, **bare):
     """A rendered wall under `condition`, the quality preset's final map with and without the
-    fill, the rig and its true calibration."""
+    fill (or with the `bare` changes instead), the rig and its true calibration."""
     c = CONDITIONS[condition]
     rig = SimRig(c.rig_config(SimRig(seed=seed).config), seed=seed)
     calib = rig.true_calibration()
@@ -23,9 +30,9 @@ def _wall(condition: str, wall_mm: float, seed: int):
     assert quality.matcher.fill_scale == 0.5
     with StereoPipeline(calib, quality) as pipe:
         filled = pipe.process(left, right)
-    with StereoPipeline(calib, quality.replace(fill_scale=0.0)) as pipe:
-        bare = pipe.process(left, right)
-    return filled.final_px, bare.final_px, rig, calib
+    with StereoPipeline(calib, quality.replace(**(bare or {"fill_scale": 0.0}))) as pipe:
+        without = pipe.process(left, right)
+    return filled.final_px, without.final_px, rig, calib
 
 
 def _depth_errors_pct(disparity, mask, rig, calib, wall_mm, samples=120):
@@ -50,10 +57,35 @@ def test_a_weak_walls_holes_are_filled_with_its_true_depth():
     larger windows fill a good part of the holes, at the wall's distance."""
     filled, bare, rig, calib = _wall("webcams", 500.0, seed=19)
     gain = np.isfinite(filled).mean() - np.isfinite(bare).mean()
-    assert gain > 0.10  # measured: 28 % -> 51 % of the frame
+    assert gain > 0.10  # measured: 28 % -> 50 % of the frame
     new = np.isfinite(filled) & np.isnan(bare)
     errors = _depth_errors_pct(filled, new, rig, calib, 500.0)
-    assert np.median(errors) < 0.5 and errors.max() < 2.0  # measured: 0.3 % and 1.3 %
+    assert np.median(errors) < 0.5 and errors.max() < 2.0  # measured: 0.25 % and 0.93 %
+
+
+def test_each_smaller_size_fills_only_inside_what_the_sizes_before_left():
+    """The quality preset tries a half and then a quarter of the full size: the quarter keeps
+    every value the half gave, writes only FILL_DEPTH_PX * 2 inside what is left (its windows
+    reach twice as far past an edge), and at the wall's distance. (On the rig's walls it adds
+    little, 0.1-0.2 % of the frame; on a faint pale wall such as Middlebury's Midd1, 4 points.)"""
+    quality = load_preset("quality")
+    assert quality.matcher.fill_modes == "3way,hh"
+    both, half, rig, calib = _wall("webcams", 500.0, seed=19, fill_modes="3way")
+    kept = np.isfinite(half)
+    assert np.array_equal(both[kept], half[kept])
+    new = np.isfinite(both) & ~kept
+    assert new.sum() > 100  # measured: 503
+    depth = cv2.distanceTransform(np.isnan(half).astype(np.uint8), cv2.DIST_L2, 3)
+    assert depth[new].min() >= fill_depth_px(0.25) == 2 * FILL_DEPTH_PX
+    errors = _depth_errors_pct(both, new, rig, calib, 500.0)
+    assert np.median(errors) < 0.5 and errors.max() < 2.0  # measured: 0.40 % and 0.62 %
+
+
+def test_the_fill_looks_further_inside_a_hole_the_smaller_its_images():
+    assert fill_depth_px(0.5) == FILL_DEPTH_PX
+    assert fill_depth_px(0.25) == 2 * FILL_DEPTH_PX
+    assert fill_depth_px(0.125) == 4 * FILL_DEPTH_PX
+    assert fill_depth_px(1.0) == FILL_DEPTH_PX  # never nearer a value than at half size
 
 
 def test_the_fill_keeps_every_value_stays_inside_holes_and_out_of_the_unseen_strip():
@@ -78,6 +110,14 @@ def test_fill_scale_is_off_or_between_a_quarter_and_a_half():
     for bad in (0.1, 0.6, -0.5):
         with pytest.raises(InputError, match="fill_scale"):
             MatcherParams(fill_scale=bad)
+
+
+def test_fill_modes_are_one_to_three_of_sgbms_modes():
+    assert MatcherParams(fill_modes="3way,hh").fill_modes == "3way,hh"
+    assert MatcherParams(fill_modes="hh").fill_modes == "hh"
+    for bad in ("", "3way,", "fast", "hh,hh,hh,hh", "3way;hh"):
+        with pytest.raises(InputError, match="fill_modes"):
+            MatcherParams(fill_modes=bad)
 
 
 def test_without_a_second_window_there_is_nothing_to_fill():

@@ -114,5 +114,6 @@ def test_a_preset_saved_before_the_split_loads_and_saves_as_it_was(_isolated_con
         params[key] = value
         if key == "normalize_window":
             params["fill_scale"] = 0.0
+            params["fill_modes"] = "3way"
     assert again == {**OLD_USER_PRESET, "params": params}
     assert list(again["params"]) == list(params)  # the same order too
