@@ -1,5 +1,5 @@
-"""The final map's holes filled by the same windows on smaller images (`fill_scale`,
-`fill_modes`, `fill_windows`)."""
+"""The final map's holes filled by the same two windows on smaller images (`fill_scale`,
+`fill_modes`)."""
 
 import cv2
 import numpy as np
