@@ -77,9 +77,14 @@ def _fill_scale(v) -> bool:
     return v == 0 or 0.25 <= v <= 0.5
 
 
+def fill_mode_names(fill_modes: str) -> list[str]:
+    """The SGBM modes of a `fill_modes` text, one per size the fill tries ("3way,hh")."""
+    return [m.strip() for m in fill_modes.split(",")]
+
+
 def _fill_modes(v) -> bool:
-    modes = v.split(",")
-    return 1 <= len(modes) <= 3 and all(m.strip() in MODES for m in modes)
+    modes = fill_mode_names(v)
+    return 1 <= len(modes) <= 3 and all(m in MODES for m in modes)
 
 
 def _normalize_window(v) -> bool:
@@ -656,8 +661,8 @@ class StereoPipeline:
         # (scale, min, num, first, second) of each size the fill tries, finest first
         self._fills: list[tuple] = []
         if self._second is not None and p.fill_scale > 0:
-            for level, mode in enumerate(p.fill_modes.split(","), start=1):
-                fill_p = dataclasses.replace(p, mode=mode.strip())
+            for level, mode in enumerate(fill_mode_names(p.fill_modes), start=1):
+                fill_p = dataclasses.replace(p, mode=mode)
                 fs = p.fill_scale ** level
                 lo = int(math.floor(self._min_s * fs))
                 top = (self._min_s + self._num_s - 1) * fs
@@ -925,6 +930,7 @@ class StereoPipeline:
                 lap("fill")
             if scale < 1.0:
                 agreed = enlarge(agreed, (w, h), p.agree_px) * np.float32(factor)
+                lap("enlarge")
         edge = self.edge_margin_px
         # what the right camera cannot see lies in the leftmost `band` columns, found from the
         # largest disparity of the maps (at the matched resolution: the enlargements take or
