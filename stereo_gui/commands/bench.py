@@ -223,7 +223,7 @@ def bench_reference(calib, left, right, frames: int, warmup: int = 2) -> dict:
 
 
 def run_bench(args) -> dict:
-    from stereo_gui.files.presets import load_preset
+    from stereo_gui.files.presets import load_presets
 
     if args.frames is None:
         args.frames = 30
@@ -232,8 +232,8 @@ def run_bench(args) -> dict:
     rounds = getattr(args, "rounds", 1)
     if not 1 <= rounds <= 1000:
         raise InputError(f"--rounds must be between 1 and 1000, not {rounds}")
-    names = list(dict.fromkeys(args.preset or ["live"]))
-    params = {n: load_preset(n) for n in names}  # unknown names fail before any work
+    params = load_presets(args.preset or ["live"])  # unknown names fail before any work
+    names = list(params)
     source, calib, left, right = _input(args)
     import cv2
 

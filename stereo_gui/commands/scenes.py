@@ -47,14 +47,14 @@ def run_scenes(list_path, presets=("live", "quality"), repeat: int = 1) -> dict:
     from stereo_gui.core.matching import StereoPipeline
     from stereo_gui.core.scene_score import disparity_search_range, plain_sgbm, score_disparity
     from stereo_gui.core.stereo_calibration import StereoCalibration
-    from stereo_gui.files.presets import load_preset
+    from stereo_gui.files.presets import load_presets
     from stereo_gui.files.scenes import load_scene, read_scene_list
     from stereo_gui.pipeline.concurrency import use_opencv_threads_beside_lanes
 
     if not 1 <= repeat <= 100:
         raise InputError(f"--frames must be between 1 and 100 with --scenes, not {repeat}")
     specs = read_scene_list(list_path)
-    params = {n: load_preset(n) for n in dict.fromkeys(presets)}
+    params = load_presets(presets)
     threads_before = use_opencv_threads_beside_lanes()
     rows: list[SceneRow] = []
     compared: dict[str, str] = {}

@@ -658,16 +658,20 @@ class StereoPipeline:
         # how far right of an empty pixel the occlusion test looks for a nearer surface: the
         # larger window's half
         self._reach = max(p.block_size, p.check_block_size) // 2 + 1
-        # (scale, min, num, first, second) of each size the fill tries, finest first
+        # (scale, min, num, largest disparity, first and second window's matchers) of each size
+        # the fill tries, finest first
         self._fills: list[tuple] = []
         if self._second is not None and p.fill_scale > 0:
             for level, mode in enumerate(fill_mode_names(p.fill_modes), start=1):
                 fill_p = dataclasses.replace(p, mode=mode)
                 fs = p.fill_scale ** level
                 lo = int(math.floor(self._min_s * fs))
-                top = (self._min_s + self._num_s - 1) * fs
+                # (searched no nearer than the matched images are: the largest disparity of
+                # theirs, at this size, rounded down)
+                top = math.floor((self._min_s + self._num_s - 1) * fs)
                 num = max(16, int(math.ceil((top - lo + 1) / 16.0)) * 16)
-                self._fills.append((fs, lo, num, sgbm(lo, num, p.block_size, fill_p),
+                self._fills.append((fs, lo, num, min(top, lo + num - 1),
+                                    sgbm(lo, num, p.block_size, fill_p),
                                     sgbm(lo, num, p.check_block_size, fill_p)))
         self._wls = None
         if p.wls:
@@ -778,7 +782,7 @@ class StereoPipeline:
         Only the inside of a hole is filled: at its rim a hole is mostly a depth edge, where a
         larger window takes the nearer surface's disparity past the edge, and the small windows
         already read what they can there."""
-        fs, lo, num, first, second = fill
+        fs, lo, num, largest, first, second = fill
         p = self._params
         h, w = agreed.shape
         holes = cv2.compare(agreed, agreed, cv2.CMP_NE)  # 255 where NaN
@@ -800,7 +804,7 @@ class StereoPipeline:
         tol = p.agree_px * fs
         coarse = agreement(compute_padded(first, sl, sr, pad, "left"),
                            compute_padded(second, sl, sr, pad, "left"), lo, tol,
-                           (lo + p.range_end_px, lo + num - 1 - p.range_end_px))
+                           (lo + p.range_end_px, largest - p.range_end_px))
         blank(coarse, occluded(coarse, tol, self._reach))
         blank(coarse, blank_mask(sm, max(4, round(BLANK_HALF_PX * total)),
                                  max(1, round(BLANK_LAG_PX * total))))
@@ -823,14 +827,22 @@ class StereoPipeline:
         nearest = cv2.dilate(mapped, np.ones((math.ceil(1 / fs),) * 2, np.uint8), anchor=(0, 0))
         nearest = cv2.resize(nearest, small.shape[::-1], interpolation=cv2.INTER_NEAREST)
         nearest[np.isneginf(nearest)] = np.nan
-        sunk = _sunk(small, nearest, p.agree_px).astype(np.uint8)
-        take &= cv2.resize(sunk, (w, h), interpolation=cv2.INTER_NEAREST) == 0
+        # (only the fill-size pixels that a pixel still to be filled takes its value from, as
+        # `enlarge` picks them, are tested)
+        ys, xs = np.nonzero(take)
+        ys = _nearest_source(h, small.shape[0])[ys]
+        xs = _nearest_source(w, small.shape[1])[xs]
+        asked = np.full_like(small, np.nan)
+        asked[ys, xs] = small[ys, xs]
+        take[take] = ~_sunk(asked, nearest, p.agree_px)[ys, xs]
         if not take.any():
             return 0.0
         agreed[take] = coarse[take]
         # a value filled in where the right camera sees a nearer surface of the map instead (in
         # the strip at the left edge that it cannot see, weak texture matches at random)
-        hidden = take & occluded(agreed, p.agree_px, self._reach)
+        hidden = np.zeros_like(take)
+        rows = np.flatnonzero(take.any(axis=1))  # (the test is along rows: those filled in)
+        hidden[rows] = take[rows] & occluded(agreed[rows], p.agree_px, self._reach)
         agreed[hidden] = np.nan
         take &= ~hidden
         return float(coarse[take].max()) / self._scale if take.any() else 0.0
@@ -1048,8 +1060,18 @@ def sensor_noise(gray: np.ndarray) -> float:
     frame) do not count. Resampled images (rectified, shrunk) come out lower than the sensor's:
     their noise is smoothed."""
     kernel = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float32)
-    response = cv2.filter2D(gray.astype(np.float32), -1, kernel)[1:-1, 1:-1]
-    return float(1.4826 * np.median(np.abs(response)) / 6.0)  # (6: the kernel's norm)
+    if gray.dtype == np.uint8 and min(gray.shape[:2]) > 2:
+        # a uint8 image's response is a whole number within +-4080: its median from a count of
+        # each value (a fifth of np.median's time on a frame, the same value)
+        response = cv2.filter2D(gray, cv2.CV_16S, kernel)[1:-1, 1:-1]
+        counts = np.cumsum(np.bincount(np.abs(response).ravel()))
+        n = int(counts[-1])
+        ranks = np.array([(n - 1) // 2, n // 2]) + 1  # the middle one or two, counted from 1
+        median = float(np.searchsorted(counts, ranks).mean())
+    else:
+        response = cv2.filter2D(gray.astype(np.float32), -1, kernel)[1:-1, 1:-1]
+        median = float(np.median(np.abs(response)))
+    return 1.4826 * median / 6.0  # (6: the kernel's norm)
 
 
 def blank_mask(gray: np.ndarray, half: int, lag: int = BLANK_LAG_PX,
@@ -1163,12 +1185,17 @@ def enlarge(disparity: np.ndarray, size: tuple[int, int], smooth_px: float) -> n
     valid = cv2.compare(disparity, disparity, cv2.CMP_EQ)  # 255 where not NaN
     nearest = cv2.resize(disparity, size, interpolation=cv2.INTER_NEAREST)
     filled = disparity.copy()
-    blank_value = np.zeros_like(disparity)
-    cv2.copyTo(blank_value, cv2.bitwise_not(valid), filled)  # NaN -> 0 for the interpolation
+    cv2.copyTo(np.zeros_like(disparity), cv2.bitwise_not(valid), filled)  # NaN -> 0 to interpolate
     linear = cv2.resize(filled, size, interpolation=cv2.INTER_LINEAR)
-    support = cv2.resize((valid > 0).astype(np.float32), size, interpolation=cv2.INTER_LINEAR)
-    use = (support > np.float32(0.999)) & (np.abs(linear - nearest) <= np.float32(smooth_px))
-    return np.where(use, linear, nearest).astype(np.float32, copy=False)
+    support = cv2.resize(cv2.divide(valid, 255, dtype=cv2.CV_32F), size,
+                         interpolation=cv2.INTER_LINEAR)  # 1 where all four are valid
+    # (OpenCV's element-wise operations, not numpy's: half the time on a frame; a comparison
+    # with NaN is false in both)
+    use = cv2.bitwise_and(
+        cv2.compare(support, float(np.float32(0.999)), cv2.CMP_GT),
+        cv2.compare(cv2.absdiff(linear, nearest), float(np.float32(smooth_px)), cv2.CMP_LE))
+    cv2.copyTo(linear, use, nearest)
+    return nearest
 
 
 def compute_padded(matcher, reference: np.ndarray, other: np.ndarray, pad: int, side: str
@@ -1205,14 +1232,26 @@ def _nearest_value_after(disparity_px: np.ndarray) -> np.ndarray:
     return out
 
 
+def _nearest_source(size: int, source_size: int) -> np.ndarray:
+    """For each of `size` pixels along an axis, the pixel of `source_size` that a nearest-
+    neighbour resize (cv2.INTER_NEAREST) takes it from."""
+    index = np.arange(source_size, dtype=np.float32)[None, :]
+    return cv2.resize(index, (size, 1), interpolation=cv2.INTER_NEAREST)[0].astype(np.intp)
+
+
 def _sunk(values: np.ndarray, disparity_px: np.ndarray, tolerance_px: float) -> np.ndarray:
     """Where `values` lie farther (smaller) by more than `tolerance_px` than the nearest values of
     the map `disparity_px` (NaN holes) on both sides: left and right in the row, or above and
     below in the column. Bool mask."""
     def along_rows(v: np.ndarray, m: np.ndarray) -> np.ndarray:
-        before = _nearest_value_after(m[:, ::-1])[:, ::-1]
-        after = _nearest_value_after(m)
-        return (before - v > tolerance_px) & (after - v > tolerance_px)
+        out = np.zeros(v.shape, np.bool_)
+        rows = np.flatnonzero((~np.isnan(v)).any(axis=1))  # (only the rows with a value to test)
+        if len(rows):
+            v, m = v[rows], m[rows]
+            before = _nearest_value_after(m[:, ::-1])[:, ::-1]
+            after = _nearest_value_after(m)
+            out[rows] = (before - v > tolerance_px) & (after - v > tolerance_px)
+        return out
 
     with np.errstate(invalid="ignore"):  # (NaN compares False: no value on a side)
         return along_rows(values, disparity_px) | along_rows(values.T, disparity_px.T).T

@@ -72,6 +72,16 @@ def load_preset(name: str) -> Preset:
     raise InputError(f"unknown preset {name!r}; known presets: {', '.join(list_presets())}")
 
 
+def load_presets(names) -> dict[str, Preset]:
+    """`load_preset` of each name or path, labelled by the preset's own name (a file's path is
+    no label for a table), or by what was given where two presets share a name."""
+    loaded = [(n, load_preset(n)) for n in dict.fromkeys(names)]
+    counts: dict[str, int] = {}
+    for _, p in loaded:
+        counts[p.name] = counts.get(p.name, 0) + 1
+    return {(p.name if p.name and counts[p.name] == 1 else n): p for n, p in loaded}
+
+
 def save_user_preset(params: Preset, name: str | None = None) -> Path:
     """Save `params` as the user's preset `name` (default: params.name); returns the file."""
     name = name or params.name

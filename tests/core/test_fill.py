@@ -179,3 +179,21 @@ def test_sunk_finds_a_value_farther_than_the_map_on_both_sides_of_its_hole():
     assert not got[2, 1] and not got[2, 2]  # nothing in their row or column
     # within the tolerance it is the same surface
     assert not _sunk(np.full(m.shape, 8.5, np.float32), m, 1.0).any()
+
+
+def test_the_fill_finds_nothing_nearer_than_the_presets_range():
+    """A wall nearer than the nearest working distance (0.45 m) is beyond every matcher's range:
+    the fill on smaller images searches no farther than the full-size matchers do (it searched
+    up to 16 px of its own beyond them, and put values nearer than 0.45 m on this wall at 0.40
+    m). (What all matchers find on such a wall at random within their range, a few % of it, is
+    another matter: nothing tells it from a surface that is there.)"""
+    rig = SimRig(seed=3)
+    calib = rig.true_calibration()
+    left, right = rig.render_scene(Scene.wall(400.0, seed=6), np.random.default_rng(3))
+    quality = load_preset("quality")
+    with StereoPipeline(calib, quality) as pipe:
+        largest = pipe._range_full[1]
+        for fs, lo, num, top, *_ in pipe._fills:
+            assert top / fs <= largest and lo + num - 1 >= top
+        final = pipe.process(left, right).final_px
+    assert not (final > largest).any()

@@ -489,6 +489,31 @@ def test_blank_mask_finds_noise_alone_whatever_the_texture_would_be():
         assert share > 0.95 if blank else share < 0.05, (blank, share)
 
 
+def test_sensor_noise_of_a_uint8_image_is_the_median_of_its_response_counted():
+    """The whole-number count gives np.median's value (odd and even counts, flat images)."""
+    from stereo_gui.core.matching import sensor_noise
+
+    kernel = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float32)
+    rng = np.random.default_rng(3)
+    for shape in ((3, 3), (3, 4), (5, 7), (37, 51), (120, 160)):
+        for sigma in (0.0, 0.7, 3.0, 40.0):
+            img = np.clip(128 + rng.normal(0, sigma, shape), 0, 255).astype(np.uint8)
+            response = cv2.filter2D(img.astype(np.float32), -1, kernel)[1:-1, 1:-1]
+            expected = 1.4826 * float(np.median(np.abs(response))) / 6.0
+            assert sensor_noise(img) == pytest.approx(expected, abs=1e-12)
+            assert sensor_noise(img.astype(np.float32)) == pytest.approx(expected, abs=1e-9)
+
+
+def test_nearest_source_is_where_a_nearest_neighbour_resize_takes_each_pixel_from():
+    from stereo_gui.core.matching import _nearest_source
+
+    for small, big in (((160, 120), (320, 240)), ((111, 93), (222, 185)), ((80, 67), (443, 370))):
+        src = np.arange(small[0] * small[1], dtype=np.float32).reshape(small[1], small[0])
+        out = cv2.resize(src, big, interpolation=cv2.INTER_NEAREST)
+        ys, xs = _nearest_source(big[1], small[1]), _nearest_source(big[0], small[0])
+        assert np.array_equal(out, src[ys[:, None], xs[None, :]])
+
+
 def test_agreement_keeps_the_mean_where_both_windows_match_and_agree():
     from stereo_gui.core.matching import agreement
 

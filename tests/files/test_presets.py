@@ -8,8 +8,15 @@ import pytest
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import Preset
-from stereo_gui.files.presets import (BUILTIN, delete_user_preset, list_presets, load_preset,
-                                      save_user_preset, user_preset_dir)
+from stereo_gui.files.presets import (
+    BUILTIN,
+    delete_user_preset,
+    list_presets,
+    load_preset,
+    load_presets,
+    save_user_preset,
+    user_preset_dir,
+)
 
 
 def test_seed_is_exactly_the_reports_matcher():
@@ -79,6 +86,18 @@ def test_a_preset_file_path_works(tmp_path):
     path = tmp_path / "mine.json"
     path.write_text(json.dumps({"name": "mine", "params": {"mode": "3way"}}))
     assert load_preset(str(path)).matcher.mode == "3way"
+
+
+def test_presets_for_a_table_are_labelled_by_their_own_names(tmp_path):
+    """A file's preset is labelled by the name inside it; where two share a name, by what was
+    given (a built-in's name or the file's path)."""
+    mine, twin = tmp_path / "mine.json", tmp_path / "twin.json"
+    mine.write_text(json.dumps({"name": "wider", "params": {"block_size": 7}}))
+    twin.write_text(json.dumps({"name": "live", "params": {"block_size": 9}}))
+    got = load_presets(["live", str(mine), "live"])
+    assert list(got) == ["live", "wider"] and got["wider"].matcher.block_size == 7
+    got = load_presets(["live", str(twin)])
+    assert list(got) == ["live", str(twin)] and got[str(twin)].matcher.block_size == 9
 
 
 OLD_USER_PRESET = {  # a user preset as saved before the display and thread fields had parts
