@@ -54,7 +54,7 @@ def run_scenes(list_path, presets=("live", "quality"), repeat: int = 1) -> dict:
     if not 1 <= repeat <= 100:
         raise InputError(f"--frames must be between 1 and 100 with --scenes, not {repeat}")
     specs = read_scene_list(list_path)
-    params = load_presets(presets)
+    params = load_presets(presets, reserved=(BASELINE,))
     threads_before = use_opencv_threads_beside_lanes()
     rows: list[SceneRow] = []
     compared: dict[str, str] = {}

@@ -72,14 +72,20 @@ def load_preset(name: str) -> Preset:
     raise InputError(f"unknown preset {name!r}; known presets: {', '.join(list_presets())}")
 
 
-def load_presets(names) -> dict[str, Preset]:
+def load_presets(names, reserved: tuple[str, ...] = ()) -> dict[str, Preset]:
     """`load_preset` of each name or path, labelled by the preset's own name (a file's path is
-    no label for a table), or by what was given where two presets share a name."""
+    no label for a table), or by what was given where two presets share a name or the name is
+    one of the table's others (`reserved`, also as "name@...")."""
     loaded = [(n, load_preset(n)) for n in dict.fromkeys(names)]
     counts: dict[str, int] = {}
     for _, p in loaded:
         counts[p.name] = counts.get(p.name, 0) + 1
-    return {(p.name if p.name and counts[p.name] == 1 else n): p for n, p in loaded}
+
+    def label(given: str, p: Preset) -> str:
+        taken = p.name in reserved or p.name.startswith(tuple(f"{r}@" for r in reserved))
+        return p.name if p.name and counts[p.name] == 1 and not taken else given
+
+    return {label(n, p): p for n, p in loaded}
 
 
 def save_user_preset(params: Preset, name: str | None = None) -> Path:

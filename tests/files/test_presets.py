@@ -98,6 +98,9 @@ def test_presets_for_a_table_are_labelled_by_their_own_names(tmp_path):
     assert list(got) == ["live", "wider"] and got["wider"].matcher.block_size == 7
     got = load_presets(["live", str(twin)])
     assert list(got) == ["live", str(twin)] and got[str(twin)].matcher.block_size == 9
+    odd = tmp_path / "odd.json"
+    odd.write_text(json.dumps({"name": "plain@live", "params": {}}))
+    assert list(load_presets([str(mine), str(odd)], reserved=("plain",))) == ["wider", str(odd)]
 
 
 OLD_USER_PRESET = {  # a user preset as saved before the display and thread fields had parts
