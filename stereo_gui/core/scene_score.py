@@ -37,7 +37,7 @@ class DisparityScore:
         return self.density * (1.0 - self.bad2) if math.isfinite(self.bad2) else 0.0
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        return {**asdict(self), "correct_density": self.correct_density}
 
 
 def score_disparity(disparity_px: np.ndarray, truth_px: np.ndarray) -> DisparityScore:

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from stereo_gui.core.scene_score import (disparity_search_range, plain_sgbm, score_disparity)
+from stereo_gui.core.scene_score import disparity_search_range, plain_sgbm, score_disparity
 
 
 def test_bad_rates_and_density_count_known_pixels_with_a_value():
@@ -21,6 +21,7 @@ def test_bad_rates_and_density_count_known_pixels_with_a_value():
     assert s.bad4 == 0.0
     assert s.median_error_px == pytest.approx(1.5)
     assert s.correct_density == pytest.approx(3 / 4 * 2 / 3)
+    assert s.to_dict()["correct_density"] == s.correct_density  # each scene's, in --json
 
 
 def test_an_error_of_exactly_the_threshold_is_not_bad():
