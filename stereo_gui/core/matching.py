@@ -670,8 +670,7 @@ class StereoPipeline:
                 # theirs, at this size, rounded down)
                 top = math.floor((self._min_s + self._num_s - 1) * fs)
                 num = max(16, int(math.ceil((top - lo + 1) / 16.0)) * 16)
-                self._fills.append((fs, lo, num, min(top, lo + num - 1),
-                                    sgbm(lo, num, p.block_size, fill_p),
+                self._fills.append((fs, lo, num, top, sgbm(lo, num, p.block_size, fill_p),
                                     sgbm(lo, num, p.check_block_size, fill_p)))
         self._wls = None
         if p.wls:

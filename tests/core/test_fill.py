@@ -190,10 +190,6 @@ def test_the_fill_finds_nothing_nearer_than_the_presets_range():
     rig = SimRig(seed=3)
     calib = rig.true_calibration()
     left, right = rig.render_scene(Scene.wall(400.0, seed=6), np.random.default_rng(3))
-    quality = load_preset("quality")
-    with StereoPipeline(calib, quality) as pipe:
-        largest = pipe._range_full[1]
-        for fs, lo, num, top, *_ in pipe._fills:
-            assert top / fs <= largest and lo + num - 1 >= top
-        final = pipe.process(left, right).final_px
-    assert not (final > largest).any()
+    with StereoPipeline(calib, load_preset("quality")) as pipe:
+        r = pipe.process(left, right)
+    assert not (r.final_px > r.disparity_range_px[1]).any()

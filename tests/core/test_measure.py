@@ -585,8 +585,8 @@ def test_on_the_webcams_wall_far_off_the_window_grows_until_it_is_sure():
     """Two webcams' wall (half contrast, the right camera's own gain and black level, darker
     corners, MJPG) at 2 and 3 m, a rig seed no benchmark uses: the matcher's map scatters in
     blobs up to 3 px off, and a 13 or 25 px window fitted such a blob (7.7 % off at 3 m, beyond
-    its +- of 5.4 %). Now the window keeps growing while the map shows one surface, starts again where a
-    smaller window settled, and a wider window that settles elsewhere refuses the reading:
+    its +- of 5.4 %). Now the window keeps growing while the map shows one surface, starts again
+    where a smaller window settled, and a wider window that settles elsewhere refuses the reading:
     every reading within 2 %, at 90 % of the points or more, the +- covering 95 %."""
     from stereo_gui.commands.accuracy import evaluate_wall
     from stereo_gui.sources.sim.conditions import CONDITIONS
