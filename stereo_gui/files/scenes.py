@@ -1,9 +1,13 @@
 """Rectified stereo scenes with ground-truth disparity, listed in a scene file (the format of
 `../shared/data/scenes.tsv`): one scene a line, tab-separated
 
-    name  left  right  ground_truth  divide_by
+    name  left  right  ground_truth  divide_by  [calib  [mask]]
 
-paths relative to the list's folder; `#` starts a comment line. The ground truth is a PFM file
+paths relative to the list's folder; `#` starts a comment line. The optional sixth field is the
+scene's metric calibration (what `--calib` takes: a Middlebury calib.txt, one of our files, or
+rectified:F,B[,DOFFS]; `-` for none), the seventh a mask of the pixels both cameras see (255 seen,
+anything else occluded; `-` for none). Without them a `calib.txt` and a `mask0nocc.png` beside the
+left image are used where they exist (Middlebury 2014's layout). The ground truth is a PFM file
 (float pixels, bottom row first, inf = unknown: Middlebury 2014) or an integer image (PNG, PGM)
 holding disparity x `divide_by`, 0 = unknown (Middlebury 2001-2006, KITTI). Truth is handed out
 as float32 px with 0 where unknown.
@@ -34,6 +38,8 @@ class SceneSpec:
     right: Path
     truth: Path
     divide_by: float
+    calib: str | None = None  # a --calib spec (a path resolved against the list's folder)
+    mask: Path | None = None  # pixels both cameras see: 255
 
 
 @dataclass(frozen=True, eq=False)
@@ -68,10 +74,16 @@ def read_scene_list(path: str | os.PathLike) -> list[SceneSpec]:
         if not line.strip() or line.lstrip().startswith("#"):
             continue
         fields = line.rstrip("\r\n").split("\t")
-        if len(fields) != 5:
-            raise InputError(f"{path}, line {number}: expected 5 tab-separated fields (name, "
-                             f"left, right, ground truth, divide by), found {len(fields)}")
-        name, left, right, truth, div = (f.strip() for f in fields)
+        if not 5 <= len(fields) <= 7:
+            raise InputError(f"{path}, line {number}: expected 5 to 7 tab-separated fields "
+                             f"(name, left, right, ground truth, divide by[, calibration[, "
+                             f"mask]]), found {len(fields)}")
+        name, left, right, truth, div = (f.strip() for f in fields[:5])
+        extra = [f.strip() for f in fields[5:]] + ["", ""]
+        calib = (None if extra[0] == "-" else _calib_spec(folder, extra[0])
+                 or _beside(folder / left, "calib.txt"))
+        mask = (None if extra[1] == "-" else folder / extra[1] if extra[1]
+                else _beside(folder / left, "mask0nocc.png"))
         try:
             divide_by = float(div)
         except ValueError:
@@ -79,10 +91,24 @@ def read_scene_list(path: str | os.PathLike) -> list[SceneSpec]:
         if not (np.isfinite(divide_by) and divide_by > 0):
             raise InputError(f"{path}, line {number}: divide_by must be a positive number, "
                              f"not {div!r}")
-        out.append(SceneSpec(name, folder / left, folder / right, folder / truth, divide_by))
+        out.append(SceneSpec(name, folder / left, folder / right, folder / truth, divide_by,
+                             None if calib is None else str(calib), mask))
     if not out:
         raise InputError(f"scene list {path} names no scene")
     return out
+
+
+def _calib_spec(folder: Path, text: str) -> str | None:
+    """A list's calibration field: `rectified:...` as it is, a path against the list's folder."""
+    if not text:
+        return None
+    return text if text.startswith("rectified:") else str(folder / text)
+
+
+def _beside(image: Path, name: str) -> Path | None:
+    """The file `name` in the folder of `image`, if there is one."""
+    candidate = image.parent / name
+    return candidate if candidate.is_file() else None
 
 
 def read_pfm(path: str | os.PathLike) -> np.ndarray:
@@ -122,6 +148,14 @@ def read_truth(path: str | os.PathLike, divide_by: float) -> np.ndarray:
     if raw.ndim == 3:
         raw = raw[..., 0]
     return raw.astype(np.float32) / np.float32(divide_by)
+
+
+def read_seen_mask(spec: SceneSpec) -> np.ndarray | None:
+    """The scene's mask of pixels both cameras see (bool, the images' size), None without one."""
+    if spec.mask is None:
+        return None
+    raw = _imread(spec.mask, cv2.IMREAD_GRAYSCALE, f"{spec.name}: mask")
+    return raw == 255
 
 
 def load_scene(spec: SceneSpec) -> Scene:

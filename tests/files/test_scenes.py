@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.files.scenes import load_scene, read_pfm, read_scene_list, read_truth
+from stereo_gui.files.scenes import (
+    load_scene, read_pfm, read_scene_list, read_seen_mask, read_truth)
 
 
 def _write_pfm(path, image: np.ndarray, little_endian: bool = True) -> None:
@@ -62,7 +63,7 @@ def test_scene_list_resolves_paths_and_skips_comments(tmp_path):
 
 
 @pytest.mark.parametrize("line, message", [
-    ("one\tl.png\tr.png\tgt.png", "5 tab-separated"),
+    ("one\tl.png\tr.png\tgt.png", "5 to 7 tab-separated"),
     ("one\tl.png\tr.png\tgt.png\tzero", "positive number"),
     ("one\tl.png\tr.png\tgt.png\t-2", "positive number"),
 ])
@@ -79,3 +80,23 @@ def test_images_and_truth_of_other_sizes_are_refused(tmp_path):
     (tmp_path / "list.tsv").write_text("s\tl.png\tr.png\tgt.png\t1\n")
     with pytest.raises(InputError, match="differ in size"):
         load_scene(read_scene_list(tmp_path / "list.tsv")[0])
+
+
+def test_a_scene_names_its_calibration_and_mask_or_finds_them_beside_its_images(tmp_path):
+    (tmp_path / "m").mkdir()
+    (tmp_path / "m" / "calib.txt").write_text("cam0=[1 0 0; 0 1 0; 0 0 1]\n")
+    cv2.imwrite(str(tmp_path / "m" / "mask0nocc.png"), np.full((4, 6), 255, np.uint8))
+    cv2.imwrite(str(tmp_path / "own-mask.png"), np.full((4, 6), 128, np.uint8))
+    (tmp_path / "list.tsv").write_text(
+        "beside\tm/l.png\tm/r.png\tgt.png\t1\n"
+        "own\tl.png\tr.png\tgt.png\t1\tcam.yaml\town-mask.png\n"
+        "rect\tl.png\tr.png\tgt.png\t1\trectified:700,120\n"
+        "none\tm/l.png\tm/r.png\tgt.png\t1\t-\t-\n")
+    beside, own, rect, none = read_scene_list(tmp_path / "list.tsv")
+    assert beside.calib == str(tmp_path / "m" / "calib.txt")
+    assert beside.mask == tmp_path / "m" / "mask0nocc.png"
+    assert read_seen_mask(beside).all()
+    assert own.calib == str(tmp_path / "cam.yaml") and own.mask == tmp_path / "own-mask.png"
+    assert not read_seen_mask(own).any()  # 128: occluded
+    assert rect.calib == "rectified:700,120" and rect.mask is None
+    assert none.calib is None and none.mask is None and read_seen_mask(none) is None

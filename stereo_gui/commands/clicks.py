@@ -1,0 +1,161 @@
+"""`stereo-gui bench --clicks FILE`: the double-click judged on rectified scenes with ground truth,
+beside plain OpenCV's patch median, scene by scene (scoring: `core.click_score`).
+
+Every scene of the list (the `bench --scenes` format, with an optional calibration and mask per
+line; Middlebury 2014's calib.txt and mask0nocc.png are found beside its images) is processed once
+by each preset as `measure --calib` processes a pair, and an 11 x 8 grid is clicked as the window
+reads a double-click (`core.measure.measure_point`). A scene without a calibration of its own is
+read through an assumed one (ASSUMED_CALIB): its errors in % are then its disparity's, and the
+presets search the disparities the truth holds (1.15 times its largest, as the baseline does),
+since no working distance of theirs means anything there.
+
+Plain OpenCV set up with care (`core.scene_score.plain_sgbm`, disparities to 1.15 times the
+truth's largest) is read as the median of the same patch.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+from stereo_gui.core.errors import InputError
+
+PLAIN = "plain"
+ASSUMED_CALIB = "rectified:1000,100"
+
+
+def run_clicks(list_path, presets=("live", "quality")) -> dict:
+    """Click every scene of the list with each preset and plain OpenCV; the `--json` result."""
+    import cv2
+
+    from stereo_gui.core.click_score import ClickScore, click_points, seen_by_both, true_z_mm
+    from stereo_gui.core.matching import StereoPipeline
+    from stereo_gui.core.scene_score import disparity_search_range, plain_sgbm
+    from stereo_gui.files.any_calibration import load_any_calibration
+    from stereo_gui.files.presets import load_presets
+    from stereo_gui.files.scenes import load_scene, read_scene_list, read_seen_mask
+    from stereo_gui.pipeline.concurrency import use_opencv_threads_beside_lanes
+
+    specs = read_scene_list(list_path)
+    params = load_presets(presets, reserved=(PLAIN,))
+    methods = [*params, PLAIN]
+    totals = {m: ClickScore() for m in methods}
+    scenes = []
+    threads_before = use_opencv_threads_beside_lanes()
+    try:
+        for spec in specs:
+            scene = load_scene(spec)
+            own = spec.calib is not None
+            calib = load_any_calibration(spec.calib if own else ASSUMED_CALIB,
+                                         scene.size).calibration
+            if tuple(calib.image_size) != scene.size:
+                raise InputError(f"scene {spec.name}: its calibration is for "
+                                 f"{calib.image_size[0]}x{calib.image_size[1]}, its images "
+                                 f"{scene.size[0]}x{scene.size[1]}")
+            seen = read_seen_mask(spec)
+            if seen is None:
+                seen = seen_by_both(scene.truth_px)
+            points = click_points(scene.truth_px, seen)
+            truth = [(x, y, float(scene.truth_px[y, x])) for x, y in points]
+            truth = [(x, y, d, true_z_mm(calib, x, y, d)) for x, y, d in truth]
+            num = disparity_search_range(scene.truth_px)
+            entry = {"name": spec.name, "size": list(scene.size), "calibration":
+                     spec.calib if own else f"assumed {ASSUMED_CALIB}", "points": len(points),
+                     "methods": {}}
+            for name, preset in params.items():
+                if not own:
+                    preset = preset.replace(z_min_mm=None, z_max_mm=None, min_disparity=0,
+                                            num_disparities=num)
+                t0 = time.perf_counter()
+                with StereoPipeline(calib, preset) as pipe:
+                    result = pipe.process(scene.left, scene.right)
+                clicks = click_scene(result, calib, truth)
+                entry["methods"][name] = _scored(clicks, time.perf_counter() - t0,
+                                                 result.disparity_range_px)
+                totals[name].add(clicks)
+            t0 = time.perf_counter()
+            plain = plain_sgbm(scene.left, scene.right, num)
+            clicks = click_plain(plain, calib, truth)
+            entry["methods"][PLAIN] = _scored(clicks, time.perf_counter() - t0, (0, num - 1))
+            totals[PLAIN].add(clicks)
+            scenes.append(entry)
+    finally:
+        cv2.setNumThreads(threads_before)
+    return {"list": str(list_path), "presets": list(params), "scenes": scenes,
+            "total": {m: t.summary() for m, t in totals.items()}}
+
+
+def click_scene(result, calib, truth) -> list:
+    """The clicks of one processed scene: (x, y, true disparity, true Z) each, read as a
+    double-click in the window reads them."""
+    from stereo_gui.core.click_score import Click, map_right
+    from stereo_gui.core.measure import measure_point, reading_map
+
+    shown = reading_map(result)
+    out = []
+    for x, y, d, z in truth:
+        m = measure_point(result, x, y, calibration=calib)
+        right = map_right(calib, x, y, float(shown[y, x]), d, z)
+        if m.valid:
+            out.append(Click(x, y, z, m.Z_mm, m.expected_error_mm, None, right))
+        else:
+            out.append(Click(x, y, z, reason=str(m.reason), map_right=right))
+    return out
+
+
+def click_plain(disparity_px, calib, truth) -> list:
+    """Plain OpenCV's clicks: the patch median, triangulated through the same calibration."""
+    from stereo_gui.core.click_score import Click, map_right, plain_patch_disparity, true_z_mm
+
+    out = []
+    for x, y, d, z in truth:
+        read = plain_patch_disparity(disparity_px, x, y)
+        right = map_right(calib, x, y, float(disparity_px[y, x]), d, z)
+        z_read = true_z_mm(calib, x, y, read) if math.isfinite(read) else float("nan")
+        if math.isfinite(z_read):
+            out.append(Click(x, y, z, z_read, map_right=right))
+        else:
+            out.append(Click(x, y, z, reason="too few valid pixels", map_right=right))
+    return out
+
+
+def _scored(clicks, seconds: float, span) -> dict:
+    from stereo_gui.core.click_score import ClickScore
+
+    return {**ClickScore().add(clicks).summary(), "seconds": seconds,
+            "disparity_range_px": [float(span[0]), float(span[1])]}
+
+
+def format_clicks(res: dict) -> str:
+    """The table a person reads: per scene and method read / within 2 % / worst, then the sums
+    with coverage of the +- and the reasons of the refusals."""
+    methods = [*res["presets"], PLAIN]
+    lines = ["clicks: an 11x8 grid where the truth is known and seen by both cameras over the "
+             "9x9 patch; read % / right within 2 % (of the clicks) / worst error %",
+             f"{'scene':<16}{'pts':>5}" + "".join(f"{m:>22}" for m in methods)]
+    for e in res["scenes"]:
+        cells = []
+        for m in methods:
+            s = e["methods"][m]
+            cells.append(f"{_pct(s['read']):>7}/{_pct(s['within_2pct']):>6}/"
+                         f"{_pct(s['worst']):>6}  ")
+        lines.append(f"{e['name'][:16]:<16}{e['points']:>5}" + "".join(cells))
+    lines.append("")
+    for m in methods:
+        t = res["total"][m]
+        lines.append(f"{m:>10}: {t['points']} clicks, read {_pct(t['read'])} %, within 1 % "
+                     f"{_pct(t['within_1pct'])} %, within 2 % {_pct(t['within_2pct'])} %, worst "
+                     f"{_pct(t['worst'])} %"
+                     + ("" if m == PLAIN else f", +- covers {_pct(t['covers'])} %"))
+        for reason, n in t["reasons"].items():
+            lines.append(f"{'':>12}{reason}: {n['refused']} refused, the map right at "
+                         f"{n['map_right']}")
+    assumed = [e["name"] for e in res["scenes"] if e["calibration"].startswith("assumed")]
+    if assumed:
+        lines.append(f"assumed calibration ({ASSUMED_CALIB}; the presets search the truth's "
+                     f"disparities): {', '.join(assumed)}")
+    return "\n".join(lines)
+
+
+def _pct(v) -> str:
+    return "-" if v is None or not math.isfinite(v) else f"{100 * v:.1f}"

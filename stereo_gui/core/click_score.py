@@ -1,0 +1,192 @@
+"""How readings at clicked pixels are judged against ground truth: the click benchmark's scoring.
+
+A scene with true disparity (float px, 0 where unknown) and a metric calibration is clicked on a
+grid spread over the whole frame (CLICK_GRID, columns x rows). A grid point counts where the truth
+is known and both cameras see it over the whole patch a reading looks at (PATCH_PX square): no
+reading can be asked for where the truth itself is missing or occluded. Each point's true Z is
+the truth's disparity at the pixel taken through the scene's own calibration (Middlebury's
+Z = baseline * f / (d + doffs)), so the comparison holds for any rig.
+
+A reading is right within 1 % or 2 % when its Z is that close to the true Z; its bound covers
+when |Z - true Z| <= its printed +-. For each refusal, whether the map under the click was right
+there (within 2 % of Z or 0.5 px of disparity) is counted too: a refusal of a right map is an
+answer thrown away, of a wrong one a wrong answer stopped.
+
+Plain OpenCV's reading is the median of the valid disparities of the same patch, with at least
+PLAIN_MIN_VALUES of them.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from stereo_gui.core.measure import PATCH_PX, triangulate
+from stereo_gui.core.stereo_calibration import StereoCalibration
+
+CLICK_GRID = (11, 8)  # columns, rows
+PLAIN_MIN_VALUES = 5  # plain OpenCV's patch median needs this many valid disparities
+OCCLUSION_TOLERANCE_PX = 1.0  # a nearer surface must cover the point's right-image column by this
+MAP_RIGHT_SHARE = 0.02  # the map under a refused click was right: within 2 % of Z ...
+MAP_RIGHT_PX = 0.5  # ... or this close in disparity
+RIGHT_SHARES = (0.01, 0.02)
+SPARSE_TRUTH = 0.5  # a truth known at fewer of the pixels is a sparse one (a laser scanner's)
+SPARSE_PATCH_SHARE = 1.0 / 3.0
+
+
+def seen_by_both(truth_px: np.ndarray) -> np.ndarray:
+    """Mask of the known pixels of a left view's true disparity that the right camera sees too:
+    their match x - d lies inside the right image, and no nearer known pixel to their right
+    lands on or beyond that column (it would hide them). For truths without an occlusion mask of
+    their own."""
+    t = np.asarray(truth_px, np.float64)
+    h, w = t.shape
+    known = t > 0
+    x = np.arange(w, dtype=np.float64)[None, :]
+    u = np.where(known, x - t, np.inf)  # right-image column each pixel matches
+    # the leftmost right-image column reached by any known pixel to the right of each pixel
+    reach = np.minimum.accumulate(u[:, ::-1], axis=1)[:, ::-1]
+    beyond = np.concatenate([reach[:, 1:], np.full((h, 1), np.inf)], axis=1)
+    return known & (u >= 0) & (u <= beyond + OCCLUSION_TOLERANCE_PX)
+
+
+def click_points(truth_px: np.ndarray, seen: np.ndarray, grid: tuple[int, int] = CLICK_GRID,
+                 patch: int = PATCH_PX) -> list[tuple[int, int]]:
+    """The grid's pixels (row by row) whose whole patch is known and seen by both cameras; the
+    grid spans the image at the centres of equal cells. A sparse truth (a laser scanner's, known
+    at under SPARSE_TRUTH of the pixels) cannot be known over a whole patch: there the centre
+    must be known, a SPARSE_PATCH_SHARE of the patch too, and none of it occluded."""
+    h, w = truth_px.shape
+    half = patch // 2
+    known = truth_px > 0
+    sparse = known.mean() < SPARSE_TRUTH
+    out = []
+    for j in range(grid[1]):
+        y = int((j + 0.5) * h / grid[1])
+        for i in range(grid[0]):
+            x = int((i + 0.5) * w / grid[0])
+            if not (half <= x < w - half and half <= y < h - half):
+                continue
+            k = known[y - half:y + half + 1, x - half:x + half + 1]
+            s = seen[y - half:y + half + 1, x - half:x + half + 1]
+            if sparse:
+                ok = (known[y, x] and seen[y, x] and k.mean() >= SPARSE_PATCH_SHARE
+                      and not (k & ~s).any())
+            else:
+                ok = (k & s).all()
+            if ok:
+                out.append((x, y))
+    return out
+
+
+def true_z_mm(calibration: StereoCalibration, x: float, y: float, truth_d: float) -> float:
+    """The true Z (mm) of rectified pixel (x, y) of true disparity `truth_d` px."""
+    xyz = triangulate(calibration, x, y, truth_d)
+    return float("nan") if xyz is None else xyz[2]
+
+
+def plain_patch_disparity(disparity_px: np.ndarray, x: int, y: int, patch: int = PATCH_PX,
+                          min_values: int = PLAIN_MIN_VALUES) -> float:
+    """Plain OpenCV's reading of a click: the median of the patch's valid disparities (px), NaN
+    with fewer than `min_values` of them."""
+    half = patch // 2
+    d = disparity_px[max(0, y - half):y + half + 1, max(0, x - half):x + half + 1]
+    d = d[np.isfinite(d)]
+    return float(np.median(d)) if d.size >= min_values else float("nan")
+
+
+@dataclass(frozen=True)
+class Click:
+    """One clicked point: its true Z (mm), the reading (Z NaN when refused), the reading's 95 %
+    bound (mm), the refusal's reason, and whether the map under the click was right there."""
+
+    x: int
+    y: int
+    true_z_mm: float
+    z_mm: float = float("nan")
+    bound_mm: float = float("nan")
+    reason: str | None = None
+    map_right: bool | None = None
+
+    @property
+    def read(self) -> bool:
+        return math.isfinite(self.z_mm)
+
+    @property
+    def error_share(self) -> float:
+        """|Z - true Z| / true Z; NaN when refused."""
+        return abs(self.z_mm - self.true_z_mm) / self.true_z_mm if self.read else float("nan")
+
+    @property
+    def covered(self) -> bool:
+        return self.read and abs(self.z_mm - self.true_z_mm) <= self.bound_mm
+
+
+def map_right(calibration: StereoCalibration, x: int, y: int, map_d: float, truth_d: float,
+              true_z: float) -> bool:
+    """Whether a map's disparity at a click is right: within MAP_RIGHT_PX of the truth's, or its
+    Z within MAP_RIGHT_SHARE of the true Z."""
+    if not math.isfinite(map_d):
+        return False
+    if abs(map_d - truth_d) <= MAP_RIGHT_PX:
+        return True
+    z = true_z_mm(calibration, x, y, map_d)
+    return math.isfinite(z) and abs(z - true_z) <= MAP_RIGHT_SHARE * true_z
+
+
+@dataclass
+class ClickScore:
+    """Clicks summed: how many were asked, read, right within 1 % and 2 % (shares of the
+    clicks asked), the worst error of a reading (share of Z), how often the +- covered the truth
+    (share of the readings), and each refusal's count with how many of those had a right map."""
+
+    clicks: list[Click] = field(default_factory=list)
+
+    def add(self, clicks) -> ClickScore:
+        self.clicks.extend(clicks)
+        return self
+
+    @property
+    def points(self) -> int:
+        return len(self.clicks)
+
+    def _share(self, n: int, of: int) -> float:
+        return n / of if of else float("nan")
+
+    @property
+    def read(self) -> float:
+        return self._share(sum(c.read for c in self.clicks), self.points)
+
+    def within(self, share: float) -> float:
+        return self._share(sum(c.read and c.error_share <= share for c in self.clicks),
+                           self.points)
+
+    @property
+    def worst(self) -> float:
+        errors = [c.error_share for c in self.clicks if c.read]
+        return max(errors) if errors else float("nan")
+
+    @property
+    def covers(self) -> float:
+        readings = [c for c in self.clicks if c.read and math.isfinite(c.bound_mm)]
+        return self._share(sum(c.covered for c in readings), len(readings))
+
+    def reasons(self) -> dict[str, dict[str, int]]:
+        """Each refusal's reason: how many clicks it refused and how many of those the map under
+        the click had right."""
+        refused = Counter(c.reason for c in self.clicks if not c.read)
+        right = Counter(c.reason for c in self.clicks if not c.read and c.map_right)
+        return {str(r): {"refused": n, "map_right": right[r]}
+                for r, n in refused.most_common()}
+
+    def summary(self) -> dict:
+        def num(v: float) -> float | None:
+            return float(v) if math.isfinite(v) else None
+
+        return {"points": self.points, "read": num(self.read),
+                "within_1pct": num(self.within(RIGHT_SHARES[0])),
+                "within_2pct": num(self.within(RIGHT_SHARES[1])), "worst": num(self.worst),
+                "covers": num(self.covers), "reasons": self.reasons()}

@@ -1,0 +1,86 @@
+"""`stereo-gui bench --clicks`: the double-click judged on scenes with truth, beside plain
+OpenCV's patch median."""
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from stereo_gui.cli import main
+from tests.cli_output import one_line
+
+SHARED = Path(__file__).resolve().parents[3] / "shared" / "data"
+
+
+def _write_pfm(path, image):
+    h, w = image.shape
+    with open(path, "wb") as fh:
+        fh.write(f"Pf\n{w} {h}\n-1.0\n".encode())
+        fh.write(np.ascontiguousarray(image[::-1], "<f4").tobytes())
+
+
+def _scene(folder, name, shift, w=320, h=160, seed=0):
+    """A textured plane `shift` px apart in the two images, its truth as a PFM (inf unknown in
+    the first `shift` columns, which the right image does not hold)."""
+    rng = np.random.default_rng(seed)
+    big = cv2.GaussianBlur(rng.integers(0, 256, (h, w + shift, 3), np.uint8), (3, 3), 0)
+    cv2.imwrite(str(folder / f"{name}-l.png"), np.ascontiguousarray(big[:, :w]))
+    cv2.imwrite(str(folder / f"{name}-r.png"), np.ascontiguousarray(big[:, shift:]))
+    truth = np.full((h, w), float(shift), np.float32)
+    truth[:, :shift] = np.inf
+    _write_pfm(folder / f"{name}.pfm", truth)
+    return truth
+
+
+def test_click_bench_reads_a_plain_scene_right_beside_plain_opencv(tmp_path, capsys):
+    _scene(tmp_path, "a", 16)
+    _scene(tmp_path, "b", 24, seed=1)
+    (tmp_path / "c.tsv").write_text(
+        "# name\tleft\tright\ttruth\tdiv\tcalib\n"
+        "a\ta-l.png\ta-r.png\ta.pfm\t1\trectified:800,120\n"
+        "b\tb-l.png\tb-r.png\tb.pfm\t1\n")
+    assert main(["bench", "--clicks", str(tmp_path / "c.tsv"), "--preset", "quality",
+                 "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert [s["name"] for s in doc["scenes"]] == ["a", "b"]
+    assert doc["scenes"][0]["calibration"] == "rectified:800,120"
+    assert doc["scenes"][1]["calibration"].startswith("assumed")
+    for scene in doc["scenes"]:
+        assert scene["points"] > 60  # most of the 11x8 grid: all but the columns unseen
+        for method in ("quality", "plain"):
+            s = scene["methods"][method]
+            assert s["points"] == scene["points"]
+            assert s["read"] > 0.9 and s["within_2pct"] > 0.9 and s["worst"] < 0.02
+    assert doc["total"]["quality"]["covers"] > 0.9
+    assert main(["bench", "--clicks", str(tmp_path / "c.tsv"), "--preset", "quality"]) == 0
+    text = capsys.readouterr().out
+    assert "quality:" in text and "plain:" in text and "+- covers" in text
+    assert "assumed calibration" in text and "b" in text.splitlines()[-1]
+
+
+def test_click_bench_refuses_what_it_cannot_do(tmp_path, capsys):
+    _scene(tmp_path, "a", 16)
+    (tmp_path / "c.tsv").write_text("a\ta-l.png\ta-r.png\ta.pfm\t1\trectified:800,120,-3\n")
+    code = main(["bench", "--clicks", str(tmp_path / "c.tsv"), "--accuracy"])
+    one_line(capsys.readouterr().err, code, "--clicks")
+    code = main(["bench", "--clicks", str(tmp_path / "nope.tsv")])
+    one_line(capsys.readouterr().err, code, "nope.tsv")
+    (tmp_path / "d.tsv").write_text("a\ta-l.png\ta-r.png\ta.pfm\t1\tmissing.txt\n")
+    code = main(["bench", "--clicks", str(tmp_path / "d.tsv")])
+    one_line(capsys.readouterr().err, code, "missing.txt")
+
+
+@pytest.mark.skipif(not (SHARED / "middlebury2014" / "Adirondack" / "calib.txt").is_file(),
+                    reason="the shared Middlebury 2014 scenes are not here")
+def test_a_middlebury_scene_is_clicked_through_its_own_calibration_and_mask(tmp_path, capsys):
+    root = SHARED / "middlebury2014" / "Adirondack"
+    (tmp_path / "m.tsv").write_text(
+        f"Adirondack\t{root / 'im0.png'}\t{root / 'im1.png'}\t{root / 'disp0GT.pfm'}\t1\n")
+    assert main(["bench", "--clicks", str(tmp_path / "m.tsv"), "--preset", "live",
+                 "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    scene = doc["scenes"][0]
+    assert scene["calibration"].endswith("calib.txt") and 50 <= scene["points"] <= 88
+    assert scene["methods"]["plain"]["within_2pct"] > 0.8
