@@ -82,6 +82,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "on every scene of FILE (tab-separated: name, left, right, ground truth, "
                         "divide by; e.g. shared/data/scenes.tsv): bad-1/2/4, density, median "
                         "error and time per frame (default presets live and quality)")
+    parser.add_argument("--clicks", metavar="FILE",
+                        help="instead of speed: the double-click of the presets beside plain "
+                        "OpenCV's patch median on an 11x8 grid of every scene of FILE (the "
+                        "--scenes format, a metric calibration per scene or a calib.txt beside "
+                        "its images): read, right within 1 and 2 %%, worst error, how often the "
+                        "+- covers the truth, and why clicks were refused (default presets live "
+                        "and quality)")
     parser.add_argument("--json", action="store_true", help="print the results as JSON")
 
 
@@ -298,6 +305,15 @@ def _merged(runs: list[dict]) -> dict:
 
 
 def run(args) -> int:
+    if getattr(args, "clicks", None):
+        if args.scenes or args.accuracy or args.calib or args.left or args.right or args.size:
+            raise InputError("--clicks takes its images from the scene list: no --scenes, "
+                             "--accuracy, --calib, images or --size")
+        from stereo_gui.commands.clicks import format_clicks, run_clicks
+
+        res = run_clicks(args.clicks, args.preset or ("live", "quality"))
+        print(json.dumps(res, indent=2) if args.json else format_clicks(res))
+        return 0
     if getattr(args, "scenes", None):
         if args.accuracy or args.calib or args.left or args.right or args.size:
             raise InputError("--scenes takes its images from the scene list: no --accuracy, "
