@@ -12,7 +12,8 @@ convention as cv2.stereoCalibrate.
 The package, by room: `camera` (the rig's description and truth), `rays` (distortion inversion,
 ray maps), `textures` (board and object textures), `scene` (board poses, scene objects),
 `rig` (SimRig: poses, rendering, ground truth), `calibration_set` (sets on disk with
-truth.json), `controls` (the cameras' controls and what they do to the images), `conditions` (how
+truth.json), `click_scenes` (rectified scenes with their true disparity, for `bench --clicks`),
+`controls` (the cameras' controls and what they do to the images), `conditions` (how
 a wall is rendered: weak texture, webcam effects) and `live` (SimSource). Every public name is importable from here.
 """
 
@@ -28,6 +29,22 @@ from stereo_gui.sources.sim.camera import (
     RigConfig,
     RigTruth,
     load_truth,
+)
+from stereo_gui.sources.sim.click_scenes import (
+    CLICK_CONDITIONS,
+    CLICK_FOLDER,
+    CLICK_LIST,
+    CLICK_SUFFIXES,
+    CLICK_WALLS_MM,
+    MAX_CLICK_SEEDS,
+    ClickScene,
+    centre_check,
+    click_scene_names,
+    click_scene_plan,
+    encode_pfm,
+    rectified_spec,
+    true_disparity,
+    write_click_scenes,
 )
 from stereo_gui.sources.sim.conditions import CONDITIONS, WEAK_CONTRAST, Condition, condition_named
 from stereo_gui.sources.sim.controls import (
@@ -59,4 +76,7 @@ __all__ = [
     "CameraTruth", "RayMap", "RigConfig", "RigTruth", "Scene", "SceneObject", "SimFrameTruth",
     "SimRig", "SimSource", "calibration_set_names", "load_truth", "ray_map",
     "undistort_normalized", "write_calibration_set",
+    "CLICK_CONDITIONS", "CLICK_FOLDER", "CLICK_LIST", "CLICK_SUFFIXES", "CLICK_WALLS_MM",
+    "MAX_CLICK_SEEDS", "ClickScene", "centre_check", "click_scene_names", "click_scene_plan",
+    "encode_pfm", "rectified_spec", "true_disparity", "write_click_scenes",
 ]
