@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import PipelineResult, Preset, StereoPipeline
+from stereo_gui.core.matching import PipelineResult, Preset, StereoPipeline, color_scale_caption
 from stereo_gui.core.stereo_calibration import StereoCalibration
 
 log = logging.getLogger(__name__)
@@ -166,6 +166,8 @@ def run(args) -> int:
     write_many_atomic(items, what="the set of outputs" if len(items) > 1 else None)
     valid = float(result.valid.mean()) * 100.0
     lo, hi = result.disparity_range_px
-    print(f"preset {result.preset.name}: {valid:.1f}% valid, disparity range {lo:.0f}..{hi:.0f} px; "
-          f"wrote {', '.join(written)}")
+    colours = ("" if result.color_scale is None or not calib.metric
+               else f"; {color_scale_caption(result.color_scale)}")
+    print(f"preset {result.preset.name}: {valid:.1f}% valid, disparity range {lo:.0f}..{hi:.0f} px"
+          f"{colours}; wrote {', '.join(written)}")
     return 0

@@ -53,7 +53,7 @@ COLORMAPS: dict[str, int] = {
     if name.startswith("COLORMAP_")
 }
 
-COLOR_RANGES = ("minmax", "fixed")
+COLOR_RANGES = ("minmax", "fixed", "view")
 # colours of pixels without depth in every view and export: no match (dark red), and the strip
 # the right camera cannot see (magenta); neither occurs in the colour maps' ramps near them
 NO_MATCH_BGR = (20, 20, 110)
@@ -275,7 +275,8 @@ class DisplayParams:
     # "minmax" (the seed preset's) normalises every frame, so colours drift with the scene
     color_range: str = param("minmax", choices=COLOR_RANGES,
                              help="minmax: each frame's own range; fixed: a colour always means "
-                                  "the same distance")
+                                  "the same distance; view: a round distance range that follows "
+                                  "the distances in view (near and far when nothing is in view)")
     color_z_near_mm: float = param(500.0, lo=1.0, hi=1e7, unit="mm", label="near",
                                    panel=(50, 50000, 1),
                                    help="fixed colour range: this distance gets the top colour")
@@ -460,11 +461,15 @@ class ColorScale:
     """How the colour view turns disparity into colour levels 0..255 (255: near, top of the map).
 
     kind "distance": linear in distance from `far` (level 0) to `near` (level 255), both in mm,
-    so that a colour always means the same distance, and the middle of the map is the middle
-    of the working range (not crowded at the far end as a disparity ramp would be).
+    so that the middle of the map is the middle of the range (not crowded at the far end as a
+    disparity ramp would be).
     kind "disparity": linear in disparity from `far` to `near`, both in px (the report's
-    per-frame min-max normalisation). `fb_mm_px` = f*B and `doffs_px` convert between the two:
-    Z = f B / (d + doffs).
+    per-frame min-max normalisation, and the range that follows the view: over a range of
+    distances ten times apart, a surface near gets as many colours as one far away).
+    `fb_mm_px` = f*B and `doffs_px` convert between the two: Z = f B / (d + doffs).
+    `mode` is the DisplayParams.color_range that chose the range: "fixed" (a colour always means
+    the same distance), "view" (a round range that follows the distances in view, `view_range`)
+    or "minmax"; the legend says which (`color_scale_caption`).
     """
 
     kind: str
@@ -472,6 +477,7 @@ class ColorScale:
     near: float
     fb_mm_px: float
     doffs_px: float = 0.0
+    mode: str = "fixed"
 
     def level(self, disparity_px: np.ndarray) -> np.ndarray:
         """Colour level (float, not clipped; NaN where the disparity is NaN)."""
@@ -486,18 +492,137 @@ class ColorScale:
         """Colour level of a distance in mm."""
         return float(self.level(np.float32(self.fb_mm_px / z_mm - self.doffs_px)))
 
+    def distance_range_mm(self) -> tuple[float, float]:
+        """(near, far) mm of the range: far is inf for a disparity of 0 or less (NaN without a
+        metric f*B)."""
+        if self.kind == "distance":
+            return self.near, self.far
+
+        def z(d: float) -> float:
+            d += self.doffs_px
+            return self.fb_mm_px / d if d > 0 else math.inf
+
+        return z(self.near), z(self.far)
+
+
+# the "view" colour range: its ends are these percentiles of the valid pixels' distances (a few
+# stray matches do not stretch it) ...
+VIEW_PERCENTILES = (2.0, 98.0)
+# ... rounded outwards to these numbers (times a power of ten, mm) ...
+READABLE_STEPS = (1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0)
+# ... and it moves only when the view passes one of its ends by more than this ratio, or fills
+# less than VIEW_MIN_FILL of it and the new range would be at most VIEW_SHRINK as wide: colours
+# do not flicker with the noise of the percentiles from frame to frame
+VIEW_MARGIN = 1.2
+VIEW_MIN_FILL = 0.4
+VIEW_SHRINK = 0.6
+VIEW_SAMPLES = 40_000  # about this many pixels are looked at (a regular grid of the map)
+VIEW_MIN_SAMPLES = 20  # fewer valid ones than this: nothing in view
+
+
+def readable_mm(z_mm: float, up: bool) -> float:
+    """The nearest READABLE_STEPS number (mm) at or above (`up`) or at or below `z_mm` (> 0)."""
+    power = 10.0 ** math.floor(math.log10(z_mm))
+    steps = [s * power for s in READABLE_STEPS] + [s * power / 10 for s in READABLE_STEPS]
+    # (a relative tolerance: 3000.0000001 is 3 m, not the step above)
+    if up:
+        return min(s for s in steps if s >= z_mm * (1 - 1e-9))
+    return max(s for s in steps if s <= z_mm * (1 + 1e-9))
+
+
+def readable_range(near_mm: float, far_mm: float) -> tuple[float, float]:
+    """(near, far) mm rounded outwards to READABLE_STEPS numbers, far at least a step beyond
+    near (a flat wall still gets a ramp)."""
+    near = readable_mm(max(near_mm, 1.0), up=False)
+    far = readable_mm(max(far_mm, near), up=True)
+    if far <= near:
+        far = readable_mm(near * 1.01, up=True)
+    return near, far
+
+
+def view_distances(disparity_px: np.ndarray, fb_mm_px: float, doffs_px: float = 0.0
+                   ) -> tuple[float, float] | None:
+    """(near, far) mm: the VIEW_PERCENTILES of the distances of the valid pixels of a map (px,
+    NaN invalid), from a regular grid of about VIEW_SAMPLES of them; None when fewer than
+    VIEW_MIN_SAMPLES are valid."""
+    h, w = disparity_px.shape[:2]
+    step = max(1, int(math.sqrt(h * w / VIEW_SAMPLES)))
+    d = disparity_px[::step, ::step].astype(np.float64).ravel() + doffs_px
+    d = d[d > 0]  # (NaN compares False: the invalid pixels go too)
+    if d.size < VIEW_MIN_SAMPLES:
+        return None
+    # distance falls as disparity grows: the near end is the large disparities' percentile
+    lo_pct, hi_pct = VIEW_PERCENTILES
+    d_far, d_near = np.percentile(d, (100.0 - hi_pct, 100.0 - lo_pct))
+    return fb_mm_px / float(d_near), fb_mm_px / float(d_far)
+
+
+def view_range(seen: tuple[float, float] | None, fallback: tuple[float, float],
+               previous: tuple[float, float] | None = None) -> tuple[float, float]:
+    """(near, far) mm of the "view" colour range: `seen` (the (near, far) distances in view, mm,
+    None when nothing is) rounded to readable numbers, or `previous` (the range of the frame
+    before) while the view stays in it (see VIEW_MARGIN). Nothing in view: `previous`, else
+    `fallback` (the preset's near and far)."""
+    if seen is None:
+        return previous if previous is not None else fallback
+    near, far = seen
+    candidate = readable_range(near, far)
+    if previous is None:
+        return candidate
+    p_near, p_far = previous
+    if near < p_near / VIEW_MARGIN or far > p_far * VIEW_MARGIN:
+        return candidate  # the view left the range
+
+    def span(a: float, b: float) -> float:  # (the colours are linear in disparity, 1/Z)
+        return 1.0 / a - 1.0 / b
+
+    fill = max(0.0, span(max(near, p_near), min(far, p_far))) / span(p_near, p_far)
+    if fill < VIEW_MIN_FILL and span(*candidate) <= VIEW_SHRINK * span(p_near, p_far):
+        return candidate  # the view fills little of the range, and a narrower one fits it
+    return previous
+
 
 def color_scale(disparity_px: np.ndarray, params: DisplayParams,
-                calibration: StereoCalibration | None) -> ColorScale:
-    """The colour scale of a frame: the preset's fixed distance range, or the frame's min-max."""
+                calibration: StereoCalibration | None,
+                previous: ColorScale | None = None) -> ColorScale:
+    """The colour scale of a frame: the preset's fixed distance range, a range that follows the
+    distances in view ("view": `previous`, the scale of the frame before, keeps it steady), or
+    the frame's min-max (also without a calibration)."""
     fb = (calibration.focal_px * calibration.rectified_baseline_mm
           if calibration is not None else float("nan"))
-    if params.color_range == "fixed" and calibration is not None:
-        return ColorScale("distance", params.color_z_far_mm, params.color_z_near_mm, fb,
-                          calibration.disparity_offset_px)
+    if params.color_range in ("fixed", "view") and calibration is not None:
+        doffs = calibration.disparity_offset_px
+        near, far = params.color_z_near_mm, params.color_z_far_mm
+        if params.color_range == "view":
+            before = None
+            if (previous is not None and previous.mode == "view"
+                    and previous.fb_mm_px == fb and previous.doffs_px == doffs):
+                before = previous.distance_range_mm()
+            near, far = view_range(view_distances(disparity_px, fb, doffs), (near, far), before)
+            return ColorScale("disparity", fb / far - doffs, fb / near - doffs, fb, doffs, "view")
+        return ColorScale("distance", far, near, fb, doffs, "fixed")
     valid = cv2.compare(disparity_px, disparity_px, cv2.CMP_EQ)  # 255 where not NaN
     lo, hi = cv2.minMaxLoc(disparity_px, mask=valid)[:2] if cv2.countNonZero(valid) else (0.0, 1.0)
-    return ColorScale("disparity", float(lo), float(max(hi, lo + 1e-6)), fb)
+    doffs = calibration.disparity_offset_px if calibration is not None else 0.0
+    return ColorScale("disparity", float(lo), float(max(hi, lo + 1e-6)), fb, doffs, "minmax")
+
+
+COLOR_RANGE_WORDS = {"view": "colours follow the view", "fixed": "fixed colours",
+                     "minmax": "colours stretched to each frame"}
+
+
+def color_scale_caption(scale: ColorScale) -> str:
+    """What the legend says of a scale: its kind and its range, e.g. "colours follow the view:
+    6-100 m" or "fixed colours: 0.5-3 m" (metres, as the colour bar's ticks)."""
+    words = COLOR_RANGE_WORDS.get(scale.mode, scale.mode)
+    near, far = scale.distance_range_mm()
+    if not (math.isfinite(near) and near > 0):
+        return words
+
+    def m(z: float) -> str:
+        return "∞" if math.isinf(z) else f"{z / 1000:.3g}"
+
+    return f"{words}: {m(near)}–{m(far)} m"
 
 
 def colorize(disparity_px: np.ndarray, scale: ColorScale, colormap: str,
@@ -864,11 +989,13 @@ class StereoPipeline:
         return cv2.resize(scaled, (w, h), interpolation=cv2.INTER_NEAREST)
 
     def process(self, left_bgr: np.ndarray, right_bgr: np.ndarray, right_colour: bool = True,
-                wls: bool = True) -> PipelineResult:
+                wls: bool = True, previous_scale: ColorScale | None = None) -> PipelineResult:
         """Run every stage on one raw stereo pair (`right_colour`: see `rectify`). With a second
         window the final map is the two windows' agreement and the WLS output only a picture:
         `wls` False skips it (and the right matcher it needs); without one, WLS is the final map
-        and always runs."""
+        and always runs. `previous_scale`: the colour scale of the stream's frame before (a
+        "view" colour range stays put while the view stays in it, `color_scale`); the pipeline
+        keeps no such state itself (its caller owns the stream)."""
         self._apply_pending()
         p = self._params
         t = {}
@@ -1013,7 +1140,7 @@ class StereoPipeline:
                 blank(m, not_seen, band)
         valid = np.isfinite(final)
         display = self._preset.display
-        colours = color_scale(final, display, self.calibration)
+        colours = color_scale(final, display, self.calibration, previous_scale)
         color = colorize(final, colours, display.colormap, not_seen, band)
         lap("colormap")
         t["total"] = (time.perf_counter() - start) * 1000.0

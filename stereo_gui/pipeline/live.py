@@ -17,6 +17,7 @@ from stereo_gui.core.health import CalibrationHealth
 from stereo_gui.core.matching import (
     NO_MATCH_BGR,
     NOT_SEEN_BGR,
+    ColorScale,
     MatcherParams,
     PipelineResult,
     Preset,
@@ -112,6 +113,9 @@ class LiveProcessor:
         self._closed = False
         self._region: tuple[Region, float | None, object] | None = None
         self._views: frozenset[str] = frozenset(VIEW_KEYS)
+        # the colour scale of the newest frame processed: a "view" colour range follows the
+        # scene from it (core.matching.color_scale), so its colours do not flicker
+        self._color_scale: ColorScale | None = None
         self.health = HealthMonitor()  # every two seconds, in a thread of its own
 
     @property
@@ -192,14 +196,19 @@ class LiveProcessor:
         try:
             with self._lock:
                 note, watched, views = self._note, self._region, self._views
-            return self._process(pipeline, frame, note, watched, views)
+                previous = self._color_scale
+            out = self._process(pipeline, frame, note, watched, views, previous)
+            with self._lock:
+                self._color_scale = out.result.color_scale
+            return out
         finally:
             self._give_back(pipeline, size)
 
     def _process(self, pipeline: StereoPipeline, frame: StereoFrame, note: str, watched,
-                 views: frozenset[str]) -> LiveOutput:
+                 views: frozenset[str], previous: ColorScale | None) -> LiveOutput:
         r = pipeline.process(*self.calibration.ordered(frame.left, frame.right),
-                             right_colour="right" in views, wls="wls" in views)
+                             right_colour="right" in views, wls="wls" in views,
+                             previous_scale=previous)
         lo, hi = r.disparity_range_px
         make = {
             "left": lambda: display_rgb(r.rectified_left),

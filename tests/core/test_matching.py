@@ -554,3 +554,127 @@ def test_enlarge_interpolates_within_a_surface_and_keeps_edges_and_holes():
     assert 10.0 < big[0, 2] < 10.5  # between two pixels of one surface: interpolated
     assert set(np.unique(big[:, 3:6][np.isfinite(big[:, 3:6])])) <= {10.5, 30.0}  # the edge
     assert np.isnan(big[:, 7]).all()  # the hole stays a hole
+
+
+# ---- the colour range that follows the view ---------------------------------------------------
+KITTI_F, KITTI_B = 718.856, 537.2  # px, mm: a road scene, everything farther than 3 m
+
+
+def _road_map(z_near_mm: float, z_far_mm: float, h: int = 120, w: int = 400, invalid=0.2,
+              seed=1) -> np.ndarray:
+    """A disparity map (px, NaN invalid) of distances spread evenly from near to far."""
+    rng = np.random.default_rng(seed)
+    z = rng.uniform(z_near_mm, z_far_mm, (h, w))
+    d = (KITTI_F * KITTI_B / z).astype(np.float32)
+    d[rng.random((h, w)) < invalid] = np.nan
+    return d
+
+
+def test_readable_ranges_round_outwards_to_readable_numbers():
+    from stereo_gui.core.matching import readable_range
+
+    assert readable_range(6100.0, 47000.0) == (6000.0, 50000.0)
+    assert readable_range(1234.0, 2890.0) == (1000.0, 3000.0)
+    assert readable_range(480.0, 3100.0) == (400.0, 4000.0)
+    assert readable_range(1600.0, 2770.0) == (1500.0, 3000.0)
+    assert readable_range(3000.0000001, 2999.9999) == (3000.0, 4000.0)  # a wall: still a ramp
+    assert readable_range(99.0, 101.0) == (80.0, 150.0)
+
+
+def test_the_view_range_follows_the_distances_in_view():
+    """A road scene 6-45 m away: the fixed 0.5-3 m range paints all of it the far colour (the
+    black depth view of issue 40); the range that follows the view is 6-50 m and spreads it over
+    the colour map, near bright. The legend says which scale it is."""
+    from stereo_gui.core.matching import color_scale_caption
+
+    c = calib(w=400, h=120, f=KITTI_F, b=KITTI_B)
+    d = _road_map(6100.0, 45000.0)
+    fixed = color_scale(d, DisplayParams(color_range="fixed"), c)
+    assert np.nanmax(fixed.level(d)) < 0  # beyond the far end everywhere: all black
+    view = color_scale(d, DisplayParams(color_range="view"), c)
+    assert view.mode == "view"
+    assert view.distance_range_mm() == pytest.approx((6000.0, 50000.0))
+    levels = np.clip(view.level(d[np.isfinite(d)]), 0, 255)
+    assert levels.min() < 10 and levels.max() > 245 and np.percentile(levels, 90) > 128
+    def colours(scale):
+        return len(np.unique(colorize(d, scale, "ocean")[np.isfinite(d)], axis=0))
+
+    assert colours(fixed) == 1 and colours(view) > 150
+    assert color_scale_caption(view) == "colours follow the view: 6–50 m"
+    assert color_scale_caption(fixed) == "fixed colours: 0.5–3 m"
+    assert color_scale_caption(color_scale(d, DisplayParams(), c)).startswith(
+        "colours stretched to each frame: ")
+
+
+def test_the_view_range_ignores_a_few_stray_distances():
+    c = calib(w=400, h=120, f=KITTI_F, b=KITTI_B)
+    d = _road_map(6100.0, 45000.0)
+    d[:1, :] = KITTI_F * KITTI_B / 900.0  # 0.8 % of the pixels at 0.9 m
+    d[1:2, :] = 0.2  # ... and as many far beyond
+    view = color_scale(d, DisplayParams(color_range="view"), c)
+    assert view.distance_range_mm() == pytest.approx((6000.0, 50000.0))
+
+
+def test_the_view_range_stays_put_under_small_changes_and_moves_with_the_scene():
+    from stereo_gui.core.matching import view_range
+
+    fallback = (500.0, 3000.0)
+    first = view_range((6100.0, 47000.0), fallback)
+    assert first == (6000.0, 50000.0)
+    # noise around the rounding steps: on its own each frame would round elsewhere
+    for seen in ((5900.0, 51000.0), (6050.0, 51000.0), (5600.0, 55000.0), (6900.0, 39000.0)):
+        assert view_range(seen, fallback) != first
+        assert view_range(seen, fallback, first) == first
+    # the scene comes nearer than the range by a clear margin, or goes farther
+    assert view_range((4000.0, 47000.0), fallback, first) == (4000.0, 50000.0)
+    assert view_range((6100.0, 70000.0), fallback, first) == (6000.0, 80000.0)
+    # the scene fills little of the colours: a narrower range fits it
+    assert view_range((20500.0, 45000.0), fallback, first) == (20000.0, 50000.0)
+    # ... but not when the narrower range is hardly narrower
+    assert view_range((7000.0, 14000.0), fallback, (6000.0, 15000.0)) == (6000.0, 15000.0)
+
+
+def test_a_view_range_does_not_flicker_over_a_sequence_of_noisy_frames():
+    """Frames whose distances wander by a few per cent around the rounding steps: the range
+    is set once and never changes."""
+    from stereo_gui.core.matching import view_range
+
+    rng = np.random.default_rng(4)
+    ranges, previous = [], None
+    for _ in range(200):
+        seen = (1500.0 * rng.uniform(0.95, 1.05), 2500.0 * rng.uniform(0.95, 1.05))
+        previous = view_range(seen, (500.0, 3000.0), previous)
+        ranges.append(previous)
+    assert len(set(ranges)) == 1
+
+
+def test_the_view_range_of_a_stream_follows_the_previous_scale():
+    """color_scale takes the scale of the frame before (the caller keeps it): a small change
+    keeps the range, a new scene moves it, another calibration's scale is not taken."""
+    c = calib(w=400, h=120, f=KITTI_F, b=KITTI_B)
+    p = DisplayParams(color_range="view")
+    first = color_scale(_road_map(6100.0, 45000.0), p, c)
+    nearer = _road_map(5400.0, 40000.0, seed=2)
+    assert color_scale(nearer, p, c).distance_range_mm() != first.distance_range_mm()
+    assert color_scale(nearer, p, c, first).distance_range_mm() == pytest.approx((6000.0, 50000.0))
+    moved = color_scale(_road_map(1600.0, 2800.0), p, c, first)
+    assert moved.distance_range_mm() == pytest.approx((1500.0, 3000.0))
+    other = calib(w=400, h=120, f=KITTI_F, b=2 * KITTI_B)
+    assert color_scale(nearer, p, other, first).distance_range_mm() != pytest.approx(
+        first.distance_range_mm())
+
+
+def test_nothing_valid_falls_back_to_the_presets_near_and_far():
+    c = calib(w=400, h=120, f=KITTI_F, b=KITTI_B)
+    p = DisplayParams(color_range="view", color_z_near_mm=700.0, color_z_far_mm=4000.0)
+    empty = np.full((120, 400), np.nan, np.float32)
+    scale = color_scale(empty, p, c)
+    assert scale.mode == "view" and scale.distance_range_mm() == pytest.approx((700.0, 4000.0))
+    assert (colorize(empty, scale, "ocean") == NO_MATCH_BGR).all()
+    # in a stream, an empty frame keeps the range the frames before had (the legend holds)
+    before = color_scale(_road_map(6100.0, 45000.0), p, c)
+    assert color_scale(empty, p, c, before).distance_range_mm() == pytest.approx(
+        (6000.0, 50000.0))
+    # a few stray pixels are not a view either
+    empty[5, 5:10] = 30.0
+    assert color_scale(empty, p, c).distance_range_mm() == pytest.approx((700.0, 4000.0))

@@ -196,3 +196,29 @@ def test_the_wls_picture_is_made_only_when_its_view_is_shown():
     assert shown.result.wls_px is not None and "wls" in shown.images
     np.testing.assert_array_equal(hidden.final_px, shown.result.final_px)
     assert np.nanmedian(hidden.final_px) == pytest.approx(SHIFT, abs=0.5)
+
+
+def test_the_view_colour_range_is_kept_from_frame_to_frame():
+    """The processor keeps the colour scale of the frame before (the hysteresis of a range that
+    follows the view lives with the frames, not in a widget): a plane a little nearer keeps the
+    range (a fresh processor would round it elsewhere), one much nearer moves it."""
+    from stereo_gui.core.matching import DisplayParams
+
+    calib = StereoCalibration.identity((W, H), 300.0, 100.0)  # f*B = 30000 mm px
+    preset = Preset(matcher=MatcherParams(num_disparities=32, block_size=5),
+                    display=DisplayParams(color_range="view"))
+
+    def ranges(proc, shifts):
+        return [proc(_frame(shift=s)).result.color_scale.distance_range_mm() for s in shifts]
+
+    proc, fresh = LiveProcessor(calib, preset), LiveProcessor(calib, preset)
+    try:
+        # 2.5 m, 2.31 m, 1.5 m
+        kept = ranges(proc, (12, 13, 20))
+        alone = ranges(fresh, (13,))
+    finally:
+        proc.close()
+        fresh.close()
+    assert kept[0] == pytest.approx((2500.0, 3000.0))
+    assert kept[1] == pytest.approx((2500.0, 3000.0)) and alone[0] == pytest.approx((2000.0, 2500.0))
+    assert kept[2] == pytest.approx((1500.0, 2000.0))

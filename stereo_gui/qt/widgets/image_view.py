@@ -22,9 +22,10 @@ pg.setConfigOptions(imageAxisOrder="row-major")
 
 # round distances for colour-bar ticks, mm, in order of preference (rounder first)
 _NICE_MM_TIERS = (
-    (100, 200, 500, 1000, 2000, 3000, 5000, 10000, 20000, 50000),
-    (150, 250, 300, 400, 600, 700, 800, 1500, 2500, 4000, 7500, 15000, 30000),
-    (1250, 1750, 3500, 6000),
+    (100, 200, 500, 1000, 2000, 3000, 5000, 10000, 20000, 50000, 100000, 200000, 500000),
+    (150, 250, 300, 400, 600, 700, 800, 1500, 2500, 4000, 7500, 15000, 30000, 40000, 60000,
+     80000, 150000, 250000, 300000, 400000, 600000, 800000),
+    (1250, 1750, 3500, 6000, 8000, 25000),
 )
 
 
@@ -221,13 +222,9 @@ def distance_ticks(scale: ColorScale, max_ticks: int = 7) -> list[tuple[float, s
     fb = scale.fb_mm_px
     if not (fb > 0 and scale.near != scale.far):
         return []
-    if scale.kind == "distance":
-        z_near, z_far = scale.near, scale.far
-    else:
-        if not scale.near > 0:
-            return []
-        z_near = fb / scale.near
-        z_far = fb / scale.far if scale.far > 0 else math.inf
+    z_near, z_far = scale.distance_range_mm()
+    if math.isinf(z_near):
+        return []
     min_gap = 255.0 / (max_ticks + 1)
 
     def fmt(z: float, exact: bool = False) -> str:
