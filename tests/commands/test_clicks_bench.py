@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from stereo_gui.cli import main
-from tests.cli_output import one_line
+from cli_output import one_line
 
 SHARED = Path(__file__).resolve().parents[3] / "shared" / "data"
 
