@@ -279,10 +279,14 @@ class DisplayParams:
                                   "the distances in view (near and far when nothing is in view)")
     color_z_near_mm: float = param(500.0, lo=1.0, hi=1e7, unit="mm", label="near",
                                    panel=(50, 50000, 1),
-                                   help="fixed colour range: this distance gets the top colour")
+                                   help="fixed colour range: this distance gets the top colour "
+                                        "(and the range that follows the view, while nothing "
+                                        "is in view)")
     color_z_far_mm: float = param(3000.0, lo=1.0, hi=1e7, unit="mm", label="far",
                                   panel=(100, 100000, 1),
-                                  help="fixed colour range: this distance gets the bottom colour")
+                                  help="fixed colour range: this distance gets the bottom colour "
+                                       "(and the range that follows the view, while nothing "
+                                       "is in view)")
 
     def __post_init__(self) -> None:
         check_all(self, "display parameters")
@@ -469,7 +473,8 @@ class ColorScale:
     `fb_mm_px` = f*B and `doffs_px` convert between the two: Z = f B / (d + doffs).
     `mode` is the DisplayParams.color_range that chose the range: "fixed" (a colour always means
     the same distance), "view" (a round range that follows the distances in view, `view_range`)
-    or "minmax"; the legend says which (`color_scale_caption`).
+    or "minmax" (not given: "fixed" for a distance scale, "minmax" for a disparity one); the
+    legend says which (`color_scale_caption`).
     """
 
     kind: str
@@ -477,7 +482,11 @@ class ColorScale:
     near: float
     fb_mm_px: float
     doffs_px: float = 0.0
-    mode: str = "fixed"
+    mode: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.mode:
+            object.__setattr__(self, "mode", "fixed" if self.kind == "distance" else "minmax")
 
     def level(self, disparity_px: np.ndarray) -> np.ndarray:
         """Colour level (float, not clipped; NaN where the disparity is NaN)."""
@@ -509,7 +518,7 @@ class ColorScale:
 # stray matches do not stretch it) ...
 VIEW_PERCENTILES = (2.0, 98.0)
 # ... rounded outwards to these numbers (times a power of ten, mm) ...
-READABLE_STEPS = (1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0)
+READABLE_STEPS = (1.0, 1.2, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 10.0)
 # ... and it moves only when the view passes one of its ends by more than this ratio, or fills
 # less than VIEW_MIN_FILL of it and the new range would be at most VIEW_SHRINK as wide: colours
 # do not flicker with the noise of the percentiles from frame to frame

@@ -574,11 +574,12 @@ def test_readable_ranges_round_outwards_to_readable_numbers():
     from stereo_gui.core.matching import readable_range
 
     assert readable_range(6100.0, 47000.0) == (6000.0, 50000.0)
-    assert readable_range(1234.0, 2890.0) == (1000.0, 3000.0)
+    assert readable_range(1234.0, 2890.0) == (1200.0, 3000.0)
+    assert readable_range(796.0, 2971.0) == (700.0, 3000.0)
     assert readable_range(480.0, 3100.0) == (400.0, 4000.0)
     assert readable_range(1600.0, 2770.0) == (1500.0, 3000.0)
     assert readable_range(3000.0000001, 2999.9999) == (3000.0, 4000.0)  # a wall: still a ramp
-    assert readable_range(99.0, 101.0) == (80.0, 150.0)
+    assert readable_range(99.0, 101.0) == (80.0, 120.0)
 
 
 def test_the_view_range_follows_the_distances_in_view():
@@ -627,7 +628,7 @@ def test_the_view_range_stays_put_under_small_changes_and_moves_with_the_scene()
         assert view_range(seen, fallback, first) == first
     # the scene comes nearer than the range by a clear margin, or goes farther
     assert view_range((4000.0, 47000.0), fallback, first) == (4000.0, 50000.0)
-    assert view_range((6100.0, 70000.0), fallback, first) == (6000.0, 80000.0)
+    assert view_range((6100.0, 70000.0), fallback, first) == (6000.0, 70000.0)
     # the scene fills little of the colours: a narrower range fits it
     assert view_range((20500.0, 45000.0), fallback, first) == (20000.0, 50000.0)
     # ... but not when the narrower range is hardly narrower

@@ -32,7 +32,7 @@ from PySide6.QtWidgets import (
 )
 
 from stereo_gui.core.errors import StereoGuiError
-from stereo_gui.core.matching import COLORMAPS, Preset
+from stereo_gui.core.matching import COLORMAPS, Preset, color_scale_caption
 from stereo_gui.pipeline.live import NO_MATCH_RGB, NOT_SEEN_RGB, LiveOutput, LiveProcessor
 from stereo_gui.qt.context import TRUE_CALIBRATION_NOTE, AppContext
 from stereo_gui.qt.source_capabilities import simulated_rig
@@ -66,6 +66,12 @@ LEGEND = (f"<span style='color:{_hex(NO_MATCH_RGB)}'>■</span> dark red: no mat
           f"<span style='color:{_hex(NOT_SEEN_RGB)}'>■</span> magenta: not seen by the right "
           "camera")
 REGION_VIEW = "depth"  # the view that carries the region box
+
+
+def legend_text(caption: str = "") -> str:
+    """The line under the views: the colours of pixels without depth, and what the depth
+    colours are (`caption`: core.matching.color_scale_caption of the frame shown)."""
+    return f"{LEGEND} &nbsp;·&nbsp; {caption}" if caption else LEGEND
 
 
 def wls_title(result) -> str:
@@ -174,6 +180,7 @@ class LiveTab(QWidget):
         # a long reading must not make the window wider than a laptop screen
         self.readout.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
         self.legend = QLabel(LEGEND)
+        self._caption = ""  # the depth colours' caption the legend shows
         self.legend.setStyleSheet("padding: 0px 4px;")
         self.region_label = self.region.label
         self.calib_note = QLabel()
@@ -406,6 +413,10 @@ class LiveTab(QWidget):
         scale = out.result.color_scale
         if scale is None or out.result.calibration is None:
             return
+        caption = color_scale_caption(scale)
+        if caption != self._caption:  # (the same text on most frames: no relayout)
+            self._caption = caption
+            self.legend.setText(legend_text(caption))
         shown = self.visible_views()
         for key in COLOR_VIEWS:
             bar = self.panels[key].color_bar

@@ -16,7 +16,7 @@ from PySide6.QtCore import QPointF, QRectF, Qt, Signal
 from PySide6.QtGui import QBrush, QColor, QFont, QPen, QTransform
 from PySide6.QtWidgets import QGraphicsItem, QGraphicsRectItem, QGraphicsSimpleTextItem
 
-from stereo_gui.core.matching import ColorScale
+from stereo_gui.core.matching import ColorScale, color_scale_caption
 
 pg.setConfigOptions(imageAxisOrder="row-major")
 
@@ -255,6 +255,10 @@ def distance_ticks(scale: ColorScale, max_ticks: int = 7) -> list[tuple[float, s
 
 
 _BAR_END_ROOM = 14.0  # colour levels of room beyond each end of the colour bar's ramp
+# the colour bar's axis title: which kind of scale it is (the ticks give the range); short, as it
+# runs up the side of the bar
+SCALE_KIND_TITLES = {"view": "follows the view", "fixed": "fixed range",
+                     "minmax": "each frame's range"}
 
 
 class DistanceColorBar(pg.PlotItem):
@@ -283,6 +287,18 @@ class DistanceColorBar(pg.PlotItem):
         # no ticks until a frame gives the range (the axis' own 0..250 meant nothing)
         self._ticks: list[tuple[float, str]] = []
         self.getAxis("right").setTicks([[], []])
+        self._caption = ""
+
+    @property
+    def caption(self) -> str:
+        """What the bar's scale is, in words, e.g. "colours follow the view: 6–50 m"
+        (core.matching.color_scale_caption); empty before the first range."""
+        return self._caption
+
+    @property
+    def title(self) -> str:
+        """The axis title up the side of the bar: the kind of scale."""
+        return self.getAxis("right").labelText
 
     @property
     def ticks(self) -> list[tuple[float, str]]:
@@ -297,12 +313,15 @@ class DistanceColorBar(pg.PlotItem):
             self._img.setImage(lut.reshape(256, 1, 3), autoLevels=False)
             self._img.setRect(0, 0, 1, 256)
             self._lut_id = colormap_id
-        shown = (scale.kind, round(scale.far, 1), round(scale.near, 1))
+        shown = (scale.kind, scale.mode, round(scale.far, 1), round(scale.near, 1))
         if shown == self._ticks_of:
             return
         self._ticks_of = shown
         self._ticks = [(t + 0.5, s) for t, s in distance_ticks(scale)]
         self.getAxis("right").setTicks([self._ticks, []])
+        self._caption = color_scale_caption(scale)
+        self.getAxis("right").setLabel(SCALE_KIND_TITLES.get(scale.mode, "distance"))
+        self.setToolTip(self._caption)
 
 
 class ImagePanel(pg.GraphicsLayoutWidget):

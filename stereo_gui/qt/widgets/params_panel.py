@@ -184,6 +184,9 @@ SGBM_KEYS = ("block_size", "min_disparity", "num_disparities", "z_min_mm", "z_ma
              "uniqueness_ratio", "speckle_window_size", "speckle_range", "disp12_max_diff",
              "pre_filter_cap", "p1", "p2", "mode", "parallel")
 CLOSING_KEYS = ("closing_kernel",)
+# the colour ranges the panel offers (core.matching.COLOR_RANGES), as it names them
+COLOR_RANGE_CHOICES = (("view", "follows the view"), ("fixed", "fixed (near to far)"),
+                       ("minmax", "each frame's min-max"))
 WLS_KEYS = ("wls", "wls_lambda", "wls_sigma", "colormap", "color_z_near_mm", "color_z_far_mm")
 Z_UNSET_MM = 450.0  # what the nearest-distance box shows for a preset without one
 
@@ -231,9 +234,14 @@ class ParamsPanel(QWidget):
         for s in (1.0, 0.75, 0.5, 0.25):
             self.scale.addItem(f"{s:g}" + ("  (full)" if s == 1.0 else ""), s)
         self.scale.setToolTip(PRESET_PARAMS["scale"].help)
-        self.color_fixed = QCheckBox("fixed colour range")
-        self.color_fixed.setToolTip("a colour always means the same distance (min-max, as "
-                                    "the seed preset, normalises every frame: colours drift)")
+        self.color_range = QComboBox()
+        for value, text in COLOR_RANGE_CHOICES:
+            self.color_range.addItem(text, value)
+        self.color_range.setToolTip(
+            "follows the view: round distances around what is in view, changed only when the "
+            "view leaves them (near and far below while nothing is in view); fixed: a colour "
+            "always means the same distance, from near to far; each frame's min-max (the seed "
+            "preset's): colours drift from frame to frame")
         self.scale_note = QLabel("")  # the scale that runs when a large frame lowers it
         self.scale_note.setStyleSheet("color: gray")
         self.scale_note.hide()
@@ -265,7 +273,7 @@ class ParamsPanel(QWidget):
 
         wls = QFormLayout()
         rows(wls, ("wls", "wls_lambda", "wls_sigma", "colormap"))
-        wls.addRow(self.color_fixed)
+        wls.addRow("colour range", self.color_range)
         rows(wls, ("color_z_near_mm", "color_z_far_mm"))
         wls_box = QGroupBox("WLS filter and colours")
         wls_box.setLayout(wls)
@@ -282,7 +290,8 @@ class ParamsPanel(QWidget):
         for w in ed.values():
             editor_changed(w).connect(self._edited)
         self.scale.currentIndexChanged.connect(self._edited)
-        for b in (self.p_auto, self.color_fixed, self.range_from_z):
+        self.color_range.currentIndexChanged.connect(self._edited)
+        for b in (self.p_auto, self.range_from_z):
             b.toggled.connect(self._edited)
 
     # ---- presets -----------------------------------------------------------------------------
@@ -410,7 +419,8 @@ class ParamsPanel(QWidget):
                 self.scale.addItem(f"{p.scale:g}", p.scale)
                 i = self.scale.count() - 1
             self.scale.setCurrentIndex(i)
-            self.color_fixed.setChecked(preset.display.color_range == "fixed")
+            self.color_range.setCurrentIndex(max(0, self.color_range.findData(
+                preset.display.color_range)))
             self._sync_enabled()
         finally:
             self._updating = False
@@ -429,7 +439,9 @@ class ParamsPanel(QWidget):
         for key in ("wls_lambda", "wls_sigma"):
             ed[key].setEnabled(ed["wls"].isChecked())
         for key in ("color_z_near_mm", "color_z_far_mm"):
-            ed[key].setEnabled(self.color_fixed.isChecked())
+            # (a range that follows the view starts from them, and keeps to them while
+            # nothing is in view)
+            ed[key].setEnabled(self.color_range.currentData() != "minmax")
 
     def _read(self) -> Preset:
         values = {key: editor_value(w) for key, w in self.editors.items()}
@@ -442,7 +454,7 @@ class ParamsPanel(QWidget):
         if self.p_auto.isChecked():
             values["p1"] = values["p2"] = None
         values["scale"] = float(self.scale.currentData())
-        values["color_range"] = "fixed" if self.color_fixed.isChecked() else "minmax"
+        values["color_range"] = self.color_range.currentData()
         name = self._params.name
         return self._params.replace(
             name=name if name.endswith(MODIFIED) else f"{name}{MODIFIED}", **values)

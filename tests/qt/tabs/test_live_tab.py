@@ -50,6 +50,10 @@ def test_live_view_updates_on_the_sim_rig(qtbot, ctx, live, sim_rig):
     # the demo scene lies within the colour bar's range, so the bar carries distance ticks
     ticks = live.panels["wls"].color_bar.ticks
     assert ticks and any(label.endswith("m") for _pos, label in ticks)
+    # the live preset's colours follow the view, and the line under the views says so
+    caption = live.panels["depth"].color_bar.caption
+    assert caption.startswith("colours follow the view: ") and caption.endswith(" m")
+    assert caption in live.legend.text()
 
 
 def test_double_click_reports_a_known_distance_within_1_percent(

@@ -209,3 +209,23 @@ def _assert_clear(rects, obstacles):
     for r in rects:
         for o in obstacles:
             assert r.intersected(o).isEmpty(), (r, o)
+
+
+def test_the_colour_bar_says_which_scale_it_is(panel):
+    """A range that follows the view and a fixed one read differently on the bar (its title up
+    the side, its caption in words with the range), and a new range changes both."""
+    import cv2
+
+    fb = 718.856 * 537.2
+    bar = panel.color_bar
+    assert bar.caption == ""
+    view = ColorScale("disparity", fb / 50000.0, fb / 6000.0, fb, 0.0, "view")
+    bar.set_scale(cv2.COLORMAP_OCEAN, view)
+    assert bar.caption == "colours follow the view: 6–50 m"
+    assert bar.title == "follows the view" and bar.toolTip() == bar.caption
+    assert [s for _t, s in bar.ticks][::len(bar.ticks) - 1] == ["50 m", "6 m"]
+    bar.set_scale(cv2.COLORMAP_OCEAN, ColorScale("distance", 3000.0, 500.0, fb))
+    assert bar.caption == "fixed colours: 0.5–3 m" and bar.title == "fixed range"
+    bar.set_scale(cv2.COLORMAP_OCEAN, ColorScale("disparity", fb / 3000.0, fb / 500.0, fb))
+    assert bar.caption == "colours stretched to each frame: 0.5–3 m"
+    assert bar.title == "each frame's range"

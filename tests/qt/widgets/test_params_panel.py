@@ -81,3 +81,21 @@ def test_an_edit_changes_only_its_part_and_keeps_what_the_panel_does_not_show(pa
     assert after.display.colormap == "jet" and after.matcher == before.matcher
     assert after.threads == before.threads
     assert after.matcher.check_block_size == before.matcher.check_block_size == 5
+
+
+def test_the_panel_offers_the_colour_ranges(panel):
+    """The live preset's colours follow the view; the panel offers fixed and min-max too, and
+    near/far (the fixed range, and the view's while nothing is in view) only where they count."""
+    got = []
+    panel.paramsChanged.connect(got.append)
+    near = panel.editors["color_z_near_mm"]
+    assert panel.color_range.currentData() == "view" and near.isEnabled()
+    assert panel.color_range.currentText() == "follows the view"
+    panel.color_range.setCurrentIndex(panel.color_range.findData("fixed"))
+    assert got[-1].display.color_range == "fixed" and near.isEnabled()
+    panel.color_range.setCurrentIndex(panel.color_range.findData("minmax"))
+    assert got[-1].display.color_range == "minmax" and not near.isEnabled()
+    panel.apply_preset("seed")
+    assert panel.color_range.currentData() == "minmax"
+    panel.apply_preset("quality")
+    assert panel.color_range.currentData() == "view"
