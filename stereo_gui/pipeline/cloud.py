@@ -1,5 +1,6 @@
 """The point cloud of a frame for the 3D view, without Qt: every `step`-th pixel of the final
-(confident) disparity reprojected through Q, coloured from the image or by distance.
+(confident) disparity reprojected through Q, coloured from the image or by distance (on the
+frame's colour scale, as the depth view).
 
 Display coordinates: metres, x = X (right), y = Z (ahead), z = -Y (up), so that the view's
 "up" is the scene's up and the camera sits at the origin looking along +y.
@@ -81,9 +82,12 @@ def cloud_points(result: PipelineResult, colouring: str = "image", step: int = 2
         if img.ndim == 2:
             img = np.repeat(img[..., None], 3, axis=2)
         rgb = img.reshape(-1, img.shape[2])[good][:, 2::-1]
-    else:  # near bright, as the colour view shows distance
-        span = max(far - near, 1e-6)
-        level = np.clip(255.0 * (far - z) / span, 0, 255).astype(np.uint8).reshape(-1, 1)
+    else:  # near bright, on the colours of the depth view (the scale its legend shows)
+        if result.color_scale is not None:
+            level = result.color_scale.level(d.ravel()[good])
+        else:
+            level = 255.0 * (far - z) / max(far - near, 1e-6)
+        level = np.clip(np.rint(level), 0, 255).astype(np.uint8).reshape(-1, 1)
         cmap = COLORMAPS.get(result.preset.display.colormap, cv2.COLORMAP_OCEAN)
         rgb = cv2.applyColorMap(level, cmap).reshape(-1, 3)[:, ::-1]
     rgba = np.empty((pts.shape[0], 4), np.float32)

@@ -61,3 +61,24 @@ def test_points_coloured_by_distance_stand_out_from_their_background():
             gap = np.linalg.norm(255.0 * c.rgba[:, :3] - bg, axis=1).min()
             assert gap > 80, (colormap, c.background_rgb, gap)
     assert cloud_points(r, "image").background_rgb == IMAGE_BACKGROUND_RGB
+
+
+def test_points_coloured_by_distance_take_the_depth_views_colours():
+    """One colour scale per frame: a point's colour by distance is its pixel's colour in the
+    depth view (not a range of the cloud's own)."""
+    import cv2
+
+    from stereo_gui.core.matching import COLORMAPS, ColorScale
+
+    r = _plane()
+    lut = cv2.applyColorMap(np.arange(256, dtype=np.uint8).reshape(-1, 1),
+                            COLORMAPS[r.preset.display.colormap])[:, 0, ::-1]
+    for scale in (r.color_scale, ColorScale("distance", 4000.0, 2000.0, 30000.0),
+                  ColorScale("disparity", 30000.0 / 50000.0, 30000.0 / 2500.0, 30000.0, 0.0,
+                             "view")):
+        res = r.__class__(**{**r.__dict__, "color_scale": scale})
+        c = cloud_points(res, "distance", step=1)
+        z_mm = 1000.0 * c.xyz_m[:, 1]
+        want = lut[np.clip(np.rint([scale.level_of_distance(z) for z in z_mm]), 0, 255).astype(int)]
+        got = np.rint(255.0 * c.rgba[:, :3]).astype(int)
+        assert np.abs(got - want).max() <= 8, scale
