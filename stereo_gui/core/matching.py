@@ -151,6 +151,12 @@ class MatcherParams:
         0.0, lo=0.0, hi=64.0, unit="px",
         help="matches within this of either end of the searched range are dropped: the cost's "
              "minimum lay at the range's edge, so the surface may lie beyond it")
+    # a rig with a long focal length or a wide baseline has hundreds of pixels of disparity
+    # before its nearest working distance, far more than its scenes hold
+    range_from_scene: bool = param(
+        False, help="with working distances (z_min_mm): search each frame only up to the "
+                    "nearest surface a quick match of shrunk images over the whole range finds, "
+                    "with a margin (core.scene_range); the whole range where it finds nothing")
     # the cameras' own gain, black level and darker corners, and the slow shading of a smooth
     # wall, should not decide a match
     normalize_window: int = param(
@@ -249,11 +255,15 @@ class MatcherParams:
         d_min = fb / self.z_max_mm - doffs if self.z_max_mm else -doffs  # (infinity)
         return d_min, fb / self.z_min_mm - doffs
 
-    def matcher_range(self, calibration: StereoCalibration, scale: float | None = None
-                      ) -> tuple[int, int]:
-        """(minDisparity, numDisparities) for SGBM on images at `scale` (default self.scale)."""
+    def matcher_range(self, calibration: StereoCalibration, scale: float | None = None,
+                      top_px: float | None = None) -> tuple[int, int]:
+        """(minDisparity, numDisparities) for SGBM on images at `scale` (default self.scale);
+        `top_px`: search no further than this disparity (full-resolution px) if it is below the
+        preset's own largest."""
         s = self.scale if scale is None else scale
         d_min, d_max = self.disparity_limits(calibration)
+        if top_px is not None:
+            d_max = max(d_min, min(d_max, top_px))
         lo = max(0, int(math.floor(d_min * s))) if self.z_min_mm is not None else int(math.floor(d_min * s))
         num = int(math.ceil((d_max * s - lo + 1) / 16.0)) * 16
         return lo, max(16, num)
@@ -717,6 +727,12 @@ def _rows_contiguous(a: np.ndarray) -> bool:
     return a.ndim == 2 and a.strides[1] == a.itemsize and a.strides[0] >= a.shape[1] * a.itemsize
 
 
+# range_from_scene: a range a frame could narrow is narrowed after this many frames in a row asked
+# for it (a nearer surface widens it at once); the range is never narrower than this (matched px)
+SCENE_SHRINK_FRAMES = 15
+SCENE_MIN_RANGE_PX = 16
+
+
 class StereoPipeline:
     """Turns raw stereo frames into `PipelineResult`s for one calibration and preset.
 
@@ -734,6 +750,10 @@ class StereoPipeline:
         self._preset = Preset.of(params)
         self._params = self._preset.matcher
         self._maps = None if calibration.method == "identity" else calibration.rectify_maps()
+        # the largest disparity the matchers search when the scene sets it (range_from_scene;
+        # None: the preset's), and how many frames in a row have asked for less
+        self._scene_top_px: float | None = None
+        self._shrink_votes = 0
         self._build()
 
     # ---- configuration -------------------------------------------------------------------
@@ -761,7 +781,9 @@ class StereoPipeline:
         if threads.cv_threads is not None:
             cv2.setNumThreads(int(threads.cv_threads))
         s = self._scale = p.effective_scale(self.calibration.width)
-        self._min_s, self._num_s = p.matcher_range(self.calibration, s)
+        fitted = p.range_from_scene and p.z_min_mm is not None
+        self._min_s, self._num_s = p.matcher_range(self.calibration, s,
+                                                   self._scene_top_px if fitted else None)
         self._range_full = (self._min_s / s, (self._min_s + self._num_s - 1) / s)
         def sgbm(lo=self._min_s, num=self._num_s, block=p.block_size, q=p):
             area = (block / q.block_size) ** 2  # the penalties grow with the window's area
@@ -856,6 +878,29 @@ class StereoPipeline:
         if pending is not None and pending != self._preset:
             self._preset, self._params = pending, pending.matcher
             self._build()
+
+    def _fit_range(self, ml: np.ndarray, mr: np.ndarray) -> None:
+        """Search up to the nearest surface in view (`core.scene_range`), matched images `ml`,
+        `mr`: a nearer surface widens the range at once, a range wider than needed narrows after
+        SCENE_SHRINK_FRAMES frames in a row have asked for it (the first frame sets it)."""
+        from stereo_gui.core.scene_range import look_at_scene
+
+        p, s = self._params, self._scale
+        d_min, d_max = p.disparity_limits(self.calibration)
+        look = look_at_scene(ml, mr, d_min * s, d_max * s)
+        top = look.top_px(d_max * s, d_min * s + SCENE_MIN_RANGE_PX) / s
+        lo, num = p.matcher_range(self.calibration, s, top)
+        if (lo, num) == (self._min_s, self._num_s):
+            self._shrink_votes = 0
+            return
+        first = self._scene_top_px is None
+        if num < self._num_s and not first:
+            self._shrink_votes += 1
+            if self._shrink_votes < SCENE_SHRINK_FRAMES:
+                return
+        self._shrink_votes = 0
+        self._scene_top_px = top
+        self._build()
 
     # ---- processing ----------------------------------------------------------------------
     def rectify(self, left_bgr: np.ndarray, right_bgr: np.ndarray, right_colour: bool = True
@@ -1037,6 +1082,10 @@ class StereoPipeline:
             ml = undo_shading(ml, *self._shading_gains[0])
             mr = undo_shading(mr, *self._shading_gains[1])
             lap("shading")
+        if p.range_from_scene and p.z_min_mm is not None:
+            self._fit_range(ml, mr)
+            p = self._params
+            lap("look")
         mw = ml.shape[1]
         if not p.full_frame and mw - (self._min_s + self._num_s) <= p.block_size // 2:
             raise InputError(
