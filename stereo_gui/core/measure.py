@@ -104,6 +104,17 @@ REFINE_RESTART_PX = 0.5
 # minimum slowly (each step a fifth of the way), and one stopped at 20 steps was taken for
 # unsettled while the wrong smaller window stood
 REFINE_ITERATIONS = 60
+# a real rig's rectification leaves its rows this far apart at most (Middlebury 2014's scenes:
+# 0.2 px on average, 0.4 px at most); the alignment finds the offset of each window's rows
+MAX_ROW_SHIFT_PX = 1.0
+ROW_MARGIN_PX = 4  # rows of the right image beyond the window, for that offset and the kernel
+# a grown window is aligned along the slope of the plane the map shows in it (a slanted or
+# curved surface) where that plane departs from its centre's disparity by SLOPE_MIN_PX or more at
+# the window's edge (less: a wall facing the rig, whose map's slopes are its noise), by at most
+# SLANT_REACH_PX
+SLOPE_MIN_PX = 1.0
+SLANT_REACH_PX = 8
+SLOPE_FIT_SHARE = 0.5  # ... and the plane leaves its values at most half as scattered
 MIN_VALID_FRACTION = 0.1  # share of the patch whose match must pass the checks
 # a patch spread above this straddles surfaces (the rig's walls: at most 0.4 px; on a weak MJPG
 # wall the map scatters more, which `one_surface` allows for)
@@ -206,21 +217,27 @@ class Refinement:
 
 def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, d0: float,
                      half: int, max_shift_px: float | None = None,
-                     iterations: int | None = None) -> Refinement:
+                     iterations: int | None = None,
+                     slope: tuple[float, float] = (0.0, 0.0)) -> Refinement:
     """1-D Lucas-Kanade alignment of the left window centred on (x, y) with the right image.
 
-    Model: L(u, v) = a * R(u - d, v) + b over the window (a, b absorb gain and offset differences
-    between the cameras), solved by Gauss-Newton for d starting at d0, with bicubic resampling of
-    the right image. Returns the disparity and its standard error from the fit's residuals.
-    `max_shift_px` (default: half the window) bounds how far it may move from d0.
+    Model: L(u, v) = a * R(u - d, v + e) + b over the window (a, b absorb gain and offset
+    differences between the cameras; e, a vertical offset of at most MAX_ROW_SHIFT_PX, what a
+    real rig's rectification leaves between its rows), solved by Gauss-Newton for d starting at
+    d0, with bicubic resampling of the right image. With a `slope` (gx, gy) the window is aligned
+    along a plane of disparity, d + gx (u - x) + gy (v - y), and d is its value at the centre.
+    Returns the disparity and its standard error from the fit's residuals. `max_shift_px`
+    (default: half the window) bounds how far it may move from d0.
     """
     h, w = left_gray.shape[:2]
     if iterations is None:
         iterations = REFINE_ITERATIONS
     if max_shift_px is None:
         max_shift_px = float(half)
+    slanted = slope != (0.0, 0.0)
     # right-image strip that can hold every shifted window, with a margin for the cubic kernel
-    margin = int(math.ceil(max_shift_px)) + 3
+    margin = int(math.ceil(max_shift_px)) + 3 + int(
+        math.ceil((abs(slope[0]) + abs(slope[1])) * half))
     y0, y1 = max(0, y - half), min(h, y + half + 1)
     # near the edges of the right image the window keeps only the columns whose match (with the
     # margin) stays inside it, so that a point the right camera sees close to its edge is still
@@ -238,43 +255,59 @@ def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: i
     rx1 = int(math.ceil(x1 - d0 + margin))
     if rx0 < 0 or rx1 > w:
         return Refinement(d0, float("inf"), False)
-    R = right_gray[y0:y1, rx0:rx1].astype(np.float32)
+    ry0, ry1 = max(0, y0 - ROW_MARGIN_PX), min(h, y1 + ROW_MARGIN_PX)
+    R = right_gray[ry0:ry1, rx0:rx1].astype(np.float32)
     us = np.arange(x0, x1, dtype=np.float32)
-    vs = np.arange(0, y1 - y0, dtype=np.float32)
+    vs = np.arange(y0 - 1, y1 + 1, dtype=np.float32) - ry0  # a row beyond each side: d/dv
     d = float(d0)
+    e = 0.0
     stderr = float("inf")
     converged = False
     ones = np.ones(L.size, np.float64)
     Lf = L.reshape(-1).astype(np.float64)
+    gx, gy = slope
+    u_ext = np.arange(x0 - 1, x1 + 1, dtype=np.float32)
+    v_ext = np.arange(y0 - 1, y1 + 1, dtype=np.float32)
+    du, dv = u_ext[None, :] - np.float32(x), v_ext[:, None] - np.float32(y)
     for _ in range(iterations):
-        cols = us - d - rx0
-        map_x = np.empty((L.shape[0], L.shape[1] + 2), np.float32)
-        map_x[:, 1:-1] = cols[None, :]
-        map_x[:, 0] = cols[0] - 1
-        map_x[:, -1] = cols[-1] + 1
-        map_y = np.repeat(vs[:, None], map_x.shape[1], axis=1).astype(np.float32)
+        if slanted:
+            disparity = (np.float32(d) + np.float32(gx) * du + np.float32(gy) * dv)
+            map_x = (u_ext[None, :] - disparity - np.float32(rx0)).astype(np.float32)
+        else:
+            cols = us - d - rx0
+            map_x = np.empty((L.shape[0] + 2, L.shape[1] + 2), np.float32)
+            map_x[:, 1:-1] = cols[None, :]
+            map_x[:, 0] = cols[0] - 1
+            map_x[:, -1] = cols[-1] + 1
+        map_y = np.repeat((vs + np.float32(e))[:, None], map_x.shape[1], axis=1)
         Rw = cv2.remap(R, map_x, map_y, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)
-        G = (Rw[:, 2:] - Rw[:, :-2]) * 0.5  # d/du of R(u - d)
-        Rc = Rw[:, 1:-1]
-        A = np.column_stack([Rc.reshape(-1), ones, G.reshape(-1)]).astype(np.float64)
+        G = (Rw[1:-1, 2:] - Rw[1:-1, :-2]) * 0.5  # d/du of R(u - d)
+        Rc = Rw[1:-1, 1:-1]
+        columns = [Rc.reshape(-1), ones,
+                   ((Rw[2:, 1:-1] - Rw[:-2, 1:-1]) * 0.5).reshape(-1)]  # d/dv of R(v + e)
+        columns.append(G.reshape(-1))
+        A = np.column_stack(columns).astype(np.float64)
         sol, *_ = np.linalg.lstsq(A, Lf, rcond=None)
-        a, _b, c = sol
+        a, c = sol[0], sol[-1]
         if abs(a) < 1e-6:
             return Refinement(d0, float("inf"), False)
         # L = a R(u - d) + b + c G  with  R(u - d - delta) ~ R(u - d) - delta G  ->  delta = -c / a
         delta = -c / a
         d += delta
+        # L = a (R(v + e) + eps Gv) + ...  ->  eps = (coefficient of Gv) / a
+        step_e = float(np.clip(e + sol[2] / a, -MAX_ROW_SHIFT_PX, MAX_ROW_SHIFT_PX)) - e
+        e += step_e
         if abs(d - d0) > max_shift_px:
             return Refinement(d0, float("inf"), False, ran_off=True)
         resid = Lf - A @ sol
-        dof = max(1, L.size - 3)
+        dof = max(1, L.size - A.shape[1])
         s2 = float(resid @ resid) / dof
         try:
             cov = s2 * np.linalg.inv(A.T @ A)
-            stderr = float(math.sqrt(max(cov[2, 2], 0.0)) / abs(a))
+            stderr = float(math.sqrt(max(cov[-1, -1], 0.0)) / abs(a))
         except np.linalg.LinAlgError:
             return Refinement(d0, float("inf"), False)
-        if abs(delta) < 1e-3:
+        if abs(delta) < 1e-3 and abs(step_e) < 1e-3:
             converged = True
             break
     rc = Rc.reshape(-1).astype(np.float64)
@@ -343,15 +376,18 @@ def refine_point(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, 
         h = max(half, grown)
         if not one_surface(surface, x, y, h):
             break
+        # (on a slanted or curved surface one disparity for a window this large is wrong: the
+        # window is aligned along the plane the map shows there)
+        tilt = map_slope(surface, x, y, h)
         wider = refine_disparity(left_gray, right_gray, x, y, d0, h,
-                                 max_shift_px=REFINE_MAX_SHIFT_PX)
+                                 max_shift_px=REFINE_MAX_SHIFT_PX, slope=tilt)
         if (not wider.converged and best is not None
                 and abs(best.disparity_px - d0) > REFINE_RESTART_PX):
             # the matcher's estimate was off (a blob of wrong matches on a weak MJPG wall: 3 px
             # at 2 m) and the smaller window has moved away from it: the wider one starts where
             # that one settled
             restarted = refine_disparity(left_gray, right_gray, x, y, best.disparity_px, h,
-                                         max_shift_px=REFINE_MAX_SHIFT_PX)
+                                         max_shift_px=REFINE_MAX_SHIFT_PX, slope=tilt)
             if restarted.converged:
                 wider = replace(restarted, moved_px=abs(restarted.disparity_px - d0))
         if not (wider.converged and math.isfinite(wider.stderr_px)):
@@ -365,7 +401,7 @@ def refine_point(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, 
                 # reading is refused. Nowhere: the wider window reached onto another surface or
                 # into nothing, and the smaller one stands.
                 again = refine_disparity(left_gray, right_gray, x, y, d0, h,
-                                         max_shift_px=2 * REFINE_MAX_SHIFT_PX)
+                                         max_shift_px=2 * REFINE_MAX_SHIFT_PX, slope=tilt)
                 if again.converged and math.isfinite(again.stderr_px):
                     return Refinement(d0, float("inf"), False, ran_off=True)
             break
@@ -382,6 +418,39 @@ def refine_point(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, 
         # no window converged near the estimate, and one was pulled away from it
         return Refinement(d0, float("inf"), False, ran_off=True)
     return best
+
+
+def map_slope(disparity_px: np.ndarray, x: int, y: int, half: int) -> tuple[float, float]:
+    """The slopes (px of disparity per px, along x and y) of the plane the map's valid values
+    in the window of `half` around (x, y) lie on (least squares, twice with the values off it by
+    more than 3 robust sigma left out); (0, 0) with too few values, slopes under SLOPE_MIN_PX
+    across the window (a wall facing the rig: no slope to model), or a plane that leaves the
+    values not clearly less scattered than their median does."""
+    y0, x0 = max(0, y - half), max(0, x - half)
+    win = disparity_px[y0:y + half + 1, x0:x + half + 1]
+    ok = np.isfinite(win)
+    if int(ok.sum()) < max(9, win.size // 4):
+        return 0.0, 0.0
+    vy, vx = np.nonzero(ok)
+    A = np.column_stack([np.ones(vx.size), vx + x0 - x, vy + y0 - y]).astype(np.float64)
+    b = win[ok].astype(np.float64)
+    keep = np.ones(b.size, bool)
+    for _ in range(2):
+        sol, *_ = np.linalg.lstsq(A[keep], b[keep], rcond=None)
+        resid = b - A @ sol
+        keep = np.abs(resid) <= 3.0 * max(robust_spread(resid[keep]), QUANTUM_PX)
+    gx, gy = float(sol[1]), float(sol[2])
+    if (abs(gx) + abs(gy)) * half < SLOPE_MIN_PX:
+        return 0.0, 0.0
+    # a slope the map's values show only in their noise (blobs of wrong matches on an MJPG
+    # wall tilt a plane as much as a turned surface does) leaves them about as scattered about
+    # the plane as about their median
+    if robust_spread(resid[keep]) > SLOPE_FIT_SHARE * robust_spread(b - np.median(b)):
+        return 0.0, 0.0
+    reach = (abs(gx) + abs(gy)) * half
+    if reach > SLANT_REACH_PX:
+        gx, gy = gx * SLANT_REACH_PX / reach, gy * SLANT_REACH_PX / reach
+    return gx, gy
 
 
 def one_surface(disparity_px: np.ndarray, x: int, y: int, half: int) -> bool:
@@ -441,23 +510,30 @@ def rematch_strip(result: PipelineResult, y: int, half: int) -> np.ndarray | Non
     return band[r0:r1]
 
 
-def hidden_by_nearer(view_px: np.ndarray, x: int, y0: int, y1: int, d: float, tol: float) -> bool:
+def hidden_by_nearer(view_px: np.ndarray, x: int, y0: int, y1: int, d: float, tol: float
+                     ) -> tuple[bool, float | None]:
     """Whether a reading of disparity `d` at column x (rows y0..y1 of its patch) is of a point the
     right camera cannot see: in most of the rows, a surface to its right nearer by more than
     `tol` px matches at the right image's column x - d or left of it (so the right camera sees
-    that surface there, not the point), the nearest such surface taken to go on under the empty
-    pixels left of it (down to the last valued pixel after x), as the not-seen strip takes it.
+    that surface there, not the point). Second: where it is not, the disparity of the nearer
+    surface that would hide the point in most of the rows if it went on under the empty run
+    just left of it (None where none would).
 
-    A wrong far match at the left edge of the image, where the right camera sees nothing of the
-    near surface, passes every check of its own, and even narrows the not-seen strip the views
-    paint; this is what gives it away."""
+    An empty run just left of a nearer surface is either the shadow that surface casts on the
+    one behind (pixels of that surface the right camera cannot see: the point left of the shadow
+    is seen) or that surface itself, unmatched. Where the run reaches into the nearer surface's
+    own strip at the image's left edge (its match would fall left of the right image) it is
+    taken as that surface, as the not-seen strip takes it: a wrong far match there, where the
+    right camera sees nothing of the near surface, passes every check of its own, and even
+    narrows the not-seen strip the views paint. Elsewhere the images decide (`measure_point`)."""
     h, w = view_px.shape
     if not 0 <= x < w - 1:
-        return False
+        return False, None
     u = x - d
     cols = np.arange(x + 1, w, dtype=np.float64)
     rows = view_px[max(0, y0):min(h, y1), x + 1:]
     hidden = 0
+    under = []
     for row in rows:
         valued = np.isfinite(row)
         with np.errstate(invalid="ignore"):
@@ -467,10 +543,16 @@ def hidden_by_nearer(view_px: np.ndarray, x: int, y0: int, y1: int, d: float, to
         j = int(np.argmax(nearer))
         before = np.flatnonzero(valued[:j])
         start = int(before[-1]) + 1 if before.size else 0  # the empty run before j begins here
-        leftmost = min(float(np.min(cols[nearer] - row[nearer])), x + 1 + start - float(row[j]))
-        if leftmost <= u + 0.5:
+        if x + 1 + start - float(row[j]) < 0:
+            hidden += 1  # the run is the near surface's own unseen strip
+        elif float(np.min(cols[nearer] - row[nearer])) <= u + 0.5:
             hidden += 1
-    return 2 * hidden > max(1, len(rows))
+        elif x + 1 + start - float(row[j]) <= u + 0.5:
+            under.append(float(row[j]))
+    n = max(1, len(rows))
+    if 2 * hidden > n:
+        return True, None
+    return False, (float(np.median(under)) if 2 * (hidden + len(under)) > n else None)
 
 
 def best_match_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int,
@@ -494,6 +576,18 @@ def best_match_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, 
     by_d = scores[::-1]  # index = disparity
     k = int(np.nanargmax(by_d))
     return float(k), float(by_d[k]), by_d
+
+
+def _shows_nearer(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, d: float,
+                  nearer: float) -> bool:
+    """Whether the REFINE_HALF_PX window at (x, y) matches the `nearer` surface's disparity at
+    least about as well (within UNDER_MARGIN of correlation) as the reading's `d`: then the
+    empty run between the point and that surface is that surface, unmatched, which hides the
+    point; a point of the surface behind, seen left of the nearer one's shadow, matches its own
+    disparity clearly better."""
+    at_d, _ = window_correlation(left_gray, right_gray, x, y, d, REFINE_HALF_PX)
+    at_nearer, n = window_correlation(left_gray, right_gray, x, y, nearer, REFINE_HALF_PX)
+    return n > 0 and at_nearer >= at_d - UNDER_MARGIN
 
 
 def _centre_agrees(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int,
@@ -609,6 +703,7 @@ SURROUND_FILL_PX = 2.0  # the filled view nearer than the surface by more than t
 # than SURROUND_CENTRE_DROP below the window that aligned it (an object the matcher missed in
 # front of the surface correlates about 0 there; measured: see the guide)
 SURROUND_CENTRE_MIN = 0.25
+UNDER_MARGIN = 0.1
 SURROUND_CENTRE_DROP = 0.35
 
 
@@ -859,9 +954,12 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
                 return invalid(empty, valid_fraction=valid_fraction)
             values = np.array([surround], np.float32)
         d = float(np.median(values))
-        if result is not None and result.params.full_frame and hidden_by_nearer(
-                result.final_px, xi, y0, y1, d, max(1.0, 2.0 / result.match_scale)):
-            return invalid(Reason.NOT_SEEN, valid_fraction=valid_fraction)
+        if result is not None and result.params.full_frame:
+            hidden, under = hidden_by_nearer(result.final_px, xi, y0, y1, d,
+                                             max(1.0, 2.0 / result.match_scale))
+            if hidden or (under is not None and _shows_nearer(
+                    *result.matched_gray(), xi, yi, d, under)):
+                return invalid(Reason.NOT_SEEN, valid_fraction=valid_fraction)
     else:
         view = result.final_px if result is not None else disp
         region = surface_region(view, xi, yi, window=max(4 * patch, 16))
@@ -892,6 +990,7 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
             # the images pull the match away from the matcher's estimate, and nowhere near it
             # do they settle: the estimate is contradicted, no reading
             return invalid(Reason.AMBIGUOUS, disparity_px=d, **common)
+
         if ref is not None:
             corr, pixels = ref.correlation, ref.pixels
         else:

@@ -13,6 +13,7 @@ from stereo_gui.core.measure import (
     Z95,
     Reason,
     histogram_mode,
+    map_slope,
     measure_point,
     one_surface,
     refine_disparity,
@@ -227,6 +228,59 @@ def test_refine_disparity_finds_a_subpixel_shift():
     left, right = _shifted_pair(20.37)
     r = refine_disparity(left, right, 150, 30, 20.0, 5)
     assert r.converged and r.disparity_px == pytest.approx(20.37, abs=0.03)
+
+
+def _warped_pair(d_centre: float, slope: float = 0.0, rows: float = 0.0, x_c: float = 150.0,
+                 slantwise: bool = True):
+    """A textured 300x120 pair whose disparity is d_centre + slope * (x - x_c) (a plane turned
+    about the vertical axis), the right image's rows `rows` px lower than the left's (what a
+    real rig's rectification leaves); `slantwise`: with stripes across the rows."""
+    rng = np.random.default_rng(9)
+    big = cv2.GaussianBlur(rng.random((160, 500)).astype(np.float32) * 255, (0, 0), 2.0)
+    yy, xx = np.mgrid[0:160, 0:500].astype(np.float32)
+    if slantwise:
+        big += 40.0 * np.sin(2 * np.pi * (xx + yy) / 11.0)
+    left = big[20:140, 100:400]
+    # the right image at column u shows the left's x with u = x - d(x)
+    u = np.arange(300, dtype=np.float32)
+    x = (u + d_centre - slope * x_c) / (1.0 - slope)
+    mx = np.tile(x + 100, (120, 1)).astype(np.float32)
+    my = np.repeat(np.arange(120, dtype=np.float32)[:, None] + 20 - rows, 300, axis=1)
+    return left, cv2.remap(big, mx, my, cv2.INTER_CUBIC)
+
+
+def test_the_alignment_takes_a_rectification_rows_apart_in_its_stride():
+    """Middlebury 2014's own rectification leaves the rows 0.2-0.4 px apart; on texture that runs
+    slantwise a row offset moves a horizontal-only alignment off the disparity."""
+    left, right = _warped_pair(20.3, rows=0.4)
+    for x in (60, 150, 240):
+        r = refine_disparity(left, right, x, 60, 20.0, 6)
+        assert r.converged and r.disparity_px == pytest.approx(20.3, abs=0.03)
+
+
+def test_a_grown_window_is_aligned_along_the_slope_the_map_shows():
+    """On a slanted surface a 97 px window sees disparities 0.1 * 48 px either side of its
+    centre's: aligned as one disparity it lands off the centre's value; along the map's
+    slope it reads the centre."""
+    slope = 0.1
+    left, right = _warped_pair(30.0, slope=slope, slantwise=False)
+    plane = (30.0 + slope * (np.arange(300, dtype=np.float32) - 150.0))[None, :].repeat(120, 0)
+    tilt = map_slope(plane, 150, 60, 48)
+    assert tilt == pytest.approx((slope, 0.0), abs=1e-3)
+    along = refine_disparity(left, right, 150, 60, 30.0, 48, slope=tilt)
+    assert along.converged and along.disparity_px == pytest.approx(30.0, abs=0.03)
+    flat = refine_disparity(left, right, 150, 60, 30.0, 48)
+    assert abs(flat.disparity_px - 30.0) > abs(along.disparity_px - 30.0)
+
+
+def test_the_map_shows_no_slope_where_a_wall_faces_the_rig_or_values_are_few():
+    rng = np.random.default_rng(2)
+    wall = 25.0 + rng.normal(0.0, 0.3, (120, 300)).astype(np.float32)
+    wall[::7, ::5] = 60.0  # wrong matches do not tilt it
+    assert map_slope(wall, 150, 60, 48) == (0.0, 0.0)
+    sparse = np.full((120, 300), np.nan, np.float32)
+    sparse[60, 150:160] = 30.0
+    assert map_slope(sparse, 150, 60, 48) == (0.0, 0.0)
 
 
 def test_bad_arguments():
@@ -472,12 +526,48 @@ def test_a_far_match_left_of_a_nearer_surface_is_not_seen():
     m = np.full((9, 200), np.nan, np.float32)
     m[:, 40:] = 27.0
     m[:, 4:13] = 4.0
-    assert hidden_by_nearer(m, 8, 0, 9, 4.0, 1.0)
-    assert not hidden_by_nearer(m, 60, 0, 9, 27.0, 1.0)
+    assert hidden_by_nearer(m, 8, 0, 9, 4.0, 1.0) == (True, None)
+    assert hidden_by_nearer(m, 60, 0, 9, 27.0, 1.0) == (False, None)
     scene = np.full((9, 200), 10.0, np.float32)
     scene[:, 100:] = 80.0  # a near object right of a far background, both matched
-    assert not hidden_by_nearer(scene, 20, 0, 9, 10.0, 1.0)
-    assert hidden_by_nearer(scene, 95, 0, 9, 10.0, 1.0)  # the object covers its match (u = 85)
+    assert hidden_by_nearer(scene, 20, 0, 9, 10.0, 1.0) == (False, None)
+    assert hidden_by_nearer(scene, 95, 0, 9, 10.0, 1.0)[0]  # the object covers its match (u = 85)
+
+
+def test_the_shadow_a_nearer_surface_casts_hides_only_what_it_covers():
+    """Lampshade1 (Middlebury 2006): a wall at 15 px, matched for 6 px right of the click, then
+    the empty strip the lamp (28 px, from 23 px right of the click) hides from the right camera.
+    The strip is the wall's, not the lamp's: the right camera sees the click's point (its match
+    at x - 15 lies left of the lamp's leftmost match), and it was refused as not seen. The map
+    cannot tell the shadow from the lamp unmatched: the lamp's disparity goes to the images."""
+    from stereo_gui.core.measure import hidden_by_nearer
+
+    m = np.full((9, 300), np.nan, np.float32)
+    m[:, :144] = 15.0
+    m[:, 160:] = 28.0
+    assert hidden_by_nearer(m, 137, 0, 9, 15.0, 1.0) == (False, 28.0)
+    # a reading of the wall inside the shadow is hidden: its match, 150 - 15, the lamp covers
+    # from 160 - 28 on
+    assert hidden_by_nearer(m, 150, 0, 9, 15.0, 1.0) == (True, None)
+
+
+def test_the_images_say_whether_an_empty_run_is_a_shadow_or_the_nearer_surface():
+    """A click reading a far wall (15 px) left of an empty run and a nearer block (40 px): where
+    its window shows the wall, the point is seen; where it shows the block (the block goes on
+    under the run, unmatched, and the far reading is wrong), it is not."""
+    from stereo_gui.core.measure import _shows_nearer
+
+    rng = np.random.default_rng(4)
+    wall = cv2.GaussianBlur(rng.random((80, 400)).astype(np.float32) * 255, (0, 0), 1.5)
+    block = cv2.GaussianBlur(rng.random((80, 400)).astype(np.float32) * 255, (0, 0), 1.5)
+    xs = np.arange(300, dtype=np.float32)
+    ys = np.repeat(np.arange(80, dtype=np.float32)[:, None], 300, axis=1)
+    left = np.where(xs[None, :] < 150, wall[:, 50:350], block[:, 50:350])
+    right_wall = cv2.remap(wall, np.tile(xs + 50 + 15, (80, 1)), ys, cv2.INTER_CUBIC)
+    right_block = cv2.remap(block, np.tile(xs + 50 + 40, (80, 1)), ys, cv2.INTER_CUBIC)
+    right = np.where(xs[None, :] < 150 - 40, right_wall, right_block)
+    assert not _shows_nearer(left, right, 80, 40, 15.0, 40.0)  # the wall, seen
+    assert _shows_nearer(left, right, 200, 40, 15.0, 40.0)  # the block read as far: not seen
 
 
 def test_a_wrong_far_reading_at_the_left_edge_is_refused():
