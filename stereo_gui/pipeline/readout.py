@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stereo_gui.core.matching import PipelineResult
-from stereo_gui.core.measure import Measurement, measure_point
+from stereo_gui.core.measure import Measurement, measure_point, reading_map
 
 # views sharing the left image's pixel frame: a reading there is a reading of the left image
 MEASURABLE_VIEWS = ("left", "raw", "closed", "depth", "wls")
@@ -62,6 +62,8 @@ class PointerReading:
     `measurement` is what a double-click at that pixel of the same frame gives (None when the
     pointer is outside the image or over the right image); `true_z_mm` is the rendered scene's
     depth there on the simulated rig (None elsewhere); `note` says why there is no measurement.
+    `map_px` is the depth map's own disparity at that pixel (NaN where it has none): the line
+    says it where the reading differs from it by more than the reading's bound.
     """
 
     key: str
@@ -70,6 +72,7 @@ class PointerReading:
     measurement: Measurement | None = None
     true_z_mm: float | None = None
     note: str = ""
+    map_px: float = float("nan")
 
 
 def read_pointer(result: PipelineResult | None, key: str, x: float, y: float,
@@ -87,7 +90,8 @@ def read_pointer(result: PipelineResult | None, key: str, x: float, y: float,
                                               "view")
     m = measure_point(result, x, y, patch=patch, fit=fit)
     t = true_point(truth, result.calibration, x, y)
-    return PointerReading(key, x, y, m, None if t is None else float(t[2]))
+    shown = float(reading_map(result)[round(y), round(x)])
+    return PointerReading(key, x, y, m, None if t is None else float(t[2]), map_px=shown)
 
 
 def readout_line(r: PointerReading) -> str:
@@ -102,4 +106,20 @@ def readout_line(r: PointerReading) -> str:
         return where + f"no distance: {m.reason or 'invalid'}{truth}"
     how = "" if m.method == "triangulation" else f" ({m.method} fit)"
     return (where + f"Z {format_distance(m.Z_mm)} {format_error(m.expected_error_mm)}{how}   "
-                    f"disparity {m.disparity_px:.2f} px   as a double-click reads it{truth}")
+                    f"disparity {m.disparity_px:.2f} px   as a double-click reads it"
+                    f"{_beside_map(r)}{truth}")
+
+
+def _beside_map(r: PointerReading) -> str:
+    """Why the reading and the depth map's value at its pixel differ, where they do by more than
+    the reading's 95 % bound: one number for one pixel, or the reason there are two."""
+    m = r.measurement
+    if m is None or not m.valid:
+        return ""
+    if not math.isfinite(r.map_px):
+        return "   (the map has no value at this pixel: read from its patch)"
+    bound = m.disparity_bound_px if math.isfinite(m.disparity_bound_px) else 0.0
+    if abs(m.disparity_px - r.map_px) <= max(bound, 1.0 / 16.0):
+        return ""
+    return (f"   (the map says {r.map_px:.2f} px at this pixel: the reading is of its "
+            f"{'patch, aligned with the right image' if m.refined else 'patch'})")

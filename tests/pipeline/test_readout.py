@@ -66,3 +66,19 @@ def test_true_distance_is_shown_and_labelled_when_the_frame_carries_truth():
     assert reading.true_z_mm == pytest.approx(3000.0)
     assert "TRUE (simulated scene): Z 3.000 m" in readout_line(reading)
     assert read_pointer(r, "wls", 100, 60, 9, truth=None).true_z_mm is None
+
+
+def test_the_line_says_why_the_reading_and_the_map_under_it_differ():
+    """A click reads its patch, aligned with the right image; the map under the pointer is one
+    pixel's value. Where they differ by more than the reading's bound the line says both."""
+    from dataclasses import replace
+
+    r = _plane_result()
+    reading = read_pointer(r, "depth", 100, 60, 9)
+    assert reading.measurement.valid and np.isfinite(reading.map_px)
+    assert "the map" not in readout_line(reading)  # a plane: one number for the pixel
+    m = reading.measurement
+    apart = replace(reading, map_px=m.disparity_px + 5 * m.disparity_bound_px + 0.1)
+    assert f"the map says {apart.map_px:.2f} px at this pixel" in readout_line(apart)
+    hole = replace(reading, map_px=float("nan"))
+    assert "the map has no value at this pixel" in readout_line(hole)
