@@ -54,10 +54,15 @@ def test_click_bench_reads_a_plain_scene_right_beside_plain_opencv(tmp_path, cap
             assert s["points"] == scene["points"]
             assert s["read"] > 0.9 and s["within_2pct"] > 0.9 and s["worst"] < 0.02
     assert doc["total"]["quality"]["covers"] > 0.9
+    # the sums over the scenes whose errors are of a real Z: those with a calibration of their own
+    own = doc["own_calibration"]
+    assert own["plain"]["points"] == doc["scenes"][0]["points"]
+    assert doc["total"]["plain"]["points"] == sum(s["points"] for s in doc["scenes"])
     assert main(["bench", "--clicks", str(tmp_path / "c.tsv"), "--preset", "quality"]) == 0
     text = capsys.readouterr().out
     assert "quality:" in text and "plain:" in text and "+- covers" in text
     assert "assumed calibration" in text and "b" in text.splitlines()[-1]
+    assert "the scenes with a calibration of their own:" in text
 
 
 def test_click_bench_refuses_what_it_cannot_do(tmp_path, capsys):
