@@ -181,7 +181,7 @@ def editor_changed(w: QWidget):
 
 # the parameters the panel edits, group by group (the rest keep the preset's values)
 SGBM_KEYS = ("block_size", "min_disparity", "num_disparities", "z_min_mm", "z_max_mm",
-             "uniqueness_ratio", "speckle_window_size", "speckle_range", "disp12_max_diff",
+             "range_from_scene", "uniqueness_ratio", "speckle_window_size", "speckle_range", "disp12_max_diff",
              "pre_filter_cap", "p1", "p2", "mode", "parallel")
 CLOSING_KEYS = ("closing_kernel",)
 # the colour ranges the panel offers (core.matching.COLOR_RANGES), as it names them
@@ -256,7 +256,8 @@ class ParamsPanel(QWidget):
         sgbm = QFormLayout()
         rows(sgbm, ("block_size", "min_disparity", "num_disparities"))
         sgbm.addRow(self.range_from_z)
-        rows(sgbm, ("z_min_mm", "z_max_mm", "uniqueness_ratio", "speckle_window_size",
+        rows(sgbm, ("z_min_mm", "z_max_mm", "range_from_scene", "uniqueness_ratio",
+                    "speckle_window_size",
                     "speckle_range", "disp12_max_diff", "pre_filter_cap"))
         sgbm.addRow(self.p_auto)
         rows(sgbm, ("p1", "p2", "mode"))
@@ -432,7 +433,7 @@ class ParamsPanel(QWidget):
         from_z = self.range_from_z.isChecked()
         for key in ("min_disparity", "num_disparities"):
             ed[key].setEnabled(not from_z)
-        for key in ("z_min_mm", "z_max_mm"):
+        for key in ("z_min_mm", "z_max_mm", "range_from_scene"):
             ed[key].setEnabled(from_z)
         for key in ("p1", "p2"):
             ed[key].setEnabled(not self.p_auto.isChecked())

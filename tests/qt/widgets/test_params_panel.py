@@ -99,3 +99,14 @@ def test_the_panel_offers_the_colour_ranges(panel):
     assert panel.color_range.currentData() == "minmax"
     panel.apply_preset("quality")
     assert panel.color_range.currentData() == "view"
+
+
+def test_searching_only_what_the_scene_needs_is_a_choice_of_the_working_distances(panel):
+    box = panel.editors["range_from_scene"]
+    assert box.isChecked() and panel.params().matcher.range_from_scene  # the live preset's
+    box.setChecked(False)
+    assert not panel.params().matcher.range_from_scene
+    panel.range_from_z.setChecked(False)  # min_disp/num_disp: the range is the person's own
+    assert not box.isEnabled()
+    panel.range_from_z.setChecked(True)
+    assert box.isEnabled()
