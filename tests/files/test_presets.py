@@ -134,6 +134,8 @@ def test_a_preset_saved_before_the_split_loads_and_saves_as_it_was(_isolated_con
     params = {}
     for key, value in OLD_USER_PRESET["params"].items():
         params[key] = value
+        if key == "range_end_px":
+            params["range_from_scene"] = False
         if key == "normalize_window":
             params["fill_scale"] = 0.0
             params["fill_modes"] = "3way"
