@@ -692,3 +692,44 @@ def test_on_the_webcams_wall_far_off_the_window_grows_until_it_is_sure():
         assert len(read) >= 0.9 * len(seen), (preset, len(read), len(seen))
         assert worst <= 2.0, (preset, worst)
         assert sum(g.covered for g in read) >= 0.95 * len(read), preset
+
+
+def _textured_pair(contrast: float, noise: float, shift: float = 24.0, seed: int = 3):
+    """A 400x240 plane `shift` px apart, its texture's spread `contrast` grey levels, each
+    camera's own noise `noise` grey levels (BGR uint8)."""
+    rng = np.random.default_rng(seed)
+    big = cv2.GaussianBlur(rng.random((240, 520)).astype(np.float32), (0, 0), 1.5)
+    big = 128 + contrast * (big - big.mean()) / big.std()
+    xs = np.arange(400, dtype=np.float32)
+    ys = np.repeat(np.arange(240, dtype=np.float32)[:, None], 400, axis=1)
+    out = []
+    for dx in (60.0, 60.0 + shift):
+        img = cv2.remap(big, np.tile(xs + dx, (240, 1)), ys, cv2.INTER_CUBIC)
+        img = img + rng.normal(0.0, noise, img.shape)
+        out.append(cv2.cvtColor(np.clip(img, 0, 255).astype(np.uint8), cv2.COLOR_GRAY2BGR))
+    return out
+
+
+@pytest.mark.parametrize("contrast, noise, read", [(40.0, 1.0, True), (8.0, 3.0, True),
+                                                    (5.0, 3.0, False), (3.0, 2.0, False)])
+def test_an_alignment_that_runs_off_leaves_the_map_only_on_rich_texture(monkeypatch, contrast,
+                                                                        noise, read):
+    """Where the alignment cannot settle near the map's estimate, a patch whose matches agree
+    and whose window matches there as only rich texture does (Middlebury's slanted and curved
+    surfaces) is read unrefined; on weak texture (the webcams' wall, whose map's blobs are
+    wrong) it stays refused."""
+    import stereo_gui.core.measure as measure
+
+    calib = StereoCalibration.identity((400, 240), 800.0, 100.0)
+    params = load_preset("quality").replace(z_min_mm=None, z_max_mm=None, min_disparity=0,
+                                            num_disparities=64)
+    with StereoPipeline(calib, params) as pipe:
+        result = pipe.process(*_textured_pair(contrast, noise))
+    monkeypatch.setattr(measure, "refine_point", lambda *a, **k: measure.Refinement(
+        a[4], float("inf"), False, ran_off=True))
+    m = measure_point(result, 200, 120)
+    assert m.valid == read
+    if read:
+        assert not m.refined and m.disparity_px == pytest.approx(24.0, abs=0.25)
+    else:
+        assert m.reason == Reason.AMBIGUOUS
