@@ -18,8 +18,8 @@ import cv2
 import numpy as np
 
 # the look's images: at most this wide, and shrunk so that the range is at most LOOK_MAX_NUM px
-LOOK_MAX_WIDTH = 320
-LOOK_MAX_NUM = 64
+LOOK_MAX_WIDTH = 200
+LOOK_MAX_NUM = 48
 LOOK_BLOCK = 5
 # a blob of matches smaller than this share of the look's pixels is not a surface (speckle)
 LOOK_MIN_BLOB_SHARE = 0.002
