@@ -316,6 +316,12 @@ def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: i
         if abs(delta) < 1e-3 and abs(step_e) < 1e-3:
             converged = True
             break
+    if e != 0.0:
+        # the texture's evidence is judged without the row offset's fit: a free offset lets
+        # noise correlate a little better, and weak texture at the threshold would pass on it
+        map_y = np.repeat(vs[:, None], map_x.shape[1], axis=1)
+        Rc = cv2.remap(R, map_x, map_y, cv2.INTER_CUBIC,
+                       borderMode=cv2.BORDER_REPLICATE)[1:-1, 1:-1]
     rc = Rc.reshape(-1).astype(np.float64)
     denom = float(np.std(rc) * np.std(Lf))
     corr = float(np.mean((rc - rc.mean()) * (Lf - Lf.mean())) / denom) if denom > 0 else 0.0
