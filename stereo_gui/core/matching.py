@@ -154,9 +154,10 @@ class MatcherParams:
     # a rig with a long focal length or a wide baseline has hundreds of pixels of disparity
     # before its nearest working distance, far more than its scenes hold
     range_from_scene: bool = param(
-        False, label="search only as far as the scene needs", help="with working distances (z_min_mm): search each frame only up to the "
-                    "nearest surface a quick match of shrunk images over the whole range finds, "
-                    "with a margin (core.scene_range); the whole range where it finds nothing")
+        False, label="search only as far as the scene needs",
+        help="with working distances (z_min_mm): search each frame only up to the "
+             "nearest surface a quick match of shrunk images over the whole range finds, "
+             "with a margin (core.scene_range); the whole range where it finds nothing")
     # the cameras' own gain, black level and darker corners, and the slow shading of a smooth
     # wall, should not decide a match
     normalize_window: int = param(
