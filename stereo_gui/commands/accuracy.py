@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from stereo_gui.core.click_score import plain_patch_disparity
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import MatcherParams, Preset, StereoPipeline
 from stereo_gui.core.measure import PATCH_PX, Measurement, measure_point
@@ -215,13 +216,10 @@ def _plain_reading(disparity_px: np.ndarray, x: float, y: float, calib: StereoCa
                    ) -> tuple[float, str | None]:
     """Plain OpenCV's reading: the median of the valid disparities of the 9x9 patch around the
     pixel, triangulated through Q."""
-    xi, yi = int(round(x)), int(round(y))
-    half = PATCH_PX // 2
-    d = disparity_px[max(0, yi - half):yi + half + 1, max(0, xi - half):xi + half + 1]
-    d = d[np.isfinite(d)]
-    if d.size == 0:
+    d = plain_patch_disparity(disparity_px, int(round(x)), int(round(y)), PATCH_PX, min_values=1)
+    if not math.isfinite(d):
         return float("nan"), "no valid pixels"
-    X, Y, Z, W = np.asarray(calib.Q, np.float64) @ np.array([x, y, float(np.median(d)), 1.0])
+    X, Y, Z, W = np.asarray(calib.Q, np.float64) @ np.array([x, y, d, 1.0])
     if not W > 0:
         return float("nan"), "too far"
     return float(Z / W), None

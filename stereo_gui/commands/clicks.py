@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 import time
 
+from stereo_gui.commands.scenes import _pct
 from stereo_gui.core.errors import InputError
 
 PLAIN = "plain"
@@ -166,7 +167,3 @@ def format_clicks(res: dict) -> str:
         lines.append(f"assumed calibration ({ASSUMED_CALIB}; the presets search the truth's "
                      f"disparities): {', '.join(assumed)}")
     return "\n".join(lines)
-
-
-def _pct(v) -> str:
-    return "-" if v is None or not math.isfinite(v) else f"{100 * v:.1f}"

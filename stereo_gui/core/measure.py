@@ -240,7 +240,6 @@ def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: i
         iterations = REFINE_ITERATIONS
     if max_shift_px is None:
         max_shift_px = float(half)
-    slanted = slope != (0.0, 0.0)
     # right-image strip that can hold every shifted window, with a margin for the cubic kernel
     margin = int(math.ceil(max_shift_px)) + 3 + int(
         math.ceil((abs(slope[0]) + abs(slope[1])) * half))
@@ -263,7 +262,6 @@ def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: i
         return Refinement(d0, float("inf"), False)
     ry0, ry1 = max(0, y0 - ROW_MARGIN_PX), min(h, y1 + ROW_MARGIN_PX)
     R = right_gray[ry0:ry1, rx0:rx1].astype(np.float32)
-    us = np.arange(x0, x1, dtype=np.float32)
     vs = np.arange(y0 - 1, y1 + 1, dtype=np.float32) - ry0  # a row beyond each side: d/dv
     d = float(d0)
     e = 0.0
@@ -276,15 +274,8 @@ def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: i
     v_ext = np.arange(y0 - 1, y1 + 1, dtype=np.float32)
     du, dv = u_ext[None, :] - np.float32(x), v_ext[:, None] - np.float32(y)
     for _ in range(iterations):
-        if slanted:
-            disparity = (np.float32(d) + np.float32(gx) * du + np.float32(gy) * dv)
-            map_x = (u_ext[None, :] - disparity - np.float32(rx0)).astype(np.float32)
-        else:
-            cols = us - d - rx0
-            map_x = np.empty((L.shape[0] + 2, L.shape[1] + 2), np.float32)
-            map_x[:, 1:-1] = cols[None, :]
-            map_x[:, 0] = cols[0] - 1
-            map_x[:, -1] = cols[-1] + 1
+        disparity = np.float32(d) + np.float32(gx) * du + np.float32(gy) * dv
+        map_x = (u_ext[None, :] - disparity - np.float32(rx0)).astype(np.float32)
         map_y = np.repeat((vs + np.float32(e))[:, None], map_x.shape[1], axis=1)
         Rw = cv2.remap(R, map_x, map_y, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)
         G = (Rw[1:-1, 2:] - Rw[1:-1, :-2]) * 0.5  # d/du of R(u - d)
@@ -929,8 +920,10 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
 
     if result is not None and result.not_seen is not None and result.not_seen[yi, xi]:
         return invalid(Reason.NOT_SEEN)  # as every view shows it
+    # (converted once: the checks below and the refinement all compare these)
+    gl, gr = result.matched_gray() if result is not None else (None, None)
     if (result is not None and not result.params.check_block_size
-            and not has_texture(result.matched_gray()[0], xi, yi, half)):
+            and not has_texture(gl, xi, yi, half)):
         return invalid(Reason.NO_TEXTURE)  # whatever matched there matched noise
 
     scaled = result is not None and result.match_scale < 1.0
@@ -970,7 +963,7 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
             hidden, under = hidden_by_nearer(result.final_px, xi, y0, y1, d,
                                              max(1.0, 2.0 / result.match_scale))
             if hidden or (under is not None and _shows_nearer(
-                    *result.matched_gray(), xi, yi, d, under)):
+                    gl, gr, xi, yi, d, under)):
                 return invalid(Reason.NOT_SEEN, valid_fraction=valid_fraction)
     else:
         view = result.final_px if result is not None else disp
@@ -988,8 +981,6 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
     common = dict(valid_fraction=valid_fraction, spread_px=spread, raw_disparity_px=raw_d)
 
     ref = None
-    if result is not None:
-        gl, gr = result.matched_gray()
     if refine and result is not None and mode == "point":
         ref = refine_point(gl, gr, xi, yi, d, half, surface=disp)
         if empty is not None and (ref is None or not ref.converged):

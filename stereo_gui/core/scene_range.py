@@ -17,6 +17,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from stereo_gui.core.matching import compute_padded
+
 # the look's images: at most this wide, and shrunk so that the range is at most LOOK_MAX_NUM px
 LOOK_MAX_WIDTH = 200
 LOOK_MAX_NUM = 48
@@ -73,10 +75,7 @@ def look_at_scene(left_gray: np.ndarray, right_gray: np.ndarray, lo_px: float, h
         P2=32 * LOOK_BLOCK ** 2, disp12MaxDiff=1, uniquenessRatio=10, speckleWindowSize=blob,
         speckleRange=2, mode=cv2.StereoSGBM_MODE_SGBM_3WAY)
     # padded at the left so that every column is searched over the whole range
-    pad = max(0, lo + num)
-    padded_l = cv2.copyMakeBorder(sl, 0, 0, pad, 0, cv2.BORDER_CONSTANT, value=0)
-    padded_r = cv2.copyMakeBorder(sr, 0, 0, pad, 0, cv2.BORDER_CONSTANT, value=0)
-    d16 = matcher.compute(padded_l, padded_r)[:, pad:]
+    d16 = compute_padded(matcher, sl, sr, max(0, lo + num), "left")
     # a blank surface matches anywhere (often at the range's far end): only where the left image
     # holds texture beyond sensor noise does a match say where a surface is
     mean = cv2.blur(sl.astype(np.float32), (LOOK_BLOCK, LOOK_BLOCK))
