@@ -589,8 +589,11 @@ def _shows_nearer(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int,
     point; a point of the surface behind, seen left of the nearer one's shadow, matches its own
     disparity clearly better."""
     at_d, _ = window_correlation(left_gray, right_gray, x, y, d, REFINE_HALF_PX)
-    at_nearer, n = window_correlation(left_gray, right_gray, x, y, nearer, REFINE_HALF_PX)
-    return n > 0 and at_nearer >= at_d - UNDER_MARGIN
+    # (the nearer surface's disparity is the map's where it begins: at the click it may lie up
+    # to a pixel off, and on a weak wall the correlation's peak is narrower than that)
+    best = max(window_correlation(left_gray, right_gray, x, y, nearer + s, REFINE_HALF_PX)
+               for s in UNDER_SEARCH_PX)
+    return best[1] > 0 and best[0] >= at_d - UNDER_MARGIN
 
 
 def _centre_agrees(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int,
@@ -707,6 +710,7 @@ SURROUND_FILL_PX = 2.0  # the filled view nearer than the surface by more than t
 # front of the surface correlates about 0 there; measured: see the guide)
 SURROUND_CENTRE_MIN = 0.25
 UNDER_MARGIN = 0.1
+UNDER_SEARCH_PX = tuple(np.arange(-1.0, 1.01, 0.25))
 SURROUND_CENTRE_DROP = 0.35
 
 
