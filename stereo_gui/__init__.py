@@ -1,3 +1,17 @@
-"""Stereo GUI: calibrate a two-webcam stereo camera and read distances off a live depth view."""
+"""Stereo GUI: calibrate a two-webcam stereo camera and read distances off a live depth view.
+
+For programs: `stereo_gui.open_rig(...)` opens a source with a calibration and a preset and
+gives its processed frames (see `stereo_gui.pipeline.rig`)."""
 
 __version__ = "0.1.0"
+
+__all__ = ["Frame", "Reading", "RegionReading", "Rig", "__version__", "open_rig"]
+
+
+def __getattr__(name: str):
+    # the API is imported on first use: `import stereo_gui` stays cheap for the command line
+    if name in ("open_rig", "Rig", "Frame", "Reading", "RegionReading"):
+        from stereo_gui.pipeline import rig
+
+        return getattr(rig, name)
+    raise AttributeError(f"module 'stereo_gui' has no attribute {name!r}")

@@ -23,6 +23,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "bench": ("stereo_gui.commands.bench", "measure the speed of the live pipeline"),
     "simulate": ("stereo_gui.commands.simulate", "write images from the simulated stereo rig"),
     "target": ("stereo_gui.commands.target", "write a printable calibration target (PDF, SVG, PNG)"),
+    "serve": ("stereo_gui.commands.serve", "stream the live depth to robots' programs (Foxglove, MCAP)"),
 }
 
 
