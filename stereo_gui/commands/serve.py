@@ -79,7 +79,7 @@ def run(args) -> int:
             print(f"serving {rig.description}" + (f" on {address}" if address else "")
                   + (f", recording to {args.mcap}" if args.mcap else "")
                   + ("" if args.frames else " (Ctrl+C stops)"), flush=True)
-            frames, _fps, t_start = _serve(rig, stream, args.frames, stop)
+            frames, t_start = _serve(rig, stream, args.frames, stop)
             recorded = stream.close()
         took = time.monotonic() - t_start
         print(f"{frames} frames in {took:.1f} s ({frames / took if took > 0 else 0:.1f} fps), "
@@ -92,26 +92,20 @@ def run(args) -> int:
 
 
 def _serve(rig, stream, limit: int | None, stop: threading.Event):
-    """Publish frames until `limit` or `stop`; (frames, the last frame rate, start time)."""
+    """Publish frames until `limit` or `stop`; (frames, start time)."""
     t_start = time.monotonic()
     last_status = t_start
     frames = 0
-    fps = None
-    recent: list[float] = []
     for frame in rig.frames(limit):
-        now = time.monotonic()
-        recent = [t for t in recent if now - t <= 2.0] + [now]
-        if len(recent) > 1:
-            fps = (len(recent) - 1) / (recent[-1] - recent[0])
         out = frame.output
-        stream.publish(frame.result, frame.t_capture, region=out.region, health=out.health,
-                       fps=fps)
+        stream.publish(frame.result, frame.t_capture, region=out.region, health=out.health)
         frames += 1
+        now = time.monotonic()
         if now - last_status >= STATUS_EVERY_S:
             last_status = now
             st = stream.stats()
-            sys.stderr.write(f"stereo-gui: {frames} frames, {fps or 0:.1f} fps, "
+            sys.stderr.write(f"stereo-gui: {frames} frames, {st.fps or 0:.1f} fps, "
                              f"{st.clients} client(s)\n")
         if stop.is_set():
             break
-    return frames, fps, t_start
+    return frames, t_start

@@ -121,6 +121,10 @@ class Settings:
              "for none")
     region_alarm_m: float = param(0.0, lo=0.0, hi=1000.0, unit="m",
                                   help="the watched region's alarm distance (0: no alarm)")
+    stream_on: bool = param(False, help="the Live tab streams the depth to robots' programs "
+                                        "(Foxglove WebSocket, this machine only) while it runs")
+    stream_port: int = param(8765, lo=1, hi=65535,
+                             help="the port the window's depth stream listens on")
 
     @property
     def board(self) -> BoardSpec:

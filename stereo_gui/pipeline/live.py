@@ -86,6 +86,14 @@ def frame_lanes(params: Preset | MatcherParams, cpus: int | None = None) -> int:
     return lanes_for(Preset.of(params).threads.parallel, cpus)
 
 
+def _publish(stream, out: LiveOutput, frame: StereoFrame) -> None:
+    """Publish a processed frame; a failure is logged, never the frame's (the view goes on)."""
+    try:
+        stream.publish(out.result, frame.t_left, region=out.region, health=out.health)
+    except Exception as exc:  # noqa: BLE001 - the stream's trouble must not stop the view
+        log.warning("the depth stream could not publish frame %d: %s", frame.index, exc)
+
+
 class LiveProcessor:
     """The frame worker's processor for the Live tab (called in the worker's threads only).
 
@@ -113,6 +121,7 @@ class LiveProcessor:
         self._closed = False
         self._region: tuple[Region, float | None, object] | None = None
         self._views: frozenset[str] = frozenset(VIEW_KEYS)
+        self._stream = None  # a pipeline.stream.DepthStream every frame is published on
         # the colour scale of the newest frame processed: a "view" colour range follows the
         # scene from it (core.matching.color_scale), so its colours do not flicker
         self._color_scale: ColorScale | None = None
@@ -140,6 +149,12 @@ class LiveProcessor:
             self._lanes = frame_lanes(params)
             for pipeline in (*self._idle, *self._busy):
                 pipeline.set_params(lane)
+
+    def set_stream(self, stream) -> None:
+        """Publish every frame from the next on with `stream` (a pipeline.stream.DepthStream;
+        None: stop), in the lane that processed it (any thread)."""
+        with self._lock:
+            self._stream = stream
 
     def set_region(self, region: Region | None, alarm_mm: float | None = None,
                    fit=None) -> None:
@@ -196,10 +211,12 @@ class LiveProcessor:
         try:
             with self._lock:
                 note, watched, views = self._note, self._region, self._views
-                previous = self._color_scale
+                previous, stream = self._color_scale, self._stream
             out = self._process(pipeline, frame, note, watched, views, previous)
             with self._lock:
                 self._color_scale = out.result.color_scale
+            if stream is not None:
+                _publish(stream, out, frame)
             return out
         finally:
             self._give_back(pipeline, size)

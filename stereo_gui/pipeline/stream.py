@@ -62,6 +62,7 @@ JPEG_QUALITY = 85
 # messages the server holds for one client before it drops the oldest: about two frames' worth,
 # so that a stalled client costs two frames of memory, not the SDK's default 1024 messages
 CLIENT_BACKLOG = 16
+RATE_WINDOW_S = 2.0
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8765
 
@@ -156,9 +157,12 @@ def cloud_packed(result: PipelineResult, max_points: int = MAX_CLOUD_POINTS
 
 @dataclass(frozen=True)
 class StreamStats:
-    """What the stream has done: frames published, and clients subscribed now."""
+    """What the stream has done: frames published, its rate over the last RATE_WINDOW_S
+    (frames per second, None before two frames), clients subscribed now, the server's address
+    and the recording's path (None: none)."""
 
     frames: int
+    fps: float | None
     clients: int
     address: str | None
     recording: str | None
@@ -194,8 +198,8 @@ class _Clients:
 class DepthStream:
     """Publishes processed frames on the topics above, to a live server and/or an MCAP file.
 
-    Not thread-safe for publishing: one thread calls `publish` (the frame worker or the `serve`
-    loop); `publish_reading` may come from any thread. `close` stops the server and closes the
+    Any thread may publish (the frame worker's lanes, the `serve` loop, a reading from the UI
+    thread); frames are published one at a time. `close` stops the server and closes the
     recording (renamed into place only when written whole)."""
 
     def __init__(self) -> None:
@@ -221,6 +225,7 @@ class DepthStream:
         self._clients = _Clients()
         self._recording = None  # the MCAP file being written (files.mcap_file.McapRecording)
         self._frames = 0
+        self._published: list[float] = []  # monotonic times of the last RATE_WINDOW_S's frames
         self._infos: tuple[StereoCalibration, tuple] | None = None
         # capture times are monotonic seconds; the topics carry wall-clock nanoseconds
         self._epoch_offset_s = time.time() - time.monotonic()
@@ -260,19 +265,32 @@ class DepthStream:
 
     def stop_recording(self) -> Path | None:
         """Close the recording (atomic rename); its path, None when none was running."""
-        rec, self._recording = self._recording, None
+        with self._lock:  # (not while a frame is being written to it)
+            rec, self._recording = self._recording, None
         return rec.close() if rec is not None else None
 
     def stats(self) -> StreamStats:
         rec = self._recording
-        return StreamStats(self._frames, self._clients.count if self._server else 0,
+        with self._lock:
+            frames, fps = self._frames, self._rate()
+        return StreamStats(frames, fps, self._clients.count if self._server else 0,
                            self.address, str(rec.path) if rec is not None else None)
 
-    def close(self) -> Path | None:
-        """Stop the server and close the recording; the recording's path (None: none)."""
+    def _rate(self) -> float | None:
+        t = self._published
+        if len(t) < 2 or t[-1] <= t[0]:
+            return None
+        return (len(t) - 1) / (t[-1] - t[0])
+
+    def stop_server(self) -> None:
+        """Stop serving (a recording goes on)."""
         server, self._server = self._server, None
         if server is not None:
             server.stop()
+
+    def close(self) -> Path | None:
+        """Stop the server and close the recording; the recording's path (None: none)."""
+        self.stop_server()
         return self.stop_recording()
 
     def __enter__(self) -> Self:
@@ -291,15 +309,23 @@ class DepthStream:
         ns = round(wall * 1e9)
         return Timestamp(sec=ns // 1_000_000_000, nsec=ns % 1_000_000_000), ns
 
-    def publish(self, result: PipelineResult, t_capture_s: float, region=None, health=None,
-                fps: float | None = None) -> None:
+    def publish(self, result: PipelineResult, t_capture_s: float, region=None,
+                health=None) -> None:
         """Publish one processed frame (its capture time, monotonic or wall-clock seconds),
         with the region's statistics (pipeline.region.RegionStats) and the newest
         calibration-health figure where there are any."""
-        from foxglove import messages as m
-
         if result.calibration is None or not result.calibration.metric:
             raise InputError("the depth stream needs a calibration with a metric scale")
+        with self._lock:
+            now = time.monotonic()
+            self._published = [t for t in self._published if now - t <= RATE_WINDOW_S] + [now]
+            self._publish(result, t_capture_s, region, health, self._rate())
+            self._frames += 1
+
+    def _publish(self, result: PipelineResult, t_capture_s: float, region, health,
+                 fps: float | None) -> None:
+        from foxglove import messages as m
+
         stamp, ns = self._stamp(t_capture_s)
         calib = result.calibration
         c = self._ch
@@ -335,7 +361,6 @@ class DepthStream:
         if region is not None:
             c["region"].log(region_message(region), log_time=ns)
         c["health"].log(health_message(health, fps), log_time=ns)
-        self._frames += 1
 
     def _transforms(self, stamp, calib: StereoCalibration):
         from foxglove import messages as m
@@ -366,14 +391,18 @@ def region_message(stats) -> dict:
             "alarm": bool(stats.alarm), "alarm_m": _metres(stats.alarm_mm), "note": stats.note}
 
 
-def reading_message(measurement, kind: str = "click") -> dict:
-    """A core.measure.Measurement as the `/stereo/readings` message (metres)."""
-    ok = bool(measurement.valid)
-    return {"kind": kind, "x": float(measurement.x), "y": float(measurement.y), "valid": ok,
-            "z_m": _metres(measurement.Z_mm) if ok else None,
-            "range_m": _metres(measurement.range_mm) if ok else None,
-            "pm_m": _metres(measurement.expected_error_mm) if ok else None,
-            "reason": None if ok else str(measurement.reason)}
+def record_message(record) -> dict:
+    """A logged reading (files.measurement_record.MeasurementRecord: a click, or a ruler's A-B
+    distance, whose range is the length) as the `/stereo/readings` message (metres)."""
+    from stereo_gui.files.measurement_record import RULER_METHOD
+
+    ok = bool(record.valid)
+    return {"kind": "ruler" if record.method.startswith(RULER_METHOD) else "click",
+            "x": float(record.x_px), "y": float(record.y_px), "valid": ok,
+            "z_m": _metres(record.Z_mm) if ok else None,
+            "range_m": _metres(record.range_mm) if ok else None,
+            "pm_m": _metres(record.expected_error_mm) if ok else None,
+            "reason": None if ok else (record.reason or None)}
 
 
 def health_message(health, fps: float | None) -> dict:

@@ -68,7 +68,7 @@ SIM_BANNER = ("Running on the SIMULATED stereo rig: {why}. Distances are of the 
 def _close_source(source) -> None:
     try:
         source.close()
-    except Exception:  # noqa: BLE001 - a broken device must not stop the window
+    except Exception:
         log.warning("closing an unused source failed", exc_info=True)
 
 
@@ -262,11 +262,24 @@ class MainWindow(QMainWindow):
         self.act_import_ros = QAction("&Import ROS camera_info…", self)
         self.act_import_ros.setToolTip("Use a calibration from a ROS left.yaml + right.yaml pair")
         self.act_import_ros.triggered.connect(lambda: self.import_ros())
+        self.act_stream = QAction("S&tream the depth (Foxglove)", self)
+        self.act_stream.setCheckable(True)
+        self.act_stream.setToolTip("Serve the live depth to robots' programs and Foxglove on "
+                                   "this machine, as the Live tab's Stream button")
+        self.act_stream.toggled.connect(self.live_tab.stream.set_on)
+        self.live_tab.stream.changed.connect(self.act_stream.setChecked)
+        self.act_stream.setChecked(self.live_tab.stream.button.isChecked())
+        self.act_mcap = QAction("Record &MCAP…", self)
+        self.act_mcap.setToolTip("Record the depth stream's topics to an MCAP file (Foxglove, "
+                                 "ROS 2 tools)")
+        self.act_mcap.triggered.connect(lambda: self.toggle_mcap())
+        self.live_tab.stream.recordingChanged.connect(self._mcap_changed)
         quit_act = QAction("&Quit", self)
         quit_act.setShortcut(QKeySequence.StandardKey.Quit)
         quit_act.triggered.connect(self.close)
         for a in (self.act_source, None, self.act_open, self.recent_menu, self.act_save, None,
-                  self.act_import_ros, self.act_export_ros, None, quit_act):
+                  self.act_import_ros, self.act_export_ros, None, self.act_stream,
+                  self.act_mcap, None, quit_act):
             if a is None:
                 file_menu.addSeparator()
             elif isinstance(a, QMenu):
@@ -550,6 +563,27 @@ class MainWindow(QMainWindow):
                 return False
         return self.ctx.calibration_model.save_file(calib, path)
 
+    def toggle_mcap(self, path: str | None = None) -> Path | None:
+        """Start an MCAP recording of the depth stream (asks for the file without `path`), or
+        stop the one running; the file being recorded, None when none."""
+        stream = self.live_tab.stream
+        if stream.recording is not None:
+            stream.stop_recording()
+            return None
+        if not path:
+            start = str(Path(self.ctx.settings.recordings_dir or Path.home())
+                        / "stereo-depth.mcap")
+            path, _ = QFileDialog.getSaveFileName(self, "Record MCAP", start,
+                                                  "MCAP recordings (*.mcap)")
+            if not path:
+                return None
+            if not path.lower().endswith(".mcap"):
+                path += ".mcap"
+        return stream.start_recording(path)
+
+    def _mcap_changed(self, path) -> None:
+        self.act_mcap.setText("Stop &MCAP recording" if path is not None else "Record &MCAP…")
+
     def export_ros(self, folder: str | None = None) -> tuple[Path, Path] | None:
         """Write the calibration as ROS camera_info left.yaml and right.yaml into `folder`
         (asks for it without); returns both paths, or None (with a message)."""
@@ -694,7 +728,7 @@ class MainWindow(QMainWindow):
         tell_cancelled(self, said, waited_s)
         self.close()
 
-    def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802 - Qt API
+    def closeEvent(self, event: QCloseEvent) -> None:
         if self._close.phase is ClosePhase.WAITING:
             # closed again while waiting: the user insists. After this event, since a close()
             # from within closeEvent would be refused
@@ -723,7 +757,7 @@ class MainWindow(QMainWindow):
         for page in self._pages:
             try:
                 page.shutdown(timeout_ms=left_ms())
-            except Exception:  # noqa: BLE001 - a tab's failure must not block closing
+            except Exception:
                 log.warning("shutting down a tab failed", exc_info=True)
         self.save_settings()
         if not self.ctx.shutdown(left_ms()):

@@ -40,6 +40,7 @@ from stereo_gui.qt.tabs.live_cloud import LiveCloud
 from stereo_gui.qt.tabs.live_exports import EXPORTS, LiveExports
 from stereo_gui.qt.tabs.live_readings import HOVER_HINT, LiveReadings
 from stereo_gui.qt.tabs.live_region import LiveRegion
+from stereo_gui.qt.tabs.live_stream import LiveStream
 from stereo_gui.qt.tabs.live_views import COLOR_VIEWS, VIEWS, ViewGrid
 from stereo_gui.qt.widgets.calibration_health import CalibrationHealthPanel
 from stereo_gui.qt.widgets.camera_controls import CameraControlsPanel
@@ -149,6 +150,9 @@ class LiveTab(QWidget):
         self.region = LiveRegion(ctx, self, self.panels[REGION_VIEW],
                                  self.view_checks[REGION_VIEW], lambda: self._processor)
         self.region_button, self.alarm_spin = self.region.button, self.region.alarm_spin
+        self.stream = LiveStream(ctx, self, lambda: self._processor)
+        self.stream_button = self.stream.button
+        self.readings.logged.connect(self.stream.publish_record)
         self.cloud_button = QPushButton("3D view")
         self.cloud_button.setToolTip("The point cloud of the frame shown, in a window of its own "
                                      "(drag to rotate, wheel to zoom), updated a few times a "
@@ -169,7 +173,8 @@ class LiveTab(QWidget):
         tools.add_stretch()
         for b in (self.ruler_button, self.region_button, self.alarm_spin, self.clear_button,
                   self.fit_button, self.pause_button, self.snapshot_button, self.export_button,
-                  self.record_button, self.cloud_button, self.params_button):
+                  self.record_button, self.stream_button, self.cloud_button,
+                  self.params_button):
             tools.addWidget(b)
         self.playback = PlaybackBar(ctx)
         self.playback.used.connect(lambda: self.set_paused(False))
@@ -202,6 +207,7 @@ class LiveTab(QWidget):
         vcol.addWidget(self.views, 1)
         vcol.addWidget(self.legend)
         vcol.addWidget(self.region_label)
+        vcol.addWidget(self.stream.label)
         vcol.addWidget(self.readout)
         self.health = CalibrationHealthPanel(ctx)  # drift figure and refinement
         vcol.addWidget(self.health)
@@ -229,6 +235,7 @@ class LiveTab(QWidget):
         self.views.changed.connect(self._views_changed)
         self.views.lay_out()
         self.region.restore()
+        self.stream.restore()
         ctx.calibration_model.changed.connect(self._calibration_changed)
         ctx.frames.frameReady.connect(self._frame_ready)
         ctx.frames.sourceChanged.connect(self._source_changed)
@@ -301,6 +308,7 @@ class LiveTab(QWidget):
         if self._processor is not None:
             self._processor.set_views(self._processed_views())
         self.region.apply()
+        self.stream.apply()
         self._output = None
         self._to_draw = []  # (a view still to be drawn of the frame before must not be)
         self.clear_markers()
@@ -537,5 +545,6 @@ class LiveTab(QWidget):
         are joined by the context, where they are registered)."""
         self.cloud.shutdown()
         self.health.shutdown()
+        self.stream.shutdown()
         self._retire(self._processor)
         return True

@@ -64,6 +64,7 @@ class LiveReadings(QObject):
     shown); `ctx` is the AppContext, whose job thread runs every reading."""
 
     measured = Signal(object)  # Measurement, after its marker was drawn
+    logged = Signal(object)  # MeasurementRecord of each reading put into the log (and a ruler's)
     hoverRead = Signal(object)  # PointerReading, after the readout line shows it
 
     def __init__(self, ctx: AppContext, tab) -> None:
@@ -206,9 +207,10 @@ class LiveReadings(QObject):
                           f"(logged)")
         for key in MEASURABLE:
             self._tab.panels[key].add_marker(m.x, m.y, label, color, line_to, line_text)
-        self.ctx.add_measurement(self._record(m))
-        if ruler_record is not None:
-            self.ctx.add_measurement(ruler_record)
+        for record in (self._record(m), ruler_record):
+            if record is not None:
+                self.ctx.add_measurement(record)
+                self.logged.emit(record)
         self.ctx.show_status(status)
         self.measured.emit(m)
 
