@@ -4,9 +4,12 @@
 
 1. `rectified:F,B[,DOFFS]` (a pair that is already rectified; `image_size` is its size);
 2. Middlebury 2014's `calib.txt`;
-3. our own calibration file (it has `format_version`; `files.calibration_file` reads it);
-4. ROS camera_info: either file of a left.yaml + right.yaml pair (the other is found beside it);
-5. OpenCV's stereo sample: one FileStorage file (YAML or XML) with M1 D1 M2 D2 R T, or either
+3. Kalibr's camera chain `camchain.yaml` (cam0 + cam1; `files.kalibr_calibration` reads it);
+4. the EuRoC dataset's `mav0/cam0/sensor.yaml` or `mav0/cam1/sensor.yaml` (the other camera's
+   file is found in the sibling folder);
+5. our own calibration file (it has `format_version`; `files.calibration_file` reads it);
+6. ROS camera_info: either file of a left.yaml + right.yaml pair (the other is found beside it);
+7. OpenCV's stereo sample: one FileStorage file (YAML or XML) with M1 D1 M2 D2 R T, or either
    file of its intrinsics.yml + extrinsics.yml pair.
 
 `image_size` (width, height) px, from the images or the source at hand, is used only when the
@@ -36,9 +39,9 @@ class LoadedCalibration:
     """A calibration and where it came from.
 
     `path` is the file to remember and reopen (None for a `rectified:` spec), `files` every file
-    read, `kind` one of "stereo-gui", "opencv", "ros", "middlebury", "rectified", and
-    `description` a short text for the status bar ("OpenCV stereo sample intrinsics.yml +
-    extrinsics.yml, image size 640x480 from the images").
+    read, `kind` one of "stereo-gui", "opencv", "ros", "middlebury", "rectified", "kalibr",
+    "euroc", and `description` a short text for the status bar ("OpenCV stereo sample
+    intrinsics.yml + extrinsics.yml, image size 640x480 from the images").
     """
 
     calibration: StereoCalibration
@@ -127,6 +130,28 @@ def _is_left_ros(a: Path, b: Path) -> bool:
     return ta < tb
 
 
+def _load_robotics(path: Path) -> LoadedCalibration | None:
+    """A Kalibr camchain or a EuRoC sensor.yaml pair, or None when `path` is neither."""
+    from stereo_gui.files import kalibr_calibration as kalibr
+
+    if kalibr.looks_like_kalibr(path):
+        got, kind, what = kalibr.read_kalibr_camchain(path), "kalibr", "Kalibr camchain"
+    elif kalibr.looks_like_euroc(path):
+        got, kind, what = kalibr.read_euroc_pair(path), "euroc", "EuRoC"
+    else:
+        return None
+    from stereo_gui.files.calibration_file import check_plausible
+
+    calib = got.calibration
+    check_plausible(calib, " + ".join(map(str, got.files)))
+    files = " + ".join(f"{p.parent.name}/{p.name}" if kind == "euroc" else p.name
+                       for p in got.files)
+    return LoadedCalibration(calib, path, kind, got.files,
+                             f"{what} {files} (pinhole-{got.distortion_model}, image size "
+                             f"{_size_text(calib.image_size)}, baseline "
+                             f"{calib.baseline_mm:.1f} mm)")
+
+
 def load_any_calibration(spec: str | Path, image_size: SizeHint = None) -> LoadedCalibration:
     """Open `spec` (see the module's doc); `image_size` is used when the file holds none."""
     from stereo_gui.files import rectified_calibration as rect
@@ -151,6 +176,9 @@ def load_any_calibration(spec: str | Path, image_size: SizeHint = None) -> Loade
                                  f"Middlebury {path.name}: f {calib.focal_px:g} px, baseline "
                                  f"{calib.rectified_baseline_mm:g} mm, doffs "
                                  f"{calib.disparity_offset_px:g} px")
+    robotics = _load_robotics(path) if path.is_file() else None
+    if robotics is not None:
+        return robotics
     names = _peek(path) if path.is_file() else None
     if names is None or "format_version" in names:
         # ours, or nothing OpenCV can read: our loader says exactly what is wrong
@@ -176,5 +204,6 @@ def load_any_calibration(spec: str | Path, image_size: SizeHint = None) -> Loade
                                  f"{_size_text(size)} {how}{computed})")
     raise CalibrationFileError(
         f"{path} is not a calibration stereo-gui can read: it holds neither stereo-gui's "
-        "format_version, OpenCV's stereo sample matrices (M1 D1 M2 D2 R T) nor a ROS "
-        "camera_info (camera_matrix, projection_matrix)")
+        "format_version, OpenCV's stereo sample matrices (M1 D1 M2 D2 R T), a ROS "
+        "camera_info (camera_matrix, projection_matrix), a Kalibr camchain (cam0, cam1) nor a "
+        "EuRoC sensor.yaml (T_BS, intrinsics)")

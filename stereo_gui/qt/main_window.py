@@ -259,6 +259,10 @@ class MainWindow(QMainWindow):
         self.act_export_ros.setToolTip("Write left.yaml and right.yaml (ROS camera_info) into "
                                        "a folder")
         self.act_export_ros.triggered.connect(lambda: self.export_ros())
+        self.act_export_kalibr = QAction("Export &Kalibr camchain…", self)
+        self.act_export_kalibr.setToolTip("Write the calibration as a Kalibr camchain.yaml "
+                                          "(cam0, cam1; pinhole radtan or equidistant lenses)")
+        self.act_export_kalibr.triggered.connect(lambda: self.export_kalibr())
         self.act_import_ros = QAction("&Import ROS camera_info…", self)
         self.act_import_ros.setToolTip("Use a calibration from a ROS left.yaml + right.yaml pair")
         self.act_import_ros.triggered.connect(lambda: self.import_ros())
@@ -278,7 +282,8 @@ class MainWindow(QMainWindow):
         quit_act.setShortcut(QKeySequence.StandardKey.Quit)
         quit_act.triggered.connect(self.close)
         for a in (self.act_source, None, self.act_open, self.recent_menu, self.act_save, None,
-                  self.act_import_ros, self.act_export_ros, None, self.act_stream,
+                  self.act_import_ros, self.act_export_ros, self.act_export_kalibr, None,
+                  self.act_stream,
                   self.act_mcap, None, quit_act):
             if a is None:
                 file_menu.addSeparator()
@@ -596,6 +601,20 @@ class MainWindow(QMainWindow):
             if not folder:
                 return None
         return self.ctx.calibration_model.export_ros(folder)
+
+    def export_kalibr(self, path: str | None = None) -> Path | None:
+        """Write the calibration as a Kalibr camchain.yaml (asks where without `path`); its
+        path, or None (with a message)."""
+        if self.ctx.calibration is None:
+            self.ctx.report_error("There is no calibration to export: calibrate or open one first.")
+            return None
+        if not path:
+            path, _ = QFileDialog.getSaveFileName(
+                self, "Export Kalibr camchain", str(Path(self._start_dir()) / "camchain.yaml"),
+                "Kalibr camchain (*.yaml)")
+            if not path:
+                return None
+        return self.ctx.calibration_model.export_kalibr(path)
 
     def import_ros(self, left: str | None = None, right: str | None = None) -> bool:
         """Use the calibration of a ROS camera_info pair (asks for the two files without them);

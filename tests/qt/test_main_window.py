@@ -302,3 +302,26 @@ def test_shortcuts_switch_tabs_and_space_pauses_live_only(qtbot, ctx, window):
     assert window.live_tab.pause_button.isChecked() and ctx.frames.paused
     window.pause_shortcut.activated.emit()
     assert not window.live_tab.pause_button.isChecked() and not ctx.frames.paused
+
+
+def test_export_kalibr_camchain_and_open_it_again(qtbot, ctx, window, sim_rig, tmp_path):
+    import dataclasses
+
+    import numpy as np
+
+    errors = []
+    ctx.errorOccurred.connect(errors.append)
+    assert window.export_kalibr(str(tmp_path / "c.yaml")) is None and "no calibration" in errors[-1]
+    ctx.calibration_model.set(sim_rig.true_calibration())  # k3 != 0: Kalibr has no such model
+    assert window.export_kalibr(str(tmp_path / "c.yaml")) is None
+    assert "k3" in errors[-1] and not (tmp_path / "c.yaml").exists()
+    calib = sim_rig.true_calibration()
+    D1, D2 = calib.D1.copy(), calib.D2.copy()
+    D1.reshape(-1)[4] = D2.reshape(-1)[4] = 0.0
+    calib = dataclasses.replace(calib, D1=D1, D2=D2)
+    ctx.calibration_model.set(calib)
+    path = window.export_kalibr(str(tmp_path / "camchain.yaml"))
+    assert path == tmp_path / "camchain.yaml" and "Kalibr" in window.statusBar().currentMessage()
+    assert window.open_calibration(str(path))
+    np.testing.assert_allclose(ctx.calibration.M1, calib.M1)
+    np.testing.assert_allclose(ctx.calibration.T, calib.T, rtol=1e-9)

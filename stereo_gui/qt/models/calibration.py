@@ -138,6 +138,24 @@ class CalibrationModel(QObject):
                                  f"{paths[1].name} into {folder}{extra}")
         return paths
 
+    def export_kalibr(self, path: str | Path) -> Path | None:
+        """Write the calibration as a Kalibr camchain.yaml; its path, or None (after reporting
+        why: no calibration, or lenses Kalibr has no model for)."""
+        calib = self._calibration
+        if calib is None:
+            self._report.report_error(
+                "There is no calibration to export: calibrate or open one first.")
+            return None
+        from stereo_gui.files.kalibr_calibration import write_kalibr_camchain
+
+        try:
+            done = write_kalibr_camchain(path, calib)
+        except (StereoGuiError, OSError) as exc:
+            self._report.report_error(f"Cannot export a Kalibr camchain to {path}: {exc}")
+            return None
+        self._report.show_status(f"Exported the Kalibr camchain {done}")
+        return done
+
     def import_ros(self, left: str | Path, right: str | Path) -> bool:
         """Use the calibration of a ROS camera_info pair (not saved: the note names the two
         files); False (after reporting why) when they cannot be read."""
