@@ -11,7 +11,7 @@ Topics, every message of one frame stamped with the frame's capture time:
   rectified cameras as ROS's stereo drivers give them (K = P's 3x3, R identity, D zero, the
   right camera's P holding Tx = -fx * baseline in metres);
 - `/stereo/points`: foxglove.PointCloud in metres (x right, y down, z ahead), at most
-  MAX_CLOUD_POINTS, coloured from the left picture;
+  MAX_CLOUD_POINTS, coloured from the left picture, at most every CLOUD_EVERY_S;
 - `/stereo/region`: the watched region's nearest and median distance and its alarm (JSON);
 - `/stereo/readings`: each reading a person takes (a click, a ruler) with its +- (JSON);
 - `/stereo/health`: the calibration-health figure and the frame rate (JSON);
@@ -57,6 +57,9 @@ TOPICS = {
     "tf": "/tf",
 }
 MAX_CLOUD_POINTS = 50_000
+# the point cloud goes out at most this often (seconds; with its frame's time): it repeats the
+# depth and the camera info, and at every frame it would be half of what a client receives
+CLOUD_EVERY_S = 0.1
 UINT16_MAX = 65535
 JPEG_QUALITY = 85
 # messages the server holds for one client before it drops the oldest: about two frames' worth,
@@ -226,6 +229,7 @@ class DepthStream:
         self._recording = None  # the MCAP file being written (files.mcap_file.McapRecording)
         self._frames = 0
         self._published: list[float] = []  # monotonic times of the last RATE_WINDOW_S's frames
+        self._cloud_at = -math.inf  # monotonic time the last point cloud went out
         self._infos: tuple[StereoCalibration, tuple] | None = None
         # capture times are monotonic seconds; the topics carry wall-clock nanoseconds
         self._epoch_offset_s = time.time() - time.monotonic()
@@ -347,7 +351,9 @@ class DepthStream:
                 c["left"].log(m.CompressedImage(timestamp=stamp, frame_id=LEFT_FRAME,
                                                 data=jpeg.tobytes(), format="jpeg"),
                               log_time=ns)
-        if c["points"].has_sinks():
+        now = time.monotonic()
+        if c["points"].has_sinks() and now - self._cloud_at >= CLOUD_EVERY_S:
+            self._cloud_at = now
             data, _ = cloud_packed(result)
             f32, u8 = m.PackedElementFieldNumericType.Float32, m.PackedElementFieldNumericType.Uint8
             fields = [m.PackedElementField(name=n, offset=o, type=t) for n, o, t in (

@@ -26,8 +26,9 @@ def test_serve_records_a_number_of_frames_and_ends(tmp_path, capsys):
     assert code == 0
     assert "ws://127.0.0.1:" in text and "12 frames" in text and f"recorded {out}" in text
     counts = read_topics(out)
-    for key in ("depth", "left_info", "right_info", "tf", "region", "health", "left", "points"):
+    for key in ("depth", "left_info", "right_info", "tf", "region", "health", "left"):
         assert counts[TOPICS[key]] == 12, key
+    assert 1 <= counts[TOPICS["points"]] <= 12  # (at most ten a second)
 
 
 def test_serve_can_record_without_listening(tmp_path, capsys):

@@ -129,11 +129,14 @@ def test_a_recording_holds_every_topic_with_the_frames_times(wall_frames, tmp_pa
     got = _decoded(path)
     for topic in TOPICS.values():
         assert topic in got, topic
-    frame_topics = [t for k, t in TOPICS.items() if k != "readings"]
+    frame_topics = [t for k, t in TOPICS.items() if k not in ("readings", "points")]
     times = sorted({t for t, _ in got[TOPICS["depth"]]})
     assert len(times) == len(wall_frames)
     for topic in frame_topics:
         assert sorted(t for t, _ in got[topic]) == times, topic
+    # the point cloud at most every CLOUD_EVERY_S, with its frame's time (published here faster)
+    cloud_times = [t for t, _ in got[TOPICS["points"]]]
+    assert 1 <= len(cloud_times) < len(times) and set(cloud_times) <= set(times)
     # a monotonic capture time is put on the wall clock, the frames' spacing kept
     assert np.diff(times).tolist() == [1_000_000_000] * (len(times) - 1)
     _, depth = got[TOPICS["depth"]][-1]
@@ -251,6 +254,12 @@ def test_a_client_that_never_reads_does_not_hold_the_publisher_up(wall_frames):
             ready, stop = asyncio.Event(), asyncio.Event()
             client = loop.create_task(_stalled_client(address, ready, stop))
             loop.run_until_complete(asyncio.wait_for(ready.wait(), 30))
+
+            async def subscribed():  # (the server takes the subscriptions in its own time)
+                while stream.stats().clients < 1:
+                    await asyncio.sleep(0.01)
+
+            loop.run_until_complete(asyncio.wait_for(subscribed(), 30))
 
             async def publish_many():
                 for _ in range(60):  # about 40 MB of depth, JPEG and points
