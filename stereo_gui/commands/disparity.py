@@ -23,7 +23,8 @@ log = logging.getLogger(__name__)
 # ---- shared helpers ------------------------------------------------------------------------
 CALIB_HELP = ("calibration: our file, an OpenCV stereo calibration (one YAML/XML file with "
               "M1 D1 M2 D2 R T, or its intrinsics.yml + extrinsics.yml), a ROS left.yaml or "
-              "right.yaml, a Middlebury calib.txt, or rectified:F,B[,DOFFS] for a pair that is "
+              "right.yaml, a Kalibr camchain.yaml, a EuRoC cam0/sensor.yaml, a Middlebury "
+              "calib.txt, or rectified:F,B[,DOFFS] for a pair that is "
               "already rectified (focal px, baseline mm, cx_right - cx_left px)")
 
 
