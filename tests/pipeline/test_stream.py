@@ -273,3 +273,44 @@ def test_a_client_that_never_reads_does_not_hold_the_publisher_up(wall_frames):
             loop.run_until_complete(asyncio.wait_for(client, 30))
         finally:
             loop.close()
+
+
+async def _malformed_then_depth(address: str, publish) -> tuple[list[str], int]:
+    """Send what a broken or hostile client might, then subscribe to the depth: the server's
+    status replies and how many depth messages came."""
+    async with websockets.connect(address, subprotocols=SUBPROTOCOLS, max_size=None) as ws:
+        channels = {}
+        while TOPICS["depth"] not in channels:
+            msg = json.loads(await ws.recv())
+            if msg["op"] == "advertise":
+                channels.update({c["topic"]: c for c in msg["channels"]})
+        for bad in ("{not json", json.dumps({"op": "getParameters", "parameterNames": ["x"]}),
+                    json.dumps({"op": "setParameters", "parameters": [{"name": "x",
+                                                                       "value": 1}]}),
+                    json.dumps({"op": "callService", "id": 1}), b"\x07garbage"):
+            await ws.send(bad)
+        await ws.send(json.dumps({"op": "subscribe", "subscriptions": [
+            {"id": 1, "channelId": channels[TOPICS["depth"]]["id"]}]}))
+        said, depth = [], 0
+        for _ in range(400):
+            publish()
+            try:
+                data = await asyncio.wait_for(ws.recv(), 0.05)
+            except TimeoutError:
+                continue
+            if isinstance(data, bytes):
+                depth += 1
+                break
+            said.append(json.loads(data).get("message", ""))
+        return said, depth
+
+
+def test_malformed_client_messages_are_refused_and_the_client_still_served(wall_frames):
+    frame = wall_frames[0]
+    with DepthStream() as stream:
+        address = stream.serve(port=0)
+        said, depth = asyncio.run(_malformed_then_depth(
+            address, lambda: stream.publish(frame.result, 5.0)))
+    assert depth == 1
+    assert any("parameters" in s.lower() for s in said)  # no parameters to read or change
+    assert sum("Invalid message" in s for s in said) >= 3
