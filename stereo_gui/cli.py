@@ -24,6 +24,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "simulate": ("stereo_gui.commands.simulate", "write images from the simulated stereo rig"),
     "target": ("stereo_gui.commands.target", "write a printable calibration target (PDF, SVG, PNG)"),
     "serve": ("stereo_gui.commands.serve", "stream the live depth to robots' programs (Foxglove, MCAP)"),
+    "ros2-bag": ("stereo_gui.commands.ros2_bag", "write the depth as a ROS 2 bag (rosbag2, MCAP storage)"),
 }
 
 

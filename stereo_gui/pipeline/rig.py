@@ -225,20 +225,41 @@ class Rig:
             raise InputError(f"a region needs a positive width and height, not {w}x{h}")
         self._processor.set_region(Region(x, y, x + w, y + h), alarm_mm)
 
-    def frames(self, limit: int | None = None) -> Iterator[Frame]:
-        """Processed frames, the newest each time, until `limit` frames (None: until the
-        source ends or the rig is closed)."""
+    def frames(self, limit: int | None = None, every: bool = False) -> Iterator[Frame]:
+        """Processed frames until `limit` frames (None: until the source ends or the rig is
+        closed): the newest each time, or with `every` each frame of the source in turn, none
+        skipped (a recording converted at the pipeline's pace, played once, not looped)."""
         if self._closed:
             raise InputError("the rig is closed")
-        if self._newest is None:
-            self._newest = _Newest(self.source)
+        read = self._every_frame() if every else self._newest_frame
         done = 0
         while limit is None or done < limit:
-            raw = self._newest.take()
+            raw = read()
             if raw is None:
                 return
             yield Frame(raw, self._processor(raw))
             done += 1
+
+    def _newest_frame(self) -> StereoFrame | None:
+        if self._newest is None:
+            self._newest = _Newest(self.source)
+        return self._newest.take()
+
+    def _every_frame(self):
+        playback = self.source.playback()
+        if playback is not None:
+            playback.set_loop(False)
+            playback.paced = False  # as fast as the pipeline takes them
+
+        def read() -> StereoFrame | None:
+            if self._closed or (playback is not None and playback.finished):
+                return None
+            try:
+                return self.source.read()
+            except StopIteration:
+                return None
+
+        return read
 
     def close(self) -> None:
         if self._closed:

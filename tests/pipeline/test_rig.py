@@ -129,3 +129,13 @@ def test_a_closed_rig_gives_no_frames(sim_rig, raw_pair):
     rig.close()
     with pytest.raises(InputError, match="closed"):
         next(iter(rig.frames()))
+
+
+def test_every_frame_of_a_source_in_turn_none_skipped(sim_rig, raw_pair):
+    source = _Slow(_numbered(6, raw_pair))
+    with Rig(source, sim_rig.true_calibration(), "live") as rig:
+        seen = []
+        for f in rig.frames(every=True):
+            seen.append(f.index)
+            time.sleep(0.03)  # slower than the source: nothing is skipped all the same
+    assert seen == list(range(6)) and rig.dropped_frames == 0
