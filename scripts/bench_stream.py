@@ -19,7 +19,6 @@ import json
 import statistics
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
@@ -118,63 +117,77 @@ def speed(rounds: int, frames: int) -> None:
         print(f"  {case:>24}: {m:5.1f} fps  ({m / base:.2f}x)")
 
 
-def _publisher(seconds: float, report_every: float, label: str, during=None):
-    """Publish live frames of the demo pair for `seconds` with a stream that serves; call
-    `during(address)` in a thread meanwhile; print fps and RSS every `report_every` s."""
+def _publish_while(label: str, helper_argv: list[str] | None, seconds: float | None,
+                   report_every: float = 10.0, baseline_s: float = 20.0) -> None:
+    """Publish live frames of the demo pair (one lane, a served stream): first `baseline_s`
+    alone, then while a helper process runs (`helper_argv` + the address; until it ends, or
+    for `seconds`); fps and RSS every `report_every` s, and the two rates side by side."""
+    import subprocess
+
+    from stereo_gui.sources.base import StereoFrame
+
     rig = SimRig(seed=0)
     calib = rig.true_calibration()
     left, right = rig.render_scene(Scene.demo())
     proc = live_processor(calib, load_preset("live"))
-    from stereo_gui.sources.base import StereoFrame
-
     frame = StereoFrame(left, right, 0.0, 0.0, 0)
     with DepthStream() as stream:
         address = stream.serve(port=0)
         proc.set_stream(stream)
-        worker = None
-        if during is not None:
-            worker = threading.Thread(target=during, args=(address,), daemon=True)
-            worker.start()
-        t0 = last = time.monotonic()
-        n = n_last = 0
+
+        def run_for(until, tag: str) -> float:
+            t0 = last = time.monotonic()
+            n = n_last = 0
+            while not until(time.monotonic() - t0):
+                proc(frame)
+                n += 1
+                now = time.monotonic()
+                if now - last >= report_every:
+                    print(f"  {tag} {now - t0:6.0f} s: {(n - n_last) / (now - last):5.1f} fps, "
+                          f"RSS {rss_mb():.0f} MiB, clients {stream.stats().clients}",
+                          flush=True)
+                    last, n_last = now, n
+            return n / (time.monotonic() - t0)
+
+        print(f"{label}:", flush=True)
+        alone = run_for(lambda t: t >= baseline_s, "alone")
         rss0 = rss_mb()
-        print(f"{label}: RSS at start {rss0:.0f} MiB", flush=True)
-        while time.monotonic() - t0 < seconds:
-            proc(frame)
-            n += 1
-            now = time.monotonic()
-            if now - last >= report_every:
-                print(f"  {now - t0:6.0f} s: {(n - n_last) / (now - last):5.1f} fps, RSS "
-                      f"{rss_mb():.0f} MiB, clients {stream.stats().clients}", flush=True)
-                last, n_last = now, n
-        if worker is not None:
-            worker.join(600)
+        helper = subprocess.Popen([sys.executable, __file__, *helper_argv, address])
+        try:
+            during = run_for(lambda t: helper.poll() is not None
+                             or (seconds is not None and t >= seconds), "with it")
+        finally:
+            if helper.poll() is None:
+                helper.terminate()
+            helper.wait(30)
+        after = run_for(lambda t: t >= baseline_s, "after")
     proc.close()
+    print(f"  alone {alone:.1f} fps; meanwhile {during:.1f} fps ({during / alone:.2f}x); after "
+          f"{after:.1f} fps; RSS {rss0:.0f} -> {rss_mb():.0f} MiB", flush=True)
 
 
-def load(cycles: int, clients: int) -> None:
-    def churn(address: str) -> None:
-        for c in range(cycles):
-            group = [Client(address) for _ in range(clients)]
-            time.sleep(0.05)
-            for cl in group:
-                cl.close()
-        print(f"  {cycles} x {clients} clients joined and left", flush=True)
+async def _churn(address: str, cycles: int, clients: int) -> None:
+    """`clients` clients connect at once, each subscribes to the depth and takes one message,
+    and all leave; `cycles` times."""
+    import websockets
 
-    _publisher(cycles * 0.6 + 10, 5.0, f"{clients} clients joining and leaving {cycles} times",
-               churn)
+    async def one() -> None:
+        async with websockets.connect(address, subprotocols=SUBPROTOCOLS, max_size=None,
+                                      close_timeout=0.5) as ws:
+            channel = None
+            while channel is None:
+                m = json.loads(await ws.recv())
+                if m["op"] == "advertise":
+                    channel = next((c["id"] for c in m["channels"]
+                                    if c["topic"] == "/stereo/depth"), None)
+            await ws.send(json.dumps({"op": "subscribe",
+                                      "subscriptions": [{"id": 1, "channelId": channel}]}))
+            while not isinstance(await ws.recv(), bytes):
+                pass
 
-
-def stall(seconds: float) -> None:
-    holder = {}
-
-    def stalled(address: str) -> None:
-        holder["client"] = Client(address, reads=False)
-
-    _publisher(seconds, max(5.0, seconds / 12), f"a client that never reads, {seconds:.0f} s",
-               stalled)
-    if "client" in holder:
-        holder["client"].close()
+    for _ in range(cycles):
+        await asyncio.gather(*(one() for _ in range(clients)))
+    print(f"  {cycles} x {clients} clients joined, read a depth and left", flush=True)
 
 
 def main() -> int:
@@ -186,15 +199,21 @@ def main() -> int:
     p.add_argument("--client", metavar="ADDRESS", help=argparse.SUPPRESS)  # (a client's process)
     p.add_argument("--no-read", action="store_true", help=argparse.SUPPRESS)
     p.add_argument("--topic", help=argparse.SUPPRESS)
+    p.add_argument("--churn", metavar="ADDRESS", help=argparse.SUPPRESS)  # (the churn's process)
     args = p.parse_args()
     if args.client:
         asyncio.run(_client(args.client, not args.no_read, args.topic))
         return 0
+    if args.churn:
+        asyncio.run(_churn(args.churn, 100, 10))
+        return 0
     speed(args.rounds, args.frames)
     if args.load:
-        load(100, 10)
+        _publish_while("10 clients joining and leaving 100 times", ["--churn"], None)
     if args.stall:
-        stall(args.stall)
+        _publish_while(f"a client subscribed to everything that never reads, {args.stall:.0f} s",
+                       ["--no-read", "--client"], args.stall, report_every=max(10.0,
+                                                                              args.stall / 10))
     return 0
 
 

@@ -158,6 +158,23 @@ def cloud_packed(result: PipelineResult, max_points: int = MAX_CLOUD_POINTS
     return packed.tobytes(), n
 
 
+class _ClientNoise(logging.Filter):
+    """The SDK's lines about clients (one that vanished without closing, sent what the protocol
+    does not know, failed its handshake) are about them, not the depth: shown only where the
+    log shows INFO (-v), never as "stereo-gui: error:" on a robot's terminal. The client itself
+    is told (the server answers a bad message with a status)."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return (not record.name.startswith("foxglove.websocket")
+                or logging.getLogger().isEnabledFor(logging.INFO))
+
+
+def _quiet_client_noise() -> None:
+    for handler in logging.getLogger().handlers:
+        if not any(isinstance(f, _ClientNoise) for f in handler.filters):
+            handler.addFilter(_ClientNoise())
+
+
 @dataclass(frozen=True)
 class StreamStats:
     """What the stream has done: frames published, its rate over the last RATE_WINDOW_S
@@ -240,6 +257,7 @@ class DepthStream:
         address "ws://host:port"."""
         if self._server is not None:
             return self.address
+        _quiet_client_noise()
         try:
             self._server = self._foxglove.start_server(
                 name="stereo-gui", host=host, port=port, context=self._context,

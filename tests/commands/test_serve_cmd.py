@@ -82,3 +82,30 @@ def test_sigterm_stops_it_with_the_recording_whole(tmp_path):
     assert "Traceback" not in err and "recorded" in rest
     assert read_topics(out)[TOPICS["depth"]] >= 1
     assert [p.name for p in tmp_path.iterdir()] == ["run.mcap"]  # no temporary file left
+
+
+def test_a_client_that_vanishes_leaves_no_error_on_the_terminal(tmp_path):
+    """A robot's terminal shows the stream's own lines, not the SDK's about a client that went
+    away without closing (they are the client's, and shown with -v)."""
+    import socket
+
+    proc = subprocess.Popen([sys.executable, "-m", "stereo_gui", "serve", "--source", "sim",
+                             "--port", "0"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        first = proc.stdout.readline()
+        port = int(first.split("ws://127.0.0.1:")[1].split()[0].rstrip(","))
+        for _ in range(3):  # a WebSocket handshake, then the connection dropped
+            with socket.create_connection(("127.0.0.1", port), timeout=10) as sock:
+                sock.sendall(b"GET / HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\n"
+                             b"Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                             b"Sec-WebSocket-Version: 13\r\nSec-WebSocket-Protocol: foxglove.sdk.v1"
+                             b"\r\n\r\n")
+                sock.recv(4096)
+        time.sleep(1.0)
+        proc.send_signal(signal.SIGTERM)
+        _out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0 and err.strip() == "", err
