@@ -52,8 +52,11 @@ class Client:
 async def _client(address: str, reads: bool, topic: str | None = None) -> None:
     import websockets
 
+    # (a client that never reads must not time out its own keep-alive pings and leave: it stays,
+    # its socket's buffers full, as a hung program's would)
     async with websockets.connect(address, subprotocols=SUBPROTOCOLS, max_size=None,
-                                  max_queue=16 if reads else 1, close_timeout=0.5) as ws:
+                                  max_queue=16 if reads else 1, close_timeout=0.5,
+                                  ping_interval=None if not reads else 20) as ws:
         channels: dict = {}
         while True:  # every channel advertised within a moment of the first
             try:

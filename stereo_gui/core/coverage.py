@@ -162,7 +162,7 @@ class Readiness:
         out = []
         words = regions_in_words(self.required_empty)
         if words:
-            out.append(f"Move the board to {words} (still empty)")
+            out.append(f"Move the board to {words} (not yet covered)")
         if not self.tilt_ok:
             out.append("tilt the board more (up to 40 degrees)")
         if not self.distance_ok:
@@ -177,7 +177,7 @@ class Readiness:
         words = regions_in_words(self.far_empty)
         if not words:
             return ""
-        return (f"Also still empty: {words}. Both cameras see the board there only when it is "
+        return (f"Also not yet covered: {words}. Both cameras see the board there only when it is "
                 "far away (or, a ChArUco board, partly in view).")
 
     def summary(self) -> str:

@@ -303,7 +303,7 @@ class CaptureRules:
         if not new:
             where = regions_in_words(empty_regions())
             return CaptureStep("show", "Pose already captured: " + (
-                f"move the board to {where} (still empty)" if where
+                f"move the board to {where} (not yet covered)" if where
                 else "move or tilt the board somewhere new"))
         if not steady:
             reach = f" reaching {regions_in_words(fills)}" if any(fills.values()) else ""

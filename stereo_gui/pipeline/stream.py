@@ -277,7 +277,7 @@ class DepthStream:
 
     def record(self, path) -> Path:
         """Record every topic to the MCAP file `path` (written under a temporary name, renamed
-        when closed whole; CalibrationFileError-like InputError when it cannot be made)."""
+        when closed whole; InputError when it cannot be made: its folder, its name, the disk)."""
         from stereo_gui.files.mcap_file import McapRecording
 
         if self._recording is not None:

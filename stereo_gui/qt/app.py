@@ -137,6 +137,36 @@ def build_window(source: str | None = None, calib: str | None = None):
     return ctx, window
 
 
+SIGNAL_POLL_MS = 200  # how often Python gets to run a signal's handler while Qt waits
+
+
+def close_on_signals(window):
+    """Ctrl+C in the terminal (SIGINT) and SIGTERM close the window as Ctrl+Q does: the log
+    saved, a recording closed, the workers stopped. (Python runs a signal's handler only between
+    its own instructions, so a timer gives it a moment now and then while Qt's loop waits.)
+    Returns what puts the handlers before back."""
+    import signal
+
+    from PySide6.QtCore import QTimer
+
+    def close(signum, _frame) -> None:
+        log.info("signal %d: closing the window", signum)
+        QTimer.singleShot(0, window.close)
+
+    before = {s: signal.signal(s, close) for s in (signal.SIGINT, signal.SIGTERM)}
+    poll = QTimer(window)
+    poll.setInterval(SIGNAL_POLL_MS)
+    poll.timeout.connect(lambda: None)
+    poll.start()
+
+    def restore() -> None:
+        poll.stop()
+        for s, handler in before.items():
+            signal.signal(s, handler)
+
+    return restore
+
+
 def run_app(source: str | None = None, calib: str | None = None) -> int:
     """Run the GUI until its window closes; return the exit status."""
     from PySide6.QtCore import QTimer
@@ -159,7 +189,11 @@ def run_app(source: str | None = None, calib: str | None = None) -> int:
     if quit_after is not None:
         log.info("quitting after %.1f s (%s)", quit_after, QUIT_AFTER_ENV)
         QTimer.singleShot(int(quit_after * 1000), window.close)
-    status = int(app.exec())
+    restore_signals = close_on_signals(window)
+    try:
+        status = int(app.exec())
+    finally:
+        restore_signals()
     # the window normally stopped every worker already; make sure nothing outlives exec
     if not ctx.shutdown(2000):
         # a thread is stuck in a device or OpenCV call that cannot be interrupted; letting the

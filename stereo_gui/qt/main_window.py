@@ -37,6 +37,7 @@ from stereo_gui.qt.tabs.capture import CaptureTab
 from stereo_gui.qt.tabs.live import LiveTab
 from stereo_gui.qt.tabs.measurements import MeasurementsTab
 from stereo_gui.qt.tabs.tab import WindowTab
+from stereo_gui.qt.widgets import folder_dialog
 from stereo_gui.qt.widgets.error_bar import ErrorBar
 from stereo_gui.qt.widgets.helpers import pane
 from stereo_gui.qt.workers.job_runner import JobRunner
@@ -563,7 +564,7 @@ class MainWindow(QMainWindow):
             return False
         if not path:
             start = str(Path(self._start_dir()) / "calibration.yaml")
-            path, _ = QFileDialog.getSaveFileName(self, "Save calibration", start, CALIB_FILTER)
+            path, _ = folder_dialog.save_file_name(self, "Save calibration", start, CALIB_FILTER)
             if not path:
                 return False
         return self.ctx.calibration_model.save_file(calib, path)
@@ -571,20 +572,7 @@ class MainWindow(QMainWindow):
     def toggle_mcap(self, path: str | None = None) -> Path | None:
         """Start an MCAP recording of the depth stream (asks for the file without `path`), or
         stop the one running; the file being recorded, None when none."""
-        stream = self.live_tab.stream
-        if stream.recording is not None:
-            stream.stop_recording()
-            return None
-        if not path:
-            start = str(Path(self.ctx.settings.recordings_dir or Path.home())
-                        / "stereo-depth.mcap")
-            path, _ = QFileDialog.getSaveFileName(self, "Record MCAP", start,
-                                                  "MCAP recordings (*.mcap)")
-            if not path:
-                return None
-            if not path.lower().endswith(".mcap"):
-                path += ".mcap"
-        return stream.start_recording(path)
+        return self.live_tab.stream.toggle_recording(self, path)
 
     def _mcap_changed(self, path) -> None:
         self.act_mcap.setText("Stop &MCAP recording" if path is not None else "Record &MCAP…")
@@ -609,7 +597,7 @@ class MainWindow(QMainWindow):
             self.ctx.report_error("There is no calibration to export: calibrate or open one first.")
             return None
         if not path:
-            path, _ = QFileDialog.getSaveFileName(
+            path, _ = folder_dialog.save_file_name(
                 self, "Export Kalibr camchain", str(Path(self._start_dir()) / "camchain.yaml"),
                 "Kalibr camchain (*.yaml)")
             if not path:

@@ -9,11 +9,21 @@ from __future__ import annotations
 
 import logging
 import re
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 from PySide6.QtCore import Qt, QUrl
-from PySide6.QtGui import QAction, QDesktopServices, QImage, QKeySequence, QTextCursor, \
-    QTextImageFormat
+from PySide6.QtGui import (
+    QAction,
+    QDesktopServices,
+    QGuiApplication,
+    QImage,
+    QKeySequence,
+    QTextCursor,
+    QTextImageFormat,
+)
 from PySide6.QtWidgets import (
     QDialog,
     QDialogButtonBox,
@@ -194,8 +204,28 @@ def kept_folders(settings) -> list[tuple[str, Path]]:
             ("New recordings", recordings_dir(settings))]
 
 
+def file_manager_missing() -> bool:
+    """Whether this Linux desktop has nothing to open a folder with (no xdg-open, or no
+    application for folders): Qt's openUrl then fails where only the terminal sees it."""
+    if not sys.platform.startswith("linux"):
+        return False
+    if shutil.which("xdg-open") is None:
+        return True
+    mime = shutil.which("xdg-mime")
+    if mime is None:
+        return False  # (cannot tell: let xdg-open try)
+    try:
+        found = subprocess.run([mime, "query", "default", "inode/directory"],
+                               capture_output=True, text=True, timeout=3).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return False
+    return not found
+
+
 def open_folder(folder: Path) -> bool:
     """Show `folder` in the system's file manager (False when it cannot)."""
+    if file_manager_missing():
+        return False
     return QDesktopServices.openUrl(QUrl.fromLocalFile(str(folder)))
 
 
@@ -215,17 +245,38 @@ class FoldersDialog(QDialog):
             grid.addWidget(path, 2 * r + 1, 0)
             button = QPushButton("Open")
             button.setEnabled(folder.is_dir())
-            button.clicked.connect(lambda _c=False, f=folder: open_folder(f))
+            button.clicked.connect(lambda _c=False, f=folder: self.open(f))
             grid.addWidget(button, 2 * r + 1, 1)
+            copy = QPushButton("Copy path")
+            copy.clicked.connect(lambda _c=False, f=folder: self.copy(f))
+            grid.addWidget(copy, 2 * r + 1, 2)
         note = QLabel("Calibrations, sessions, fits and exports go where you choose. Deleting "
                       "the settings folder resets the application.")
         note.setWordWrap(True)
+        self.said = QLabel()  # what Open or Copy did
+        self.said.setWordWrap(True)
+        self.said.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
         buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Close)
         buttons.rejected.connect(self.close)
         lay = QVBoxLayout(self)
         lay.addLayout(grid)
         lay.addWidget(note)
+        lay.addWidget(self.said)
         lay.addWidget(buttons)
+
+    def open(self, folder: Path) -> bool:
+        """Open `folder` in the file manager; where there is none, say so and copy its path."""
+        if open_folder(folder):
+            self.said.setText(f"Opening {folder} in the file manager…")
+            return True
+        QGuiApplication.clipboard().setText(str(folder))
+        self.said.setText(f"No file manager could open {folder} on this computer: its path is "
+                          "copied, paste it where you need it.")
+        return False
+
+    def copy(self, folder: Path) -> None:
+        QGuiApplication.clipboard().setText(str(folder))
+        self.said.setText(f"Copied {folder}")
 
 
 def add_help_actions(window, menu) -> dict[str, QAction]:

@@ -13,6 +13,7 @@ from pathlib import Path
 from PySide6.QtWidgets import QFileDialog
 
 from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.qt.widgets import folder_dialog
 
 
 class CalibrationActions:
@@ -62,7 +63,7 @@ class CalibrationActions:
             return
         start = str(self.ctx.calibration_path or (Path(self.folder_edit.text() or Path.home())
                                                    / "calibration.yaml"))
-        path, _ = QFileDialog.getSaveFileName(self, "Save calibration", start,
+        path, _ = folder_dialog.save_file_name(self, "Save calibration", start,
                                               "OpenCV YAML (*.yaml *.yml)")
         if path:
             self.save_calibration(path)

@@ -331,7 +331,7 @@ class CaptureTab(SessionPairs, QWidget):
                     "(the cameras have moved on). Save it (S), or Cancel (C) to go live?")
         fills = self._fills(self.frozen.detection) if self.frozen is not None else {}
         if any(fills.values()):
-            text += f"  It reaches {regions_in_words(fills)} (still empty)."
+            text += f"  It reaches {regions_in_words(fills)} (not yet covered)."
         if self.session is None:
             text += "  (Save asks for a session folder first.)"
         self.prompt.setText(text)

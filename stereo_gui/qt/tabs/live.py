@@ -84,6 +84,10 @@ def wls_title(result) -> str:
     return VIEWS["wls"]
 
 
+MCAP_TEXT = "Record the depth as MCAP…"
+MCAP_STOP_TEXT = "Stop the MCAP recording"
+
+
 class LiveTab(QWidget):
     """The Live tab. `ctx` is the AppContext."""
 
@@ -148,10 +152,17 @@ class LiveTab(QWidget):
         self.export_button = self.exports.make_export_button()
         self.record_button = RecordButton(ctx)
         self.region = LiveRegion(ctx, self, self.panels[REGION_VIEW],
-                                 self.view_checks[REGION_VIEW], lambda: self._processor)
+                                 self.view_checks[REGION_VIEW], lambda: self._processor,
+                                 lambda: self._output)
         self.region_button, self.alarm_spin = self.region.button, self.region.alarm_spin
         self.stream = LiveStream(ctx, self, lambda: self._processor)
         self.stream_button = self.stream.button
+        # beside the raw recording: the depth stream's topics as MCAP (File > Record MCAP… too)
+        self.record_button.menu().addSeparator()
+        self.mcap_action = self.record_button.menu().addAction(
+            MCAP_TEXT, lambda: self.stream.toggle_recording(self))
+        self.stream.recordingChanged.connect(lambda path: self.mcap_action.setText(
+            MCAP_STOP_TEXT if path is not None else MCAP_TEXT))
         self.readings.logged.connect(self.stream.publish_record)
         self.cloud_button = QPushButton("3D view")
         self.cloud_button.setToolTip("The point cloud of the frame shown, in a window of its own "
@@ -307,9 +318,9 @@ class LiveTab(QWidget):
                            if calib is not None else None)
         if self._processor is not None:
             self._processor.set_views(self._processed_views())
+        self._output = None  # (of the calibration before: the region is not read on it)
         self.region.apply()
         self.stream.apply()
-        self._output = None
         self._to_draw = []  # (a view still to be drawn of the frame before must not be)
         self.clear_markers()
         self._install_processor()

@@ -14,6 +14,7 @@ from PySide6.QtWidgets import QFileDialog, QMenu, QToolButton, QWidget
 
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.util import how_many
+from stereo_gui.qt.widgets import folder_dialog
 
 if TYPE_CHECKING:
     from stereo_gui.qt.context import AppContext
@@ -183,7 +184,7 @@ class LiveExports(QObject):
         text, suffix, _what = EXPORTS[kind]
         start = str(Path(self._export_start_dir()) / f"frame-{_stamp()}{suffix}")
         ext = Path(suffix).suffix
-        path, _ = QFileDialog.getSaveFileName(self._parent, text.rstrip("…"), start,
+        path, _ = folder_dialog.save_file_name(self._parent, text.rstrip("…"), start,
                                               f"{ext[1:].upper()} files (*{ext})")
         if path:
             if not path.lower().endswith(ext):

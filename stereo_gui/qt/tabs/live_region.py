@@ -13,7 +13,7 @@ from PySide6.QtCore import QObject, Qt
 from PySide6.QtWidgets import QCheckBox, QDoubleSpinBox, QLabel, QPushButton, QSizePolicy, QWidget
 
 from stereo_gui.pipeline.readout import format_distance
-from stereo_gui.pipeline.region import Region
+from stereo_gui.pipeline.region import Region, region_stats
 from stereo_gui.qt.widgets.image_view import ImagePanel
 
 if TYPE_CHECKING:
@@ -25,12 +25,13 @@ class LiveRegion(QObject):
     the box, `view_check` its Show box, `processor` returns the LiveProcessor in use (or None)."""
 
     def __init__(self, ctx: AppContext, owner: QWidget, panel: ImagePanel, view_check: QCheckBox,
-                 processor: Callable[[], object]) -> None:
+                 processor: Callable[[], object], output: Callable[[], object]) -> None:
         super().__init__(owner)
         self.ctx = ctx
         self._panel = panel
         self._view_check = view_check
         self._processor = processor
+        self._output = output  # the LiveOutput shown (None: none yet)
         self.last = None  # RegionStats of the last frame shown with a region
         self._alarm_on = False
         self.button = QPushButton("Region")
@@ -47,6 +48,9 @@ class LiveRegion(QObject):
         self.alarm_spin.setSpecialValueText("no alarm")
         self.alarm_spin.setToolTip("The region box turns red and the status bar says so when "
                                    "anything in it is nearer than this")
+        # the distance takes effect when typing is done (Enter, leaving the box, the arrows),
+        # not at "1" on the way to "1.2"
+        self.alarm_spin.setKeyboardTracking(False)
         self.alarm_spin.valueChanged.connect(lambda _v: self.apply())
         self.alarm_spin.hide()
         self.label = QLabel()
@@ -103,15 +107,18 @@ class LiveRegion(QObject):
         self.apply()
 
     def apply(self) -> None:
-        """Hand the region, the alarm and the fit to the processor (from the next frame)."""
+        """Hand the region, the alarm and the fit to the processor (from the next frame), and
+        read the frame shown with them at once: a paused frame is a frame too."""
         self._remember()
-        processor = self._processor()
-        if processor is None:
-            return
         box = self._panel.region() if self.button.isChecked() else None
         alarm_mm = 1000.0 * self.alarm_spin.value() or None
-        processor.set_region(None if box is None else Region(*box), alarm_mm,
-                             self.ctx.active_fit)
+        region = None if box is None else Region(*box)
+        processor = self._processor()
+        if processor is not None:
+            processor.set_region(region, alarm_mm, self.ctx.active_fit)
+        shown = self._output()
+        if region is not None and shown is not None:
+            self.show(region_stats(shown.result, region, alarm_mm, self.ctx.active_fit))
 
     def show(self, stats) -> None:
         """Show the region figures of the frame drawn (None: it has none)."""
@@ -132,4 +139,8 @@ class LiveRegion(QObject):
         if stats.alarm and not self._alarm_on:
             self.ctx.show_status(f"ALARM: something at {format_distance(stats.nearest_mm)} in "
                                  f"the region, nearer than {format_distance(stats.alarm_mm)}")
+        elif self._alarm_on and not stats.alarm:  # the alarm's words go with the alarm
+            self.ctx.show_status("Alarm over: " + (
+                stats.note if stats.note else
+                f"the nearest in the region is {format_distance(stats.nearest_mm)}"))
         self._alarm_on = stats.alarm

@@ -16,6 +16,7 @@ from PySide6.QtCore import QObject, Qt, QTimer, Signal
 from PySide6.QtWidgets import QLabel, QPushButton, QSizePolicy, QWidget
 
 from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.qt.widgets import folder_dialog
 
 if TYPE_CHECKING:
     from stereo_gui.qt.context import AppContext
@@ -120,6 +121,24 @@ class LiveStream(QObject):
             self._close_stream()
         else:  # the recording goes on: only the server stops
             self._stream.stop_server()
+
+    def toggle_recording(self, parent: QWidget, path: str | None = None) -> Path | None:
+        """Start an MCAP recording (asks for the file without `path`), or stop the one
+        running; the file being recorded, None when none."""
+        if self.recording is not None:
+            self.stop_recording()
+            return None
+        if not path:
+            settings = self.ctx.settings
+            start = Path((settings.recordings_dir if settings else None) or Path.home())
+            path, _ = folder_dialog.save_file_name(parent, "Record the depth as MCAP",
+                                                  str(start / "stereo-depth.mcap"),
+                                                  "MCAP recordings (*.mcap)")
+            if not path:
+                return None
+            if not path.lower().endswith(".mcap"):
+                path += ".mcap"
+        return self.start_recording(path)
 
     def start_recording(self, path: str | Path) -> Path | None:
         """Record the stream's topics to the MCAP file `path` (None when it cannot be made: the

@@ -9,11 +9,10 @@ from __future__ import annotations
 import datetime as _dt
 from pathlib import Path
 
-from PySide6.QtWidgets import QFileDialog
-
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.util import how_many
 from stereo_gui.pipeline.jobs import Progress
+from stereo_gui.qt.widgets import folder_dialog
 from stereo_gui.qt.widgets.regression_plot import MODELS
 from stereo_gui.qt.workers.job_worker import JobWorker
 
@@ -23,7 +22,7 @@ class MeasurementExports:
 
     def _choose_xlsx(self) -> None:
         stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M")
-        path, _ = QFileDialog.getSaveFileName(self, "Export measurements",
+        path, _ = folder_dialog.save_file_name(self, "Export measurements",
                                               str(Path(self._start_dir())
                                                   / f"measurements-{stamp}.xlsx"),
                                               "Excel workbook (*.xlsx)")
@@ -85,7 +84,7 @@ class MeasurementExports:
 
     def _choose_csv(self) -> None:
         stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M")
-        path, _ = QFileDialog.getSaveFileName(self, "Export measurements as CSV",
+        path, _ = folder_dialog.save_file_name(self, "Export measurements as CSV",
                                               str(Path(self._start_dir())
                                                   / f"measurements-{stamp}.csv"),
                                               "CSV (*.csv)")

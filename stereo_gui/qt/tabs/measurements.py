@@ -37,6 +37,7 @@ from PySide6.QtWidgets import (
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.util import how_many
 from stereo_gui.qt.tabs.measurement_exports import MeasurementExports
+from stereo_gui.qt.widgets import folder_dialog
 from stereo_gui.qt.widgets.helpers import pane, wrapping_label
 from stereo_gui.qt.widgets.measurement_table import (
     NOTE_COL,
@@ -197,7 +198,9 @@ class MeasurementsTab(MeasurementExports, QWidget):
         if self._loaded_fit is not None and self._loaded_fit.model not in self.fits:
             self.fits[self._loaded_fit.model] = self._loaded_fit
         self.sample_label.setText(
-            f"{how_many(len(samples), 'sample')} (valid readings with a true distance)." if samples else
+            f"{how_many(len(samples), 'sample')} ("
+            + ("a valid reading" if len(samples) == 1 else "valid readings")
+            + " with a true distance)." if samples else
             "No samples yet: enter true distances in the log. The cubic needs at least 4 "
             "samples, the inverse model 2.")
         tri = triangulation_errors_mm(recs, self.ctx.calibration)
@@ -368,7 +371,7 @@ class MeasurementsTab(MeasurementExports, QWidget):
             self.fits.get("inverse") or self.fits.get("cubic"))
         if fit is None:
             return
-        path, _ = QFileDialog.getSaveFileName(self, f"Save the {fit.model} fit",
+        path, _ = folder_dialog.save_file_name(self, f"Save the {fit.model} fit",
                                               str(Path(self._start_dir())
                                                   / f"{fit.model}-fit.json"),
                                               "Fit (*.json)")

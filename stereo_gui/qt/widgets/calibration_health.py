@@ -15,7 +15,6 @@ from PySide6.QtCore import Signal
 from PySide6.QtWidgets import (
     QComboBox,
     QDoubleSpinBox,
-    QFileDialog,
     QFrame,
     QHBoxLayout,
     QLabel,
@@ -26,6 +25,7 @@ from PySide6.QtWidgets import (
 
 from stereo_gui.pipeline.jobs import Progress
 from stereo_gui.qt.source_capabilities import simulated_rig
+from stereo_gui.qt.widgets import folder_dialog
 from stereo_gui.qt.workers.job_worker import JobWorker
 
 if TYPE_CHECKING:
@@ -166,7 +166,7 @@ class CalibrationHealthPanel(QFrame):
             cp = self.ctx.calibration_path
             start = (cp.with_name(cp.stem + "-refined.yaml") if cp is not None
                      else Path.home() / "calibration-refined.yaml")
-            path, _ = QFileDialog.getSaveFileName(self, "Save the refined calibration",
+            path, _ = folder_dialog.save_file_name(self, "Save the refined calibration",
                                                   str(start), "OpenCV YAML (*.yaml *.yml)")
         if path:
             if not self.ctx.calibration_model.save_file(ref.calibration, path):

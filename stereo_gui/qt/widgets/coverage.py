@@ -132,7 +132,7 @@ class CornerMap(pg.GraphicsLayoutWidget):
         empty = ", ".join(self._empty) or "none"
         self.setToolTip(f"{self.title}: where the target's points have been seen in the kept "
                         "pairs (dark red = none yet, amber = too few; a region counts when all "
-                        f"its cells are green). Outlined in red, still empty: {empty}.")
+                        f"its cells are green). Outlined in red, not yet covered: {empty}.")
 
 
 class CoverageWidget(QWidget):

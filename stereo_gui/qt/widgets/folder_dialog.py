@@ -1,5 +1,6 @@
-"""Choose a folder that may not exist yet: a name typed in the dialog that is no folder yet is
-offered for creation (Qt's own folder dialog only says "Directory not found")."""
+"""Choose a folder, or a file to save, in a folder that may not exist yet: a folder typed in the
+dialog that is no folder yet is offered for creation (Qt's own folder dialog only says "Directory
+not found", and its save dialog accepts the path and leaves the writer to fail)."""
 
 from __future__ import annotations
 
@@ -33,19 +34,8 @@ class FolderDialog(QFileDialog):
         typed = self.chosen()
         if typed and not Path(typed).exists():
             folder = Path(typed)
-            answer = QMessageBox.question(
-                self, "Create the folder", f"There is no folder {folder} yet. Create it?",
-                QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No,
-                QMessageBox.StandardButton.Yes)
-            if answer != QMessageBox.StandardButton.Yes:
+            if not _create_folder(self, folder):
                 return
-            try:
-                folder.mkdir(parents=True)
-            except OSError as exc:
-                QMessageBox.warning(self, "Create the folder",
-                                    f"Cannot create {folder}: {os_error_text(exc)}")
-                return
-            log.info("created the folder %s", folder)
             self.created = folder
         super().accept()
 
@@ -54,3 +44,33 @@ def choose_folder(parent: QWidget | None, title: str, start: str = "") -> str:
     """Ask for a folder, existing or new (created after asking); "" when cancelled."""
     dialog = FolderDialog(parent, title, start)
     return dialog.chosen() if dialog.exec() else ""
+
+
+def _create_folder(parent: QWidget | None, folder: Path) -> bool:
+    """Ask whether to create `folder` and do so; False when the person says no or it fails
+    (said in a message box)."""
+    answer = QMessageBox.question(
+        parent, "Create the folder", f"There is no folder {folder} yet. Create it?",
+        QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No,
+        QMessageBox.StandardButton.Yes)
+    if answer != QMessageBox.StandardButton.Yes:
+        return False
+    try:
+        folder.mkdir(parents=True)
+    except OSError as exc:
+        QMessageBox.warning(parent, "Create the folder",
+                            f"Cannot create {folder}: {os_error_text(exc)}")
+        return False
+    log.info("created the folder %s", folder)
+    return True
+
+
+def save_file_name(parent: QWidget | None, title: str, start: str = "",
+                   filters: str = "") -> tuple[str, str]:
+    """QFileDialog.getSaveFileName, and a file in a folder that does not exist yet has that
+    folder offered for creation: ("", "") when cancelled or declined."""
+    path, chosen = QFileDialog.getSaveFileName(parent, title, start, filters)
+    if path and not Path(path).parent.exists() and not _create_folder(parent,
+                                                                        Path(path).parent):
+        return "", ""
+    return path, chosen

@@ -11,6 +11,9 @@ MODELS = ("cubic", "inverse")
 _COLOURS = {"cubic": "#f39c12", "inverse": "#5dade2"}  # curves, on the plots' dark background
 
 
+RESIDUAL_MIN_MM = 1.0  # the residual axis shows at least +- this
+
+
 class RegressionPlot(pg.GraphicsLayoutWidget):
     """Distance against disparity (samples and both fits) above the residuals of each fit."""
 
@@ -73,3 +76,10 @@ class RegressionPlot(pg.GraphicsLayoutWidget):
             z = np.array([s[1] for s in samples])
             span = max(float(z.max() - z.min()), 10.0)
             self.main.setYRange(float(z.min()) - 0.15 * span, float(z.max()) + 0.15 * span)
+        # residuals of a millimetre or less (or none: a fit through every sample) on an axis of
+        # +-RESIDUAL_MIN_MM, not of +-5e-14
+        top = max((float(np.nanmax(np.abs(np.asarray(f.residuals_mm, float))))
+                   for f in fits.values() if f is not None and len(f.residuals_mm)),
+                  default=0.0)
+        top = max(top if np.isfinite(top) else 0.0, RESIDUAL_MIN_MM)
+        self.resid.setYRange(-1.15 * top, 1.15 * top, padding=0)

@@ -14,7 +14,6 @@ from PySide6.QtGui import QImage, QPixmap
 from PySide6.QtWidgets import (
     QComboBox,
     QDialog,
-    QFileDialog,
     QHBoxLayout,
     QLabel,
     QPushButton,
@@ -26,6 +25,7 @@ from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.target_sheet import PAGES_MM, describe, layout
 from stereo_gui.files.target_sheet import png_image, write_target
+from stereo_gui.qt.widgets import folder_dialog
 
 _PREVIEW_DPI = 42.0
 
@@ -98,7 +98,7 @@ class TargetDialog(QDialog):
 
     def _choose_file(self) -> None:
         name = f"target-{self.board.target}-{self.board.cols}x{self.board.rows}.pdf"
-        path, _ = QFileDialog.getSaveFileName(
+        path, _ = folder_dialog.save_file_name(
             self, "Save the target", str(self.folder / name),
             "PDF (*.pdf);;SVG (*.svg);;PNG at 300 dpi (*.png)")
         if path:

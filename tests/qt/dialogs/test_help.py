@@ -68,3 +68,40 @@ def test_where_files_are_kept_names_the_settings_and_data_folders(qtbot, window,
     dialog = FoldersDialog(list(folders.items()), window)
     qtbot.addWidget(dialog)
     assert dialog.paths == folders
+
+
+def test_open_without_a_file_manager_says_so_and_copies_the_path(qtbot, window, tmp_path,
+                                                                 monkeypatch):
+    from PySide6.QtGui import QGuiApplication
+
+    from stereo_gui.qt.dialogs import help as help_dialog
+
+    dialog = FoldersDialog([("Settings", tmp_path)], window)
+    qtbot.addWidget(dialog)
+    monkeypatch.setattr(help_dialog, "file_manager_missing", lambda: True)
+    assert not dialog.open(tmp_path)
+    assert "No file manager" in dialog.said.text() and str(tmp_path) in dialog.said.text()
+    assert QGuiApplication.clipboard().text() == str(tmp_path)
+    opened = []
+    monkeypatch.setattr(help_dialog, "file_manager_missing", lambda: False)
+    monkeypatch.setattr(help_dialog.QDesktopServices, "openUrl",
+                        lambda url: opened.append(url.toLocalFile()) or True)
+    assert dialog.open(tmp_path)
+    assert opened == [str(tmp_path)] and dialog.said.text().startswith("Opening")
+
+
+def test_no_folder_application_counts_as_no_file_manager(monkeypatch):
+    import subprocess
+
+    from stereo_gui.qt.dialogs import help as help_dialog
+
+    monkeypatch.setattr(help_dialog.sys, "platform", "linux")
+    monkeypatch.setattr(help_dialog.shutil, "which", lambda name: None)
+    assert help_dialog.file_manager_missing()
+    monkeypatch.setattr(help_dialog.shutil, "which", lambda name: f"/usr/bin/{name}")
+    monkeypatch.setattr(help_dialog.subprocess, "run", lambda *a, **k: subprocess.CompletedProcess(
+        a, 0, stdout="\n", stderr=""))
+    assert help_dialog.file_manager_missing()
+    monkeypatch.setattr(help_dialog.subprocess, "run", lambda *a, **k: subprocess.CompletedProcess(
+        a, 0, stdout="org.gnome.Nautilus.desktop\n", stderr=""))
+    assert not help_dialog.file_manager_missing()

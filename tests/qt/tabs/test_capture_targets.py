@@ -86,7 +86,7 @@ def test_readiness_names_the_empty_regions_and_auto_capture_prefers_poses_that_f
     for _ in range(STEADY_FRAMES):
         tab.show_output(*near)
     assert len(CaptureSession.open(tmp_path / "s").pairs) == 2
-    assert "still empty" in tab.prompt.text() and "corner" in tab.prompt.text()
+    assert "not yet covered" in tab.prompt.text() and "corner" in tab.prompt.text()
 
 
 def test_print_a_target_writes_a_pdf_and_refuses_a_board_too_large(qtbot, tmp_path):

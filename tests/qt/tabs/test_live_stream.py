@@ -9,7 +9,7 @@ pytest.importorskip("foxglove")
 
 from stereo_gui.files.mcap_file import read_topics
 from stereo_gui.pipeline.stream import TOPICS, DepthStream
-from stereo_gui.qt.tabs.live import TRUE_CALIBRATION_NOTE
+from stereo_gui.qt.tabs.live import MCAP_STOP_TEXT, MCAP_TEXT, TRUE_CALIBRATION_NOTE
 from tests.qt.tabs.test_live_tab import double_click
 
 
@@ -57,6 +57,7 @@ def test_the_file_menu_records_mcap_with_the_readings(qtbot, ctx, window, sim_ri
     path = tmp_path / "depth.mcap"
     assert window.toggle_mcap(str(path)) == path
     assert window.act_mcap.text().startswith("Stop")
+    assert live.mcap_action.text() == MCAP_STOP_TEXT  # the Record button's menu says so too
     assert not window.act_stream.isChecked()  # recording does not serve
     qtbot.waitUntil(lambda: live.stream.stats().frames >= 2, timeout=30000)
     panel = live.panels["wls"]
@@ -64,7 +65,7 @@ def test_the_file_menu_records_mcap_with_the_readings(qtbot, ctx, window, sim_ri
     with qtbot.waitSignal(live.measured, timeout=30000):
         double_click(qtbot, panel.viewport(), pos)
     window.toggle_mcap()  # stop
-    assert window.act_mcap.text().startswith("Record")
+    assert window.act_mcap.text().startswith("Record") and live.mcap_action.text() == MCAP_TEXT
     counts = read_topics(path)
     assert counts[TOPICS["depth"]] >= 2 and counts[TOPICS["readings"]] == 1
     assert live.stream.stats() is None  # neither serving nor recording: nothing kept open

@@ -332,7 +332,7 @@ def test_one_reading_is_one_reading_not_one_readings(tab, ctx, questions):
     assert tab.table.model().setData(tab.table.model().index(0, TRUE_COL), "2000")
     texts = [tab.count_label.text(), tab.sample_label.text(), tab.triangulation_label.text()]
     joined = " | ".join(texts)
-    assert "1 reading," in texts[0] and texts[1].startswith("1 sample ")
+    assert "1 reading," in texts[0] and texts[1].startswith("1 sample (a valid reading ")
     assert "of 1 reading" in texts[2] and "1 readings" not in joined and "1 samples" not in joined
     tab.clear_button.click()
     assert "Remove the 1 reading (1 with a true distance)" in questions.asked[-1]
@@ -400,3 +400,15 @@ def test_a_note_is_typed_in_the_log_kept_exported_and_read_back(qtbot, tmp_path)
     assert [r.Z_mm for r in read_csv(old)] == pytest.approx([r.Z_mm for r in without], abs=0.05)
     tab2.shutdown()
     assert ctx2.shutdown(2000)
+
+
+def test_the_residual_axis_is_in_millimetres_not_in_rounding_errors(tab, ctx):
+    """Two samples: the inverse model goes through both, residuals ~1e-13 mm; the axis shows
+    +-1 mm or more, not +-5e-14."""
+    ctx.measurement_log.add(_record(20.0))
+    ctx.measurement_log.add(_record(40.0))
+    model = tab.table.model()
+    for row, d in enumerate((20.0, 40.0)):
+        assert model.setData(model.index(row, TRUE_COL), f"{F_PX * B_MM / d:.1f}")
+    lo, hi = tab.plot.resid.getViewBox().viewRange()[1]
+    assert hi >= 1.0 and lo <= -1.0
