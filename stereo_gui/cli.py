@@ -8,9 +8,14 @@ one line on stderr and exit status 2, never a traceback.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import errno
 import importlib
 import logging
+import os
+import signal
 import sys
+import threading
 
 from stereo_gui import __version__
 from stereo_gui.core.errors import StereoGuiError
@@ -42,7 +47,7 @@ class _Parser(argparse.ArgumentParser):
                         "--at=-1,5)")
         sub = self.prog[len(PREFIX):].strip()
         where = f"{sub}: " if sub else ""
-        sys.stderr.write(f"{PREFIX}: error: {where}{message} (see {self.prog} --help)\n")
+        _say(f"{PREFIX}: error: {where}{message} (see {self.prog} --help)\n")
         raise SystemExit(2)
 
 
@@ -108,15 +113,76 @@ def quiet_opencv(verbose: bool = False) -> None:
                                   else cv2.utils.logging.LOG_LEVEL_SILENT)
 
 
+def _say(text: str) -> None:
+    """A line on stderr, if there is one to write to (a closed or full stderr says nothing)."""
+    try:
+        sys.stderr.write(text)
+        sys.stderr.flush()
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
+def _stdout_gone() -> None:
+    """The reader of our output left (`stereo-gui calibrate --json | head -1`): what is still
+    buffered goes nowhere, and the exit is quiet."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; return the process exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
+    # started with a standard stream closed (`2>&-`): Python leaves it None, and every line
+    # written to it would end the command with an AttributeError
+    if sys.stderr is None:
+        sys.stderr = open(os.devnull, "w")  # noqa: SIM115 - for the process's lifetime
+    if sys.stdout is None:
+        sys.stdout = open(os.devnull, "w")  # noqa: SIM115
+    try:
+        return _main(argv)
+    except BrokenPipeError:
+        _stdout_gone()
+        return 0
+    except OSError as exc:
+        if exc.errno not in (errno.ENOSPC, errno.EIO, errno.EDQUOT):
+            raise
+        # the output (a redirection to a full disk or /dev/full): said, not a traceback
+        _stdout_gone()
+        _say(f"{PREFIX}: error: cannot write the output: {os.strerror(exc.errno)}\n")
+        return 2
+
+
+@contextlib.contextmanager
+def _terminated_as_interrupted():
+    """SIGTERM raises KeyboardInterrupt while a command runs (in the main thread), so that what
+    is being written is cleaned up as after Ctrl+C: no temporary file is left behind."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(*_):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _main(argv: list[str]) -> int:
     try:
         if argv and argv[0] in SUBCOMMANDS:
             parser, module = _sub_parser(argv[0])
             args = parser.parse_args(argv[1:])
             setup_logging(args.verbose)
-            return int(module.run(args) or 0)
+            with _terminated_as_interrupted():
+                code = int(module.run(args) or 0)
+            sys.stdout.flush()  # (a full or closed output is said here, not at exit)
+            return code
         args = _gui_parser().parse_args(argv)
         setup_logging(args.verbose)
         from stereo_gui.qt.preflight import check_gui_can_start
@@ -126,8 +192,8 @@ def main(argv: list[str] | None = None) -> int:
 
         return run_app(source=args.source, calib=args.calib)
     except StereoGuiError as exc:
-        sys.stderr.write(f"{PREFIX}: error: {exc}\n")
+        _say(f"{PREFIX}: error: {exc}\n")
         return 2
     except KeyboardInterrupt:
-        sys.stderr.write(f"{PREFIX}: interrupted\n")
+        _say(f"{PREFIX}: interrupted\n")
         return 130

@@ -15,7 +15,13 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from stereo_gui.core.board import DEFAULT_DICTIONARY, DICTIONARIES, TARGET_NAMES, TARGETS, parse_board
+from stereo_gui.core.board import (
+    DEFAULT_DICTIONARY,
+    DICTIONARIES,
+    TARGET_NAMES,
+    TARGETS,
+    parse_board,
+)
 from stereo_gui.core.calibrate import (
     DEFAULT_MIN_PAIRS,
     CalibrationResult,
@@ -25,7 +31,7 @@ from stereo_gui.core.calibrate import (
 )
 from stereo_gui.core.detect import METHODS as DETECTORS
 from stereo_gui.core.detect import PairInput, detect_pairs
-from stereo_gui.core.errors import InputError
+from stereo_gui.core.errors import InputError, StereoGuiError
 from stereo_gui.core.lens import LENS_MODELS, distortion_names
 from stereo_gui.core.shading import shading_words, with_measured_shading
 from stereo_gui.files.calibration_file import export_ros, save_calibration
@@ -226,6 +232,29 @@ def _session_in(folder: Path):
     return CaptureSession.open(folder) if (folder / MANIFEST).is_file() else None
 
 
+def _check_outputs(output: Path, ros_dir: Path | None, found, folder: Path) -> None:
+    """The calibration and the ROS files may be written: none is one of the set's pictures,
+    its session or its truth, they are not one file, and an existing output is a calibration
+    (one that is anything else is not written over)."""
+    from stereo_gui.commands.disparity import check_outputs
+    from stereo_gui.files.session import MANIFEST
+
+    outputs = [(output, None)]
+    if ros_dir is not None:
+        outputs += [(ros_dir / "left.yaml", None), (ros_dir / "right.yaml", None)]
+    inputs = [f for p in found.pairs for f in (p.left, p.right)]
+    inputs += [folder / MANIFEST, folder / "truth.json"]
+    check_outputs(outputs, inputs)
+    if output.is_file():
+        from stereo_gui.files.any_calibration import load_any_calibration
+
+        try:
+            load_any_calibration(output, (640, 480))
+        except StereoGuiError:
+            raise InputError(f"{output} exists and is not a calibration: choose another name "
+                             "(nothing was written)") from None
+
+
 def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     board = parse_board(args.board or ("7x5" if args.target == "charuco" else "9x6"),
@@ -237,11 +266,14 @@ def run(args: argparse.Namespace) -> int:
     output = Path(args.output)
     if not output.parent.is_dir() and str(output.parent):
         raise InputError(f"cannot write {output}: folder {output.parent} does not exist")
+    if args.ros_dir is not None and not args.ros_dir:
+        raise InputError("--ros-dir is empty: give the folder for left.yaml and right.yaml")
     ros_dir = Path(args.ros_dir) if args.ros_dir else None
     if ros_dir is not None and not ros_dir.is_dir():
         raise InputError(f"--ros-dir {ros_dir} is not an existing folder")
 
     found = discover_pairs(args.folder)
+    _check_outputs(output, ros_dir, found, Path(args.folder))
     if found.unpaired:
         sys.stderr.write(f"stereo-gui: warning: {found.warning()}\n")
     session = _session_in(Path(args.folder))

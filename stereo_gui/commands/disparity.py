@@ -116,13 +116,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="coloured point cloud of the valid pixels (binary PLY, mm)")
 
 
-def check_outputs(outputs) -> None:
+def check_outputs(outputs, inputs=()) -> None:
     """Every output path (path, required suffix or None) can be written, before any is: its
-    folder exists, it is not a folder, its suffix is right, no two are the same file."""
+    folder exists, it is not a folder nor anything else but a regular file (a device, a FIFO),
+    its suffix is right, no two are the same file, and none is one of the run's `inputs` (the
+    same file, also through a link)."""
     seen: set[Path] = set()
+    read = {_same_file_key(Path(i)) for i in inputs if i and Path(i).exists()}
     for path, suffix in outputs:
-        if not path:
+        if path is None:
             continue
+        if not str(path):
+            raise InputError("an output's name is empty (nothing was written)")
         p = Path(path)
         folder = p.parent if str(p.parent) else Path(".")
         if not folder.is_dir():
@@ -130,12 +135,24 @@ def check_outputs(outputs) -> None:
                              "written)")
         if p.is_dir():
             raise InputError(f"cannot write {p}: it is a folder (nothing was written)")
+        if p.exists() and not p.is_file():
+            raise InputError(f"cannot write {p}: it is not a regular file (a device or a pipe; "
+                             "nothing was written)")
         if suffix and p.suffix.lower() != suffix:
             raise InputError(f"{p}: this output must be a {suffix} file (nothing was written)")
+        if p.exists() and _same_file_key(p) in read:
+            raise InputError(f"{p} is an input of this command: writing it would destroy it "
+                             "(nothing was written)")
         key = p.resolve()
         if key in seen:
             raise InputError(f"{p} is given for two outputs (nothing was written)")
         seen.add(key)
+
+
+def _same_file_key(p: Path) -> tuple[int, int]:
+    """What two names of one file share (hard and symbolic links included)."""
+    st = p.stat()
+    return st.st_dev, st.st_ino
 
 
 def run(args) -> int:
@@ -145,7 +162,8 @@ def run(args) -> int:
     if Path(args.output).suffix.lower() not in (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"):
         raise InputError(f"{args.output}: the colour view needs an image suffix such as .png")
     check_outputs([(args.output, None), (args.npy, ".npy"), (args.png16, ".png"),
-                   (args.depth_png, ".png"), (args.ply, ".ply")])
+                   (args.depth_png, ".png"), (args.ply, ".ply")],
+                  inputs=(args.left, args.right, args.calib))
     calib, result = run_pipeline(args)
     d = result.final_px
     items = [(args.output, encode_image(args.output, result.color_bgr), None)]

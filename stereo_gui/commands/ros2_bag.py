@@ -17,12 +17,9 @@ or folder of pairs from now; for cameras and the simulated rig when they were ca
 from __future__ import annotations
 
 import argparse
-import contextlib
 import datetime as _dt
 import logging
-import signal
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -67,38 +64,20 @@ def run(args) -> int:
     status = _Status()
     t_start = time.monotonic()
     given = Path(args.input).expanduser()
-    with _terminated_as_interrupted():  # the temporary bag is removed on SIGTERM too
-        if (given.is_file() and is_mcap(given)) or given.suffix.lower() == ".mcap":
-            if args.calib is not None or args.preset is not None:
-                raise InputError("--calib and --preset apply to a pipeline run: the frames of "
-                                 f"an MCAP recording ({given.name}) were processed already")
-            summary, what, skipped = _from_mcap(given, out, args, status)
-        else:
-            summary, what, skipped = _from_pipeline(args.input, out, args, status)
+    # (SIGTERM is an interrupt here, as for every command: the temporary bag is removed)
+    if (given.is_file() and is_mcap(given)) or given.suffix.lower() == ".mcap":
+        if args.calib is not None or args.preset is not None:
+            raise InputError("--calib and --preset apply to a pipeline run: the frames of "
+                             f"an MCAP recording ({given.name}) were processed already")
+        summary, what, skipped = _from_mcap(given, out, args, status)
+    else:
+        summary, what, skipped = _from_pipeline(args.input, out, args, status)
     took = time.monotonic() - t_start
     mb = summary.size_bytes / 1e6
     print(f"wrote {summary.frames} frames from {what} to {out} ({summary.storage.upper()} "
           f"storage, {mb:.1f} MB) in {took:.1f} s ({summary.frames / took if took > 0 else 0:.1f}"
           " frames/s)" + (f"; {skipped} skipped for newer ones" if skipped else ""), flush=True)
     return 0
-
-
-@contextlib.contextmanager
-def _terminated_as_interrupted():
-    """SIGTERM raises KeyboardInterrupt while the block runs (in the main thread), so that
-    what is being written is cleaned up as after Ctrl+C."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def interrupt(*_):
-        raise KeyboardInterrupt
-
-    previous = signal.signal(signal.SIGTERM, interrupt)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
 
 
 class _Status:

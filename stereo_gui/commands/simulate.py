@@ -88,6 +88,8 @@ def _prepare(out: Path, overwrite: bool, own=_OWN_NAMES, folder: str = SCENE_FOL
 
 
 def run(args: argparse.Namespace) -> int:
+    if not args.out_dir.strip():
+        raise InputError("OUT_DIR is empty: give the folder to write (nothing was written)")
     if args.click_scenes:
         return _run_click_scenes(args)
     if args.seeds is not None:

@@ -11,6 +11,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from stereo_gui.commands import options
 from stereo_gui.core.board import DEFAULT_DICTIONARY, DICTIONARIES, TARGETS, parse_board
 from stereo_gui.core.target_sheet import PAGES_MM, describe, layout
 from stereo_gui.files.target_sheet import write_target
@@ -32,7 +33,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help=f"ChArUco: the ArUco dictionary (default {DEFAULT_DICTIONARY})")
     p.add_argument("--page", default="a4",
                    help=f"paper: {', '.join(PAGES_MM)} or WIDTHxHEIGHT in mm (default a4)")
-    p.add_argument("--dpi", type=float, default=300.0,
+    p.add_argument("--dpi", type=options.number(50, 2400), default=300.0,
                    help="resolution of a PNG target, dots per inch (default 300)")
     p.add_argument("-o", "--output", required=True, metavar="FILE",
                    help="the target to write: .pdf, .svg or .png")

@@ -80,8 +80,9 @@ class CameraSettings:
                     raise ValueError(f"{where}: {name} should be true or false")
                 out[name] = v
             else:
-                if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) \
-                        or abs(v) > 1e7:
+                # (abs first: an integer such as 10**400 has no float, and isfinite would fail)
+                if isinstance(v, bool) or not isinstance(v, int | float) or abs(v) > 1e7 \
+                        or not math.isfinite(v):
                     raise ValueError(f"{where}: {name} should be a finite number")
                 out[name] = float(v)
         return CameraSettings(backend, **out)

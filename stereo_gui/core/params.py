@@ -218,7 +218,10 @@ def convert(value, tp, whole_floats: bool = False):
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise TypeError
-        return float(value)
+        try:
+            return float(value)
+        except OverflowError:  # a whole number of 400 digits: as large as a float goes, which
+            return math.inf if value > 0 else -math.inf  # every range refuses by its name
     if tp is str:
         if not isinstance(value, str):
             raise TypeError

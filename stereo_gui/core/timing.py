@@ -86,6 +86,8 @@ class SkewMeter:
             return
         if self._times and t_left < self._times[-1][0]:
             self._times.clear()  # a clock that went back: another source, a recording looped
+        if self._times and (t_left, t_right) == self._times[-1]:
+            return  # the same frame again (a paused playback shows its frame over and over)
         self._times.append((t_left, t_right))
         while self._times and self._times[0][0] < t_left - self.window_s:
             self._times.popleft()

@@ -309,6 +309,15 @@ _CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 _CACHE_LOCK = threading.Lock()
 
 
+def parameter_names(model: str, n_dist: int) -> tuple[str, ...]:
+    """The names a calibration's covariance may hold for lens `model` with `n_dist` distortion
+    coefficients per camera: each camera's intrinsics and distortion, the rotation vector and
+    the translation."""
+    per_side = (*INTRINSICS, *distortion_names(model, n_dist))
+    return (*(f"{side}.{n}" for side in ("left", "right") for n in per_side),
+            *(f"rvec.{a}" for a in "xyz"), *(f"T.{a}" for a in "xyz"))
+
+
 def _params(calib) -> dict[str, float]:
     """The calibration's parameters by the covariance's names."""
     out: dict[str, float] = {}

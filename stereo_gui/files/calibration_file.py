@@ -816,6 +816,10 @@ def _read_lens_and_uncertainty(fs, where: str, mats: dict) -> dict:
                                    f"coefficients per camera, found {d} and {mats['D2'].size}")
     if model != "fisheye" and d < DIST_COUNT["pinhole"] - 1:
         raise CalibrationFileError(f"{where}: distortion D1 has too few coefficients ({d})")
+    if mats["D2"].size != d:
+        raise CalibrationFileError(f"{where}: distortion D1 has {d} coefficients and D2 "
+                                   f"{mats['D2'].size}: both cameras of a calibration have the "
+                                   "same lens model")
     out: dict = {"model": model, "origin": _string(fs, "origin", ""),
                  "swapped_inputs": _real(fs, "swapped_inputs", where, 0.0) != 0.0}
     warnings = []
@@ -847,10 +851,29 @@ def _read_lens_and_uncertainty(fs, where: str, mats: dict) -> dict:
         if cov is None or cov.shape != (len(names), len(names)) or not np.all(np.isfinite(cov)):
             raise CalibrationFileError(f"{where}: uncertainty_covariance should be a finite "
                                        f"{len(names)}x{len(names)} matrix")
+        _check_uncertainty_names(names, model, d, where)
         out["uncertainty"] = CalibrationUncertainty(
             names, cov, _real(fs, "uncertainty_corner_px", where, float("nan")),
             _string(fs, "uncertainty_method", "jacobian"), model)
     return out
+
+
+def _check_uncertainty_names(names: tuple[str, ...], model: str, n_dist: int, where: str) -> None:
+    """Every name of the covariance is a parameter of this calibration, once (a distance's
+    uncertainty is computed by moving each)."""
+    from stereo_gui.core.uncertainty import parameter_names
+
+    known = parameter_names(model, n_dist)
+    for name in names:
+        if name not in known:
+            raise CalibrationFileError(
+                f"{where}: uncertainty_names holds {name!r}, which is not a parameter of this "
+                f"calibration ({model} lenses, {n_dist} distortion coefficients: "
+                f"{', '.join(known[:2])}, ..., {known[-1]}); remove uncertainty_names and "
+                "uncertainty_covariance to use the file without its uncertainty")
+    if len(set(names)) != len(names):
+        twice = sorted({n for n in names if names.count(n) > 1})
+        raise CalibrationFileError(f"{where}: uncertainty_names holds {', '.join(twice)} twice")
 
 
 def load_calibration_for_size(path: str | Path, image_size: tuple[int, int]) -> StereoCalibration:

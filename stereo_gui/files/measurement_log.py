@@ -18,8 +18,8 @@ from pathlib import Path
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.regression import FitResult, fit_from_dict, fit_to_dict
 from stereo_gui.files.atomic import write_text_atomic
-from stereo_gui.files.readers import set_aside
 from stereo_gui.files.measurement_record import RULER_METHOD, MeasurementRecord
+from stereo_gui.files.readers import set_aside
 
 log = logging.getLogger(__name__)
 
@@ -37,6 +37,8 @@ class KeptLog:
     cleared: tuple[MeasurementRecord, ...] = ()
     active_fit: FitResult | None = None
 
+
+MAX_PIXEL = 100_000.0  # a reading's pixel beyond this is off any camera's image
 
 def data_dir() -> Path:
     """The application's data folder: `$STEREO_GUI_DATA_DIR` when set, else the platform's."""
@@ -81,8 +83,9 @@ def _record_from_json(doc, where: str, warnings: list[str] | None = None) -> Mea
                 raise InputError(f"{where}: {f.name!r} must be text, not {v!r}")
         elif f.name == "true_mm":
             if v is not None and (isinstance(v, bool) or not isinstance(v, int | float)
-                                  or not math.isfinite(v) or v <= 0):
-                raise InputError(f"{where}: 'true_mm' must be a positive number, not {v!r}")
+                                  or not _finite(v) or v <= 0):
+                raise InputError(f"{where}: 'true_mm' must be a positive number, not "
+                                 f"{v!r:.40}")
             v = None if v is None else float(v)
         elif f.name in _FLOAT_FIELDS:
             if v is None:
@@ -106,6 +109,14 @@ def _record_from_json(doc, where: str, warnings: list[str] | None = None) -> Mea
         if warnings is not None:
             warnings.append(f"{where}: a reading marked valid has no {', '.join(unknown)}; it is "
                             "kept as invalid")
+    elif kw["valid"] and not kw["range_mm"] > 0:
+        kw["valid"], kw["reason"] = False, NO_DISTANCE_KEPT
+        if warnings is not None:
+            warnings.append(f"{where}: a reading marked valid has a distance of "
+                            f"{kw['range_mm']:g} mm; it is kept as invalid")
+    if warnings is not None and not (abs(kw["x_px"]) <= MAX_PIXEL and abs(kw["y_px"]) <= MAX_PIXEL):
+        warnings.append(f"{where}: a reading at pixel ({kw['x_px']:g}, {kw['y_px']:g}) lies off "
+                        "any image")
     return MeasurementRecord(**kw)
 
 
@@ -185,3 +196,11 @@ def load_log(path: str | os.PathLike | None = None) -> tuple[KeptLog, list[str]]
     for w in warnings:
         log.warning("%s", w)
     return kept, warnings
+
+
+def _finite(v: int | float) -> bool:
+    """Whether a JSON number is a finite float (an integer such as 10**400 is not one)."""
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:
+        return False

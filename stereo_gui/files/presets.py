@@ -60,16 +60,28 @@ def list_presets() -> list[str]:
     return names
 
 
+def _is_file(path: Path) -> bool:
+    try:
+        return path.is_file()
+    except OSError:  # a name too long for the system
+        return False
+
+
 def load_preset(name: str) -> Preset:
     """A preset by name (built-in or user), or from a path ending in .json."""
-    if name.endswith(".json") and (os.sep in name or "/" in name or Path(name).is_file()):
+    if name.endswith(".json") and (os.sep in name or "/" in name or _is_file(Path(name))):
         return _read(Path(name))
     if name in BUILTIN:
         return _read(resource_path("presets", f"{name}.json"))
     path = user_preset_dir() / f"{name}.json"
-    if path.is_file():
+    try:
+        found = path.is_file()
+    except OSError:  # a name the system cannot take (too long): no preset of that name
+        found = False
+    if found:
         return _read(path)
-    raise InputError(f"unknown preset {name!r}; known presets: {', '.join(list_presets())}")
+    raise InputError(f"unknown preset {name[:60]!r}; known presets: "
+                     f"{', '.join(list_presets())}")
 
 
 def load_presets(names, reserved: tuple[str, ...] = ()) -> dict[str, Preset]:

@@ -6,6 +6,7 @@ import csv
 import json
 import logging
 import os
+import stat
 from pathlib import Path
 
 from stereo_gui.core.errors import InputError
@@ -17,18 +18,65 @@ MAX_JSON_BYTES = 64 << 20  # none of our JSON files comes near this
 UNREADABLE_SUFFIX = ".unreadable"
 
 
-def set_aside(path: str | os.PathLike) -> Path | None:
-    """Rename a remembered file that cannot be used to `<name>.unreadable` (replacing an older
-    one), so that the next save does not overwrite what a person may still want; return the new
-    path, or None when it could not be renamed (the reason is logged)."""
-    path = Path(path)
+def _aside_name(path: Path) -> Path:
+    """`<name>.unreadable`, or `<name>.unreadable.2`, .3, ... when that is taken: a copy set
+    aside before is never replaced."""
     aside = path.with_name(path.name + UNREADABLE_SUFFIX)
+    n = 2
+    while aside.exists():
+        aside = path.with_name(f"{path.name}{UNREADABLE_SUFFIX}.{n}")
+        n += 1
+    return aside
+
+
+def set_aside(path: str | os.PathLike) -> Path | None:
+    """Rename a remembered file that cannot be used to `<name>.unreadable` (numbered when one is
+    there already), so that the next save does not overwrite what a person may still want;
+    return the new path, or None when it could not be renamed (the reason is logged)."""
+    path = Path(path)
+    aside = _aside_name(path)
     try:
-        os.replace(path, aside)
+        os.rename(path, aside)
     except OSError as exc:
         log.info("cannot set %s aside: %s", path, os_error_text(exc))
         return None
     return aside
+
+
+def copy_aside(path: str | os.PathLike) -> Path | None:
+    """Copy a remembered file used only in part to `<name>.unreadable` (numbered), before the
+    next save writes it without what was left out; the copy's path, or None (logged)."""
+    import shutil
+
+    path = Path(path)
+    aside = _aside_name(path)
+    try:
+        shutil.copy2(path, aside)
+    except OSError as exc:
+        log.info("cannot keep a copy of %s: %s", path, os_error_text(exc))
+        return None
+    return aside
+
+
+def read_user_text(path: str | os.PathLike, what: str, max_bytes: int = MAX_JSON_BYTES) -> str:
+    """The UTF-8 text of the regular file `path`, at most `max_bytes`; InputError naming `what`
+    for a device, a pipe or a folder (/dev/zero never ends, a FIFO waits for ever), a file too
+    large, or a name the system cannot take. UnicodeDecodeError for text that is not UTF-8."""
+    path = Path(path)
+    try:
+        st = path.stat()
+        if not stat.S_ISREG(st.st_mode):
+            raise InputError(f"{what} {path} is not a regular file (a folder, a device or a "
+                             "pipe)")
+        if st.st_size > max_bytes:
+            raise InputError(f"{what} {path} is too large ({st.st_size} bytes) to be one")
+        with open(path, "rb") as fh:
+            data = fh.read(max_bytes + 1)
+    except OSError as exc:
+        raise InputError(f"cannot read {what} {path}: {os_error_text(exc)}") from exc
+    if len(data) > max_bytes:
+        raise InputError(f"{what} {path} is too large to be one")
+    return data.decode("utf-8")
 
 
 def read_json_object(path: str | os.PathLike, what: str) -> dict:
@@ -36,9 +84,7 @@ def read_json_object(path: str | os.PathLike, what: str) -> dict:
     is not JSON or holds something other than an object."""
     path = Path(path)
     try:
-        if path.stat().st_size > MAX_JSON_BYTES:
-            raise InputError(f"{what} {path} is too large ({path.stat().st_size} bytes) to be one")
-        doc = json.loads(path.read_text(encoding="utf-8"))
+        doc = json.loads(read_user_text(path, what))
     except OSError as exc:
         raise InputError(f"cannot read {what} {path}: {os_error_text(exc)}") from exc
     except RecursionError:

@@ -24,6 +24,7 @@ everywhere) and FFV1 (.avi, lossless). Playback prefers the PNG images when both
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import datetime as _dt
 import logging
@@ -38,7 +39,7 @@ import numpy as np
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.timing import SkewStats, skew_stats
-from stereo_gui.files.atomic import write_bytes_atomic, write_json_atomic
+from stereo_gui.files.atomic import os_error_text, write_bytes_atomic, write_json_atomic
 from stereo_gui.files.readers import read_csv_rows, read_json_object
 
 log = logging.getLogger(__name__)
@@ -134,6 +135,7 @@ class RecordingWriter:
         if self.folder.exists() and (not self.folder.is_dir() or any(self.folder.iterdir())):
             raise InputError(f"cannot record into {self.folder}: it exists and is not an empty "
                              "folder (a recording never overwrites anything)")
+        self._made_folder = not self.folder.exists()  # (a failed start removes only what it made)
         try:
             self.folder.mkdir(parents=True, exist_ok=True)
             if images:
@@ -159,11 +161,20 @@ class RecordingWriter:
         try:
             self._csv_file = open(self.folder / FRAMES, "w", newline="", encoding="utf-8")
         except OSError as exc:
-            raise InputError(f"cannot write {self.folder / FRAMES}: {exc.strerror or exc}") from exc
+            _remove_empty_recording(self.folder, self._made_folder)
+            raise InputError(f"cannot write {self.folder / FRAMES}: {os_error_text(exc)}") \
+                from exc
         self._csv = csv.writer(self._csv_file, lineterminator="\n")
-        self._csv.writerow(FRAME_COLUMNS)
-        self._csv_file.flush()
-        self._write_header(complete=False)
+        try:
+            self._csv.writerow(FRAME_COLUMNS)
+            self._csv_file.flush()
+            self._write_header(complete=False)
+        except (OSError, InputError) as exc:  # a full disk: nothing recorded, nothing left
+            with contextlib.suppress(OSError):
+                self._csv_file.close()
+            _remove_empty_recording(self.folder, self._made_folder)
+            why = os_error_text(exc) if isinstance(exc, OSError) else str(exc)
+            raise InputError(f"cannot record into {self.folder}: {why}") from exc
         self._queue: queue.Queue | None = None
         self._thread: threading.Thread | None = None
         if background:
@@ -217,6 +228,8 @@ class RecordingWriter:
                     self._error = self._error or exc
             if self._error is None:
                 self._write_header(complete=True)
+            elif self._count == 0:  # it failed before its first frame: it holds nothing
+                _remove_empty_recording(self.folder, self._made_folder)
         self._raise_pending()
         return open_recording(self.folder)
 
@@ -240,8 +253,10 @@ class RecordingWriter:
             return
         if isinstance(err, InputError):
             raise err
-        msg = err.strerror if isinstance(err, OSError) and err.strerror else str(err)
-        raise InputError(f"recording to {self.folder} failed: {msg}") from err
+        msg = os_error_text(err) if isinstance(err, OSError) else str(err)
+        kept = (f"; its {self._count} frames recorded are kept" if self._count
+                else "; nothing was recorded")
+        raise InputError(f"recording to {self.folder} failed: {msg}{kept}") from err
 
     def _run(self) -> None:
         while True:
@@ -359,6 +374,7 @@ def is_recording(folder: str | os.PathLike) -> bool:
 
 
 MAX_FPS = 1000.0
+MIN_FPS = 1e-4  # a frame every three hours (a time-lapse); fewer is no recording to play back
 MAX_SIDE_PX = 100_000
 MAX_FRAMES = 10_000_000
 
@@ -386,9 +402,9 @@ def _header_fields(header: dict, hpath: Path) -> tuple[tuple[int, int], float, s
     if fps is None:
         fps = 30.0
     if isinstance(fps, bool) or not isinstance(fps, int | float) or \
-            not (math.isfinite(fps) and 0 < fps <= MAX_FPS):
-        raise bad("fps", f"is {fps!r:.40}; it must be a number of frames per second from 0 to "
-                         f"{MAX_FPS:g}")
+            not (math.isfinite(fps) and MIN_FPS <= fps <= MAX_FPS):
+        raise bad("fps", f"is {fps!r:.40}; it must be a number of frames per second from "
+                         f"{MIN_FPS:g} to {MAX_FPS:g}")
     size = header.get("size")
     if size is None:
         size = [0, 0]
@@ -502,3 +518,25 @@ def open_recording(folder: str | os.PathLike) -> Recording:
         log.warning("%s", w)
     return Recording(folder, size, fps, source, created, tuple(frames), video, complete,
                      tuple(warnings))
+
+
+def _remove_empty_recording(folder: Path, made: bool) -> None:
+    """Remove what a recording that holds no frame made (its empty left/ and right/, its frame
+    list and header; the folder itself when `made` by it), as a failed start leaves it; anything
+    else there is kept."""
+    import shutil
+
+    try:
+        for side in ("left", "right"):
+            if (folder / side).is_dir() and any((folder / side).iterdir()):
+                return
+        if any(p.name not in ("left", "right", FRAMES, HEADER) and not p.name.startswith(".")
+               for p in folder.iterdir()):
+            return
+        if made:
+            shutil.rmtree(folder)
+            return
+        for p in folder.iterdir():
+            shutil.rmtree(p) if p.is_dir() else p.unlink()
+    except OSError as exc:
+        log.info("cannot remove the empty recording %s: %s", folder, os_error_text(exc))

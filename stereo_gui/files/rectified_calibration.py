@@ -30,7 +30,9 @@ FORM = ("rectified:F,B or rectified:F,B,DOFFS (focal length F in px, baseline B 
 # bounds that keep f*B, f/d and the matcher's disparity range finite and meaningful
 _F_RANGE = (1e-3, 1e7)  # px
 _B_RANGE = (1e-3, 1e7)  # mm
-_DOFFS_LIMIT = 1e6  # px
+# px: the matcher's disparities (OpenCV's 16-bit fixed point, 1/16 px) reach 2047 px at most,
+# and the disparity of a point is f B / Z - DOFFS; Middlebury 2014's full-size scenes have 0-300
+_DOFFS_LIMIT = 1024.0
 
 
 @dataclass(frozen=True)
@@ -84,7 +86,8 @@ def _out_of_range(f: float, b: float, doffs: float) -> str:
         return f"the baseline B must be a positive number of millimetres up to " \
                f"{_B_RANGE[1]:g}, not {b:g}"
     if not abs(doffs) <= _DOFFS_LIMIT:
-        return f"DOFFS = cx_right - cx_left of {doffs:g} px is not a principal point offset"
+        return (f"DOFFS = cx_right - cx_left of {doffs:g} px is not a principal point offset a "
+                f"matcher can search with (at most {_DOFFS_LIMIT:g} px either way)")
     return ""
 
 

@@ -24,6 +24,7 @@ import numpy as np
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.files.atomic import os_error_text
+from stereo_gui.files.readers import read_user_text
 
 MAX_LIST_BYTES = 1 << 20  # a list of scenes, not a data set
 MAX_PFM_SIDE = 30_000
@@ -61,11 +62,7 @@ def read_scene_list(path: str | os.PathLike) -> list[SceneSpec]:
     """The scenes of a list file; InputError with the file and line for anything malformed."""
     path = Path(path)
     try:
-        if path.stat().st_size > MAX_LIST_BYTES:
-            raise InputError(f"scene list {path} is too large to be one")
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise InputError(f"cannot read the scene list {path}: {os_error_text(exc)}") from None
+        text = read_user_text(path, "scene list", MAX_LIST_BYTES)
     except UnicodeDecodeError:
         raise InputError(f"scene list {path} is not UTF-8 text") from None
     folder = path.parent

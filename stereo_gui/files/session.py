@@ -95,7 +95,10 @@ def _whole(v, field: str, lo: int = -(2**31), hi: int = 2**31) -> int:
 def _number(v, field: str) -> float:
     if isinstance(v, bool) or not isinstance(v, int | float):
         raise ValueError(f"{field} should be a number, not {v!r:.40}")
-    return float(v)
+    try:
+        return float(v)
+    except OverflowError:  # an integer such as 10**400 has no float
+        raise ValueError(f"{field} should be a number of at most 1e308, not {v!r:.40}") from None
 
 
 def _text(v, field: str, empty: bool = True) -> str:

@@ -28,9 +28,11 @@ from stereo_gui.core.lens import LENS_MODELS
 from stereo_gui.core.measure import PATCH_PX
 from stereo_gui.core.params import convert, describe_type, param, params_of
 from stereo_gui.files.atomic import write_json_atomic
-from stereo_gui.files.readers import set_aside
+from stereo_gui.files.readers import copy_aside, read_user_text, set_aside
 
 log = logging.getLogger(__name__)
+
+MAX_SETTINGS_BYTES = 16 << 20  # settings are a few kB; more is not a settings file
 
 FORMAT_VERSION = 1
 SETTINGS_FILE = "settings.json"
@@ -182,10 +184,10 @@ def settings_from_dict(data: dict) -> tuple[Settings, list[str]]:
             value = convert(raw, spec.type)
         except TypeError:
             warnings.append(f"setting {key!r} should be {describe_type(spec.type)}, "
-                            f"found {raw!r}; default used")
+                            f"found {raw!r:.40}; default used")
             continue
         if spec.problem(value) is not None:
-            warnings.append(f"setting {key!r} should be {spec.wants()}, found {raw!r}; "
+            warnings.append(f"setting {key!r} should be {spec.wants()}, found {raw!r:.40}; "
                             "default used")
             continue
         values[key] = value
@@ -216,8 +218,11 @@ def load_settings(path: str | os.PathLike | None = None) -> tuple[Settings, list
     if not path.exists():
         return Settings(), warnings
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_user_text(path, "settings file", MAX_SETTINGS_BYTES)
         data = json.loads(text)
+    except InputError as exc:  # a pipe, a device, a file too large
+        warnings.append(f"{exc}; defaults used")
+        return Settings(), warnings
     except RecursionError:
         warnings.append(f"settings file {path} is nested too deeply to be settings; "
                         "defaults used")
@@ -241,6 +246,10 @@ def load_settings(path: str | os.PathLike | None = None) -> tuple[Settings, list
             else:
                 settings, more = settings_from_dict(data)
                 warnings.extend(f"{path}: {w}" for w in more)
+                if more:  # the next save leaves those out: the file as it was is kept
+                    copy = copy_aside(path)
+                    if copy is not None:
+                        warnings[-1] += f" (the file as it was is kept as {copy.name})"
                 for w in warnings:
                     log.warning("%s", w)
                 return settings, warnings
@@ -261,10 +270,8 @@ def _newer(version) -> bool:
 def _version_on_disk(path: Path):
     """The format_version of the settings file at `path`, or None when there is none to read."""
     try:
-        if path.stat().st_size > 16 << 20:
-            return None
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError, RecursionError):
+        data = json.loads(read_user_text(path, "settings file", MAX_SETTINGS_BYTES))
+    except (InputError, OSError, ValueError, RecursionError):
         return None
     return data.get("format_version") if isinstance(data, dict) else None
 

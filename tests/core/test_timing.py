@@ -42,3 +42,16 @@ def test_no_frames_no_figures():
     st = SkewMeter().stats()
     assert st.frames == 0 and st.interval_ms is None and not st.too_large
     assert st.text() == "Skew: no frames"
+
+
+def test_the_same_frame_again_is_not_counted_again():
+    """A paused playback hands its frame over and over: the skew is of the frames that came,
+    not "over the last second (547 frames)"."""
+    from stereo_gui.core.timing import SkewMeter
+
+    meter = SkewMeter(window_s=1.0)
+    for i in range(10):
+        meter.add(0.1 * i, 0.1 * i + 0.002)
+    for _ in range(500):
+        meter.add(0.9, 0.902)
+    assert meter.stats().frames == 10

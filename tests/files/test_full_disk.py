@@ -345,6 +345,24 @@ def test_a_recording_on_a_full_disk_stops_with_an_error_and_keeps_its_frames(dis
         assert cv2.imread(str(f.left)) is not None and cv2.imread(str(f.right)) is not None
 
 
+def test_a_recording_that_cannot_start_on_a_full_disk_says_so_and_leaves_nothing(disk):
+    """Record with no space left: the disk is full, said in words (it was "unexpected error" and
+    a traceback at the frame list's flush), and no empty rec-... folder is left behind; a folder
+    the person chose stays, empty."""
+    from stereo_gui.files.recording import RecordingWriter
+
+    disk.fill(0)
+    with pytest.raises(StereoGuiError, match="the disk is full"):
+        RecordingWriter(disk.root / "rec", fps=30.0, background=False)
+    assert not (disk.root / "rec").exists()
+    disk.unfill()
+    (disk.root / "chosen").mkdir()
+    disk.fill(0)
+    with pytest.raises(StereoGuiError, match="the disk is full"):
+        RecordingWriter(disk.root / "chosen", fps=30.0, background=False)
+    assert (disk.root / "chosen").is_dir() and not any((disk.root / "chosen").iterdir())
+
+
 def _cli(*argv, cwd):
     env = dict(os.environ, PYTHONFAULTHANDLER="1")
     return subprocess.run([sys.executable, "-m", "stereo_gui", *map(str, argv)],

@@ -128,3 +128,17 @@ def test_a_log_whose_active_fit_cannot_be_used_keeps_its_readings(tmp_path):
     assert len(warnings) == 1 and "quartic" in warnings[0] and "triangulation" in warnings[0]
     with pytest.raises(InputError, match="quartic"):
         ml.log_from_json(json.dumps(doc), "log")  # without a list for warnings it is refused
+
+
+def test_a_negative_distance_or_a_reading_off_any_image_is_said(tmp_path):
+    """A log "valid" with a negative distance, or a reading at pixel 1e308, used to load
+    without a word."""
+    import dataclasses
+
+    bad = dataclasses.replace(_rec(40.0), Z_mm=-2000.0, range_mm=-2000.0)
+    far = dataclasses.replace(_rec(40.0), x_px=1e308)
+    path = ml.save_log(ml.KeptLog((bad, far, _rec(20.0))), tmp_path / "log.json")
+    back, warnings = ml.load_log(path)
+    assert not back.records[0].valid and back.records[1].valid and back.records[2].valid
+    assert any("-2000 mm" in w and "kept as invalid" in w for w in warnings)
+    assert any("off any image" in w for w in warnings) and len(warnings) == 2

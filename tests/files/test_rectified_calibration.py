@@ -109,3 +109,12 @@ def test_middlebury_without_size_takes_the_images(tmp_path):
     with pytest.raises(CalibrationFileError, match="width= and height="):
         read_middlebury(path)
     assert read_middlebury(path, (2880, 1988)).image_size == (2880, 1988)
+
+
+@pytest.mark.parametrize("spec", ["rectified:748,110,-1000000", "rectified:748,110,5000"])
+def test_a_principal_point_offset_no_matcher_can_search_is_refused_at_once(spec):
+    """It used to load and end, 8 s later, in "OverflowError ... int16" inside the matcher."""
+    from stereo_gui.files.rectified_calibration import parse_rectified_spec
+
+    with pytest.raises(InputError, match="DOFFS"):
+        parse_rectified_spec(spec)

@@ -180,3 +180,24 @@ def test_a_bad_value_is_warned_about_in_its_declarations_words():
     assert "'patch_size' should be an odd whole number from 1 to 101 px, found 4" in joined
     assert "'lens_model' should be one of pinhole, rational, fisheye" in joined
     assert "'square_mm' should be a number from" in joined and " mm, found 1000000000.0" in joined
+
+
+def test_a_field_left_out_keeps_the_file_as_it_was_and_copies_are_numbered():
+    """A setting of the wrong type is dropped (default used) and the next save writes the file
+    without it: the file as it was is copied aside first, and a second copy never replaces the
+    first."""
+    from stereo_gui.files.settings import load_settings, settings_path
+
+    path = settings_path()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    first = '{"format_version": 1, "square_mm": "twenty-five"}'
+    path.write_text(first)
+    settings, warnings = load_settings()
+    assert "square_mm" in warnings[-1] and "kept as settings.json.unreadable" in warnings[-1]
+    assert path.with_name("settings.json.unreadable").read_text() == first
+    second = '{"format_version": 1, "patch_size": "big"}'
+    path.write_text(second)
+    _settings, warnings = load_settings()
+    assert "settings.json.unreadable.2" in warnings[-1]
+    assert path.with_name("settings.json.unreadable").read_text() == first
+    assert path.with_name("settings.json.unreadable.2").read_text() == second
