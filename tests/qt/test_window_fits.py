@@ -113,3 +113,30 @@ def test_capture_views_keep_their_height_whatever_the_prompt_says(qtbot, ctx, wi
         assert tab.state == "review" and "Save asks for a session folder" in tab.prompt.text()
         QApplication.processEvents()
         assert tab.view.height() == live_height, (w, h)
+
+
+def test_the_camera_controls_and_their_warning_leave_the_window_on_the_screen(qtbot, ctx,
+                                                                            window, sim_rig):
+    """Unfolding the camera controls raised the window's minimum height to 735 px, the
+    autofocus warning to 772, on a 720 px screen; folded, it stayed so."""
+    ctx.calibration_model.set(sim_rig.true_calibration(), None,
+                              note="simulated rig's TRUE calibration")
+    window.show_tab("live")
+    window.banner.show_text("Running on the SIMULATED stereo rig: a long banner " * 3)
+    w, h = SCREEN[0], SCREEN[1] - TITLE_BAR_PX
+    window.resize(w, h)
+    qtbot.waitUntil(lambda: window.height() == h)
+    panel = window.live_tab.camera_controls
+    panel.set_unfolded(True)
+    panel.warning.setText("Autofocus is on (left and right): the lens refocuses when the scene "
+                          "changes, and with it the focal length: distances read so will be "
+                          "wrong when it refocuses. Lock the focus where it is (last read: left "
+                          "0, right 0).")
+    panel.warning_row.show()
+    QApplication.processEvents()
+    assert window.minimumSizeHint().height() <= h
+    assert (window.width(), window.height()) == (w, h)
+    panel.set_unfolded(False)
+    panel.warning_row.hide()
+    QApplication.processEvents()
+    assert window.minimumSizeHint().height() <= h

@@ -18,10 +18,12 @@ from typing import TYPE_CHECKING
 from PySide6.QtCore import QObject, Qt, QTimer, Signal
 from PySide6.QtWidgets import (
     QCheckBox,
+    QFrame,
     QGridLayout,
     QHBoxLayout,
     QLabel,
     QPushButton,
+    QScrollArea,
     QSlider,
     QSpinBox,
     QStackedWidget,
@@ -44,6 +46,7 @@ ROWS = (("Focus", "focus_auto", "focus"), ("Exposure", "exposure_auto", "exposur
         ("Gain", None, "gain"), ("White balance", "wb_auto", "wb_temperature"),
         ("Brightness", None, "brightness"))
 SKEW_POLL_MS = 500
+BODY_MAX_PX = 170  # the unfolded rows' height at most (they scroll beyond it)
 NO_CONTROLS = ("This source has no camera controls (a recording, a folder of pairs or a video "
                "plays back what was captured)")
 WARN_STYLE = "background: #fff3b0; color: #3e2700; border: 1px solid #d4a017; padding: 3px"
@@ -409,8 +412,17 @@ class CameraControlsPanel(QWidget):
         self.note_label = QLabel()
         self.note_label.setWordWrap(True)
         body.addWidget(self.note_label)
-        self.body.hide()
-        outer.addWidget(self.body)
+        # the rows scroll within BODY_MAX_PX: unfolded, they must not make the window ask for
+        # more height than a 720 px screen has (they asked for 735 px, 772 with the warning)
+        self.body_scroll = QScrollArea()
+        self.body_scroll.setWidget(self.body)
+        self.body_scroll.setWidgetResizable(True)
+        self.body_scroll.setFrameShape(QFrame.Shape.NoFrame)
+        self.body_scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+        self.body_scroll.setMaximumHeight(BODY_MAX_PX)
+        self.body_scroll.setMinimumHeight(0)
+        self.body_scroll.hide()
+        outer.addWidget(self.body_scroll)
 
         self._timer = QTimer(self)
         self._timer.setInterval(SKEW_POLL_MS)
@@ -426,7 +438,7 @@ class CameraControlsPanel(QWidget):
             self.fold.setChecked(on)
             return
         self.fold.setArrowType(Qt.ArrowType.DownArrow if on else Qt.ArrowType.RightArrow)
-        self.body.setVisible(on)
+        self.body_scroll.setVisible(on)
         if on:
             self.model.refresh()
 
