@@ -12,3 +12,26 @@ def one_line(err: str, code: int, *words: str) -> str:
     for w in words:
         assert w in lines[0], lines[0]
     return lines[0]
+
+
+def stop_with_signal(argv, ready, signum=None, timeout: float = 120.0, **popen):
+    """Start `argv`, wait until `ready(proc)` says it is at work (it may read the process's
+    output), send `signum` (SIGTERM) and wait for the end: (returncode, rest of stdout,
+    stderr). The process is killed if anything goes wrong on the way."""
+    import signal
+    import subprocess
+    import time
+
+    popen = {"stdout": subprocess.PIPE, "stderr": subprocess.PIPE, "text": True, **popen}
+    proc = subprocess.Popen(argv, **popen)
+    try:
+        deadline = time.monotonic() + timeout
+        while not ready(proc):
+            assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGTERM if signum is None else signum)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    return proc.returncode, out, err

@@ -40,20 +40,10 @@ def test_a_closed_stderr_does_not_crash_a_refusal():
 
 def test_sigterm_leaves_no_temporary_files(tmp_path):
     """`simulate` stopped by SIGTERM mid-way: what it wrote is whole, nothing hidden is left."""
-    import signal
-    import time
+    from tests.cli_output import stop_with_signal
 
     out = tmp_path / "set"
-    proc = subprocess.Popen(CMD + ["simulate", str(out), "--pairs", "400"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline and not (out.is_dir() and any(out.glob("*.png"))):
-            time.sleep(0.05)
-        proc.send_signal(signal.SIGTERM)
-        _, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 130 and "interrupted" in err and "Traceback" not in err
+    code, _out, err = stop_with_signal(CMD + ["simulate", str(out), "--pairs", "400"],
+                                       lambda _p: out.is_dir() and any(out.glob("*.png")))
+    assert code == 130 and "interrupted" in err and "Traceback" not in err
     assert [p.name for p in out.iterdir() if p.name.startswith(".")] == []

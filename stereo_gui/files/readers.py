@@ -33,14 +33,7 @@ def set_aside(path: str | os.PathLike) -> Path | None:
     """Rename a remembered file that cannot be used to `<name>.unreadable` (numbered when one is
     there already), so that the next save does not overwrite what a person may still want;
     return the new path, or None when it could not be renamed (the reason is logged)."""
-    path = Path(path)
-    aside = _aside_name(path)
-    try:
-        os.rename(path, aside)
-    except OSError as exc:
-        log.info("cannot set %s aside: %s", path, os_error_text(exc))
-        return None
-    return aside
+    return _put_aside(Path(path), os.rename)
 
 
 def copy_aside(path: str | os.PathLike) -> Path | None:
@@ -48,12 +41,15 @@ def copy_aside(path: str | os.PathLike) -> Path | None:
     next save writes it without what was left out; the copy's path, or None (logged)."""
     import shutil
 
-    path = Path(path)
+    return _put_aside(Path(path), shutil.copy2)
+
+
+def _put_aside(path: Path, how) -> Path | None:
     aside = _aside_name(path)
     try:
-        shutil.copy2(path, aside)
+        how(path, aside)
     except OSError as exc:
-        log.info("cannot keep a copy of %s: %s", path, os_error_text(exc))
+        log.info("cannot keep %s aside: %s", path, os_error_text(exc))
         return None
     return aside
 

@@ -19,7 +19,7 @@ pytest.importorskip("mcap_protobuf")
 import stereo_gui.cli
 from stereo_gui.commands import ros2_bag as cmd
 from stereo_gui.pipeline.stream import LEFT_FRAME, RIGHT_FRAME, cloud_packed, depth_image_mm
-from tests.cli_output import one_line
+from tests.cli_output import one_line, stop_with_signal
 from tests.ros2_bags import cloud, image, read_bag, stamp_ns
 
 ENTRY = ("stereo_gui.commands.ros2_bag",
@@ -353,27 +353,12 @@ def test_a_full_disk_is_one_line_and_the_earlier_bag_stays(recorded, tmp_path, m
 
 
 def test_sigterm_leaves_no_temporary_bag(tmp_path):
-    import signal
-    import subprocess
     import sys
-    import time
 
-    code = ("import sys, stereo_gui.cli as c\n"
-            f"c.SUBCOMMANDS['ros2-bag'] = {ENTRY!r}\n"
-            "sys.exit(c.main(sys.argv[1:]))\n")
-    proc = subprocess.Popen([sys.executable, "-c", code, "ros2-bag", "sim", "--frames", "100000",
-                             "-o", str(tmp_path / "bag")],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 60
-        # the bag is being written once its temporary folder holds its MCAP file
-        while not list(tmp_path.glob(".bag.*.partial/bag/*.mcap")):
-            assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
-            time.sleep(0.05)
-        proc.send_signal(signal.SIGTERM)
-        _, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 130 and "interrupted" in err and "Traceback" not in err, err
+    # (the bag is being written once its temporary folder holds its MCAP file)
+    code, _, err = stop_with_signal(
+        [sys.executable, "-m", "stereo_gui", "ros2-bag", "sim", "--frames", "100000", "-o",
+         str(tmp_path / "bag")],
+        lambda _p: bool(list(tmp_path.glob(".bag.*.partial/bag/*.mcap"))), timeout=60)
+    assert code == 130 and "interrupted" in err and "Traceback" not in err, err
     assert _leftovers(tmp_path) == []

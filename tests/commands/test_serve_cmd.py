@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import signal
-import subprocess
 import sys
 import time
 
@@ -15,7 +13,7 @@ pytest.importorskip("mcap")
 from stereo_gui.cli import main
 from stereo_gui.files.mcap_file import read_topics
 from stereo_gui.pipeline.stream import TOPICS, DepthStream
-from tests.cli_output import one_line
+from tests.cli_output import one_line, stop_with_signal
 
 
 def test_serve_records_a_number_of_frames_and_ends(tmp_path, capsys):
@@ -66,19 +64,17 @@ def test_a_taken_port_is_one_line_and_exit_2(capsys):
 
 def test_sigterm_stops_it_with_the_recording_whole(tmp_path):
     out = tmp_path / "run.mcap"
-    proc = subprocess.Popen([sys.executable, "-m", "stereo_gui", "serve", "--source", "sim",
-                             "--port", "0", "--mcap", str(out)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        first = proc.stdout.readline()
-        assert first.startswith("serving"), first + proc.stderr.read()
+    started = []
+
+    def serving(proc) -> bool:
+        started.append(proc.stdout.readline())
+        assert started[-1].startswith("serving"), started
         time.sleep(1.5)
-        proc.send_signal(signal.SIGTERM)
-        rest, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 0, err
+        return True
+
+    code, rest, err = stop_with_signal([sys.executable, "-m", "stereo_gui", "serve", "--source",
+                                        "sim", "--port", "0", "--mcap", str(out)], serving)
+    assert code == 0, err
     assert "Traceback" not in err and "recorded" in rest
     assert read_topics(out)[TOPICS["depth"]] >= 1
     assert [p.name for p in tmp_path.iterdir()] == ["run.mcap"]  # no temporary file left
@@ -89,10 +85,7 @@ def test_a_client_that_vanishes_leaves_no_error_on_the_terminal(tmp_path):
     away without closing (they are the client's, and shown with -v)."""
     import socket
 
-    proc = subprocess.Popen([sys.executable, "-m", "stereo_gui", "serve", "--source", "sim",
-                             "--port", "0"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
+    def dropped_clients(proc) -> bool:
         first = proc.stdout.readline()
         port = int(first.split("ws://127.0.0.1:")[1].split()[0].rstrip(","))
         for _ in range(3):  # a WebSocket handshake, then the connection dropped
@@ -103,9 +96,8 @@ def test_a_client_that_vanishes_leaves_no_error_on_the_terminal(tmp_path):
                              b"\r\n\r\n")
                 sock.recv(4096)
         time.sleep(1.0)
-        proc.send_signal(signal.SIGTERM)
-        _out, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 0 and err.strip() == "", err
+        return True
+
+    code, _out, err = stop_with_signal([sys.executable, "-m", "stereo_gui", "serve", "--source",
+                                        "sim", "--port", "0"], dropped_clients)
+    assert code == 0 and err.strip() == "", err

@@ -121,40 +121,40 @@ class CalibrationModel(QObject):
     def export_ros(self, folder: str | Path) -> tuple[Path, Path] | None:
         """Write the calibration as ROS camera_info left.yaml and right.yaml into `folder`;
         both paths, or None (after reporting why)."""
-        calib = self._calibration
-        if calib is None:
-            self._report.report_error(
-                "There is no calibration to export: calibrate or open one first.")
-            return None
         from stereo_gui.files.calibration_file import export_ros
 
-        try:
-            paths = export_ros(calib, folder)
-        except (StereoGuiError, OSError) as exc:
-            self._report.report_error(f"Cannot export ROS camera_info into {folder}: {exc}")
-            return None
-        extra = "" if calib.metric else " (Hartley calibration: the baseline is not metric)"
-        self._report.show_status(f"Exported ROS camera_info {paths[0].name} and "
-                                 f"{paths[1].name} into {folder}{extra}")
+        paths = self._export(lambda c: export_ros(c, folder),
+                             f"Cannot export ROS camera_info into {folder}")
+        if paths is not None:
+            extra = ("" if self._calibration.metric
+                     else " (Hartley calibration: the baseline is not metric)")
+            self._report.show_status(f"Exported ROS camera_info {paths[0].name} and "
+                                     f"{paths[1].name} into {folder}{extra}")
         return paths
 
     def export_kalibr(self, path: str | Path) -> Path | None:
         """Write the calibration as a Kalibr camchain.yaml; its path, or None (after reporting
         why: no calibration, or lenses Kalibr has no model for)."""
-        calib = self._calibration
-        if calib is None:
+        from stereo_gui.files.kalibr_calibration import write_kalibr_camchain
+
+        done = self._export(lambda c: write_kalibr_camchain(path, c),
+                            f"Cannot export a Kalibr camchain to {path}")
+        if done is not None:
+            self._report.show_status(f"Exported the Kalibr camchain {done}")
+        return done
+
+    def _export(self, write, failed: str):
+        """`write(calibration)`'s result, or None after saying why (no calibration; `failed`
+        and the reason)."""
+        if self._calibration is None:
             self._report.report_error(
                 "There is no calibration to export: calibrate or open one first.")
             return None
-        from stereo_gui.files.kalibr_calibration import write_kalibr_camchain
-
         try:
-            done = write_kalibr_camchain(path, calib)
+            return write(self._calibration)
         except (StereoGuiError, OSError) as exc:
-            self._report.report_error(f"Cannot export a Kalibr camchain to {path}: {exc}")
+            self._report.report_error(f"{failed}: {exc}")
             return None
-        self._report.show_status(f"Exported the Kalibr camchain {done}")
-        return done
 
     def import_ros(self, left: str | Path, right: str | Path) -> bool:
         """Use the calibration of a ROS camera_info pair (not saved: the note names the two
