@@ -154,6 +154,15 @@ def _load_robotics(path: Path) -> LoadedCalibration | None:
 
 def load_any_calibration(spec: str | Path, image_size: SizeHint = None) -> LoadedCalibration:
     """Open `spec` (see the module's doc); `image_size` is used when the file holds none."""
+    try:
+        return _load_any(spec, image_size)
+    except UnicodeDecodeError as exc:  # OpenCV hands back bytes of a text field as they are
+        raise CalibrationFileError(f"{spec} holds text that is not UTF-8 (byte "
+                                   f"0x{exc.object[exc.start]:02x}): it is damaged or not a "
+                                   "calibration") from None
+
+
+def _load_any(spec: str | Path, image_size: SizeHint) -> LoadedCalibration:
     from stereo_gui.files import rectified_calibration as rect
 
     if rect.is_rectified_spec(spec):

@@ -374,6 +374,8 @@ def is_recording(folder: str | os.PathLike) -> bool:
 
 
 MAX_FPS = 1000.0
+# a frame time beyond this (about the year 5138 counted from 1970) is no clock's
+MAX_TIME_S = 1e11
 MIN_FPS = 1e-4  # a frame every three hours (a time-lapse); fewer is no recording to play back
 MAX_SIDE_PX = 100_000
 MAX_FRAMES = 10_000_000
@@ -495,9 +497,9 @@ def open_recording(folder: str | os.PathLike) -> Recording:
         if idx < 0 or idx <= last_index:
             raise InputError(f"{where}: index {idx} is negative or does not follow "
                              f"{last_index} (indices must rise)")
-        if not (math.isfinite(tl) and math.isfinite(tr)):
-            raise InputError(f"{where}: t_left/t_right must be finite seconds, not {row[1]!r:.30}"
-                             f", {row[2]!r:.30}")
+        if not (abs(tl) <= MAX_TIME_S and abs(tr) <= MAX_TIME_S):  # (False for NaN)
+            raise InputError(f"{where}: t_left/t_right must be seconds of a clock (at most "
+                             f"{MAX_TIME_S:g}), not {row[1]!r:.30}, {row[2]!r:.30}")
         if tl < last_t[0] or tr < last_t[1]:
             raise InputError(f"{where}: t_left/t_right go backwards in time")
         last_index, last_t = idx, (tl, tr)

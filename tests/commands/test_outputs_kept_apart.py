@@ -113,3 +113,25 @@ def test_a_recording_at_a_frame_per_thirty_years_is_refused(tmp_path):
     header.write_text(json.dumps(doc))
     with pytest.raises(InputError, match="fps"):
         open_recording(tmp_path / "rec")
+
+
+def test_a_recording_with_frame_times_no_clock_has_is_refused_by_line(tmp_path):
+    """Frame times of 1e300 s ended in "timestamp out of range" far from the file."""
+    import numpy as np
+
+    from stereo_gui.core.errors import InputError
+    from stereo_gui.files.recording import RecordingWriter, open_recording
+    from stereo_gui.sources.base import StereoFrame
+
+    img = np.zeros((48, 64, 3), np.uint8)
+    with RecordingWriter(tmp_path / "rec", fps=30.0, background=False) as w:
+        for i in range(3):
+            w.write(StereoFrame(img, img, i / 30, i / 30, i))
+    frames = tmp_path / "rec" / "frames.csv"
+    lines = frames.read_text().splitlines()
+    parts = lines[2].split(",")
+    parts[1] = "1e300"
+    lines[2] = ",".join(parts)
+    frames.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError, match="line 3.*seconds of a clock"):
+        open_recording(tmp_path / "rec")

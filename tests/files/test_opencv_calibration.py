@@ -150,3 +150,26 @@ def test_dispatch_reads_the_sample_and_says_what_it_was(tmp_path, sample):
     assert loaded.kind == "opencv" and loaded.path == intr
     assert "intrinsics.yml + extrinsics.yml" in loaded.description
     assert "640x480 from the images or source" in loaded.description
+
+
+def test_a_byte_that_is_no_text_in_a_matrix_header_is_refused_by_name(tmp_path):
+    """An OpenCV-sample file whose matrix `dt` holds the byte 0xAA ended in UnicodeDecodeError."""
+    import cv2
+    import numpy as np
+
+    from stereo_gui.core.errors import CalibrationFileError
+    from stereo_gui.files.any_calibration import load_any_calibration
+
+    good = tmp_path / "calib.yml"
+    fs = cv2.FileStorage(str(good), cv2.FILE_STORAGE_WRITE)
+    for name, m in (("M1", np.eye(3)), ("D1", np.zeros((1, 5))), ("M2", np.eye(3)),
+                    ("D2", np.zeros((1, 5))), ("R", np.eye(3)), ("T", np.array([[-60.0], [0],
+                                                                                  [0]]))):
+        fs.write(name, m)
+    fs.release()
+    bad = tmp_path / "bad.yml"
+    bad.write_bytes(good.read_bytes().replace(b"dt: d", b"dt: \xaa", 1))
+    import pytest
+
+    with pytest.raises(CalibrationFileError, match="not UTF-8"):
+        load_any_calibration(bad, (640, 480))

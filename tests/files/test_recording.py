@@ -216,7 +216,7 @@ def test_a_torn_last_line_is_left_out_and_the_rest_plays(tmp_path):
 @pytest.mark.parametrize(("line", "message"), [
     ("0,5000,5000,left/000001.png,right/000001.png", "does not follow"),  # duplicate index
     ("-5,5000,5000,left/000001.png,right/000001.png", "negative"),
-    ("7,nan,5000,left/000001.png,right/000001.png", "finite"),
+    ("7,nan,5000,left/000001.png,right/000001.png", "seconds of a clock"),
     ("7,-100,5000,left/000001.png,right/000001.png", "backwards"),
     ("7,5000,5000,../../etc/passwd,right/000001.png", "not a file inside"),
 ])
