@@ -143,7 +143,8 @@ class LiveTab(QWidget):
         self.ruler_button.setToolTip("Double-click two points to measure the 3D distance between them")
         self.ruler_button.toggled.connect(self.readings.ruler_toggled)
         self.clear_button = QPushButton("Clear")
-        self.clear_button.setToolTip("Remove all distance markers")
+        self.clear_button.setToolTip("Remove all distance markers (they are not kept when the "
+                                     "window closes; the readings are, in the Measurements tab)")
         self.clear_button.clicked.connect(self.clear_markers)
         self.fit_button = QPushButton("Fit")
         self.fit_button.setToolTip("Show the whole image in every view again (after zooming with "
