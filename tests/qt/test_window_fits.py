@@ -140,3 +140,30 @@ def test_the_camera_controls_and_their_warning_leave_the_window_on_the_screen(qt
     panel.warning_row.hide()
     QApplication.processEvents()
     assert window.minimumSizeHint().height() <= h
+
+
+def test_the_calibration_results_fit_their_pane_at_1280x720(qtbot, ctx, window, tmp_path):
+    """At the default divider position the results box was cut off on the right (the epipolar
+    error, the baseline's difference, the cameras' cy) with no scroll bar: its values wrap."""
+    from stereo_gui.qt.widgets.helpers import VerticalScroll
+    from stereo_gui.sources.sim import write_calibration_set
+
+    (tmp_path / "set").mkdir()
+    folder = write_calibration_set(tmp_path / "set", n_pairs=12, seed=11)
+    window.resize(SCREEN[0], SCREEN[1] - TITLE_BAR_PX)
+    window.show_tab("calibration")
+    tab = window.calibration_tab
+    tab.folder_edit.setText(str(folder))
+    with qtbot.waitSignal(tab.calibrationFinished, timeout=120000):
+        assert tab.start_calibration()
+    try:
+        qtbot.waitUntil(lambda: not tab.is_running(), timeout=30000)
+        QApplication.processEvents()
+        pane = next(s for s in tab.findChildren(VerticalScroll) if s.widget().isAncestorOf(
+            tab.figures))
+        assert tab.figures.width() <= pane.viewport().width()
+        assert "after rectification" in tab.figures.epipolar_label.text()
+        assert tab.figures.epipolar_label.width() <= tab.figures.width()
+    finally:
+        assert window.save_calibration(str(tmp_path / "calibration.yaml"))
+        window.close()

@@ -23,17 +23,19 @@ class CalibrationFigures(QGroupBox):
     def __init__(self, parent=None) -> None:
         super().__init__("Result", parent)
         form = QFormLayout(self)
+        # every value wraps: at the default divider position the pane is narrower than the
+        # longest line (the epipolar error's, the baseline's, the cameras'), which was cut off
         self.source_label = wrapping_label()
-        self.rms_left_label = QLabel()
-        self.rms_right_label = QLabel()
-        self.rms_stereo_label = QLabel()
-        self.epipolar_label = QLabel()
-        self.baseline_label = QLabel()
-        self.rotation_label = QLabel()
-        self.model_label = QLabel()
-        self.left_label = QLabel()
-        self.right_label = QLabel()
-        self.corners_label = QLabel()
+        self.rms_left_label = wrapping_label()
+        self.rms_right_label = wrapping_label()
+        self.rms_stereo_label = wrapping_label()
+        self.epipolar_label = wrapping_label()
+        self.baseline_label = wrapping_label()
+        self.rotation_label = wrapping_label()
+        self.model_label = wrapping_label()
+        self.left_label = wrapping_label()
+        self.right_label = wrapping_label()
+        self.corners_label = wrapping_label()
         self.shading_label = wrapping_label()
         self.shading_label.setToolTip(
             "How much darker each camera's image gets towards its corners, measured on the "
