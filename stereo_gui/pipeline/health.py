@@ -56,6 +56,8 @@ class HealthMonitor:
         f = self._pending
         if f is not None and f.done():
             self._pending = None
+            if f.cancelled():  # closed before it began: nothing failed
+                return
             try:
                 self._latest = f.result()
             except Exception as exc:  # noqa: BLE001 - a failed check must not stop the live view
