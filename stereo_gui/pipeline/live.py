@@ -86,12 +86,15 @@ def frame_lanes(params: Preset | MatcherParams, cpus: int | None = None) -> int:
     return lanes_for(Preset.of(params).threads.parallel, cpus)
 
 
-def _publish(stream, out: LiveOutput, frame: StereoFrame) -> None:
-    """Publish a processed frame; a failure is logged, never the frame's (the view goes on)."""
+def _publish(stream, out: LiveOutput, frame: StereoFrame, said: set) -> None:
+    """Publish a processed frame; a failure is logged (each reason once, not at 30 frames a
+    second), never the frame's: the view goes on."""
     try:
         stream.publish(out.result, frame.t_left, region=out.region, health=out.health)
     except Exception as exc:  # noqa: BLE001 - the stream's trouble must not stop the view
-        log.warning("the depth stream could not publish frame %d: %s", frame.index, exc)
+        if str(exc) not in said:
+            said.add(str(exc))
+            log.warning("the depth stream could not publish frame %d: %s", frame.index, exc)
 
 
 class LiveProcessor:
@@ -122,6 +125,7 @@ class LiveProcessor:
         self._region: tuple[Region, float | None, object] | None = None
         self._views: frozenset[str] = frozenset(VIEW_KEYS)
         self._stream = None  # a pipeline.stream.DepthStream every frame is published on
+        self._stream_said: set[str] = set()  # why publishing failed, said once each
         # the colour scale of the newest frame processed: a "view" colour range follows the
         # scene from it (core.matching.color_scale), so its colours do not flicker
         self._color_scale: ColorScale | None = None
@@ -216,7 +220,7 @@ class LiveProcessor:
             with self._lock:
                 self._color_scale = out.result.color_scale
             if stream is not None:
-                _publish(stream, out, frame)
+                _publish(stream, out, frame, self._stream_said)
             return out
         finally:
             self._give_back(pipeline, size)
