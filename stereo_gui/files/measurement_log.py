@@ -19,7 +19,7 @@ from stereo_gui.core.errors import InputError
 from stereo_gui.core.regression import FitResult, fit_from_dict, fit_to_dict
 from stereo_gui.files.atomic import write_text_atomic
 from stereo_gui.files.measurement_record import RULER_METHOD, MeasurementRecord
-from stereo_gui.files.readers import set_aside
+from stereo_gui.files.readers import read_user_text, set_aside
 
 log = logging.getLogger(__name__)
 
@@ -178,14 +178,20 @@ def load_log(path: str | os.PathLike | None = None) -> tuple[KeptLog, list[str]]
     """The kept log and warnings about what could not be used (never raises).
 
     A missing file is an empty log. A file that cannot be read or used is renamed to
-    `<name>.unreadable` (replacing an older one) and reported.
+    `<name>.unreadable` (numbered when one is there) and reported; a data folder that is a file
+    is reported too (nothing can be kept there).
     """
     path = Path(path) if path is not None else default_log_path()
+    if path.parent.exists() and not path.parent.is_dir():
+        text = (f"the data folder {path.parent} is a file, not a folder: the measurement log "
+                "cannot be kept between runs until it is moved away")
+        log.warning("%s", text)
+        return KeptLog(), [text]
     if not path.exists():
         return KeptLog(), []
     warnings: list[str] = []
     try:
-        kept = log_from_json(path.read_text(encoding="utf-8"), f"measurement log {path}",
+        kept = log_from_json(read_user_text(path, "measurement log"), f"measurement log {path}",
                              warnings)
     except (OSError, UnicodeDecodeError, InputError) as exc:
         aside = set_aside(path)

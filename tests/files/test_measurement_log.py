@@ -142,3 +142,10 @@ def test_a_negative_distance_or_a_reading_off_any_image_is_said(tmp_path):
     assert not back.records[0].valid and back.records[1].valid and back.records[2].valid
     assert any("-2000 mm" in w and "kept as invalid" in w for w in warnings)
     assert any("off any image" in w for w in warnings) and len(warnings) == 2
+
+
+def test_a_data_folder_that_is_a_file_is_said(tmp_path):
+    folder = tmp_path / "data"
+    folder.write_text("not a folder")
+    kept, warnings = ml.load_log(folder / "measurement-log.json")
+    assert kept == ml.KeptLog() and len(warnings) == 1 and "is a file, not a folder" in warnings[0]
