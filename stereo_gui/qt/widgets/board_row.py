@@ -81,7 +81,7 @@ class BoardRow(QWidget):
         self.print_button.setToolTip("Write this target as a PDF, SVG or PNG to print at true scale")
         self.print_button.clicked.connect(self.printRequested)
         self.auto_check = QCheckBox("Automatic capture (steady board, new pose or a region "
-                                    "still empty)")
+                                    "not yet covered)")
         self.auto_check.setToolTip(auto_tooltip)
         group(self.print_button, self.auto_check)
         self.error_label = QLabel("")
