@@ -51,6 +51,22 @@ class CloudPoints:
         return int(self.xyz_m.shape[0])
 
 
+def reproject_every(disparity_px: np.ndarray, calibration, step: int):
+    """Every `step`-th pixel of a disparity map (px, NaN invalid) through Q: (its disparities
+    (rows x cols float32), (N, 3) float64 X, Y, Z mm in the left rectified camera, N bools of
+    the points in front of the camera). The 3D view and the depth stream's cloud share it."""
+    h, w = disparity_px.shape[:2]
+    d = np.ascontiguousarray(disparity_px[::step, ::step], np.float32)
+    ys, xs = np.mgrid[0:h:step, 0:w:step]
+    q = np.asarray(calibration.Q, np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        hom = (q @ np.stack([xs.ravel(), ys.ravel(), d.ravel().astype(np.float64),
+                             np.ones(d.size)]))
+        xyz = (hom[:3] / hom[3]).T
+    good = np.isfinite(d.ravel()) & np.all(np.isfinite(xyz), axis=1) & (xyz[:, 2] > 0)
+    return d, xyz, good
+
+
 def cloud_points(result: PipelineResult, colouring: str = "image", step: int = 2
                  ) -> CloudPoints:
     """The frame's point cloud (InputError for a calibration without metric scale)."""
@@ -64,14 +80,7 @@ def cloud_points(result: PipelineResult, colouring: str = "image", step: int = 2
     h, w = disp.shape[:2]
     while (h // step) * (w // step) > MAX_POINTS:
         step += 1
-    d = np.ascontiguousarray(disp[::step, ::step], np.float32)
-    ys, xs = np.mgrid[0:h:step, 0:w:step]
-    q = np.asarray(calib.Q, np.float64)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        hom = (q @ np.stack([xs.ravel(), ys.ravel(), d.ravel().astype(np.float64),
-                             np.ones(d.size)]))
-        xyz = (hom[:3] / hom[3]).T
-    good = np.isfinite(d.ravel()) & np.all(np.isfinite(xyz), axis=1) & (xyz[:, 2] > 0)
+    d, xyz, good = reproject_every(disp, calib, step)
     xyz = xyz[good] / 1000.0
     pts = np.column_stack([xyz[:, 0], xyz[:, 2], -xyz[:, 1]]).astype(np.float32)
     z = xyz[:, 2]

@@ -39,6 +39,8 @@ from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import PipelineResult
 from stereo_gui.core.measure import reading_map
 from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.files.depth_export import depth_mm, depth_to_png16
+from stereo_gui.pipeline.cloud import reproject_every
 
 log = logging.getLogger(__name__)
 
@@ -60,7 +62,6 @@ MAX_CLOUD_POINTS = 50_000
 # the point cloud goes out at most this often (seconds; with its frame's time): it repeats the
 # depth and the camera info, and at every frame it would be half of what a client receives
 CLOUD_EVERY_S = 0.1
-UINT16_MAX = 65535
 JPEG_QUALITY = 85
 # messages the server holds for one client before it drops the oldest: about two frames' worth,
 # so that a stalled client costs two frames of memory, not the SDK's default 1024 messages
@@ -104,15 +105,8 @@ def _metres(mm: float | None) -> float | None:
 
 def depth_image_mm(result: PipelineResult) -> np.ndarray:
     """(H, W) uint16 Z in whole millimetres of the map the double-click reads; 0 = no value
-    (or beyond 65.535 m). Z depends on the disparity alone (Q's last two rows), so it is
-    computed from it directly: a fifth of a full reprojection's time."""
-    q = np.asarray(result.calibration.Q, np.float64)
-    d = reading_map(result)
-    w = d * np.float32(q[3, 2]) + np.float32(q[3, 3])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        z = np.rint(np.float32(q[2, 3]) / w)
-    good = (z > 0) & (z <= UINT16_MAX)  # (False for NaN: no value)
-    return np.where(good, z, 0).astype(np.uint16)
+    (or beyond 65.535 m): the depth PNG export's."""
+    return depth_to_png16(depth_mm(reading_map(result), result.calibration))
 
 
 def camera_infos(calibration: StereoCalibration) -> tuple[dict, dict]:
@@ -139,13 +133,7 @@ def cloud_packed(result: PipelineResult, max_points: int = MAX_CLOUD_POINTS
     disp = reading_map(result)
     h, w = disp.shape[:2]
     step = max(1, math.ceil(math.sqrt(h * w / max_points)))
-    d = disp[::step, ::step].astype(np.float64)
-    ys, xs = np.mgrid[0:h:step, 0:w:step]
-    q = np.asarray(result.calibration.Q, np.float64)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        hom = q @ np.stack([xs.ravel(), ys.ravel(), d.ravel(), np.ones(d.size)])
-        xyz = (hom[:3] / hom[3]).T
-    good = np.all(np.isfinite(xyz), axis=1) & (xyz[:, 2] > 0)
+    _d, xyz, good = reproject_every(disp, result.calibration, step)
     img = result.rectified_left[::step, ::step]
     if img.ndim == 2:
         img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)

@@ -94,20 +94,27 @@ def test_a_target_at_nan_dpi_is_refused_whatever_the_format(capsys, tmp_path):
     assert not (tmp_path / "t.pdf").exists()
 
 
-def test_a_recording_at_a_frame_per_thirty_years_is_refused(tmp_path):
-    import json
-
+def _small_recording(folder, frames: int = 3):
+    """A recording of `frames` black 64x48 pairs at 30 fps: its folder."""
     import numpy as np
 
-    from stereo_gui.core.errors import InputError
-    from stereo_gui.files.recording import RecordingWriter, open_recording
+    from stereo_gui.files.recording import RecordingWriter
     from stereo_gui.sources.base import StereoFrame
 
     img = np.zeros((48, 64, 3), np.uint8)
-    with RecordingWriter(tmp_path / "rec", fps=30.0, background=False) as w:
-        for i in range(2):
+    with RecordingWriter(folder, fps=30.0, background=False) as w:
+        for i in range(frames):
             w.write(StereoFrame(img, img, i / 30, i / 30, i))
-    header = tmp_path / "rec" / "recording.json"
+    return folder
+
+
+def test_a_recording_at_a_frame_per_thirty_years_is_refused(tmp_path):
+    import json
+
+    from stereo_gui.core.errors import InputError
+    from stereo_gui.files.recording import open_recording
+
+    header = _small_recording(tmp_path / "rec") / "recording.json"
     doc = json.loads(header.read_text())
     doc["fps"] = 1e-9
     header.write_text(json.dumps(doc))
@@ -117,17 +124,10 @@ def test_a_recording_at_a_frame_per_thirty_years_is_refused(tmp_path):
 
 def test_a_recording_with_frame_times_no_clock_has_is_refused_by_line(tmp_path):
     """Frame times of 1e300 s ended in "timestamp out of range" far from the file."""
-    import numpy as np
-
     from stereo_gui.core.errors import InputError
-    from stereo_gui.files.recording import RecordingWriter, open_recording
-    from stereo_gui.sources.base import StereoFrame
+    from stereo_gui.files.recording import open_recording
 
-    img = np.zeros((48, 64, 3), np.uint8)
-    with RecordingWriter(tmp_path / "rec", fps=30.0, background=False) as w:
-        for i in range(3):
-            w.write(StereoFrame(img, img, i / 30, i / 30, i))
-    frames = tmp_path / "rec" / "frames.csv"
+    frames = _small_recording(tmp_path / "rec") / "frames.csv"
     lines = frames.read_text().splitlines()
     parts = lines[2].split(",")
     parts[1] = "1e300"

@@ -36,23 +36,30 @@ def test_showing_more_views_never_makes_the_window_taller(qtbot, ctx, window, si
             assert (window.width(), window.height()) == (w, h), shown
 
 
-def test_save_calibration_is_in_view_after_a_calibration_at_1366x768(qtbot, ctx, window,
-                                                                      tmp_path):
-    """The Calibration tab's Save calibration… is on screen, whole, once a calibration with
-    warnings fills the figures (it was below the fold of the left pane at 1366x768)."""
+def _calibrated(qtbot, window, tmp_path, screen):
+    """The Calibration tab after calibrating 12 simulated pairs in a window filling `screen`
+    (less the title bar)."""
     from stereo_gui.sources.sim import write_calibration_set
 
     (tmp_path / "set").mkdir()
     folder = write_calibration_set(tmp_path / "set", n_pairs=12, seed=11)
-    window.resize(1366, 768 - TITLE_BAR_PX)
+    window.resize(screen[0], screen[1] - TITLE_BAR_PX)
     window.show_tab("calibration")
     tab = window.calibration_tab
     tab.folder_edit.setText(str(folder))
     with qtbot.waitSignal(tab.calibrationFinished, timeout=120000):
         assert tab.start_calibration()
+    qtbot.waitUntil(lambda: not tab.is_running(), timeout=30000)
+    QApplication.processEvents()
+    return tab
+
+
+def test_save_calibration_is_in_view_after_a_calibration_at_1366x768(qtbot, ctx, window,
+                                                                      tmp_path):
+    """The Calibration tab's Save calibration… is on screen, whole, once a calibration with
+    warnings fills the figures (it was below the fold of the left pane at 1366x768)."""
+    tab = _calibrated(qtbot, window, tmp_path, (1366, 768))
     try:
-        qtbot.waitUntil(lambda: not tab.is_running(), timeout=30000)
-        QApplication.processEvents()
         button = tab.save_button
         assert button.isVisible() and button.isEnabled()
         assert button.visibleRegion().boundingRect() == button.rect()
@@ -146,19 +153,9 @@ def test_the_calibration_results_fit_their_pane_at_1280x720(qtbot, ctx, window, 
     """At the default divider position the results box was cut off on the right (the epipolar
     error, the baseline's difference, the cameras' cy) with no scroll bar: its values wrap."""
     from stereo_gui.qt.widgets.helpers import VerticalScroll
-    from stereo_gui.sources.sim import write_calibration_set
 
-    (tmp_path / "set").mkdir()
-    folder = write_calibration_set(tmp_path / "set", n_pairs=12, seed=11)
-    window.resize(SCREEN[0], SCREEN[1] - TITLE_BAR_PX)
-    window.show_tab("calibration")
-    tab = window.calibration_tab
-    tab.folder_edit.setText(str(folder))
-    with qtbot.waitSignal(tab.calibrationFinished, timeout=120000):
-        assert tab.start_calibration()
+    tab = _calibrated(qtbot, window, tmp_path, SCREEN)
     try:
-        qtbot.waitUntil(lambda: not tab.is_running(), timeout=30000)
-        QApplication.processEvents()
         pane = next(s for s in tab.findChildren(VerticalScroll) if s.widget().isAncestorOf(
             tab.figures))
         assert tab.figures.width() <= pane.viewport().width()
