@@ -138,6 +138,7 @@ class PlaybackSource(FrameSource):
         self.at_end = at_end
         times: list[tuple[float, float]] | None = None
         default_fps = PLAIN_FOLDER_FPS
+        recorded_size: tuple[int, int] | None = None  # what a recording's header says
         self.warnings: tuple[str, ...] = ()  # what opening tolerated (a torn last frame, ...)
         if self.path.is_dir():
             from stereo_gui.files.recording import is_recording, open_recording
@@ -149,6 +150,7 @@ class PlaybackSource(FrameSource):
                     raise SourceError(f"recording {self.path} holds no frames")
                 times = [(f.t_left, f.t_right) for f in rec.frames]
                 default_fps = rec.fps
+                recorded_size = rec.size
                 if rec.has_images:
                     self._store = _ImageStore([(f.left, f.right) for f in rec.frames])
                 elif rec.video is not None:
@@ -172,6 +174,8 @@ class PlaybackSource(FrameSource):
         if self._store.count == 0:
             self._store.close()
             raise SourceError(f"{self.path} holds no frames")
+        if recorded_size is not None and recorded_size != (0, 0):
+            self._check_recorded_size(recorded_size)
         self.nominal_fps = float(fps) if fps is not None else float(default_fps)
         n = self._store.count
         if times is None:
@@ -200,6 +204,20 @@ class PlaybackSource(FrameSource):
         self._anchor: tuple[int, float] | None = None  # (frame, monotonic time it was due)
         self._closed = False
         self._cache: tuple[int, np.ndarray, np.ndarray] | None = None
+
+    def _check_recorded_size(self, size: tuple[int, int]) -> None:
+        """Say where a recording's header names another picture size than its first frame has
+        (the pictures are what is shown and measured; the header's size is only said)."""
+        try:
+            left, _ = self._store.load(0)
+        except SourceError:
+            return  # said when the frame is played
+        h, w = left.shape[:2]
+        if (w, h) != tuple(size):
+            text = (f"{self.path}: the header says {size[0]}x{size[1]} px but the pictures are "
+                    f"{w}x{h} px; the pictures' size is used")
+            log.warning("%s", text)
+            self.warnings = (*self.warnings, text)
 
     # ---- information --------------------------------------------------------------------
     @property

@@ -131,6 +131,30 @@ def test_pair_of_different_image_sizes_is_refused(tmp_path):
         src.read()
 
 
+def test_a_header_size_that_is_not_the_pictures_is_said(recorded):
+    """recording.json's size edited to another size: the recording plays its pictures and says
+    the header disagrees (it was accepted without a word)."""
+    import json
+
+    folder, frames = recorded
+    header = json.loads((folder / "recording.json").read_text())
+    assert header["size"] == [W, H]
+    header["size"] = [640, 480]
+    (folder / "recording.json").write_text(json.dumps(header))
+    src = PlaybackSource(folder, paced=False)
+    try:
+        assert any(f"header says 640x480 px but the pictures are {W}x{H} px" in w
+                   for w in src.warnings)
+        assert _same(src.read(), frames[0])
+    finally:
+        src.close()
+    header["size"] = [W, H]  # the size it has: nothing to say
+    (folder / "recording.json").write_text(json.dumps(header))
+    src = PlaybackSource(folder, paced=False)
+    assert not any("header says" in w for w in src.warnings)
+    src.close()
+
+
 def test_side_by_side_video_file(tmp_path):
     frames = _frames(4)
     path = tmp_path / "sbs.avi"
