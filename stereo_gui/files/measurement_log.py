@@ -39,6 +39,8 @@ class KeptLog:
 
 
 MAX_PIXEL = 100_000.0  # a reading's pixel beyond this is off any camera's image
+MAX_SAID = 5  # warnings about single readings said at load; the rest are counted
+LARGE_LOG = 20_000  # readings (with the cleared ones) beyond which a save takes about 0.5 s
 
 def data_dir() -> Path:
     """The application's data folder: `$STEREO_GUI_DATA_DIR` when set, else the platform's."""
@@ -199,6 +201,15 @@ def load_log(path: str | os.PathLike | None = None) -> tuple[KeptLog, list[str]]
         text = f"the measurement log could not be restored: {exc}{where}"
         log.warning("%s", text)
         return KeptLog(), [text]
+    if len(warnings) > MAX_SAID:  # one line per reading would bury the window's error bar
+        more = len(warnings) - MAX_SAID
+        warnings = [*warnings[:MAX_SAID], f"measurement log {path}: {more} more reading(s) like "
+                    "these were kept the same way"]
+    n = len(kept.records) + len(kept.cleared)
+    if n > LARGE_LOG:
+        warnings.append(f"the measurement log {path} holds {n:,} readings; every change rewrites "
+                        f"it, which takes seconds at this size: export the readings and clear "
+                        "the log to keep the window quick")
     for w in warnings:
         log.warning("%s", w)
     return kept, warnings

@@ -149,3 +149,21 @@ def test_a_data_folder_that_is_a_file_is_said(tmp_path):
     folder.write_text("not a folder")
     kept, warnings = ml.load_log(folder / "measurement-log.json")
     assert kept == ml.KeptLog() and len(warnings) == 1 and "is a file, not a folder" in warnings[0]
+
+
+def test_a_very_large_log_is_said_and_its_warnings_are_counted_not_listed(tmp_path, monkeypatch):
+    """100,000 readings loaded without a word (each save then took seconds); thousands of
+    readings each with something to say must not fill the error bar line by line."""
+    monkeypatch.setattr(ml, "LARGE_LOG", 50)
+    path = tmp_path / "log.json"
+    doc = json.loads(ml.log_to_json(ml.KeptLog(tuple(_rec(40.0) for _ in range(60)))))
+    for r in doc["records"][:12]:
+        r["Z_mm"] = None  # valid without a distance: kept as invalid, said
+    path.write_text(json.dumps(doc))
+    kept, warnings = ml.load_log(path)
+    assert len(kept.records) == 60 and sum(not r.valid for r in kept.records) == 12
+    assert len(warnings) == ml.MAX_SAID + 2
+    assert "7 more reading(s)" in warnings[ml.MAX_SAID]
+    assert "holds 60 readings" in warnings[-1] and "export" in warnings[-1]
+    path.write_text(ml.log_to_json(ml.KeptLog(tuple(_rec(40.0) for _ in range(50)))))
+    assert ml.load_log(path)[1] == []  # at the limit: nothing to say
