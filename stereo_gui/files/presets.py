@@ -8,6 +8,7 @@ A built-in name cannot be overwritten by a user preset.
 
 from __future__ import annotations
 
+import errno
 import logging
 import os
 import re
@@ -76,8 +77,11 @@ def load_preset(name: str) -> Preset:
     path = user_preset_dir() / f"{name}.json"
     try:
         found = path.is_file()
-    except OSError:  # a name the system cannot take (too long): no preset of that name
-        found = False
+    except OSError as exc:
+        if exc.errno != errno.ENAMETOOLONG:  # a folder that cannot be read (permissions, ...)
+            raise InputError(f"cannot read the presets folder {path.parent} for preset "
+                             f"{name!r}: {exc.strerror or exc}") from None
+        found = False  # a name the system cannot take: no preset of that name
     if found:
         return _read(path)
     raise InputError(f"unknown preset {name[:60]!r}; known presets: "

@@ -82,6 +82,30 @@ def test_unknown_and_corrupt_presets_are_clear_errors(_isolated_config, caplog):
         load_preset("future")
 
 
+def test_a_presets_folder_that_cannot_be_read_is_said_as_such(_isolated_config, monkeypatch):
+    """A presets folder without permission to look in (mode 000, tried as a user that is not
+    root) said "unknown preset 'mine'" of a preset that is there; a name too long for the system
+    is still no preset of that name."""
+    from pathlib import Path
+
+    folder = _isolated_config / "presets"
+    folder.mkdir()
+    (folder / "mine.json").write_text(json.dumps({"params": {}}))
+    real = Path.is_file
+
+    def is_file(self):
+        if self.parent == folder:
+            raise PermissionError(13, "Permission denied", str(self))
+        return real(self)
+
+    monkeypatch.setattr(Path, "is_file", is_file)
+    with pytest.raises(InputError, match=r"cannot read the presets folder .*'mine'.*Permission"):
+        load_preset("mine")
+    monkeypatch.undo()
+    with pytest.raises(InputError, match="unknown preset"):
+        load_preset("x" * 300)
+
+
 def test_a_preset_file_path_works(tmp_path):
     path = tmp_path / "mine.json"
     path.write_text(json.dumps({"name": "mine", "params": {"mode": "3way"}}))
