@@ -1,5 +1,7 @@
 """The Live tab's views: one image panel per view and the check boxes that show or hide them,
-laid out two by two in the order of VIEWS (an odd last one spanning its row)."""
+laid out in the order of VIEWS in the grid of columns that gives each picture the most room in
+the space there is (six views: three by two in a wide window, not two by three at a third of the
+size), an odd last one spanning its row."""
 
 from __future__ import annotations
 
@@ -26,6 +28,29 @@ COLOR_VIEWS = ("depth", "wls")  # the views coloured by distance, each with its 
 # pushed a 720 or 768 px high window's status bar off the screen)
 GRID_MIN_HEIGHT_PX = 240
 PANEL_MIN_WIDTH_PX = 200
+PICTURE_ASPECT = 4 / 3  # a camera picture's width over its height, for choosing the columns
+TITLE_PX = 24  # a panel's title line
+COLOR_BAR_PX = 90  # a colour view's bar and its labels beside the picture
+
+
+def best_columns(n: int, width: int, height: int, spacing: int = 4,
+                 color_views: int = 0) -> int:
+    """How many columns lay `n` panels out in `width` x `height` px with the largest picture in
+    each (the smallest of them where panels differ); no more columns than fit panels of
+    PANEL_MIN_WIDTH_PX."""
+    if n <= 1:
+        return 1
+    most = max(1, min(n, (width + spacing) // (PANEL_MIN_WIDTH_PX + spacing)))
+    best, best_scale = 1, -1.0
+    for cols in range(1, most + 1):
+        rows = -(-n // cols)
+        cell_w = (width - spacing * (cols - 1)) / cols
+        cell_h = (height - spacing * (rows - 1)) / rows - TITLE_PX
+        picture_w = cell_w - (COLOR_BAR_PX if color_views else 0)
+        scale = min(picture_w / PICTURE_ASPECT, cell_h)  # the picture's height, px
+        if scale > best_scale + 0.5:  # fewer columns where it hardly differs
+            best, best_scale = cols, scale
+    return best
 
 
 class ViewGrid(QWidget):
@@ -53,6 +78,7 @@ class ViewGrid(QWidget):
         self._grid = QGridLayout(self)
         self._grid.setContentsMargins(0, 0, 0, 0)
         self._grid.setSpacing(4)
+        self._cols = 1
 
     def visible(self) -> list[str]:
         return [k for k in VIEWS if self.checks[k].isChecked()]
@@ -64,18 +90,39 @@ class ViewGrid(QWidget):
             c.blockSignals(False)
         self.lay_out()
 
+    def columns(self) -> int:
+        """The columns the views shown are laid out in now."""
+        return self._cols
+
+    def _best_columns(self, keys) -> int:
+        width, height = self.width(), self.height()
+        if width < PANEL_MIN_WIDTH_PX or height < GRID_MIN_HEIGHT_PX // 2:  # not laid out yet
+            return 1 if len(keys) == 1 else 2
+        return best_columns(len(keys), width, height, self._grid.spacing(),
+                            sum(k in COLOR_VIEWS for k in keys))
+
+    def resizeEvent(self, event) -> None:  # noqa: N802 (Qt's name)
+        super().resizeEvent(event)
+        if self._best_columns(self.visible()) != self._cols:
+            self.lay_out()
+
     def lay_out(self, *_args) -> None:
         for panel in self.panels.values():
             self._grid.removeWidget(panel)
             panel.hide()
         keys = self.visible()
-        cols = 1 if len(keys) == 1 else 2
+        cols = self._cols = self._best_columns(keys)
         rows = max(1, -(-len(keys) // cols))
         row_min = (GRID_MIN_HEIGHT_PX - self._grid.spacing() * (rows - 1)) // rows
+        # the columns share the least width two ask for: three columns never make the window
+        # wider than two did (nor keep it from shrinking back to two)
+        spacing = self._grid.spacing()
+        col_min = (min(cols, 2) * (PANEL_MIN_WIDTH_PX + spacing) - spacing * cols) // cols
         for panel in self.panels.values():
-            panel.setMinimumSize(PANEL_MIN_WIDTH_PX, row_min)
-        for c in range(2):  # columns of equal width, whatever the panels' own size hints
+            panel.setMinimumSize(col_min, row_min)
+        for c in range(len(VIEWS)):  # columns and rows of equal size, whatever the panels ask
             self._grid.setColumnStretch(c, 1 if c < cols else 0)
+            self._grid.setRowStretch(c, 1 if c < rows else 0)
         for i, key in enumerate(keys):
             # an odd last view spans the row: no empty cell beside it (2-2-1 with Right on)
             span = cols if i == len(keys) - 1 and len(keys) % cols else 1

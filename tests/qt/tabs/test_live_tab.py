@@ -469,3 +469,29 @@ def test_views_share_the_width_evenly_whatever_they_are(qtbot):
         qtbot.waitUntil(lambda shown=shown: shown_as_checked() and even(shown), timeout=10000)
         widths = [grid.panels[k].width() for k in shown]
         assert max(widths) - min(widths) <= 2, (shown, widths)
+
+
+def test_six_views_take_the_layout_that_gives_each_picture_the_most_room(qtbot):
+    """Six views in the Live tab's space at 1366x768 (about 1010x425 px) were two by three,
+    each picture about 115 px wide; three by two gives each twice the area, and a narrow grid
+    goes back to two columns (three never keep the window from shrinking)."""
+    from stereo_gui.qt.tabs.live_views import VIEWS, ViewGrid, best_columns
+
+    assert best_columns(6, 1010, 425, color_views=2) == 3
+    assert best_columns(6, 500, 700, color_views=2) == 2
+    assert best_columns(4, 1010, 425, color_views=2) in (2, 4)
+    assert best_columns(1, 1010, 425) == 1 and best_columns(2, 300, 900) == 1
+    grid = ViewGrid(tuple(VIEWS))
+    qtbot.addWidget(grid)
+    grid.resize(1010, 425)
+    grid.show()
+    grid.lay_out()
+    qtbot.waitUntil(lambda: grid.columns() == 3, timeout=10000)
+    qtbot.waitUntil(lambda: all(p.isVisible() for p in grid.panels.values()), timeout=10000)
+    heights = {p.height() for p in grid.panels.values()}
+    widths = {p.width() for p in grid.panels.values()}
+    assert max(heights) - min(heights) <= 2 and max(widths) - min(widths) <= 2  # rows equal
+    assert min(widths) >= 320
+    assert grid.minimumSizeHint().width() <= 2 * 200 + 4
+    grid.resize(480, 700)
+    qtbot.waitUntil(lambda: grid.columns() == 2, timeout=10000)
