@@ -9,7 +9,7 @@ from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QCheckBox, QGridLayout, QWidget
 
 from stereo_gui.pipeline.live import DEFAULT_VIEWS
-from stereo_gui.qt.widgets.image_view import ImagePanel
+from stereo_gui.qt.widgets.image_view import COLOR_BAR_WIDTH_PX, ImagePanel
 
 # view key -> title; all views are in rectified-left pixel coordinates except "right"
 VIEWS: dict[str, str] = {
@@ -30,7 +30,6 @@ GRID_MIN_HEIGHT_PX = 240
 PANEL_MIN_WIDTH_PX = 200
 PICTURE_ASPECT = 4 / 3  # a camera picture's width over its height, for choosing the columns
 TITLE_PX = 24  # a panel's title line
-COLOR_BAR_PX = 90  # a colour view's bar and its labels beside the picture
 
 
 def best_columns(n: int, width: int, height: int, spacing: int = 4,
@@ -46,7 +45,7 @@ def best_columns(n: int, width: int, height: int, spacing: int = 4,
         rows = -(-n // cols)
         cell_w = (width - spacing * (cols - 1)) / cols
         cell_h = (height - spacing * (rows - 1)) / rows - TITLE_PX
-        picture_w = cell_w - (COLOR_BAR_PX if color_views else 0)
+        picture_w = cell_w - (COLOR_BAR_WIDTH_PX if color_views else 0)
         scale = min(picture_w / PICTURE_ASPECT, cell_h)  # the picture's height, px
         if scale > best_scale + 0.5:  # fewer columns where it hardly differs
             best, best_scale = cols, scale

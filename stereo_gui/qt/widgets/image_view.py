@@ -13,8 +13,13 @@ import math
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import QPointF, QRectF, Qt, Signal
-from PySide6.QtGui import QBrush, QColor, QFont, QPen, QTransform
-from PySide6.QtWidgets import QGraphicsItem, QGraphicsRectItem, QGraphicsSimpleTextItem
+from PySide6.QtGui import QBrush, QColor, QFont, QFontMetrics, QPen, QTransform
+from PySide6.QtWidgets import (
+    QGraphicsItem,
+    QGraphicsLineItem,
+    QGraphicsRectItem,
+    QGraphicsSimpleTextItem,
+)
 
 from stereo_gui.core.matching import ColorScale, color_scale_caption
 
@@ -100,9 +105,46 @@ def _label_item(text: str, color: str, x: float, y: float) -> QGraphicsRectItem:
     box.setPen(QPen(QColor(color), 1.5))
     label.setParentItem(box)
     label.setPos(4, 2)
+    # a thin line from the point to a label set away from it (by the labels around): which
+    # point a label belongs to must be plain when several crowd together
+    leader = QGraphicsLineItem(box)
+    leader.setPen(QPen(QColor(color), 1.2))
+    leader.setFlag(QGraphicsItem.GraphicsItemFlag.ItemStacksBehindParent, True)
+    leader.hide()
     box.setFlag(QGraphicsItem.GraphicsItemFlag.ItemIgnoresTransformations, True)
     box.setPos(x, y)
     return box
+
+
+_LEADER_FROM_PX = 2 * _LABEL_GAP_PX + 2  # a label further than this from its point gets a line
+
+
+def label_leader(box: QGraphicsRectItem) -> QGraphicsLineItem | None:
+    """The line that ties a label to its point (shown only when the label was set away)."""
+    for child in box.childItems():
+        if isinstance(child, QGraphicsLineItem):
+            return child
+    return None
+
+
+def _set_leader(box: QGraphicsRectItem, dx: float, dy: float) -> None:
+    """Draw the label's line from its point (the box's origin, before the offset) to the
+    nearest point of its rect when that is further than a gap or two away; hide it otherwise.
+    (The line is a child of the box: in the box's frame, the point is at (-dx, -dy).)"""
+    leader = label_leader(box)
+    if leader is None:
+        return
+    r = box.rect()
+    px, py = -dx, -dy
+    nx, ny = min(max(px, r.left()), r.right()), min(max(py, r.top()), r.bottom())
+    if math.hypot(nx - px, ny - py) <= _LEADER_FROM_PX:
+        leader.hide()
+        return
+    # from the dot's rim, not its centre: the dot stays whole
+    d = math.hypot(nx - px, ny - py)
+    rim = _DOT_CLEAR_PX / 2 / d
+    leader.setLine(px + (nx - px) * rim, py + (ny - py) * rim, nx, ny)
+    leader.show()
 
 
 def label_offsets(w: float, h: float, centred: bool = False) -> list[tuple[float, float]]:
@@ -254,6 +296,9 @@ def distance_ticks(scale: ColorScale, max_ticks: int = 7) -> list[tuple[float, s
     return sorted(ticks)
 
 
+TITLE_POINTS = 10  # a view's title
+COLOR_BAR_AXIS_PX = 66  # the colour bar's axis: tick labels and the title up its side
+COLOR_BAR_WIDTH_PX = 98  # the whole colour bar beside a colour view
 _BAR_END_ROOM = 14.0  # colour levels of room beyond each end of the colour bar's ramp
 # the colour bar's axis title: which kind of scale it is (the ticks give the range); short, as it
 # runs up the side of the bar
@@ -273,8 +318,9 @@ class DistanceColorBar(pg.PlotItem):
         self.hideAxis("left")
         self.showAxis("right")
         self.getAxis("right").setLabel("distance")
-        self.getAxis("right").setWidth(58)
-        self.setFixedWidth(90)
+        # room for "1.25 m" beside the axis title running up the side (58 px let them touch)
+        self.getAxis("right").setWidth(COLOR_BAR_AXIS_PX)
+        self.setFixedWidth(COLOR_BAR_WIDTH_PX)
         self._img = pg.ImageItem(axisOrder="row-major")
         self.addItem(self._img)
         self._lut_id: int | None = None
@@ -330,13 +376,15 @@ class ImagePanel(pg.GraphicsLayoutWidget):
     hovered = Signal(str, float, float)  # view key, x, y px (NaN when left)
     doubleClicked = Signal(str, float, float)  # view key, x, y px
     regionChanged = Signal(object)  # (x0, y0, x1, y1) px of the region box, after a drag
+    _full_title: str | None = None  # the title as set; None while the base class is built
 
     def __init__(self, key: str, title: str, color_bar: bool = False, parent=None) -> None:
         super().__init__(parent)
         self.key = key
         self.setMinimumSize(200, 160)
         self.ci.setContentsMargins(2, 2, 2, 2)
-        self.title = self.addLabel(title, row=0, col=0, colspan=2, size="10pt")
+        self.title = self.addLabel(title, row=0, col=0, colspan=2, size=f"{TITLE_POINTS}pt")
+        self._full_title = title
         self.view: pg.ViewBox = self.addViewBox(row=1, col=0, lockAspect=True, invertY=True,
                                                 enableMenu=False)
         self.view.setDefaultPadding(0.0)
@@ -367,7 +415,30 @@ class ImagePanel(pg.GraphicsLayoutWidget):
         self.doubleClicked.emit(self.key, x, y)
 
     def set_title(self, text: str) -> None:
-        self.title.setText(text)
+        """Show `text` above the view, cut with "…" where the panel is narrower (a long title
+        widened the panel's scene past its edge and cut the colour bar off); the whole of it
+        is the title's tooltip."""
+        self._full_title = text
+        self._fit_title()
+
+    def _fit_title(self) -> None:
+        # pyqtgraph's constructor resizes before the title is made, and its close() after the
+        # scene (the title with it) was cleared
+        if self._full_title is None or self.closed:
+            return
+        text_item = self.title.item  # the label's text, as drawn (its font, its margins)
+        margins = 2 * text_item.document().documentMargin() + 8  # and the layout's, px
+        room = max(40, int(self.width() - margins))
+        font = QFont(text_item.font())
+        font.setPointSize(TITLE_POINTS)  # the label sets its size in its HTML, not its font
+        shown = QFontMetrics(font).elidedText(self._full_title, Qt.TextElideMode.ElideRight, room)
+        if shown != self.title.text:
+            self.title.setText(shown)
+        self.setToolTip(self._full_title if shown != self._full_title else "")
+
+    def resizeEvent(self, event) -> None:  # noqa: N802 (Qt's name)
+        self._fit_title()  # first: the scene is laid out to the view's size with this title
+        super().resizeEvent(event)
 
     def set_image(self, image: np.ndarray) -> None:
         """Show a uint8 image; the view fits it the first time and when its size changes."""
@@ -415,6 +486,7 @@ class ImagePanel(pg.GraphicsLayoutWidget):
                                (r.width(), r.height()), self.view_rect(), taken, centred,
                                self.edge_rects())
         box.setTransform(QTransform.fromTranslate(dx, dy))
+        _set_leader(box, dx, dy)
 
     def _relayout_labels(self, *_args) -> None:
         """Place every label again, oldest first: labels keep their size on screen, so a zoom

@@ -98,6 +98,40 @@ def test_labels_stay_inside_the_view_and_clear_of_each_other(qtbot):
     _assert_apart(p.label_rects(), p.view_rect(), 7)
 
 
+def test_a_label_set_away_from_its_point_is_tied_to_it_by_a_line(qtbot):
+    """Six readings clicked close together: the labels keep clear of each other, so some sit
+    a few rows away, and it was not plain which point each one named. Each label further than
+    a gap or two from its point has a line from the point's dot to the label; the others none."""
+    from PySide6.QtWidgets import QGraphicsLineItem
+
+    p = _image_panel(qtbot)
+    points = [(300, 240), (312, 250), (306, 262), (322, 244), (296, 256), (318, 266)]
+    for i, (x, y) in enumerate(points):
+        p.add_marker(x, y, f"{1 + i / 10:.3f} m")
+    QApplication.processEvents()
+    labels = p.label_rects()
+    _assert_apart(labels, p.view_rect(), 6)
+    dots = [p.screen_pos(x + 0.5, y + 0.5) for x, y in points]
+    lines = [it for it in p.view.scene().items()
+             if isinstance(it, QGraphicsLineItem) and it.isVisible()]
+
+    def gap(rect, c):
+        nx, ny = min(max(c.x(), rect.left()), rect.right()), min(max(c.y(), rect.top()),
+                                                                rect.bottom())
+        return ((nx - c.x()) ** 2 + (ny - c.y()) ** 2) ** 0.5
+
+    far = [i for i, (r, c) in enumerate(zip(labels, dots, strict=True)) if gap(r, c) > 14]
+    assert far, "six crowded labels all fit beside their points: the test shows nothing"
+    assert len(lines) == len(far)
+    for line in lines:
+        a = line.mapToScene(line.line().p1())
+        b = line.mapToScene(line.line().p2())
+        # one end at the rim of a far label's dot, the other on that label's rect
+        owner = [i for i in far if ((a.x() - dots[i].x()) ** 2 + (a.y() - dots[i].y()) ** 2)
+                 ** 0.5 <= 7 and gap(labels[i], b) <= 1]
+        assert len(owner) == 1, (a, b)
+
+
 def test_labels_are_placed_again_when_the_view_shrinks(qtbot):
     p = _image_panel(qtbot)
     p.add_marker(100, 200, "2.994 m")
@@ -229,3 +263,29 @@ def test_the_colour_bar_says_which_scale_it_is(panel):
     bar.set_scale(cv2.COLORMAP_OCEAN, ColorScale("disparity", fb / 3000.0, fb / 500.0, fb))
     assert bar.caption == "colours stretched to each frame: 0.5–3 m"
     assert bar.title == "each frame's range"
+
+
+def test_a_long_title_is_cut_to_the_panel_and_the_colour_bar_stays_whole(qtbot):
+    """Six views three by two: the WLS view's long title widened its panel's scene past the
+    panel's edge and cut off the colour bar's labels. The title is cut with "…" (whole in the
+    tooltip) and everything stays inside the panel, also after set_title and a resize."""
+    title = "WLS filtered (a picture: holes filled, not measured)"
+    p = ImagePanel("wls", title, color_bar=True)
+    qtbot.addWidget(p)
+    p.resize(300, 206)
+    p.show()
+    p.set_image(np.zeros((480, 640, 3), np.uint8))
+    qtbot.waitExposed(p)
+
+    def inside() -> bool:
+        bar = p.color_bar.geometry()
+        return p.ci.geometry().width() <= p.width() + 0.5 and bar.right() <= p.width() + 0.5
+
+    qtbot.waitUntil(inside, timeout=5000)
+    assert p.title.text.endswith("…") and p.toolTip() == title
+    p.set_title(title + " and more words")
+    p.resize(290, 206)
+    qtbot.waitUntil(inside, timeout=5000)
+    p.resize(900, 500)
+    qtbot.waitUntil(lambda: p.title.text == title + " and more words", timeout=5000)
+    assert p.toolTip() == ""
