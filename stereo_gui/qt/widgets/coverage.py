@@ -82,6 +82,7 @@ class CornerMap(pg.GraphicsLayoutWidget):
     def __init__(self, title: str, parent=None) -> None:
         super().__init__(parent)
         self.setBackground(None)
+        self.ci.setContentsMargins(1, 1, 1, 1)
         self.counts = np.zeros((GRID_ROWS, GRID_COLS), np.int32)
         self.view = self.addViewBox(lockAspect=True, enableMouse=False)
         self.view.invertY(True)
@@ -96,7 +97,11 @@ class CornerMap(pg.GraphicsLayoutWidget):
             self.view.addItem(box)
             self._outlines[name] = box
         self.setMinimumSize(140, 105)
-        self.setMaximumHeight(125)  # a glance, not a picture: leave the height to the pair list
+        self.setMaximumHeight(150)  # a glance, not a picture: leave the height to the pair list
+        # the grid fills the map: left to itself the view's range took the outlines' pens in
+        # and showed the grid at half the size, in a margin of nothing
+        self.view.disableAutoRange()
+        self.view.setRange(xRange=(0, GRID_COLS), yRange=(0, GRID_ROWS), padding=0.03)
         self._redraw()
 
     def show_counts(self, counts: np.ndarray, empty_regions) -> None:

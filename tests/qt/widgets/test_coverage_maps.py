@@ -65,3 +65,18 @@ def test_every_region_the_words_name_is_outlined_on_its_map(qtbot):
             for name, cells in REGIONS.items():
                 if name not in r.empty[side]:
                     assert all(_green(_colour_of_cell(cmap, row, col)) for row, col in cells)
+
+
+def test_the_grid_fills_its_map(qtbot):
+    """The maps were about 60 px square inside 160 x 125 px: the view's own range took in the
+    outlines and left a margin of nothing around the grid. The grid now takes the map's height
+    (or width, whichever is less) but for a small margin."""
+    w = CoverageWidget()
+    qtbot.addWidget(w)
+    w.resize(350, 330)
+    w.show()
+    qtbot.waitExposed(w)
+    for cmap in (w.left_map, w.right_map):
+        grid = cmap.item.sceneBoundingRect()
+        assert min(grid.width(), grid.height()) >= 0.85 * min(cmap.width(), cmap.height())
+        assert cmap.height() >= 140  # room enough to tell a cell from its neighbours
