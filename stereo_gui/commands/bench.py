@@ -31,7 +31,7 @@ from stereo_gui.core.errors import InputError
 
 MAX_FRAMES = 10_000  # a preset at 2 frames per second: over an hour
 
-REFERENCE = "report"
+REFERENCES = ("report", "plain")  # the report's loop; a plain OpenCV program set up with care
 
 
 def rss_mb() -> float:
@@ -56,6 +56,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "scene and method, default 1)")
     parser.add_argument("--preset", action="append", metavar="P",
                         help="preset to time beside the report's loop (repeatable; default live)")
+    parser.add_argument("--reference", choices=(*REFERENCES, "both"), default="both",
+                        help="what the presets' speed is put beside: the report's loop, a plain "
+                        "OpenCV program set up with care (half-size 3-way SGBM of 64 disparities, "
+                        "its right matcher and WLS; core.plain_loop), or both (default)")
     parser.add_argument("--rounds", type=options.whole(1, 1000), default=1, metavar="R",
                         help="interleave R rounds: the report's loop on N/8 frames (at least 2) "
                         "between the presets' runs of N frames; each round's ratio and the median "
@@ -229,6 +233,30 @@ def bench_reference(calib, left, right, frames: int, warmup: int = 2) -> dict:
     return _time(step, frames, warmup)
 
 
+def bench_plain(calib, left, right, frames: int, warmup: int = 2) -> dict:
+    """Time the plain OpenCV program on the same pair."""
+    from stereo_gui.core.plain_loop import NUM_DISP, SCALE, WINDOW_SIZE, PlainLoop
+
+    if calib.image_size[0] * SCALE - NUM_DISP <= WINDOW_SIZE // 2:
+        raise InputError(f"the images are {calib.image_size[0]} px wide: too narrow for the "
+                         f"plain program, which searches {NUM_DISP} disparities of the halved "
+                         "images")
+    loop = PlainLoop(calib)
+
+    def step():
+        t0 = time.perf_counter()
+        out = loop.process(left, right)
+        total = (time.perf_counter() - t0) * 1000.0
+        return {"total": total}, float((out.filtered16 > 0).mean())
+
+    return _time(step, frames, warmup)
+
+
+_TIMERS = {"report": bench_reference, "plain": bench_plain}
+_WORDS = {"report": "the report's loop, its own code",
+          "plain": "a plain OpenCV program set up with care"}
+
+
 def run_bench(args) -> dict:
     from stereo_gui.files.presets import load_presets
 
@@ -246,13 +274,19 @@ def run_bench(args) -> dict:
 
     from stereo_gui.pipeline.concurrency import opencv_threads_beside_lanes
 
+    which = getattr(args, "reference", "both")
+    references = list(REFERENCES) if which == "both" else [which]
     out = {"source": source, "size": list(calib.image_size), "frames": args.frames,
-           "rounds": rounds, "cv_threads": cv2.getNumThreads(), "reference": REFERENCE,
+           "rounds": rounds, "cv_threads": cv2.getNumThreads(), "references": references,
            "presets": {}, "cv_threads_presets": opencv_threads_beside_lanes()}
-    # the reference first and last (and between the rounds), so that a change of the machine's
-    # load shows in its runs
+    # the references first and last (and between the rounds), so that a change of the
+    # machine's load shows in their runs
     ref_frames = args.frames if rounds == 1 else max(2, args.frames // 8)
-    refs = [bench_reference(calib, left, right, ref_frames)]
+
+    def time_references() -> dict[str, dict]:
+        return {r: _TIMERS[r](calib, left, right, ref_frames) for r in references}
+
+    refs = [time_references()]
     runs: dict[str, list[dict]] = {n: [] for n in names}
     # one processor per preset for all rounds: its health check runs every two seconds as live
     procs = {n: live_processor(calib, p) for n, p in params.items()}
@@ -262,24 +296,26 @@ def run_bench(args) -> dict:
                 runs[name].append(bench_preset(calib, p, left, right, args.frames,
                                                processor=procs[name]))
                 procs[name].health.wait()  # a check still running ends before the next run
-            refs.append(bench_reference(calib, left, right, ref_frames))
+            refs.append(time_references())
     finally:
         for proc in procs.values():
             proc.close()
-    ref = dict(refs[-1])
-    ref["fps"] = _harmonic([r["fps"] for r in refs])
-    ref["fps_runs"] = [r["fps"] for r in refs]
-    out[REFERENCE] = ref
-    out["report_frames"] = ref_frames
+    out["report_frames"] = ref_frames  # (each reference's frames a run)
     out["presets"] = {n: _merged(v) for n, v in runs.items()}
-    out["over_report"] = {n: r["fps"] / ref["fps"] for n, r in out["presets"].items()}
-    if rounds > 1:
-        # each round against the report's runs on either side of it
-        out["rounds_over_report"] = {
-            n: [r["fps"] / _harmonic([refs[i]["fps"], refs[i + 1]["fps"]])
-                for i, r in enumerate(v)] for n, v in runs.items()}
-        out["median_over_report"] = {
-            n: float(statistics.median(v)) for n, v in out["rounds_over_report"].items()}
+    for r in references:
+        fps_runs = [each[r]["fps"] for each in refs]
+        ref = dict(refs[-1][r])
+        ref["fps"] = _harmonic(fps_runs)
+        ref["fps_runs"] = fps_runs
+        out[r] = ref
+        out[f"over_{r}"] = {n: v["fps"] / ref["fps"] for n, v in out["presets"].items()}
+        if rounds > 1:
+            # each round against the reference's runs on either side of it
+            out[f"rounds_over_{r}"] = {
+                n: [v["fps"] / _harmonic([fps_runs[i], fps_runs[i + 1]])
+                    for i, v in enumerate(vs)] for n, vs in runs.items()}
+            out[f"median_over_{r}"] = {
+                n: float(statistics.median(v)) for n, v in out[f"rounds_over_{r}"].items()}
     return out
 
 
@@ -337,24 +373,27 @@ def run(args) -> int:
     print(f"{res['source']}, {w}x{h}, {res['frames']} frames per run{rounds}, "
           f"OpenCV threads {res['cv_threads']} (the presets {res['cv_threads_presets']}), "
           f"load average {load:.1f} on {os.cpu_count()} CPUs")
-    ref = res[REFERENCE]
-    runs = (" and " if len(ref["fps_runs"]) == 2 else ", ").join(
-        f"{v:.1f}" for v in ref["fps_runs"])
     where = "before and after" if res["rounds"] == 1 else "before, between and after the rounds"
-    print(f"{'report':>10}: {ref['fps']:6.1f} fps (the report's loop, its own code; runs {where}: "
-          f"{runs} fps)")
+    for r in res["references"]:
+        ref = res[r]
+        runs = (" and " if len(ref["fps_runs"]) == 2 else ", ").join(
+            f"{v:.1f}" for v in ref["fps_runs"])
+        print(f"{r:>10}: {ref['fps']:6.1f} fps ({_WORDS[r]}; runs {where}: {runs} fps; CPU "
+              f"{ref['cpu_ms_per_frame']:.1f} ms/frame)")
     for name, r in res["presets"].items():
         stages = ", ".join(f"{k} {v:.1f}" for k, v in r["stages_ms"].items() if k != "total")
+        beside = "; ".join(f"{res[f'over_{ref}'][name]:.2f}x the {ref}"
+                           for ref in res["references"])
         print(f"{name:>10}: {r['fps']:6.1f} fps ({r['lanes']} at once: a frame every "
               f"{r['ms_per_frame']:.1f} ms, each {r['stages_ms']['total']:.1f} ms; CPU "
               f"{r['cpu_ms_per_frame']:.1f} ms/frame; {stages} ms); "
-              f"RSS {r['rss_start_mb']:.0f} -> {r['rss_end_mb']:.0f} MiB; "
-              f"{res['over_report'][name]:.1f}x the report's loop")
-    for name, ratios in res.get("rounds_over_report", {}).items():
-        each = ", ".join(f"{v:.1f}" for v in ratios)
-        print(f"{name:>10}: rounds {each} x the report's loop beside them "
-              f"(median {res['median_over_report'][name]:.1f}x, "
-              f"{min(ratios):.1f}-{max(ratios):.1f}x)")
+              f"RSS {r['rss_start_mb']:.0f} -> {r['rss_end_mb']:.0f} MiB; {beside}")
+    for ref in res["references"]:
+        for name, ratios in res.get(f"rounds_over_{ref}", {}).items():
+            each = ", ".join(f"{v:.2f}" for v in ratios)
+            print(f"{name:>10}: rounds {each} x the {ref} beside them "
+                  f"(median {res[f'median_over_{ref}'][name]:.2f}x, "
+                  f"{min(ratios):.2f}-{max(ratios):.2f}x)")
     return 0
 
 

@@ -31,9 +31,32 @@ def test_bench_times_the_preset_beside_the_reports_loop(files, capsys):
     assert {"rectify", "match", "colormap", "display"} <= set(r["stages_ms"])
     assert r["rss_end_mb"] > 0
     ref = doc["report"]
-    assert doc["reference"] == "report" and ref["fps"] > 0 and len(ref["fps_runs"]) == 2
+    assert doc["references"] == ["report", "plain"]
+    assert ref["fps"] > 0 and len(ref["fps_runs"]) == 2
     assert doc["over_report"]["quality"] == pytest.approx(r["fps"] / ref["fps"])
+    plain = doc["plain"]  # the plain OpenCV program, in the same run
+    assert plain["fps"] > 0 and len(plain["fps_runs"]) == 2 and plain["valid_fraction"] > 0.5
+    assert doc["over_plain"]["quality"] == pytest.approx(r["fps"] / plain["fps"])
     assert doc["size"] == [320, 96] and doc["frames"] == 2
+
+
+def test_the_plain_program_measures_what_it_should(files, capsys):
+    """The plain reference is a working stereo program, not a stand-in: on a pair shifted by
+    6 px it finds 6 px (in full-size px) nearly everywhere; --reference picks one reference."""
+    from stereo_gui.core.plain_loop import PlainLoop
+    from stereo_gui.files.calibration_file import load_calibration
+
+    loop = PlainLoop(load_calibration(files / "c.yaml"))
+    out = loop.process(cv2.imread(str(files / "l.png")), cv2.imread(str(files / "r.png")))
+    # (the left 64 columns of the halved images are outside the filter's region of interest)
+    d = out.disparity_px[:, 70:-4]
+    assert np.isfinite(d).mean() > 0.9
+    assert np.nanmedian(d) == pytest.approx(6.0, abs=0.25)
+    assert out.color.shape == (48, 160, 3)
+    assert main(["bench", "--calib", str(files / "c.yaml"), str(files / "l.png"),
+                 str(files / "r.png"), "--frames", "1", "--reference", "plain"]) == 0
+    text = capsys.readouterr().out
+    assert "plain OpenCV program" in text and "x the plain" in text and "report's loop" not in text
 
 
 def test_bench_runs_a_parallel_preset_in_the_frame_lanes_and_restores_opencv(files, capsys):
