@@ -97,7 +97,7 @@ class CornerMap(pg.GraphicsLayoutWidget):
             self.view.addItem(box)
             self._outlines[name] = box
         self.setMinimumSize(140, 105)
-        self.setMaximumHeight(150)  # a glance, not a picture: leave the height to the pair list
+        self.setMaximumHeight(125)  # a glance, not a picture: leave the height to the pair list
         # the grid fills the map: left to itself the view's range took the outlines' pens in
         # and showed the grid at half the size, in a margin of nothing
         self.view.disableAutoRange()

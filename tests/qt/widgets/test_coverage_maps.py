@@ -79,4 +79,4 @@ def test_the_grid_fills_its_map(qtbot):
     for cmap in (w.left_map, w.right_map):
         grid = cmap.item.sceneBoundingRect()
         assert min(grid.width(), grid.height()) >= 0.85 * min(cmap.width(), cmap.height())
-        assert cmap.height() >= 140  # room enough to tell a cell from its neighbours
+        assert cmap.height() >= 110  # room enough to tell a cell from its neighbours
