@@ -26,6 +26,7 @@ import numpy as np
 
 from stereo_gui.core.board import TARGET_NAMES, BoardSpec
 from stereo_gui.core.bundle import BundleResult, View, refine_stereo
+from stereo_gui.core.coverage import uncovered_regions
 from stereo_gui.core.detect import PairDetection
 from stereo_gui.core.errors import CalibrationError
 from stereo_gui.core.jobs import Cancel, ProgressCallback, check_cancel
@@ -33,15 +34,17 @@ from stereo_gui.core.lens import (
     DIST_COUNT,
     HIGHER_TERMS,
     LENS_MODELS,
+    ROUND_TRIP_PX,
     optimal_new_camera,
+    round_trip_px,
     stereo_rectify,
     undistort_points,
 )
 from stereo_gui.core.stereo_calibration import PairError, StereoCalibration
-from stereo_gui.core.coverage import uncovered_regions
 from stereo_gui.core.uncertainty import (
     CalibrationWarning,
     calibration_warnings,
+    join_names,
     uncertainty_from_bundle,
 )
 
@@ -135,32 +138,44 @@ class _Solve:
     mono_sigmas: tuple[np.ndarray | None, np.ndarray | None]  # calibrateCameraExtended's
 
 
-def _mono_flags(model: str, fix_k3: bool) -> int:
+# OpenCV's flags that hold a distortion coefficient (OpenCV 5 gives cv2.fisheye the same values)
+_HOLD_FLAGS = {"k1": cv2.CALIB_FIX_K1, "k2": cv2.CALIB_FIX_K2, "k3": cv2.CALIB_FIX_K3,
+               "k4": cv2.CALIB_FIX_K4, "k5": cv2.CALIB_FIX_K5, "k6": cv2.CALIB_FIX_K6}
+
+
+def held_ladder(model: str, fix_k3: bool = False) -> list[tuple[str, ...]]:
+    """The distortion terms held at zero, from the full model down to the simplest tried when
+    the lens model folds over inside the image: none, k3 and the higher terms, then k2 too
+    (starting at the second with `fix_k3`)."""
+    higher = HIGHER_TERMS[model]
+    ladder = [(), higher, ("k2", *higher)]
+    return ladder[1:] if fix_k3 else ladder
+
+
+def _mono_flags(model: str, held: Sequence[str]) -> int:
     flags = 0
     if model == "rational":
         flags |= cv2.CALIB_RATIONAL_MODEL
     if model == "fisheye":
         flags |= cv2.CALIB_RECOMPUTE_EXTRINSIC | cv2.CALIB_FIX_SKEW
-    if fix_k3:
-        flags |= cv2.CALIB_FIX_K3
-        if model == "rational":
-            flags |= cv2.CALIB_FIX_K4 | cv2.CALIB_FIX_K5 | cv2.CALIB_FIX_K6
-        if model == "fisheye":
-            flags |= cv2.CALIB_FIX_K4
+    for name in held:
+        flags |= _HOLD_FLAGS[name]
     return flags
 
 
-def _calibrate_mono(objs, imgs, image_size, model: str, fix_k3: bool):
-    """One camera: (rms, M, D (1xN), rvecs, tvecs, standard deviations of the intrinsics or None).
+def _calibrate_mono(objs, imgs, image_size, model: str, held: Sequence[str] = ()):
+    """One camera: (rms, M, D (1xN), rvecs, tvecs, standard deviations of the intrinsics or None);
+    the distortion terms `held` stay at zero.
 
     The rational model starts from the pinhole solution with k4..k6 at zero: OpenCV's own
     rational calibration wanders along the model's flat valley (very different coefficients
     for the same lens, different from run to run), and the joint refinement takes it from
     there (core.bundle)."""
     if model == "rational":
-        rms, M, D, rv, tv, _ = _calibrate_mono(objs, imgs, image_size, "pinhole", fix_k3)
+        pinhole = tuple(n for n in held if n in ("k1", "k2", "k3"))
+        rms, M, D, rv, tv, _ = _calibrate_mono(objs, imgs, image_size, "pinhole", pinhole)
         return rms, M, np.concatenate([D.reshape(1, -1), np.zeros((1, 3))], axis=1), rv, tv, None
-    flags = _mono_flags(model, fix_k3)
+    flags = _mono_flags(model, held)
     try:
         if model == "fisheye":
             # (cv2.fisheye wants each view as a 1xN row of points)
@@ -194,7 +209,7 @@ def _relative_pose(rv_l, tv_l, rv_r, tv_r) -> tuple[np.ndarray, np.ndarray]:
 
 def _solve(pairs: list[PairDetection], board: BoardSpec, image_size: tuple[int, int],
            joint: bool, progress: ProgressCallback | None, cancel: Cancel, step0: int,
-           total: int, model: str = "pinhole", fix_k3: bool = False) -> _Solve:
+           total: int, model: str = "pinhole", held: Sequence[str] = ()) -> _Solve:
     obj_all = board.object_points_mm()
     ol = [p.left.object_points(board) for p in pairs]  # type: ignore[union-attr]
     il = [p.left.corners for p in pairs]  # type: ignore[union-attr]
@@ -203,10 +218,10 @@ def _solve(pairs: list[PairDetection], board: BoardSpec, image_size: tuple[int, 
     common = [p.common() for p in pairs]
     oc = [obj_all[c[0]] for c in common]
     _progress(progress, step0, total, "calibrating the left camera")
-    _, M1, D1, rv1, tv1, std1 = _calibrate_mono(ol, il, image_size, model, fix_k3)
+    _, M1, D1, rv1, tv1, std1 = _calibrate_mono(ol, il, image_size, model, held)
     check_cancel(cancel)
     _progress(progress, step0 + 1, total, "calibrating the right camera")
-    _, M2, D2, rv2, tv2, std2 = _calibrate_mono(orr, ir, image_size, model, fix_k3)
+    _, M2, D2, rv2, tv2, std2 = _calibrate_mono(orr, ir, image_size, model, held)
     check_cancel(cancel)
     _progress(progress, step0 + 2, total, "calibrating the pair")
     # the relative pose with both cameras' intrinsics fixed: the start of the joint refinement
@@ -235,8 +250,7 @@ def _solve(pairs: list[PairDetection], board: BoardSpec, image_size: tuple[int, 
     check_cancel(cancel)
     # every point each camera saw, the left camera's board poses as the start
     views = [View(ol[k], il[k].reshape(-1, 2), orr[k], ir[k].reshape(-1, 2)) for k in range(len(pairs))]
-    fixed = HIGHER_TERMS[model] if fix_k3 else ()
-    bundle = refine_stereo(views, model, M1, D1, M2, D2, R, T, rv1, tv1, fixed=fixed,
+    bundle = refine_stereo(views, model, M1, D1, M2, D2, R, T, rv1, tv1, fixed=tuple(held),
                            max_iterations=100 if joint else 0)
     if joint:
         M1, D1, M2, D2, R, T = bundle.M1, bundle.D1, bundle.M2, bundle.D2, bundle.R, bundle.T
@@ -251,6 +265,45 @@ def _solve(pairs: list[PairDetection], board: BoardSpec, image_size: tuple[int, 
     return _Solve([p.name for p in pairs], M1, D1.reshape(1, -1), M2, D2.reshape(1, -1), R,
                   T.reshape(3, 1), E, F, rl, rr, float(bundle.rms), rms_fixed, errors, bundle,
                   (std1, std2))
+
+
+@dataclass(frozen=True)
+class _Fold:
+    """Where a camera's lens model folds over inside its image."""
+
+    side: str  # "left" or "right"
+    pixel: tuple[float, float]
+    off_px: float  # how far that pixel comes back from undistorting and distorting again
+
+    def where(self) -> str:
+        return (f"pixel ({self.pixel[0]:.0f}, {self.pixel[1]:.0f}) comes back "
+                f"{self.off_px:.3g} px away" if np.isfinite(self.off_px) else
+                "OpenCV cannot apply it")
+
+    def text(self) -> str:
+        return f"the {self.side} camera's lens model folds over inside its image ({self.where()})"
+
+
+def _folding(sol: _Solve, model: str, image_size: tuple[int, int]) -> _Fold | None:
+    """The first camera whose fitted lens model does not map its own image's pixels to rays
+    and back (the pairs did not hold it at the image's edges), or None."""
+    for side, M, D in (("left", sol.M1, sol.D1), ("right", sol.M2, sol.D2)):
+        off, pixel = round_trip_px(model, M, D, image_size)
+        if not off <= ROUND_TRIP_PX:
+            return _Fold(side, pixel, off)
+    return None
+
+
+def _held_words(held: Sequence[str]) -> str:
+    return f"{join_names(list(held))} held at zero"
+
+
+def _origin_held(model: str, held: Sequence[str]) -> str:
+    """What a calibration's origin says of the terms held: ", k3 fixed" as it always has for
+    k3 and the higher terms, else the terms."""
+    if not held:
+        return ""
+    return ", k3 fixed" if tuple(held) == HIGHER_TERMS[model] else f", {join_names(list(held))} fixed"
 
 
 def _outliers(errors: list[tuple[float, float]], factor: float, floor_px: float) -> list[int]:
@@ -275,7 +328,10 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
     without metric scale (see calibrate_hartley). `model` is the lens model (core.lens:
     pinhole, rational, fisheye); `fix_k3` holds k3 and the higher terms at zero. Pairs with an
     error above max(outlier_factor x median, outlier_floor_px) are dropped once and the solve
-    is repeated. The result carries the parameters' uncertainty and warnings (core.uncertainty).
+    is repeated. A lens model that folds over inside the image is fitted again at once with
+    fewer terms (`held_ladder`), said in a "refit" warning; CalibrationError names the remedy
+    when even the simplest folds. The result carries the parameters' uncertainty and warnings
+    (core.uncertainty).
     `origin` names where the pairs came from (recorded in the calibration's origin).
     Raises CalibrationError when no target was found or too few pairs are usable.
     """
@@ -318,8 +374,10 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
 
     total = 8
     check_cancel(cancel)
+    ladder = held_ladder(model, fix_k3)
+    held = ladder[0]
     sol = _solve(usable, board, image_size, joint_refinement, progress, cancel, 0, total,
-                 model, fix_k3)
+                 model, held)
     if reject_outliers and len(usable) > min_pairs:
         bad = _outliers(sol.errors, outlier_factor, outlier_floor_px)
         # never drop below the minimum: keep the best of the bad ones if needed
@@ -334,7 +392,34 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
             usable = [p for i, p in enumerate(usable) if i not in set(bad)]
             log.info("dropped %d outlier pairs, calibrating again", len(bad))
             sol = _solve(usable, board, image_size, joint_refinement, progress, cancel, 3, total,
-                         model, fix_k3)
+                         model, held)
+    check_cancel(cancel)
+    # a lens model that folds over inside the image (the pairs left its corners free) is fitted
+    # again with fewer terms at once: saving it would be refused, and the work lost
+    refits: list[CalibrationWarning] = []
+    fold = _folding(sol, model, image_size)
+    for simpler in ladder[1:]:
+        if fold is None:
+            break
+        text = (f"The {fold.side} camera's lens model, with "
+                f"{_held_words(held) if held else 'every distortion term free'}, folded over "
+                f"inside its image ({fold.where()})")
+        log.info("%s: calibrating again with %s", text, _held_words(simpler))
+        _progress(progress, 5, total, f"the {fold.side} lens model folds over: calibrating "
+                                      f"again with {_held_words(simpler)}")
+        held = simpler
+        sol = _solve(usable, board, image_size, joint_refinement, progress, cancel, 5, total,
+                     model, held)
+        refits.append(CalibrationWarning(
+            "refit", f"{text}: the pairs do not hold the lens at the image's edges. It was "
+                     f"calibrated again with {_held_words(held)}. To fit the full model, capture "
+                     "pairs with the board in the image's corners.", "capture"))
+        fold = _folding(sol, model, image_size)
+    if fold is not None:
+        raise CalibrationError(
+            f"{fold.text()}, even with {_held_words(held)}: capture pairs with the board in the "
+            f"corners and along the edges of the {fold.side} camera's image, or choose another "
+            "lens model")
     check_cancel(cancel)
     _progress(progress, 6, total, "rectifying")
     R1, R2, P1, P2, Q = stereo_rectify(model, sol.M1, sol.D1, sol.M2, sol.D2, image_size, sol.R,
@@ -346,7 +431,7 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
                             sol.M1, sol.D1, R1, P1, sol.M2, sol.D2, R2, P2, model)
     per_pair = tuple(PairError(name, float(el), float(er))
                      for name, (el, er) in zip(sol.names, sol.errors))
-    unc = uncertainty_from_bundle(sol.bundle, model, fix_k3, sol.mono_sigmas)
+    unc = uncertainty_from_bundle(sol.bundle, model, bool(held), sol.mono_sigmas)
     calib = StereoCalibration(
         image_size=image_size, M1=sol.M1, D1=sol.D1, M2=sol.M2, D2=sol.D2, R=sol.R, T=sol.T,
         E=sol.E, F=sol.F, R1=R1, R2=R2, P1=P1, P2=P2, Q=Q, board=board,
@@ -354,9 +439,9 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
         epipolar_error_px=epi, per_pair=per_pair, method="bouguet", alpha=float(alpha),
         optimal_M1=opt1, optimal_M2=opt2, model=model, uncertainty=unc,
         origin=f"calibrated from {len(usable)} pairs{' in ' + origin if origin else ''} "
-               f"({board.label()}, {model} model{', k3 fixed' if fix_k3 else ''})")
+               f"({board.label()}, {model} model{_origin_held(model, held)})")
     regions = uncovered_regions(usable, image_size)
-    warnings = calibration_warnings(calib, regions, fix_k3)
+    warnings = (*refits, *calibration_warnings(calib, regions, bool(held)))
     order = {p.name: i for i, p in enumerate(detections)}
     rejected = sorted(rejected, key=lambda r: order.get(r.name, 0))
     calib = calib.with_updates(warnings=warnings,

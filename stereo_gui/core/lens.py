@@ -136,3 +136,33 @@ def optimal_new_camera(model: str, M, D, size: tuple[int, int]) -> np.ndarray:
     opt, _ = cv2.getOptimalNewCameraMatrix(M, np.asarray(D, np.float64).reshape(1, -1), size, 1,
                                            size)
     return opt
+
+
+ROUND_TRIP_PX = 1.0  # a pixel undistorted and distorted again lands this near itself
+
+
+def pixel_grid(width: int, height: int, n: int = 9) -> np.ndarray:
+    """An n x n grid of pixels over the whole image, corners included, (n*n, 2)."""
+    g = np.linspace(0.0, 1.0, n)
+    u, v = np.meshgrid(g * (width - 1), g * (height - 1))
+    return np.stack([u.ravel(), v.ravel()], 1)
+
+
+def round_trip_px(model: str, M: np.ndarray, D: np.ndarray, image_size: tuple[int, int]
+                  ) -> tuple[float, tuple[float, float]]:
+    """How far a grid of the image's own pixels lands from itself when undistorted to rays and
+    distorted back (the largest distance, px, and that pixel): a lens model that folds over
+    inside the image sends its corners elsewhere (more than ROUND_TRIP_PX). Infinite where
+    OpenCV cannot apply the model."""
+    pts = pixel_grid(*image_size)
+    with np.errstate(all="ignore"):
+        try:
+            rays = undistort_points(model, pts, M, D)
+            back = project_points(model, np.hstack([rays, np.ones((len(rays), 1))]),
+                                  np.zeros(3), np.zeros(3), M, D)
+        except cv2.error:
+            return float("inf"), (float(pts[0, 0]), float(pts[0, 1]))
+        off = np.linalg.norm(back - pts, axis=1)
+    off = np.where(np.isfinite(off), off, np.inf)
+    i = int(np.argmax(off))
+    return float(off[i]), (float(pts[i, 0]), float(pts[i, 1]))

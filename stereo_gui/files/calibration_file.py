@@ -416,40 +416,31 @@ def check_plausible(calib: StereoCalibration, where: str) -> None:
         _check_plausible(calib, where)
 
 
-ROUND_TRIP_PX = 1.0  # a pixel undistorted and distorted again lands this near itself
 MIN_FOOTPRINT = 0.5  # share of the rectified image's width and height a raw image covers
-
-
-def _pixel_grid(w: int, h: int, n: int = 9) -> np.ndarray:
-    g = np.linspace(0.0, 1.0, n)
-    u, v = np.meshgrid(g * (w - 1), g * (h - 1))
-    return np.stack([u.ravel(), v.ravel()], 1)
 
 
 def _check_lenses(calib: StereoCalibration, where: str) -> None:
     """Each camera's lens model maps the pixels of its own image to rays and back (a
     distortion that folds over inside the image does not), and its rectification shows the
     image over a good part of the rectified one (not squeezed into a corner of it)."""
-    from stereo_gui.core.lens import project_points, undistort_points
+    from stereo_gui.core.lens import ROUND_TRIP_PX, pixel_grid, round_trip_px, undistort_points
 
     w, h = calib.width, calib.height
-    pts = _pixel_grid(w, h)
+    pts = pixel_grid(w, h)
     sides = (("1", calib.M1, calib.D1, calib.R1, calib.P1), ("2", calib.M2, calib.D2, calib.R2,
                                                              calib.P2))
     for k, M, D, R, P in sides:
+        off, (x, y) = round_trip_px(calib.model, M, D, (w, h))
+        if off == float("inf"):
+            _fail(where, f"distortion D{k} cannot be applied to the image of camera {k}")
+        if not off <= ROUND_TRIP_PX:
+            _fail(where, f"distortion D{k} does not describe camera {k}'s lens: pixel "
+                         f"({x:.0f}, {y:.0f}) comes back {off:.3g} px away "
+                         "(a lens model folding over inside the image)")
         try:
-            rays = undistort_points(calib.model, pts, M, D)
-            back = project_points(calib.model, np.hstack([rays, np.ones((len(rays), 1))]),
-                                  np.zeros(3), np.zeros(3), M, D)
             rect = undistort_points(calib.model, pts, M, D, R=R, P=P)
         except cv2.error:
             _fail(where, f"distortion D{k} cannot be applied to the image of camera {k}")
-        off = np.linalg.norm(back - pts, axis=1)
-        if not np.all(off <= ROUND_TRIP_PX):
-            i = int(np.argmax(np.where(np.isfinite(off), off, np.inf)))
-            _fail(where, f"distortion D{k} does not describe camera {k}'s lens: pixel "
-                         f"({pts[i, 0]:.0f}, {pts[i, 1]:.0f}) comes back {off[i]:.3g} px away "
-                         "(a lens model folding over inside the image)")
         span = np.ptp(rect, axis=0) if np.all(np.isfinite(rect)) else np.zeros(2)
         if not (span[0] >= MIN_FOOTPRINT * w and span[1] >= MIN_FOOTPRINT * h):
             _fail(where, f"matrices R{k} and P{k} with distortion D{k} show camera {k}'s image "

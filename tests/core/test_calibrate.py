@@ -184,3 +184,72 @@ def test_hartley_scene_without_texture_raises():
     flat = np.full((120, 160, 3), 90, np.uint8)
     with pytest.raises(CalibrationError, match="features"):
         calibrate_hartley_scene(flat, flat)
+
+
+# ---- a lens model that folds over inside the image ------------------------------------------
+def _central_pairs(seed: int, n: int = 15):
+    """Board pairs seen only near the image's centre by two 640x480 cameras of strong barrel
+    distortion (fx 600, k1 -0.38, k2 0.18, k3 -0.04), corners with 0.3 px of noise: nothing
+    holds the distortion at the image's corners, and with k3 free its fit may fold over there."""
+    rng = np.random.default_rng(seed)
+    board = BoardSpec(cols=9, rows=6, square_mm=25.0)
+    obj = board.object_points_mm().astype(np.float64)
+    size = (640, 480)
+    M = np.array([[600.0, 0, 320], [0, 600.0, 240], [0, 0, 1]])
+    D = np.array([-0.38, 0.18, 0.0, 0.0, -0.04])
+    R = cv2.Rodrigues(np.array([0.0, 0.01, 0.0]))[0]
+    T = np.array([-110.0, 0.0, 0.0])
+    pairs = []
+    for k in range(n):
+        rv = rng.normal(0, 0.25, 3)
+        z = rng.uniform(450, 700)
+        x, y = rng.uniform(-0.25, 0.25, 2) * z
+        tv = np.array([x, y, z]) - cv2.Rodrigues(rv)[0] @ obj.mean(0)
+        left = cv2.projectPoints(obj, rv, tv, M, D)[0].reshape(-1, 2)
+        rv_r = cv2.Rodrigues(R @ cv2.Rodrigues(rv)[0])[0]
+        right = cv2.projectPoints(obj, rv_r, R @ tv + T, M, D * 1.05)[0].reshape(-1, 2)
+        left = left + rng.normal(0, 0.3, left.shape)
+        right = right + rng.normal(0, 0.3, right.shape)
+        if not all(np.all((p >= 0) & (p < size)) for p in (left, right)):
+            continue
+        pairs.append(PairDetection(str(k), Detection(left.astype(np.float32), size, "classic"),
+                                   Detection(right.astype(np.float32), size, "classic"), size))
+    return board, pairs, size
+
+
+@pytest.mark.parametrize("model", ["pinhole", "rational", "fisheye"])
+def test_a_lens_model_that_folds_is_fitted_again_with_fewer_terms(model):
+    """Seed 3: with every term free the left camera's fit folds over at the top-right corner
+    (pixel (639, 0) came back 66 px away, and saving it was refused after all the work). It is
+    fitted again at once with k3 (and the higher terms) held at zero, said in a warning, and the
+    result is a calibration that saves, near the truth."""
+    from stereo_gui.core.lens import ROUND_TRIP_PX, round_trip_px
+    from stereo_gui.files.calibration_file import check_plausible
+
+    board, pairs, size = _central_pairs(3)
+    result = calibrate_stereo(pairs, board, size, model=model)
+    c = result.calibration
+    refit = [w for w in c.warnings if w.code == "refit"]
+    assert len(refit) == 1 and "folded over" in refit[0].message
+    assert "held at zero" in refit[0].message and refit[0].proposal == "capture"
+    assert refit[0] in result.report.warnings and "k3 fixed" in c.origin
+    for M, D in ((c.M1, c.D1), (c.M2, c.D2)):
+        assert round_trip_px(model, M, D, size)[0] <= ROUND_TRIP_PX
+        assert M[0, 0] == pytest.approx(600.0, rel=0.01)
+    assert c.D1.reshape(-1)[2 if model == "fisheye" else 4] == 0.0  # k3 held
+    check_plausible(c, "the refitted calibration")  # what saving checks
+    # pairs that hold the lens well enough: nothing refitted
+    board, pairs, size = _central_pairs(0)
+    if model != "fisheye":
+        assert not any(w.code == "refit" for w in calibrate_stereo(
+            pairs, board, size, model=model).calibration.warnings)
+
+
+def test_a_lens_model_that_folds_even_at_its_simplest_is_refused_with_the_remedy(monkeypatch):
+    import stereo_gui.core.calibrate as calibrate_module
+
+    monkeypatch.setattr(calibrate_module, "ROUND_TRIP_PX", -1.0)  # every fit "folds"
+    board, pairs, size = _central_pairs(0)
+    with pytest.raises(CalibrationError, match=r"folds over .* even with k2 and k3 held at "
+                                               r"zero: capture pairs with the board in the corners"):
+        calibrate_stereo(pairs, board, size)
