@@ -74,6 +74,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "rendered board pairs, or both (default)")
     parser.add_argument("--seed", type=options.seed, default=None, metavar="S",
                         help="with --accuracy: the simulated rig's seed (default: the benchmark's)")
+    parser.add_argument("--seeds", type=options.whole(1, 1000), default=None, metavar="N",
+                        help="with --accuracy: N rigs, seeds S, S+1, ... S+N-1 (S from --seed): "
+                        "each seed's whole-grid row, then the mean and the worst seed of each "
+                        "condition and preset")
     parser.add_argument("--condition", action="append", metavar="C",
                         help="with --accuracy: how the walls are rendered (repeatable): rig (the "
                         "rig's usual texture), weak (a smooth painted wall), half, quarter (its "
@@ -411,6 +415,10 @@ def run_accuracy_bench(args) -> int:
     conditions = list(dict.fromkeys(getattr(args, "condition", None) or ["rig"]))
     if "all" in conditions:
         conditions = list(CONDITIONS)
+    seeds = getattr(args, "seeds", None)
+    if seeds is not None:
+        return _accuracy_over_seeds(args, presets, cal, conditions,
+                                    list(range(seed, seed + seeds)))
     res = run_accuracy(presets=presets, seed=seed, calibrations=cal, conditions=conditions)
     if args.json:
         print(json.dumps({"seed": seed, "conditions": {
@@ -426,4 +434,76 @@ def run_accuracy_bench(args) -> int:
           "95 % bound covers the true error; med+- = median bound in % of the distance")
     for label, reports in res.items():
         print(format_table(label, reports))
+    return 0
+
+
+# what a condition's row over several seeds gives: (key of condition_totals, "worst" is the
+# lowest or the highest of the seeds)
+_OVER_SEEDS = (("coverage", min), ("worst_pct", max), ("rms_pct", max),
+               ("covered_fraction", min), ("median_bound_pct", max))
+
+
+def accuracy_over_seeds(totals: dict[int, dict[tuple[str, str], dict]]
+                        ) -> dict[tuple[str, str], dict]:
+    """Per (condition, preset): the mean over the seeds of each whole-grid figure and its
+    worst seed's value (the lowest reading share and coverage of the +-, the highest errors),
+    with which seed that was; `totals` is {seed: condition_totals}."""
+    import math
+
+    out: dict[tuple[str, str], dict] = {}
+    keys = dict.fromkeys(k for t in totals.values() for k in t)
+    for key in keys:
+        row: dict = {}
+        for name, worst in _OVER_SEEDS:
+            values = {s: t[key][name] for s, t in totals.items()
+                      if key in t and math.isfinite(t[key][name])}
+            if not values:
+                row[name] = {"mean": float("nan"), "worst": float("nan"), "worst_seed": None}
+                continue
+            seed = worst(values, key=values.get)
+            row[name] = {"mean": float(statistics.fmean(values.values())),
+                         "worst": values[seed], "worst_seed": seed}
+        out[key] = row
+    return out
+
+
+def _accuracy_over_seeds(args, presets, cal, conditions, seeds: list[int]) -> int:
+    from stereo_gui.commands.accuracy import CONDITIONS, condition_totals, run_accuracy
+
+    totals: dict[str, dict[int, dict]] = {label: {} for label in cal}
+    for s in seeds:
+        res = run_accuracy(presets=presets, seed=s, calibrations=cal, conditions=conditions)
+        for label, reports in res.items():
+            totals[label][s] = condition_totals(reports)
+        if not args.json:
+            for label in cal:
+                for (c, p), t in totals[label][s].items():
+                    print(f"seed {s:>6} {label:>8} {c:>10} {p:>8}: read {100 * t['coverage']:5.1f} %"
+                          f", worst {t['worst_pct']:6.2f} %, RMS {t['rms_pct']:5.2f} %, +- covers "
+                          f"{100 * t['covered_fraction']:5.1f} %", flush=True)
+    over = {label: accuracy_over_seeds(t) for label, t in totals.items()}
+    if args.json:
+        print(json.dumps({
+            "seeds": seeds, "conditions": {c: CONDITIONS[c].description for c in conditions},
+            "per_seed": {label: {str(s): [{"condition": c, "preset": p, **v}
+                                          for (c, p), v in t.items()] for s, t in per.items()}
+                         for label, per in totals.items()},
+            "over_seeds": {label: [{"condition": c, "preset": p, **v} for (c, p), v in o.items()]
+                           for label, o in over.items()}}, indent=2))
+        return 0
+    print(f"over {len(seeds)} seeds ({seeds[0]}-{seeds[-1]}): mean / worst seed (which)")
+    for label, o in over.items():
+        print(f"calibration: {label}")
+        for (c, p), v in o.items():
+            parts = []
+            for name, words, scale in (("coverage", "read", 100), ("worst_pct", "worst", 1),
+                                       ("rms_pct", "RMS", 1), ("covered_fraction", "+- covers",
+                                                               100)):
+                m = v[name]
+                if m["worst_seed"] is None:
+                    parts.append(f"{words} -")
+                    continue
+                parts.append(f"{words} {scale * m['mean']:.2f} % / {scale * m['worst']:.2f} % "
+                             f"({m['worst_seed']})")
+            print(f"  {c:>10} {p:>8}: " + "; ".join(parts))
     return 0

@@ -118,6 +118,41 @@ def test_bench_accuracy_renders_the_conditions_asked_for(capsys):
         (c, p) for c in ("weak", "webcams") for p in ("report", "plain", "live")}
 
 
+def test_accuracy_over_seeds_gives_the_mean_and_the_worst_seed():
+    """The worst seed is the lowest reading share and +- coverage, the highest errors; a figure
+    no seed has (the report's loop has no +-) has no worst seed."""
+    from stereo_gui.commands.bench import accuracy_over_seeds
+
+    nan = float("nan")
+
+    def t(cov, worst, rms, covered):
+        return {("webcams", "live"): {"coverage": cov, "worst_pct": worst, "rms_pct": rms,
+                                      "covered_fraction": covered, "median_bound_pct": 0.5},
+                ("webcams", "report"): {"coverage": 0.9, "worst_pct": 50.0, "rms_pct": 9.0,
+                                        "covered_fraction": nan, "median_bound_pct": nan}}
+
+    over = accuracy_over_seeds({11: t(0.95, 1.0, 0.2, 0.99), 12: t(0.83, 2.2, 0.45, 0.97),
+                                13: t(0.91, 0.8, 0.5, 0.96)})
+    live = over[("webcams", "live")]
+    assert live["coverage"] == {"mean": pytest.approx(0.8966666), "worst": 0.83, "worst_seed": 12}
+    assert live["worst_pct"]["worst"] == 2.2 and live["worst_pct"]["worst_seed"] == 12
+    assert live["rms_pct"]["worst_seed"] == 13 and live["covered_fraction"]["worst_seed"] == 13
+    assert over[("webcams", "report")]["covered_fraction"]["worst_seed"] is None
+
+
+def test_bench_accuracy_over_seeds(capsys):
+    assert main(["bench", "--accuracy", "--calibration", "true", "--preset", "live",
+                 "--condition", "weak", "--seed", "5", "--seeds", "2", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["seeds"] == [5, 6] and set(doc["per_seed"]["true"]) == {"5", "6"}
+    rows = {(r["condition"], r["preset"]): r for r in doc["over_seeds"]["true"]}
+    live = rows[("weak", "live")]
+    per = [next(r for r in doc["per_seed"]["true"][s] if r["preset"] == "live")
+           for s in ("5", "6")]
+    assert live["coverage"]["worst"] == min(r["coverage"] for r in per)
+    assert live["worst_pct"]["worst"] == max(r["worst_pct"] for r in per)
+
+
 @pytest.mark.parametrize("args,message", [
     (["--calib", "c.yaml"], "together with LEFT and RIGHT"),
     (["--frames", "0"], "--frames"),
