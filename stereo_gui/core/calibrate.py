@@ -36,6 +36,7 @@ from stereo_gui.core.lens import (
     LENS_MODELS,
     ROUND_TRIP_PX,
     optimal_new_camera,
+    project_points,
     round_trip_px,
     stereo_rectify,
     undistort_points,
@@ -136,6 +137,11 @@ class _Solve:
     errors: list[tuple[float, float]]  # per pair (left, right) RMS px, from the final model
     bundle: BundleResult
     mono_sigmas: tuple[np.ndarray | None, np.ndarray | None]  # calibrateCameraExtended's
+    # per pair: how far the right camera's corners lie (RMS px) from the left camera's view of
+    # the board carried over by the rig's pose (the median of the pairs'), each camera with its
+    # own fit: a pair whose board moved between the two pictures lands far off
+    transfer_px: list[float]
+    own_px: list[float]  # per pair: the worse of the two cameras' errors of their own fits
 
 
 # OpenCV's flags that hold a distortion coefficient (OpenCV 5 gives cv2.fisheye the same values)
@@ -227,6 +233,10 @@ def _solve(pairs: list[PairDetection], board: BoardSpec, image_size: tuple[int, 
     # the relative pose with both cameras' intrinsics fixed: the start of the joint refinement
     rms_fixed = float("nan")
     R, T = _relative_pose(rv1, tv1, rv2, tv2)
+    transfer = [_transfer_px(model, orr[k], ir[k], rv1[k], tv1[k], R, T, M2, D2)
+                for k in range(len(pairs))]
+    own = [max(_rms_px(model, ol[k], il[k], rv1[k], tv1[k], M1, D1),
+               _rms_px(model, orr[k], ir[k], rv2[k], tv2[k], M2, D2)) for k in range(len(pairs))]
     try:
         if model == "fisheye":
             out = cv2.fisheye.stereoCalibrate(
@@ -264,7 +274,44 @@ def _solve(pairs: list[PairDetection], board: BoardSpec, image_size: tuple[int, 
     F = F / F[2, 2] if abs(F[2, 2]) > 1e-12 else F
     return _Solve([p.name for p in pairs], M1, D1.reshape(1, -1), M2, D2.reshape(1, -1), R,
                   T.reshape(3, 1), E, F, rl, rr, float(bundle.rms), rms_fixed, errors, bundle,
-                  (std1, std2))
+                  (std1, std2), transfer, own)
+
+
+def _rms_px(model: str, obj, img, rvec, tvec, M, D) -> float:
+    """RMS px between corners `img` and the board's points `obj` seen from (rvec, tvec)."""
+    d = project_points(model, obj, rvec, tvec, M, D) - np.asarray(img, np.float64).reshape(-1, 2)
+    return float(np.sqrt(np.mean(np.sum(d * d, axis=1))))
+
+
+def _transfer_px(model: str, obj, img, rvec_left, tvec_left, R, T, M2, D2) -> float:
+    """RMS px between the right camera's corners `img` and the board as the left camera's pose
+    (`rvec_left`, `tvec_left`) and the rig's (R, T) put it in the right image."""
+    Rl = cv2.Rodrigues(np.asarray(rvec_left, np.float64).reshape(3, 1))[0]
+    rvec = cv2.Rodrigues(R @ Rl)[0]
+    tvec = R @ np.asarray(tvec_left, np.float64).reshape(3, 1) + np.asarray(T).reshape(3, 1)
+    return _rms_px(model, obj, img, rvec, tvec, M2, D2)
+
+
+# a pair whose board moved between its two pictures (cameras that are not synchronised): its
+# transfer error is above both of these. On the real 9x6 webcam set the pairs lie at 0.7-1.9x
+# the median (0.20-0.57 px), on the simulated rig at most 2.2x (0.17 px); boards moved by about
+# a degree and 4 mm land at 2.3-11.5x and 2.3-7.5 px
+MOVED_FACTOR = 2.0  # times the median pair's
+MOVED_FLOOR_PX = 1.0
+# ... and its cameras each fit their own view of it well (at most this share of the transfer
+# error): corners found badly in one image (noise, a wrong corner) are an outlier, not a move
+MOVED_OWN_SHARE = 1.0 / 3.0
+
+
+def _moved(transfer: list[float], own: list[float], factor: float = MOVED_FACTOR,
+           floor_px: float = MOVED_FLOOR_PX) -> list[int]:
+    """Indexes of pairs whose board moved between the left and right pictures: far off when
+    carried from one camera to the other (`transfer`, px), though each camera fits its own view
+    (`own`: the worse of the two single-camera errors, px)."""
+    t = np.asarray(transfer, np.float64)
+    limit = max(factor * float(np.median(t)), floor_px)
+    moved = (t > limit) & (np.asarray(own, np.float64) <= MOVED_OWN_SHARE * t)
+    return [int(i) for i in np.flatnonzero(moved)]
 
 
 @dataclass(frozen=True)
@@ -379,16 +426,26 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
     sol = _solve(usable, board, image_size, joint_refinement, progress, cancel, 0, total,
                  model, held)
     if reject_outliers and len(usable) > min_pairs:
-        bad = _outliers(sol.errors, outlier_factor, outlier_floor_px)
+        moved = set(_moved(sol.transfer_px, sol.own_px))
+        bad = sorted(moved | set(_outliers(sol.errors, outlier_factor, outlier_floor_px)))
         # never drop below the minimum: keep the best of the bad ones if needed
         bad = sorted(bad, key=lambda i: -max(sol.errors[i]))[: len(usable) - min_pairs]
         if bad:
             med = float(np.median([max(e) for e in sol.errors]))
+            med_t = float(np.median(sol.transfer_px))
             for i in sorted(bad):
                 el, er = sol.errors[i]
-                rejected.append(RejectedPair(
-                    usable[i].name, f"reprojection error {max(el, er):.2f} px is far above the "
-                                    f"median {med:.2f} px (outlier)"))
+                if i in moved:
+                    reason = (f"the board moved between the left and right pictures: the left "
+                              f"camera's view of it, carried over by the rig's pose, lands "
+                              f"{sol.transfer_px[i]:.2f} px from where the right camera saw it "
+                              f"(the median pair {med_t:.2f} px), while each camera fits its "
+                              f"own view within {sol.own_px[i]:.2f} px; the cameras did not take "
+                              "the pair at the same moment")
+                else:
+                    reason = (f"reprojection error {max(el, er):.2f} px is far above the "
+                              f"median {med:.2f} px (outlier)")
+                rejected.append(RejectedPair(usable[i].name, reason))
             usable = [p for i, p in enumerate(usable) if i not in set(bad)]
             log.info("dropped %d outlier pairs, calibrating again", len(bad))
             sol = _solve(usable, board, image_size, joint_refinement, progress, cancel, 3, total,
