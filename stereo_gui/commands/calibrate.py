@@ -301,7 +301,9 @@ def run(args: argparse.Namespace) -> int:
         else:
             result = calibrate_stereo(
                 detections, board, size, alpha=args.alpha, method=args.method,
-                progress=lambda d, t, text: progress(d, t, "calibrating"),
+                # what is being done, in the calibration's own words ("calibrating the left
+                # camera", "... folds over: calibrating again with k3 held at zero", ...)
+                progress=lambda d, t, text: progress(d, t, text),
                 min_pairs=args.min_pairs, reject_outliers=not args.keep_outliers,
                 model=args.model, fix_k3=args.fix_k3,
                 origin=f"{args.folder}" + (" with left and right exchanged" if swap else ""))
