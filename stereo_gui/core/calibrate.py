@@ -100,13 +100,6 @@ def _progress(progress: ProgressCallback | None, step: int, total: int, text: st
         progress(step, total, text)
 
 
-def _view_errors(obj: np.ndarray, img: np.ndarray, rvec, tvec, M, D) -> float:
-    """RMS reprojection error of one view (pinhole models), px."""
-    proj, _ = cv2.projectPoints(obj, rvec, tvec, M, D)
-    d = proj.reshape(-1, 2) - img.reshape(-1, 2)
-    return float(np.sqrt(np.mean(np.sum(d * d, axis=1))))
-
-
 def epipolar_error_px(left_pts: Sequence[np.ndarray], right_pts: Sequence[np.ndarray],
                       M1, D1, R1, P1, M2, D2, R2, P2, model: str = "pinhole") -> float:
     """Mean |y_left - y_right| of corresponding points after rectification, px."""
@@ -585,8 +578,8 @@ def calibrate_hartley(pairs: Sequence[PairDetection], board: BoardSpec | None,
                             h["P1"], M2, D2, h["R2"], h["P2"])
     per_pair = []
     for i, p in enumerate(pairs):
-        el = _view_errors(ol[i], L[i], rv1[i], tv1[i], M1, D1)
-        er = _view_errors(orr[i], Rt[i], rv2[i], tv2[i], M2, D2)
+        el = _rms_px("pinhole", ol[i], L[i], rv1[i], tv1[i], M1, D1)
+        er = _rms_px("pinhole", orr[i], Rt[i], rv2[i], tv2[i], M2, D2)
         per_pair.append(PairError(p.name, el, er))
     opt1, _ = cv2.getOptimalNewCameraMatrix(M1, D1, image_size, 1, image_size)
     opt2, _ = cv2.getOptimalNewCameraMatrix(M2, D2, image_size, 1, image_size)
