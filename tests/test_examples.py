@@ -19,7 +19,15 @@ def test_the_robot_example_reads_the_simulated_wall():
     assert run.returncode == 0, run.stderr
     lines = run.stdout.splitlines()
     assert lines[0].startswith("opened simulated rig")
-    assert sum("centre (320, 240): 1.5" in line for line in lines) == 2, run.stdout
+    # the wall is at 1.5 m; which frames are read depends on the machine's load (newer frames
+    # win), and a frame's noise may read 1.499 m: within its +-, not a string "1.5"
+    import re
+
+    readings = [re.search(r"centre \(320, 240\): ([0-9.]+) m \+- ([0-9.]+) mm", line)
+                for line in lines]
+    readings = [(float(m.group(1)), float(m.group(2))) for m in readings if m]
+    assert len(readings) == 2, run.stdout
+    assert all(abs(z - 1.5) * 1000 <= max(bound, 5.0) for z, bound in readings), run.stdout
 
 
 def test_the_robot_example_says_what_is_wrong_in_one_line(tmp_path):
