@@ -32,6 +32,9 @@ class SceneRow:
     num_disparities: int
     scores: dict = field(default_factory=dict)  # method -> DisparityScore
     ms: dict = field(default_factory=dict)  # method -> ms per frame
+    # preset -> the baseline it is held to on this scene (a preset with a largest matching
+    # width matches a narrow scene at full size and a wide one reduced)
+    baselines: dict = field(default_factory=dict)
 
 
 def baseline_of(preset: str, scale: float) -> str:
@@ -57,7 +60,6 @@ def run_scenes(list_path, presets=("live", "quality"), repeat: int = 1) -> dict:
     params = load_presets(presets, reserved=(BASELINE,))
     threads_before = use_opencv_threads_beside_lanes()
     rows: list[SceneRow] = []
-    compared: dict[str, str] = {}
     try:
         for spec in specs:
             scene = load_scene(spec)
@@ -71,7 +73,7 @@ def run_scenes(list_path, presets=("live", "quality"), repeat: int = 1) -> dict:
                               num_disparities=num, parallel=False, cv_threads=None)
                 scale = p.matcher.effective_scale(w)
                 base = baseline_of(name, scale)
-                compared[name] = base
+                row.baselines[name] = base
                 if base not in methods:
                     methods[base] = (lambda s=scale: plain_sgbm(scene.left, scene.right, num, s))
                 pipe = StereoPipeline(calib, p)
@@ -88,19 +90,28 @@ def run_scenes(list_path, presets=("live", "quality"), repeat: int = 1) -> dict:
             rows.append(row)
     finally:
         cv2.setNumThreads(threads_before)
-    return summarize(rows, list(params), compared)
+    return summarize(rows, list(params))
 
 
-def summarize(rows: list[SceneRow], presets: list[str], compared: dict[str, str]) -> dict:
+def _baseline_label(rows: list[SceneRow], preset: str) -> str:
+    """The name of what a preset is held to: one baseline, or plain SGBM at whatever size the
+    preset matched each scene."""
+    bases = list(dict.fromkeys(r.baselines[preset] for r in rows))
+    return bases[0] if len(bases) == 1 else f"{BASELINE} at {preset}'s matching size"
+
+
+def summarize(rows: list[SceneRow], presets: list[str]) -> dict:
     """The per-scene table, each preset's verdict against its baseline, and the averages."""
     methods = list(dict.fromkeys(m for r in rows for m in r.scores))
-    out = {"scenes": [], "presets": presets, "baseline_of": compared,
+    out = {"scenes": [], "presets": presets,
+           "baseline_of": {p: _baseline_label(rows, p) for p in presets},
            "margins": {"bad2": MARGIN_BAD2, "density": MARGIN_DENSITY}}
     for r in rows:
         entry = {"name": r.name, "size": list(r.size), "num_disparities": r.num_disparities,
                  "methods": {m: {**_finite(r.scores[m].to_dict()), "ms": r.ms[m]}
-                             for m in methods if m in r.scores}}
-        entry["within_margins"] = {p: within(r.scores[p], r.scores[compared[p]])
+                             for m in methods if m in r.scores},
+                 "baseline_of": dict(r.baselines)}
+        entry["within_margins"] = {p: within(r.scores[p], r.scores[r.baselines[p]])
                                    for p in presets}
         out["scenes"].append(entry)
     out["mean"] = {}
@@ -113,10 +124,12 @@ def summarize(rows: list[SceneRow], presets: list[str], compared: dict[str, str]
             "ms": _mean(r.ms[m] for r in rows if m in r.ms)}
     out["verdict"] = {}
     for p in presets:
-        base = compared[p]
-        mp, mb = out["mean"][p], out["mean"][base]
+        mp = out["mean"][p]
+        # each scene's own baseline, averaged as the preset's scores are
+        mb = {"bad2": _mean(r.scores[r.baselines[p]].bad2 for r in rows),
+              "density": _mean(r.scores[r.baselines[p]].density for r in rows)}
         out["verdict"][p] = {
-            "baseline": base,
+            "baseline": out["baseline_of"][p],
             "scenes_within_margins": sum(e["within_margins"][p] for e in out["scenes"]),
             "scenes": len(rows),
             "outside": [e["name"] for e in out["scenes"] if not e["within_margins"][p]],

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from stereo_gui.cli import main
+from stereo_gui.resources import resource_path
 
 
 def _scene(folder, name, shift, w=240, h=120, seed=0):
@@ -39,6 +40,30 @@ def test_scene_bench_scores_every_preset_beside_the_baselines(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "plain" in text and "quality: within the margins of plain on" in text
     assert "live" not in text.replace("plain@live", "")
+
+
+def test_a_preset_matching_some_scenes_reduced_is_held_to_each_scenes_baseline(tmp_path,
+                                                                                capsys):
+    """A preset with a largest matching width (quality at most 300 px wide) matches a 240 px
+    scene at full size and a 400 px one reduced: each scene holds it to plain OpenCV at that
+    size. It ended in a KeyError: the last scene's baseline was looked up on every scene."""
+    preset = json.loads(resource_path("presets", "quality.json").read_text())
+    preset["name"] = "q300"
+    preset["params"]["max_match_width"] = 300
+    (tmp_path / "q300.json").write_text(json.dumps(preset))
+    (tmp_path / "s.tsv").write_text(_scene(tmp_path, "narrow", 12)
+                                    + _scene(tmp_path, "wide", 20, w=400, seed=1))
+    assert main(["bench", "--scenes", str(tmp_path / "s.tsv"), "--preset",
+                 str(tmp_path / "q300.json"), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert [s["baseline_of"]["q300"] for s in doc["scenes"]] == ["plain", "plain@q300"]
+    assert doc["baseline_of"]["q300"] == "plain at q300's matching size"
+    wide = doc["scenes"][1]["methods"]
+    assert {"plain", "plain@q300", "q300"} <= set(wide)
+    assert doc["verdict"]["q300"]["scenes"] == 2
+    assert main(["bench", "--scenes", str(tmp_path / "s.tsv"), "--preset",
+                 str(tmp_path / "q300.json")]) == 0
+    assert "q300: within the margins of plain at q300's matching size" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize("extra, message", [
