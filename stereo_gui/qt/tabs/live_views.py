@@ -103,9 +103,15 @@ class ViewGrid(QWidget):
     def resizeEvent(self, event) -> None:  # noqa: N802 (Qt's name)
         super().resizeEvent(event)
         if self._best_columns(self.visible()) != self._cols:
-            self.lay_out()
+            self._place()  # the same views in other columns: nothing to tell
 
     def lay_out(self, *_args) -> None:
+        """Place the panels of the views ticked, and say which they are (`changed`)."""
+        self._place()
+        self.changed.emit(self.visible())
+
+    def _place(self) -> None:
+        """The panels of the views ticked in the grid of the columns that suit the size now."""
         for panel in self.panels.values():
             self._grid.removeWidget(panel)
             panel.hide()
@@ -127,4 +133,3 @@ class ViewGrid(QWidget):
             span = cols if i == len(keys) - 1 and len(keys) % cols else 1
             self._grid.addWidget(self.panels[key], i // cols, i % cols, 1, span)
             self.panels[key].show()
-        self.changed.emit(keys)
