@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import statistics
 import threading
@@ -448,8 +449,6 @@ def accuracy_over_seeds(totals: dict[int, dict[tuple[str, str], dict]]
     """Per (condition, preset): the mean over the seeds of each whole-grid figure and its
     worst seed's value (the lowest reading share and coverage of the +-, the highest errors),
     with which seed that was; `totals` is {seed: condition_totals}."""
-    import math
-
     out: dict[tuple[str, str], dict] = {}
     keys = dict.fromkeys(k for t in totals.values() for k in t)
     for key in keys:

@@ -55,21 +55,17 @@ class PlainLoop:
     """The plain program's per-frame processing for one calibration."""
 
     def __init__(self, calibration: StereoCalibration) -> None:
-        from stereo_gui.core.lens import rectify_map
-
         size = calibration.image_size
-        self._left_map = rectify_map(calibration.model, calibration.M1, calibration.D1,
-                                     calibration.R1, calibration.P1, size, cv2.CV_16SC2)
-        self._right_map = rectify_map(calibration.model, calibration.M2, calibration.D2,
-                                      calibration.R2, calibration.P2, size, cv2.CV_16SC2)
+        self._maps = calibration.rectify_maps()  # fixed-point (CV_16SC2), as a careful program
         self._half = (max(1, round(size[0] * SCALE)), max(1, round(size[1] * SCALE)))
         self._left = plain_matcher()
         self._right = cv2.ximgproc.createRightMatcher(self._left)
         self._wls = cv2.ximgproc.createDisparityWLSFilter(matcher_left=self._left)
 
     def process(self, frame_left: np.ndarray, frame_right: np.ndarray) -> PlainFrame:
-        rl = cv2.remap(frame_left, *self._left_map, cv2.INTER_LINEAR)
-        rr = cv2.remap(frame_right, *self._right_map, cv2.INTER_LINEAR)
+        m = self._maps
+        rl = cv2.remap(frame_left, m.left_x, m.left_y, cv2.INTER_LINEAR)
+        rr = cv2.remap(frame_right, m.right_x, m.right_y, cv2.INTER_LINEAR)
         gl = cv2.resize(cv2.cvtColor(rl, cv2.COLOR_BGR2GRAY), self._half,
                         interpolation=cv2.INTER_AREA)
         gr = cv2.resize(cv2.cvtColor(rr, cv2.COLOR_BGR2GRAY), self._half,

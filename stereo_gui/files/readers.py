@@ -80,9 +80,7 @@ def read_json_object(path: str | os.PathLike, what: str) -> dict:
     is not JSON or holds something other than an object."""
     path = Path(path)
     try:
-        doc = json.loads(read_user_text(path, what))
-    except OSError as exc:
-        raise InputError(f"cannot read {what} {path}: {os_error_text(exc)}") from exc
+        doc = json.loads(read_user_text(path, what))  # (a file that cannot be read: InputError)
     except RecursionError:
         raise InputError(f"{what} {path} is nested too deeply to be one") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
