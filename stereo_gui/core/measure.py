@@ -55,6 +55,7 @@ class Reason(StrEnum):
     OUT_OF_FIT_RANGE = "out of disparity range"
     NO_METRIC_SCALE = "no metric scale"
     AMBIGUOUS = "ambiguous match"
+    NEARER_EDGE = "plain surface beside a nearer edge"
 
     @classmethod
     def of(cls, text: str | None) -> Reason | None:
@@ -219,6 +220,7 @@ class Refinement:
     # the alignment moved further than it may from the starting estimate: the images put the
     # surface elsewhere than the matcher did
     ran_off: bool = False
+    half_px: int = 0  # half the side of the window aligned
 
 
 def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, d0: float,
@@ -319,7 +321,7 @@ def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: i
     correlated = (correlated_stderr(A, resid, L.shape) / abs(a) if converged
                   else float("nan"))
     return Refinement(d, stderr, converged, abs(d - d0), corr, int(Lf.size),
-                      stderr_correlated_px=correlated)
+                      stderr_correlated_px=correlated, half_px=half)
 
 
 def correlated_stderr(A: np.ndarray, resid: np.ndarray, shape: tuple[int, int],
@@ -363,13 +365,17 @@ def refine_point(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, 
     and one was pulled further than REFINE_MAX_SHIFT_PX from `d0` (the images contradict it), or
     when a wider window is pulled that far from `d0` and, allowed twice as far, settles (the
     images put the surface elsewhere than the smaller window did)."""
-    big = refine_disparity(left_gray, right_gray, x, y, d0, max(half, REFINE_HALF_PX),
-                           max_shift_px=REFINE_MAX_SHIFT_PX)
+    h0 = max(half, REFINE_HALF_PX)
+    # (a slanted surface, a floor or a table seen obliquely, is aligned along the plane the map
+    # shows there, as a grown window is: one disparity for the window ran off on such surfaces)
+    tilt0 = map_slope(surface, x, y, h0) if surface is not None else (0.0, 0.0)
+    big = refine_disparity(left_gray, right_gray, x, y, d0, h0,
+                           max_shift_px=REFINE_MAX_SHIFT_PX, slope=tilt0)
     best = None
     ran_off = big.ran_off
     if big.converged and math.isfinite(big.stderr_px):
         small = refine_disparity(left_gray, right_gray, x, y, d0, max(half, 3),
-                                 max_shift_px=REFINE_MAX_SHIFT_PX)
+                                 max_shift_px=REFINE_MAX_SHIFT_PX, slope=tilt0)
         apart = (abs(big.disparity_px - small.disparity_px) if small.converged
                  else big.moved_px)  # the small window alone found nothing: as unsure as the move
         best = replace(big, windows_px=apart)
@@ -792,6 +798,102 @@ def window_correlation(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y:
     return (float((a * b).sum()) / denom if denom > 0 else 0.0), int(left.size)
 
 
+# ---- the click's own region beside a nearer edge ----------------------------------------------
+# A plain region (a painted wall, a white background) just beside a nearer object's edge: every
+# window around the click holds the edge, the matcher's window aggregation carries the object's
+# disparity a few pixels onto the plain side ("foreground fattening"), and the alignment follows
+# the edge, the only detail there is. Its correlation is high and its bound small: a confident
+# wrong reading (Shelves' wall above a paint can read at the can's 34 px against the wall's 28).
+SEGMENT_TOL_GREY = 20.0  # grey levels from the click's own (3x3 smoothed) that are its region
+SEGMENT_BORDER_PX = 2  # the blurred band at the region's border: the other side's structure
+SEGMENT_MIN_SHARE = 0.3  # of the click's 13 px window: below it the click lies on texture
+SEGMENT_REACH_PX = 48  # half the side of the area whose depth map tells the region's surface
+
+
+def click_region(gray: np.ndarray, x: int, y: int, half: int) -> tuple[np.ndarray, int, int]:
+    """The click's own region in the window of `half` around (x, y), clipped to the image: the
+    pixels connected to the click through pixels within SEGMENT_TOL_GREY of its grey level (3x3
+    smoothed), less a band of SEGMENT_BORDER_PX along the region's border. Returns the mask
+    and the window's top-left corner (x0, y0)."""
+    h, w = gray.shape[:2]
+    y0, y1 = max(0, y - half), min(h, y + half + 1)
+    x0, x1 = max(0, x - half), min(w, x + half + 1)
+    crop = cv2.GaussianBlur(gray[y0:y1, x0:x1], (3, 3), 0)
+    mask = np.zeros((y1 - y0 + 2, x1 - x0 + 2), np.uint8)
+    cv2.floodFill(crop, mask, (x - x0, y - y0), 0, SEGMENT_TOL_GREY, SEGMENT_TOL_GREY,
+                  4 | cv2.FLOODFILL_MASK_ONLY | cv2.FLOODFILL_FIXED_RANGE | (1 << 8))
+    side = 2 * SEGMENT_BORDER_PX + 1
+    region = cv2.erode(mask[1:-1, 1:-1], np.ones((side, side), np.uint8),
+                       borderType=cv2.BORDER_REPLICATE)
+    return region > 0, x0, y0
+
+
+def _region_plane_at(disparity_px: np.ndarray, region: np.ndarray, x0: int, y0: int, x: int,
+                     y: int) -> float | None:
+    """The disparity at (x, y) of the plane the map's values over `region` (a mask of the window
+    at x0, y0) lie on (least squares, three times with values off it by more than 3 robust sigma
+    left out); None with fewer than 9 values."""
+    win = disparity_px[y0:y0 + region.shape[0], x0:x0 + region.shape[1]]
+    ok = region & np.isfinite(win)
+    if int(ok.sum()) < 9:
+        return None
+    vy, vx = np.nonzero(ok)
+    A = np.column_stack([np.ones(vx.size), vx + x0 - x, vy + y0 - y]).astype(np.float64)
+    b = win[ok].astype(np.float64)
+    keep = np.ones(b.size, bool)
+    for _ in range(3):
+        sol, *_ = np.linalg.lstsq(A[keep], b[keep], rcond=None)
+        resid = b - A @ sol
+        scale = max(MAD_TO_SIGMA * float(np.median(np.abs(resid[keep]))), QUANTUM_PX)
+        keep = np.abs(resid) <= 3.0 * scale
+    return float(sol[0])
+
+
+def reads_nearer_edge(left_gray: np.ndarray, right_gray: np.ndarray, disparity_px: np.ndarray,
+                      x: int, y: int, d: float, half: int) -> bool:
+    """Whether a reading `d` (px) of the window of `half` around (x, y) is a nearer object's
+    edge read beside a plain region of the click's own: the click lies in a region of one grey
+    (`click_region`, at least SEGMENT_MIN_SHARE of its 13 px window) that does not fill the
+    window; the depth map over that region (SEGMENT_REACH_PX around) lies on a surface farther
+    than `d` by more than SURFACE_BAND_PX at the click; and the region's own pixels in the
+    window, aligned at `d`, share nothing with the right image that noise could not give
+    (the texture check's statistic). Then the window's evidence is the edge, not the click's
+    surface.
+
+    A region of one grey on a textured surface (a plain square of a printed board) reads
+    where its surroundings' texture puts it, on its own surface: the map over it agrees and the
+    reading stands. A slanted region is judged by its plane, not its values' median."""
+    reach = max(half, SEGMENT_REACH_PX)
+    region, x0, y0 = click_region(left_gray, x, y, reach)
+    c = REFINE_HALF_PX
+    centre = region[max(0, y - y0 - c):y - y0 + c + 1, max(0, x - x0 - c):x - x0 + c + 1]
+    if centre.size == 0 or float(centre.mean()) < SEGMENT_MIN_SHARE:
+        return False  # the click lies on texture: the window is its own surface's
+    # the window's part of the region
+    wy0, wx0 = max(0, y - half) - y0, max(0, x - half) - x0
+    own = region[wy0:y - y0 + half + 1, wx0:x - x0 + half + 1]
+    if own.all():
+        return False  # the window is all the click's region: the usual checks judge it
+    plane = _region_plane_at(disparity_px, region, x0, y0, x, y)
+    if plane is None or plane >= d - SURFACE_BAND_PX:
+        return False  # the region's surface is where the reading is (or nearer)
+    h, w = left_gray.shape[:2]
+    ys, xs = np.nonzero(own)
+    xs, ys = xs + x0 + wx0, ys + y0 + wy0
+    inside = (xs - d >= 2) & (xs - d <= w - 3)
+    xs, ys = xs[inside], ys[inside]
+    if xs.size < 9:
+        return True
+    left = left_gray[ys, xs].astype(np.float32)
+    right = cv2.remap(right_gray, (xs - d).astype(np.float32).reshape(1, -1),
+                      ys.astype(np.float32).reshape(1, -1), cv2.INTER_CUBIC,
+                      borderMode=cv2.BORDER_REPLICATE).reshape(-1).astype(np.float32)
+    a, b = left - left.mean(), right - right.mean()
+    denom = math.sqrt(float((a * a).sum()) * float((b * b).sum()))
+    corr = float((a * b).sum()) / denom if denom > 0 else 0.0
+    return corr * math.sqrt(xs.size) < TEXTURE_MIN_T * STDERR_SCALE
+
+
 def has_texture(gray: np.ndarray, x: int, y: int, half: int) -> bool:
     """Whether the left window has anything to match: a spread of grey levels above what sensor
     noise alone gives (TEXTURE_MIN_STD)."""
@@ -1024,6 +1126,10 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
             return invalid(Reason.NO_TEXTURE, disparity_px=d, **common)
         if ref is not None:
             d = ref.disparity_px
+        if reads_nearer_edge(gl, gr, disp, xi, yi, d,
+                             ref.half_px if ref is not None else h_t):
+            # the click's own plain region shows nothing; the window read a nearer edge
+            return invalid(Reason.NEARER_EDGE, disparity_px=d, **common)
     if result is not None and xi - d < -0.5:
         return invalid(Reason.NOT_SEEN, disparity_px=d, **common)
 
