@@ -21,6 +21,13 @@ class CalibrationFileError(StereoGuiError):
     """A calibration file is missing, corrupt, or holds matrices of the wrong shape."""
 
 
+class CalibrationValueError(CalibrationFileError):
+    """A calibration, or one of its parts, was built with a value no camera has (a matrix of the
+    wrong shape or not finite, a focal length that is not positive, an unknown parameter name):
+    raised on construction, without saying where the values came from (the file layer adds the
+    file's name)."""
+
+
 class SourceError(StereoGuiError):
     """A frame source could not be opened or stopped delivering frames."""
 

@@ -12,13 +12,16 @@ through here.
 
 from __future__ import annotations
 
+from typing import Literal, get_args
+
 import cv2
 import numpy as np
 
 from stereo_gui.core.errors import InputError
 
-LENS_MODELS = ("pinhole", "rational", "fisheye")
-DIST_COUNT = {"pinhole": 5, "rational": 8, "fisheye": 4}
+LensModel = Literal["pinhole", "rational", "fisheye"]  # written to files as these words
+LENS_MODELS: tuple[LensModel, ...] = get_args(LensModel)
+DIST_COUNT: dict[LensModel, int] = {"pinhole": 5, "rational": 8, "fisheye": 4}
 _PINHOLE_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4", "tx", "ty")
 _FISHEYE_NAMES = ("k1", "k2", "k3", "k4")
 # the coefficients that "fix k3 and higher terms" holds at zero, per model

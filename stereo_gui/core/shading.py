@@ -24,11 +24,14 @@ from __future__ import annotations
 
 import logging
 import math
+import numbers
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
+
+from stereo_gui.core.errors import CalibrationValueError
 
 log = logging.getLogger(__name__)
 
@@ -44,11 +47,33 @@ MIN_BLACK, MAX_BLACK = -16.0, 64.0  # grey levels: a black level outside is not 
 @dataclass(frozen=True)
 class LensShading:
     """One camera's relative brightness V(r) = 1 + k1 r^2 + k2 r^4 (r = 1 in the corners) of
-    what its sensor records above its black level `black` (grey levels: what black gives)."""
+    what its sensor records above its black level `black` (grey levels: what black gives).
+
+    Checked on construction (CalibrationValueError): finite values, a black level from MIN_BLACK
+    to MAX_BLACK, and V within MAX_LOSS of 1 over the whole frame (a fit beyond is not believed).
+    """
 
     k1: float = 0.0
     k2: float = 0.0
     black: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name, v in (("k1", self.k1), ("k2", self.k2), ("black", self.black)):
+            if not (isinstance(v, numbers.Real) and math.isfinite(v)):
+                raise CalibrationValueError(f"{name} should be a finite number")
+            object.__setattr__(self, name, float(v))
+        if not MIN_BLACK <= self.black <= MAX_BLACK:
+            raise CalibrationValueError(f"black should be from {MIN_BLACK:g} to {MAX_BLACK:g} "
+                                        f"grey levels, found {self.black:g}")
+        v = self.brightness(np.linspace(0.0, 1.0, 21))
+        if not (np.all(np.isfinite(v)) and v.min() > 1.0 - MAX_LOSS and v.max() < 1.0 + MAX_LOSS):
+            raise CalibrationValueError(f"k1 {self.k1:g} and k2 {self.k2:g} darken or brighten "
+                                        f"the image by more than {100 * MAX_LOSS:.0f} %")
+
+    @property
+    def coefficients(self) -> tuple[float, float, float]:
+        """(k1, k2, black)."""
+        return (self.k1, self.k2, self.black)
 
     def brightness(self, r2: np.ndarray | float) -> np.ndarray | float:
         """V at squared normalised radius r2."""
@@ -89,6 +114,17 @@ class PairShading:
     right: LensShading
     samples: int = 0
     images: int = 0
+
+    def __post_init__(self) -> None:
+        for name, n in (("samples", self.samples), ("images", self.images)):
+            if isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 0:
+                raise CalibrationValueError(f"{name} should be a whole number >= 0, found {n!r}")
+
+    def side(self, side: str) -> LensShading:
+        """The lens shading of the "left" or "right" camera."""
+        if side not in ("left", "right"):
+            raise KeyError(side)
+        return self.left if side == "left" else self.right
 
     @property
     def negligible(self) -> bool:
@@ -209,16 +245,11 @@ def fit_shading(samples: Sequence[BoardSamples]) -> LensShading | None:
         resid = b - (fit + black)
         spread = 1.4826 * float(np.median(np.abs(resid[keep]))) + 1e-3
         keep = np.abs(resid) <= max(4.0 * spread, 2.0)
-    if not MIN_BLACK <= black <= MAX_BLACK:
-        log.info("lens shading: black level %.1f out of bounds: not used", black)
+    try:  # (a black level or a V out of bounds is not believed)
+        return LensShading(float(k[0]), float(k[1]), black)
+    except CalibrationValueError as exc:
+        log.info("lens shading fit out of bounds (%s): not used", exc)
         return None
-    shading = LensShading(float(k[0]), float(k[1]), black)
-    # V must stay positive and fall no more than MAX_LOSS anywhere in the frame
-    v = shading.brightness(np.linspace(0.0, 1.0, 21))
-    if not (np.all(np.isfinite(v)) and v.min() > 1.0 - MAX_LOSS and v.max() < 1.0 + MAX_LOSS):
-        log.info("lens shading fit out of bounds (k1 %.3f, k2 %.3f): not used", k[0], k[1])
-        return None
-    return shading
 
 
 def measure_pair_shading(pairs: Sequence[tuple[object, Callable[[], np.ndarray],

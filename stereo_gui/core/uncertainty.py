@@ -33,10 +33,19 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.coverage import CORNERS, FAR_SIDE, regions_in_words
-from stereo_gui.core.lens import HIGHER_TERMS, distortion_names, project_points, stereo_rectify, \
-    undistort_points
+from stereo_gui.core.errors import CalibrationValueError
+from stereo_gui.core.lens import (
+    HIGHER_TERMS,
+    LENS_MODELS,
+    LensModel,
+    distortion_names,
+    project_points,
+    stereo_rectify,
+    undistort_points,
+)
 
 SIDES = ("left", "right")
+MAX_DIST_COUNT = 14  # the most distortion coefficients a camera of OpenCV has
 INTRINSICS = ("fx", "fy", "cx", "cy")
 # a parameter is poorly determined when its 1-sigma uncertainty exceeds these
 FOCAL_SHARE = 0.01  # of the focal length
@@ -77,13 +86,40 @@ class CalibrationUncertainty:
     covariance: np.ndarray
     sigma_px: float
     method: str = "jacobian"
-    model: str = "pinhole"
+    model: LensModel = "pinhole"
 
     def __post_init__(self) -> None:
-        c = np.asarray(self.covariance, np.float64)
-        if c.shape != (len(self.names), len(self.names)):
-            raise ValueError(f"covariance {c.shape} does not match {len(self.names)} names")
+        names = tuple(self.names)
+        n = len(names)
+        c = np.array(self.covariance, np.float64)
+        if c.shape != (n, n) or not np.all(np.isfinite(c)):
+            got = "x".join(map(str, c.shape)) or "a scalar"
+            raise CalibrationValueError(f"the uncertainty's covariance should be a finite {n}x{n} "
+                                        f"matrix (one row and column per name), found {got}")
+        if self.model not in LENS_MODELS:
+            raise CalibrationValueError(f"the uncertainty is of an unknown lens model "
+                                        f"{self.model!r}")
+        c.setflags(write=False)
+        object.__setattr__(self, "names", names)
         object.__setattr__(self, "covariance", c)
+        self.check_parameters(None)
+
+    def check_parameters(self, n_dist: int | None) -> None:
+        """Raise CalibrationValueError unless every name is a parameter, once, of a calibration
+        of this lens model with `n_dist` distortion coefficients per camera (None: as many as
+        the model has); a distance's uncertainty is computed by moving each."""
+        known = parameter_names(self.model, n_dist if n_dist is not None
+                                else len(distortion_names(self.model, MAX_DIST_COUNT)))
+        for name in self.names:
+            if name not in known:
+                whose = (f"a calibration with {self.model} lenses" if n_dist is None else
+                         f"this calibration ({self.model} lenses, {n_dist} distortion "
+                         f"coefficients: {', '.join(known[:2])}, ..., {known[-1]})")
+                raise CalibrationValueError(f"the uncertainty holds {name!r}, which is not a "
+                                            f"parameter of {whose}")
+        if len(set(self.names)) != len(self.names):
+            twice = sorted({n for n in self.names if self.names.count(n) > 1})
+            raise CalibrationValueError(f"the uncertainty holds {', '.join(twice)} twice")
 
     def index(self, name: str) -> int | None:
         try:

@@ -28,6 +28,7 @@ from pathlib import Path
 import cv2
 
 from stereo_gui.core.errors import CalibrationFileError
+from stereo_gui.core.plausibility import check_plausible
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.opencv_calibration import SizeHint, resolve_size
 
@@ -140,8 +141,6 @@ def _load_robotics(path: Path) -> LoadedCalibration | None:
         got, kind, what = kalibr.read_euroc_pair(path), "euroc", "EuRoC"
     else:
         return None
-    from stereo_gui.files.calibration_file import check_plausible
-
     calib = got.calibration
     check_plausible(calib, " + ".join(map(str, got.files)))
     files = " + ".join(f"{p.parent.name}/{p.name}" if kind == "euroc" else p.name
@@ -201,8 +200,6 @@ def _load_any(spec: str | Path, image_size: SizeHint) -> LoadedCalibration:
         from stereo_gui.files.opencv_calibration import read_opencv_stereo
 
         got = read_opencv_stereo(path, image_size)
-        from stereo_gui.files.calibration_file import check_plausible
-
         check_plausible(got.calibration, " + ".join(map(str, got.files)))
         size = got.calibration.image_size
         how = "from the file" if got.size_from_file else "from the images or source"

@@ -12,6 +12,11 @@ backend, focus, exposure...; switches as 0/1), so that they can be restored and 
 noticed; files without them load as before, and a damaged `camera_controls` is left out with a
 warning in the log, the calibration itself still loads.
 
+This module reads and writes; it checks only the format. The values are checked by the types
+they become (a StereoCalibration and its parts refuse what no camera has when they are built)
+and by core.plausibility (whether the whole is a rig that could exist); their words are said
+here with the file's name in front.
+
 ROS camera_info files (left.yaml, right.yaml) follow ROS's layout ({rows, cols, data} matrices,
 distortion_model plumb_bob, rational_polynomial or equidistant for fisheye lenses) and ROS's unit
 for the projection's translation term: METRES.
@@ -24,19 +29,31 @@ import logging
 import math
 import re
 from pathlib import Path
+from typing import NoReturn, cast
 
 import cv2
 import numpy as np
 
 from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.camera_settings import SWITCHES, PairSettings
-from stereo_gui.core.errors import CalibrationFileError, InputError
+from stereo_gui.core.errors import CalibrationFileError, CalibrationValueError, InputError
+from stereo_gui.core.lens import LENS_MODELS, LensModel
+from stereo_gui.core.plausibility import check_plausible
+from stereo_gui.core.shading import LensShading, PairShading
 from stereo_gui.core.stereo_calibration import (
-    MATRIX_SHAPES,
+    MATRIX_NAMES,
+    METHODS,
+    Method,
     PairError,
     StereoCalibration,
+    check_camera_matrix,
+    check_image_size,
     check_matrices,
+    check_projection_focal,
+    from_file,
+    q_from_projections,
 )
+from stereo_gui.core.uncertainty import CalibrationUncertainty, CalibrationWarning
 from stereo_gui.files.atomic import os_error_text, write_many_atomic, write_text_atomic
 
 log = logging.getLogger(__name__)
@@ -45,7 +62,6 @@ FORMAT_VERSION = 1
 # ROS camera_info's distortion_model of each lens model (core.lens)
 ROS_DISTORTION_MODELS = {"pinhole": "plumb_bob", "rational": "rational_polynomial",
                          "fisheye": "equidistant"}
-MATRIX_NAMES = ("M1", "D1", "M2", "D2", "R", "T", "E", "F", "R1", "R2", "P1", "P2", "Q")
 
 
 # ---- OpenCV FileStorage YAML -------------------------------------------------------------------
@@ -64,12 +80,11 @@ def calibration_text(calib: StereoCalibration) -> str:
     if calib.scaled_from is not None:
         fs.write("scaled_from_width", int(calib.scaled_from[0]))
         fs.write("scaled_from_height", int(calib.scaled_from[1]))
-    for name in MATRIX_NAMES:
-        fs.write(name, np.asarray(getattr(calib, name), np.float64))
-    for name in ("optimal_M1", "optimal_M2"):
-        m = getattr(calib, name)
-        if m is not None:
-            fs.write(name, np.asarray(m, np.float64))
+    for name, m in calib.matrices().items():
+        fs.write(name, m)
+    for name, opt in (("optimal_M1", calib.optimal_M1), ("optimal_M2", calib.optimal_M2)):
+        if opt is not None:
+            fs.write(name, opt)
     if calib.board is not None:
         fs.write("board_cols", int(calib.board.cols))
         fs.write("board_rows", int(calib.board.rows))
@@ -99,24 +114,23 @@ def calibration_text(calib: StereoCalibration) -> str:
 
 
 def _same_calibration(a: StereoCalibration, b: StereoCalibration) -> bool:
-    for name in MATRIX_NAMES:
-        if not np.array_equal(np.asarray(getattr(a, name), np.float64).reshape(-1),
-                              np.asarray(getattr(b, name), np.float64).reshape(-1)):
+    for ma, mb in zip(a.matrices().values(), b.matrices().values()):
+        if not np.array_equal(ma.reshape(-1), mb.reshape(-1)):
             return False
     return (a.image_size == b.image_size and len(a.per_pair) == len(b.per_pair)
             and a.board == b.board and _controls_of(a) == _controls_of(b)
             and _same_shading(a.lens_shading, b.lens_shading))
 
 
-def _same_shading(a, b) -> bool:
+def _same_shading(a: PairShading | None, b: PairShading | None) -> bool:
     if a is None or b is None:
         return a is b
-    return all(math.isclose(getattr(getattr(a, side), k), getattr(getattr(b, side), k),
-                            rel_tol=1e-9, abs_tol=1e-12)
-               for side in ("left", "right") for k in ("k1", "k2", "black"))
+    return all(math.isclose(x, y, rel_tol=1e-9, abs_tol=1e-12)
+               for la, lb in ((a.left, b.left), (a.right, b.right))
+               for x, y in zip(la.coefficients, lb.coefficients))
 
 
-def _controls_of(calib: StereoCalibration):
+def _controls_of(calib: StereoCalibration) -> PairSettings | None:
     c = calib.camera_controls
     return None if c is None or c.empty else c
 
@@ -129,7 +143,7 @@ def save_calibration(calib: StereoCalibration, path: str | Path) -> Path:
     `load_calibration` before it replaces `path`.
     """
     path = Path(path)
-    check_calibration(calib, f"cannot save {path}")
+    check_plausible(calib, f"cannot save {path}")
     text = calibration_text(calib)
 
     def verify(tmp: Path) -> None:
@@ -210,6 +224,10 @@ def _open(path: Path) -> cv2.FileStorage:
     return fs
 
 
+def _fail(where: str, text: str) -> NoReturn:
+    raise CalibrationFileError(f"{where}: {text}")
+
+
 def _real(fs, name: str, where: str, default: float | None = None) -> float:
     node = fs.getNode(name)
     if node.empty() or node.isNone():
@@ -263,278 +281,7 @@ def _mat(fs, name: str, where: str, max_side: int = 16) -> np.ndarray | None:
     return np.asarray(m, np.float64)
 
 
-# ---- validation -------------------------------------------------------------------------------
-MAX_IMAGE_SIDE_PX = 100_000  # larger images are not made by any camera: the file is damaged
-MAX_FOCAL_PX = 1e7
-MAX_BASELINE_MM = 1e7
-MAX_DISTORTION = 1e6
 MAX_UNCERTAINTY_PARAMETERS = 128  # both cameras' intrinsics and distortion, rotation, translation
-
-
-def _fail(where: str, text: str) -> None:
-    raise CalibrationFileError(f"{where}: {text}")
-
-
-def _check_size(w: int, h: int, where: str, what: str = "image size") -> None:
-    if not (0 < w <= MAX_IMAGE_SIDE_PX and 0 < h <= MAX_IMAGE_SIDE_PX):
-        _fail(where, f"{what} {w}x{h} is not valid (1 to {MAX_IMAGE_SIDE_PX} px a side)")
-
-
-def _check_camera(M: np.ndarray, name: str, where: str) -> None:
-    fx, fy = M[0, 0], M[1, 1]
-    if not (0 < fx <= MAX_FOCAL_PX and 0 < fy <= MAX_FOCAL_PX):
-        _fail(where, f"matrix {name} has focal lengths {fx:g}, {fy:g} px (they must be positive "
-                     f"and at most {MAX_FOCAL_PX:g})")
-    if not np.allclose(M[2], (0.0, 0.0, 1.0), atol=1e-9) or M[1, 0] != 0:
-        _fail(where, f"matrix {name} is not a camera matrix (its last row must be 0 0 1)")
-
-
-def check_calibration(calib: StereoCalibration, where: str) -> None:
-    """Raise CalibrationFileError naming the field of `calib` that no camera could have: an
-    absurd image size, a zero or negative focal length, a zero baseline, a singular
-    rectification, not a rotation, negative or non-finite quality figures, ...
-
-    NaN quality figures mean "not known" where a calibration legitimately has none (an imported
-    or already-rectified calibration has no per-pair record; Hartley's method has no stereo RMS);
-    anywhere else they are refused.
-    """
-    with np.errstate(all="ignore"):  # absurd values overflow on their way to being refused
-        _check_calibration(calib, where)
-
-
-def _check_calibration(calib: StereoCalibration, where: str) -> None:
-    check_matrices({k: getattr(calib, k) for k in MATRIX_SHAPES}
-                   | {"D1": calib.D1, "D2": calib.D2}, where)
-    _check_size(calib.width, calib.height, where)
-    if calib.scaled_from is not None:
-        sw, sh = calib.scaled_from
-        _check_size(sw, sh, where, "scaled_from size")
-        if sw * calib.height != sh * calib.width:
-            _fail(where, f"scaled_from size {sw}x{sh} does not have the aspect ratio of "
-                         f"{calib.width}x{calib.height}")
-    _check_camera(calib.M1, "M1", where)
-    _check_camera(calib.M2, "M2", where)
-    for name in ("D1", "D2"):
-        if np.max(np.abs(getattr(calib, name))) > MAX_DISTORTION:
-            _fail(where, f"distortion {name} holds coefficients above {MAX_DISTORTION:g}")
-    R = calib.R
-    if np.max(np.abs(R)) > 1.0 + 1e-4 or not (
-            np.allclose(R.T @ R, np.eye(3), atol=1e-4) and abs(np.linalg.det(R) - 1) < 1e-4):
-        _fail(where, "matrix R is not a rotation")
-    baseline = calib.baseline_mm
-    if not 0 < baseline <= MAX_BASELINE_MM:
-        _fail(where, f"T gives a baseline of {baseline:g} mm (it must be positive and at most "
-                     f"{MAX_BASELINE_MM:g} mm)")
-    for name in ("R1", "R2"):
-        if not abs(np.linalg.det(getattr(calib, name))) > 1e-9:
-            _fail(where, f"matrix {name} is singular: it cannot rectify")
-    for name in ("P1", "P2"):
-        P = getattr(calib, name)
-        if not (0 < P[0, 0] <= MAX_FOCAL_PX and 0 < P[1, 1] <= MAX_FOCAL_PX):
-            _fail(where, f"matrix {name} has focal lengths {P[0, 0]:g}, {P[1, 1]:g} px (they "
-                         "must be positive)")
-    if calib.P2[0, 3] == 0 and calib.P2[1, 3] == 0:
-        _fail(where, "matrix P2 has no baseline term (P2[0,3] and P2[1,3] are zero)")
-    if calib.Q[2, 3] == 0 or calib.Q[3, 2] == 0:
-        _fail(where, "matrix Q cannot turn disparities into distances (Q[2,3] or Q[3,2] is 0)")
-    if calib.method not in ("bouguet", "hartley", "identity"):
-        _fail(where, f"unknown method {calib.method!r}")
-    if not (math.isfinite(calib.alpha) and -1.0 <= calib.alpha <= 1.0):
-        _fail(where, f"alpha {calib.alpha:g} is not between -1 and 1")
-    check_plausible(calib, where)
-    unknown_ok = not calib.per_pair
-    for name in ("rms_left", "rms_right", "rms_stereo", "epipolar_error_px"):
-        v = _as_float(getattr(calib, name))
-        if math.isnan(v):
-            if unknown_ok or (name == "rms_stereo" and calib.method == "hartley"):
-                continue
-            _fail(where, f"{name} is not a number")
-        if not (math.isfinite(v) and v >= 0):
-            _fail(where, f"{name} is {v:g}; it must be a finite number of pixels >= 0")
-    for i, pe in enumerate(calib.per_pair, start=1):
-        for side, v in (("error_left", pe.error_left), ("error_right", pe.error_right)):
-            v = _as_float(v)
-            if not (math.isfinite(v) and v >= 0):
-                _fail(where, f"per_pair entry {i} ({pe.name}): {side} is {v:g}; it must be a "
-                             "finite number of pixels >= 0")
-
-
-# ---- physical plausibility -------------------------------------------------------------------
-# What any camera pair and its rectification obey, whoever computed them. Each test names the
-# field that fails it. Tolerances allow a file written with fewer digits than ours (a hand-made
-# or another tool's file); damage is orders of magnitude beyond them.
-MIN_BASELINE_MM = 1.0  # a metric calibration's cameras are apart by at least this
-PLAUSIBLE_BASELINE_MM = 100_000.0  # 100 m: beyond, readings become absurd, not a rig
-MIN_FOV_FOCAL = 0.05  # focal length in image widths: below, a pinhole view wider than 174 deg
-MAX_FOV_FOCAL = 100.0  # above, a view narrower than 0.6 deg
-MAX_FOCAL_RATIO = 3.0  # the two cameras, and the rectified ones, differ in focal length by less
-ROTATION_TOL = 1e-3
-RELATIVE_TOL = 1e-3
-
-
-def _near(a, b, tol: float = RELATIVE_TOL) -> bool:
-    """Each element of `a` within `tol` of its own size of `b`'s (zeros: of the largest's)."""
-    a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
-    scale = max(float(np.max(np.abs(a))), float(np.max(np.abs(b))), 1e-300)
-    return bool(np.all(np.abs(a - b) <= tol * np.maximum(np.abs(a), np.abs(b)) + 1e-9 * scale))
-
-
-def _is_rotation(m: np.ndarray) -> bool:
-    return (np.allclose(m.T @ m, np.eye(3), atol=ROTATION_TOL)
-            and abs(np.linalg.det(m) - 1.0) < ROTATION_TOL)
-
-
-def _same_up_to_scale(a: np.ndarray, b: np.ndarray) -> bool:
-    na, nb = np.linalg.norm(a), np.linalg.norm(b)
-    if not (na > 0 and nb > 0):
-        return False
-    a, b = a / na, b / nb  # unit norm: compared against 1, whatever each element's size
-    return min(np.max(np.abs(a - b)), np.max(np.abs(a + b))) <= RELATIVE_TOL
-
-
-def _q_of(P1: np.ndarray, P2: np.ndarray, vertical: bool) -> np.ndarray:
-    """The disparity-to-depth matrix cv2.stereoRectify builds from the rectified projections."""
-    if not vertical:
-        return q_from_projections(P1, P2)
-    f, cx, cy = P1[1, 1], P1[0, 2], P1[1, 2]
-    ty = P2[1, 3] / P2[1, 1]
-    return np.array([[1, 0, 0, -cx], [0, 1, 0, -cy], [0, 0, 0, f],
-                     [0, 0, -1.0 / ty, (cy - P2[1, 2]) / ty]], np.float64)
-
-
-def check_plausible(calib: StereoCalibration, where: str) -> None:
-    """Raise CalibrationFileError naming the field of `calib` that no camera pair has, or that
-    disagrees with the rest: focal lengths for no lens (or two cameras, or the rectified ones,
-    far apart), a principal point outside the image, a lens model that does not map the image's
-    own pixels, a baseline of less than a millimetre or more than 100 m, rectification
-    rotations that are not rotations or do not share one frame, P1/P2 that are not a rectified
-    pair or show the images in a corner of theirs, Q, E or F that do not follow from the rest.
-
-    Hartley's rectification has no metric baseline and homographies for R1/R2: only what it
-    shares with the others is checked. An already rectified pair ("identity") is its P1/P2."""
-    with np.errstate(all="ignore"):
-        _check_plausible(calib, where)
-
-
-MIN_FOOTPRINT = 0.5  # share of the rectified image's width and height a raw image covers
-
-
-def _check_lenses(calib: StereoCalibration, where: str) -> None:
-    """Each camera's lens model maps the pixels of its own image to rays and back (a
-    distortion that folds over inside the image does not), and its rectification shows the
-    image over a good part of the rectified one (not squeezed into a corner of it)."""
-    from stereo_gui.core.lens import ROUND_TRIP_PX, pixel_grid, round_trip_px, undistort_points
-
-    w, h = calib.width, calib.height
-    pts = pixel_grid(w, h)
-    sides = (("1", calib.M1, calib.D1, calib.R1, calib.P1), ("2", calib.M2, calib.D2, calib.R2,
-                                                             calib.P2))
-    for k, M, D, R, P in sides:
-        off, (x, y) = round_trip_px(calib.model, M, D, (w, h))
-        if off == float("inf"):
-            _fail(where, f"distortion D{k} cannot be applied to the image of camera {k}")
-        if not off <= ROUND_TRIP_PX:
-            _fail(where, f"distortion D{k} does not describe camera {k}'s lens: pixel "
-                         f"({x:.0f}, {y:.0f}) comes back {off:.3g} px away "
-                         "(a lens model folding over inside the image)")
-        try:
-            rect = undistort_points(calib.model, pts, M, D, R=R, P=P)
-        except cv2.error:
-            _fail(where, f"distortion D{k} cannot be applied to the image of camera {k}")
-        span = np.ptp(rect, axis=0) if np.all(np.isfinite(rect)) else np.zeros(2)
-        if not (span[0] >= MIN_FOOTPRINT * w and span[1] >= MIN_FOOTPRINT * h):
-            _fail(where, f"matrices R{k} and P{k} with distortion D{k} show camera {k}'s image "
-                         f"in {span[0]:.0f} x {span[1]:.0f} px of the {w}x{h} rectified image: "
-                         "they do not belong together")
-
-
-def _check_plausible(calib: StereoCalibration, where: str) -> None:
-    w, h = calib.width, calib.height
-    hartley = calib.method == "hartley"
-    least = MIN_FOV_FOCAL * (2.0 if calib.model == "fisheye" else 1.0)
-    for name in ("M1", "M2"):
-        M = getattr(calib, name)
-        fx, fy = M[0, 0], M[1, 1]
-        if not least * w <= fx <= MAX_FOV_FOCAL * w or not 0.5 <= fy / fx <= 2.0:
-            _fail(where, f"matrix {name} has focal lengths {fx:g}, {fy:g} px, which no lens "
-                         f"has for an image {w} px wide (a focal length of {least * w:g} to "
-                         f"{MAX_FOV_FOCAL * w:g} px, the same within a factor 2 across)")
-        if calib.method != "identity" and not (0 <= M[0, 2] <= w and 0 <= M[1, 2] <= h):
-            _fail(where, f"matrix {name} puts the principal point at ({M[0, 2]:g}, {M[1, 2]:g}) "
-                         f"px, outside the {w}x{h} image")
-    f1, f2 = calib.M1[0, 0], calib.M2[0, 0]
-    if max(f1, f2) > MAX_FOCAL_RATIO * min(f1, f2):
-        _fail(where, f"matrices M1 and M2 have focal lengths {f1:g} and {f2:g} px: more than "
-                     f"{MAX_FOCAL_RATIO:g} times apart, they are not the two cameras of one rig")
-    P1, P2 = np.asarray(calib.P1, np.float64), np.asarray(calib.P2, np.float64)
-    for name, P in (("P1", P1), ("P2", P2)):
-        if not _near(P[2], (0.0, 0.0, 1.0, 0.0), 1e-6) or abs(P[0, 1]) > 1e-6 * P[0, 0] \
-                or P[1, 0] != 0:
-            _fail(where, f"matrix {name} is not a rectified camera's projection (its last row "
-                         "must be 0 0 1 0, without skew)")
-    if np.any(P1[:, 3] != 0):
-        _fail(where, "matrix P1 has a translation term: the left rectified camera is the origin")
-    if not (_near(P1[0, 0], P2[0, 0]) and _near(P1[1, 1], P2[1, 1])):
-        _fail(where, f"matrices P1 and P2 have different focal lengths ({P1[0, 0]:g}, "
-                     f"{P2[0, 0]:g} px): they are not one rectified pair")
-    vertical = P2[0, 3] == 0
-    if not (_near(P1[0, 2], P2[0, 2]) if vertical else _near(P1[1, 2], P2[1, 2])):
-        _fail(where, "matrices P1 and P2 put their principal points on different "
-                     f"{'columns' if vertical else 'rows'}: rows of the two images would not "
-                     "match")
-    if vertical and P2[1, 3] == 0 or not vertical and P2[1, 3] != 0:
-        _fail(where, "matrix P2 has a baseline term along both image axes")
-    rect_f = P1[0, 0]
-    cams = min(f1, f2), max(f1, f2)
-    if not cams[0] / MAX_FOCAL_RATIO <= rect_f <= cams[1] * MAX_FOCAL_RATIO:
-        _fail(where, f"the rectified focal length (P1, P2) is {rect_f:g} px but the cameras' "
-                     f"(M1, M2) are {f1:g} and {f2:g} px: they do not belong together")
-    if not (-w <= P1[0, 2] <= 2 * w and -h <= P1[1, 2] <= 2 * h):
-        _fail(where, f"matrix P1 puts the rectified principal point at ({P1[0, 2]:g}, "
-                     f"{P1[1, 2]:g}) px, far outside the {w}x{h} image")
-    if not _near(calib.Q, _q_of(P1, P2, vertical), 1e-6):
-        _fail(where, "matrix Q does not follow from P1 and P2: it would turn disparities into "
-                     "distances of another rig")
-    R, T = np.asarray(calib.R, np.float64), np.asarray(calib.T, np.float64).reshape(3)
-    E, F = np.asarray(calib.E, np.float64), np.asarray(calib.F, np.float64)
-    tx = np.array([[0, -T[2], T[1]], [T[2], 0, -T[0]], [-T[1], T[0], 0]])
-    if not hartley and not _same_up_to_scale(E, tx @ R):
-        _fail(where, "matrix E does not follow from R and T")
-    F_of_E = np.linalg.inv(calib.M2).T @ E @ np.linalg.inv(calib.M1)
-    if not _same_up_to_scale(F, F_of_E):
-        _fail(where, "matrix F does not follow from E, M1 and M2")
-    _check_lenses(calib, where)
-    if hartley:
-        return
-    baseline = float(np.linalg.norm(T))
-    if not MIN_BASELINE_MM <= baseline <= PLAUSIBLE_BASELINE_MM:
-        _fail(where, f"T gives a baseline of {baseline:g} mm (a rig's cameras are "
-                     f"{MIN_BASELINE_MM:g} mm to {PLAUSIBLE_BASELINE_MM / 1000:g} m apart)")
-    R1, R2 = np.asarray(calib.R1, np.float64), np.asarray(calib.R2, np.float64)
-    for name, m in (("R1", R1), ("R2", R2)):
-        if not _is_rotation(m):
-            _fail(where, f"matrix {name} is not a rotation")
-    if not np.allclose(R1, R2 @ R, atol=ROTATION_TOL):
-        _fail(where, "matrices R1, R2 and R disagree: the rectified cameras would not look the "
-                     "same way")
-    t_rect = R2 @ T  # the baseline in the rectified frame: along the rows (or columns) alone
-    axis = 1 if vertical else 0
-    across = np.delete(t_rect, axis)
-    if np.max(np.abs(across)) > RELATIVE_TOL * baseline * 10:
-        _fail(where, "matrix R2 does not turn the baseline T along the image rows: rows of the "
-                     "rectified images would not match")
-    b_p2 = P2[axis, 3] / P2[axis, axis]
-    if not _near(b_p2, t_rect[axis], 10 * RELATIVE_TOL):
-        _fail(where, f"matrix P2 holds a baseline of {abs(b_p2):g} mm but T one of "
-                     f"{baseline:g} mm: distances would be off by a factor "
-                     f"{abs(b_p2) / baseline:.3g}")
-
-
-def _as_float(v) -> float:
-    try:
-        return float(v)
-    except (TypeError, ValueError):
-        return float("nan")
 
 
 def _scaled_from(fs, where: str) -> tuple[int, int] | None:
@@ -569,14 +316,15 @@ def _per_pair(fs, where: str) -> list[PairError]:
             nm = f"{name.real():g}"
         else:
             nm = str(i + 1)
-        per_pair.append(PairError(nm, float(el.real()), float(er.real())))
+        with from_file(f"{where}: per_pair entry {i + 1}"):
+            per_pair.append(PairError(nm, float(el.real()), float(er.real())))
     return per_pair
 
 
 def load_calibration(path: str | Path) -> StereoCalibration:
     """Read a calibration written by save_calibration; raise CalibrationFileError saying exactly
     what is wrong (missing file, not FileStorage, unsupported version, bad or missing matrix, a
-    value no camera has: see check_calibration)."""
+    value no camera has: see StereoCalibration and core.plausibility)."""
     path = Path(path)
     where = str(path)
     fs = _open(path)
@@ -588,7 +336,7 @@ def load_calibration(path: str | Path) -> StereoCalibration:
         raise CalibrationFileError(f"{where}: a text value is not UTF-8") from None
     finally:
         fs.release()
-    check_calibration(calib, where)
+    check_plausible(calib, where)
     return calib
 
 
@@ -603,16 +351,10 @@ def _read_calibration(fs, where: str) -> StereoCalibration:
                                    f"reads {FORMAT_VERSION})")
     w = _int(fs, "image_width", where)
     h = _int(fs, "image_height", where)
-    _check_size(w, h, where)
     mats = {name: _mat(fs, name, where) for name in MATRIX_NAMES}
-    check_matrices(mats, where)
-    opt = {}
-    for name in ("optimal_M1", "optimal_M2"):
-        m = _mat(fs, name, where)
-        if m is not None:
-            if m.shape != (3, 3) or not np.all(np.isfinite(m)):
-                raise CalibrationFileError(f"{where}: matrix {name} should be a finite 3x3")
-        opt[name] = m
+    with from_file(where):
+        check_image_size(w, h)
+        check_matrices(mats)  # (before the distortion's length says which lens model)
     board = None
     if not fs.getNode("board_cols").empty():
         try:
@@ -625,23 +367,30 @@ def _read_calibration(fs, where: str) -> StereoCalibration:
             raise CalibrationFileError(f"{where}: {exc}") from None
     per_pair = _per_pair(fs, where)
     method = _string(fs, "method", "bouguet")
-    if method not in ("bouguet", "hartley", "identity"):
+    if method not in METHODS:
         raise CalibrationFileError(f"{where}: unknown method {method!r}")
-    extra = _read_lens_and_uncertainty(fs, where, mats)
+    model = _lens_model(fs, where, mats["D1"].size)
     nan = float("nan")
-    return StereoCalibration(
-        image_size=(w, h),
-        M1=mats["M1"], D1=mats["D1"].reshape(1, -1), M2=mats["M2"], D2=mats["D2"].reshape(1, -1),
-        R=mats["R"], T=mats["T"], E=mats["E"], F=mats["F"], R1=mats["R1"], R2=mats["R2"],
-        P1=mats["P1"], P2=mats["P2"], Q=mats["Q"], board=board,
-        rms_left=_real(fs, "rms_left", where, nan), rms_right=_real(fs, "rms_right", where, nan),
-        rms_stereo=_real(fs, "rms_stereo", where, nan),
-        epipolar_error_px=_real(fs, "epipolar_error_px", where, nan),
-        per_pair=tuple(per_pair), method=method, alpha=_real(fs, "alpha", where, 0.0),
-        optimal_M1=opt["optimal_M1"], optimal_M2=opt["optimal_M2"],
-        created=_string(fs, "created", ""), scaled_from=_scaled_from(fs, where),
-        camera_controls=_read_camera_controls(fs, where),
-        lens_shading=_read_lens_shading(fs, where), **extra)
+    with from_file(where):
+        return StereoCalibration(
+            image_size=(w, h),
+            M1=mats["M1"], D1=mats["D1"].reshape(1, -1), M2=mats["M2"],
+            D2=mats["D2"].reshape(1, -1), R=mats["R"], T=mats["T"], E=mats["E"], F=mats["F"],
+            R1=mats["R1"], R2=mats["R2"], P1=mats["P1"], P2=mats["P2"], Q=mats["Q"], board=board,
+            rms_left=_real(fs, "rms_left", where, nan),
+            rms_right=_real(fs, "rms_right", where, nan),
+            rms_stereo=_real(fs, "rms_stereo", where, nan),
+            epipolar_error_px=_real(fs, "epipolar_error_px", where, nan),
+            per_pair=tuple(per_pair), method=cast(Method, method),
+            alpha=_real(fs, "alpha", where, 0.0),
+            optimal_M1=_mat(fs, "optimal_M1", where), optimal_M2=_mat(fs, "optimal_M2", where),
+            created=_string(fs, "created", ""), scaled_from=_scaled_from(fs, where),
+            model=model, uncertainty=_read_uncertainty(fs, where, model, mats["D1"].size),
+            origin=_string(fs, "origin", ""),
+            swapped_inputs=_real(fs, "swapped_inputs", where, 0.0) != 0.0,
+            warnings=_read_warnings(fs), left_out=_read_left_out(fs),
+            camera_controls=_read_camera_controls(fs, where),
+            lens_shading=_read_lens_shading(fs, where))
 
 
 # ---- lens shading ---------------------------------------------------------------------------
@@ -650,8 +399,7 @@ def _write_lens_shading(fs, calib: StereoCalibration) -> None:
     if shading is None:
         return
     fs.startWriteStruct("lens_shading", cv2.FileNode_MAP)
-    for side in ("left", "right"):
-        lens = getattr(shading, side)
+    for side, lens in (("left", shading.left), ("right", shading.right)):
         fs.startWriteStruct(side, cv2.FileNode_MAP)
         fs.write("k1", float(lens.k1))
         fs.write("k2", float(lens.k2))
@@ -662,11 +410,9 @@ def _write_lens_shading(fs, calib: StereoCalibration) -> None:
     fs.endWriteStruct()
 
 
-def _read_lens_shading(fs, where: str):
-    """The `lens_shading` node as a core.shading.PairShading, or None (missing; or damaged: then
-    said in the log, and the images are matched as they come)."""
-    from stereo_gui.core.shading import MAX_BLACK, MAX_LOSS, MIN_BLACK, LensShading, PairShading
-
+def _read_lens_shading(fs, where: str) -> PairShading | None:
+    """The `lens_shading` node, or None (missing; or damaged: then said in the log, and the
+    images are matched as they come)."""
     node = fs.getNode("lens_shading")
     if node.empty() or node.isNone():
         return None
@@ -684,21 +430,19 @@ def _read_lens_shading(fs, where: str):
                 if name == "black" and (v.empty() or v.isNone()):
                     k.append(0.0)
                     continue
-                if v.empty() or not (v.isReal() or v.isInt()) or not math.isfinite(v.real()):
+                if v.empty() or not (v.isReal() or v.isInt()):
                     raise ValueError(f"lens_shading {side} {name} should be a finite number")
                 k.append(float(v.real()))
-            if not MIN_BLACK <= k[2] <= MAX_BLACK:
-                raise ValueError(f"lens_shading {side} black should be from {MIN_BLACK:g} to "
-                                 f"{MAX_BLACK:g} grey levels")
-            lens = LensShading(*k)
-            corner = lens.brightness(np.linspace(0.0, 1.0, 21))
-            if corner.min() <= 1.0 - MAX_LOSS or corner.max() >= 1.0 + MAX_LOSS:
-                raise ValueError(f"lens_shading {side} darkens or brightens the image by more "
-                                 f"than {100 * MAX_LOSS:.0f} %")
-            lenses.append(lens)
+            try:
+                lenses.append(LensShading(*k))
+            except CalibrationValueError as exc:
+                raise ValueError(f"lens_shading {side} {exc}") from None
         counts = [int(node.getNode(n).real()) if node.getNode(n).isInt() else 0
                   for n in ("samples", "images")]
-        return PairShading(lenses[0], lenses[1], *counts)
+        try:
+            return PairShading(lenses[0], lenses[1], *counts)
+        except CalibrationValueError as exc:
+            raise ValueError(f"lens_shading {exc}") from None
     except ValueError as exc:
         log.warning("%s: %s; the lens shading of this calibration is not used", where, exc)
         return None
@@ -791,28 +535,17 @@ def _write_lens_and_uncertainty(fs, calib: StereoCalibration) -> None:
         fs.write("uncertainty_covariance", np.asarray(u.covariance, np.float64))
 
 
-def _read_lens_and_uncertainty(fs, where: str, mats: dict) -> dict:
-    from stereo_gui.core.lens import DIST_COUNT, LENS_MODELS
-    from stereo_gui.core.uncertainty import CalibrationUncertainty, CalibrationWarning
-
+def _lens_model(fs, where: str, n_dist: int) -> LensModel:
     model = _string(fs, "lens_model", "")
-    d = mats["D1"].size
     if not model:  # files before lens models: the coefficient count says which pinhole model
-        model = "rational" if d > 5 else "pinhole"
+        return "rational" if n_dist > 5 else "pinhole"
     if model not in LENS_MODELS:
         raise CalibrationFileError(f"{where}: unknown lens_model {model!r} (use one of "
                                    f"{', '.join(LENS_MODELS)})")
-    if model == "fisheye" and (d != 4 or mats["D2"].size != 4):
-        raise CalibrationFileError(f"{where}: a fisheye calibration needs 4 distortion "
-                                   f"coefficients per camera, found {d} and {mats['D2'].size}")
-    if model != "fisheye" and d < DIST_COUNT["pinhole"] - 1:
-        raise CalibrationFileError(f"{where}: distortion D1 has too few coefficients ({d})")
-    if mats["D2"].size != d:
-        raise CalibrationFileError(f"{where}: distortion D1 has {d} coefficients and D2 "
-                                   f"{mats['D2'].size}: both cameras of a calibration have the "
-                                   "same lens model")
-    out: dict = {"model": model, "origin": _string(fs, "origin", ""),
-                 "swapped_inputs": _real(fs, "swapped_inputs", where, 0.0) != 0.0}
+    return cast(LensModel, model)
+
+
+def _read_warnings(fs) -> tuple[CalibrationWarning, ...]:
     warnings = []
     wn = fs.getNode("warnings")
     if not wn.empty() and wn.isSeq():
@@ -823,7 +556,10 @@ def _read_lens_and_uncertainty(fs, where: str, mats: dict) -> dict:
                 prop = item.getNode("proposal")
                 warnings.append(CalibrationWarning(code.string(), msg.string(),
                                                    prop.string() if prop.isString() else ""))
-    out["warnings"] = tuple(warnings)
+    return tuple(warnings)
+
+
+def _read_left_out(fs) -> tuple[tuple[str, str], ...]:
     left_out = []
     ln = fs.getNode("pairs_left_out")
     if not ln.empty() and ln.isSeq():  # (what cannot be read there is left out: a note only)
@@ -832,39 +568,30 @@ def _read_lens_and_uncertainty(fs, where: str, mats: dict) -> dict:
             name, why = item.getNode("name"), item.getNode("why")
             if item.isMap() and name.isString() and why.isString():
                 left_out.append((name.string(), why.string()))
-    out["left_out"] = tuple(left_out)
+    return tuple(left_out)
+
+
+def _read_uncertainty(fs, where: str, model: LensModel,
+                      n_dist: int) -> CalibrationUncertainty | None:
     nn = fs.getNode("uncertainty_names")
-    if not nn.empty() and not nn.isNone():
-        if not nn.isSeq():
-            raise CalibrationFileError(f"{where}: uncertainty_names should be a sequence")
-        names = tuple(nn.at(i).string() for i in range(nn.size()))
-        cov = _mat(fs, "uncertainty_covariance", where, max_side=MAX_UNCERTAINTY_PARAMETERS)
-        if cov is None or cov.shape != (len(names), len(names)) or not np.all(np.isfinite(cov)):
-            raise CalibrationFileError(f"{where}: uncertainty_covariance should be a finite "
-                                       f"{len(names)}x{len(names)} matrix")
-        _check_uncertainty_names(names, model, d, where)
-        out["uncertainty"] = CalibrationUncertainty(
-            names, cov, _real(fs, "uncertainty_corner_px", where, float("nan")),
-            _string(fs, "uncertainty_method", "jacobian"), model)
-    return out
-
-
-def _check_uncertainty_names(names: tuple[str, ...], model: str, n_dist: int, where: str) -> None:
-    """Every name of the covariance is a parameter of this calibration, once (a distance's
-    uncertainty is computed by moving each)."""
-    from stereo_gui.core.uncertainty import parameter_names
-
-    known = parameter_names(model, n_dist)
-    for name in names:
-        if name not in known:
-            raise CalibrationFileError(
-                f"{where}: uncertainty_names holds {name!r}, which is not a parameter of this "
-                f"calibration ({model} lenses, {n_dist} distortion coefficients: "
-                f"{', '.join(known[:2])}, ..., {known[-1]}); remove uncertainty_names and "
-                "uncertainty_covariance to use the file without its uncertainty")
-    if len(set(names)) != len(names):
-        twice = sorted({n for n in names if names.count(n) > 1})
-        raise CalibrationFileError(f"{where}: uncertainty_names holds {', '.join(twice)} twice")
+    if nn.empty() or nn.isNone():
+        return None
+    if not nn.isSeq():
+        raise CalibrationFileError(f"{where}: uncertainty_names should be a sequence")
+    names = tuple(nn.at(i).string() for i in range(nn.size()))
+    cov = _mat(fs, "uncertainty_covariance", where, max_side=MAX_UNCERTAINTY_PARAMETERS)
+    if cov is None:
+        raise CalibrationFileError(f"{where}: uncertainty_covariance should be a finite "
+                                   f"{len(names)}x{len(names)} matrix")
+    try:
+        u = CalibrationUncertainty(names, cov, _real(fs, "uncertainty_corner_px", where, math.nan),
+                                   _string(fs, "uncertainty_method", "jacobian"), model)
+        u.check_parameters(n_dist)
+    except CalibrationValueError as exc:
+        raise CalibrationFileError(f"{where}: {exc}; remove uncertainty_names and "
+                                   "uncertainty_covariance to use the file without its "
+                                   "uncertainty") from None
+    return u
 
 
 def load_calibration_for_size(path: str | Path, image_size: tuple[int, int]) -> StereoCalibration:
@@ -943,7 +670,8 @@ def _ros_read(path: Path) -> dict:
             if n.empty() or not n.isInt():
                 raise CalibrationFileError(f"{where}: {key} is missing or not a whole number")
             out[key] = int(n.real())
-        _check_size(out["image_width"], out["image_height"], where)
+        with from_file(where):
+            check_image_size(out["image_width"], out["image_height"])
         out["distortion_model"] = _string(fs, "distortion_model", "plumb_bob")
         if out["distortion_model"] not in ROS_DISTORTION_MODELS.values():
             raise CalibrationFileError(f"{where}: distortion model {out['distortion_model']!r} is "
@@ -1000,12 +728,10 @@ def import_ros(left_path: str | Path, right_path: str | Path) -> StereoCalibrati
         raise CalibrationFileError(f"{lp} is {size[0]}x{size[1]} but {rp} is "
                                    f"{right['image_width']}x{right['image_height']}")
     M1, M2 = left["camera_matrix"], right["camera_matrix"]
-    for path, M, name in ((lp, M1, "camera_matrix"), (rp, M2, "camera_matrix")):
-        _check_camera(M, name, str(path))
-    for path, P in ((lp, left["projection_matrix"]), (rp, right["projection_matrix"])):
-        if not (0 < P[0, 0] <= MAX_FOCAL_PX and 0 < P[1, 1] <= MAX_FOCAL_PX):
-            raise CalibrationFileError(f"{path}: projection_matrix has focal lengths "
-                                       f"{P[0, 0]:g}, {P[1, 1]:g} px (they must be positive)")
+    for path, side in ((lp, left), (rp, right)):
+        with from_file(str(path)):
+            check_camera_matrix(side["camera_matrix"], "camera_matrix")
+            check_projection_focal(side["projection_matrix"], "projection_matrix")
     D1 = left["distortion_coefficients"].reshape(1, -1)
     D2 = right["distortion_coefficients"].reshape(1, -1)
     R1, R2 = left["rectification_matrix"], right["rectification_matrix"]
@@ -1033,18 +759,11 @@ def import_ros(left_path: str | Path, right_path: str | Path) -> StereoCalibrati
         raise CalibrationFileError(f"{lp} + {rp}: equidistant distortion needs 4 coefficients")
     if model != "fisheye":
         model = "rational" if D1.size > 5 else "pinhole"
-    calib = StereoCalibration(image_size=size, M1=M1, D1=D1, M2=M2, D2=D2, R=R, T=T, E=E, F=F,
-                              R1=R1, R2=R2, P1=P1, P2=P2, Q=Q, method="bouguet", model=model,
-                              created=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"))
-    check_calibration(calib, f"{lp} + {rp}")
+    where = f"{lp} + {rp}"
+    with from_file(where):
+        calib = StereoCalibration(
+            image_size=size, M1=M1, D1=D1, M2=M2, D2=D2, R=R, T=T, E=E, F=F, R1=R1, R2=R2, P1=P1,
+            P2=P2, Q=Q, method="bouguet", model=model,
+            created=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"))
+    check_plausible(calib, where)
     return calib
-
-
-def q_from_projections(P1: np.ndarray, P2: np.ndarray) -> np.ndarray:
-    """The disparity-to-depth matrix of a horizontal rectified pair, as cv2.stereoRectify builds
-    it (T in the units of P2's translation term)."""
-    f, cx, cy = P1[0, 0], P1[0, 2], P1[1, 2]
-    tx = P2[0, 3] / P2[0, 0]
-    cx2 = P2[0, 2]
-    return np.array([[1, 0, 0, -cx], [0, 1, 0, -cy], [0, 0, 0, f],
-                     [0, 0, -1.0 / tx, (cx - cx2) / tx]], np.float64)

@@ -39,7 +39,7 @@ import numpy as np
 
 from stereo_gui.core.errors import CalibrationFileError
 from stereo_gui.core.lens import stereo_rectify
-from stereo_gui.core.stereo_calibration import StereoCalibration, check_matrices
+from stereo_gui.core.stereo_calibration import StereoCalibration, from_file
 from stereo_gui.files.atomic import os_error_text, write_text_atomic
 
 log = logging.getLogger(__name__)
@@ -279,9 +279,9 @@ def _stereo(left: _Camera, right: _Camera, T_c1_c0: np.ndarray, where: str,
     F = F / F[2, 2] if abs(F[2, 2]) > 1e-12 else F
     values = {"M1": left.M, "D1": left.D, "M2": right.M, "D2": right.D, "R": R, "T": T, "E": E,
               "F": F, "R1": R1, "R2": R2, "P1": P1, "P2": P2, "Q": Q}
-    check_matrices(values, where)
-    return StereoCalibration(image_size=left.size, **values, method="bouguet", alpha=0.0,
-                             model=left.model, origin=origin)
+    with from_file(where):
+        return StereoCalibration(image_size=left.size, **values, method="bouguet", alpha=0.0,
+                                 model=left.model, origin=origin)
 
 
 def read_kalibr_camchain(path: str | Path) -> RoboticsCalibration:
@@ -431,8 +431,8 @@ def _check_read_back(back: StereoCalibration, calib: StereoCalibration) -> None:
     (T went through metres: within a few ulps)."""
     for name, n in (("M1", 9), ("M2", 9), ("R", 9), ("D1", 4), ("D2", 4)):
         # radtan holds the first four of a pinhole model's coefficients (the rest are zero)
-        a = np.asarray(getattr(back, name), np.float64).reshape(-1)
-        b = np.asarray(getattr(calib, name), np.float64).reshape(-1)
+        a = back.matrices()[name].reshape(-1)
+        b = calib.matrices()[name].reshape(-1)
         if not np.array_equal(a[:n], b[:n]):
             raise CalibrationFileError(f"{name} reads back different")
     if back.image_size != calib.image_size:

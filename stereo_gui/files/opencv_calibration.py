@@ -25,7 +25,11 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.errors import CalibrationFileError
-from stereo_gui.core.stereo_calibration import StereoCalibration, check_matrices
+from stereo_gui.core.stereo_calibration import (
+    StereoCalibration,
+    from_file,
+    q_from_projections,
+)
 from stereo_gui.files.filestorage import read_matrix
 
 log = logging.getLogger(__name__)
@@ -228,8 +232,6 @@ def read_opencv_stereo(path: str | Path, image_size: SizeHint = None) -> OpenCVS
         rect = {"R1": R1, "R2": R2, "P1": P1, "P2": P2}
         computed += ["R1", "R2", "P1", "P2", "Q"]
     elif Q is None:
-        from stereo_gui.files.calibration_file import q_from_projections
-
         Q = q_from_projections(rect["P1"], rect["P2"])
         computed.append("Q")
     E = mats.get("E")
@@ -241,12 +243,10 @@ def read_opencv_stereo(path: str | Path, image_size: SizeHint = None) -> OpenCVS
         F = np.linalg.inv(M2).T @ E @ np.linalg.inv(M1)
         F = F / F[2, 2] if abs(F[2, 2]) > 1e-12 else F
         computed.append("F")
-    values = {"M1": M1, "M2": M2, "R": R, "T": T, "E": E, "F": F, "Q": Q, "D1": D1, "D2": D2,
-              **rect}
-    check_matrices(values, where)
-    calib = StereoCalibration(image_size=size, M1=M1, D1=D1, M2=M2, D2=D2, R=R, T=T, E=E, F=F,
-                              R1=rect["R1"], R2=rect["R2"], P1=rect["P1"], P2=rect["P2"], Q=Q,
-                              method="bouguet")
+    with from_file(where):
+        calib = StereoCalibration(image_size=size, M1=M1, D1=D1, M2=M2, D2=D2, R=R, T=T, E=E,
+                                  F=F, R1=rect["R1"], R2=rect["R2"], P1=rect["P1"], P2=rect["P2"],
+                                  Q=Q, method="bouguet")
     if calib.baseline_mm < 1.0:
         log.warning("%s: the baseline is %.4g; stereo-gui reads T in millimetres, but OpenCV's "
                     "stereo sample writes it in board squares unless given the square size (-s)",

@@ -224,7 +224,7 @@ def test_a_lens_model_that_folds_is_fitted_again_with_fewer_terms(model):
     fitted again at once with k3 (and the higher terms) held at zero, said in a warning, and the
     result is a calibration that saves, near the truth."""
     from stereo_gui.core.lens import ROUND_TRIP_PX, round_trip_px
-    from stereo_gui.files.calibration_file import check_plausible
+    from stereo_gui.core.plausibility import check_plausible
 
     board, pairs, size = _central_pairs(3)
     result = calibrate_stereo(pairs, board, size, model=model)

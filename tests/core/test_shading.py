@@ -167,3 +167,26 @@ def test_a_calibration_without_shading_changes_nothing():
         f.left, f.right).final_px
     np.testing.assert_array_equal(np.isnan(a), np.isnan(b))
     np.testing.assert_array_equal(a[np.isfinite(a)], b[np.isfinite(b)])
+
+
+def test_a_lens_shading_no_lens_has_is_refused_when_it_is_built():
+    """What a fit or a file may hold and no lens has: a black level out of bounds, corners more
+    than 80 % darker (or brighter), values that are not numbers; a pair's counts below zero."""
+    from stereo_gui.core.errors import CalibrationValueError
+
+    assert LensShading(-0.35, 0.02, 63.0).coefficients == (-0.35, 0.02, 63.0)
+    for values, words in (((-0.35, 0.0, 65.0), "black should be from -16 to 64"),
+                          ((-0.35, 0.0, -17.0), "black should be from -16 to 64"),
+                          ((-0.9, 0.0), "darken or brighten the image by more than 80 %"),
+                          ((0.5, 0.4), "darken or brighten the image by more than 80 %"),
+                          ((float("nan"), 0.0), "k1 should be a finite number"),
+                          ((0.0, float("inf")), "k2 should be a finite number"),
+                          ((0.0, 0.0, "12"), "black should be a finite number")):
+        with pytest.raises(CalibrationValueError, match=words):
+            LensShading(*values)
+    lens = LensShading(-0.3, 0.0)
+    assert PairShading(lens, lens, 800, 40).side("right") is lens
+    with pytest.raises(CalibrationValueError, match="samples should be a whole number >= 0"):
+        PairShading(lens, lens, -1, 40)
+    with pytest.raises(CalibrationValueError, match="images should be a whole number >= 0"):
+        PairShading(lens, lens, 800, 2.5)

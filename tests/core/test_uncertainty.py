@@ -228,3 +228,33 @@ def test_joint_sigmas_agree_with_and_improve_on_opencvs_per_camera_ones(good):
         for i, n in enumerate(("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")):
             ratio = u.sigma(f"{side}.{n}") / std[i]
             assert 0.2 < ratio <= 1.05, (side, n, ratio)
+
+
+def test_an_uncertainty_checks_its_covariance_and_names_when_it_is_built():
+    """Known parameter names, each once, and a finite covariance of one row and column per name
+    (a renamed parameter used to load and end in a KeyError at the first distance)."""
+    from stereo_gui.core.errors import CalibrationValueError
+    from stereo_gui.core.uncertainty import CalibrationUncertainty, parameter_names
+
+    names = parameter_names("rational", 8)
+    u = CalibrationUncertainty(names, np.eye(len(names)), 0.05, "jacobian", "rational")
+    assert u.names == names and u.covariance.dtype == np.float64
+    with pytest.raises(ValueError):  # a value: its covariance cannot be changed in place
+        u.covariance[0, 0] = 2.0
+    cases = [
+        (("left.fx", "T.x"), np.eye(3), "pinhole", "covariance should be a finite 2x2 matrix"),
+        (("left.fx", "T.x"), np.diag([1.0, np.nan]), "pinhole", "should be a finite 2x2"),
+        (("left.fx", "right.k3null"), np.eye(2), "pinhole",
+         "'right.k3null', which is not a parameter of a calibration with pinhole lenses"),
+        (("left.fx", "left.p1"), np.eye(2), "fisheye", "'left.p1', which is not a parameter"),
+        (("T.z", "T.x", "T.x"), np.eye(3), "pinhole", "holds T.x twice"),
+        (("left.fx",), np.eye(1), "kaleidoscope", "unknown lens model 'kaleidoscope'"),
+    ]
+    for names, cov, model, words in cases:
+        with pytest.raises(CalibrationValueError, match=words):
+            CalibrationUncertainty(names, cov, 0.05, "jacobian", model)
+    u = CalibrationUncertainty(("left.fx", "left.k6"), np.eye(2), 0.05, "jacobian", "pinhole")
+    u.check_parameters(8)
+    with pytest.raises(CalibrationValueError, match=r"5 distortion coefficients: left\.fx, "
+                                                    r"left\.fy, \.\.\., T\.z\)"):
+        u.check_parameters(5)

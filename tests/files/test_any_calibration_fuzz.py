@@ -1,17 +1,16 @@
 """Property tests of the readers of other tools' calibrations with hypothesis: any damaged file
-gives a clean StereoGuiError or a calibration whose matrices pass the checks, never another
-exception."""
+gives a clean StereoGuiError or a calibration (whose matrices passed its own checks when it was
+built), never another exception."""
 
 from __future__ import annotations
 
 import cv2
-import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from stereo_gui.core.errors import StereoGuiError
-from stereo_gui.core.stereo_calibration import MATRIX_SHAPES, StereoCalibration, check_matrices
+from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.any_calibration import load_any_calibration
 
 EXAMPLES = 100
@@ -24,7 +23,7 @@ def _seed_files(folder):
         path = folder / f"stereo{suffix}"
         fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
         for name in ("M1", "D1", "M2", "D2", "R", "T", "R1", "P2"):
-            fs.write(name, np.asarray(getattr(c, name)))
+            fs.write(name, c.matrices()[name])
         fs.release()
         out[suffix] = path.read_bytes()
     out[".txt"] = (b"cam0=[60 0 31.5; 0 60 23.5; 0 0 1]\ncam1=[60 0 35.5; 0 60 23.5; 0 0 1]\n"
@@ -69,8 +68,6 @@ def test_damaged_files_give_a_clean_error_or_a_valid_calibration(tmp_path, suffi
         except StereoGuiError:
             loaded.append(False)
             return
-        check_matrices({k: getattr(c, k) for k in MATRIX_SHAPES} | {"D1": c.D1, "D2": c.D2},
-                       "damaged")
         assert c.width > 0 and c.height > 0
         loaded.append(True)
 

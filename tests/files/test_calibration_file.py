@@ -11,14 +11,12 @@ import pytest
 import yaml
 
 from stereo_gui.core.errors import CalibrationError, CalibrationFileError
-from stereo_gui.core.stereo_calibration import PairError, StereoCalibration
+from stereo_gui.core.stereo_calibration import MATRIX_NAMES, StereoCalibration, q_from_projections
 from stereo_gui.files.calibration_file import (
-    MATRIX_NAMES,
     export_ros,
     import_ros,
     load_calibration,
     load_calibration_for_size,
-    q_from_projections,
     save_calibration,
 )
 
@@ -72,8 +70,9 @@ def test_save_is_atomic_and_leaves_no_temporary_files(tmp_path, monkeypatch):
     target = tmp_path / "calib.yaml"
     save_calibration(make_calibration(), target)
     before = target.read_bytes()
-    broken = make_calibration().with_updates(per_pair=(PairError("x", "not a number", 0.0),))
-    with pytest.raises(CalibrationFileError, match="error_left"):  # not a number: refused
+    good = make_calibration()
+    broken = good.with_updates(E=good.E.T)  # no longer follows from R and T: refused
+    with pytest.raises(CalibrationFileError, match="matrix E does not follow"):
         save_calibration(broken, target)
     assert target.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["calib.yaml"]

@@ -51,11 +51,12 @@ def _fuzz(path, valid: bytes, doc, load, check) -> list[bool]:
 def test_calibration_files(tmp_path):
     from factories import make_calibration
 
-    from stereo_gui.files.calibration_file import check_calibration, load_calibration, save_calibration
+    from stereo_gui.core.plausibility import check_plausible
+    from stereo_gui.files.calibration_file import load_calibration, save_calibration
 
     good = save_calibration(make_calibration(), tmp_path / "good.yaml").read_bytes()
     loaded = _fuzz(tmp_path / "c.yaml", good, None, load_calibration,
-                   lambda c: check_calibration(c, "fuzzed"))
+                   lambda c: check_plausible(c, "fuzzed"))
     assert not all(loaded)  # the damage does reach the validation
 
 

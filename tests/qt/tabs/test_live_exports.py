@@ -118,7 +118,9 @@ def test_a_calibration_of_another_resolution_is_scaled_and_says_so(
 def test_a_calibration_of_another_aspect_ratio_is_refused_with_the_reason(
         qtbot, ctx, live, sim_rig, wall_pair, array_source):
     _scene, left, right = wall_pair
-    wide = sim_rig.true_calibration().scaled_to((1280, 960)).with_updates(image_size=(1280, 720))
+    # (made at 1280x720 as far as it says: a 4:3 size to scale from would be refused)
+    wide = sim_rig.true_calibration().scaled_to((1280, 960)).with_updates(image_size=(1280, 720),
+                                                                          scaled_from=None)
     ctx.calibration_model.set(wide)
     with qtbot.waitSignal(ctx.errorOccurred, timeout=30000) as sig:
         ctx.frames.set_source(array_source(left, right, fps=30))
