@@ -159,10 +159,9 @@ def result_json(result: CalibrationResult, output: Path | None = None) -> dict:
         "alpha": c.alpha,
         "notes": list(r.notes),
         "lens_shading": None if c.lens_shading is None else {
-            side: {"k1": getattr(c.lens_shading, side).k1, "k2": getattr(c.lens_shading, side).k2,
-                   "black": getattr(c.lens_shading, side).black,
-                   "corner_loss": getattr(c.lens_shading, side).corner_loss}
-            for side in ("left", "right")},
+            side: {"k1": lens.k1, "k2": lens.k2, "black": lens.black,
+                   "corner_loss": lens.corner_loss}
+            for side, lens in (("left", c.lens_shading.left), ("right", c.lens_shading.right))},
     }
     if output is not None:
         out["output"] = str(output)

@@ -1203,7 +1203,7 @@ def with_calibration_uncertainty(bound_mm: float, calibration: StereoCalibration
     random matching part average it away: in quadrature the bound falls short for a calibration
     whose focal lengths came out a little high, added it holds, for a bound only slightly
     wider."""
-    if getattr(calibration, "uncertainty", None) is None or not math.isfinite(bound_mm):
+    if calibration.uncertainty is None or not math.isfinite(bound_mm):
         return bound_mm
     from stereo_gui.core.uncertainty import depth_sigma_mm
 

@@ -635,7 +635,7 @@ def _write_calibration_sheet(ws, calib: StereoCalibration | None, calib_file: st
     col0 = 5
     r = 3
     for name, note in _MATRIX_NOTES.items():
-        m = np.atleast_2d(np.asarray(getattr(calib, name), float))
+        m = np.atleast_2d(calib.matrices()[name])
         draft.set(r, col0, name, bold=True)
         draft.set(r, col0 + 1, note)
         for i in range(m.shape[0]):

@@ -21,6 +21,7 @@ from stereo_gui.core.camera_settings import (
     SettingsMismatch,
     compare_with_calibration,
 )
+from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.core.util import to_gray
 from stereo_gui.sources.camera_controls import (
     CameraState,
@@ -63,32 +64,34 @@ class ControlsReport:
         return tuple(s.side for s in (self.left, self.right) if s.value("focus_auto") is True)
 
 
-def calibration_controls_in_source_order(calib) -> PairSettings | None:
+def calibration_controls_in_source_order(calib: StereoCalibration | None) -> PairSettings | None:
     """The controls a calibration was made with, as the source names its cameras."""
-    c = getattr(calib, "camera_controls", None) if calib is not None else None
-    if c is None or c.empty:
+    if calib is None or calib.camera_controls is None or calib.camera_controls.empty:
         return None
-    return c.swapped() if getattr(calib, "swapped_inputs", False) else c
+    c = calib.camera_controls
+    return c.swapped() if calib.swapped_inputs else c
 
 
-def _mismatches(pair: PairControls, calib, size_now) -> tuple[SettingsMismatch, ...]:
+def _mismatches(pair: PairControls, calib: StereoCalibration | None,
+                size_now) -> tuple[SettingsMismatch, ...]:
     if calib is None:
         return ()
     now = pair.settings()
-    if getattr(calib, "swapped_inputs", False):
+    if calib.swapped_inputs:
         now = now.swapped()
     return tuple(compare_with_calibration(calib.camera_controls, now,
                                           tuple(calib.image_size), size_now))
 
 
-def read_controls(pair: PairControls, calib=None,
+def read_controls(pair: PairControls, calib: StereoCalibration | None = None,
                   size_now: tuple[int, int] | None = None) -> ControlsReport:
     """The cameras' controls now, and what differs from `calib`'s (None: nothing to compare)."""
     left, right = pair.read()
     return ControlsReport(left, right, (), _mismatches(pair, calib, size_now))
 
 
-def write_control(pair: PairControls, name: str, value, sides=("left", "right"), calib=None,
+def write_control(pair: PairControls, name: str, value, sides=("left", "right"),
+                  calib: StereoCalibration | None = None,
                   size_now: tuple[int, int] | None = None) -> ControlsReport:
     """Write one control to the `sides` cameras (both: "same for both cameras")."""
     results = tuple(pair.write(name, value, sides))
@@ -96,7 +99,7 @@ def write_control(pair: PairControls, name: str, value, sides=("left", "right"),
     return ControlsReport(left, right, results, _mismatches(pair, calib, size_now))
 
 
-def restore_calibration_controls(pair: PairControls, calib,
+def restore_calibration_controls(pair: PairControls, calib: StereoCalibration | None,
                                  size_now: tuple[int, int] | None = None) -> ControlsReport:
     """Write back the controls `calib` was made with (those these cameras have, under the same
     backend), read them back, and say what still differs (a focus the camera would not take,
@@ -110,7 +113,7 @@ def restore_calibration_controls(pair: PairControls, calib,
     return ControlsReport(left, right, results, _mismatches(pair, calib, size_now))
 
 
-def lock_focus(pair: PairControls, sides=("left", "right"), calib=None,
+def lock_focus(pair: PairControls, sides=("left", "right"), calib: StereoCalibration | None = None,
                size_now: tuple[int, int] | None = None) -> ControlsReport:
     """Turn autofocus off on the `sides` cameras, holding the focus where it is now."""
     results = []
