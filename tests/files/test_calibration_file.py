@@ -282,3 +282,19 @@ def test_lens_shading_round_trips_and_a_damaged_one_is_dropped_with_a_warning(tm
     caplog.clear()
     assert load_calibration(damaged).lens_shading is None
     assert "black should be from" in caplog.text
+
+
+def test_a_value_the_calibration_refuses_is_said_with_the_files_name_in_front(tmp_path):
+    """The type says what is wrong (a focal length that is not positive, an R that is not a
+    rotation); the loader says in which file."""
+    M1 = make_calibration().M1.copy()
+    M1[0, 0] = -750.0
+    bad = _rewrite(tmp_path, M1=M1)
+    with pytest.raises(CalibrationFileError) as caught:
+        load_calibration(bad)
+    assert str(caught.value).startswith(f"{bad}: matrix M1 has focal lengths -750, 748.5 px")
+    lp, rp = export_ros(make_calibration(), tmp_path)
+    lp.write_text(lp.read_text().replace("data: [752.123456789,", "data: [0.0,", 1))
+    with pytest.raises(CalibrationFileError) as caught:
+        import_ros(lp, rp)
+    assert str(caught.value).startswith(f"{lp}: matrix camera_matrix has focal lengths 0, 748.5")
