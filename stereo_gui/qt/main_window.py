@@ -40,6 +40,7 @@ from stereo_gui.qt.tabs.tab import WindowTab
 from stereo_gui.qt.widgets import folder_dialog
 from stereo_gui.qt.widgets.error_bar import ErrorBar
 from stereo_gui.qt.widgets.helpers import pane
+from stereo_gui.qt.workers.frame_worker import StreamState, StreamStatus
 from stereo_gui.qt.workers.job_runner import JobRunner
 
 log = logging.getLogger(__name__)
@@ -477,11 +478,11 @@ class MainWindow(QMainWindow):
     def _update_source_label(self, name: str) -> None:
         self.source_label.setText(f"Source: {name or 'none'}")
 
-    def _stream_status(self, status) -> None:
+    def _stream_status(self, status: StreamStatus) -> None:
         """The frame worker's StreamStatus: the source label says a camera is being
         reconnected or the source stopped; once frames come again the error bar about the
         stream goes (a newer error stays) and the status bar says the frames are back."""
-        if status.state == "ok":
+        if status.state is StreamState.OK:
             if self._stream_error:
                 self.error_bar.remove(self._stream_error)
             self._stream_error = ""
@@ -490,11 +491,11 @@ class MainWindow(QMainWindow):
                 self.statusBar().showMessage(status.message, 8000)
             return
         self._stream_error = status.message
-        if status.state == "reconnecting":
+        if status.state is StreamState.RECONNECTING:
             self.source_label.setText(f"Source: {status.source_name} (reconnecting…)")
-        elif status.state == "stalled":
+        elif status.state is StreamState.STALLED:
             self.source_label.setText(f"Source: {status.source_name} (not answering)")
-        elif status.state == "failed":
+        elif status.state is StreamState.FAILED:
             self.source_label.setText(f"Source: none ({status.source_name} stopped)")
 
     def _update_recording_label(self) -> None:

@@ -74,8 +74,9 @@ def test_a_newer_error_stays_when_the_stream_recovers(qtbot, ctx, window, fake_c
     unplug(fake_cams.devices, 0)
     qtbot.waitUntil(lambda: window.error_bar.isVisible(), timeout=30000)
     ctx.report_error("Cannot save calibration x.yaml: permission denied")
+    ok = frame_status.StreamState.OK
     with qtbot.waitSignal(ctx.frames.streamStatus, timeout=30000,
-                          check_params_cb=lambda status: status.state == "ok"):
+                          check_params_cb=lambda status: status.state is ok):
         fake_cams.devices[0] = {"value": 10, "period_s": 1 / 50}
     assert window.error_bar.isVisible()
     assert "permission denied" in window.error_bar.label.text()

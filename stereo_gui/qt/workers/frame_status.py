@@ -5,13 +5,17 @@ read clock. No Qt here; used by `frame_worker` only, which re-exports the public
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
 from dataclasses import dataclass
 from enum import StrEnum
 
+from stereo_gui.core.states import Transitions
 from stereo_gui.core.timing import SkewMeter, SkewStats
 from stereo_gui.sources.base import FrameSource, StereoFrame
+
+log = logging.getLogger(__name__)
 
 _FPS_SMOOTHING = 0.1  # weight of the newest interval in the running frame-rate estimate
 RATE_STALE_S = 2.0  # no event for this long (or 3 intervals, if longer): the rate is 0
@@ -26,19 +30,16 @@ class StreamState(StrEnum):
     FAILED = "failed"  # the source stopped and was dropped
 
 
-# The stream's state machine, all of it: the states each state may move to. The same state
-# again is news only when it is about another source (a FAILED one was dropped, so whatever
-# follows it is about another source).
-_TRANSITIONS: dict[StreamState, frozenset[StreamState]] = {
-    StreamState.OK: frozenset({StreamState.RECONNECTING, StreamState.STALLED,
-                               StreamState.FAILED}),
-    StreamState.RECONNECTING: frozenset({StreamState.OK, StreamState.STALLED,
-                                         StreamState.FAILED}),
-    StreamState.STALLED: frozenset({StreamState.OK, StreamState.RECONNECTING,
-                                    StreamState.FAILED}),
-    StreamState.FAILED: frozenset({StreamState.OK, StreamState.RECONNECTING,
-                                   StreamState.STALLED}),
-}
+# The stream's state machine, all of it: the states each state may move to while it is about the
+# same source. A FAILED source was dropped and closed: nothing more is heard of it. The same
+# state again about the same source is no news (not a move). A state about another source (the
+# source was replaced, or the first news) may be any: it starts afresh.
+STREAM_MOVES: Transitions[StreamState] = Transitions("stream", {
+    StreamState.OK: {StreamState.RECONNECTING, StreamState.STALLED, StreamState.FAILED},
+    StreamState.RECONNECTING: {StreamState.OK, StreamState.STALLED, StreamState.FAILED},
+    StreamState.STALLED: {StreamState.OK, StreamState.RECONNECTING, StreamState.FAILED},
+    StreamState.FAILED: set(),
+})
 
 
 @dataclass(frozen=True)
@@ -167,8 +168,12 @@ class ReadClock:
 
 
 class StreamMachine:
-    """The stream's state machine (see _TRANSITIONS), and the error said last (an error is said
-    once, not once a frame)."""
+    """The stream's state machine (see STREAM_MOVES), and the error said last (an error is said
+    once, not once a frame).
+
+    News comes from two threads (the reader, and the watchdog in the UI thread): news the table
+    refuses is stale (the watchdog saw a read of a source blocked that has failed since) and
+    is dropped, never announced."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
@@ -181,24 +186,38 @@ class StreamMachine:
         with self._lock:
             return self._state
 
+    def _move(self, state: StreamState, source: FrameSource | None) -> bool:
+        """(With the lock held) take the move to `state` about `source`; False if it is no news
+        or refused."""
+        if source is not self._about:  # about another source: any state may follow
+            self._state, self._about = state, source
+            return True
+        if state is self._state:
+            return False
+        if not STREAM_MOVES.allows(self._state, state):
+            log.debug("stream: %s of %s dropped (it is %s)", state.name,
+                      source.name if source is not None else "no source", self._state.name)
+            return False
+        self._state = state
+        return True
+
     def enter(self, state: StreamState, message: str, source: FrameSource | None
               ) -> StreamStatus | None:
         """Move to a problem `state` about `source`: the status to announce, None if no news."""
         with self._lock:
-            if state is self._state and source is self._about:
+            if not self._move(state, source):
                 return None
-            if state is not self._state and state not in _TRANSITIONS[self._state]:
-                raise RuntimeError(f"stream state {self._state} cannot become {state}")
-            self._state, self._about = state, source
         return StreamStatus(state, message, source.name if source is not None else "")
 
     def frames_again(self, source: FrameSource) -> StreamStatus | None:
         """A frame of `source` arrived: the status to announce if a problem is over."""
         with self._lock:
             if self._state is StreamState.OK:
+                self._about = source
                 return None
             same = source is self._about
-            self._state, self._about = StreamState.OK, None
+            if not self._move(StreamState.OK, source):
+                return None
             self._said = ""  # the same problem again is said again
         return StreamStatus(StreamState.OK, f"{source.name}: frames again" if same else "",
                             source.name)

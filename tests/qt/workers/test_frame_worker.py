@@ -342,7 +342,8 @@ def test_a_reconnecting_source_is_kept_said_once_and_resumes(qtbot, worker, arra
     src, errors, _names, states = _start_flaky(qtbot, worker, array_source, 2)
     with qtbot.waitSignal(worker.streamStatus, timeout=30000) as sig:
         src.unavailable.set()
-    assert (sig.args[0].state, sig.args[0].source_name) == ("reconnecting", "flaky cameras")
+    assert sig.args[0].state is StreamState.RECONNECTING
+    assert sig.args[0].source_name == "flaky cameras"
     assert "Reconnecting to right camera 2" in sig.args[0].message
     qtbot.waitUntil(lambda: src.unavailable_reads >= 5, timeout=30000)
     assert worker.source() is src and not src.closed.is_set()  # kept, read again
@@ -350,22 +351,24 @@ def test_a_reconnecting_source_is_kept_said_once_and_resumes(qtbot, worker, arra
     n = worker.status().frames_read
     with qtbot.waitSignal(worker.streamStatus, timeout=30000) as sig:
         src.unavailable.clear()
-    assert (sig.args[0].state, sig.args[0].message) == ("ok", "flaky cameras: frames again")
+    assert sig.args[0].state is StreamState.OK
+    assert sig.args[0].message == "flaky cameras: frames again"
     qtbot.waitUntil(lambda: worker.status().frames_read > n + 2, timeout=30000)
-    assert [s.state for s in states] == ["reconnecting", "ok"] and len(errors) == 1
+    assert [s.state for s in states] == [StreamState.RECONNECTING, StreamState.OK]
+    assert len(errors) == 1
 
 
 def test_a_source_that_fails_is_dropped_by_name(qtbot, worker, array_source):
     src, _errors, names, states = _start_flaky(qtbot, worker, array_source, 0)
     with qtbot.waitSignal(worker.streamStatus, timeout=30000) as sig:
         src.fail.set()
-    assert sig.args[0].state == "failed" and "gone for good" in sig.args[0].message
+    assert sig.args[0].state is StreamState.FAILED and "gone for good" in sig.args[0].message
     assert names == ["flaky cameras", ""] and worker.source() is None
-    assert src.closed.is_set() and worker.status().stream == "failed"
+    assert src.closed.is_set() and worker.status().stream is StreamState.FAILED
     # another source: its first frame ends the failed state (no "frames again" for it)
     with qtbot.waitSignal(worker.streamStatus, timeout=30000) as sig:
         worker.set_source(array_source())
-    assert (sig.args[0].state, sig.args[0].message) == ("ok", "")
+    assert (sig.args[0].state, sig.args[0].message) == (StreamState.OK, "")
 
 
 def test_the_rate_falls_to_zero_when_no_frame_arrives(qtbot, worker, array_source,
