@@ -4,6 +4,7 @@ were shown before it."""
 from __future__ import annotations
 
 from stereo_gui.qt.dialogs.source_dialog import SourceChoice
+from stereo_gui.qt.tabs.capture_state import CaptureState
 from stereo_gui.sources.sim import SimSource
 
 
@@ -24,12 +25,12 @@ def test_capture_goes_live_again_after_the_calibration_tab(qtbot, ctx, window, s
     _frames_pass(qtbot, ctx)
     capture = window.capture_tab
     window.show_tab("capture")
-    qtbot.waitUntil(lambda: capture.state == "review", timeout=60000)
+    qtbot.waitUntil(lambda: capture.state is CaptureState.REVIEW, timeout=60000)
     window.show_tab("calibration")
     _frames_pass(qtbot, ctx)
     window.show_tab("capture")
     _frames_pass(qtbot, ctx)
-    assert capture.state == "review"
+    assert capture.state is CaptureState.REVIEW
     capture.cancel_button.click()  # C
     assert capture.prompt.text() == "Live"
     n, index = capture.frames_shown, capture.shown_frame.index
@@ -56,7 +57,7 @@ def test_live_draws_again_after_capture_froze_a_pair(qtbot, ctx, window, sim_rig
     window.use_source(_board_source(sim_rig), SourceChoice("sim"))
     capture = window.capture_tab
     window.show_tab("capture")
-    qtbot.waitUntil(lambda: capture.state == "review", timeout=60000)
+    qtbot.waitUntil(lambda: capture.state is CaptureState.REVIEW, timeout=60000)
     window.show_tab("measurements")
     _frames_pass(qtbot, ctx)
     live = window.live_tab
@@ -96,12 +97,12 @@ def test_coming_back_to_a_frozen_pair_says_it_is_from_before(qtbot, ctx, window,
     window.use_source(_board_source(sim_rig), SourceChoice("sim"))
     capture = window.capture_tab
     window.show_tab("capture")
-    qtbot.waitUntil(lambda: capture.state == "review", timeout=60000)
+    qtbot.waitUntil(lambda: capture.state is CaptureState.REVIEW, timeout=60000)
     assert capture.prompt.text().startswith("Both cameras see the board")
     window.show_tab("measurements")
     _frames_pass(qtbot, ctx)
     window.show_tab("capture")
-    assert capture.state == "review" and capture.save_button.isEnabled()
+    assert capture.state is CaptureState.REVIEW and capture.save_button.isEnabled()
     text = capture.prompt.text()
     assert "This pair was frozen at" in text and "before you left the Capture tab" in text
     capture.cancel_button.click()

@@ -7,6 +7,7 @@ import itertools
 
 from PySide6.QtWidgets import QApplication
 
+from stereo_gui.qt.tabs.capture_state import CaptureState
 from stereo_gui.qt.tabs.live_views import VIEWS
 
 SCREEN = (1280, 720)  # the smallest screen the application is used on
@@ -117,7 +118,8 @@ def test_capture_views_keep_their_height_whatever_the_prompt_says(qtbot, ctx, wi
         QApplication.processEvents()
         live_height = tab.view.height()
         tab.show_output(out, frame)  # frozen: the long review prompt (no session: it asks)
-        assert tab.state == "review" and "Save asks for a session folder" in tab.prompt.text()
+        assert tab.state is CaptureState.REVIEW
+        assert "Save asks for a session folder" in tab.prompt.text()
         QApplication.processEvents()
         assert tab.view.height() == live_height, (w, h)
 

@@ -44,6 +44,7 @@ from stereo_gui.pipeline.capture import (
 )
 from stereo_gui.qt.source_capabilities import simulated_rig
 from stereo_gui.qt.tabs.capture_session import SessionPairs
+from stereo_gui.qt.tabs.capture_state import CAPTURE_MOVES, CaptureState
 from stereo_gui.qt.widgets.board_row import BoardRow
 from stereo_gui.qt.widgets.camera_controls import CameraControlsPanel
 from stereo_gui.qt.widgets.helpers import pane, wrapping_label
@@ -74,9 +75,9 @@ class CaptureTab(SessionPairs, QWidget):
         super().__init__(parent)
         self.ctx = ctx
         self.session = None  # files.session.CaptureSession
-        self.state = "live"  # "live", "review" (frozen live pair) or "saved" (showing a saved pair)
+        self._state = CaptureState.LIVE
         self.frozen: CaptureOutput | None = None
-        self.shown_pair: str | None = None  # the saved pair on screen (state "saved")
+        self.shown_pair: str | None = None  # the saved pair on screen (state SAVED)
         self._frozen_frame: StereoFrame | None = None
         self._frozen_at = ""  # the wall-clock time the pair under review was frozen, HH:MM:SS
         self._left_while_frozen = False  # the tab was hidden with that pair on screen
@@ -178,9 +179,18 @@ class CaptureTab(SessionPairs, QWidget):
         split.setSizes([900, 330])
         self._update_controls()
 
+    @property
+    def state(self) -> CaptureState:
+        """What the tab shows: live frames, a frozen pair under review or a saved pair."""
+        return self._state
+
+    def _move(self, to: CaptureState) -> None:
+        """Show `to` from now on (a move CAPTURE_MOVES refuses is a bug: TransitionError)."""
+        self._state = CAPTURE_MOVES.check(self._state, to)
+
     def _playback_used(self) -> None:
         """Moving through a recording shows live frames again (leaves a frozen pair)."""
-        if self.state != "live":
+        if self.state is not CaptureState.LIVE:
             self.go_live()
 
     # ---- board settings ----------------------------------------------------------------------
@@ -205,7 +215,7 @@ class CaptureTab(SessionPairs, QWidget):
                                        board_dictionary=board.dictionary)
         self.rules.reset_steadiness()
         self._show_board_on_sim(board)
-        if self.state == "live":
+        if self.state is CaptureState.LIVE:
             self._set_processing(True)
         if self.session is not None and self.session.board != board:
             try:  # the session records the target its pairs show
@@ -231,7 +241,7 @@ class CaptureTab(SessionPairs, QWidget):
     def _auto_toggled(self, on: bool) -> None:
         self.ctx.settings_model.update(auto_capture=bool(on))
         self.rules.reset_steadiness()
-        if on and self.state == "review":
+        if on and self.state is CaptureState.REVIEW:
             self.cancel_frozen()
         self._update_controls()
 
@@ -242,12 +252,12 @@ class CaptureTab(SessionPairs, QWidget):
             return
         self._active = active
         if not active:
-            self._left_while_frozen = self.state == "review"
+            self._left_while_frozen = self.state is CaptureState.REVIEW
         if active:
             self._show_board_on_sim(self.board)
-            self._set_processing(self.state == "live")
+            self._set_processing(self.state is CaptureState.LIVE)
             self._reload_session()
-            if self.state == "review":  # the pair on screen is from before: say so
+            if self.state is CaptureState.REVIEW:  # the pair on screen is from before: say so
                 self._show_review_prompt()
 
     def _reload_session(self) -> None:
@@ -272,9 +282,9 @@ class CaptureTab(SessionPairs, QWidget):
         self.rules.reset_steadiness()
         self.rules.last_reviewed_pose = None
         self._last_output = None
-        if self.state == "saved":
+        if self.state is CaptureState.SAVED:
             return  # a saved pair of the session stays in review
-        if self.state == "review":
+        if self.state is CaptureState.REVIEW:
             self.go_live()
         self.view.clear(f"waiting for {name}…" if name else "no source")
         self.prompt.setText(f"Live: waiting for the first frame of {name}" if name
@@ -296,7 +306,7 @@ class CaptureTab(SessionPairs, QWidget):
 
     def show_output(self, out: CaptureOutput, frame: StereoFrame) -> None:
         """Draw one processed live frame and act on it (freeze, or auto-capture)."""
-        if self.state != "live":
+        if self.state is not CaptureState.LIVE:
             return  # a frozen or saved pair is on screen: live frames wait
         self._last_output = out
         self.view.show_pair(out.left_rgb, out.right_rgb)
@@ -315,7 +325,7 @@ class CaptureTab(SessionPairs, QWidget):
 
     # ---- review --------------------------------------------------------------------------------
     def _freeze(self, out: CaptureOutput, frame: StereoFrame) -> None:
-        self.state = "review"
+        self._move(CaptureState.REVIEW)
         self.frozen = out
         self._frozen_frame = frame
         self._frozen_at = datetime.now().strftime("%H:%M:%S")
@@ -338,7 +348,8 @@ class CaptureTab(SessionPairs, QWidget):
 
     def save_frozen(self) -> str | None:
         """Save the frozen pair into the session (asking for one if none is open)."""
-        if self.state != "review" or self._frozen_frame is None or self.frozen is None:
+        if (self.state is not CaptureState.REVIEW or self._frozen_frame is None
+                or self.frozen is None):
             return None
         if self.session is None and not self._choose_new_session():
             return None
@@ -347,13 +358,13 @@ class CaptureTab(SessionPairs, QWidget):
         return name
 
     def cancel_frozen(self) -> None:
-        if self.state == "review":
+        if self.state is CaptureState.REVIEW:
             self.go_live()
 
     def go_live(self) -> None:
-        if self.state != "live":
+        if self.state is not CaptureState.LIVE:
             self._set_processing(True)
-        self.state = "live"
+        self._move(CaptureState.LIVE)
         self.frozen = None
         self._frozen_frame = None
         self._left_while_frozen = False
@@ -381,15 +392,15 @@ class CaptureTab(SessionPairs, QWidget):
 
     # ---- controls --------------------------------------------------------------------------------
     def _update_controls(self) -> None:
-        review = self.state == "review"
+        review = self.state is CaptureState.REVIEW
         self.prompt.setStyleSheet(
             "background: #fff3b0; border: 1px solid #d4a017; padding: 4px; font-weight: bold"
             if review else "padding: 4px")
         self.save_button.setEnabled(review)
         self.cancel_button.setEnabled(review)
-        self.live_button.setEnabled(self.state == "saved")
+        self.live_button.setEnabled(self.state is CaptureState.SAVED)
         # Delete pair deletes the saved pair on screen: with none shown there is nothing to delete
-        self.delete_button.setEnabled(self.session is not None and self.state == "saved")
+        self.delete_button.setEnabled(self.session is not None and self.state is CaptureState.SAVED)
         if review:
             self.save_button.setDefault(True)
 

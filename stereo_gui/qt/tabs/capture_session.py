@@ -16,6 +16,7 @@ from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.files.pairs import load_image
 from stereo_gui.pipeline.capture import session_scan_job
 from stereo_gui.pipeline.images import display_rgb
+from stereo_gui.qt.tabs.capture_state import CaptureState
 from stereo_gui.qt.widgets import folder_dialog
 from stereo_gui.qt.widgets.saved_pairs import THUMB_SIZE, SavedPairInfo, pair_thumbnail
 from stereo_gui.qt.workers.job_worker import JobWorker
@@ -121,7 +122,7 @@ class SessionPairs:
             self.set_board(board)
         self.ctx.settings_model.update(last_session=str(session.folder))
         self.session_label.setText(f"Session: {session.folder}")
-        if self.state == "review":  # the prompt no longer needs to warn that Save asks for one
+        if self.state is CaptureState.REVIEW:  # the prompt need not warn that Save asks for one
             self._show_review_prompt()
         self._saved.clear()
         self.shown_pair = None
@@ -168,7 +169,7 @@ class SessionPairs:
             self._saved[name] = info
         self._refill_list()
         self._update_coverage()
-        if self.state == "review":  # what a frozen pair adds is known now
+        if self.state is CaptureState.REVIEW:  # what a frozen pair adds is known now
             self._show_review_prompt()
 
     def scanning(self) -> bool:
@@ -239,7 +240,7 @@ class SessionPairs:
             else:
                 self.saved_panel.clear_selection()
             return
-        self.state = "saved"
+        self._move(CaptureState.SAVED)
         self.shown_pair = name
         self._set_processing(False)
         self.frozen = None
@@ -262,7 +263,7 @@ class SessionPairs:
 
     def _delete_selected(self) -> None:
         """Delete pair: the pair on screen (asks first)."""
-        name = self.shown_pair if self.state == "saved" else None
+        name = self.shown_pair if self.state is CaptureState.SAVED else None
         if name is None:
             return
         answer = QMessageBox.question(  # the files go, not only the list entry
@@ -284,7 +285,7 @@ class SessionPairs:
         self._refill_list()
         self._update_coverage()
         self.ctx.show_status(f"Deleted pair {name}")
-        if self.state == "saved" and self.shown_pair == name:
+        if self.state is CaptureState.SAVED and self.shown_pair == name:
             self.go_live()
         elif self.shown_pair is not None:
             self.saved_panel.select(self.shown_pair)

@@ -9,6 +9,7 @@ import pytest
 from stereo_gui.core.board import BoardSpec
 from stereo_gui.files.session import CaptureSession
 from stereo_gui.qt.tabs.capture import CaptureTab, make_capture_processor
+from stereo_gui.qt.tabs.capture_state import CaptureState
 from stereo_gui.sources.sim import SimSource, write_calibration_set
 
 
@@ -40,13 +41,13 @@ def test_both_sides_found_freezes_and_save_writes_both_images(tab, tmp_path, qtb
     tab.new_session(tmp_path / "session")
     out, frame = _board_frames()[0]
     tab.show_output(out, frame)
-    assert tab.state == "review"
+    assert tab.state is CaptureState.REVIEW
     assert tab.save_button.isEnabled() and tab.cancel_button.isEnabled()
     assert "board found" in tab.view.titles[0].text and "board found" in tab.view.titles[1].text
     with qtbot.waitSignal(tab.pairSaved, timeout=30000) as blocker:
         tab.save_button.click()
     name = blocker.args[0]
-    assert tab.state == "live"
+    assert tab.state is CaptureState.LIVE
     session = CaptureSession.open(tmp_path / "session")
     assert [p.name for p in session.pairs] == [name]
     p = session.pairs[0]
@@ -61,11 +62,11 @@ def test_cancel_discards_and_same_pose_does_not_freeze_again(tab, tmp_path):
     tab.new_session(tmp_path / "s")
     out, frame = _board_frames()[0]
     tab.show_output(out, frame)
-    assert tab.state == "review"
+    assert tab.state is CaptureState.REVIEW
     tab.cancel_button.click()
-    assert tab.state == "live"
+    assert tab.state is CaptureState.LIVE
     tab.show_output(out, frame)  # the board has not moved: no second freeze
-    assert tab.state == "live"
+    assert tab.state is CaptureState.LIVE
     assert "new pose" in tab.prompt.text()
     assert CaptureSession.open(tmp_path / "s").pairs == ()
 
@@ -75,9 +76,9 @@ def test_choosing_a_session_during_review_drops_the_ask_for_one_note(tab, tmp_pa
     chose one with New session..., the prompt must stop saying so."""
     out, frame = _board_frames()[0]
     tab.show_output(out, frame)
-    assert tab.state == "review" and "session folder first" in tab.prompt.text()
+    assert tab.state is CaptureState.REVIEW and "session folder first" in tab.prompt.text()
     tab.new_session(tmp_path / "s")
-    assert tab.state == "review"
+    assert tab.state is CaptureState.REVIEW
     assert "Save this pair (S)" in tab.prompt.text()
     assert "session folder first" not in tab.prompt.text()
 
@@ -88,7 +89,7 @@ def test_only_one_side_sees_board(tab, tmp_path):
 
     half = replace(out, detection=replace(out.detection, right=None))
     tab.show_output(half, frame)
-    assert tab.state == "live"
+    assert tab.state is CaptureState.LIVE
     assert "no board" in tab.view.titles[1].text
     assert "Only the left camera" in tab.prompt.text()
 
@@ -100,7 +101,7 @@ def test_auto_capture_takes_steady_new_poses_only(tab, tmp_path, ctx):
     out, frame = _board_frames()[0]
     for _ in range(6):  # the same view again and again: steady; taken once, then not new
         tab.show_output(out, frame)
-    assert tab.state == "live"
+    assert tab.state is CaptureState.LIVE
     assert len(CaptureSession.open(tmp_path / "auto").pairs) == 1
     assert "already captured" in tab.prompt.text()
 
@@ -118,12 +119,13 @@ def test_open_session_lists_pairs_with_coverage_and_delete(tab, tmp_path, qtbot)
     assert sum(tab.coverage.bar_values().values()) > 0
     first = tab.saved_names()[0]
     tab.show_saved_pair(first)
-    assert tab.state == "saved" and tab.live_button.isEnabled() and tab.delete_button.isEnabled()
+    assert tab.state is CaptureState.SAVED
+    assert tab.live_button.isEnabled() and tab.delete_button.isEnabled()
     files = CaptureSession.open(folder).pair(first)
     tab.delete_pair(first)
     assert first not in tab.saved_names() and len(tab.saved_names()) == 3
     assert not files.left.exists() and not files.right.exists()
-    assert tab.state == "live"
+    assert tab.state is CaptureState.LIVE
 
 
 def test_opening_a_session_with_an_unreadable_manifest_says_so(tab, ctx, tmp_path, qtbot):
@@ -173,7 +175,7 @@ def test_live_through_frame_worker_freezes_on_board(tab, ctx, qtbot, tmp_path):
     tab.new_session(tmp_path / "live")
     ctx.frames.set_source(SimSource(mode="board", paced=False, frames_per_move=8))
     tab.set_active(True)
-    qtbot.waitUntil(lambda: tab.state == "review", timeout=30000)
+    qtbot.waitUntil(lambda: tab.state is CaptureState.REVIEW, timeout=30000)
     assert tab.frozen is not None and tab.frozen.detection.found
     with qtbot.waitSignal(tab.pairSaved, timeout=30000):
         tab.save_frozen()
@@ -191,12 +193,13 @@ def test_keys_s_and_c_save_and_cancel(tab, tmp_path, qtbot):
     frames = _board_frames()
     out, frame = frames[0]
     tab.show_output(out, frame)
-    assert tab.state == "review"
+    assert tab.state is CaptureState.REVIEW
     qtbot.keyClick(tab, Qt.Key.Key_C)
-    qtbot.waitUntil(lambda: tab.state == "live", timeout=3000)  # a shortcut animates the click
+    # a shortcut animates the click
+    qtbot.waitUntil(lambda: tab.state is CaptureState.LIVE, timeout=3000)
     tab.rules.last_reviewed_pose = None  # as if the board had left the view in between
     tab.show_output(out, frame)
-    assert tab.state == "review"
+    assert tab.state is CaptureState.REVIEW
     with qtbot.waitSignal(tab.pairSaved, timeout=30000):
         qtbot.keyClick(tab, Qt.Key.Key_S)
     assert len(CaptureSession.open(tmp_path / "keys").pairs) == 1
@@ -229,15 +232,15 @@ def test_a_new_source_without_a_board_drops_the_frozen_pair(tab, ctx, qtbot, tmp
         cv2.imwrite(str(folder / f"right{k}.png"), right)
     tab.set_active(True)
     ctx.frames.set_source(SimSource(rig=sim_rig, mode="board", paced=False, frames_per_move=8))
-    qtbot.waitUntil(lambda: tab.state == "review", timeout=30000)
+    qtbot.waitUntil(lambda: tab.state is CaptureState.REVIEW, timeout=30000)
     assert tab.save_button.isEnabled()
     ctx.frames.set_source(PlaybackSource(folder, fps=20))
-    assert tab.state == "live" and tab.frozen is None
+    assert tab.state is CaptureState.LIVE and tab.frozen is None
     assert not tab.save_button.isEnabled()
     assert tab.view.images[0].image is None  # not the old picture while the new one comes
     n = tab.frames_shown
     qtbot.waitUntil(lambda: tab.frames_shown >= n + 3, timeout=30000)
-    assert tab.state == "live" and not tab.save_button.isEnabled()
+    assert tab.state is CaptureState.LIVE and not tab.save_button.isEnabled()
     shown = tab.shown_frame.left
     assert any(np.array_equal(shown, cv2.imread(str(folder / f"left{k}.png"))) for k in (1, 2))
     assert "Hold the" in tab.prompt.text()
@@ -260,13 +263,13 @@ def test_keyboard_selection_shows_the_pair_and_delete_deletes_what_is_shown(
     assert tab.shown_pair == names[0]
     qtbot.keyClick(tab.pair_list, Qt.Key.Key_Down)
     qtbot.keyClick(tab.pair_list, Qt.Key.Key_Down)
-    assert tab.state == "saved" and tab.shown_pair == names[2]
+    assert tab.state is CaptureState.SAVED and tab.shown_pair == names[2]
     assert tab.saved_panel.current_name() == names[2]
     assert f"saved pair {names[2]}" in tab.view.titles[0].text
     qtbot.keyClick(tab.pair_list, Qt.Key.Key_Delete)  # the Del key in the list: Delete pair
     assert questions.asked and f"pair {names[2]}?" in questions.asked[0]
     assert tab.saved_names() == [names[0], names[1], names[3]]
-    assert tab.state == "live" and tab.saved_panel.current_name() is None
+    assert tab.state is CaptureState.LIVE and tab.saved_panel.current_name() is None
     assert not tab.delete_button.isEnabled()  # nothing on screen to delete
 
 

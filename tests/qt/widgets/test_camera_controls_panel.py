@@ -12,6 +12,7 @@ from fake_cameras import FakeCapture, FakeControlDevice
 
 import stereo_gui.sources.cameras as cameras
 from stereo_gui.pipeline.camera_setup import overlap_brightness
+from stereo_gui.qt.tabs.capture_state import CaptureState
 from stereo_gui.qt.widgets.camera_controls import NO_CONTROLS, CameraControlsPanel
 from stereo_gui.sources.cameras import TwoCameraSource
 from stereo_gui.sources.sim import TRUE_FOCUS, RigConfig, SimRig, SimSource
@@ -179,7 +180,7 @@ def test_a_saved_pair_records_the_controls_in_the_session(qtbot, ctx, make_tab, 
     rig_src = SimSource(SimRig(RigConfig(supersample=1)), mode="board", paced=False)
     frame = rig_src.read()
     tab.show_output(proc(frame), frame)
-    assert tab.state == "review"
+    assert tab.state is CaptureState.REVIEW
     with qtbot.waitSignal(tab.pairSaved, timeout=WAIT):
         tab.save_button.click()
     qtbot.waitUntil(lambda: CaptureSession.open(tmp_path / "s").camera_controls is not None,
