@@ -27,6 +27,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from stereo_gui.core.states import Transitions
 from stereo_gui.qt.context import AppContext
 from stereo_gui.qt.dialogs.closing import CloseWaiter
 from stereo_gui.qt.dialogs.source_dialog import SourceChoice, SourceDialog, describe_spec
@@ -128,6 +129,15 @@ class ClosePhase(Enum):
     CLOSING = "closing"  # the tabs and workers are being stopped; the window goes
 
 
+# waiting only for work the open window has; the waiter ends once (done, cancelled, Don't
+# close), back to OPEN, from where the window closes; nothing follows CLOSING
+CLOSE_MOVES: Transitions[ClosePhase] = Transitions("closing", {
+    ClosePhase.OPEN: {ClosePhase.WAITING, ClosePhase.CLOSING},
+    ClosePhase.WAITING: {ClosePhase.OPEN},
+    ClosePhase.CLOSING: set(),
+})
+
+
 @dataclass
 class CloseState:
     """Where closing the window stands. The answers hold for one attempt to close: keeping
@@ -137,6 +147,21 @@ class CloseState:
     waiter: CloseWaiter | None = None  # shown while WAITING
     calibration_discarded: bool = False  # "Discard" was answered for the unsaved calibration
     work_settled: bool = False  # the running work ended or was cancelled: do not wait again
+
+    def move(self, to: ClosePhase, waiter: CloseWaiter | None = None) -> None:
+        """Go to phase `to` (CLOSE_MOVES refuses an impossible move: TransitionError) with
+        `waiter` shown (WAITING) or none."""
+        self.phase = CLOSE_MOVES.check(self.phase, to)
+        self.waiter = waiter
+
+    def start_over(self, calibration_discarded: bool = False,
+                   work_settled: bool = False) -> None:
+        """A new attempt to close, OPEN: the answers of the last one forgotten (or given)."""
+        if self.phase is not ClosePhase.OPEN:
+            self.move(ClosePhase.OPEN)
+        self.waiter = None
+        self.calibration_discarded = calibration_discarded
+        self.work_settled = work_settled
 
 
 class _MessageBar(QWidget):
@@ -676,7 +701,7 @@ class MainWindow(QMainWindow):
         if self._close.phase is not ClosePhase.CLOSING:
             if self._close.waiter is not None:
                 self._close.waiter.dismiss()
-            self._close = CloseState(calibration_discarded=True, work_settled=True)
+            self._close.start_over(calibration_discarded=True, work_settled=True)
         self.close()
 
     def _keep_or_save_calibration(self) -> bool:
@@ -705,18 +730,18 @@ class MainWindow(QMainWindow):
         waiter.done.connect(self._work_done_close)
         waiter.cancelRequested.connect(self._cancel_work_and_close)
         waiter.aborted.connect(self._close_aborted)
-        self._close.phase, self._close.waiter = ClosePhase.WAITING, waiter
+        self._close.move(ClosePhase.WAITING, waiter)
         self.statusBar().showMessage("Closing as soon as the export is written…")
         waiter.open()
         return True
 
     def _work_done_close(self) -> None:
-        self._close.phase, self._close.waiter = ClosePhase.OPEN, None
+        self._close.move(ClosePhase.OPEN)
         self._close.work_settled = True
         self.close()
 
     def _close_aborted(self) -> None:
-        self._close = CloseState()
+        self._close.start_over()
         self.statusBar().showMessage("Not closed: the export goes on", 8000)
 
     def _cancel_work_and_close(self, timed_out: bool) -> None:
@@ -724,7 +749,7 @@ class MainWindow(QMainWindow):
 
         waiter = self._close.waiter
         waited_s = waiter.wait_s if waiter is not None and timed_out else None
-        self._close.phase, self._close.waiter = ClosePhase.OPEN, None
+        self._close.move(ClosePhase.OPEN)
         deadline = time.monotonic() + CLOSE_TIMEOUT_MS / 1000.0
         said: list[str] = []
         for page in self._pages:
@@ -755,7 +780,7 @@ class MainWindow(QMainWindow):
     def _stop_everything(self) -> None:
         """Stop the tabs and every worker within one deadline, and save the settings: a blocked
         worker never makes closing take longer than CLOSE_TIMEOUT_MS."""
-        self._close.phase = ClosePhase.CLOSING
+        self._close.move(ClosePhase.CLOSING)
         self._fps_timer.stop()
         deadline = time.monotonic() + CLOSE_TIMEOUT_MS / 1000.0
 

@@ -17,13 +17,34 @@ from PySide6.QtWidgets import QApplication, QMessageBox
 import stereo_gui.files.spreadsheet as spreadsheet
 import stereo_gui.qt.dialogs.closing as closing
 from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.states import TransitionError
 from stereo_gui.files.measurement_log import load_log
 from stereo_gui.files.spreadsheet import MeasurementRecord
 from stereo_gui.pipeline.calibration import calibration_job
 from stereo_gui.pipeline.jobs import JobControl
-from stereo_gui.qt.main_window import MainWindow
+from stereo_gui.qt.main_window import CLOSE_MOVES, ClosePhase, CloseState, MainWindow
 from stereo_gui.qt.widgets.measurement_table import TRUE_COL
 from stereo_gui.sources.sim import write_calibration_set
+
+
+@pytest.mark.parametrize("a,b", [(a, b) for a in ClosePhase for b in ClosePhase])
+def test_closing_moves_only_as_the_window_does(a, b):
+    """Waiting for work and closing start from an open window; the waiter ends once, back to
+    OPEN; nothing follows CLOSING."""
+    real = {(ClosePhase.OPEN, ClosePhase.WAITING), (ClosePhase.OPEN, ClosePhase.CLOSING),
+            (ClosePhase.WAITING, ClosePhase.OPEN)}
+    assert CLOSE_MOVES.allows(a, b) == ((a, b) in real)
+
+
+def test_a_new_attempt_to_close_forgets_the_answers_but_never_reopens_a_closing_window():
+    state = CloseState(calibration_discarded=True)
+    state.move(ClosePhase.WAITING)
+    state.start_over(work_settled=True)
+    assert (state.phase, state.calibration_discarded, state.work_settled) == (
+        ClosePhase.OPEN, False, True)
+    state.move(ClosePhase.CLOSING)
+    with pytest.raises(TransitionError):
+        state.start_over()
 
 
 class Dialogs:
