@@ -27,10 +27,10 @@ from stereo_gui.core.detect import (
     pair_pose,
 )
 from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.core.jobs import Progress
 from stereo_gui.core.util import to_gray
 from stereo_gui.files.pairs import load_image
 from stereo_gui.pipeline.images import display_rgb
-from stereo_gui.pipeline.jobs import Progress
 from stereo_gui.sources.base import StereoFrame
 
 log = logging.getLogger(__name__)

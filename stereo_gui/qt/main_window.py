@@ -449,7 +449,8 @@ class MainWindow(QMainWindow):
         self.statusBar().showMessage(f"Opening {describe_spec(spec)}…")
         self._opening = (choice, fallback_to_auto)
         self._opening_id = self._opener.submit(
-            lambda: open_source(spec, size=size, swap=swap, remembered_cameras=known))
+            lambda _control: open_source(spec, size=size, swap=swap,
+                                         remembered_cameras=known)).id
         return self._opening_id
 
     def is_opening_source(self) -> bool:

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.jobs import JobControl
 from stereo_gui.pipeline.calibration import calibration_job, reproject_pair
-from stereo_gui.pipeline.jobs import JobControl
 from stereo_gui.sources.sim import write_calibration_set
 
 

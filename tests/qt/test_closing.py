@@ -17,11 +17,11 @@ from PySide6.QtWidgets import QApplication, QMessageBox
 import stereo_gui.files.spreadsheet as spreadsheet
 import stereo_gui.qt.dialogs.closing as closing
 from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.jobs import JobControl
 from stereo_gui.core.states import TransitionError
 from stereo_gui.files.measurement_log import load_log
 from stereo_gui.files.spreadsheet import MeasurementRecord
 from stereo_gui.pipeline.calibration import calibration_job
-from stereo_gui.pipeline.jobs import JobControl
 from stereo_gui.qt.main_window import CLOSE_MOVES, ClosePhase, CloseState, MainWindow
 from stereo_gui.qt.widgets.measurement_table import TRUE_COL
 from stereo_gui.sources.sim import write_calibration_set
@@ -312,7 +312,7 @@ def test_a_queued_snapshot_is_waited_for_or_cancelled(qtbot, win, ctx, sim_rig, 
     with qtbot.waitSignal(win.live_tab.frameShown, timeout=60000):
         ctx.frames.set_source(array_source(left, right, fps=30))
     gate = threading.Event()
-    ctx.jobs.submit(lambda: gate.wait(30))  # the job thread is busy: the snapshot waits
+    ctx.jobs.submit(lambda _control: gate.wait(30))  # the job thread is busy: the snapshot waits
     assert win.live_tab.snapshot(tmp_path) is not None
     win.close()
     waiter = _waiter(qtbot, win)

@@ -40,13 +40,13 @@ from PySide6.QtWidgets import (
 from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.calibrate import HARTLEY_NOTE
 from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.core.jobs import Progress
 from stereo_gui.core.stereo_calibration import RectifyMaps, StereoCalibration
 from stereo_gui.pipeline.calibration import (
     CalibrationRun,
     calibration_job,
     matrices_text,
 )
-from stereo_gui.pipeline.jobs import Progress
 from stereo_gui.qt.tabs.calibration_actions import CalibrationActions
 from stereo_gui.qt.tabs.calibration_pairs import PairReview
 from stereo_gui.qt.widgets.calibration_charts import (

@@ -47,7 +47,7 @@ class PairReview:
         # reading and rectifying the pair (and making the maps, the first time) runs on the
         # pair-view thread: the UI thread only draws what comes back (_pair_ready)
         self._pair_job = self._pair_jobs.submit(
-            lambda: _read_rectified(name, files, c, maps))
+            lambda _control: _read_rectified(name, files, c, maps)).id
 
     def _pair_ready(self, job_id: int, result) -> None:
         if job_id != self._pair_job:

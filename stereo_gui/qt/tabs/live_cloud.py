@@ -76,7 +76,7 @@ class LiveCloud(QObject):
 
         result = out.result
         self._made_of = (out, colouring)
-        self._job = self._jobs.submit(lambda: cloud_points(result, colouring))
+        self._job = self._jobs.submit(lambda _control: cloud_points(result, colouring)).id
 
     def _done(self, job_id: int, cloud) -> None:
         if job_id != self._job:

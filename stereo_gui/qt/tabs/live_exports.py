@@ -1,10 +1,9 @@
-"""The Live tab's snapshot and depth exports of the frame shown, written off the UI thread (on
-the context's job runner), every file atomically."""
+"""The Live tab's snapshot and depth exports of the frame shown, written off the UI thread (jobs
+on the context's job runner), every file atomically."""
 
 from __future__ import annotations
 
 import datetime as _dt
-import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -13,6 +12,7 @@ from PySide6.QtCore import QObject
 from PySide6.QtWidgets import QFileDialog, QMenu, QToolButton, QWidget
 
 from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.core.jobs import JobState, JobTicket
 from stereo_gui.core.util import how_many
 from stereo_gui.qt.widgets import folder_dialog
 
@@ -48,7 +48,8 @@ class LiveExports(QObject):
         self._views = views
         self._exports: dict[int, str] = {}  # job id -> what is being exported
         self._snapshots: set[int] = set()
-        self._runs: dict[int, _Run] = {}  # job id -> how its writing goes (exports, snapshots)
+        # job id -> (its ticket, what it writes "the export of the ... to PATH", for messages)
+        self._runs: dict[int, tuple[JobTicket, str]] = {}
         self.last_export: list[Path] = []  # files written by the last finished export
         ctx.jobs.finished.connect(self._job_finished)
         ctx.jobs.failed.connect(self._job_failed)
@@ -71,24 +72,14 @@ class LiveExports(QObject):
 
     def _submit(self, write, where: str) -> int:
         """Run `write()` on the job thread, followed for closing (`unfinished_work`)."""
-        run = _Run(where)
-
-        def job():
-            try:
-                out = write()
-                run.ok = True
-                return out
-            finally:
-                run.ended.set()
-
-        job_id = self.ctx.jobs.submit(job)
-        self._runs[job_id] = run
-        return job_id
+        ticket = self.ctx.jobs.submit(lambda _control: write())
+        self._runs[ticket.id] = (ticket, where)
+        return ticket.id
 
     # ---- closing -------------------------------------------------------------------------------
     def unfinished_work(self) -> list[str]:
         """What closing now would cut short: exports and snapshots not written yet."""
-        return [run.where for run in self._runs.values() if not run.ended.is_set()]
+        return [where for ticket, where in self._runs.values() if not ticket.ended]
 
     def cancel_unfinished_work(self, timeout_ms: int = 2000) -> list[str]:
         """Drop the exports not started yet and wait at most `timeout_ms` for the one being
@@ -97,21 +88,21 @@ class LiveExports(QObject):
 
         deadline = time.monotonic() + timeout_ms / 1000.0
         said = []
-        for job_id, run in list(self._runs.items()):
-            if run.ended.is_set():
+        for job_id, (ticket, where) in list(self._runs.items()):
+            if ticket.ended:
                 continue
+            what = f"{where[0].upper()}{where[1:]}"
             if self.ctx.jobs.cancel(job_id):
                 self._runs.pop(job_id, None)
                 self._exports.pop(job_id, None)
                 self._snapshots.discard(job_id)
-                said.append(f"{run.where[0].upper()}{run.where[1:]} was cancelled: nothing was "
-                            "written.")
-            elif run.ended.wait(max(0.0, deadline - time.monotonic())):
-                said.append(f"{run.where[0].upper()}{run.where[1:]} "
-                            f"{'was written' if run.ok else 'failed'}.")
+                said.append(f"{what} was cancelled: nothing was written.")
+            elif ticket.wait(deadline - time.monotonic()):
+                written = ticket.state is JobState.FINISHED
+                said.append(f"{what} {'was written' if written else 'failed'}.")
             else:
-                said.append(f"{run.where[0].upper()}{run.where[1:]} was still being written when "
-                            "the window closed: each file is written whole or not at all.")
+                said.append(f"{what} was still being written when the window closed: each file "
+                            "is written whole or not at all.")
         return said
 
     def _job_finished(self, job_id: int, result) -> None:
@@ -262,12 +253,3 @@ class LiveExports(QObject):
                                  f"{done[0][1].parent} (disparity PNG and .npy, depth PNG, PLY)")
         return True
 
-
-class _Run:
-    """How the writing of one export or snapshot goes: `ended` is set in the job thread when it
-    is over (`ok` if written), so that closing knows without the queued signals."""
-
-    def __init__(self, where: str) -> None:
-        self.where = where  # "the export of the ... to PATH", for messages
-        self.ended = threading.Event()
-        self.ok = False

@@ -130,7 +130,7 @@ class LiveReadings(QObject):
         self._hover_t = time.monotonic()
         result = out.result
         self._hover_job = self.ctx.jobs.submit(
-            lambda: read_pointer(result, key, x, y, patch, fit, truth))
+            lambda _control: read_pointer(result, key, x, y, patch, fit, truth)).id
         self.hover_jobs_submitted += 1
 
     def _hover_finished(self, reading) -> None:
@@ -165,7 +165,8 @@ class LiveReadings(QObject):
         patch = int(self.ctx.settings.patch_size)
         fit = self.ctx.active_fit
         result = out.result
-        job = self.ctx.jobs.submit(lambda: measure_point(result, x, y, patch=patch, fit=fit))
+        job = self.ctx.jobs.submit(
+            lambda _control: measure_point(result, x, y, patch=patch, fit=fit)).id
         self._pending[job] = (key, self._tab.ruler_button.isChecked())
         return job
 

@@ -10,8 +10,8 @@ import datetime as _dt
 from pathlib import Path
 
 from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.core.jobs import JobState, Progress
 from stereo_gui.core.util import how_many
-from stereo_gui.pipeline.jobs import Progress
 from stereo_gui.qt.widgets import folder_dialog
 from stereo_gui.qt.widgets.regression_plot import MODELS
 from stereo_gui.qt.workers.job_worker import JobWorker
@@ -107,7 +107,7 @@ class MeasurementExports:
     def unfinished_work(self) -> list[str]:
         """What closing now would cut short: the xlsx export running, if any."""
         w = self._export
-        if w is None or w.outcome or not w.isRunning() or self._export_path is None:
+        if w is None or w.outcome is not None or not w.isRunning() or self._export_path is None:
             return []  # none, or settled (written, failed or cancelled) and only ending
         return [f"the export of the measurement log to {self._export_path.name} "
                 f"({self._export_progress})"]
@@ -122,9 +122,9 @@ class MeasurementExports:
         if not w.wait(timeout_ms):
             return [f"The export to {path} was still being cancelled when the window closed: "
                     f"it is written whole or not at all."]
-        if w.outcome == "finished":
+        if w.outcome is JobState.FINISHED:
             return [f"The export to {path} finished before it could be cancelled."]
-        if w.outcome == "cancelled":
+        if w.outcome is JobState.CANCELLED:
             return [f"The export to {path} was cancelled: nothing was written"
                     + (f" ({path.name} was left as it was)." if path.exists() else ".")]
         return [f"The export to {path} failed."]

@@ -23,7 +23,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from stereo_gui.pipeline.jobs import Progress
+from stereo_gui.core.jobs import Progress
 from stereo_gui.qt.source_capabilities import simulated_rig
 from stereo_gui.qt.widgets import folder_dialog
 from stereo_gui.qt.workers.job_worker import JobWorker

@@ -19,6 +19,7 @@ from pathlib import Path
 from PySide6.QtCore import QObject, Signal
 
 from stereo_gui.core.errors import InputError, StereoGuiError
+from stereo_gui.core.jobs import JobControl
 from stereo_gui.files.settings import Settings
 from stereo_gui.qt.workers.frame_worker import FrameWorker
 from stereo_gui.qt.workers.job_runner import JobRunner
@@ -140,7 +141,7 @@ class Recorder(QObject):
         duration = time.monotonic() - self._t0
         folder = self._folder
 
-        def close() -> RecordingResult:
+        def close(_control: JobControl) -> RecordingResult:
             from stereo_gui.files.recording import open_recording
 
             why = error
@@ -155,7 +156,7 @@ class Recorder(QObject):
             n = len(rec.frames) if rec is not None else 0
             return RecordingResult(folder, n, duration, rec, why, note)
 
-        job = self._closer.submit(close)
+        job = self._closer.submit(close).id
         self._closing_ids.add(job)
         return job
 

@@ -3,9 +3,12 @@ the pipeline's values), and calibrations made at another resolution (scaled, or 
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import pytest
 
+import stereo_gui.files.depth_export as depth_export
 from stereo_gui.qt.tabs.live import TRUE_CALIBRATION_NOTE
 
 
@@ -94,6 +97,32 @@ def test_export_one_file_says_where(qtbot, ctx, live, sim_rig, wall_pair, array_
     with qtbot.waitSignal(ctx.jobs.failed, timeout=30000):
         live.export_frame(tmp_path / "missing" / "d.png", kinds=("disparity_png",))
     assert "Export of the disparity" in errors[-1]
+
+
+@pytest.mark.parametrize("fails", [False, True])
+def test_closing_waits_for_the_export_being_written_and_says_how_it_ended(
+        qtbot, ctx, live, sim_rig, wall_pair, array_source, tmp_path, monkeypatch, fails):
+    _show_wall(qtbot, ctx, live, sim_rig.true_calibration(), wall_pair, array_source)
+    writing, gate = threading.Event(), threading.Event()
+    real = depth_export.write_disparity_npy
+
+    def held(path, disparity):
+        writing.set()
+        gate.wait(30)
+        if fails:
+            raise OSError("No space left on device")
+        real(path, disparity)
+
+    monkeypatch.setattr(depth_export, "write_disparity_npy", held)
+    path = tmp_path / "d.npy"
+    assert live.export_frame(path, kinds=("disparity_npy",)) is not None
+    assert writing.wait(30)
+    what = f"the export of the disparity in px as float32 .npy (NaN = invalid) to {path}"
+    assert live.unfinished_work() == [what]
+    threading.Timer(0.2, gate.set).start()
+    said = live.cancel_unfinished_work(timeout_ms=30000)  # a running export is waited for
+    assert said == [f"T{what[1:]} {'failed' if fails else 'was written'}."]
+    assert live.unfinished_work() == [] and path.is_file() != fails
 
 
 def test_a_calibration_of_another_resolution_is_scaled_and_says_so(

@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import math
+import threading
 
 import pytest
 from openpyxl import load_workbook
 
+import stereo_gui.files.spreadsheet as spreadsheet
+from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.files.spreadsheet import MeasurementRecord, read_csv
 from stereo_gui.qt.tabs.measurements import MeasurementsTab
 from stereo_gui.qt.widgets.measurement_table import COLUMNS, TRUE_COL, VALID_COL
@@ -123,6 +126,32 @@ def test_export_xlsx_and_csv_hold_logged_values(tab, ctx, qtbot, tmp_path):
     assert tab.export_csv(csv_path)
     back = read_csv(csv_path)
     assert [r.disparity_px for r in back[:6]] == pytest.approx(DISPARITIES)
+
+
+def test_an_export_that_fails_says_how_far_it_got_then_why(tab, ctx, qtbot, tmp_path,
+                                                            monkeypatch):
+    gate = threading.Event()
+
+    def full_disk(path, *args, progress=None, **kwargs):
+        progress(1, 2, "1 of 2 rows")
+        gate.wait(30)
+        raise StereoGuiError(f"could not write {path}: no space left on device")
+
+    monkeypatch.setattr(spreadsheet, "write_workbook", full_disk)
+    _log_with_truth(ctx, tab)
+    errors = []
+    ctx.errorOccurred.connect(errors.append)
+    path = tmp_path / "log.xlsx"
+    try:
+        assert tab.export_xlsx(path)
+        qtbot.waitUntil(lambda: tab.unfinished_work() == [
+            "the export of the measurement log to log.xlsx (1 of 2 rows)"], timeout=30000)
+    finally:
+        gate.set()
+    qtbot.waitUntil(lambda: tab.xlsx_button.isEnabled(), timeout=30000)
+    assert errors == [f"export to {path} failed: could not write {path}: no space left on "
+                      "device"]
+    assert not path.exists() and tab.unfinished_work() == []
 
 
 def test_save_and_load_fit(tab, ctx, tmp_path):

@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import threading
 
+import pytest
+
 from stereo_gui.core.errors import InputError
-from stereo_gui.qt.workers.job_worker import JobWorker, Progress
+from stereo_gui.core.jobs import JobState, Progress
+from stereo_gui.qt.workers.job_worker import JobWorker
 
 
 def _counting_job(n):
@@ -18,6 +21,7 @@ def _counting_job(n):
 
 def test_job_reports_progress_and_result(qtbot):
     worker = JobWorker(_counting_job(5), "count")
+    assert worker.outcome is None
     seen = []
     worker.progress.connect(seen.append)
     with qtbot.waitSignal(worker.finished_ok, timeout=30000) as blocker:
@@ -26,7 +30,7 @@ def test_job_reports_progress_and_result(qtbot):
     qtbot.waitUntil(lambda: len(seen) == 5)
     assert [p.done for p in seen] == [0, 1, 2, 3, 4]
     assert seen[-1].percent == 80
-    assert worker.wait(2000)
+    assert worker.wait(2000) and worker.outcome is JobState.FINISHED
 
 
 def test_error_becomes_failed_signal(qtbot):
@@ -38,7 +42,7 @@ def test_error_becomes_failed_signal(qtbot):
     with qtbot.waitSignal(worker.failed, timeout=30000) as blocker:
         worker.start()
     assert blocker.args == ["folder /nowhere does not exist"]
-    assert worker.wait(2000)
+    assert worker.wait(2000) and worker.outcome is JobState.FAILED
 
 
 def test_unexpected_error_is_named(qtbot):
@@ -76,7 +80,7 @@ def test_cancel_stops_at_next_step(qtbot):
     worker.progress.connect(on_progress)
     with qtbot.waitSignal(worker.cancelled, timeout=30000):
         worker.start()
-    assert worker.wait(2000)
+    assert worker.wait(2000) and worker.outcome is JobState.CANCELLED
     assert results == []
     assert len(steps) < 10
 
@@ -128,3 +132,14 @@ def test_core_cancelled_error_counts_as_cancel(qtbot):
         worker.start()
     assert worker.wait(2000)
     assert failures == []
+
+
+def test_a_worker_runs_once_and_its_thread_ends_with_its_job(qtbot):
+    worker = JobWorker(_counting_job(2), "once")
+    done = []
+    worker.done.connect(lambda: done.append(worker.outcome))
+    worker.start()
+    with pytest.raises(RuntimeError, match="already started"):
+        worker.start()
+    qtbot.waitUntil(lambda: done == [JobState.FINISHED], timeout=30000)
+    assert worker.wait(2000) and not worker.isRunning()

@@ -11,7 +11,7 @@ import time
 
 from PySide6.QtCore import QCoreApplication, QThread
 
-from stereo_gui.pipeline.jobs import Progress
+from stereo_gui.core.jobs import Progress
 from stereo_gui.qt.workers.frame_worker import LANES, FrameWorker
 from stereo_gui.qt.workers.job_runner import JobRunner
 from stereo_gui.qt.workers.job_worker import JobWorker
@@ -69,7 +69,7 @@ def test_jobs_and_generator_jobs_run_in_our_qthreads(qtbot):
     jobs = JobRunner("test-jobs")
     try:
         with qtbot.waitSignal(jobs.finished, timeout=30000) as sig:
-            jobs.submit(QThread.currentThread)
+            jobs.submit(lambda _control: QThread.currentThread())
         ran_in = sig.args[1]
         assert isinstance(ran_in, WorkerThread) and ran_in is jobs.worker_thread()
         assert ran_in is not _main_thread()
@@ -166,7 +166,7 @@ def close_when_blocked():
     from stereo_gui.qt.workers.job_worker import JobWorker
 
     window = next(w for w in QApplication.topLevelWidgets() if hasattr(w, "ctx"))
-    window.ctx.jobs.submit(lambda: threading.Event().wait())  # a click's job that hangs too
+    window.ctx.jobs.submit(lambda _c: threading.Event().wait())  # a click's job that hangs too
     worker = JobWorker(stuck_job, "stuck")  # and a calibration stuck in one call
     window.ctx.register_worker(worker)
     worker.start()
