@@ -8,6 +8,7 @@ import logging
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
+from enum import StrEnum
 
 import cv2
 import numpy as np
@@ -157,13 +158,20 @@ def session_scan_job(pairs, board: BoardSpec, thumb_size: tuple[int, int]):
     return job
 
 
+class CaptureAction(StrEnum):
+    """What the Capture tab does with a live frame."""
+
+    SHOW = "show"  # go on showing live frames
+    FREEZE = "freeze"  # hold the pair for review
+    SAVE = "save"  # take it (automatic capture)
+
+
 @dataclass(frozen=True)
 class CaptureStep:
-    """What the Capture tab does with a live frame: `action` "show" (go on showing live frames),
-    "freeze" (hold the pair for review) or "save" (take it: automatic capture); `prompt` is what
-    the tab says to the technician ("" for "freeze": the review prompt says it)."""
+    """What the Capture tab does with a live frame (`action`); `prompt` is what the tab says to
+    the technician ("" for FREEZE: the review prompt says it)."""
 
-    action: str
+    action: CaptureAction
     prompt: str
 
 
@@ -248,25 +256,26 @@ class CaptureRules:
             self.reset_steadiness()
             if det.left is None or det.right is None:
                 self.last_reviewed_pose = None  # the board left a view: the next pose is new
-            return CaptureStep("show", live_hint(det, board))
+            return CaptureStep(CaptureAction.SHOW, live_hint(det, board))
         if out.misplaced:  # neither frozen for review nor taken: it would spoil the solve
             self.recent_corners.clear()
-            return CaptureStep("show", f"Not taken: {out.misplaced} Move or turn the board a "
-                                       "little")
+            return CaptureStep(CaptureAction.SHOW,
+                               f"Not taken: {out.misplaced} Move or turn the board a little")
         pose = out.pose
         moving = self._moving(out)
         if moving is not False and self._skew_note() and not auto:
             # (a first sight cannot tell: one more frame says whether the board holds still)
-            return CaptureStep("show", "Hold the board still." + self._skew_note())
+            return CaptureStep(CaptureAction.SHOW, "Hold the board still." + self._skew_note())
         if auto:
             return self._auto_step(out, pose, saved_poses(), have_session,
                                    fills(det) if fills is not None else {},
                                    empty_regions if empty_regions is not None else dict)
         if (self.last_reviewed_pose is not None and pose is not None
                 and pose.distance(self.last_reviewed_pose) < NEW_POSE_DISTANCE / 2):
-            return CaptureStep("show", "Move the board to a new pose (or out of view and back)")
+            return CaptureStep(CaptureAction.SHOW,
+                               "Move the board to a new pose (or out of view and back)")
         self.last_reviewed_pose = pose
-        return CaptureStep("freeze", "")
+        return CaptureStep(CaptureAction.FREEZE, "")
 
     def _steady(self, skew_s: float | None = None) -> bool:
         """The board held still in both cameras' images (see the class doc)."""
@@ -302,17 +311,18 @@ class CaptureRules:
             fills = {}
         if not new:
             where = regions_in_words(empty_regions())
-            return CaptureStep("show", "Pose already captured: " + (
+            return CaptureStep(CaptureAction.SHOW, "Pose already captured: " + (
                 f"move the board to {where} (not yet covered)" if where
                 else "move or tilt the board somewhere new"))
         if not steady:
             reach = f" reaching {regions_in_words(fills)}" if any(fills.values()) else ""
-            return CaptureStep("show", f"New pose{reach}: hold the board still…"
+            return CaptureStep(CaptureAction.SHOW, f"New pose{reach}: hold the board still…"
                                + self._skew_note())
         if not have_session:
-            return CaptureStep("show", "Automatic capture needs a session: choose New session…")
+            return CaptureStep(CaptureAction.SHOW,
+                               "Automatic capture needs a session: choose New session…")
         self.recent_corners.clear()
-        return CaptureStep("save", "Pair taken. Move the board to the next pose")
+        return CaptureStep(CaptureAction.SAVE, "Pair taken. Move the board to the next pose")
 
 
 def _steady_over(recent, min_span_s: float = 0.0) -> float | None:

@@ -10,6 +10,7 @@ from stereo_gui.core.board import BoardSpec
 from stereo_gui.pipeline.capture import (
     STEADY_FRAMES,
     STEADY_PX,
+    CaptureAction,
     CaptureOutput,
     CaptureRules,
     detect_live,
@@ -17,6 +18,8 @@ from stereo_gui.pipeline.capture import (
     make_capture_processor,
 )
 from stereo_gui.sources.sim import RigConfig, SimRig, SimSource
+
+SHOW, FREEZE, SAVE = CaptureAction.SHOW, CaptureAction.FREEZE, CaptureAction.SAVE
 
 
 @pytest.fixture(scope="module")
@@ -78,33 +81,33 @@ def test_display_rgb_swaps_channels_and_expands_gray():
 def test_manual_capture_freezes_once_per_pose(board_output):
     rules = CaptureRules()
     no_saved = list
-    assert rules.step(board_output, False, no_saved, True).action == "freeze"
+    assert rules.step(board_output, False, no_saved, True).action is FREEZE
     again = rules.step(board_output, False, no_saved, True)
-    assert again.action == "show" and "new pose" in again.prompt
+    assert again.action is SHOW and "new pose" in again.prompt
     hint = rules.step(_without_right(board_output), False, no_saved, True)
-    assert hint.action == "show" and "Only the left camera" in hint.prompt
+    assert hint.action is SHOW and "Only the left camera" in hint.prompt
     # the board left a view: the same pose may be frozen again
-    assert rules.step(board_output, False, no_saved, True).action == "freeze"
+    assert rules.step(board_output, False, no_saved, True).action is FREEZE
 
 
 def test_automatic_capture_waits_for_a_steady_new_pose_and_a_session(board_output):
     rules = CaptureRules()
     steps = [rules.step(board_output, True, list, True) for _ in range(STEADY_FRAMES)]
-    assert [s.action for s in steps] == ["show"] * (STEADY_FRAMES - 1) + ["save"]
+    assert [s.action for s in steps] == [SHOW] * (STEADY_FRAMES - 1) + [SAVE]
     assert "hold the board still" in steps[0].prompt and "Pair taken" in steps[-1].prompt
     # moving more than STEADY_PX between frames is not steady
     rules = CaptureRules()
     moving = [rules.step(_moved(board_output, k * 2 * STEADY_PX), True, list, True).action
               for k in range(STEADY_FRAMES + 2)]
-    assert "save" not in moving
+    assert SAVE not in moving
     # a pose already saved, or no session: nothing is taken
     rules = CaptureRules()
     seen = [rules.step(board_output, True, lambda: [board_output.pose], True)
             for _ in range(STEADY_FRAMES)]
-    assert {s.action for s in seen} == {"show"} and "already captured" in seen[-1].prompt
+    assert {s.action for s in seen} == {SHOW} and "already captured" in seen[-1].prompt
     rules = CaptureRules()
     no_session = [rules.step(board_output, True, list, False) for _ in range(STEADY_FRAMES)]
-    assert no_session[-1].action == "show" and "needs a session" in no_session[-1].prompt
+    assert no_session[-1].action is SHOW and "needs a session" in no_session[-1].prompt
 
 
 def test_a_pair_with_a_misplaced_point_is_neither_frozen_nor_taken(board_frame):
@@ -126,12 +129,12 @@ def test_a_pair_with_a_misplaced_point_is_neither_frozen_nor_taken(board_frame):
     assert "left image" in out.misplaced and "from where its neighbours put it" in out.misplaced
     rules = CaptureRules()
     manual = rules.step(out, False, list, True)
-    assert manual.action == "show" and manual.prompt.startswith("Not taken: a point")
+    assert manual.action is SHOW and manual.prompt.startswith("Not taken: a point")
     rules = CaptureRules()
     auto = [rules.step(out, True, list, True) for _ in range(2 * STEADY_FRAMES)]
-    assert {s.action for s in auto} == {"show"}
+    assert {s.action for s in auto} == {SHOW}
     rules = CaptureRules()
-    assert [rules.step(clean, True, list, True) for _ in range(STEADY_FRAMES)][-1].action == "save"
+    assert [rules.step(clean, True, list, True) for _ in range(STEADY_FRAMES)][-1].action is SAVE
 
 
 def _at(out: CaptureOutput, t_s: float) -> CaptureOutput:
@@ -146,19 +149,19 @@ def test_steadiness_is_time_not_frame_count_when_frames_come_slowly(board_output
     gap = 1.5 * STEADY_S
     rules = CaptureRules()
     steps = [rules.step(_at(board_output, k * gap), True, list, True).action for k in range(2)]
-    assert steps == ["show", "save"]  # two frames STEADY_S apart, the corners still
+    assert steps == [SHOW, SAVE]  # two frames STEADY_S apart, the corners still
     rules = CaptureRules()  # moving STEADY_PX or more in that time: not still
     moved = [rules.step(_at(_moved(board_output, k * STEADY_PX), k * gap), True, list,
                         True).action for k in range(4)]
-    assert "save" not in moved
+    assert SAVE not in moved
     rules = CaptureRules()  # frames close together: STEADY_FRAMES of them, as before
     quick = [rules.step(_at(board_output, k * 0.001), True, list, True).action
              for k in range(STEADY_FRAMES)]
-    assert quick == ["show"] * (STEADY_FRAMES - 1) + ["save"]
+    assert quick == [SHOW] * (STEADY_FRAMES - 1) + [SAVE]
     rules = CaptureRules()  # a frame from long ago (a pause) says nothing about now
     old = [rules.step(_at(board_output, t), True, list, True).action
            for t in (0.0, 2 * STEADY_MAX_S)]
-    assert old == ["show", "show"]
+    assert old == [SHOW, SHOW]
 
 
 def test_the_processor_skips_the_quick_check_while_the_board_stays_in_view(monkeypatch):

@@ -12,6 +12,7 @@ from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.timing import skew_stats
 from stereo_gui.pipeline.capture import (
     STILL_ACROSS_SKEW_PX,
+    CaptureAction,
     CaptureRules,
     make_capture_processor,
 )
@@ -46,7 +47,7 @@ def _auto_capture(offset_s: float, tell_rules_the_right_time: bool, frames: int 
                                       time_right_s=t + offset_s if tell_rules_the_right_time
                                       else None)
             step = rules.step(out, True, lambda: saved, True)
-            if step.action == "save":
+            if step.action is CaptureAction.SAVE:
                 saved.append(out.pose)
                 kept.append(_moved_px(rig, f.truth))
     finally:
@@ -82,11 +83,11 @@ def test_a_manual_pair_waits_for_a_still_board_when_the_skew_is_large():
             out = dataclasses.replace(proc(f), time_s=i / FPS, time_right_s=i / FPS + 0.020)
             step = rules.step(out, False, list, True)
             steps.append(step)
-            if step.action == "freeze":
+            if step.action is CaptureAction.FREEZE:
                 break
     finally:
         src.close()
-    held = [s for s in steps if s.action == "show" and "20 ms apart" in s.prompt]
+    held = [s for s in steps if s.action is CaptureAction.SHOW and "20 ms apart" in s.prompt]
     assert held and held[0].prompt.startswith("Hold the board still")
 
 

@@ -38,6 +38,7 @@ from stereo_gui.pipeline.capture import (
     STEADY_FRAMES,
     STEADY_PX,
     STEADY_S,
+    CaptureAction,
     CaptureOutput,
     CaptureRules,
     make_capture_processor,
@@ -316,10 +317,10 @@ class CaptureTab(SessionPairs, QWidget):
         step = self.rules.step(out, self.auto_check.isChecked(), self._saved_poses,
                                self.session is not None, board=self.board, fills=self._fills,
                                empty_regions=lambda: self._readiness().required_empty)
-        if step.action == "freeze":
+        if step.action is CaptureAction.FREEZE:
             self._freeze(out, frame)
             return
-        if step.action == "save":
+        if step.action is CaptureAction.SAVE:
             self._save_pair(frame, out.detection)
         self.prompt.setText(step.prompt)
 
