@@ -17,7 +17,11 @@ import numpy as np
 
 from stereo_gui.core.errors import CalibrationFileError
 from stereo_gui.core.lens import ROUND_TRIP_PX, pixel_grid, round_trip_px, undistort_points
-from stereo_gui.core.stereo_calibration import StereoCalibration, q_from_projections
+from stereo_gui.core.stereo_calibration import (
+    ROTATION_TOL,
+    StereoCalibration,
+    q_from_projections,
+)
 
 
 def _fail(where: str, text: str) -> NoReturn:
@@ -31,7 +35,6 @@ PLAUSIBLE_BASELINE_MM = 100_000.0  # 100 m: beyond, readings become absurd, not 
 MIN_FOV_FOCAL = 0.05  # focal length in image widths: below, a pinhole view wider than 174 deg
 MAX_FOV_FOCAL = 100.0  # above, a view narrower than 0.6 deg
 MAX_FOCAL_RATIO = 3.0  # the two cameras, and the rectified ones, differ in focal length by less
-ROTATION_TOL = 1e-3
 RELATIVE_TOL = 1e-3
 
 

@@ -179,8 +179,11 @@ class StereoCalibration:
 
     def _check_geometry(self) -> None:
         R = self.R
-        if np.max(np.abs(R)) > 1.0 + 1e-4 or not (
-                np.allclose(R.T @ R, np.eye(3), atol=1e-4) and abs(np.linalg.det(R) - 1) < 1e-4):
+        # (as loose as the plausibility check: a rotation written by hand or by another tool to
+        # four decimals is still one)
+        tol = ROTATION_TOL
+        if np.max(np.abs(R)) > 1.0 + tol or not (
+                np.allclose(R.T @ R, np.eye(3), atol=tol) and abs(np.linalg.det(R) - 1) < tol):
             _refuse("matrix R is not a rotation")
         baseline = self.baseline_mm
         if not 0 < baseline <= MAX_BASELINE_MM:
@@ -381,6 +384,7 @@ DISTORTION_COUNTS = (4, 5, 8, 12, 14)  # what OpenCV's lens models take
 MAX_IMAGE_SIDE_PX = 100_000
 MAX_FOCAL_PX = 1e7
 MAX_BASELINE_MM = 1e7
+ROTATION_TOL = 1e-3  # R^T R = I and det R = 1 within this
 MAX_DISTORTION = 1e6
 
 

@@ -123,3 +123,16 @@ def test_a_pair_error_is_a_finite_number_of_pixels():
                                ("not a number", 0.1, "error_left is nan")):
         with pytest.raises(CalibrationValueError, match=f"pair 07: {words}"):
             PairError("07", left, right)
+
+
+def test_a_rotation_written_to_four_decimals_is_still_a_rotation():
+    """Calibrations written by hand or by other tools round R; to four decimals R^T R leaves
+    the identity by up to about 1e-4, which is no reason to refuse the file."""
+    import cv2
+
+    R = cv2.Rodrigues(np.array([[0.013], [-0.021], [0.007]]))[0]
+    rounded = np.round(R, 4)
+    assert not np.allclose(rounded.T @ rounded, np.eye(3), atol=1e-5)
+    assert GOOD.with_updates(R=rounded).R == pytest.approx(rounded)
+    with pytest.raises(CalibrationValueError, match="matrix R is not a rotation"):
+        GOOD.with_updates(R=R * 1.005)  # R^T R 1 % off the identity
