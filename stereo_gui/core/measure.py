@@ -877,21 +877,22 @@ def reads_nearer_edge(left_gray: np.ndarray, right_gray: np.ndarray, disparity_p
     plane = _region_plane_at(disparity_px, region, x0, y0, x, y)
     if plane is None or plane >= d - SURFACE_BAND_PX:
         return False  # the region's surface is where the reading is (or nearer)
-    h, w = left_gray.shape[:2]
-    ys, xs = np.nonzero(own)
-    xs, ys = xs + x0 + wx0, ys + y0 + wy0
-    inside = (xs - d >= 2) & (xs - d <= w - 3)
-    xs, ys = xs[inside], ys[inside]
-    if xs.size < 9:
+    w = left_gray.shape[1]
+    ay0, ax0 = y0 + wy0, x0 + wx0
+    cols = np.arange(ax0, ax0 + own.shape[1], dtype=np.float32)
+    rows = np.arange(ay0, ay0 + own.shape[0], dtype=np.float32)
+    own = own & ((cols - d >= 2) & (cols - d <= w - 3))[None, :]
+    if int(own.sum()) < 9:
         return True
-    left = left_gray[ys, xs].astype(np.float32)
-    right = cv2.remap(right_gray, (xs - d).astype(np.float32).reshape(1, -1),
-                      ys.astype(np.float32).reshape(1, -1), cv2.INTER_CUBIC,
-                      borderMode=cv2.BORDER_REPLICATE).reshape(-1).astype(np.float32)
+    map_x = np.tile(cols - np.float32(d), (rows.size, 1))
+    map_y = np.repeat(rows[:, None], cols.size, axis=1)
+    right = cv2.remap(right_gray, map_x, map_y, cv2.INTER_CUBIC,
+                      borderMode=cv2.BORDER_REPLICATE)[own].astype(np.float32)
+    left = left_gray[ay0:ay0 + own.shape[0], ax0:ax0 + own.shape[1]][own].astype(np.float32)
     a, b = left - left.mean(), right - right.mean()
     denom = math.sqrt(float((a * a).sum()) * float((b * b).sum()))
     corr = float((a * b).sum()) / denom if denom > 0 else 0.0
-    return corr * math.sqrt(xs.size) < TEXTURE_MIN_T * STDERR_SCALE
+    return corr * math.sqrt(left.size) < TEXTURE_MIN_T * STDERR_SCALE
 
 
 def has_texture(gray: np.ndarray, x: int, y: int, half: int) -> bool:

@@ -746,35 +746,39 @@ def test_the_texture_evidence_is_judged_without_the_row_offsets_fit():
     assert r.converged and r.correlation == pytest.approx(plain, abs=0.01)
 
 
-def _edge_pair(wall_d: float, object_d: float, wall_contrast: float = 0.0, seed: int = 4):
+def _edge_pair(wall_d: float, object_d: float, wall_contrast: float = 0.0, seed: int = 4,
+               size: tuple[int, int] = (300, 140), edge_row: int = 70):
     """A 300x140 pair: a wall of one grey (170, `wall_contrast` grey levels of texture of its own)
-    at disparity `wall_d` over rows 0-69, a dark textured object at `object_d` from row 70 down
-    (its top edge horizontal), each camera's own noise 1 grey level (float32 grey)."""
+    at disparity `wall_d` over rows 0-69, a dark textured object at `object_d` from row 70
+    (`edge_row`) down (its top edge horizontal), each camera's own noise 1 grey level (float32
+    grey)."""
+    width, height = size
     rng = np.random.default_rng(seed)
-    tex = cv2.GaussianBlur(rng.random((140, 500)).astype(np.float32), (0, 0), 1.5)
+    tex = cv2.GaussianBlur(rng.random((height, width + 200)).astype(np.float32), (0, 0), 1.5)
     tex = (tex - tex.mean()) / tex.std()
     wall = 170.0 + wall_contrast * tex
     obj = 60.0 + 30.0 * np.roll(tex, 17, axis=1)
-    xs = np.arange(300, dtype=np.float32)
-    ys = np.repeat(np.arange(140, dtype=np.float32)[:, None], 300, axis=1)
+    xs = np.arange(width, dtype=np.float32)
+    ys = np.repeat(np.arange(height, dtype=np.float32)[:, None], width, axis=1)
     out = []
     for camera in ("left", "right"):  # right(u) = left(u + d)
         shift_w = 100.0 + (wall_d if camera == "right" else 0.0)
         shift_o = 100.0 + (object_d if camera == "right" else 0.0)
-        w_img = cv2.remap(wall, np.tile(xs + shift_w, (140, 1)), ys, cv2.INTER_CUBIC)
-        o_img = cv2.remap(obj, np.tile(xs + shift_o, (140, 1)), ys, cv2.INTER_CUBIC)
-        img = np.where(ys < 70, w_img, o_img) + rng.normal(0.0, 1.0, (140, 300))
+        w_img = cv2.remap(wall, np.tile(xs + shift_w, (height, 1)), ys, cv2.INTER_CUBIC)
+        o_img = cv2.remap(obj, np.tile(xs + shift_o, (height, 1)), ys, cv2.INTER_CUBIC)
+        img = np.where(ys < edge_row, w_img, o_img) + rng.normal(0.0, 1.0, (height, width))
         out.append(img.astype(np.float32))
     return out
 
 
-def _fattened_map(wall_d: float, object_d: float, reach: int = 8) -> np.ndarray:
+def _fattened_map(wall_d: float, object_d: float, reach: int = 8,
+                  size: tuple[int, int] = (300, 140), edge_row: int = 70) -> np.ndarray:
     """The matcher's map of `_edge_pair`: the object's disparity carried `reach` rows onto the
     wall above its edge, the wall's own where the map has it (every other pixel: a plain wall is
     matched in scattered blobs)."""
-    disp = np.full((140, 300), np.nan, np.float32)
+    disp = np.full(size[::-1], np.nan, np.float32)
     disp[::2, ::2] = wall_d
-    disp[70 - reach:, :] = object_d
+    disp[edge_row - reach:, :] = object_d
     return disp
 
 
@@ -793,6 +797,15 @@ def test_a_plain_wall_beside_a_nearer_edge_is_not_read_at_the_edges_disparity():
     assert reads_nearer_edge(left, right, disp, 150, 58, 30.0, 12)
     # read at the wall's own disparity, the same window stands
     assert not reads_nearer_edge(left, right, disp, 150, 64, 20.0, 6)
+
+
+def test_the_largest_grown_window_is_judged_too():
+    """A 193 px window of a plain region holds more pixels than OpenCV's remap takes in one
+    row (it raised)."""
+    size = (400, 300)
+    left, right = _edge_pair(20.0, 30.0, size=size, edge_row=250)
+    disp = _fattened_map(20.0, 30.0, size=size, edge_row=250)
+    assert reads_nearer_edge(left, right, disp, 200, 160, 30.0, 96)
 
 
 def test_a_plain_region_whose_own_surface_the_reading_is_stands():
