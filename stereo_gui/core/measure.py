@@ -1046,10 +1046,16 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
                 # the full-resolution values count where they agree with the frame's own
                 # (left-right checked) match to within its resolution
                 band = band[:, x0:x1]
-                with np.errstate(invalid="ignore"):
-                    usable &= np.abs(band - window) <= 2.0 / result.match_scale
-                window = band
-                usable &= np.isfinite(window)
+                # (where the strip found nothing at all, the frame's own values stand: its
+                # reduced images hold the texture a full-resolution window of the same size
+                # misses, and the refinement still checks them against the images. The strip's
+                # values where the frame has none were tried and rejected: one right reading
+                # for one 50 % off on the 13 scenes)
+                if np.isfinite(band).any() or not usable.any():
+                    with np.errstate(invalid="ignore"):
+                        usable &= np.abs(band - window) <= 2.0 / result.match_scale
+                    window = band
+                    usable &= np.isfinite(window)
         values = window[usable]
         valid_fraction = values.size / window.size
         surround = empty = None

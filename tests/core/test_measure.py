@@ -311,6 +311,30 @@ def test_reduced_resolution_preset_rematches_a_full_resolution_strip(rig, walls)
     assert 1.0 in frac
 
 
+def test_where_the_full_resolution_strip_finds_nothing_the_frames_own_values_stand(
+        monkeypatch, rig, walls):
+    """A full-resolution window can miss the texture the reduced frame matched (Adirondack's
+    floor, Bowling1's ball: the live map right, the strip empty): the frame's own values are
+    read, refined against the images; where the strip has values, only those agreeing with the
+    frame's count."""
+    import stereo_gui.core.measure as measure
+
+    calib = rig.true_calibration()
+    scene, (left, right) = walls[2000.0]
+    with StereoPipeline(calib, load_preset("live")) as pipe:
+        result = pipe.process(left, right)
+    true_z = rig.true_point_rectified(calib, scene, 320, 240)[2]
+    monkeypatch.setattr(measure, "rematch_strip",
+                        lambda r, y, half: np.full((2 * half + 1, 640), np.nan, np.float32))
+    m = measure_point(result, 320, 240)
+    assert m.valid and m.Z_mm == pytest.approx(true_z, rel=0.01)
+    assert m.valid_fraction > 0.5  # the patch's own values, not the surface around an empty one
+    # a strip that disagrees with the frame everywhere leaves the patch empty
+    monkeypatch.setattr(measure, "rematch_strip",
+                        lambda r, y, half: np.full((2 * half + 1, 640), 5.0, np.float32))
+    assert measure_point(result, 320, 240).valid_fraction == 0.0
+
+
 def test_left_edge_strip_says_not_seen_and_the_seeds_band_not_searched(rig, walls):
     calib = rig.true_calibration()
     scene, (left, right) = walls[1000.0]  # d = f*B/Z = 82 px: the strip the right camera misses
