@@ -65,6 +65,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="ChArUco marker side or circle diameter, mm (default: the target's)")
     parser.add_argument("--lens", choices=("pinhole", "fisheye"), default="pinhole",
                         help="the rig's cameras: webcams (default) or wide-angle fisheye webcams")
+    parser.add_argument("--time-offset", type=options.number(0.0, 0.5, "s"), default=0.0,
+                        metavar="S",
+                        help="the right camera grabs S seconds after the left (two webcams that "
+                             "are not synchronised), and the board, held by hand, moves between "
+                             "the two grabs (about 100 mm/s and 10 deg/s; default 0: "
+                             "synchronised, the board still)")
 
 
 def _prepare(out: Path, overwrite: bool, own=_OWN_NAMES, folder: str = SCENE_FOLDER) -> list[Path]:
@@ -105,7 +111,9 @@ def run(args: argparse.Namespace) -> int:
     square_mm = (30.0 if charuco else 25.0) if args.square_mm is None else args.square_mm
     board = parse_board(args.board or ("7x5" if charuco else "9x6"), square_mm, args.target,
                         args.marker_mm or (22.0 if charuco else 0.0))
-    config = (RigConfig.fisheye(board=board) if args.lens == "fisheye" else RigConfig(board=board))
+    timing = {"time_offset_s": args.time_offset}
+    config = (RigConfig.fisheye(board=board, **timing) if args.lens == "fisheye"
+              else RigConfig(board=board, **timing))
     out = Path(args.out_dir)
     earlier = _prepare(out, args.overwrite)
     interactive = sys.stderr.isatty()
@@ -139,7 +147,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"removed {len(stale)} files of an earlier simulated set")
     print(f"wrote {out / 'truth.json'}: board {truth.board.label()}, image {truth.image_size[0]}x"
           f"{truth.image_size[1]}, fx {truth.M1[0, 0]:.1f}/{truth.M2[0, 0]:.1f} px, baseline "
-          f"{truth.baseline_mm:.1f} mm, {truth.model} lenses, seed {args.seed}")
+          f"{truth.baseline_mm:.1f} mm, {truth.model} lenses, seed {args.seed}"
+          + (f"; the right camera {1000 * args.time_offset:g} ms late, the board moving"
+             if args.time_offset else ""))
     return 0
 
 
@@ -149,7 +159,9 @@ def _run_click_scenes(args: argparse.Namespace) -> int:
     given = [name for name, value in (("--pairs", args.pairs), ("--scene", args.scene or None),
                                       ("--target", args.target), ("--board", args.board),
                                       ("--square-mm", args.square_mm),
-                                      ("--marker-mm", args.marker_mm)) if value is not None]
+                                      ("--marker-mm", args.marker_mm),
+                                      ("--time-offset", args.time_offset or None))
+             if value is not None]
     if given:
         raise InputError(f"{given[0]} does not go with --click-scenes (it writes scenes, not a "
                          "calibration set): leave it out, or run simulate twice")

@@ -43,6 +43,8 @@ from stereo_gui.core.lens import (
 )
 from stereo_gui.core.stereo_calibration import PairError, StereoCalibration
 from stereo_gui.core.uncertainty import (
+    Z95,
+    CalibrationUncertainty,
     CalibrationWarning,
     calibration_warnings,
     join_names,
@@ -135,6 +137,17 @@ class _Solve:
     # own fit: a pair whose board moved between the two pictures lands far off
     transfer_px: list[float]
     own_px: list[float]  # per pair: the worse of the two cameras' errors of their own fits
+    # the cameras took most pairs at different moments (`_unsynchronised`): each camera kept
+    # its own fit's intrinsics, the joint refinement was not run
+    unsynchronised: bool = False
+    # each pair's own view of the rig's pose: R_right_left as a Rodrigues vector (rad) and
+    # T_right_left (mm), (n, 6)
+    pair_poses: np.ndarray | None = None
+
+    @property
+    def pair_baselines_mm(self) -> np.ndarray:
+        return (np.linalg.norm(self.pair_poses[:, 3:], axis=1) if self.pair_poses is not None
+                else np.zeros(0))
 
 
 # OpenCV's flags that hold a distortion coefficient (OpenCV 5 gives cv2.fisheye the same values)
@@ -230,26 +243,44 @@ def _solve(pairs: list[PairDetection], board: BoardSpec, image_size: tuple[int, 
                 for k in range(len(pairs))]
     own = [max(_rms_px(model, ol[k], il[k], rv1[k], tv1[k], M1, D1),
                _rms_px(model, orr[k], ir[k], rv2[k], tv2[k], M2, D2)) for k in range(len(pairs))]
-    try:
-        if model == "fisheye":
-            out = cv2.fisheye.stereoCalibrate(
-                [o.reshape(1, -1, 3).astype(np.float64) for o in oc],
-                [c[1].reshape(1, -1, 2).astype(np.float64) for c in common],
-                [c[2].reshape(1, -1, 2).astype(np.float64) for c in common],
-                M1, D1.reshape(4, 1), M2, D2.reshape(4, 1), image_size,
-                flags=cv2.CALIB_FIX_INTRINSIC, criteria=_CRITERIA)
-            rms_fixed, R, T = float(out[0]), out[5], np.asarray(out[6]).reshape(3, 1)
-        else:
-            flags = cv2.CALIB_FIX_INTRINSIC | (cv2.CALIB_RATIONAL_MODEL if model == "rational" else 0)
-            out = cv2.stereoCalibrateExtended(
-                [o.astype(np.float32) for o in oc],
-                [c[1].reshape(-1, 1, 2).astype(np.float32) for c in common],
-                [c[2].reshape(-1, 1, 2).astype(np.float32) for c in common],
-                M1, D1, M2, D2, image_size, None, None, flags=flags, criteria=_CRITERIA)
-            rms_fixed, R, T = float(out[0]), out[5], out[6].reshape(3, 1)
-    except cv2.error as exc:
-        log.info("stereo calibration with fixed intrinsics failed (%s); starting the joint "
-                    "refinement from the board poses", str(exc).strip().splitlines()[-1])
+    unsynchronised = _unsynchronised(transfer, own)
+    if unsynchronised:
+        # a joint refinement would bend both lenses to make boards that moved meet (on the rig
+        # with the right camera 50 ms late: the rotation off by 1.7-8.8 deg, fx by 5 %); each
+        # camera's own fit is what the pairs say of its lens
+        log.info("the board moved between the two pictures of most pairs (median %.2f px, "
+                 "each camera's own fit %.2f px): each camera keeps its own intrinsics",
+                 float(np.median(transfer)), float(np.median(own)))
+        joint = False
+    poses = _pair_poses(rv1, tv1, rv2, tv2)
+    if unsynchronised:
+        # each pair is one independent look at the rig's pose, off by its board's motion:
+        # their mean is the pose (a least-squares fit over every corner weighs the pairs
+        # unequally and read the baseline 2.3 mm RMS off on the rig 50 ms apart, the mean
+        # 0.9 mm); its scatter is what `_unsync_uncertainty` adds
+        mean = poses.mean(axis=0)
+        R, T = cv2.Rodrigues(mean[:3].reshape(3, 1))[0], mean[3:].reshape(3, 1)
+    else:
+        try:
+            if model == "fisheye":
+                out = cv2.fisheye.stereoCalibrate(
+                    [o.reshape(1, -1, 3).astype(np.float64) for o in oc],
+                    [c[1].reshape(1, -1, 2).astype(np.float64) for c in common],
+                    [c[2].reshape(1, -1, 2).astype(np.float64) for c in common],
+                    M1, D1.reshape(4, 1), M2, D2.reshape(4, 1), image_size,
+                    flags=cv2.CALIB_FIX_INTRINSIC, criteria=_CRITERIA)
+                rms_fixed, R, T = float(out[0]), out[5], np.asarray(out[6]).reshape(3, 1)
+            else:
+                flags = cv2.CALIB_FIX_INTRINSIC | (cv2.CALIB_RATIONAL_MODEL if model == "rational" else 0)
+                out = cv2.stereoCalibrateExtended(
+                    [o.astype(np.float32) for o in oc],
+                    [c[1].reshape(-1, 1, 2).astype(np.float32) for c in common],
+                    [c[2].reshape(-1, 1, 2).astype(np.float32) for c in common],
+                    M1, D1, M2, D2, image_size, None, None, flags=flags, criteria=_CRITERIA)
+                rms_fixed, R, T = float(out[0]), out[5], out[6].reshape(3, 1)
+        except cv2.error as exc:
+            log.info("stereo calibration with fixed intrinsics failed (%s); starting the joint "
+                        "refinement from the board poses", str(exc).strip().splitlines()[-1])
     check_cancel(cancel)
     # every point each camera saw, the left camera's board poses as the start
     views = [View(ol[k], il[k].reshape(-1, 2), orr[k], ir[k].reshape(-1, 2)) for k in range(len(pairs))]
@@ -267,7 +298,62 @@ def _solve(pairs: list[PairDetection], board: BoardSpec, image_size: tuple[int, 
     F = F / F[2, 2] if abs(F[2, 2]) > 1e-12 else F
     return _Solve([p.name for p in pairs], M1, D1.reshape(1, -1), M2, D2.reshape(1, -1), R,
                   T.reshape(3, 1), E, F, rl, rr, float(bundle.rms), rms_fixed, errors, bundle,
-                  (std1, std2), transfer, own)
+                  (std1, std2), transfer, own, unsynchronised, poses)
+
+
+def _pair_poses(rv_l, tv_l, rv_r, tv_r) -> np.ndarray:
+    """Each pair's own view of the rig's pose, (n, 6): the Rodrigues vector of R_right_left
+    (rad) and T_right_left (mm) that its two board poses put the cameras at."""
+    out = []
+    for a, b, c, d in zip(rv_l, tv_l, rv_r, tv_r):
+        Rk = (cv2.Rodrigues(np.asarray(c, np.float64))[0]
+              @ cv2.Rodrigues(np.asarray(a, np.float64))[0].T)
+        t = np.asarray(d, np.float64).reshape(3) - Rk @ np.asarray(b, np.float64).reshape(3)
+        out.append(np.concatenate([cv2.Rodrigues(Rk)[0].reshape(3), t]))
+    return np.array(out, np.float64).reshape(-1, 6)
+
+
+def _unsync_uncertainty(sol: _Solve, model: str, held: bool) -> CalibrationUncertainty:
+    """The parameters' covariance of a calibration from pairs taken at different moments:
+    the bundle's, scaled to the noise of the cameras' own fits (the residuals of boards that
+    moved are no measure of how well a lens is known), with the scatter of the pairs' own views
+    of the rig's pose (its variance over the pairs, divided by their count) added to the pose's
+    rows: what the moving board leaves unknown."""
+    bundle = sol.bundle
+    own = float(np.median(sol.own_px)) / np.sqrt(2.0)  # RMS of 2-D errors -> per coordinate
+    scale = (own / bundle.sigma_px) ** 2 if bundle.sigma_px > 0 else 1.0
+    cov = np.asarray(bundle.covariance, np.float64) * scale
+    poses = sol.pair_poses
+    if poses is not None and len(poses) > 1:
+        scatter = np.var(poses, axis=0, ddof=1) / len(poses)
+        names = list(bundle.names)
+        for k, name in enumerate(("rvec.x", "rvec.y", "rvec.z", "T.x", "T.y", "T.z")):
+            if name in names:
+                i = names.index(name)
+                cov[i, i] += scatter[k]
+    return CalibrationUncertainty(tuple(bundle.names), cov, own, "jacobian", model)
+
+
+# cameras that do not take a pair's two pictures at the same moment, with a board held by hand:
+# most pairs' transfer error (below) is above both of these. Synchronised sets lie at 1.2x
+# (the real 9x6 webcams, 0.31 px) and 2-3.3x (the simulated rig, 0.10-0.17 px); the rig with
+# its right camera 50 ms late at 40-77x (2.0-3.8 px)
+UNSYNC_FACTOR = 5.0  # times the median pair's own fit
+UNSYNC_FLOOR_PX = 0.5
+OUTLIER_FACTOR = 3.0  # a pair's error above both of these is an outlier (`calibrate_stereo`)
+OUTLIER_FLOOR_PX = 1.0
+
+
+def _unsynchronised(transfer: list[float], own: list[float]) -> bool:
+    """Whether the board moved between the two pictures of most pairs: the median transfer
+    error far above the median of the cameras' own fits. Not while a pair's own fit is an
+    outlier (`_outliers`' rule): corners one camera found badly in one pair bend that camera's
+    own lens, and with it every pair's transfer (one pair's corners 3 px off put the rig's at
+    0.5-3.8 px); the set is judged again once that pair is left out."""
+    t, o = float(np.median(transfer)), float(np.median(own))
+    if max(own) > max(OUTLIER_FACTOR * o, OUTLIER_FLOOR_PX):
+        return False
+    return t > max(UNSYNC_FACTOR * o, UNSYNC_FLOOR_PX)
 
 
 def _rms_px(model: str, obj, img, rvec, tvec, M, D) -> float:
@@ -358,8 +444,8 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
                      image_size: tuple[int, int] | None = None, alpha: float = 0.0,
                      method: str = "bouguet", progress: ProgressCallback | None = None,
                      cancel: Cancel = None, min_pairs: int = DEFAULT_MIN_PAIRS,
-                     reject_outliers: bool = True, outlier_factor: float = 3.0,
-                     outlier_floor_px: float = 1.0, joint_refinement: bool = True,
+                     reject_outliers: bool = True, outlier_factor: float = OUTLIER_FACTOR,
+                     outlier_floor_px: float = OUTLIER_FLOOR_PX, joint_refinement: bool = True,
                      model: str = "pinhole", fix_k3: bool = False, origin: str = ""
                      ) -> CalibrationResult:
     """Calibrate a stereo rig from target detections of pairs.
@@ -481,7 +567,8 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
                             sol.M1, sol.D1, R1, P1, sol.M2, sol.D2, R2, P2, model)
     per_pair = tuple(PairError(name, float(el), float(er))
                      for name, (el, er) in zip(sol.names, sol.errors))
-    unc = uncertainty_from_bundle(sol.bundle, model, bool(held), sol.mono_sigmas)
+    unc = (_unsync_uncertainty(sol, model, bool(held)) if sol.unsynchronised
+           else uncertainty_from_bundle(sol.bundle, model, bool(held), sol.mono_sigmas))
     calib = StereoCalibration(
         image_size=image_size, M1=sol.M1, D1=sol.D1, M2=sol.M2, D2=sol.D2, R=sol.R, T=sol.T,
         E=sol.E, F=sol.F, R1=R1, R2=R2, P1=P1, P2=P2, Q=Q, board=board,
@@ -491,7 +578,8 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
         origin=f"calibrated from {len(usable)} pairs{' in ' + origin if origin else ''} "
                f"({board.label()}, {model} model{_origin_held(model, held)})")
     regions = uncovered_regions(usable, image_size)
-    warnings = (*refits, *calibration_warnings(calib, regions, bool(held)))
+    unsync = (_unsync_warning(sol),) if sol.unsynchronised else ()
+    warnings = (*refits, *unsync, *calibration_warnings(calib, regions, bool(held)))
     order = {p.name: i for i, p in enumerate(detections)}
     rejected = sorted(rejected, key=lambda r: order.get(r.name, 0))
     calib = calib.with_updates(warnings=warnings,
@@ -505,6 +593,24 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
         relative_rotation_deg=calib.relative_rotation_deg, method="bouguet",
         rms_stereo_fixed_intrinsics=sol.rms_stereo_fixed, warnings=warnings)
     return CalibrationResult(calib, report)
+
+
+def _unsync_warning(sol: _Solve) -> CalibrationWarning:
+    """What a calibration from pairs taken at different moments is, and what it costs."""
+    b = np.asarray(sol.pair_baselines_mm, np.float64)
+    spread = float(np.std(b, ddof=1)) if b.size > 1 else float("nan")
+    sure = Z95 * spread / np.sqrt(b.size) if b.size > 1 else float("nan")
+    return CalibrationWarning(
+        "unsynchronised",
+        f"The board moved between the left and right pictures of most pairs (carried from one "
+        f"camera to the other it lands a median {float(np.median(sol.transfer_px)):.2f} px off, "
+        f"while each camera fits its own pictures within "
+        f"{float(np.median(sol.own_px)):.2f} px): the cameras do not take their pictures at the "
+        f"same moment. Each camera's lens was calibrated on its own pictures, and the rig's pose "
+        f"is the one the pairs agree on; the pairs' baselines spread by {spread:.1f} mm, so the "
+        f"baseline is known to about +-{sure:.1f} mm. Hold the board still for a moment at each "
+        "pose (or capture pairs where it rests), or use cameras that take their pictures "
+        "together.", "capture")
 
 
 # ---- Hartley --------------------------------------------------------------------------------

@@ -32,6 +32,7 @@ from stereo_gui.core.matching import (
     unseen_mask,
 )
 from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.core.uncertainty import Z95
 
 # SGBM reports disparity in steps of 1/16 px: no estimate is better than that without refinement
 QUANTUM_PX = 1.0 / DISP_SCALE
@@ -67,7 +68,6 @@ class Reason(StrEnum):
             return None
 
 AMBIGUOUS_SHARE = 0.25  # a reading whose 95 % bound exceeds this share of its distance
-Z95 = 1.959964  # two-sided 95 % quantile of the normal distribution
 # the parts of a reading's disparity uncertainty (1 sigma, px) that its refinement's own standard
 # error does not see, measured on the simulated rig on walls and chessboards the tests and the
 # benchmark do not use: a floor (interpolation in rectification and resampling), a share

@@ -45,6 +45,7 @@ from stereo_gui.core.lens import (
 )
 
 SIDES = ("left", "right")
+Z95 = 1.959964  # two-sided 95 % quantile of the normal distribution
 MAX_DIST_COUNT = 14  # the most distortion coefficients a camera of OpenCV has
 INTRINSICS = ("fx", "fy", "cx", "cy")
 # a parameter is poorly determined when its 1-sigma uncertainty exceeds these

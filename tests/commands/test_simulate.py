@@ -125,3 +125,16 @@ def test_full_disk_leaves_no_partial_file(tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err
     assert "cannot write" in err and "No space left" in err and len(err.strip().splitlines()) == 1
     assert list((tmp_path / "w").iterdir()) == []
+
+
+def test_simulate_time_offset_says_the_board_moved_and_is_bounded(tmp_path, capsys):
+    out = tmp_path / "late"
+    assert main(["simulate", str(out), "--pairs", "1", "--time-offset", "0.05"]) == 0
+    assert "the right camera 50 ms late, the board moving" in capsys.readouterr().out
+    assert json.loads((out / "truth.json").read_text())["time_offset_s"] == 0.05
+    with pytest.raises(SystemExit) as ended:
+        main(["simulate", str(tmp_path / "x"), "--time-offset", "0.6"])
+    assert ended.value.code == 2
+    assert "--time-offset: a number from 0 to 0.5 s, not 0.6" in capsys.readouterr().err
+    assert main(["simulate", str(tmp_path / "y"), "--click-scenes", "--time-offset", "0.05"]) == 2
+    assert "--time-offset does not go with --click-scenes" in capsys.readouterr().err

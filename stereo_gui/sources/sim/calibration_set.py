@@ -15,6 +15,10 @@ from stereo_gui.sources.sim.rig import SimRig
 from stereo_gui.sources.sim.scene import Scene
 
 SCENE_WALL_DISTANCES_MM = (500.0, 1000.0, 1500.0, 2000.0, 3000.0)
+# a board held by hand while the pair is grabbed: its speed along and about each axis (standard
+# deviation; a typical hand drifts about 100 mm/s and 10 deg/s, a few pairs much faster)
+HAND_SPEED_MM_S = 100.0 / np.sqrt(3.0)
+HAND_SPIN_RAD_S = np.radians(10.0) / np.sqrt(3.0)
 # scene pairs go into a subfolder so that calibrating OUT_DIR does not take them for board pairs
 SCENE_FOLDER = "scenes"
 
@@ -50,6 +54,8 @@ def write_calibration_set(out_dir, n_pairs: int = 20, seed: int = 0, scene: bool
     rig = SimRig(config, seed=seed)
     poses = rig.board_poses(n_pairs)
     rng = np.random.default_rng(seed * 104729 + 5)
+    offset = float(rig.config.time_offset_s)
+    hand = np.random.default_rng(seed * 104729 + 7)  # its own stream: the poses stay the seed's
     scenes = ([Scene.wall(d) for d in SCENE_WALL_DISTANCES_MM] + [Scene.demo()]) if scene else []
     total = len(poses) + len(scenes)
     made_folder = scene and not (out / SCENE_FOLDER).exists()
@@ -65,8 +71,17 @@ def write_calibration_set(out_dir, n_pairs: int = 20, seed: int = 0, scene: bool
         pairs = []
         for n, pose in enumerate(poses, start=1):
             lname, rname = f"chessboard-L{n}.png", f"chessboard-R{n}.png"
-            yield from pair_files(lname, rname, *rig.render_board_pair(pose, rng))
-            pairs.append({"n": n, "left": lname, "right": rname, **pose.to_json()})
+            entry = {"n": n, "left": lname, "right": rname, **pose.to_json()}
+            pose_right = pose
+            if offset:
+                # two webcams that are not synchronised: the right one grabs `offset` later,
+                # and the board, held by hand, has moved by then
+                pose_right = pose.moved(hand.normal(0.0, HAND_SPEED_MM_S, 3),
+                                        hand.normal(0.0, HAND_SPIN_RAD_S, 3), offset)
+                entry["right_camera_board"] = pose_right.to_json()
+            yield from pair_files(lname, rname,
+                                  *rig.render_board_pair(pose, rng, pose_right=pose_right))
+            pairs.append(entry)
             if progress:
                 progress(n, total)
         scene_entries = []
@@ -84,7 +99,7 @@ def write_calibration_set(out_dir, n_pairs: int = 20, seed: int = 0, scene: bool
         data = rig.truth.to_json()
         data.update({"seed": int(seed), "generator": "stereo_gui.sources.sim",
                      "noise_sigma": rig.config.noise_sigma, "gain_right": rig.config.gain_right,
-                     "pairs": pairs})
+                     "time_offset_s": offset, "pairs": pairs})
         if scene:
             data["scenes"] = scene_entries
         yield json_item(out / "truth.json", data)

@@ -644,11 +644,16 @@ class SimRig:
         rng = rng if rng is not None else np.random.default_rng()
         return self._render_camera(0, pose, scene, rng), self._render_camera(1, pose, scene, rng)
 
-    def render_board_pair(self, pose: BoardPose, rng=None, scene: Scene | None = None
-                          ) -> tuple[np.ndarray, np.ndarray]:
+    def render_board_pair(self, pose: BoardPose, rng=None, scene: Scene | None = None,
+                          pose_right: BoardPose | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Left and right BGR uint8 (h, w, 3) images of the board at `pose` (optionally in front
-        of a scene)."""
-        return self._render(pose, scene, rng)
+        of a scene); the right camera sees it at `pose_right` where that is given (a board that
+        moved between two unsynchronised grabs)."""
+        if pose_right is None:
+            return self._render(pose, scene, rng)
+        rng = rng if rng is not None else np.random.default_rng()
+        return (self._render_camera(0, pose, scene, rng),
+                self._render_camera(1, pose_right, scene, rng))
 
     def calibration_set(self, n_pairs: int, seed: int | None = None
                         ) -> list[tuple[np.ndarray, np.ndarray]]:

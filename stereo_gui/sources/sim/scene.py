@@ -35,6 +35,14 @@ class BoardPose:
     def to_json(self) -> dict:
         return {"R_left_board": self.R.tolist(), "t_left_board_mm": self.t.tolist()}
 
+    def moved(self, velocity_mm_s: np.ndarray, spin_rad_s: np.ndarray, seconds: float
+              ) -> BoardPose:
+        """The pose `seconds` later for a board moving at `velocity_mm_s` (3,) and turning at
+        `spin_rad_s` (3,, an axis times an angular speed, left camera frame) about its first
+        corner."""
+        turn = cv2.Rodrigues(np.asarray(spin_rad_s, np.float64).reshape(3, 1) * seconds)[0]
+        return BoardPose(turn @ self.R, self.t + np.asarray(velocity_mm_s, np.float64) * seconds)
+
 
 @dataclass(frozen=True, eq=False)
 class SceneObject:
