@@ -38,7 +38,7 @@ from stereo_gui.qt.context import TRUE_CALIBRATION_NOTE, AppContext
 from stereo_gui.qt.source_capabilities import simulated_rig
 from stereo_gui.qt.tabs.live_cloud import LiveCloud
 from stereo_gui.qt.tabs.live_exports import EXPORTS, LiveExports
-from stereo_gui.qt.tabs.live_readings import HOVER_HINT, LiveReadings
+from stereo_gui.qt.tabs.live_readings import HOVER_HINT, MEASURABLE, LiveReadings, ReadingScreen
 from stereo_gui.qt.tabs.live_region import LiveRegion
 from stereo_gui.qt.tabs.live_stream import LiveStream
 from stereo_gui.qt.tabs.live_views import COLOR_VIEWS, VIEWS, ViewGrid
@@ -104,9 +104,6 @@ class LiveTab(QWidget):
         self._active = False
         self._processor: LiveProcessor | None = None
         self._output: LiveOutput | None = None
-        self.readings = LiveReadings(ctx, self)  # hover readout, double-clicks and the ruler
-        self.readings.measured.connect(self.measured)
-        self.readings.hoverRead.connect(self.hoverRead)
         self._scale_note = ""
         self.shown_frame: StereoFrame | None = None  # the raw frame of the result shown
         self.frames_shown = 0
@@ -126,6 +123,21 @@ class LiveTab(QWidget):
         # views
         self.views = ViewGrid(ctx.settings.visible_views)
         self.panels, self.view_checks = self.views.panels, self.views.checks
+        self.readout = QLabel(HOVER_HINT)
+        self.readout.setTextFormat(Qt.TextFormat.PlainText)
+        self.readout.setStyleSheet("font-family: monospace; padding: 2px 4px;")
+        # a long reading must not make the window wider than a laptop screen
+        self.readout.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
+        self.ruler_button = QPushButton("Ruler")
+        self.ruler_button.setCheckable(True)
+        self.ruler_button.setToolTip("Double-click two points to measure the 3D distance between them")
+        # hover readout, double-clicks and the ruler
+        self.readings = LiveReadings(ctx, ReadingScreen(
+            output=lambda: self._output, frame=lambda: self.shown_frame, readout=self.readout,
+            markers={k: self.panels[k] for k in MEASURABLE}, ruler_on=self.ruler_button.isChecked),
+            self)
+        self.readings.measured.connect(self.measured)
+        self.readings.hoverRead.connect(self.hoverRead)
         for panel in self.panels.values():
             panel.hovered.connect(self.readings.hovered)
             panel.doubleClicked.connect(self.readings.double_clicked)
@@ -138,9 +150,6 @@ class LiveTab(QWidget):
         self.snapshot_button.setToolTip("Save the views shown as PNG files")
         self.exports = LiveExports(ctx, self, lambda: self._output, self.visible_views)
         self.snapshot_button.clicked.connect(self.exports.snapshot_clicked)
-        self.ruler_button = QPushButton("Ruler")
-        self.ruler_button.setCheckable(True)
-        self.ruler_button.setToolTip("Double-click two points to measure the 3D distance between them")
         self.ruler_button.toggled.connect(self.readings.ruler_toggled)
         self.clear_button = QPushButton("Clear")
         self.clear_button.setToolTip("Remove all distance markers (they are not kept when the "
@@ -191,11 +200,6 @@ class LiveTab(QWidget):
         self.playback = PlaybackBar(ctx)
         self.playback.used.connect(lambda: self.set_paused(False))
 
-        self.readout = QLabel(HOVER_HINT)
-        self.readout.setTextFormat(Qt.TextFormat.PlainText)
-        self.readout.setStyleSheet("font-family: monospace; padding: 2px 4px;")
-        # a long reading must not make the window wider than a laptop screen
-        self.readout.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
         self.legend = QLabel(LEGEND)
         self._caption = ""  # the depth colours' caption the legend shows
         self.legend.setStyleSheet("padding: 0px 4px;")

@@ -14,9 +14,12 @@ import datetime as _dt
 import logging
 import math
 import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from PySide6.QtCore import QObject, Signal
+from PySide6.QtWidgets import QLabel
 
 from stereo_gui.core.measure import Reason
 from stereo_gui.files.measurement_record import RULER_METHOD
@@ -31,7 +34,10 @@ from stereo_gui.pipeline.readout import (
 from stereo_gui.qt.widgets.image_view import marker_color
 
 if TYPE_CHECKING:
+    from stereo_gui.pipeline.live import LiveOutput
     from stereo_gui.qt.context import AppContext
+    from stereo_gui.qt.widgets.image_view import ImagePanel
+    from stereo_gui.sources.base import StereoFrame
 
 log = logging.getLogger(__name__)
 
@@ -60,18 +66,30 @@ def short_reason(reason: Reason | str | None) -> str:
     return reason if len(reason) <= 16 else reason[:15] + "…"
 
 
+@dataclass(frozen=True)
+class ReadingScreen:
+    """What the readings read from and draw on, and nothing more of the tab that shows them."""
+
+    output: Callable[[], LiveOutput | None]  # the processed frame shown (None: none yet)
+    frame: Callable[[], StereoFrame | None]  # the raw frame of that output
+    readout: QLabel  # the line under the views that says the pointer's reading
+    markers: Mapping[str, ImagePanel]  # the views a measurement's marker goes on
+    ruler_on: Callable[[], bool]  # a double-click is a ruler's point
+
+
 class LiveReadings(QObject):
-    """The readings of one LiveTab (`tab`: its panels, readout line, ruler button and the output
-    shown); `ctx` is the AppContext, whose job thread runs every reading."""
+    """The readings of one Live tab, read from and drawn on its `screen`; `ctx` is the
+    AppContext, whose job thread runs every reading."""
 
     measured = Signal(object)  # Measurement, after its marker was drawn
     logged = Signal(object)  # MeasurementRecord of each reading put into the log (and a ruler's)
     hoverRead = Signal(object)  # PointerReading, after the readout line shows it
 
-    def __init__(self, ctx: AppContext, tab) -> None:
-        super().__init__(tab)
+    def __init__(self, ctx: AppContext, screen: ReadingScreen,
+                 parent: QObject | None = None) -> None:
+        super().__init__(parent)
         self.ctx = ctx
-        self._tab = tab
+        self._screen = screen
         self._hover: tuple[str, float, float] | None = None
         self._hover_job: int | None = None  # id of the hover reading running on the job thread
         self._hover_next: tuple | None = None  # the newest pointer request waiting for it
@@ -99,16 +117,16 @@ class LiveReadings(QObject):
         if self._hover is None:
             self._hover_next = None
             self._hover_last = None  # back on the same pixel later: read it again
-            self._tab.readout.setText(HOVER_HINT)
+            self._screen.readout.setText(HOVER_HINT)
         else:
             self._request_reading(key, x, y)
 
     def _request_reading(self, key: str, x: float, y: float) -> None:
         """Ask for the reading under the pointer on the frame shown: at once when no hover
         reading runs, else as the one waiting (replacing an older wish: newest wins)."""
-        out = self._tab._output
+        out = self._screen.output()
         if out is None:
-            self._tab.readout.setText(f"x {round(x):4d}  y {round(y):4d}   no frame yet")
+            self._screen.readout.setText(f"x {round(x):4d}  y {round(y):4d}   no frame yet")
             return
         fit = self.ctx.active_fit
         ask = (out, key if key not in MEASURABLE else "left", round(x), round(y), id(fit))
@@ -116,7 +134,7 @@ class LiveReadings(QObject):
             if self._hover_job is not None:
                 self._hover_next = None  # the reading running is of this very pixel
             return  # the same pixel of the same frame: the line says (or will say) it
-        frame = self._tab.shown_frame
+        frame = self._screen.frame()
         request = (out, key, x, y, fit, int(self.ctx.settings.patch_size),
                    frame.truth if frame is not None else None)
         if self._hover_job is not None:
@@ -137,7 +155,7 @@ class LiveReadings(QObject):
         self._hover_job = None
         if self._hover is not None:
             self.last_reading = reading
-            self._tab.readout.setText(readout_line(reading))
+            self._screen.readout.setText(readout_line(reading))
             self.hoverRead.emit(reading)
         request, self._hover_next = self._hover_next, None
         if request is not None and self._hover is not None:
@@ -156,7 +174,7 @@ class LiveReadings(QObject):
 
     def measure_at(self, x: float, y: float, key: str = "depth") -> int | None:
         """Measure at rectified-left pixel (x, y) on the frame now shown; returns the job id."""
-        out = self._tab._output
+        out = self._screen.output()
         if out is None:
             self.ctx.report_error("No frame to measure on yet.")
             return None
@@ -167,7 +185,7 @@ class LiveReadings(QObject):
         result = out.result
         job = self.ctx.jobs.submit(
             lambda _control: measure_point(result, x, y, patch=patch, fit=fit)).id
-        self._pending[job] = (key, self._tab.ruler_button.isChecked())
+        self._pending[job] = (key, self._screen.ruler_on())
         return job
 
     def _job_finished(self, job_id: int, m) -> None:
@@ -207,8 +225,8 @@ class LiveReadings(QObject):
                 ruler_record = self._ruler_record(a, m, dist, bound)
                 status = (f"Ruler: A–B {format_distance(dist)} {format_error(bound)} "
                           f"(logged)")
-        for key in MEASURABLE:
-            self._tab.panels[key].add_marker(m.x, m.y, label, color, line_to, line_text)
+        for panel in self._screen.markers.values():
+            panel.add_marker(m.x, m.y, label, color, line_to, line_text)
         for record in (self._record(m), ruler_record):
             if record is not None:
                 self.ctx.add_measurement(record)
