@@ -4,9 +4,10 @@ The log is `ctx.measurement_log` (MeasurementRecord). Entering the true distance
 editable column) makes it a regression sample (disparity px, true distance mm); both models are
 fitted again at once: the report's cubic and Z = a / (d - d0). The plot shows samples, both
 curves and the residuals with R^2. The model chosen for live readings goes to
-`ctx.measurement_log.set_active_fit`. Exports (`measurement_exports`): the log and regression to .xlsx (in a
-worker) and CSV; Open log... brings back a log exported before (CSV or xlsx). Beside each fit,
-triangulation's own RMS against the same true distances shows whether the fit helps.
+`ctx.measurement_log.set_active_fit`. Exports (`measurement_exports.MeasurementExports`, owned
+by the tab): the log and regression to .xlsx (in a worker) and CSV; Open log... brings back a
+log exported before (CSV or xlsx). Beside each fit, triangulation's own RMS against the same true
+distances shows whether the fit helps.
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ from PySide6.QtWidgets import (
 
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.util import how_many
-from stereo_gui.qt.tabs.measurement_exports import MeasurementExports
+from stereo_gui.qt.tabs.measurement_exports import ExportFolder, MeasurementExports
 from stereo_gui.qt.widgets import folder_dialog
 from stereo_gui.qt.widgets.helpers import pane, wrapping_label
 from stereo_gui.qt.widgets.measurement_table import (
@@ -46,7 +47,6 @@ from stereo_gui.qt.widgets.measurement_table import (
     triangulation_errors_mm,
 )
 from stereo_gui.qt.widgets.regression_plot import MODELS, RegressionPlot
-from stereo_gui.qt.workers.job_worker import JobWorker
 
 if TYPE_CHECKING:
     from stereo_gui.qt.context import AppContext
@@ -59,7 +59,7 @@ _MODEL_TEXT = {"triangulation": "Triangulation (calibration)",
                "inverse": "Inverse fit Z = a / (d − d0)"}
 
 
-class MeasurementsTab(MeasurementExports, QWidget):
+class MeasurementsTab(QWidget):
     """The measurement log, the regression and the exports (see module docstring)."""
 
     fitsChanged = Signal()
@@ -71,9 +71,7 @@ class MeasurementsTab(MeasurementExports, QWidget):
         self.fits: dict[str, object] = {}  # model name -> FitResult
         self.fit_errors: dict[str, str] = {}
         self._loaded_fit = None  # a fit loaded from a file (not refitted from the log)
-        self._export: JobWorker | None = None  # the xlsx export running (MeasurementExports)
-        self._export_path: Path | None = None
-        self._export_progress = ""  # "12,000 of 20,000 rows"
+        self._folder = ExportFolder(ctx.settings_model)  # where the file dialogs start
         self._build()
         ctx.measurement_log.changed.connect(self.refit)
         ctx.measurement_log.changed.connect(self._update_undo)
@@ -121,9 +119,14 @@ class MeasurementsTab(MeasurementExports, QWidget):
                                     "Stereo GUI)")
         self.open_button.clicked.connect(self._choose_open_log)
         self.xlsx_button = QPushButton("Export .xlsx…")
-        self.xlsx_button.clicked.connect(self._choose_xlsx)
+        self.exports = MeasurementExports(
+            self.ctx.measurement_log, self.ctx.calibration_model,
+            lambda: [self.fits[m] for m in MODELS if m in self.fits], self._folder, self.ctx,
+            self.ctx.workers, self.xlsx_button, self)
+        self.exports.finished.connect(self.exportFinished)
+        self.xlsx_button.clicked.connect(self.exports.choose_xlsx)
         self.csv_button = QPushButton("Export CSV…")
-        self.csv_button.clicked.connect(self._choose_csv)
+        self.csv_button.clicked.connect(self.exports.choose_csv)
         for b in (self.remove_button, self.clear_button, self.undo_button):
             row.addWidget(b)
         row.addStretch(1)
@@ -314,7 +317,7 @@ class MeasurementsTab(MeasurementExports, QWidget):
     # ---- a log exported before -----------------------------------------------------------------
     def _choose_open_log(self) -> None:
         path, _ = QFileDialog.getOpenFileName(
-            self, "Open a measurement log", self._start_dir(),
+            self, "Open a measurement log", self._folder.start(),
             "Measurement logs (*.csv *.xlsx);;All files (*)")
         if not path:
             return
@@ -349,7 +352,7 @@ class MeasurementsTab(MeasurementExports, QWidget):
         if replace and self.ctx.measurement_log.records:
             self.ctx.measurement_log.clear()  # undoable, like Clear log
         self.ctx.measurement_log.add_many(records)
-        self._remember_dir(path)
+        self._folder.remember(path)
         self.ctx.show_status(f"Opened {how_many(len(records), 'reading')} from {path}")
         return True
 
@@ -359,12 +362,6 @@ class MeasurementsTab(MeasurementExports, QWidget):
             self.ctx.measurement_log.remove(r)
 
     # ---- fits as files -------------------------------------------------------------------------
-    def _start_dir(self) -> str:
-        return self.ctx.settings.last_export_dir or str(Path.home())
-
-    def _remember_dir(self, path) -> None:
-        self.ctx.settings_model.update(last_export_dir=str(Path(path).parent))
-
     def _choose_save_fit(self) -> None:
         key = self.model_combo.currentData()
         fit = self.fits.get(key) if key in MODELS else (
@@ -372,7 +369,7 @@ class MeasurementsTab(MeasurementExports, QWidget):
         if fit is None:
             return
         path, _ = folder_dialog.save_file_name(self, f"Save the {fit.model} fit",
-                                              str(Path(self._start_dir())
+                                              str(Path(self._folder.start())
                                                   / f"{fit.model}-fit.json"),
                                               "Fit (*.json)")
         if path:
@@ -386,12 +383,12 @@ class MeasurementsTab(MeasurementExports, QWidget):
         except (StereoGuiError, OSError) as exc:
             self.ctx.report_error(f"could not save the fit: {exc}")
             return False
-        self._remember_dir(path)
+        self._folder.remember(path)
         self.ctx.show_status(f"Saved the {fit.model} fit to {path}")
         return True
 
     def _choose_load_fit(self) -> None:
-        path, _ = QFileDialog.getOpenFileName(self, "Load a fit", self._start_dir(),
+        path, _ = QFileDialog.getOpenFileName(self, "Load a fit", self._folder.start(),
                                               "Fit (*.json);;All files (*)")
         if path:
             self.load_fit(path)
@@ -411,7 +408,7 @@ class MeasurementsTab(MeasurementExports, QWidget):
         self._update_model_choices()
         self.use_model(fit.model)
         self.ctx.measurement_log.set_active_fit(fit)
-        self._remember_dir(path)
+        self._folder.remember(path)
         self.ctx.show_status(f"Loaded the {fit.model} fit from {path}; live readings use it")
         return True
 
@@ -430,6 +427,19 @@ class MeasurementsTab(MeasurementExports, QWidget):
     def shutdown(self, timeout_ms: int = 2000) -> bool:
         """Put an edit still open into the log and stop a running export (joined)."""
         self.commit_edits()
-        if self._export is not None:
-            return self._export.stop(timeout_ms)
-        return True
+        return self.exports.stop(timeout_ms)
+
+    # ---- exports (see MeasurementExports) -------------------------------------------------------
+    def export_xlsx(self, path) -> bool:
+        """Write the log, the regression and the calibration to `path` in a worker."""
+        return self.exports.export_xlsx(path)
+
+    def export_csv(self, path) -> bool:
+        return self.exports.export_csv(path)
+
+    def unfinished_work(self) -> list[str]:
+        """What closing now would cut short: the xlsx export running, if any."""
+        return self.exports.unfinished_work()
+
+    def cancel_unfinished_work(self, timeout_ms: int = 2000) -> list[str]:
+        return self.exports.cancel_unfinished_work(timeout_ms)
