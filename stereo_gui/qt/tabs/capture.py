@@ -7,7 +7,8 @@ board the pair freezes for review: Save (S) writes both raw images to the sessio
 Cancel (C) goes live again. Automatic capture instead takes a pair by itself when the board is
 steady and its pose is new. Detection runs in the frame worker's thread (the processor made by
 `stereo_gui.pipeline.capture.make_capture_processor`); this widget only draws what it gets.
-Sessions and saved pairs: `capture_session.SessionPairs`.
+Sessions and saved pairs: `capture_session.SessionPairs`, a part the tab owns and hands what it
+uses.
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from stereo_gui.core.detect import (
     PairDetection,
 )
 from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.files.session import CaptureSession
 from stereo_gui.pipeline.capture import (
     STEADY_FRAMES,
     STEADY_PX,
@@ -43,19 +45,15 @@ from stereo_gui.pipeline.capture import (
     CaptureRules,
     make_capture_processor,
 )
+from stereo_gui.pipeline.images import display_rgb
 from stereo_gui.qt.source_capabilities import simulated_rig
 from stereo_gui.qt.tabs.capture_session import SessionPairs
 from stereo_gui.qt.tabs.capture_state import CAPTURE_MOVES, CaptureState
 from stereo_gui.qt.widgets.board_row import BoardRow
 from stereo_gui.qt.widgets.camera_controls import CameraControlsPanel
 from stereo_gui.qt.widgets.helpers import pane, wrapping_label
-from stereo_gui.qt.widgets.saved_pairs import (
-    SavedPairInfo,
-    SavedPairsPanel,
-    pair_thumbnail,
-)
+from stereo_gui.qt.widgets.saved_pairs import SavedPairsPanel
 from stereo_gui.qt.widgets.stereo_pair_view import StereoPairView
-from stereo_gui.qt.workers.job_worker import JobWorker
 from stereo_gui.sources.base import StereoFrame
 
 if TYPE_CHECKING:
@@ -66,7 +64,7 @@ log = logging.getLogger(__name__)
 
 
 # ---- the tab -------------------------------------------------------------------------------------
-class CaptureTab(SessionPairs, QWidget):
+class CaptureTab(QWidget):
     """Capture target pairs into a session folder, with review, auto-capture and coverage."""
 
     sessionChanged = Signal(object)  # the CaptureSession now open, or None
@@ -75,7 +73,6 @@ class CaptureTab(SessionPairs, QWidget):
     def __init__(self, ctx: AppContext, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.ctx = ctx
-        self.session = None  # files.session.CaptureSession
         self._state = CaptureState.LIVE
         self.frozen: CaptureOutput | None = None
         self.shown_pair: str | None = None  # the saved pair on screen (state SAVED)
@@ -87,8 +84,6 @@ class CaptureTab(SessionPairs, QWidget):
         self.frames_shown = 0  # live frames drawn (for the status and tests)
         self.shown_frame: StereoFrame | None = None  # the live frame drawn last
         self.rules = CaptureRules()  # when a live frame becomes a pair
-        self._saved: dict[str, SavedPairInfo] = {}
-        self._scan: JobWorker | None = None
         self._build()
         self._load_board_settings()
         ctx.frames.frameReady.connect(self._on_frame_ready)
@@ -111,8 +106,6 @@ class CaptureTab(SessionPairs, QWidget):
         bar = QHBoxLayout()
         self.new_button = QPushButton("New session…")
         self.open_button = QPushButton("Open session…")
-        self.new_button.clicked.connect(self._choose_new_session)
-        self.open_button.clicked.connect(self._choose_open_session)
         self.session_label = QLabel("No session: choose New session… before saving pairs")
         self.session_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
         bar.addWidget(self.new_button)
@@ -172,6 +165,13 @@ class CaptureTab(SessionPairs, QWidget):
         side.pairClicked.connect(self.show_saved_pair)
         side.delete_button.clicked.connect(self._delete_selected)
         self.saved_panel = side
+        self.pairs = SessionPairs(
+            self.ctx.settings_model, self.ctx, self.ctx.workers, side, lambda: self.board,
+            self.set_board, self._seen_size, self._source_name, self)
+        self.pairs.sessionChanged.connect(self._session_changed)
+        self.pairs.pairsChanged.connect(self._pairs_changed)
+        self.new_button.clicked.connect(self.pairs.choose_new)
+        self.open_button.clicked.connect(self.pairs.choose_open)
         self.coverage, self.pairs_label = side.coverage, side.pairs_label
         self.pair_list, self.delete_button = side.pair_list, side.delete_button
         split.addWidget(side)
@@ -218,11 +218,7 @@ class CaptureTab(SessionPairs, QWidget):
         self._show_board_on_sim(board)
         if self.state is CaptureState.LIVE:
             self._set_processing(True)
-        if self.session is not None and self.session.board != board:
-            try:  # the session records the target its pairs show
-                self.session.set_board(board)
-            except (StereoGuiError, OSError) as exc:
-                self.ctx.report_error(f"could not record the board in the session: {exc}")
+        self.pairs.record_board(board)
 
     def _show_board_on_sim(self, board: BoardSpec) -> None:
         """On the simulated rig, show the target chosen (it renders every target)."""
@@ -263,17 +259,7 @@ class CaptureTab(SessionPairs, QWidget):
 
     def _reload_session(self) -> None:
         """Read the session again (the Calibration tab may have excluded pairs meanwhile)."""
-        if self.session is None or self._scan is not None:
-            return
-        from stereo_gui.files.session import CaptureSession
-
-        try:
-            self.session = CaptureSession.open(self.session.folder)
-        except StereoGuiError as exc:
-            self.ctx.report_error(str(exc))
-            return
-        self._refill_list()
-        if self.shown_pair is not None:
+        if self.pairs.reload() and self.shown_pair is not None:
             self.saved_panel.select(self.shown_pair)
 
     def _source_changed(self, name: str) -> None:
@@ -314,9 +300,9 @@ class CaptureTab(SessionPairs, QWidget):
         self.view.show_detection(out.detection)
         self.frames_shown += 1
         self.shown_frame = frame
-        step = self.rules.step(out, self.auto_check.isChecked(), self._saved_poses,
-                               self.session is not None, board=self.board, fills=self._fills,
-                               empty_regions=lambda: self._readiness().required_empty)
+        step = self.rules.step(out, self.auto_check.isChecked(), self.pairs.saved_poses,
+                               self.session is not None, board=self.board, fills=self.pairs.fills,
+                               empty_regions=lambda: self.pairs.readiness().required_empty)
         if step.action is CaptureAction.FREEZE:
             self._freeze(out, frame)
             return
@@ -340,7 +326,7 @@ class CaptureTab(SessionPairs, QWidget):
         if self._left_while_frozen:  # not the cameras' view now: it waited while away
             text = (f"This pair was frozen at {self._frozen_at}, before you left the Capture tab "
                     "(the cameras have moved on). Save it (S), or Cancel (C) to go live?")
-        fills = self._fills(self.frozen.detection) if self.frozen is not None else {}
+        fills = self.pairs.fills(self.frozen.detection) if self.frozen is not None else {}
         if any(fills.values()):
             text += f"  It reaches {regions_in_words(fills)} (not yet covered)."
         if self.session is None:
@@ -352,7 +338,7 @@ class CaptureTab(SessionPairs, QWidget):
         if (self.state is not CaptureState.REVIEW or self._frozen_frame is None
                 or self.frozen is None):
             return None
-        if self.session is None and not self._choose_new_session():
+        if self.session is None and not self.pairs.choose_new():
             return None
         name = self._save_pair(self._frozen_frame, self.frozen.detection)
         self.go_live()
@@ -376,20 +362,100 @@ class CaptureTab(SessionPairs, QWidget):
         self._update_controls()
 
     def _save_pair(self, frame: StereoFrame, det: PairDetection) -> str | None:
-        try:
-            pair = self.session.add_pair(frame.left, frame.right)
-        except (StereoGuiError, OSError) as exc:
-            self.ctx.report_error(f"could not save the pair: {exc}")
-            return None
-        name = pair.name
-        info = SavedPairInfo(name, det, pair_thumbnail(frame.left, frame.right))
-        self._saved[name] = info
-        self._add_list_item(info)
-        self.saved_panel.show_newest()  # the pair just taken is in view, however long the list
-        self._update_coverage()
-        self.ctx.show_status(f"Saved pair {name} to {self.session.folder}")
-        self.pairSaved.emit(name)
+        name = self.pairs.add_pair(frame.left, frame.right, det)
+        if name is not None:
+            self.pairSaved.emit(name)
         return name
+
+    # ---- the session and its saved pairs (see SessionPairs) ------------------------------------
+    @property
+    def session(self) -> CaptureSession | None:
+        """The capture session open (None before one is chosen)."""
+        return self.pairs.session
+
+    def new_session(self, folder: str | Path) -> None:
+        """Start a session in `folder` with the current board."""
+        self.pairs.new_session(folder)
+
+    def open_session(self, folder: str | Path) -> None:
+        """Open an existing session (or a folder of pairs) to continue, review or delete."""
+        self.pairs.open_session(folder)
+
+    def scanning(self) -> bool:
+        """The session's saved pairs are still being read."""
+        return self.pairs.scanning()
+
+    def saved_names(self) -> list[str]:
+        return self.pairs.saved_names()
+
+    def _seen_size(self) -> tuple[int, int] | None:
+        out = self._last_output
+        return out.detection.image_size if out is not None else None
+
+    def _source_name(self) -> str:
+        src = self.ctx.frames.source()
+        return src.name if src is not None else ""
+
+    def _session_changed(self, session: CaptureSession) -> None:
+        self.session_label.setText(f"Session: {session.folder}")
+        self.shown_pair = None
+        if self.state is CaptureState.REVIEW:  # the prompt need not warn that Save asks for one
+            self._show_review_prompt()
+        self.sessionChanged.emit(session)
+        self._update_controls()
+
+    def _pairs_changed(self) -> None:
+        self._update_controls()  # Delete pair needs pairs in the list
+        if self.state is CaptureState.REVIEW:  # what a frozen pair adds is known now
+            self._show_review_prompt()
+
+    def show_saved_pair(self, name: str) -> None:
+        """Show a saved pair (with its corners) instead of the live view; it is the pair
+        selected in the list (and the one Delete pair deletes)."""
+        if self.session is None:
+            return
+        try:
+            left, right, det = self.pairs.load_pair(name)
+        except StereoGuiError as exc:
+            self.ctx.report_error(str(exc))
+            if self.shown_pair is not None:  # the list goes back to what is on screen
+                self.saved_panel.select(self.shown_pair)
+            else:
+                self.saved_panel.clear_selection()
+            return
+        self._move(CaptureState.SAVED)
+        self.shown_pair = name
+        self._set_processing(False)
+        self.frozen = None
+        self._frozen_frame = None
+        self.view.show_pair(display_rgb(left), display_rgb(right))
+        if det is not None:
+            self.view.show_detection(det)
+        else:
+            for i, side in enumerate(("Left", "Right")):
+                self.view.show_corners(i, None, False)
+                self.view.set_title(i, side)
+        for i, side in enumerate(("Left", "Right")):
+            self.view.titles[i].setText(f"{side} — saved pair {name}: "
+                                        + self.view.titles[i].text.split(": ", 1)[-1])
+        self.prompt.setText(f"Reviewing saved pair {name}. Delete it, or go back to live.")
+        self.saved_panel.select(name)
+        self._update_controls()
+
+    def _delete_selected(self) -> None:
+        """Delete pair: the pair on screen (asks first)."""
+        name = self.shown_pair if self.state is CaptureState.SAVED else None
+        if name is not None and self.pairs.ask_delete(name):
+            self.delete_pair(name)
+
+    def delete_pair(self, name: str) -> None:
+        """Delete a saved pair's files from the session."""
+        if not self.pairs.delete_pair(name):
+            return
+        if self.state is CaptureState.SAVED and self.shown_pair == name:
+            self.go_live()
+        elif self.shown_pair is not None:
+            self.saved_panel.select(self.shown_pair)
 
     # ---- controls --------------------------------------------------------------------------------
     def _update_controls(self) -> None:
@@ -414,8 +480,6 @@ class CaptureTab(SessionPairs, QWidget):
 
     def shutdown(self, timeout_ms: int = 2000) -> bool:
         """Cancel a session scan; the context joins its thread (it is registered there)."""
-        if self._scan is not None:
-            self._scan.cancel()
-            self._scan = None
+        self.pairs.cancel_scan()
         return True
 

@@ -1,42 +1,85 @@
 """The Capture tab's session and saved pairs: New session…, Open session…, the saved pairs read
-in the background for coverage, a saved pair shown with its corners, and Delete pair.
+in the background for coverage, a saved pair's images, and Delete pair.
 
-`SessionPairs` is a part of `CaptureTab` (a mixin: it uses the tab's widgets, board and context).
+`SessionPairs` is owned by `capture.CaptureTab` and is handed what it uses: the settings, where
+to report, the worker registry, the saved-pairs panel it fills, the board in use (and how to
+adopt the board a session records), the size of the frames seen and the source's name. It owns
+the session and what is known of its pairs; the tab owns what is on screen (its state, the view,
+the prompt) and follows `sessionChanged` and `pairsChanged`.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
-from PySide6.QtWidgets import QFileDialog, QMessageBox
+import numpy as np
+from PySide6.QtCore import QObject, Signal
+from PySide6.QtWidgets import QFileDialog, QMessageBox, QWidget
 
-from stereo_gui.core.coverage import cell_counts, readiness, regions_filled
+from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.coverage import Readiness, cell_counts, readiness, regions_filled
 from stereo_gui.core.detect import PairDetection, PoseDescriptor, coverage, pair_pose
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.files.pairs import load_image
+from stereo_gui.files.session import MANIFEST, CaptureSession
 from stereo_gui.pipeline.capture import session_scan_job
-from stereo_gui.pipeline.images import display_rgb
-from stereo_gui.qt.tabs.capture_state import CaptureState
+from stereo_gui.qt.models.calibration import Reporter
+from stereo_gui.qt.models.settings import SettingsModel
+from stereo_gui.qt.models.workers import WorkerRegistry
 from stereo_gui.qt.widgets import folder_dialog
-from stereo_gui.qt.widgets.saved_pairs import THUMB_SIZE, SavedPairInfo, pair_thumbnail
+from stereo_gui.qt.widgets.saved_pairs import (
+    THUMB_SIZE,
+    SavedPairInfo,
+    SavedPairsPanel,
+    pair_thumbnail,
+)
 from stereo_gui.qt.workers.job_worker import JobWorker
 
 
-class SessionPairs:
-    """Sessions and saved pairs of the Capture tab (see the module docstring)."""
+class SessionPairs(QObject):
+    """The capture session open and its saved pairs (see the module docstring)."""
 
-    # ---- sessions --------------------------------------------------------------------------------
-    def _choose_new_session(self) -> bool:
-        last = self.ctx.settings.last_session
+    sessionChanged = Signal(object)  # the CaptureSession now open
+    pairsChanged = Signal()  # the list of saved pairs was filled again (read, scanned, deleted)
+
+    def __init__(self, settings: SettingsModel, report: Reporter, workers: WorkerRegistry,
+                 panel: SavedPairsPanel, board: Callable[[], BoardSpec],
+                 adopt_board: Callable[[BoardSpec], None],
+                 seen_size: Callable[[], tuple[int, int] | None],
+                 source_name: Callable[[], str], dialogs: QWidget) -> None:
+        super().__init__(dialogs)
+        self._settings = settings
+        self._report = report
+        self._workers = workers
+        self._panel = panel
+        self._board = board  # the board in use now
+        self._adopt_board = adopt_board  # use the board a session opened records
+        self._seen_size = seen_size  # (width, height) px of the last live frame, None before
+        self._source_name = source_name
+        self._dialogs = dialogs  # the parent of the dialogs
+        self._session: CaptureSession | None = None
+        self._saved: dict[str, SavedPairInfo] = {}
+        self._scan: JobWorker | None = None
+
+    @property
+    def session(self) -> CaptureSession | None:
+        return self._session
+
+    # ---- choosing a session ----------------------------------------------------------------------
+    def choose_new(self) -> bool:
+        """New session…: ask for a folder and start a session there; False if none was."""
+        last = self._settings.current.last_session
         start = str(Path(last).parent) if last else str(Path.home())
         # a new folder's name may be typed: it is created after asking
-        folder = folder_dialog.choose_folder(self, "Folder for the new capture session", start)
+        folder = folder_dialog.choose_folder(self._dialogs, "Folder for the new capture session",
+                                             start)
         if not folder or not self._confirm_session_folder(Path(folder)):
             return False
         try:
             self.new_session(folder)
         except StereoGuiError as exc:
-            self.ctx.report_error(str(exc))
+            self._report.report_error(str(exc))
             return False
         return True
 
@@ -44,17 +87,12 @@ class SessionPairs:
         """New session…: a folder that already holds files but no session is written into only
         when the technician says so (a manifest must never appear in a folder without a word);
         a folder that holds a session is offered for opening instead."""
-        from stereo_gui.files.session import MANIFEST, CaptureSession
-
         if (folder / MANIFEST).exists():
             answer = QMessageBox.question(
-                self, "New session", f"{folder} already holds a capture session. Open it to "
-                "go on capturing into it?")
+                self._dialogs, "New session", f"{folder} already holds a capture session. Open "
+                "it to go on capturing into it?")
             if answer == QMessageBox.StandardButton.Yes:
-                try:
-                    self.open_session(folder)
-                except StereoGuiError as exc:
-                    self.ctx.report_error(str(exc))
+                self._open_reporting(folder)
             return False
         try:
             entries = [p for p in folder.iterdir() if not p.name.startswith(".")]
@@ -71,7 +109,7 @@ class SessionPairs:
         kept = (f", among them {pairs} image pair{'s' if pairs != 1 else ''} that the session "
                 "will list as saved pairs" if pairs else "")
         answer = QMessageBox.question(
-            self, "New session in a folder that is not empty",
+            self._dialogs, "New session in a folder that is not empty",
             f"{folder} is not empty: it holds {what}{kept}.\n\nStart the capture session "
             f"here anyway? Its manifest ({MANIFEST}) and the new pairs are written into this "
             "folder; nothing in it is changed or removed.",
@@ -79,81 +117,93 @@ class SessionPairs:
             QMessageBox.StandardButton.No)
         return answer == QMessageBox.StandardButton.Yes
 
-    def _choose_open_session(self) -> None:
-        start = self.ctx.settings.last_session or str(Path.home())
-        folder = QFileDialog.getExistingDirectory(self, "Open a capture session folder", start)
+    def choose_open(self) -> None:
+        """Open session…: ask for a session folder and open it."""
+        start = self._settings.current.last_session or str(Path.home())
+        folder = QFileDialog.getExistingDirectory(self._dialogs, "Open a capture session folder",
+                                                  start)
         if folder:
-            try:
-                self.open_session(folder)
-            except StereoGuiError as exc:
-                self.ctx.report_error(str(exc))
+            self._open_reporting(folder)
+
+    def _open_reporting(self, folder: str | Path) -> None:
+        try:
+            self.open_session(folder)
+        except StereoGuiError as exc:
+            self._report.report_error(str(exc))
 
     def _camera_names(self) -> tuple[str, str]:
-        src = self.ctx.frames.source()
-        name = src.name if src is not None else ""
+        name = self._source_name()
         return (f"{name} left", f"{name} right") if name else ("left", "right")
 
     def new_session(self, folder: str | Path) -> None:
         """Start a session in `folder` with the current board."""
-        from stereo_gui.files.session import CaptureSession
-
-        out = self._last_output
-        size = (out.detection.image_size if out is not None else
-                tuple(self.ctx.settings.resolution))
-        session = CaptureSession.create(folder, self.board, size, self._camera_names())
+        size = self._seen_size() or tuple(self._settings.current.resolution)
+        session = CaptureSession.create(folder, self._board(), size, self._camera_names())
         self._use_session(session)
 
     def open_session(self, folder: str | Path) -> None:
         """Open an existing session (or a folder of pairs) to continue, review or delete."""
-        from stereo_gui.files.session import CaptureSession
-
         session = CaptureSession.open(folder)
         self._use_session(session)
         if session.warnings:  # an unreadable session.json, pairs with missing images, ...
-            self.ctx.report_error("; ".join(session.warnings))
+            self._report.report_error("; ".join(session.warnings))
 
-    def _use_session(self, session) -> None:
-        if self._scan is not None:
+    def _use_session(self, session: CaptureSession) -> None:
+        if self._scan is not None:  # (of the session before)
             self._scan.stop()
             self._scan = None
-        self.session = session
+        self._session = session
         board = session.board
-        if board is not None and board != self.board:
-            self.set_board(board)
-        self.ctx.settings_model.update(last_session=str(session.folder))
-        self.session_label.setText(f"Session: {session.folder}")
-        if self.state is CaptureState.REVIEW:  # the prompt need not warn that Save asks for one
-            self._show_review_prompt()
+        if board is not None and board != self._board():
+            self._adopt_board(board)
+        self._settings.update(last_session=str(session.folder))
         self._saved.clear()
-        self.shown_pair = None
-        self.saved_panel.clear()
+        self._panel.clear()
         self._update_coverage()
         self.sessionChanged.emit(session)
         self._start_scan()
-        self._update_controls()
 
+    def reload(self) -> bool:
+        """Read the session again (the Calibration tab may have excluded pairs meanwhile);
+        False when there is none, it is still being scanned or it cannot be read (said)."""
+        if self._session is None or self._scan is not None:
+            return False
+        try:
+            self._session = CaptureSession.open(self._session.folder)
+        except StereoGuiError as exc:
+            self._report.report_error(str(exc))
+            return False
+        self._refill_list()
+        return True
+
+    def record_board(self, board: BoardSpec) -> None:
+        """The session records the target its pairs show (a failure is said)."""
+        if self._session is not None and self._session.board != board:
+            try:
+                self._session.set_board(board)
+            except (StereoGuiError, OSError) as exc:
+                self._report.report_error(f"could not record the board in the session: {exc}")
+
+    # ---- reading the saved pairs -----------------------------------------------------------------
     def _image_size(self) -> tuple[int, int]:
-        res = self.session.resolution if self.session is not None else None
+        res = self._session.resolution if self._session is not None else None
         if res:
             return (int(res[0]), int(res[1]))
-        if self._last_output is not None:
-            return self._last_output.detection.image_size
-        return (640, 480)
+        return self._seen_size() or (640, 480)
 
     def _start_scan(self) -> None:
         """Detect the board in the session's saved pairs (off the UI thread) for coverage."""
-        pairs = list(self.session.pairs)
+        pairs = list(self._session.pairs)
         if not pairs:
             return
-        board = self.board
-
-        job = session_scan_job(pairs, board, (THUMB_SIZE.width() // 2, THUMB_SIZE.height()))
-        self.pairs_label.setText(f"Saved pairs: reading {len(pairs)}…")
+        job = session_scan_job(pairs, self._board(),
+                               (THUMB_SIZE.width() // 2, THUMB_SIZE.height()))
+        self._panel.pairs_label.setText(f"Saved pairs: reading {len(pairs)}…")
         worker = JobWorker(job, "reading the session")
         worker.finished_ok.connect(self._scan_done)
-        worker.failed.connect(self.ctx.report_error)
-        worker.done.connect(lambda: self.ctx.workers.unregister(worker))
-        self.ctx.workers.register(worker)
+        worker.failed.connect(self._report.report_error)
+        worker.done.connect(lambda: self._workers.unregister(worker))
+        self._workers.register(worker)
         self._scan = worker
         worker.start()
 
@@ -162,49 +212,51 @@ class SessionPairs:
             return
         self._scan = None
         for name, det, small in results:
-            icon = pair_thumbnail(*small) if small is not None else None
-            info = SavedPairInfo(name, det, icon)
             if name in self._saved:
                 continue  # saved while the scan ran
-            self._saved[name] = info
+            icon = pair_thumbnail(*small) if small is not None else None
+            self._saved[name] = SavedPairInfo(name, det, icon)
         self._refill_list()
         self._update_coverage()
-        if self.state is CaptureState.REVIEW:  # what a frozen pair adds is known now
-            self._show_review_prompt()
 
     def scanning(self) -> bool:
         return self._scan is not None
 
+    def cancel_scan(self) -> None:
+        """Stop reading the saved pairs (the worker registry joins the thread)."""
+        if self._scan is not None:
+            self._scan.cancel()
+            self._scan = None
+
     def _refill_list(self) -> None:
-        self.saved_panel.clear()
-        order = [p.name for p in self.session.pairs] if self.session is not None else []
+        self._panel.clear()
+        order = [p.name for p in self._session.pairs] if self._session is not None else []
         for name in order:
-            info = self._saved.get(name) or SavedPairInfo(name, None, None)
-            self._add_list_item(info)
-        self.saved_panel.update_label()
-        self._update_controls()  # Delete pair needs pairs in the list
+            self._add_list_item(self._saved.get(name) or SavedPairInfo(name, None, None))
+        self._panel.update_label()
+        self.pairsChanged.emit()
 
     def _add_list_item(self, info: SavedPairInfo) -> None:
         excluded = False
-        if self.session is not None:
-            for p in self.session.pairs:
+        if self._session is not None:
+            for p in self._session.pairs:
                 if p.name == info.name:
                     excluded = p.excluded
-        self.saved_panel.add_item(info, excluded)
+        self._panel.add_item(info, excluded)
 
-    def _saved_poses(self) -> list[PoseDescriptor]:
+    # ---- coverage ----------------------------------------------------------------------------
+    def saved_poses(self) -> list[PoseDescriptor]:
         """Pose descriptors of the saved pairs in which both cameras saw the board."""
-        return [pair_pose(i.detection, self.board) for i in self._saved.values()
-                if i.detection is not None and i.detection.found]
+        return [pair_pose(d, self._board()) for d in self._kept_detections()]
 
     def _kept_detections(self) -> list[PairDetection]:
         return [i.detection for i in self._saved.values()
                 if i.detection is not None and i.detection.found]
 
-    def _readiness(self):
-        return readiness(self._kept_detections(), self.board, self._image_size())
+    def readiness(self) -> Readiness:
+        return readiness(self._kept_detections(), self._board(), self._image_size())
 
-    def _fills(self, det: PairDetection) -> dict[str, list[str]]:
+    def fills(self, det: PairDetection) -> dict[str, list[str]]:
         """The empty regions of each image that the detection's points would reach."""
         size = det.image_size
         out = {}
@@ -216,76 +268,58 @@ class SessionPairs:
         return out
 
     def _update_coverage(self) -> None:
-        self.coverage.set_coverage(coverage(self._saved_poses()))
-        self.coverage.set_readiness(self._readiness())
+        self._panel.coverage.set_coverage(coverage(self.saved_poses()))
+        self._panel.coverage.set_readiness(self.readiness())
 
     def saved_names(self) -> list[str]:
-        return self.saved_panel.names()
+        return self._panel.names()
 
     # ---- saved pairs -----------------------------------------------------------------------------
-    def show_saved_pair(self, name: str) -> None:
-        """Show a saved pair (with its corners) instead of the live view; it is the pair
-        selected in the list (and the one Delete pair deletes)."""
-        if self.session is None:
-            return
-        pair = next((p for p in self.session.pairs if p.name == name), None)
+    def add_pair(self, left: np.ndarray, right: np.ndarray, det: PairDetection) -> str | None:
+        """Write a pair into the session and list it; its name, or None (after saying why)."""
         try:
-            if pair is None:
-                raise StereoGuiError(f"pair {name} is no longer in the session")
-            left, right = load_image(pair.left), load_image(pair.right)
-        except StereoGuiError as exc:
-            self.ctx.report_error(str(exc))
-            if self.shown_pair is not None:  # the list goes back to what is on screen
-                self.saved_panel.select(self.shown_pair)
-            else:
-                self.saved_panel.clear_selection()
-            return
-        self._move(CaptureState.SAVED)
-        self.shown_pair = name
-        self._set_processing(False)
-        self.frozen = None
-        self._frozen_frame = None
-        self.view.show_pair(display_rgb(left), display_rgb(right))
-        info = self._saved.get(name)
-        det = info.detection if info is not None else None
-        if det is not None:
-            self.view.show_detection(det)
-        else:
-            for i, side in enumerate(("Left", "Right")):
-                self.view.show_corners(i, None, False)
-                self.view.set_title(i, side)
-        for i, side in enumerate(("Left", "Right")):
-            self.view.titles[i].setText(f"{side} — saved pair {name}: "
-                                        + self.view.titles[i].text.split(": ", 1)[-1])
-        self.prompt.setText(f"Reviewing saved pair {name}. Delete it, or go back to live.")
-        self.saved_panel.select(name)
-        self._update_controls()
-
-    def _delete_selected(self) -> None:
-        """Delete pair: the pair on screen (asks first)."""
-        name = self.shown_pair if self.state is CaptureState.SAVED else None
-        if name is None:
-            return
-        answer = QMessageBox.question(  # the files go, not only the list entry
-            self, "Delete pair", f"Delete pair {name}? Its two images are removed from "
-            f"{self.session.folder if self.session else 'the session folder'}.")
-        if answer == QMessageBox.StandardButton.Yes:
-            self.delete_pair(name)
-
-    def delete_pair(self, name: str) -> None:
-        """Delete a saved pair's files from the session."""
-        if self.session is None:
-            return
-        try:
-            self.session.delete_pair(name)
+            pair = self._session.add_pair(left, right)
         except (StereoGuiError, OSError) as exc:
-            self.ctx.report_error(f"could not delete pair {name}: {exc}")
-            return
+            self._report.report_error(f"could not save the pair: {exc}")
+            return None
+        info = SavedPairInfo(pair.name, det, pair_thumbnail(left, right))
+        self._saved[pair.name] = info
+        self._add_list_item(info)
+        self._panel.show_newest()  # the pair just taken is in view, however long the list
+        self._update_coverage()
+        self._report.show_status(f"Saved pair {pair.name} to {self._session.folder}")
+        return pair.name
+
+    def load_pair(self, name: str) -> tuple[np.ndarray, np.ndarray, PairDetection | None]:
+        """The saved pair's images and what the scan detected in them (None: not read yet);
+        StereoGuiError when it is gone or cannot be read."""
+        pair = next((p for p in self._session.pairs if p.name == name), None)
+        if pair is None:
+            raise StereoGuiError(f"pair {name} is no longer in the session")
+        left, right = load_image(pair.left), load_image(pair.right)
+        info = self._saved.get(name)
+        return left, right, info.detection if info is not None else None
+
+    def ask_delete(self, name: str) -> bool:
+        """Whether the technician wants pair `name` deleted (the files go, not only the list
+        entry)."""
+        folder = self._session.folder if self._session else "the session folder"
+        answer = QMessageBox.question(
+            self._dialogs, "Delete pair", f"Delete pair {name}? Its two images are removed from "
+            f"{folder}.")
+        return answer == QMessageBox.StandardButton.Yes
+
+    def delete_pair(self, name: str) -> bool:
+        """Delete a saved pair's files from the session; False if it was not (said why)."""
+        if self._session is None:
+            return False
+        try:
+            self._session.delete_pair(name)
+        except (StereoGuiError, OSError) as exc:
+            self._report.report_error(f"could not delete pair {name}: {exc}")
+            return False
         self._saved.pop(name, None)
         self._refill_list()
         self._update_coverage()
-        self.ctx.show_status(f"Deleted pair {name}")
-        if self.state is CaptureState.SAVED and self.shown_pair == name:
-            self.go_live()
-        elif self.shown_pair is not None:
-            self.saved_panel.select(self.shown_pair)
+        self._report.show_status(f"Deleted pair {name}")
+        return True
