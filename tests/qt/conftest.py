@@ -8,7 +8,11 @@ import time
 import numpy as np
 import pytest
 
+from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.jobs import JobControl
+from stereo_gui.pipeline.calibration import calibration_job
 from stereo_gui.sources.base import FrameSource, StereoFrame
+from stereo_gui.sources.sim import write_calibration_set
 
 
 class ArraySource(FrameSource):
@@ -156,3 +160,15 @@ def questions(monkeypatch):
     q = Questions()
     monkeypatch.setattr(QMessageBox, "question", q)
     return q
+
+
+@pytest.fixture(scope="session")
+def calibration_run(tmp_path_factory):
+    """A CalibrationRun of the simulated rig, made once (as the Calibration tab's job does)."""
+    folder = write_calibration_set(tmp_path_factory.mktemp("calset"), n_pairs=8, seed=5)
+    gen = calibration_job(folder, BoardSpec(9, 6, 25.0), 0.0, "bouguet")(JobControl())
+    while True:
+        try:
+            next(gen)
+        except StopIteration as stop:
+            return stop.value

@@ -16,15 +16,11 @@ from PySide6.QtWidgets import QApplication, QMessageBox
 
 import stereo_gui.files.spreadsheet as spreadsheet
 import stereo_gui.qt.dialogs.closing as closing
-from stereo_gui.core.board import BoardSpec
-from stereo_gui.core.jobs import JobControl
 from stereo_gui.core.states import TransitionError
 from stereo_gui.files.measurement_log import load_log
 from stereo_gui.files.spreadsheet import MeasurementRecord
-from stereo_gui.pipeline.calibration import calibration_job
 from stereo_gui.qt.main_window import CLOSE_MOVES, ClosePhase, CloseState, MainWindow
 from stereo_gui.qt.widgets.measurement_table import TRUE_COL
-from stereo_gui.sources.sim import write_calibration_set
 
 
 @pytest.mark.parametrize("a,b", [(a, b) for a in ClosePhase for b in ClosePhase])
@@ -89,18 +85,6 @@ def dialogs(qtbot):
 
 def button(std):
     return lambda box: box.button(std).click()
-
-
-@pytest.fixture(scope="module")
-def calibration_run(tmp_path_factory):
-    """A CalibrationRun of the simulated rig, made once (as the Calibration tab's job does)."""
-    folder = write_calibration_set(tmp_path_factory.mktemp("calset"), n_pairs=8, seed=5)
-    gen = calibration_job(folder, BoardSpec(9, 6, 25.0), 0.0, "bouguet")(JobControl())
-    while True:
-        try:
-            next(gen)
-        except StopIteration as stop:
-            return stop.value
 
 
 @pytest.fixture
