@@ -1,6 +1,8 @@
 """The Calibration tab: calibrate from a capture session, check the result, save or load it
 (single pairs: `calibration_pairs.PairReview`; the warnings' remedies, the swap box, save and
-load: `calibration_actions.CalibrationActions`).
+load: `calibration_actions.CalibrationActions`; both are parts the tab owns and hands what they
+use). The calibration shown is the one in use (the calibration model's); where the tab's run
+stands is a `calibration_state.CalibrationState`, moved through its table.
 
 Calibrate runs `stereo_gui.pipeline.calibration.calibration_job` in a JobWorker (detection of
 every pair, then the core's calibrate_stereo) with a progress bar and Cancel. The results show
@@ -28,7 +30,6 @@ from PySide6.QtWidgets import (
     QHBoxLayout,
     QLabel,
     QLineEdit,
-    QListWidget,
     QPlainTextEdit,
     QProgressBar,
     QPushButton,
@@ -41,23 +42,20 @@ from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.calibrate import HARTLEY_NOTE
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.jobs import Progress
-from stereo_gui.core.stereo_calibration import RectifyMaps, StereoCalibration
+from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.files.session import CaptureSession
 from stereo_gui.pipeline.calibration import (
     CalibrationRun,
     calibration_job,
     matrices_text,
 )
 from stereo_gui.qt.tabs.calibration_actions import CalibrationActions
-from stereo_gui.qt.tabs.calibration_pairs import PairReview
-from stereo_gui.qt.widgets.calibration_charts import (
-    ErrorBarChart,
-    RectifiedPairView,
-)
+from stereo_gui.qt.tabs.calibration_pairs import PairReview, SessionFolder
+from stereo_gui.qt.tabs.calibration_state import CALIBRATION_MOVES, CalibrationState
 from stereo_gui.qt.widgets.calibration_figures import CalibrationFigures, format_px
 from stereo_gui.qt.widgets.calibration_warnings import CalibrationWarnings
 from stereo_gui.qt.widgets.flow_layout import FlowLayout
 from stereo_gui.qt.widgets.helpers import VerticalScroll, pane
-from stereo_gui.qt.workers.job_runner import JobRunner
 from stereo_gui.qt.workers.job_worker import JobWorker
 
 if TYPE_CHECKING:
@@ -69,7 +67,7 @@ _MONO = QFont("Monospace")
 _MONO.setStyleHint(QFont.StyleHint.TypeWriter)
 
 
-class CalibrationTab(PairReview, CalibrationActions, QWidget):
+class CalibrationTab(QWidget):
     """Calibrate, review and save/load the stereo calibration (see module docstring)."""
 
     calibrationFinished = Signal(object)  # CalibrationRun
@@ -79,21 +77,15 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
         self.ctx = ctx
         self.worker: JobWorker | None = None
         self.run: CalibrationRun | None = None
-        self.calibration: StereoCalibration | None = None
-        self._maps: RectifyMaps | None = None
-        self._maps_for: StereoCalibration | None = None
-        self.selected_pair: str | None = None
-        self._pair_jobs = JobRunner("pair-view", self)  # reads and rectifies the pair clicked
-        ctx.workers.register(self._pair_jobs)
-        self._pair_jobs.finished.connect(self._pair_ready)
-        self._pair_jobs.failed.connect(self._pair_failed)
-        self._pair_job: int | None = None
+        self._state = CalibrationState.IDLE
+        self._done_line = ""  # what the line says of the run in use: "Done: 11 of 12 pairs..."
+        self._session = SessionFolder(self._session_folder)
         self._build()
         s = ctx.settings
         self.baseline_spin.setValue(float(s.nominal_baseline_mm))
         self.model_combo.setCurrentIndex(max(0, self.model_combo.findData(s.lens_model)))
         self.fix_k3_check.setChecked(bool(s.fix_k3))
-        self.folder_edit.textChanged.connect(self._show_session_swap)
+        self.folder_edit.textChanged.connect(self.actions.show_session_swap)
         self.folder_edit.textChanged.connect(self._folder_changed)
         if s.last_session:
             self.folder_edit.setText(str(s.last_session))
@@ -144,11 +136,12 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
         self.fix_k3_check.toggled.connect(
             lambda on: self.ctx.settings_model.update(fix_k3=bool(on)))
         group(QLabel("Lens:"), self.model_combo, self.fix_k3_check)
-        self.swap_check = QCheckBox("Swap L/R")
-        self.swap_check.setToolTip("The cameras are swapped: exchange the left and right images "
-                                   "of the session's pairs (the session remembers; the images stay "
-                                   "as they were taken)")
-        self.swap_check.toggled.connect(self._swap_toggled)
+        model = self.ctx.calibration_model
+        self.actions = CalibrationActions(model, self._session, self.ctx, self.start_calibration,
+                                          self.fix_k3_check, self.folder_edit.text, self)
+        self.review = PairReview(model, lambda: self.run, self._session, self.ctx,
+                                 self.ctx.workers, self.is_running, self)
+        self.swap_check = self.actions.swap_check
         self.alpha_spin = QDoubleSpinBox()
         self.alpha_spin.setRange(0.0, 1.0)
         self.alpha_spin.setSingleStep(0.1)
@@ -187,14 +180,9 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
         self.figures = CalibrationFigures()
         ll.addWidget(self.figures)
         self.warnings = CalibrationWarnings()
-        self.warnings.actionRequested.connect(self.apply_remedy)
+        self.warnings.actionRequested.connect(self.actions.apply_remedy)
         ll.addWidget(self.warnings)
-        self.rejected_list = QListWidget()
-        self.rejected_list.setMaximumHeight(56)
-        self.rejected_list.setToolTip(
-            "Click a pair to look at it (and include an excluded one again)")
-        self.rejected_list.itemClicked.connect(
-            lambda item: self.select_pair(item.data(Qt.ItemDataRole.UserRole)))
+        self.rejected_list = self.review.rejected_list
         ll.addWidget(QLabel("Rejected or excluded pairs:"))
         ll.addWidget(self.rejected_list)
         self.matrices_text = QPlainTextEdit()
@@ -207,8 +195,8 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
         files = QHBoxLayout()
         self.load_button = QPushButton("Load calibration…")
         self.save_button = QPushButton("Save calibration…")
-        self.load_button.clicked.connect(self._choose_load)
-        self.save_button.clicked.connect(self._choose_save)
+        self.load_button.clicked.connect(self.actions.choose_load)
+        self.save_button.clicked.connect(self.actions.choose_save)
         files.addWidget(self.load_button)
         files.addWidget(self.save_button)
         files.addStretch(1)
@@ -228,14 +216,11 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
         # right: chart and rectification check
         right = QSplitter(Qt.Orientation.Vertical)
         chart_box, cl = pane()
-        self.chart = ErrorBarChart()
-        self.chart.pairClicked.connect(self.select_pair)
+        self.chart = self.review.chart
         cl.addWidget(self.chart, 1)
         pair_row = QHBoxLayout()
-        self.pair_label = QLabel("Click a bar to see that pair")
-        self.exclude_button = QPushButton("Exclude pair")
-        self.exclude_button.setToolTip("Mark the pair as excluded in the session (its files stay)")
-        self.exclude_button.clicked.connect(self._toggle_exclude_selected)
+        self.pair_label = self.review.pair_label
+        self.exclude_button = self.review.exclude_button
         self.recalibrate_button = QPushButton("Recalibrate")
         self.recalibrate_button.clicked.connect(self.start_calibration)
         pair_row.addWidget(self.pair_label, 1)
@@ -244,24 +229,14 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
         cl.addLayout(pair_row)
         above_row = QHBoxLayout()
         above_row.addWidget(QLabel("Threshold (red line, drag it):"))
-        self.threshold_spin = QDoubleSpinBox()
-        self.threshold_spin.setRange(0.0, 100.0)
-        self.threshold_spin.setDecimals(3)
-        self.threshold_spin.setSingleStep(0.01)
-        self.threshold_spin.setSuffix(" px")
-        self.threshold_spin.setToolTip("Pairs whose error in either camera is above this can be "
-                                       "excluded at once")
-        self.threshold_spin.valueChanged.connect(self._threshold_edited)
-        self.chart.thresholdMoved.connect(self.threshold_spin.setValue)
-        self.exclude_above_button = QPushButton("Exclude pairs above")
-        self.exclude_above_button.clicked.connect(
-            lambda: self.exclude_above(self.threshold_spin.value()))
+        self.threshold_spin = self.review.threshold_spin
+        self.exclude_above_button = self.review.exclude_above_button
         above_row.addWidget(self.threshold_spin)
         above_row.addWidget(self.exclude_above_button)
         above_row.addStretch(1)
         cl.addLayout(above_row)
         right.addWidget(chart_box)
-        self.rect_view = RectifiedPairView()
+        self.rect_view = self.review.rect_view
         right.addWidget(self.rect_view)
         right.setSizes([300, 400])
         split.addWidget(right)
@@ -295,6 +270,30 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
     def board(self) -> BoardSpec:
         return self.ctx.settings.board
 
+    @property
+    def calibration(self) -> StereoCalibration | None:
+        """The calibration shown: the one in use (the calibration model's)."""
+        return self.ctx.calibration_model.calibration
+
+    @property
+    def state(self) -> CalibrationState:
+        """Where the tab's run stands (what the line under the options says)."""
+        return self._state
+
+    def _move(self, to: CalibrationState, line: str | None = None) -> None:
+        """Move to `to` and say `line` (None: the line stays as it is); a move
+        CALIBRATION_MOVES refuses is a bug (TransitionError)."""
+        self._state = CALIBRATION_MOVES.check(self._state, to)
+        if line is not None:
+            self.progress_label.setText(line)
+
+    def _session_folder(self) -> Path | None:
+        """The folder of the session worked on: the last run's, else the Pairs folder typed."""
+        if self.run is not None:
+            return self.run.folder
+        text = self.folder_edit.text()
+        return Path(text) if text.strip() else None
+
     # ---- calibration run -----------------------------------------------------------------------
     def start_calibration(self) -> bool:
         """Start calibrating the folder's included pairs; False if it cannot start."""
@@ -321,7 +320,7 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
         self.ctx.workers.register(w)
         self.worker = w
         self.progress.setValue(0)
-        self.progress_label.setText(f"Calibrating {folder} with a {board.label()} board…")
+        self._move(CalibrationState.RUNNING, f"Calibrating {folder} with a {board.label()} board…")
         self._update_buttons()
         w.start()
         return True
@@ -329,8 +328,6 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
     def _folder_board(self, folder: Path) -> BoardSpec | None:
         """The board recorded in the session manifest, if any (it wins over the settings)."""
         try:
-            from stereo_gui.files.session import CaptureSession
-
             b = CaptureSession.open(folder).board
         except (StereoGuiError, OSError):
             return None
@@ -339,7 +336,8 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
     def cancel_calibration(self) -> None:
         if self.worker is not None:
             self.worker.cancel()
-            self.progress_label.setText("Cancelling at the next step…")
+            if self._state is CalibrationState.RUNNING:
+                self._move(CalibrationState.CANCELLING, "Cancelling at the next step…")
 
     def is_running(self) -> bool:
         return self.worker is not None
@@ -366,15 +364,14 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
         """Show a finished calibration run and use its calibration at once (what the tab does
         when its job ends)."""
         self.run = run
-        self._maps = run.maps
-        self._maps_for = run.result.calibration
+        self.review.use_maps(run.maps, run.result.calibration)
         self.progress.setValue(100)
         rep = run.result.report
         quality = (f"stereo RMS {format_px(rep.rms_stereo)}" if rep.method != "hartley" else
                    f"epipolar error {format_px(rep.epipolar_error_px)}, Hartley: no metric scale")
-        self.progress_label.setText(
-            f"Done: {rep.pairs_used} of {rep.pairs_found} pairs used, {quality}. "
-            f"Not saved yet: use Save calibration… to keep it.")
+        self._done_line = f"Done: {rep.pairs_used} of {rep.pairs_found} pairs used, {quality}. "
+        self._move(CalibrationState.UNSAVED,
+                   self._done_line + "Not saved yet: use Save calibration… to keep it.")
         # the new calibration is in use at once (live view, measurements)
         self.ctx.calibration_model.set(run.result.calibration, None)
         self.ctx.show_status(f"Calibrated from {rep.pairs_used} pairs in {run.folder}")
@@ -382,12 +379,12 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
 
     def _failed(self, message: str) -> None:
         self.progress.setValue(0)
-        self.progress_label.setText(f"Calibration failed: {message}")
+        self._move(CalibrationState.FAILED, f"Calibration failed: {message}")
         self.ctx.report_error(message)
 
     def _cancelled(self) -> None:
         self.progress.setValue(0)
-        self.progress_label.setText("Calibration cancelled")
+        self._move(CalibrationState.CANCELLED, "Calibration cancelled")
 
     def _worker_done(self) -> None:
         w = self.worker
@@ -414,50 +411,27 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
 
     # ---- showing a calibration -----------------------------------------------------------------
     def _calibration_changed(self, calib) -> None:
-        if self.run is not None and calib is not self.run.result.calibration:
+        run_replaced = self.run is not None and calib is not self.run.result.calibration
+        if run_replaced:
             self.run = None  # a loaded file replaces the last run
-        elif self.run is not None and self.ctx.calibration_path is not None:
-            # the run just saved: "Not saved yet" would be stale
-            text = self.progress_label.text()
-            if "Not saved yet" in text:
-                self.progress_label.setText(text[:text.index("Not saved yet")]
-                                            + f"Saved as {self.ctx.calibration_path.name}.")
+            if self._state in (CalibrationState.UNSAVED, CalibrationState.SAVED):
+                self._move(CalibrationState.IDLE)  # (the line still says what the run did)
+        elif (self._state is CalibrationState.UNSAVED
+              and self.ctx.calibration_path is not None):  # the run's calibration just saved
+            self._move(CalibrationState.SAVED,
+                       self._done_line + f"Saved as {self.ctx.calibration_path.name}.")
         self._show_calibration(calib)
 
     def _show_calibration(self, calib: StereoCalibration | None) -> None:
-        self.calibration = calib
-        if calib is not self._maps_for:
-            self._maps = None
-            self._maps_for = None
         self._show_figures()
         self.warnings.show_warnings(self._warnings_of(calib))
-        if calib is None:
-            self.matrices_text.setPlainText("")
-            self.chart.set_errors([], [], [])
-            self.rect_view.clear_pair()
-            self.rejected_list.clear()
-            self._update_buttons()
-            return
-        self.matrices_text.setPlainText(matrices_text(calib))
-        names = [p.name for p in calib.per_pair]
-        self.chart.set_errors(names, [p.error_left for p in calib.per_pair],
-                              [p.error_right for p in calib.per_pair])
-        if self.chart.mean_px is not None:  # a start: twice the mean error
-            self.threshold_spin.setValue(round(2.0 * self.chart.mean_px, 3))
-        self._show_exclusions()
-        if names and self.run is not None:
-            keep = self.selected_pair
-            if keep is not None and (keep in names or keep in self.run.excluded):
-                self.select_pair(keep)  # an excluded pair stays in view, to include it again
-            else:
-                self.select_pair(names[0])
-        else:
-            self.rect_view.clear_pair()
+        self.matrices_text.setPlainText(matrices_text(calib) if calib is not None else "")
+        self.review.show(calib)
         self._update_buttons()
 
     def _folder_changed(self) -> None:
         if self.calibration is not None and self.run is None:
-            self._show_exclusions()  # the exclusions of the session now named
+            self.review.show_exclusions()  # the exclusions of the session now named
 
     def _show_figures(self) -> None:
         c = self.calibration
@@ -497,18 +471,4 @@ class CalibrationTab(PairReview, CalibrationActions, QWidget):
         self.cancel_button.setEnabled(running)
         self.save_button.setEnabled(self.calibration is not None and not running)
         self.load_button.setEnabled(not running)
-        sel = self.selected_pair
-        # after a restart (no run) a pair of the session can still be excluded or included
-        pair = self._session_pair(sel) if sel is not None else None  # (one read of the session)
-        known = sel is not None and (self.run is not None or pair is not None)
-        self.exclude_button.setEnabled(not running and known)
-        n_above = len(self.pairs_above(self.threshold_spin.value())) if not running else 0
-        self.exclude_above_button.setText(
-            f"Exclude {n_above} pair{'s' if n_above != 1 else ''} above")
-        self.exclude_above_button.setEnabled(n_above > 0)
-        if known:
-            excluded = pair is not None and pair.excluded
-            self.exclude_button.setText("Include pair again" if excluded else "Exclude pair")
-
-
-
+        self.review.update_buttons()

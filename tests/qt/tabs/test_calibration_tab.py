@@ -7,6 +7,7 @@ import pytest
 
 from stereo_gui.files.session import CaptureSession
 from stereo_gui.qt.tabs.calibration import CalibrationTab
+from stereo_gui.qt.tabs.calibration_state import CalibrationState
 from stereo_gui.sources.sim import write_calibration_set
 
 N_PAIRS = 12
@@ -84,11 +85,11 @@ def test_click_exclude_and_recalibrate_changes_used_count(tab, qtbot, session_fo
     assert run2.result.report.pairs_used == used - 1
     assert name not in run2.result.report.used
     assert tab.chart.bar_count() == used - 1
-    assert f"{name}: excluded by you" in tab.rejected_lines()
+    assert f"{name}: excluded by you" in tab.review.rejected_lines()
     # the excluded pair stays selectable from the list, and can be included again
     item = tab.rejected_list.findItems(f"{name}: excluded by you", Qt.MatchFlag.MatchExactly)[0]
     tab.rejected_list.itemClicked.emit(item)
-    assert tab.selected_pair == name
+    assert tab.review.selected_pair == name
     qtbot.waitUntil(lambda: tab.rect_view.shown == name, timeout=5000)
     assert tab.exclude_button.text() == "Include pair again"
     tab.exclude_button.click()
@@ -108,6 +109,7 @@ def test_cancel_stops_calibration(tab, ctx, qtbot, session_folder):
     qtbot.waitUntil(lambda: not tab.is_running(), timeout=30000)
     assert finished == []
     assert ctx.calibration is None
+    assert tab.state is CalibrationState.CANCELLED
     assert "cancelled" in tab.progress_label.text()
     assert tab.calibrate_button.isEnabled() and not tab.cancel_button.isEnabled()
 
@@ -125,31 +127,35 @@ def test_bad_folder_reports_error(tab, ctx, qtbot, tmp_path):
         assert tab.start_calibration()
     assert "pairs" in blocker.args[0] or "no" in blocker.args[0]
     qtbot.waitUntil(lambda: not tab.is_running(), timeout=30000)
-    assert "failed" in tab.progress_label.text()
+    assert tab.state is CalibrationState.FAILED and "failed" in tab.progress_label.text()
 
 
 def test_save_and_load_calibration_file(tab, ctx, qtbot, session_folder, tmp_path):
     tab.folder_edit.setText(str(session_folder))
+    assert tab.state is CalibrationState.IDLE
     run = _calibrate(tab, qtbot)
+    assert tab.state is CalibrationState.UNSAVED
     assert "NOT SAVED" in tab.figures.source_label.text()
     path = tmp_path / "calib.yaml"
-    assert tab.save_calibration(path) and path.exists()
+    assert tab.actions.save_calibration(path) and path.exists()
     assert ctx.calibration_path == path and "calib.yaml" in tab.figures.source_label.text()
     # the run's line no longer says "Not saved yet" once it is saved
     assert "Not saved yet" not in tab.progress_label.text()
     assert "Saved as calib.yaml" in tab.progress_label.text()
+    assert tab.state is CalibrationState.SAVED
     # the file saved here is the one loaded at the next start, as from the File menu
     assert ctx.settings.last_calibration == str(path.resolve())
-    ctx.calibration_model.set(None)
+    ctx.calibration_model.set(None)  # another calibration (none) replaces the run's
+    assert tab.state is CalibrationState.IDLE and tab.run is None
     assert tab.figures.rms_stereo_label.text() == "—" and tab.chart.bar_count() == 0
-    assert tab.load_calibration(path)
+    assert tab.actions.load_calibration(path)
     assert ctx.calibration.rms_stereo == pytest.approx(run.result.calibration.rms_stereo)
     assert tab.chart.bar_count() == len(run.result.calibration.per_pair)
     errors = []
     ctx.errorOccurred.connect(errors.append)
     bad = tmp_path / "bad.yaml"
     bad.write_text("not a calibration")
-    assert not tab.load_calibration(bad)
+    assert not tab.actions.load_calibration(bad)
     assert errors and "bad.yaml" in errors[0]
 
 
@@ -173,7 +179,7 @@ def test_shutdown_while_calibrating_joins_the_worker(tab, ctx, qtbot, session_fo
 
 
 def test_empty_error_chart_axis_reads_pair_without_an_si_prefix(qtbot):
-    from stereo_gui.qt.tabs.calibration import ErrorBarChart
+    from stereo_gui.qt.widgets.calibration_charts import ErrorBarChart
 
     chart = ErrorBarChart()
     qtbot.addWidget(chart)
@@ -192,27 +198,27 @@ def test_exclusions_are_shown_before_recalibration_and_after_a_restart(
     Recalibrate), and after a restart the list names the session's excluded pairs, not "none"."""
     tab.folder_edit.setText(str(session_folder))
     _calibrate(tab, qtbot)
-    assert tab.rejected_lines() == ["none"] and tab.chart.excluded_bars() == []
+    assert tab.review.rejected_lines() == ["none"] and tab.chart.excluded_bars() == []
     name = tab.chart.names[2]
-    tab.select_pair(name)
+    tab.review.select_pair(name)
     tab.exclude_button.click()
     assert tab.chart.excluded_bars() == [name]
-    assert f"{name}: excluded (Recalibrate leaves it out)" in tab.rejected_lines()
-    assert tab.save_calibration(tmp_path / "calib.yaml")
+    assert f"{name}: excluded (Recalibrate leaves it out)" in tab.review.rejected_lines()
+    assert tab.actions.save_calibration(tmp_path / "calib.yaml")
     # a restart: a new tab, the calibration loaded from its file, no run
     ctx.calibration_model.set(None)
     assert ctx.calibration_model.open_file(tmp_path / "calib.yaml")
     again = make_tab(CalibrationTab)
     again.folder_edit.setText(str(session_folder))
     assert again.run is None
-    assert f"{name}: excluded (Recalibrate leaves it out)" in again.rejected_lines()
+    assert f"{name}: excluded (Recalibrate leaves it out)" in again.review.rejected_lines()
     assert again.chart.excluded_bars() == [name]
-    again.select_pair(name)  # it can be included again without calibrating first
+    again.review.select_pair(name)  # it can be included again without calibrating first
     assert again.exclude_button.isEnabled()
     assert again.exclude_button.text() == "Include pair again"
     again.exclude_button.click()
     assert not CaptureSession.open(session_folder).pair(name).excluded
-    assert again.rejected_lines() == ["none"] and again.chart.excluded_bars() == []
+    assert again.review.rejected_lines() == ["none"] and again.chart.excluded_bars() == []
 
 
 def test_review_draws_corners_a_mean_line_and_excludes_above_a_threshold(
@@ -226,7 +232,7 @@ def test_review_draws_corners_a_mean_line_and_excludes_above_a_threshold(
     assert tab.chart.mean_px == pytest.approx(
         sum(e[1] + e[2] for e in errs) / (2 * len(errs)))
     name = tab.chart.names[1]
-    tab.select_pair(name)
+    tab.review.select_pair(name)
     qtbot.waitUntil(lambda: tab.rect_view.shown == name, timeout=5000)
     det, rep = tab.rect_view.corner_points(0)
     assert len(det) == len(run.detections[name].left.corners) and det.shape == rep.shape
@@ -246,7 +252,7 @@ def test_review_draws_corners_a_mean_line_and_excludes_above_a_threshold(
     px = tab.threshold_spin.value()  # (to the spin box's 0.001 px)
     assert tab.chart.threshold_px == pytest.approx(px)
     assert tab.exclude_above_button.text() == "Exclude 3 pairs above"
-    names = tab.exclude_above(tab.threshold_spin.value())
+    names = tab.review.exclude_above(tab.threshold_spin.value())
     expected = {e[0] for e in errs if max(e[1], e[2]) > px}
     assert set(names) == expected and len(expected) == 3
     session = CaptureSession.open(session_folder)
@@ -276,8 +282,8 @@ def test_a_pair_is_read_and_rectified_off_the_ui_thread(tab, qtbot, session_fold
 
     monkeypatch.setattr(calibration_pairs, "read_image", recording)
     first, second = tab.chart.names[1], tab.chart.names[3]
-    tab.select_pair(first)
-    tab.select_pair(second)  # at once: the first one's answer must not be shown after it
+    tab.review.select_pair(first)
+    tab.review.select_pair(second)  # at once: the first one's answer must not be shown after it
     # each pair read is its two images; the first request is dropped when the second comes
     # before the thread took it (the newest wins), so two or four reads
     # one thread answers in the order asked: once the second is shown, the first's answer
@@ -286,3 +292,19 @@ def test_a_pair_is_read_and_rectified_off_the_ui_thread(tab, qtbot, session_fold
                     timeout=5000)
     assert tab.rect_view.shown == second
     assert readers and all(t is not threading.main_thread() for t in readers)
+
+
+def test_the_tab_shows_the_calibration_in_use_and_its_run_until_another_replaces_it(
+        tab, ctx, calibration_run, sim_rig):
+    """The tab keeps no copy of the calibration: it shows the model's, and a run handed to it
+    stays its run until another calibration is put in use."""
+    tab.use_run(calibration_run)
+    calib = calibration_run.result.calibration
+    assert ctx.calibration is calib and tab.calibration is calib
+    assert tab.state is CalibrationState.UNSAVED and "Not saved yet" in tab.progress_label.text()
+    assert tab.recalibrate_button.isEnabled() and tab.save_button.isEnabled()
+    true = sim_rig.true_calibration()
+    ctx.calibration_model.set(true, None)
+    assert tab.calibration is true and tab.run is None and tab.state is CalibrationState.IDLE
+    assert not tab.recalibrate_button.isEnabled()
+    assert tab.chart.bar_count() == len(true.per_pair)
