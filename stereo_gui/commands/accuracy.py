@@ -41,6 +41,7 @@ from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import MatcherParams, Preset, StereoPipeline
 from stereo_gui.core.measure import PATCH_PX, Measurement, measure_point
 from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.pipeline.concurrency import preset_pipeline
 from stereo_gui.sources.sim.conditions import CONDITIONS, Condition
 
 WALLS_MM = (500.0, 1000.0, 2000.0, 3000.0)
@@ -265,7 +266,7 @@ def evaluate_wall(rig, calib: StereoCalibration, params: Preset | MatcherParams 
 
             params = load_preset(params)
         params = Preset.of(params)
-        with StereoPipeline(calib, params) as pipe:
+        with preset_pipeline(calib, params) as pipe:
             result = pipe.process(left, right)
         name = params.name
     for x, y in grid_pixels(calib.image_size, grid):
@@ -441,7 +442,7 @@ def middlebury_scores(folder, presets=("seed", "live", "quality")) -> list[Bench
             p = load_preset(name)
             if name != "seed":
                 p = p.replace(z_min_mm=None, z_max_mm=None, min_disparity=0, num_disparities=num)
-            with StereoPipeline(calib, p) as pipe:
+            with preset_pipeline(calib, p) as pipe:
                 r = pipe.process(left, right)
             for stage, m in (("raw", r.disparity_px), ("final", r.final_px)):
                 bad, density = score_map(m, truth)

@@ -184,28 +184,25 @@ def bench_preset(calib, params, left, right, frames: int, warmup: int = 2,
     conversion): as many frames at once as the processor's lanes, OpenCV with the threads
     `run_app` gives it. `processor`: a LiveProcessor of `params` to time (kept open, so that its
     health check keeps its own schedule over several calls), else one made and closed here."""
-    import cv2
-
-    from stereo_gui.pipeline.concurrency import use_opencv_threads_beside_lanes
+    from stereo_gui.pipeline.concurrency import opencv_threads_for_lanes
     from stereo_gui.sources.base import StereoFrame
 
     frame = StereoFrame(left, right, 0.0, 0.0, 0)
     proc = processor if processor is not None else live_processor(calib, params)
-    threads_before = use_opencv_threads_beside_lanes()
-    try:
-        def step():
-            t0 = time.perf_counter()
-            out = proc(frame)
-            stages = dict(out.result.timings_ms)
-            stages["display"] = (time.perf_counter() - t0) * 1000.0 - stages["total"]
-            stages["total"] += stages["display"]
-            return stages, float(out.result.valid.mean())
+    with opencv_threads_for_lanes():
+        try:
+            def step():
+                t0 = time.perf_counter()
+                out = proc(frame)
+                stages = dict(out.result.timings_ms)
+                stages["display"] = (time.perf_counter() - t0) * 1000.0 - stages["total"]
+                stages["total"] += stages["display"]
+                return stages, float(out.result.valid.mean())
 
-        return _time(step, frames, warmup, proc.lanes)
-    finally:
-        if processor is None:
-            proc.close()
-        cv2.setNumThreads(threads_before)
+            return _time(step, frames, warmup, proc.lanes)
+        finally:
+            if processor is None:
+                proc.close()
 
 
 def live_processor(calib, params):

@@ -27,15 +27,12 @@ ASSUMED_CALIB = "rectified:1000,100"
 
 def run_clicks(list_path, presets=("live", "quality")) -> dict:
     """Click every scene of the list with each preset and plain OpenCV; the `--json` result."""
-    import cv2
-
     from stereo_gui.core.click_score import ClickScore, click_points, seen_by_both, true_z_mm
-    from stereo_gui.core.matching import StereoPipeline
     from stereo_gui.core.scene_score import disparity_search_range, plain_sgbm
     from stereo_gui.files.any_calibration import load_any_calibration
     from stereo_gui.files.presets import load_presets
     from stereo_gui.files.scenes import load_scene, read_scene_list, read_seen_mask
-    from stereo_gui.pipeline.concurrency import use_opencv_threads_beside_lanes
+    from stereo_gui.pipeline.concurrency import opencv_threads_for_lanes, preset_pipeline
 
     specs = read_scene_list(list_path)
     params = load_presets(presets, reserved=(PLAIN,))
@@ -43,8 +40,7 @@ def run_clicks(list_path, presets=("live", "quality")) -> dict:
     totals = {m: ClickScore() for m in methods}
     metric = {m: ClickScore() for m in methods}  # the scenes with a calibration of their own
     scenes = []
-    threads_before = use_opencv_threads_beside_lanes()
-    try:
+    with opencv_threads_for_lanes():
         for spec in specs:
             scene = load_scene(spec)
             own = spec.calib is not None
@@ -69,7 +65,7 @@ def run_clicks(list_path, presets=("live", "quality")) -> dict:
                     preset = preset.replace(z_min_mm=None, z_max_mm=None, min_disparity=0,
                                             num_disparities=num)
                 t0 = time.perf_counter()
-                with StereoPipeline(calib, preset) as pipe:
+                with preset_pipeline(calib, preset) as pipe:
                     result = pipe.process(scene.left, scene.right)
                 clicks = click_scene(result, calib, truth)
                 entry["methods"][name] = _scored(clicks, time.perf_counter() - t0,
@@ -85,8 +81,6 @@ def run_clicks(list_path, presets=("live", "quality")) -> dict:
             if own:
                 metric[PLAIN].add(clicks)
             scenes.append(entry)
-    finally:
-        cv2.setNumThreads(threads_before)
     return {"list": str(list_path), "presets": list(params), "scenes": scenes,
             "total": {m: t.summary() for m, t in totals.items()},
             "own_calibration": {m: t.summary() for m, t in metric.items()}}

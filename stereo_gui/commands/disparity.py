@@ -14,8 +14,9 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import PipelineResult, Preset, StereoPipeline, color_scale_caption
+from stereo_gui.core.matching import PipelineResult, Preset, color_scale_caption
 from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.pipeline.concurrency import preset_pipeline
 
 log = logging.getLogger(__name__)
 
@@ -88,7 +89,7 @@ def run_pipeline(args) -> tuple[StereoCalibration, PipelineResult]:
     calib = load_calibration(args.calib, args.left)
     params = load_params(args.preset)
     left, right = read_pair(args.left, args.right, calib)
-    with StereoPipeline(calib, params) as pipe:
+    with preset_pipeline(calib, params) as pipe:
         # a calibration made with the cameras found swapped takes its images exchanged
         return calib, pipe.process(*calib.ordered(left, right))
 

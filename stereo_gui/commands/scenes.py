@@ -45,22 +45,19 @@ def baseline_of(preset: str, scale: float) -> str:
 def run_scenes(list_path, presets=("live", "quality"), repeat: int = 1) -> dict:
     """Score every preset and the baselines on every scene of the list; the result as a dict
     (the `--json` output)."""
-    import cv2
-
     from stereo_gui.core.matching import StereoPipeline
     from stereo_gui.core.scene_score import disparity_search_range, plain_sgbm, score_disparity
     from stereo_gui.core.stereo_calibration import StereoCalibration
     from stereo_gui.files.presets import load_presets
     from stereo_gui.files.scenes import load_scene, read_scene_list
-    from stereo_gui.pipeline.concurrency import use_opencv_threads_beside_lanes
+    from stereo_gui.pipeline.concurrency import opencv_threads_for_lanes
 
     if not 1 <= repeat <= 100:
         raise InputError(f"--frames must be between 1 and 100 with --scenes, not {repeat}")
     specs = read_scene_list(list_path)
     params = load_presets(presets, reserved=(BASELINE,))
-    threads_before = use_opencv_threads_beside_lanes()
     rows: list[SceneRow] = []
-    try:
+    with opencv_threads_for_lanes():
         for spec in specs:
             scene = load_scene(spec)
             w, h = scene.size
@@ -88,8 +85,6 @@ def run_scenes(list_path, presets=("live", "quality"), repeat: int = 1) -> dict:
                 row.ms[method] = (time.perf_counter() - t0) * 1000.0 / repeat
                 row.scores[method] = score_disparity(disparity, scene.truth_px)
             rows.append(row)
-    finally:
-        cv2.setNumThreads(threads_before)
     return summarize(rows, list(params))
 
 

@@ -314,7 +314,8 @@ class ThreadParams:
                            help="Live: two frames processed at once, one on each core; "
                                 "elsewhere the left and right matchers at once")
     cv_threads: int | None = param(None, lo=0, hi=256,
-                                   help="cv2.setNumThreads for the process (None: leave as is)")
+                                   help="OpenCV's thread count for the process, set where the preset "
+                                        "runs (pipeline.concurrency; None: leave as is)")
 
     def __post_init__(self) -> None:
         check_all(self, "thread parameters")
@@ -778,9 +779,7 @@ class StereoPipeline:
         self.close()
 
     def _build(self) -> None:
-        p, threads = self._params, self._preset.threads
-        if threads.cv_threads is not None:
-            cv2.setNumThreads(int(threads.cv_threads))
+        p = self._params
         s = self._scale = p.effective_scale(self.calibration.width)
         fitted = p.range_from_scene and p.z_min_mm is not None
         self._min_s, self._num_s = p.matcher_range(self.calibration, s,

@@ -16,6 +16,9 @@ parallelism of the frame path:
 - OpenCV's own thread pool gets the CPUs the lanes leave (`opencv_threads_beside_lanes`): on
   2 CPUs none, every OpenCV call then runs in the lane that makes it. The command line, which
   processes one frame at a time without lanes, leaves OpenCV its default pool (all CPUs).
+  OpenCV's thread count is process-wide: it is set here and nowhere else (`set_opencv_threads`),
+  by `run_app` and the benches for the lanes, and by whoever runs a preset whose `cv_threads`
+  asks for a count (`use_preset_threads`); `core.matching.StereoPipeline` leaves it alone.
 
 Batch work runs in one job thread (`qt.workers`), the same way: chessboard detection over saved
 pairs (`core.detect.detect_pairs`) is the one batch that splits into a pool of threads, one
@@ -30,8 +33,13 @@ than the UI thread (`qt.workers.threads`). No Qt here.
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import cv2
+
+from stereo_gui.core.matching import MatcherParams, Preset, StereoPipeline
+from stereo_gui.core.stereo_calibration import StereoCalibration
 
 MAX_LANES = 2  # frames processed at once at most (the frame worker has as many lanes)
 
@@ -53,9 +61,41 @@ def opencv_threads_beside_lanes(cpus: int | None = None) -> int:
     return max(1, cpus - MAX_LANES + 1)
 
 
-def use_opencv_threads_beside_lanes() -> int:
-    """Set `opencv_threads_beside_lanes()` (`run_app`, and `bench` for the presets); return the
-    thread count set before."""
+def set_opencv_threads(count: int) -> int:
+    """Set OpenCV's process-wide thread count (the one place it is set); return the count
+    before."""
     before = cv2.getNumThreads()
-    cv2.setNumThreads(opencv_threads_beside_lanes())
+    cv2.setNumThreads(int(count))
     return before
+
+
+def use_opencv_threads_beside_lanes() -> int:
+    """Set `opencv_threads_beside_lanes()` (`run_app`); return the thread count set before."""
+    return set_opencv_threads(opencv_threads_beside_lanes())
+
+
+@contextmanager
+def opencv_threads_for_lanes() -> Iterator[None]:
+    """OpenCV with the threads `run_app` gives it while the block runs (the benches time the
+    presets so), the count found before set again after."""
+    before = use_opencv_threads_beside_lanes()
+    try:
+        yield
+    finally:
+        set_opencv_threads(before)
+
+
+def use_preset_threads(params: Preset | MatcherParams) -> None:
+    """Set the OpenCV thread count a preset asks for (`cv_threads`; None: leave it as it is),
+    before its frames are processed."""
+    count = Preset.of(params).threads.cv_threads
+    if count is not None:
+        set_opencv_threads(count)
+
+
+def preset_pipeline(calibration: StereoCalibration,
+                    params: Preset | MatcherParams) -> StereoPipeline:
+    """A StereoPipeline for `params`, OpenCV's thread count first set as the preset asks (the
+    commands that process frames one at a time)."""
+    use_preset_threads(params)
+    return StereoPipeline(calibration, params)

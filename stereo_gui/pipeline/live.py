@@ -25,7 +25,7 @@ from stereo_gui.core.matching import (
     colorize,
     paint,
 )
-from stereo_gui.pipeline.concurrency import lanes_for
+from stereo_gui.pipeline.concurrency import lanes_for, use_preset_threads
 from stereo_gui.pipeline.health import HealthMonitor
 from stereo_gui.pipeline.images import display_rgb
 from stereo_gui.pipeline.region import Region, RegionStats, region_stats
@@ -116,6 +116,8 @@ class LiveProcessor:
         self._lock = threading.Lock()
         self._lane_params = params  # what each lane's pipeline runs
         self._lanes = frame_lanes(params)
+        # the parameters whose OpenCV thread count was set (on the first frame they run)
+        self._threads_of: Preset | None = None
         self._idle: list[StereoPipeline] = []  # pipelines for frames of self._size, not in use
         self._busy: set[StereoPipeline] = set()
         self._size: tuple[int, int] | None = None  # frame size the pipelines are built for
@@ -193,6 +195,9 @@ class LiveProcessor:
             pipeline = StereoPipeline(calib, params)
         with self._lock:
             lane = self._lane_params
+            if self._threads_of is not lane:
+                self._threads_of = lane
+                use_preset_threads(lane)
             # (the same object on every frame but the first after a change: no field-by-field
             # comparison, and no new parameters validated, per frame)
             if pipeline.params is not lane and pipeline.params != lane:
