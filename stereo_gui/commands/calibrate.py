@@ -15,11 +15,13 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+from stereo_gui.commands import options
 from stereo_gui.core.board import (
     DEFAULT_DICTIONARY,
     DICTIONARIES,
     TARGET_NAMES,
     TARGETS,
+    BoardSpec,
     parse_board,
 )
 from stereo_gui.core.calibrate import (
@@ -34,6 +36,7 @@ from stereo_gui.core.detect import PairInput, detect_pairs
 from stereo_gui.core.errors import InputError, StereoGuiError
 from stereo_gui.core.lens import LENS_MODELS, distortion_names
 from stereo_gui.core.shading import shading_words, with_measured_shading
+from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.calibration_file import export_ros, save_calibration
 from stereo_gui.files.pairs import check_same_size, discover_pairs, load_image
 
@@ -48,10 +51,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--board", default=None,
                    help="COLSxROWS: inner corners of a chessboard (default 9x6), circles of a "
                         "circle grid, squares of a ChArUco board (default 7x5)")
-    p.add_argument("--square-mm", type=float, default=25.0,
+    p.add_argument("--square-mm", type=options.declared(BoardSpec, "square_mm"), default=25.0,
                    help="side of one square in millimetres, or the circle spacing of a circle "
                         "grid (default 25)")
-    p.add_argument("--marker-mm", type=float, default=0.0,
+    p.add_argument("--marker-mm", type=options.declared(BoardSpec, "marker_mm"), default=0.0,
                    help="ChArUco: side of the ArUco markers (default 0.75 x square); circle "
                         "grids: circle diameter (not needed to detect them)")
     p.add_argument("--dict", default=DEFAULT_DICTIONARY, choices=DICTIONARIES, metavar="NAME",
@@ -64,11 +67,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "them (the warnings say when)")
     p.add_argument("-o", "--output", required=True, metavar="FILE",
                    help="calibration file to write (OpenCV FileStorage YAML)")
-    p.add_argument("--alpha", type=float, default=0.0,
+    p.add_argument("--alpha", type=options.declared(StereoCalibration, "alpha"), default=0.0,
                    help="rectification scaling: 0 keeps only valid pixels, 1 keeps all (default 0)")
     p.add_argument("--method", choices=("bouguet", "hartley"), default="bouguet",
                    help="bouguet (metric, default) or hartley (uncalibrated, no metric scale)")
-    p.add_argument("--min-pairs", type=int, default=DEFAULT_MIN_PAIRS,
+    p.add_argument("--min-pairs", type=options.whole(1, options.MAX_PAIRS),
+                   default=DEFAULT_MIN_PAIRS,
                    help=f"fewest usable pairs to accept (default {DEFAULT_MIN_PAIRS})")
     p.add_argument("--keep-outliers", action="store_true",
                    help="do not drop pairs whose error is far above the median")
@@ -258,10 +262,6 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     board = parse_board(args.board or ("7x5" if args.target == "charuco" else "9x6"),
                         args.square_mm, args.target, args.marker_mm, args.dict)
-    if not (math.isfinite(args.alpha) and 0.0 <= args.alpha <= 1.0):
-        raise InputError(f"--alpha must be between 0 and 1, not {args.alpha:g}")
-    if not 1 <= args.min_pairs <= 10_000:
-        raise InputError(f"--min-pairs must be from 1 to 10000, not {args.min_pairs}")
     output = Path(args.output)
     if not output.parent.is_dir() and str(output.parent):
         raise InputError(f"cannot write {output}: folder {output.parent} does not exist")

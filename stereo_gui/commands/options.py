@@ -14,6 +14,7 @@ from collections.abc import Callable
 from stereo_gui.core.params import Param, params_of
 
 SEED_MAX = 2**32 - 1  # numpy's seeds are never negative, and 32 bits as OpenCV takes them
+MAX_PAIRS = 10_000  # the pairs of a calibration set: more than anyone needs
 
 
 def whole(lo: int, hi: int) -> Callable[[str], int]:

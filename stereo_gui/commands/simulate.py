@@ -15,15 +15,26 @@ import sys
 import time
 from pathlib import Path
 
-
 from stereo_gui.commands import options
-from stereo_gui.core.board import TARGETS, parse_board
+from stereo_gui.core.board import TARGETS, BoardSpec, parse_board
 from stereo_gui.core.errors import InputError
-from stereo_gui.sources.sim import (SCENE_FOLDER, RigConfig, SimRig, calibration_set_names,
-                                    write_calibration_set)
-from stereo_gui.sources.sim.click_scenes import (CLICK_CONDITIONS, CLICK_FOLDER, CLICK_LIST,
-                                                 CLICK_WALLS_MM, MAX_CLICK_SEEDS, click_scene_names,
-                                                 rectified_spec, write_click_scenes)
+from stereo_gui.sources.sim import (
+    SCENE_FOLDER,
+    RigConfig,
+    SimRig,
+    calibration_set_names,
+    write_calibration_set,
+)
+from stereo_gui.sources.sim.click_scenes import (
+    CLICK_CONDITIONS,
+    CLICK_FOLDER,
+    CLICK_LIST,
+    CLICK_WALLS_MM,
+    MAX_CLICK_SEEDS,
+    click_scene_names,
+    rectified_spec,
+    write_click_scenes,
+)
 
 # files of an earlier simulated set: replaced or removed with --overwrite
 _OWN_NAMES = re.compile(r"^(chessboard-[LR]\d+|scenes/scene-[LR]\d+)\.png$|^truth\.json$")
@@ -36,7 +47,8 @@ DEFAULT_SEEDS = 3
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("out_dir", metavar="OUT_DIR", help="folder to write (created if missing)")
-    parser.add_argument("--pairs", type=int, default=None, metavar="N",
+    parser.add_argument("--pairs", type=options.whole(1, options.MAX_PAIRS), default=None,
+                        metavar="N",
                         help=f"number of chessboard pairs (default {DEFAULT_PAIRS})")
     parser.add_argument("--scene", action="store_true",
                         help="also write scene pairs: walls at 0.5, 1, 1.5, 2, 3 m and the demo scene")
@@ -59,9 +71,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--board", default=None,
                         help="COLSxROWS as `calibrate --board` counts them (default 9x6, 7x5 for "
                              "charuco)")
-    parser.add_argument("--square-mm", type=float, default=None,
+    parser.add_argument("--square-mm", type=options.declared(BoardSpec, "square_mm"), default=None,
                         help="square side or circle spacing, mm (default 25, 30 for charuco)")
-    parser.add_argument("--marker-mm", type=float, default=None,
+    parser.add_argument("--marker-mm", type=options.declared(BoardSpec, "marker_mm"), default=None,
                         help="ChArUco marker side or circle diameter, mm (default: the target's)")
     parser.add_argument("--lens", choices=("pinhole", "fisheye"), default="pinhole",
                         help="the rig's cameras: webcams (default) or wide-angle fisheye webcams")
@@ -102,10 +114,6 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--seeds goes with --click-scenes (a calibration set has one --seed)")
     args.pairs = DEFAULT_PAIRS if args.pairs is None else args.pairs
     args.target = args.target or "chessboard"
-    if args.pairs < 1:
-        raise InputError(f"--pairs must be at least 1, not {args.pairs}")
-    if args.pairs > 10000:
-        raise InputError(f"--pairs {args.pairs} is more than anyone needs; give at most 10000")
     charuco = args.target == "charuco"
     # an explicit 0 is refused as a square size, not taken for the default
     square_mm = (30.0 if charuco else 25.0) if args.square_mm is None else args.square_mm

@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 from stereo_gui.commands import options
-from stereo_gui.core.board import DEFAULT_DICTIONARY, DICTIONARIES, TARGETS, parse_board
+from stereo_gui.core.board import DEFAULT_DICTIONARY, DICTIONARIES, TARGETS, BoardSpec, parse_board
 from stereo_gui.core.target_sheet import PAGES_MM, describe, layout
 from stereo_gui.files.target_sheet import write_target
 
@@ -24,9 +24,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--board", default=None,
                    help="COLSxROWS: inner corners of a chessboard (default 9x6), circles of a "
                         "circle grid, squares of a ChArUco board (default 7x5)")
-    p.add_argument("--square-mm", type=float, default=25.0,
+    p.add_argument("--square-mm", type=options.declared(BoardSpec, "square_mm"), default=25.0,
                    help="side of a square, or the spacing of a circle grid, mm (default 25)")
-    p.add_argument("--marker-mm", type=float, default=0.0,
+    p.add_argument("--marker-mm", type=options.declared(BoardSpec, "marker_mm"), default=0.0,
                    help="ChArUco: marker side (default 0.75 x square); circle grids: circle "
                         "diameter (default 0.5 x spacing, 0.7 for acircles)")
     p.add_argument("--dict", default=DEFAULT_DICTIONARY, choices=DICTIONARIES, metavar="NAME",

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stereo_gui.core.errors import InputError
+from stereo_gui.core.params import check_all, param
 
 TARGETS = ("chessboard", "circles", "acircles", "charuco")
 TARGET_NAMES = {"chessboard": "chessboard", "circles": "circle grid",
@@ -45,26 +46,34 @@ def dictionary_size(name: str) -> int:
     return int(name.rsplit("_", 1)[1])
 
 
-MIN_BOARD_CORNERS = 3  # inner corners a side
+MIN_BOARD_CORNERS = 3  # inner corners a side (circle grids: 2 circles)
 MAX_BOARD_CORNERS = 100
+# beyond these, millimetres overflow or vanish in the calibration's arithmetic
 MIN_SQUARE_MM = 0.01
 MAX_SQUARE_MM = 10_000.0
 
 
 @dataclass(frozen=True)
 class BoardSpec:
-    """A calibration target; see the module docstring for what `cols` and `rows` count."""
+    """A calibration target; see the module docstring for what `cols` and `rows` count. Each
+    field's range is declared with it (the command line's options take theirs from here); what
+    one field asks of another is checked when it is built."""
 
-    cols: int = 9
-    rows: int = 6
-    square_mm: float = 25.0
-    target: str = "chessboard"
-    marker_mm: float = 0.0  # ChArUco: marker side; circle grids: circle diameter; 0: default
-    dictionary: str = DEFAULT_DICTIONARY  # ChArUco only
+    cols: int = param(9, lo=2, hi=MAX_BOARD_CORNERS,
+                      help="inner corners (chessboard), circles, or squares (ChArUco) a row")
+    rows: int = param(6, lo=2, hi=MAX_BOARD_CORNERS)
+    square_mm: float = param(25.0, lo=MIN_SQUARE_MM, hi=MAX_SQUARE_MM, unit="mm",
+                             help="square side, or the spacing of a circle grid")
+    target: str = param("chessboard", choices=TARGETS)
+    # ChArUco: marker side; circle grids: circle diameter; 0: the target's default
+    marker_mm: float = param(0.0, lo=0.0, hi=MAX_SQUARE_MM, unit="mm")
+    dictionary: str = param(DEFAULT_DICTIONARY, choices=DICTIONARIES,
+                            help="ChArUco only: the ArUco dictionary")
 
     def __post_init__(self) -> None:
-        if self.target not in TARGETS:
-            raise InputError(f"unknown target {self.target!r}: use one of {', '.join(TARGETS)}")
+        if self.target != "charuco":
+            object.__setattr__(self, "dictionary", DEFAULT_DICTIONARY)
+        check_all(self)
         # OpenCV's chessboard and ChArUco detectors need more than 2 corners a side
         least = 2 if self.target in ("circles", "acircles") else MIN_BOARD_CORNERS
         if self.cols < least or self.rows < least:
@@ -72,26 +81,12 @@ class BoardSpec:
                 "inner corners" if self.target == "chessboard" else "circles")
             raise InputError(f"a {TARGET_NAMES[self.target]} needs at least {least}x{least} "
                              f"{what}, not {self.cols}x{self.rows}")
-        if self.cols > MAX_BOARD_CORNERS or self.rows > MAX_BOARD_CORNERS:
-            raise InputError(f"a {TARGET_NAMES[self.target]} of {self.cols}x{self.rows} is not "
-                             f"plausible (at most {MAX_BOARD_CORNERS} a side)")
-        if not np.isfinite(self.square_mm) or self.square_mm <= 0:
-            raise InputError(f"square size must be a positive number of millimetres, not {self.square_mm}")
-        if not MIN_SQUARE_MM <= self.square_mm <= MAX_SQUARE_MM:
-            # beyond these, millimetres overflow or vanish in the calibration's arithmetic
-            raise InputError(f"square size {self.square_mm:g} mm is not plausible (give "
-                             f"{MIN_SQUARE_MM:g} to {MAX_SQUARE_MM:g} mm)")
-        if not np.isfinite(self.marker_mm) or self.marker_mm < 0:
-            raise InputError(f"marker size must be a positive number of millimetres, not {self.marker_mm}")
         if self.target == "chessboard":
             object.__setattr__(self, "marker_mm", 0.0)
         elif self.marker_mm == 0.0:
             share = {"circles": 0.5, "acircles": 0.7, "charuco": 0.75}[self.target]
             object.__setattr__(self, "marker_mm", round(share * self.square_mm, 3))
         if self.target == "charuco":
-            if self.dictionary not in DICTIONARIES:
-                raise InputError(f"unknown ArUco dictionary {self.dictionary!r}: use one of "
-                                 f"{', '.join(DICTIONARIES)}")
             if self.marker_mm >= self.square_mm:
                 raise InputError(f"the markers ({self.marker_mm:g} mm) must be smaller than the "
                                  f"squares ({self.square_mm:g} mm)")
@@ -99,13 +94,11 @@ class BoardSpec:
             if need > dictionary_size(self.dictionary):
                 raise InputError(f"a {self.cols}x{self.rows} ChArUco board needs {need} markers; "
                                  f"{self.dictionary} has only {dictionary_size(self.dictionary)}")
-        else:
-            object.__setattr__(self, "dictionary", DEFAULT_DICTIONARY)
-            if self.target in ("circles", "acircles"):
-                gap = self.square_mm * (math.sqrt(2.0) if self.target == "acircles" else 1.0)
-                if self.marker_mm >= gap:
-                    raise InputError(f"circles of {self.marker_mm:g} mm overlap at a spacing of "
-                                     f"{self.square_mm:g} mm")
+        elif self.target in ("circles", "acircles"):
+            gap = self.square_mm * (math.sqrt(2.0) if self.target == "acircles" else 1.0)
+            if self.marker_mm >= gap:
+                raise InputError(f"circles of {self.marker_mm:g} mm overlap at a spacing of "
+                                 f"{self.square_mm:g} mm")
 
     # ---- points --------------------------------------------------------------------------------
     @property

@@ -41,7 +41,7 @@ from stereo_gui.core.lens import (
     stereo_rectify,
     undistort_points,
 )
-from stereo_gui.core.stereo_calibration import PairError, StereoCalibration
+from stereo_gui.core.stereo_calibration import ALPHA, PairError, StereoCalibration
 from stereo_gui.core.uncertainty import (
     Z95,
     CalibrationUncertainty,
@@ -465,8 +465,8 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
         raise CalibrationError(f"unknown calibration method {method!r}; use bouguet or hartley")
     if model not in LENS_MODELS:
         raise CalibrationError(f"unknown lens model {model!r}; use one of {', '.join(LENS_MODELS)}")
-    if not 0.0 <= alpha <= 1.0 and alpha != -1.0:
-        raise CalibrationError(f"alpha must be between 0 and 1 (or -1 for OpenCV's default), not {alpha}")
+    if (why := ALPHA.problem(alpha)) is not None:
+        raise CalibrationError(why)
     detections = list(detections)
     n = len(detections)
     if n == 0:

@@ -147,13 +147,13 @@ def params_of(cls) -> Mapping[str, Param]:
     return types.MappingProxyType(out)
 
 
-def check_all(obj, what: str) -> None:
+def check_all(obj, what: str = "") -> None:
     """Raise InputError listing every field of `obj` (a dataclass of Param fields) whose value
-    is not one of its field's; `what` names the object in the message."""
+    is not one of its field's; `what` names the object in front of the message."""
     problems = [p for p in (spec.problem(getattr(obj, name))
                             for name, spec in params_of(type(obj)).items()) if p]
     if problems:
-        raise InputError(f"{what}: " + "; ".join(problems))
+        raise InputError((f"{what}: " if what else "") + "; ".join(problems))
 
 
 def from_json(cls, data: Mapping, where: str, whole_floats: bool = True) -> dict:

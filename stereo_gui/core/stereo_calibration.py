@@ -25,6 +25,7 @@ from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.camera_settings import PairSettings
 from stereo_gui.core.errors import CalibrationError, CalibrationFileError, CalibrationValueError
 from stereo_gui.core.lens import LENS_MODELS, LensModel, rectify_map, undistort_points
+from stereo_gui.core.params import Param, param, params_of
 from stereo_gui.core.shading import PairShading
 from stereo_gui.core.uncertainty import CalibrationUncertainty, CalibrationWarning
 
@@ -97,7 +98,9 @@ class StereoCalibration:
     epipolar_error_px: float = float("nan")
     per_pair: tuple[PairError, ...] = ()
     method: Method = "bouguet"
-    alpha: float = 0.0
+    alpha: float = param(0.0, lo=0.0, hi=1.0,
+                         help="stereoRectify's free scaling: 0 keeps only valid pixels (zoomed "
+                              "in), 1 keeps every pixel")
     optimal_M1: np.ndarray | None = None  # getOptimalNewCameraMatrix(alpha=1), shown as in the report
     optimal_M2: np.ndarray | None = None
     created: str = field(default_factory=lambda: _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"))
@@ -151,8 +154,8 @@ class StereoCalibration:
         if self.method not in METHODS:
             _refuse(f"unknown method {self.method!r}")
         alpha = _as_float(self.alpha)
-        if not (math.isfinite(alpha) and -1.0 <= alpha <= 1.0):
-            _refuse(f"alpha {alpha:g} is not between -1 and 1")
+        if (why := ALPHA.problem(alpha)) is not None:
+            _refuse(why)
         object.__setattr__(self, "alpha", alpha)
         self._check_figures()
         for name, m in (("optimal_M1", self.optimal_M1), ("optimal_M2", self.optimal_M2)):
@@ -386,6 +389,11 @@ MAX_FOCAL_PX = 1e7
 MAX_BASELINE_MM = 1e7
 ROTATION_TOL = 1e-3  # R^T R = I and det R = 1 within this
 MAX_DISTORTION = 1e6
+
+
+# the rectification's scaling as every caller checks it: the command line, calibrate_stereo and
+# a calibration being built (a file's too)
+ALPHA: Param = params_of(StereoCalibration)["alpha"]
 
 
 def _refuse(text: str) -> NoReturn:

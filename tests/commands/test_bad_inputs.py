@@ -120,7 +120,7 @@ def test_a_fit_holding_ten_to_the_400(tmp_path, pair, capfd):
     (["bench", "--accuracy", "--seed=-1"], ("--seed", "from 0 to 4294967295")),
     (["bench", "--accuracy", "--seed", "100000000000000000000"], ("--seed",)),
     (["bench", "--accuracy", "--seed", str(2**32)], ("--seed",)),
-    (["simulate", "OUT", "--pairs", "1", "--square-mm", "0"], ("square size", "not 0")),
+    (["simulate", "OUT", "--pairs", "1", "--square-mm", "0"], ("--square-mm", "from 0.01", "not 0")),
     (["target", "--square-mm", "0.01", "-o", "OUT/t.pdf"], ("0.01 mm", "at least 2 mm")),
     (["target", "--page", "100000x100000", "-o", "OUT/t.png"], ("at most 2000 mm",)),
     (["target", "--page", "a2", "--dpi", "2400", "-o", "OUT/t.png"], ("lower --dpi",)),
@@ -141,5 +141,5 @@ def test_the_patch_is_bounded(pair, capfd, patch):
 def test_alpha_minus_one_is_refused(pair, tmp_path, capfd):
     code = _run(["calibrate", pair[0].parent, "--board", "9x6", "--square-mm", "25",
                  "-o", tmp_path / "c.yaml", "--alpha=-1"])
-    _one_line(capfd, code, "--alpha must be between 0 and 1, not -1")
+    _one_line(capfd, code, "--alpha: a number from 0 to 1, not -1")
     assert not (tmp_path / "c.yaml").exists()

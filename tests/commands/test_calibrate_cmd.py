@@ -29,7 +29,10 @@ def rig_dir(tmp_path_factory) -> Path:
 
 
 def _run(argv, capsys):
-    code = main(["calibrate", *map(str, argv)])
+    try:
+        code = main(["calibrate", *map(str, argv)])
+    except SystemExit as exc:  # refused by the option parser
+        code = exc.code
     out, err = capsys.readouterr()
     return code, out, err
 
@@ -223,7 +226,7 @@ def test_other_bad_options(rig_dir, tmp_path, capsys):
     _assert_one_error_line(*_run([rig_dir, "-o", tmp_path / "c.yaml", "--alpha", "3"], capsys),
                            "--alpha")
     _assert_one_error_line(*_run([rig_dir, "-o", tmp_path / "c.yaml", "--square-mm", "-2"],
-                                 capsys), "square size")
+                                 capsys), "--square-mm: a number from 0.01 to 10000 mm, not -2")
 
 
 def test_subprocess_exit_status_and_no_traceback(tmp_path):

@@ -71,12 +71,13 @@ def test_overwrite_replaces_and_removes_stale_pairs(tmp_path, capsys):
 
 
 def test_bad_pair_count(tmp_path, capsys):
-    assert main(["simulate", str(tmp_path / "x"), "--pairs", "0"]) == 2
-    err = capsys.readouterr().err
-    assert "--pairs must be at least 1" in err and len(err.strip().splitlines()) == 1
-    with pytest.raises(SystemExit) as exc:
-        main(["simulate", str(tmp_path / "x"), "--pairs", "many"])
-    assert exc.value.code == 2
+    for count in ("0", "10001", "many"):
+        with pytest.raises(SystemExit) as exc:
+            main(["simulate", str(tmp_path / "x"), "--pairs", count])
+        assert exc.value.code == 2
+        err = capsys.readouterr().err
+        assert "--pairs: a whole number from 1 to 10000" in err
+        assert len(err.strip().splitlines()) == 1
     assert not (tmp_path / "x").exists()
 
 

@@ -50,14 +50,18 @@ def test_charuco_board_counts_squares_and_numbers_its_corners():
 
 
 @pytest.mark.parametrize("kwargs, words", [
-    (dict(target="hexagons"), "unknown target"),
-    (dict(cols=1), "at least 3x3"),
+    (dict(target="hexagons"), "target must be one of chessboard, "),
+    (dict(cols=1), "cols must be a whole number from 2 to 100, not 1"),
+    (dict(cols=2), "a chessboard needs at least 3x3 inner corners, not 2x6"),
     (dict(target="charuco", cols=2, rows=5), "at least 3x3"),
     (dict(target="charuco", marker_mm=30.0, square_mm=30.0), "smaller than the squares"),
-    (dict(target="charuco", dictionary="DICT_9X9_1"), "unknown ArUco dictionary"),
+    (dict(target="charuco", dictionary="DICT_9X9_1"), "dictionary must be one of DICT_4X4_50"),
     (dict(target="charuco", cols=12, rows=10, dictionary="DICT_4X4_50"), "needs 60 markers"),
     (dict(target="circles", marker_mm=30.0), "overlap"),
-    (dict(square_mm=-1.0), "positive"),
+    (dict(square_mm=-1.0), "square_mm must be a number from 0.01 to 10000 mm, not -1.0"),
+    (dict(square_mm=float("nan")), "square_mm must be a number from 0.01 to 10000 mm, not nan"),
+    (dict(cols=101), "cols must be a whole number from 2 to 100, not 101"),
+    (dict(target="charuco", marker_mm=-1.0), "marker_mm must be a number from 0 to 10000 mm"),
 ])
 def test_impossible_targets_are_refused(kwargs, words):
     args = dict(cols=9, rows=6, square_mm=25.0) | kwargs

@@ -114,7 +114,7 @@ def test_bad_arguments_raise(rig_run):
     truth, dets, _ = rig_run
     with pytest.raises(CalibrationError, match="unknown calibration method"):
         calibrate_stereo(dets, truth.board, method="tsai")
-    with pytest.raises(CalibrationError, match="alpha"):
+    with pytest.raises(CalibrationError, match="alpha must be a number from 0 to 1, not 2.0"):
         calibrate_stereo(dets, truth.board, alpha=2.0)
     with pytest.raises(CalibrationError, match="no image pairs"):
         calibrate_stereo([], truth.board)

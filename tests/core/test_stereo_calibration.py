@@ -66,7 +66,7 @@ def test_the_arrays_are_copies_of_what_it_was_built_with():
     ({"optimal_M1": np.full((3, 3), math.nan)}, "matrix optimal_M1 should be a finite 3x3"),
     ({"rms_left": math.inf}, "rms_left is inf; it must be a finite number of pixels >= 0"),
     ({"rms_stereo": math.nan}, "rms_stereo is not a number"),  # known: it has per-pair errors
-    ({"alpha": math.nan}, "alpha nan is not between -1 and 1"),
+    ({"alpha": math.nan}, "alpha must be a number from 0 to 1, not nan"),
     # positive focal lengths
     (_with("M1", (0, 0), 0.0), "matrix M1 has focal lengths 0, "),
     (_with("M2", (1, 1), -745.0), "matrix M2 has focal lengths 745.3, -745 px"),
@@ -86,7 +86,8 @@ def test_the_arrays_are_copies_of_what_it_was_built_with():
     ({"model": "kaleidoscope"}, "unknown lens model 'kaleidoscope'"),
     ({"model": "fisheye"}, "a fisheye calibration needs 4 distortion coefficients per camera"),
     ({"D2": np.zeros((1, 8))}, "distortion D1 has 5 coefficients and D2 8"),
-    ({"alpha": 1.5}, "alpha 1.5 is not between -1 and 1"),
+    ({"alpha": 1.5}, "alpha must be a number from 0 to 1, not 1.5"),
+    ({"alpha": -1.0}, "alpha must be a number from 0 to 1, not -1.0"),
     ({"epipolar_error_px": -0.1}, "epipolar_error_px is -0.1"),
 ])
 def test_what_no_camera_has_is_refused_on_construction_naming_it(changes, message):
