@@ -12,8 +12,9 @@ the distance the rig rendered there. Per preset and wall it reports
 - how often the printed +- (`expected_error_mm`, a 95 % bound) covered the true error, and the
   median +- in % of the distance.
 
-The reference row "report" is the student report's own loop (core.report_loop): its remap,
-matcher and its 3x3 mean of the raw disparity, triangulated through Q with the same calibration.
+The reference row "report" is the reference loop (core.reference_loop, the live loop of the
+program of the report the project grew from): its remap, matcher and its 3x3 mean of the raw
+disparity, triangulated through Q with the same calibration.
 The row "plain" is plain OpenCV set up with care (`core.scene_score.plain_sgbm`: 8-direction
 SGBM with a 1 px left-right check) on the same rectified images, read as the median of the 9x9
 patch's valid disparities.
@@ -196,10 +197,10 @@ class WallTruth:
         return float(p_rect[2]), seen
 
 
-def _report_reading(result, x: float, y: float, calib: StereoCalibration
-                    ) -> tuple[float, str | None]:
-    """The report's measurement done with plain OpenCV: the mean raw disparity of the 3x3 patch
-    around the pixel (its code), over the pixels SGBM matched (it averaged the invalid marker
+def _reference_reading(result, x: float, y: float, calib: StereoCalibration
+                       ) -> tuple[float, str | None]:
+    """The reference program's measurement done with plain OpenCV: the mean raw disparity of the
+    3x3 patch around the pixel (its code), over the pixels SGBM matched (it averaged the invalid marker
     too, which no honest comparison keeps), triangulated through Q."""
     xi, yi = int(x), int(y)
     d = result.disparity_px[yi - 1:yi + 2, xi - 1:xi + 2]
@@ -243,7 +244,7 @@ def evaluate_wall(rig, calib: StereoCalibration, params: Preset | MatcherParams 
                   wall_mm: float, seed: int, grid: tuple[int, int] = GRID, condition: Condition | None = None
                   ) -> WallReport:
     """Render a wall at `wall_mm` (under `condition`, default the rig's usual texture), run one
-    preset (or "report": the report's loop; "plain": plain OpenCV) and measure the grid."""
+    preset (or "report": the reference loop; "plain": plain OpenCV) and measure the grid."""
     from stereo_gui.sources.sim import Scene
 
     condition = condition or CONDITIONS["rig"]
@@ -253,9 +254,9 @@ def evaluate_wall(rig, calib: StereoCalibration, params: Preset | MatcherParams 
     readings = []
     plain = None
     if params == "report":
-        from stereo_gui.core.report_loop import ReportLoop
+        from stereo_gui.core.reference_loop import ReferenceLoop
 
-        result = ReportLoop(calib).process(left, right)
+        result = ReferenceLoop(calib).process(left, right)
         name = "report"
     elif params == PLAIN:
         plain = plain_disparity(calib, left, right)
@@ -272,7 +273,7 @@ def evaluate_wall(rig, calib: StereoCalibration, params: Preset | MatcherParams 
     for x, y in grid_pixels(calib.image_size, grid):
         z_true, seen = truth.point(x, y)
         if name == "report":
-            z, reason = _report_reading(result, x, y, calib)
+            z, reason = _reference_reading(result, x, y, calib)
             bound = float("nan")
         elif name == PLAIN:
             z, reason = _plain_reading(plain, x, y, calib)
@@ -423,7 +424,7 @@ def score_map(disparity_px: np.ndarray, truth_px: np.ndarray) -> tuple[float, fl
 def middlebury_scores(folder, presets=("seed", "live", "quality")) -> list[BenchmarkScore]:
     """Raw and final maps of each preset on the Middlebury pairs found in `folder`. Presets other
     than seed search the benchmark's own disparity range (0..N) instead of deriving one from
-    working distances; the seed keeps the report's 2..129."""
+    working distances; the seed keeps the reference loop's 2..129."""
     from pathlib import Path
 
     from stereo_gui.files.presets import load_preset

@@ -1,19 +1,21 @@
-"""`stereo-gui bench`: the speed of a preset side by side with the report's own loop, or
+"""`stereo-gui bench`: the speed of a preset side by side with the reference loop, or
 (`--accuracy`) the accuracy of the presets over the whole frame on the simulated rig.
 
 Speed runs on a given raw pair (--calib C LEFT RIGHT) or on the simulated rig's demo scene, the
 same pair over and over (what is measured is processing, not the source). Each preset is timed
 end to end as the Live tab runs it (rectify, match, filter, colour map, and the conversion of
 every view for display), as many frames at once as its lanes, OpenCV with the threads the
-application gives it. The reference is the report's loop, its own code (core.report_loop), as
-it runs: one frame after the other, OpenCV's thread count left as it was. It is timed in the
+application gives it. The reference is the reference loop (`--reference report`: the live loop
+of the program of the report the project grew from, its own code, core.reference_loop), as it
+runs: one frame after the other, OpenCV's thread count left as it was. It is timed in the
 same run, so the ratio holds whatever else the machine is doing. Resident memory is reported
 at the start and end of each run (it should stay flat).
 
 On a shared machine the speed moves with the host's load within seconds, and the presets (two
-cores) feel it more than the report's loop (one). `--rounds R` interleaves them in short turns,
-the report's loop on an eighth of the frames before, between and after the presets' runs, and
-gives each round's ratio against the report's runs on either side of it, with the median.
+cores) feel it more than the reference loop (one). `--rounds R` interleaves them in short turns,
+the reference loop on an eighth of the frames before, between and after the presets' runs, and
+gives each round's ratio against the reference loop's runs on either side of it, with the
+median.
 """
 
 from __future__ import annotations
@@ -32,7 +34,9 @@ from stereo_gui.core.errors import InputError
 
 MAX_FRAMES = 10_000  # a preset at 2 frames per second: over an hour
 
-REFERENCES = ("report", "plain")  # the report's loop; a plain OpenCV program set up with care
+# the reference loop (named "report" on the command line and in JSON, as scripts know it); a
+# plain OpenCV program set up with care
+REFERENCES = ("report", "plain")
 
 
 def rss_mb() -> float:
@@ -56,15 +60,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="frames per preset (default 30; with --scenes: frames timed per "
                         "scene and method, default 1)")
     parser.add_argument("--preset", action="append", metavar="P",
-                        help="preset to time beside the report's loop (repeatable; default live)")
+                        help="preset to time beside the reference loop (repeatable; default live)")
     parser.add_argument("--reference", choices=(*REFERENCES, "both"), default="both",
-                        help="what the presets' speed is put beside: the report's loop, a plain "
+                        help="what the presets' speed is put beside: report, the reference loop "
+                        "(the program of the report the project grew from), plain, a plain "
                         "OpenCV program set up with care (half-size 3-way SGBM of 64 disparities, "
                         "its right matcher and WLS; core.plain_loop), or both (default)")
     parser.add_argument("--rounds", type=options.whole(1, 1000), default=1, metavar="R",
-                        help="interleave R rounds: the report's loop on N/8 frames (at least 2) "
+                        help="interleave R rounds: the reference loop on N/8 frames (at least 2) "
                         "between the presets' runs of N frames; each round's ratio and the median "
-                        "(default 1: the report's loop on N frames before and after)")
+                        "(default 1: the reference loop on N frames before and after)")
     parser.add_argument("--size", metavar="WxH",
                         help="simulated rig's frame size (default 640x480; without LEFT RIGHT)")
     parser.add_argument("--accuracy", action="store_true",
@@ -215,16 +220,16 @@ def live_processor(calib, params):
 
 
 def bench_reference(calib, left, right, frames: int, warmup: int = 2) -> dict:
-    """Time the report's own loop on the same pair."""
+    """Time the reference loop on the same pair."""
     import numpy as np
 
-    from stereo_gui.core.report_loop import MIN_DISP, NUM_DISP, WINDOW_SIZE, ReportLoop
+    from stereo_gui.core.reference_loop import MIN_DISP, NUM_DISP, WINDOW_SIZE, ReferenceLoop
 
     w = calib.image_size[0]
     if w - (MIN_DISP + NUM_DISP) <= WINDOW_SIZE // 2:
-        raise InputError(f"the images are {w} px wide: too narrow for the report's loop, which "
+        raise InputError(f"the images are {w} px wide: too narrow for the reference loop, which "
                          f"searches disparities {MIN_DISP}..{MIN_DISP + NUM_DISP - 1} px")
-    loop = ReportLoop(calib)
+    loop = ReferenceLoop(calib)
 
     def step():
         t0 = time.perf_counter()
@@ -255,8 +260,9 @@ def bench_plain(calib, left, right, frames: int, warmup: int = 2) -> dict:
 
 
 _TIMERS = {"report": bench_reference, "plain": bench_plain}
-_WORDS = {"report": "the report's loop, its own code",
+_WORDS = {"report": "the reference loop, its own code",
           "plain": "a plain OpenCV program set up with care"}
+_SHORT = {"report": "reference loop", "plain": "plain"}  # "2.5x the reference loop"
 
 
 def run_bench(args) -> dict:
@@ -371,7 +377,7 @@ def run(args) -> int:
     w, h = res["size"]
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     rounds = ("" if res["rounds"] == 1 else
-              f" in {res['rounds']} rounds (the report's loop {res['report_frames']} a run)")
+              f" in {res['rounds']} rounds (the reference loop {res['report_frames']} a run)")
     print(f"{res['source']}, {w}x{h}, {res['frames']} frames per run{rounds}, "
           f"OpenCV threads {res['cv_threads']} (the presets {res['cv_threads_presets']}), "
           f"load average {load:.1f} on {os.cpu_count()} CPUs")
@@ -384,7 +390,7 @@ def run(args) -> int:
               f"{ref['cpu_ms_per_frame']:.1f} ms/frame)")
     for name, r in res["presets"].items():
         stages = ", ".join(f"{k} {v:.1f}" for k, v in r["stages_ms"].items() if k != "total")
-        beside = "; ".join(f"{res[f'over_{ref}'][name]:.2f}x the {ref}"
+        beside = "; ".join(f"{res[f'over_{ref}'][name]:.2f}x the {_SHORT[ref]}"
                            for ref in res["references"])
         print(f"{name:>10}: {r['fps']:6.1f} fps ({r['lanes']} at once: a frame every "
               f"{r['ms_per_frame']:.1f} ms, each {r['stages_ms']['total']:.1f} ms; CPU "
@@ -393,7 +399,7 @@ def run(args) -> int:
     for ref in res["references"]:
         for name, ratios in res.get(f"rounds_over_{ref}", {}).items():
             each = ", ".join(f"{v:.2f}" for v in ratios)
-            print(f"{name:>10}: rounds {each} x the {ref} beside them "
+            print(f"{name:>10}: rounds {each} x the {_SHORT[ref]} beside them "
                   f"(median {res[f'median_over_{ref}'][name]:.2f}x, "
                   f"{min(ratios):.2f}-{max(ratios):.2f}x)")
     return 0

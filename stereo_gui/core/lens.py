@@ -131,7 +131,7 @@ def stereo_rectify(model: str, M1, D1, M2, D2, size: tuple[int, int], R, T, alph
 
 
 def optimal_new_camera(model: str, M, D, size: tuple[int, int]) -> np.ndarray:
-    """The report's getOptimalNewCameraMatrix(alpha=1) (for fisheye: balance 1)."""
+    """The reference program's getOptimalNewCameraMatrix(alpha=1) (for fisheye: balance 1)."""
     size = (int(size[0]), int(size[1]))
     if model == "fisheye":
         return cv2.fisheye.estimateNewCameraMatrixForUndistortRectify(

@@ -3,7 +3,8 @@
 The final map (what the views colour, a click reads and the exports write) is, for a preset with a
 second window, the agreement of two SGBM matchers (`agreement`), without what a nearer surface
 hides from the right camera (`occluded`) and what matched on a blank surface (`blank_mask`); the
-WLS output is then a picture. Without a second window it is the WLS output, as in the report.
+WLS output is then a picture. Without a second window it is the WLS output, as in the reference
+loop.
 
 Units: every disparity this module hands out is float32 pixels of the full-resolution rectified
 left image, NaN where invalid. OpenCV's matchers and the WLS filter work in x16 fixed point; that
@@ -62,7 +63,7 @@ NOT_SEEN_BGR = (180, 40, 180)
 INTERPOLATIONS: dict[str, int] = {"linear": cv2.INTER_LINEAR, "cubic": cv2.INTER_CUBIC,
                                   "lanczos4": cv2.INTER_LANCZOS4}
 
-# the report's / OpenCV's names for some parameters, accepted when reading presets
+# the reference loop's / OpenCV's names for some parameters, accepted when reading presets
 ALIASES = {"window_size": "block_size", "minDisparity": "min_disparity",
            "numDisparities": "num_disparities", "uniquenessRatio": "uniqueness_ratio",
            "speckleWindowSize": "speckle_window_size", "speckleRange": "speckle_range",
@@ -103,7 +104,7 @@ class MatcherParams:
 
     block_size: int = param(
         3, lo=1, hi=51, odd=True, unit="px", label="window_size", panel=(1, 21, 1),
-        help="SGBM blockSize, odd (the report: window_size = 3)")
+        help="SGBM blockSize, odd (the reference loop: window_size = 3)")
     min_disparity: int = param(
         2, lo=-1024, hi=1024, unit="px", label="min_disp (px)", panel=(0, 64, 1),
         help="smallest disparity searched, full-resolution px")
@@ -129,12 +130,12 @@ class MatcherParams:
                                  panel=(-1, 50, 1),
                                  help="left-right check tolerance (-1: no check)")
     p1: int | None = param(None, lo=0, hi=10_000_000, label="P1", panel=(0, 100000, 1),
-                           help="small smoothness penalty (None: 8*3*w^2 as in the report)")
+                           help="small smoothness penalty (None: 8*3*w^2 as the reference loop)")
     p2: int | None = param(None, lo=0, hi=10_000_000, label="P2", panel=(0, 400000, 1),
                            help="large smoothness penalty (None: 32*3*w^2)")
     pre_filter_cap: int = param(63, lo=0, hi=63, label="preFilterCap", panel=(0, 63, 1),
                                 help="clip of the prefiltered image (0: OpenCV's default, 15, "
-                                     "as the report left it)")
+                                     "as the reference loop left it)")
     mode: str = param("sgbm", choices=tuple(MODES), label="mode",
                       help="SGBM's mode: sgbm, 3way, hh or hh4")
     # two windows fail in different places (the small one on weak texture, the large one at
@@ -184,15 +185,17 @@ class MatcherParams:
     # SGBM leaves the first minDisparity + numDisparities columns empty otherwise
     full_frame: bool = param(
         True, help="search the whole disparity range at every column (images padded for the "
-                   "matchers); False keeps the report's dead band at the left edge")
+                   "matchers); False keeps the reference loop's dead band at the left edge")
     remap_interpolation: str = param("linear", choices=tuple(INTERPOLATIONS),
                                      help="interpolation of the rectifying remap")
     closing_kernel: int = param(3, lo=0, hi=51, unit="px", label="kernel (px)", panel=(0, 15, 1),
-                                help="side of the square closing kernel, px (report: 3); 0 = off")
+                                help="side of the square closing kernel, px (the reference loop: "
+                                     "3); 0 = off")
     wls: bool = param(True, label="WLS filter",
-                      help="right matcher + cv2.ximgproc.createDisparityWLSFilter, as the report")
+                      help="right matcher + cv2.ximgproc.createDisparityWLSFilter, as the "
+                           "reference loop")
     wls_lambda: float = param(80000.0, lo=0.0, hi=1e7, label="lmbda", panel=(0, 1e6, 1000),
-                              help="WLS smoothness (the report's lmbda)")
+                              help="WLS smoothness (the reference loop's lmbda)")
     wls_sigma: float = param(1.8, lo=0.0, hi=100.0, label="sigma", panel=(0.0, 10.0, 0.1),
                              help="WLS sensitivity to the guide image's edges")
     wls_full_resolution: bool = param(
@@ -314,8 +317,8 @@ class ThreadParams:
                            help="Live: two frames processed at once, one on each core; "
                                 "elsewhere the left and right matchers at once")
     cv_threads: int | None = param(None, lo=0, hi=256,
-                                   help="OpenCV's thread count for the process, set where the preset "
-                                        "runs (pipeline.concurrency; None: leave as is)")
+                                   help="OpenCV's thread count for the process, set where the "
+                                        "preset runs (pipeline.concurrency; None: leave as is)")
 
     def __post_init__(self) -> None:
         check_all(self, "thread parameters")
@@ -377,8 +380,8 @@ class Preset:
 
     @classmethod
     def from_dict(cls, data: dict, where: str = "preset") -> Preset:
-        """Build from a flat object (the report's / OpenCV's names understood); unknown keys are
-        logged and skipped, bad values raise InputError naming `where`."""
+        """Build from a flat object (the reference loop's / OpenCV's names understood); unknown
+        keys are logged and skipped, bad values raise InputError naming `where`."""
         if not isinstance(data, dict):
             raise InputError(f"{where}: expected a JSON object of matcher parameters")
         flat = {}
@@ -434,7 +437,7 @@ class PipelineResult:
     # the WLS filter's left-right confidence (0..255, float32, H x W), None without WLS
     wls_confidence: np.ndarray | None = None
     # pixels the right camera cannot see (their match fell outside the right image, or they lie
-    # in the strip at the left edge): None when the preset keeps the report's dead band
+    # in the strip at the left edge): None when the preset keeps the reference loop's dead band
     not_seen: np.ndarray | None = None
     # every pixel set in `not_seen` lies in the leftmost `not_seen_cols` columns (None: anywhere),
     # so that the views paint only those (`unseen_columns`)
@@ -479,7 +482,7 @@ class ColorScale:
     kind "distance": linear in distance from `far` (level 0) to `near` (level 255), both in mm,
     so that the middle of the map is the middle of the range (not crowded at the far end as a
     disparity ramp would be).
-    kind "disparity": linear in disparity from `far` to `near`, both in px (the report's
+    kind "disparity": linear in disparity from `far` to `near`, both in px (the reference loop's
     per-frame min-max normalisation, and the range that follows the view: over a range of
     distances ten times apart, a surface near gets as many colours as one far away).
     `fb_mm_px` = f*B and `doffs_px` convert between the two: Z = f B / (d + doffs).
@@ -832,8 +835,8 @@ class StereoPipeline:
         if p.wls:
             # createDisparityWLSFilter switches off the uniqueness, speckle and left-right checks
             # of the matcher it is given: unless the preset asks for that (the seed preset
-            # reproduces the report's map, made so), it gets a copy of the matcher to configure
-            # itself from
+            # reproduces the reference loop's map, made so), it gets a copy of the matcher to
+            # configure itself from
             self._wls = cv2.ximgproc.createDisparityWLSFilter(
                 self._left if p.wls_disables_checks else sgbm())
             self._wls.setLambda(float(p.wls_lambda))
@@ -1147,8 +1150,8 @@ class StereoPipeline:
         wls_px = confidence = None
         if run_wls:
             # the filter takes the unclosed left disparity (as the seed preset must, to be the
-            # report's); a low-resolution map is enlarged by the filter itself (values scaled)
-            # against the full-resolution guide
+            # reference loop's); a low-resolution map is enlarged by the filter itself (values
+            # scaled) against the full-resolution guide
             guide = gl if p.wls_full_resolution else ml
             if p.full_frame:
                 f16 = self._wls.filter(d16, guide, None, d16_right, (0, 0, mw, ml.shape[0]))

@@ -48,7 +48,7 @@ class Reason(StrEnum):
     NO_VALID_PIXELS = "no valid pixels"
     TOO_FEW = "too few valid pixels"
     NOT_SEEN = "not seen by the right camera"
-    NOT_SEARCHED = "not searched (the report's dead band at the left edge)"
+    NOT_SEARCHED = "not searched (the reference loop's dead band at the left edge)"
     NO_TEXTURE = "no texture"
     TOO_NEAR = "too near"
     TOO_FAR = "too far"

@@ -1,5 +1,5 @@
 """A plain OpenCV program, set up with care: the second reference of `stereo-gui bench`'s speed,
-beside the report's loop (core.report_loop).
+beside the reference loop (core.reference_loop).
 
 What a competent engineer writes in a few lines for a 640x480 pair, one frame after the other in
 one thread, OpenCV's thread count left as it is: both colour pictures remapped through

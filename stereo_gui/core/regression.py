@@ -1,10 +1,12 @@
-"""Distance-from-disparity regressions: the report's cubic, done properly, and the physical model.
+"""Distance-from-disparity regressions: the reference program's cubic, done properly, and the
+physical model.
 
 Samples are (disparity px, true distance mm). Two models:
-- "cubic": Z = a3 x^3 + a2 x^2 + a1 x + a0 with x the disparity normalised as the report showed
-  its disparity map: x = (d - min_disp) / num_disp, min_disp = 2 and num_disp = 128 (its Code 7,
-  `((disp/16) - min_disp) / num_disp`). The report's own coefficients gave centimetres; ours give
-  millimetres (`report_cubic()` converts its formula for comparison).
+- "cubic": Z = a3 x^3 + a2 x^2 + a1 x + a0 with x the disparity normalised as the reference loop
+  (core.reference_loop) does its disparity map: x = (d - min_disp) / num_disp, min_disp = 2 and
+  num_disp = 128 (its Code 7, `((disp/16) - min_disp) / num_disp`). The reference program's own
+  coefficients gave centimetres; ours give millimetres (`reference_cubic()` converts its formula
+  for comparison).
 - "inverse": Z = a / (d - d0), the triangulation law Z = f*B / d with a disparity offset d0 that
   absorbs a principal-point or rectification offset; a is f*B in px*mm.
 """
@@ -19,8 +21,8 @@ import numpy as np
 from stereo_gui.core.errors import InputError
 
 FORMAT_VERSION = 1
-REPORT_MIN_DISP = 2.0
-REPORT_NUM_DISP = 128.0
+REFERENCE_MIN_DISP = 2.0
+REFERENCE_NUM_DISP = 128.0
 MODELS = ("cubic", "inverse")
 
 
@@ -34,8 +36,8 @@ class FitResult:
     residuals_mm: tuple[float, ...]  # true - predicted, per sample, in sample order
     samples: tuple[tuple[float, float], ...]  # (disparity_px, true_mm)
     # cubic only: x = (d - norm_offset_px) / norm_span_px
-    norm_offset_px: float = REPORT_MIN_DISP
-    norm_span_px: float = REPORT_NUM_DISP
+    norm_offset_px: float = REFERENCE_MIN_DISP
+    norm_span_px: float = REFERENCE_NUM_DISP
     note: str = field(default="", compare=False)
 
     def predict(self, disparity_px):
@@ -109,9 +111,10 @@ def _r2(z: np.ndarray, pred: np.ndarray) -> tuple[float, tuple[float, ...]]:
     return r2, tuple(float(r) for r in res)
 
 
-def fit_cubic(samples, norm_offset_px: float = REPORT_MIN_DISP,
-              norm_span_px: float = REPORT_NUM_DISP) -> FitResult:
-    """Least-squares cubic in the normalised disparity (as the report's Excel fit)."""
+def fit_cubic(samples, norm_offset_px: float = REFERENCE_MIN_DISP,
+              norm_span_px: float = REFERENCE_NUM_DISP) -> FitResult:
+    """Least-squares cubic in the normalised disparity (as the reference program's, fitted in
+    Excel)."""
     d, z, s = _samples(samples, 4, "cubic")
     x = (d - norm_offset_px) / norm_span_px
     coef = np.polyfit(x, z, 3)
@@ -167,10 +170,11 @@ def fit(model: str, samples) -> FitResult:
     raise InputError(f"unknown model {model!r}; use cubic or inverse")
 
 
-def report_cubic() -> FitResult:
-    """The report's hand-fitted cubic (-593.97 x^3 + 1506.8 x^2 - 1373.1 x + 522.06 cm), in mm."""
+def reference_cubic() -> FitResult:
+    """The reference program's hand-fitted cubic (-593.97 x^3 + 1506.8 x^2 - 1373.1 x + 522.06
+    cm), in mm."""
     coef = tuple(10.0 * c for c in (-593.97, 1506.8, -1373.1, 522.06))
-    return FitResult("cubic", coef, float("nan"), (), (), note="the student report's formula")
+    return FitResult("cubic", coef, float("nan"), (), (), note="the reference program's formula")
 
 
 # a fit's distance at one of its own samples may differ from the sample by this share of it at
@@ -306,9 +310,9 @@ def fit_from_dict(doc, where: str) -> FitResult:
         norm = doc.get("normalisation") or {}
         if not isinstance(norm, dict):
             raise ValueError("normalisation should be an object")
-        offset = _finite(norm.get("offset_px", REPORT_MIN_DISP), "normalisation offset_px",
+        offset = _finite(norm.get("offset_px", REFERENCE_MIN_DISP), "normalisation offset_px",
                          MAX_DISPARITY_PX)
-        span = _finite(norm.get("span_px", REPORT_NUM_DISP), "normalisation span_px",
+        span = _finite(norm.get("span_px", REFERENCE_NUM_DISP), "normalisation span_px",
                        MAX_DISPARITY_PX)
         if not span > 0:
             raise ValueError(f"normalisation span_px is {span:g}; it must be positive")

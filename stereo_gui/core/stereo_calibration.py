@@ -101,7 +101,7 @@ class StereoCalibration:
     alpha: float = param(0.0, lo=0.0, hi=1.0,
                          help="stereoRectify's free scaling: 0 keeps only valid pixels (zoomed "
                               "in), 1 keeps every pixel")
-    optimal_M1: np.ndarray | None = None  # getOptimalNewCameraMatrix(alpha=1), shown as in the report
+    optimal_M1: np.ndarray | None = None  # getOptimalNewCameraMatrix(alpha=1), as the reference program shows it
     optimal_M2: np.ndarray | None = None
     created: str = field(default_factory=lambda: _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"))
     # (width, height) the calibration was made at when it was scaled to image_size by scaled_to();

@@ -21,7 +21,7 @@ def files(tmp_path):
     return tmp_path
 
 
-def test_bench_times_the_preset_beside_the_reports_loop(files, capsys):
+def test_bench_times_the_preset_beside_the_reference_loop(files, capsys):
     assert main(["bench", "--calib", str(files / "c.yaml"), str(files / "l.png"),
                  str(files / "r.png"), "--frames", "2", "--preset", "quality", "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
@@ -56,12 +56,12 @@ def test_the_plain_program_measures_what_it_should(files, capsys):
     assert main(["bench", "--calib", str(files / "c.yaml"), str(files / "l.png"),
                  str(files / "r.png"), "--frames", "1", "--reference", "plain"]) == 0
     text = capsys.readouterr().out
-    assert "plain OpenCV program" in text and "x the plain" in text and "report's loop" not in text
+    assert "plain OpenCV program" in text and "x the plain" in text and "reference loop" not in text
 
 
 def test_bench_runs_a_parallel_preset_in_the_frame_lanes_and_restores_opencv(files, capsys):
     """As the Live tab runs it: `lanes` frames at once, OpenCV with the application's threads;
-    the report's loop (and whatever runs next) keeps the thread count found."""
+    the reference loop (and whatever runs next) keeps the thread count found."""
     import cv2
 
     from stereo_gui.files.presets import load_preset
@@ -83,7 +83,7 @@ def test_bench_runs_a_parallel_preset_in_the_frame_lanes_and_restores_opencv(fil
 def test_bench_on_the_simulated_rig_prints_a_table(capsys):
     assert main(["bench", "--frames", "1"]) == 0
     out = capsys.readouterr().out
-    assert "simulated rig" in out and "live" in out and "report's loop" in out
+    assert "simulated rig" in out and "live" in out and "the reference loop" in out
     assert "seed" not in out and "quality" not in out  # --preset live is the default alone
 
 
@@ -97,7 +97,7 @@ def test_bench_accuracy_prints_the_whole_frame_tables(capsys):
                  "--seed", "3", "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     rows = doc["calibrations"]["true"]
-    # the report's loop and plain OpenCV beside the preset asked for
+    # the reference loop (named "report") and plain OpenCV beside the preset asked for
     assert {r["preset"] for r in rows} == {"report", "plain", "live"}
     assert {r["wall_mm"] for r in rows} == {500.0, 1000.0, 2000.0, 3000.0}
     assert {r["condition"] for r in rows} == {"rig"}  # the rig's usual texture by default
@@ -120,7 +120,7 @@ def test_bench_accuracy_renders_the_conditions_asked_for(capsys):
 
 def test_accuracy_over_seeds_gives_the_mean_and_the_worst_seed():
     """The worst seed is the lowest reading share and +- coverage, the highest errors; a figure
-    no seed has (the report's loop has no +-) has no worst seed."""
+    no seed has (the reference loop has no +-) has no worst seed."""
     from stereo_gui.commands.bench import accuracy_over_seeds
 
     nan = float("nan")
@@ -184,8 +184,8 @@ def test_images_too_narrow_for_the_range_are_an_input_error(files, capsys):
 
 
 def test_bench_in_rounds_gives_each_rounds_ratio_and_the_median(files, capsys):
-    """--rounds interleaves the report's loop (an eighth of the frames, at least 2) with the
-    presets; each round's ratio is against the report's runs on either side of it."""
+    """--rounds interleaves the reference loop (an eighth of the frames, at least 2) with the
+    presets; each round's ratio is against the loop's runs on either side of it."""
     import statistics
 
     assert main(["bench", "--calib", str(files / "c.yaml"), str(files / "l.png"),

@@ -49,10 +49,10 @@ def test_params_validate_and_round_trip():
                display=DisplayParams(colormap="jet"), threads=ThreadParams(parallel=True))
     assert Preset.from_dict(p.to_dict()) == p
     assert Preset.from_dict({"block_size": 5, "no_such_key": 1}).matcher.block_size == 5
-    # the report's own names are understood
-    report = Preset.from_dict({"window_size": 3, "minDisparity": 2, "numDisparities": 128,
+    # the reference loop's own names are understood
+    reference = Preset.from_dict({"window_size": 3, "minDisparity": 2, "numDisparities": 128,
                                "lmbda": 80000}).matcher
-    assert (report.block_size, report.min_disparity, report.wls_lambda) == (3, 2, 80000)
+    assert (reference.block_size, reference.min_disparity, reference.wls_lambda) == (3, 2, 80000)
     with pytest.raises(InputError, match="must be a number"):
         Preset.from_dict({"block_size": "5"})
     with pytest.raises(InputError, match="true or false"):
@@ -188,7 +188,7 @@ def test_fixed_colour_range_maps_a_distance_to_a_fixed_colour():
     assert (paint(np.full((2, 2), fb / 6000.0))[0, 0] == ocean(0)).all()  # farther than far
     # linear in distance: 1.75 m, halfway between 0.5 and 3 m, gets the middle colour
     assert (paint(np.full((1, 1), fb / 1750.0))[0, 0] == ocean(127)).all()
-    # min-max (the report): the same map with one farther pixel changes the colour of the rest
+    # min-max (the reference loop): one farther pixel in the same map changes the rest's colour
     p2 = DisplayParams(color_range="minmax")
     d[2, 2] = 100.0
     d2 = d.copy()
@@ -240,40 +240,40 @@ def test_colorize_paints_the_levels_of_its_scale(kind, far, near):
     assert matched.all()
 
 
-def _report_and_seed(seed=5):
-    from stereo_gui.core.report_loop import ReportLoop
+def _reference_and_seed(seed=5):
+    from stereo_gui.core.reference_loop import ReferenceLoop
     from stereo_gui.files.presets import load_preset
     from stereo_gui.sources.sim import Scene, SimRig
 
     rig = SimRig(seed=seed)
     calib = rig.true_calibration()
     left, right = rig.render_scene(Scene.demo(), np.random.default_rng(1))
-    report = ReportLoop(calib).process(left, right)
+    reference = ReferenceLoop(calib).process(left, right)
     ours = StereoPipeline(calib, load_preset("seed")).process(left, right)
-    return report, ours
+    return reference, ours
 
 
-def test_seed_preset_is_the_reports_loop_pixel_for_pixel():
-    """The seed preset gives exactly what the report's code (Lanczos remap, its SGBM, the right
-    matcher and WLS made from it, 3x3 closing) gives, on a calibrated (not identity) rig."""
-    report, ours = _report_and_seed()
-    np.testing.assert_array_equal(ours.rectified_left, report.rectified_left)
-    np.testing.assert_array_equal(ours.rectified_right, report.rectified_right)
-    np.testing.assert_array_equal(ours.disparity_px, report.disparity_px)  # NaN where invalid
-    np.testing.assert_array_equal(ours.wls_px, fixed_to_px(report.filtered16, 2))
-    # the report closes its normalised float map; closing commutes with that affine map
-    closed = (report.closing * 128 + 2).astype(np.float32)
+def test_seed_preset_is_the_reference_loop_pixel_for_pixel():
+    """The seed preset gives exactly what the reference loop's code (Lanczos remap, its SGBM, the
+    right matcher and WLS made from it, 3x3 closing) gives, on a calibrated (not identity) rig."""
+    reference, ours = _reference_and_seed()
+    np.testing.assert_array_equal(ours.rectified_left, reference.rectified_left)
+    np.testing.assert_array_equal(ours.rectified_right, reference.rectified_right)
+    np.testing.assert_array_equal(ours.disparity_px, reference.disparity_px)  # NaN where invalid
+    np.testing.assert_array_equal(ours.wls_px, fixed_to_px(reference.filtered16, 2))
+    # the loop closes its normalised float map; closing commutes with that affine map
+    closed = (reference.closing * 128 + 2).astype(np.float32)
     ok = np.isfinite(ours.closed_px)
     np.testing.assert_allclose(ours.closed_px[ok], closed[ok], atol=1e-4)
     assert (closed[~ok] < 2).all()
-    assert ours.not_seen is None  # the seed keeps the report's dead band
+    assert ours.not_seen is None  # the seed keeps the reference loop's dead band
 
 
 def test_presets_keep_their_matcher_checks_with_wls():
     """OpenCV's createDisparityWLSFilter switches off the uniqueness, speckle and left-right
     checks of the matcher it is made from; live and quality keep the checks their parameters
     name (their raw map is the one the same matcher gives without WLS), the seed reproduces the
-    report's raw map, made without them."""
+    reference loop's raw map, made without them."""
     from stereo_gui.files.presets import load_preset
 
     left, right = textured_pair()
@@ -286,7 +286,7 @@ def test_presets_keep_their_matcher_checks_with_wls():
 
 
 def test_every_column_is_searched_whatever_the_range():
-    """A wide disparity range no longer blanks the left third of the image: depth right of the
+    """A wide disparity range does not blank the left third of the image: depth right of the
     strip the right camera cannot see (SHIFT px) at any range."""
     left, right = textured_pair()
     for num in (32, 96, 160):
@@ -295,7 +295,7 @@ def test_every_column_is_searched_whatever_the_range():
         band = r.final_px[20:-20, SHIFT + 8:num]
         assert band.size and np.isfinite(band).mean() > 0.9, num
         assert np.nanmedian(band) == pytest.approx(SHIFT, abs=0.25)
-    with pytest.raises(InputError, match="too narrow"):  # the report's way: columns run out
+    with pytest.raises(InputError, match="too narrow"):  # the reference loop's way: columns run out
         StereoPipeline(calib(), MatcherParams(min_disparity=0, num_disparities=240,
                                               full_frame=False)).process(left, right)
 
@@ -583,8 +583,8 @@ def test_readable_ranges_round_outwards_to_readable_numbers():
 
 
 def test_the_view_range_follows_the_distances_in_view():
-    """A road scene 6-45 m away: the fixed 0.5-3 m range paints all of it the far colour (the
-    black depth view of issue 40); the range that follows the view is 6-50 m and spreads it over
+    """A road scene 6-45 m away: the fixed 0.5-3 m range paints all of it the far colour (a
+    black depth view); the range that follows the view is 6-50 m and spreads it over
     the colour map, near bright. The legend says which scale it is."""
     from stereo_gui.core.matching import color_scale_caption
 

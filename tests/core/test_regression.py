@@ -1,4 +1,5 @@
-"""Distance-from-disparity fits: the report's cubic, the inverse model, R^2, residuals."""
+"""Distance-from-disparity fits: the reference program's cubic, the inverse model, R^2,
+residuals."""
 
 import json
 
@@ -6,8 +7,15 @@ import numpy as np
 import pytest
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.regression import (FitResult, fit, fit_cubic, fit_from_dict, fit_inverse,
-                                        fit_to_dict, report_cubic)
+from stereo_gui.core.regression import (
+    FitResult,
+    fit,
+    fit_cubic,
+    fit_from_dict,
+    fit_inverse,
+    fit_to_dict,
+    reference_cubic,
+)
 
 A, D0 = 82500.0, 0.3  # px mm, px
 
@@ -48,8 +56,8 @@ def test_noisy_fits_report_residuals_in_sample_order():
         assert 0.9 < f.r2 <= 1.0
 
 
-def test_cubic_fit_uses_the_reports_normalisation():
-    coef = (-5939.7, 15068.0, -13731.0, 5220.6)  # the report's cubic, in mm
+def test_cubic_fit_uses_the_reference_loops_normalisation():
+    coef = (-5939.7, 15068.0, -13731.0, 5220.6)  # the reference program's cubic, in mm
     ds = np.linspace(30, 120, 8)
     x = (ds - 2.0) / 128.0
     samples = list(zip(ds, np.polyval(coef, x)))
@@ -59,9 +67,9 @@ def test_cubic_fit_uses_the_reports_normalisation():
     assert "x = (d - 2) / 128" in f.formula()
 
 
-def test_report_cubic_in_millimetres():
+def test_reference_cubic_in_millimetres():
     # d = 66 px -> x = 0.5 -> -593.97/8 + 1506.8/4 - 1373.1/2 + 522.06 = 137.96 cm
-    assert report_cubic().predict(66.0) == pytest.approx(1379.6, abs=0.1)
+    assert reference_cubic().predict(66.0) == pytest.approx(1379.6, abs=0.1)
 
 
 def test_too_few_or_bad_samples():

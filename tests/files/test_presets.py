@@ -19,7 +19,7 @@ from stereo_gui.files.presets import (
 )
 
 
-def test_seed_is_exactly_the_reports_matcher():
+def test_seed_is_exactly_the_reference_loops_matcher():
     preset = load_preset("seed")
     p = preset.matcher
     assert (p.block_size, p.min_disparity, p.num_disparities) == (3, 2, 128)

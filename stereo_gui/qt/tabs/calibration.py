@@ -6,9 +6,9 @@ stands is a `calibration_state.CalibrationState`, moved through its table.
 
 Calibrate runs `stereo_gui.pipeline.calibration.calibration_job` in a JobWorker (detection of
 every pair, then the core's calibrate_stereo) with a progress bar and Cancel. The results show
-what the report showed (camera matrices without and with rectification, distortion) and what a
-person can check (RMS per camera and stereo, baseline against the nominal one, epipolar error,
-rotation between the cameras, rejected pairs). A bar chart gives each pair's reprojection error;
+what the reference program showed (camera matrices without and with rectification, distortion)
+and what a person can check (RMS per camera and stereo, baseline against the nominal one,
+epipolar error, rotation between the cameras, rejected pairs). A bar chart gives each pair's reprojection error;
 clicking a bar shows that pair rectified with horizontal lines, and the pair can be excluded
 from the session and the rig recalibrated.
 """

@@ -1,4 +1,4 @@
-"""The Capture tab: take target pairs for calibration (the report's
+"""The Capture tab: take target pairs for calibration (the reference program's
 Take_images_for_calibration, with buttons), with coverage by image region (core.coverage) that
 says in words what is still missing, and Print a target... for printing one at true scale.
 

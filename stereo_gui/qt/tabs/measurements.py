@@ -1,9 +1,10 @@
-"""The Measurements tab: the log of readings, the regression the report did in Excel, exports.
+"""The Measurements tab: the log of readings, the regression the reference program did in Excel,
+exports.
 
 The log is `ctx.measurement_log` (MeasurementRecord). Entering the true distance of a reading (the
 editable column) makes it a regression sample (disparity px, true distance mm); both models are
-fitted again at once: the report's cubic and Z = a / (d - d0). The plot shows samples, both
-curves and the residuals with R^2. The model chosen for live readings goes to
+fitted again at once: the reference program's cubic and Z = a / (d - d0). The plot shows samples,
+both curves and the residuals with R^2. The model chosen for live readings goes to
 `ctx.measurement_log.set_active_fit`. Exports (`measurement_exports.MeasurementExports`, owned
 by the tab): the log and regression to .xlsx (in a worker) and CSV; Open log... brings back a
 log exported before (CSV or xlsx). Beside each fit, triangulation's own RMS against the same true
@@ -55,7 +56,7 @@ log = logging.getLogger(__name__)
 
 _LABEL_COLOURS = {"cubic": "#b9570b", "inverse": "#1f6fa8"}  # the same hues, darker, for text
 _MODEL_TEXT = {"triangulation": "Triangulation (calibration)",
-               "cubic": "Cubic fit (the report's model)",
+               "cubic": "Cubic fit (the reference program's model)",
                "inverse": "Inverse fit Z = a / (d − d0)"}
 
 

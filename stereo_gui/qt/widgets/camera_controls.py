@@ -5,8 +5,8 @@ of a calibration's controls with what still differs, and the two cameras' skew.
 `CameraSetup` is the model: one per application context, shared by the panels of both tabs,
 so that a source is restored once and both panels show the same state. It never touches a
 device: every read and write is a task the frame worker's reader thread runs
-(FrameWorker.run_on_source, pipeline.camera_setup), and the panels draw the report that comes
-back. A control the camera does not have (or that refused or ignored a write) is shown as
+(FrameWorker.run_on_source, pipeline.camera_setup), and the panels draw the ControlsReport that
+comes back. A control the camera does not have (or that refused or ignored a write) is shown as
 "not available", never as a slider; a value its automatic mode sets is shown and disabled.
 """
 

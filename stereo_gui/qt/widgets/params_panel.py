@@ -2,9 +2,9 @@
 
 Each parameter's editor is made from its declaration (`core.matching.PRESET_PARAMS`: type, the
 range the panel offers, unit, label and help), so ranges and labels live in one place. Labels
-carry the report's own names (window_size, min_disp, num_disp, lmbda, sigma, ...) so a reader of
-the report finds them. Every edit emits `paramsChanged(Preset)`; the Live tab hands it to the
-pipeline, which applies it from the next frame on.
+carry the reference loop's own names (window_size, min_disp, num_disp, lmbda, sigma, ...) so a
+reader of its code finds them. Every edit emits `paramsChanged(Preset)`; the Live tab hands it to
+the pipeline, which applies it from the next frame on.
 """
 
 from __future__ import annotations
@@ -210,7 +210,8 @@ class ParamsPanel(QWidget):
 
         # presets
         self.preset = QComboBox()
-        self.preset.setToolTip("seed: the report's parameters; live: fast; quality: most accurate")
+        self.preset.setToolTip("seed: the reference loop's parameters; live: fast; quality: "
+                               "most accurate")
         self.save_preset = QPushButton("Save as…")
         self.save_preset.setToolTip("save these parameters as a preset of your own")
         self.save_preset.clicked.connect(self._save_as)
@@ -229,7 +230,7 @@ class ParamsPanel(QWidget):
         self.range_from_z.setToolTip("derive min_disp and num_disp from the nearest and farthest "
                                      "distance through d = f·B/Z")
         self.p_auto = QCheckBox("P1 = 8·3·w², P2 = 32·3·w²")
-        self.p_auto.setToolTip("the report's smoothness penalties, from window_size w")
+        self.p_auto.setToolTip("the reference loop's smoothness penalties, from window_size w")
         self.scale = QComboBox()
         for s in (1.0, 0.75, 0.5, 0.25):
             self.scale.addItem(f"{s:g}" + ("  (full)" if s == 1.0 else ""), s)
