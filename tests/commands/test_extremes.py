@@ -158,7 +158,7 @@ def test_opencv_log_lines_do_not_reach_the_terminal():
 
 def test_no_zipfile_traceback_after_a_full_disk(tmp_path):
     """A file size limit makes every write past 20 kB fail as a full disk does, also inside
-    openpyxl's ZipFile; its __del__ used to print a traceback after our clear message."""
+    openpyxl's ZipFile: our clear message, and no traceback from its __del__ after it."""
     script = f"""
 import resource, signal, sys
 sys.path.insert(0, {str(Path(__file__).parent.parent)!r})

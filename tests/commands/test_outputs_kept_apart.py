@@ -1,6 +1,6 @@
 """An output that is an input of the same run, another output, a device or a pipe, or empty, is
-refused with one line before anything is written (it used to write over the user's pictures,
-their set's truth or their calibration)."""
+refused with one line before anything is written: the user's pictures, their set's truth and
+their calibration are left as they were."""
 
 from __future__ import annotations
 

@@ -232,7 +232,7 @@ def test_joint_sigmas_agree_with_and_improve_on_opencvs_per_camera_ones(good):
 
 def test_an_uncertainty_checks_its_covariance_and_names_when_it_is_built():
     """Known parameter names, each once, and a finite covariance of one row and column per name
-    (a renamed parameter used to load and end in a KeyError at the first distance)."""
+    (a renamed parameter is refused there, not in a KeyError at the first distance)."""
     from stereo_gui.core.errors import CalibrationValueError
     from stereo_gui.core.uncertainty import CalibrationUncertainty, parameter_names
 

@@ -371,7 +371,7 @@ def _cli(*argv, cwd):
 
 @pytest.mark.slow
 def test_calibrate_on_a_full_disk_exits_2_and_keeps_the_old_calibration(disk, tmp_path):
-    """The issue's own probe: `calibrate -o calib.yaml` over a good file with 4 KiB free."""
+    """`calibrate -o calib.yaml` over a good file with 4 KiB free: exit 2, the old file kept."""
     from stereo_gui.sources.sim import write_calibration_set
 
     (tmp_path / "pairs").mkdir()
@@ -428,8 +428,8 @@ def big_disk(tmp_path_factory):
 
 
 def test_simulate_overwrite_on_a_filling_disk_keeps_the_earlier_set(big_disk, tmp_path):
-    """The probe: 12 of 13 old images were replaced while truth.json still described the old
-    set. With room for about half of the new set, the earlier one stays whole."""
+    """With room for about half of the new set, the earlier one stays whole (not its images
+    replaced while truth.json still describes the old set)."""
     disk = big_disk
     out = disk.root / "set"
     done = _cli("simulate", out, "--pairs", "3", "--seed", "1", cwd=tmp_path)

@@ -52,7 +52,8 @@ def test_a_header_claiming_100000_squared_is_refused_before_decoding(tmp_path, m
 
 
 def test_a_real_image_beyond_the_limit_is_refused_at_once(tmp_path):
-    """The probe's 30000x30000 PNG took more than 60 s to decode."""
+    """An image larger than the limit is refused from its header, not decoded (a 30000x30000
+    PNG takes more than 60 s)."""
     path = tmp_path / "big.png"
     cv2.imwrite(str(path), np.zeros((12_000, 200), np.uint8))
     with pytest.raises(InputError, match="200x12000 px: larger than"):

@@ -131,8 +131,8 @@ def test_a_log_whose_active_fit_cannot_be_used_keeps_its_readings(tmp_path):
 
 
 def test_a_negative_distance_or_a_reading_off_any_image_is_said(tmp_path):
-    """A log "valid" with a negative distance, or a reading at pixel 1e308, used to load
-    without a word."""
+    """A log "valid" with a negative distance, or a reading at pixel 1e308, is said when it
+    loads."""
     import dataclasses
 
     bad = dataclasses.replace(_rec(40.0), Z_mm=-2000.0, range_mm=-2000.0)

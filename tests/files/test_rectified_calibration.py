@@ -113,7 +113,7 @@ def test_middlebury_without_size_takes_the_images(tmp_path):
 
 @pytest.mark.parametrize("spec", ["rectified:748,110,-1000000", "rectified:748,110,5000"])
 def test_a_principal_point_offset_no_matcher_can_search_is_refused_at_once(spec):
-    """It used to load and end, 8 s later, in "OverflowError ... int16" inside the matcher."""
+    """Refused when it is read, not 8 s later in "OverflowError ... int16" inside the matcher."""
     from stereo_gui.files.rectified_calibration import parse_rectified_spec
 
     with pytest.raises(InputError, match="DOFFS"):

@@ -242,9 +242,9 @@ def test_a_manifest_path_outside_the_folder_is_refused_and_never_deleted(tmp_pat
 
 
 def test_an_entry_pointing_outside_is_left_out_alone(tmp_path):
-    """The probe: a manifest with one entry pointing outside was refused whole, so its
-    exclusions were lost (calibrate took the excluded pair again). Only that entry goes, and
-    the warning names it; the manifest is kept aside when the session changes."""
+    """A manifest with one entry pointing outside keeps the rest, its exclusions too (calibrate
+    does not take an excluded pair again): only that entry goes, and the warning names it; the
+    manifest is kept aside when the session changes."""
     s = _new(tmp_path)
     for i in range(4):
         s.add_pair(_img(i), _img(10 + i))

@@ -79,7 +79,7 @@ UNREADABLE = {
 
 @pytest.mark.parametrize("kind", sorted(UNREADABLE))
 def test_an_unreadable_file_is_kept_aside_and_a_new_one_written_next_to_it(kind):
-    """The probe's: these were overwritten with the defaults at exit, without a copy."""
+    """An unreadable settings file is kept aside, not overwritten with the defaults at exit."""
     data = UNREADABLE[kind]
     path = settings_path()
     path.write_bytes(data)

@@ -229,7 +229,8 @@ def test_a_newer_versions_settings_file_is_left_on_disk(qtbot):
 
 @pytest.mark.slow
 def test_the_application_starts_with_bad_remembered_files(tmp_path, sim_rig):
-    """The issue's probe: these made every launch end in a traceback and exit status 1."""
+    """A remembered session that is no session, a calibration with a bad header and a window
+    geometry that is no base64: the window starts, no traceback, exit status 0."""
     import json
 
     session = tmp_path / "session"
@@ -275,7 +276,8 @@ def test_a_log_that_cannot_be_read_is_set_aside_said_and_the_start_goes_on(qtbot
 
 @pytest.mark.slow
 def test_the_application_starts_with_a_log_100k_deep(tmp_path):
-    """The probe: RecursionError, exit 1."""
+    """A measurement log nested 100,000 levels deep is set aside and the window starts (no
+    RecursionError, exit 0)."""
     data = tmp_path / "data"
     data.mkdir()
     (data / "measurement-log.json").write_text(LOGS["100k deep"])
@@ -289,9 +291,9 @@ def test_the_application_starts_with_a_log_100k_deep(tmp_path):
 
 
 def test_every_problem_of_a_start_is_kept_in_the_error_bar(qtbot, tmp_path):
-    """The probe: with several problems at start only the last stayed in the error bar (the
-    source's failure, which comes last, replaced the others). Each is kept; the bar shows the
-    newest and opens the list of all."""
+    """Each of several problems at start is kept in the error bar (the source's failure, which
+    comes last, does not replace the others); the bar shows the newest and opens the list of
+    all."""
     from stereo_gui.files.measurement_log import default_log_path
     from stereo_gui.files.presets import user_preset_dir
 
@@ -358,15 +360,15 @@ def test_a_settings_folder_that_is_a_file_is_said_in_the_window(qtbot, monkeypat
         window.close()
 
 
-QUITS = 6  # each quit crashed with a chance of about 1 in 6 before the fix
+QUITS = 6  # the segfault this guards against came about once in 6 quits
 
 
 @pytest.mark.slow
 def test_quitting_with_only_the_left_view_shown_never_crashes(tmp_path, sim_rig):
-    """The issue's probe: with `"visible_views": ["left"]` about 1 quit in 6 ended in a segfault
-    (exit 139) while the interpreter tore down: a hidden view, a top-level widget of its own,
-    was destroyed from inside its own image item's destructor. Quits from the Live tab with a
-    calibration loaded, N times; every one exits 0."""
+    """With `"visible_views": ["left"]`, quits from the Live tab with a calibration loaded, N
+    times, every one exit 0: a hidden view (a top-level widget of its own) is not destroyed from
+    inside its own image item's destructor while the interpreter tears down (a segfault, exit
+    139)."""
     import json
 
     from stereo_gui.files.calibration_file import save_calibration

@@ -1,5 +1,5 @@
-"""Ctrl+C in the terminal that started the window, and SIGTERM, close it as Ctrl+Q does (it
-used to print KeyboardInterrupt and hang, or end without the close path)."""
+"""Ctrl+C in the terminal that started the window, and SIGTERM, close it as Ctrl+Q does: through
+the close path, without a KeyboardInterrupt printed, without hanging."""
 
 from __future__ import annotations
 

@@ -194,7 +194,7 @@ def test_empty_error_chart_axis_reads_pair_without_an_si_prefix(qtbot):
 
 def test_exclusions_are_shown_before_recalibration_and_after_a_restart(
         tab, ctx, qtbot, make_tab, session_folder, tmp_path):
-    """Issue 12, item 9: a pair excluded is marked on the chart at once (not only after
+    """A pair excluded is marked on the chart at once (not only after
     Recalibrate), and after a restart the list names the session's excluded pairs, not "none"."""
     tab.folder_edit.setText(str(session_folder))
     _calibrate(tab, qtbot)
@@ -223,7 +223,7 @@ def test_exclusions_are_shown_before_recalibration_and_after_a_restart(
 
 def test_review_draws_corners_a_mean_line_and_excludes_above_a_threshold(
         tab, qtbot, session_folder):
-    """Issue 12, item 16: the selected pair shows its detected and reprojected corners, the
+    """The selected pair shows its detected and reprojected corners, the
     chart a mean-error line, and the pairs above a threshold are excluded in one step."""
     tab.folder_edit.setText(str(session_folder))
     run = _calibrate(tab, qtbot)

@@ -218,7 +218,7 @@ def test_list_follows_exclusions_made_elsewhere(tab, tmp_path, qtbot):
 
 
 def test_a_new_source_without_a_board_drops_the_frozen_pair(tab, ctx, qtbot, tmp_path, sim_rig):
-    """Issue 12, item 4: a pair frozen from the previous source is not offered (Save enabled)
+    """A pair frozen from the previous source is not offered (Save enabled)
     once the source is a folder whose pairs show no board; the view shows the new frames."""
     from stereo_gui.sources.playback import PlaybackSource
     from stereo_gui.sources.sim import Scene
@@ -248,7 +248,7 @@ def test_a_new_source_without_a_board_drops_the_frozen_pair(tab, ctx, qtbot, tmp
 
 def test_keyboard_selection_shows_the_pair_and_delete_deletes_what_is_shown(
         tab, tmp_path, qtbot, monkeypatch, questions):
-    """Issue 12, item 5: moving through the saved pairs with the keyboard shows each pair, and
+    """Moving through the saved pairs with the keyboard shows each pair, and
     Delete pair asks about (and deletes) the pair on screen, never another one."""
     from PySide6.QtCore import Qt
 
@@ -275,7 +275,7 @@ def test_keyboard_selection_shows_the_pair_and_delete_deletes_what_is_shown(
 
 def test_new_session_in_a_folder_with_files_asks_before_writing_into_it(
         tab, tmp_path, monkeypatch, questions):
-    """Issue 12, item 10: New session… in a non-empty folder without a session asks first; No
+    """New session… in a non-empty folder without a session asks first; No
     writes nothing there, Yes starts the session (the pairs there are listed)."""
     from PySide6.QtWidgets import QMessageBox
 
@@ -321,7 +321,7 @@ def test_new_session_in_a_session_folder_offers_to_open_it(tab, tmp_path, monkey
 
 
 def test_a_saved_pair_is_scrolled_into_view_and_counted_in_words(tab, tmp_path, qtbot):
-    """Issue 12, item 9: the saved-pairs list shows the pair just saved (not the top of a long
+    """The saved-pairs list shows the pair just saved (not the top of a long
     list); "1 pair kept", "2 pairs kept"."""
     from PySide6.QtCore import Qt
 
