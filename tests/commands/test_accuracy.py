@@ -36,6 +36,7 @@ def test_grid_covers_the_whole_frame():
     assert xs[0] < 10 and xs[-1] > 630 and ys[0] < 10 and ys[-1] > 470
 
 
+@pytest.mark.slow
 def test_quality_reads_the_whole_frame_within_its_stated_bound(reports):
     reps = reports["quality"]
     seen = [g for r in reps for g in r.seen]

@@ -92,6 +92,7 @@ def test_bench_at_another_rig_size(capsys):
     assert json.loads(capsys.readouterr().out)["size"] == [320, 240]
 
 
+@pytest.mark.slow
 def test_bench_accuracy_prints_the_whole_frame_tables(capsys):
     assert main(["bench", "--accuracy", "--calibration", "true", "--preset", "live",
                  "--seed", "3", "--json"]) == 0
@@ -108,6 +109,7 @@ def test_bench_accuracy_prints_the_whole_frame_tables(capsys):
     assert totals[("rig", "live")]["coverage"] > 0.95
 
 
+@pytest.mark.slow
 def test_bench_accuracy_renders_the_conditions_asked_for(capsys):
     assert main(["bench", "--accuracy", "--calibration", "true", "--preset", "live",
                  "--condition", "weak", "--condition", "webcams", "--seed", "3", "--json"]) == 0
@@ -140,6 +142,7 @@ def test_accuracy_over_seeds_gives_the_mean_and_the_worst_seed():
     assert over[("webcams", "report")]["covered_fraction"]["worst_seed"] is None
 
 
+@pytest.mark.slow
 def test_bench_accuracy_over_seeds(capsys):
     assert main(["bench", "--accuracy", "--calibration", "true", "--preset", "live",
                  "--condition", "weak", "--seed", "5", "--seeds", "2", "--json"]) == 0

@@ -252,6 +252,7 @@ def test_real_webcam_folder(shared_data, tmp_path, capsys):
     assert data["rms_stereo"] < 0.7
 
 
+@pytest.mark.slow
 def test_hartley_without_a_board_uses_scene_features(tmp_path, capsys):
     from stereo_gui.sources.sim import Scene, SimRig
 

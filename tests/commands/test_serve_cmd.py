@@ -62,6 +62,7 @@ def test_a_taken_port_is_one_line_and_exit_2(capsys):
     one_line(capsys.readouterr().err, code, "in use", "--port")
 
 
+@pytest.mark.slow
 def test_sigterm_stops_it_with_the_recording_whole(tmp_path):
     out = tmp_path / "run.mcap"
     started = []

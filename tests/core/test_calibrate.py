@@ -218,6 +218,7 @@ def _central_pairs(seed: int, n: int = 15):
 
 
 @pytest.mark.parametrize("model", ["pinhole", "rational", "fisheye"])
+@pytest.mark.slow
 def test_a_lens_model_that_folds_is_fitted_again_with_fewer_terms(model):
     """Seed 3: with every term free the left camera's fit folds over at the top-right corner
     (pixel (639, 0) came back 66 px away, and saving it was refused after all the work). It is

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.coverage import (
@@ -42,6 +43,7 @@ def test_a_pose_that_fills_a_region_is_told_apart():
     assert regions_filled(np.array([[320.0, 240.0]]), counts, SIZE) == []
 
 
+@pytest.mark.slow
 def test_readiness_follows_coverage_not_a_pair_count():
     board = BoardSpec(7, 5, 30.0, "charuco", 22.0)
     rig = SimRig(RigConfig(board=board), seed=71)

@@ -136,6 +136,7 @@ def test_without_a_second_window_there_is_nothing_to_fill():
 
 
 @pytest.mark.parametrize("contrast", [0.0, 0.03])
+@pytest.mark.slow
 def test_a_smooth_pole_in_front_of_a_wall_is_not_filled_with_the_wall(contrast):
     """A pole 40 mm wide at 1.5 m before a wall at 2 m, with no texture or almost none: the
     small windows find little on it, and the larger ones carry the wall's disparity in from

@@ -60,6 +60,7 @@ def _errors(rig, calib, walls, preset, truth_calib=None):
 
 
 @pytest.mark.parametrize("preset", ["live", "quality"])
+@pytest.mark.slow
 def test_walls_measured_within_tolerance_with_the_true_calibration(rig, walls, preset):
     rows = _errors(rig, rig.true_calibration(alpha=0.0), walls, preset)
     worst = max(abs(r[3]) for r in rows)
@@ -69,6 +70,7 @@ def test_walls_measured_within_tolerance_with_the_true_calibration(rig, walls, p
         assert 0 < m.expected_error_mm < 0.05 * z
 
 
+@pytest.mark.slow
 def test_walls_measured_with_a_calibration_computed_from_board_images(rig, walls):
     from stereo_gui.core.calibrate import calibrate_stereo
     from stereo_gui.core.detect import detect_pairs
@@ -403,6 +405,7 @@ def test_window_correlation_is_high_at_the_match_and_low_off_it():
     assert window_correlation(left, right, 5, 30, 20.0, 6) == (0.0, 0)  # left of the right image
 
 
+@pytest.mark.slow
 def test_a_chessboard_is_read_not_refused_for_its_repeating_squares(rig):
     """The board's period gives correlation peaks nearly as high as the true one: that alone is
     no reason to refuse a reading (a double-click on the board read 'no valid pixels' at 10 of
@@ -521,6 +524,7 @@ def test_correlated_stderr_counts_residuals_that_move_together():
 
 
 @pytest.mark.parametrize("preset", ["live", "quality"])
+@pytest.mark.slow
 def test_on_an_mjpg_wall_the_plus_minus_still_covers_the_truth(preset):
     """MJPG at quality 75 on a painted wall at half contrast: the blocks move the readings by
     more than independent pixels would, and the +- says so (it counts the residuals'
@@ -595,6 +599,7 @@ def test_the_images_say_whether_an_empty_run_is_a_shadow_or_the_nearer_surface()
     assert _shows_nearer(left, right, 200, 40, 15.0, 40.0)  # the block read as far: not seen
 
 
+@pytest.mark.slow
 def test_a_wrong_far_reading_at_the_left_edge_is_refused():
     """On the webcams' wall at 3 m a wrong match 8 px from the left edge read 21 m; now it says
     the right camera cannot see the point."""
@@ -665,6 +670,7 @@ def test_an_object_the_matcher_missed_is_not_read_as_the_wall_behind_it(rig, con
 
 
 @pytest.mark.parametrize("wall", [2000.0, 3000.0])
+@pytest.mark.slow
 def test_a_chance_peak_of_a_small_window_is_not_called_too_near(wall):
     """On the webcams' wall (MJPG blocks, shading, weak texture) an 11 px window correlates at
     0.7-0.8 with stretches of the right image far beyond the range by chance; a wall at 2 or 3 m
@@ -696,6 +702,7 @@ def test_one_surface_holds_a_scattered_wall_and_not_two_surfaces():
     assert not one_surface(np.full((97, 97), np.nan, np.float32), 48, 48, 48)
 
 
+@pytest.mark.slow
 def test_on_the_webcams_wall_far_off_the_window_grows_until_it_is_sure():
     """Two webcams' wall (half contrast, the right camera's own gain and black level, darker
     corners, MJPG) at 2 and 3 m, a rig seed no benchmark uses: the matcher's map scatters in

@@ -189,6 +189,7 @@ def test_a_swapped_rig_warns_swapped(good):
     assert swapped(result.calibration)
 
 
+@pytest.mark.slow
 def test_the_real_set_with_left_and_right_exchanged_warns_swapped(shared_data):
     folder = Path(shared_data) / "real-webcam-9x6-30mm"
     pairs = []

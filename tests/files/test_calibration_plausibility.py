@@ -165,6 +165,7 @@ def test_a_dt_c_matrix_in_a_file_is_refused(tmp_path):
 
 @pytest.mark.parametrize("model, alphas", [("pinhole", (0.0, 1.0)), ("rational", (0.0,)),
                                            ("fisheye", (0.0, 1.0))])
+@pytest.mark.slow
 def test_calibrations_made_here_are_plausible(model, alphas):
     """What the application computes passes (its calibrations are saved through these
     checks): each lens model (fisheye on a fisheye rig), and scaled to another size."""

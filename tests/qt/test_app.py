@@ -33,6 +33,7 @@ def test_app_starts_and_quits_by_itself(tmp_path):
     assert '"source": "sim"' in (tmp_path / "cfg" / "settings.json").read_text()
 
 
+@pytest.mark.slow
 def test_bad_command_line_source_exits_2_with_one_line(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "stereo_gui", "--source", str(tmp_path / "nope")],
                           env=_env(tmp_path, STEREO_GUI_QUIT_AFTER="0"), capture_output=True,
@@ -66,6 +67,7 @@ def test_quit_after_inf_exits_2_with_one_line(tmp_path):
     assert len(lines) == 1 and "STEREO_GUI_QUIT_AFTER" in lines[0], proc.stderr
 
 
+@pytest.mark.slow
 def test_build_window_loads_the_last_calibration_and_reports_a_broken_one(qtbot, sim_rig, tmp_path):
     from stereo_gui.files.calibration_file import save_calibration
     from stereo_gui.files.settings import Settings, save_settings
@@ -94,6 +96,7 @@ def test_build_window_loads_the_last_calibration_and_reports_a_broken_one(qtbot,
         window.close()
 
 
+@pytest.mark.slow
 def test_the_simulated_rigs_true_calibration_is_chosen_again_after_a_restart(
         qtbot, sim_rig, tmp_path):
     """Choosing the simulated rig's true calibration survives quitting and starting again (on

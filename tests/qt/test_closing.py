@@ -103,6 +103,7 @@ def closed(w) -> bool:
 
 
 # ---- an unsaved calibration ------------------------------------------------------------------
+@pytest.mark.slow
 def test_unsaved_calibration_cancel_keeps_the_window_open(win, ctx, calibration_run, dialogs):
     win.calibration_tab.use_run(calibration_run)  # what the tab does when its job is done
     assert "calibrated from" in win.calibration_tab.unsaved_calibration()
@@ -219,6 +220,7 @@ def _waiter(qtbot, win):
     return win.close_waiter()
 
 
+@pytest.mark.slow
 def test_closing_waits_for_a_running_export_then_closes(qtbot, win, ctx, held_export, tmp_path):
     path = tmp_path / "m.xlsx"
     _start_export(qtbot, win, ctx, path)

@@ -45,6 +45,7 @@ def test_four_tabs_and_the_simulated_rig_banner(qtbot, ctx, window, sim_rig):
         assert window.current_tab_name() == name
 
 
+@pytest.mark.slow
 def test_status_bar_shows_frame_rates(qtbot, ctx, window, sim_rig):
     ctx.calibration_model.set(sim_rig.true_calibration(), None,
                               note="simulated rig's TRUE calibration")
@@ -96,6 +97,7 @@ def test_save_and_open_calibration(qtbot, ctx, window, sim_rig, tmp_path):
     assert "bad.yaml" in window.error_bar.label.text()
 
 
+@pytest.mark.slow
 def test_closing_while_live_ends_quickly_without_thread_warnings(qtbot, ctx, sim_rig, qtlog):
     w = MainWindow(ctx)
     w.show()
@@ -139,6 +141,7 @@ def test_source_dialog_round_trip(qtbot):
     assert dlg.choice().spec == "/data/rec1"
 
 
+@pytest.mark.slow
 def test_closing_while_calibrating_ends_without_thread_warnings(qtbot, ctx, tmp_path, qtlog):
     from stereo_gui.sources.sim import write_calibration_set
 

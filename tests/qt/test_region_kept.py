@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import pytest
 
+
+@pytest.mark.slow
 def test_the_region_and_its_alarm_are_back_after_a_restart(qtbot, sim_rig, tmp_path):
     """Region on, moved, alarm 0.75 m; quit; start: the same box and alarm, watched again;
     Region off, quit, start: no region."""

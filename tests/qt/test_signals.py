@@ -16,6 +16,7 @@ READY = "start-up objects frozen"  # what -v logs once the window is shown
 
 
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+@pytest.mark.slow
 def test_a_signal_closes_the_window_through_its_close_path(signum, tmp_path):
     env = {**os.environ, "QT_QPA_PLATFORM": "offscreen"}
     proc = subprocess.Popen([sys.executable, "-m", "stereo_gui", "--source", "sim", "-v"],

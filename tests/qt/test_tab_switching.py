@@ -3,6 +3,8 @@ were shown before it."""
 
 from __future__ import annotations
 
+import pytest
+
 from stereo_gui.qt.dialogs.source_dialog import SourceChoice
 from stereo_gui.qt.tabs.capture_state import CaptureState
 from stereo_gui.sources.sim import SimSource
@@ -51,6 +53,7 @@ def test_capture_shows_frames_after_measurements_and_calibration(qtbot, ctx, win
     qtbot.waitUntil(lambda: capture.frames_shown >= 1, timeout=30000)  # (it may freeze at once)
 
 
+@pytest.mark.slow
 def test_live_draws_again_after_capture_froze_a_pair(qtbot, ctx, window, sim_rig):
     """Capture froze a pair (its processor is off) -> Measurements -> Live: Live draws."""
     ctx.calibration_model.set(sim_rig.true_calibration(), None)
@@ -90,6 +93,7 @@ def test_a_paused_live_view_stays_paused_across_a_tab_switch(qtbot, ctx, window,
     qtbot.waitUntil(lambda: live.frames_shown > shown, timeout=30000)
 
 
+@pytest.mark.slow
 def test_coming_back_to_a_frozen_pair_says_it_is_from_before(qtbot, ctx, window, sim_rig):
     """Capture (a pair freezes), Measurements, Capture: the pair is still offered, and the
     prompt says it was frozen before the tab was left (it was shown unchanged, without a

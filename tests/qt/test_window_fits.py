@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 
+import pytest
 from PySide6.QtWidgets import QApplication
 
 from stereo_gui.qt.tabs.capture_state import CaptureState
@@ -55,6 +56,7 @@ def _calibrated(qtbot, window, tmp_path, screen):
     return tab
 
 
+@pytest.mark.slow
 def test_save_calibration_is_in_view_after_a_calibration_at_1366x768(qtbot, ctx, window,
                                                                       tmp_path):
     """The Calibration tab's Save calibration… is on screen, whole, once a calibration with
@@ -151,6 +153,7 @@ def test_the_camera_controls_and_their_warning_leave_the_window_on_the_screen(qt
     assert window.minimumSizeHint().height() <= h
 
 
+@pytest.mark.slow
 def test_the_calibration_results_fit_their_pane_at_1280x720(qtbot, ctx, window, tmp_path):
     """At the default divider position the results box was cut off on the right (the epipolar
     error, the baseline's difference, the cameras' cy) with no scroll bar: its values wrap."""

@@ -60,6 +60,7 @@ def test_calibrate_session_shows_results(tab, ctx, qtbot, session_folder):
     qtbot.waitUntil(lambda: tab.rect_view.shown == tab.chart.names[0], timeout=5000)
 
 
+@pytest.mark.slow
 def test_click_exclude_and_recalibrate_changes_used_count(tab, qtbot, session_folder):
     tab.folder_edit.setText(str(session_folder))
     run = _calibrate(tab, qtbot)

@@ -93,6 +93,7 @@ def test_fix_k3_remedy_recalibrates_with_k3_held(make_tab, ctx, qtbot, calib_set
     assert "k3 fixed" in c.origin
 
 
+@pytest.mark.slow
 def test_the_lens_shading_is_measured_and_shown(make_tab, qtbot, tmp_path):
     from dataclasses import replace
 

@@ -217,6 +217,7 @@ def test_list_follows_exclusions_made_elsewhere(tab, tmp_path, qtbot):
     assert "(excluded)" not in tab.pair_list.item(0).text()
 
 
+@pytest.mark.slow
 def test_a_new_source_without_a_board_drops_the_frozen_pair(tab, ctx, qtbot, tmp_path, sim_rig):
     """A pair frozen from the previous source is not offered (Save enabled)
     once the source is a folder whose pairs show no board; the view shows the new frames."""
@@ -320,6 +321,7 @@ def test_new_session_in_a_session_folder_offers_to_open_it(tab, tmp_path, monkey
     assert tab.session is not None and tab.session.folder == folder
 
 
+@pytest.mark.slow
 def test_a_saved_pair_is_scrolled_into_view_and_counted_in_words(tab, tmp_path, qtbot):
     """The saved-pairs list shows the pair just saved (not the top of a long
     list); "1 pair kept", "2 pairs kept"."""

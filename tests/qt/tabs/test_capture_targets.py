@@ -4,13 +4,14 @@ poses that reach empty regions, and Print a target..."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.detect import NEW_POSE_DISTANCE, Detection, PairDetection
 from stereo_gui.files.session import CaptureSession
 from stereo_gui.pipeline.capture import CaptureOutput, make_capture_processor
-from stereo_gui.qt.widgets.target_dialog import TargetDialog
 from stereo_gui.qt.tabs.capture import STEADY_FRAMES, CaptureTab
+from stereo_gui.qt.widgets.target_dialog import TargetDialog
 from stereo_gui.sources.base import StereoFrame
 from stereo_gui.sources.sim import RigConfig, SimRig, SimSource
 
@@ -33,6 +34,7 @@ def test_choosing_charuco_sets_the_board_the_settings_and_the_live_detector(make
     assert tab.board == CHARUCO and "smaller than the squares" in row.error_label.text()
 
 
+@pytest.mark.slow
 def test_a_partly_visible_charuco_board_is_found_live():
     rig = SimRig(RigConfig(board=CHARUCO, supersample=1), seed=3)
     src = SimSource(rig, mode="board", paced=False, seed=3, frames_per_move=4)

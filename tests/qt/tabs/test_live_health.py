@@ -4,10 +4,13 @@ the figure back under 0.2 px and says where it came from."""
 
 from __future__ import annotations
 
+import pytest
+
 from stereo_gui.files.calibration_file import load_calibration
 from stereo_gui.sources.sim import SimRig, SimSource
 
 
+@pytest.mark.slow
 def test_drift_is_shown_live_and_refined_away(qtbot, ctx, live, tmp_path):
     rig = SimRig(seed=29)  # its own rig: the test turns its right camera
     calib = rig.true_calibration()

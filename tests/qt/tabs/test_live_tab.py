@@ -34,6 +34,7 @@ def _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source):
     return scene, calib
 
 
+@pytest.mark.slow
 def test_live_view_updates_on_the_sim_rig(qtbot, ctx, live, sim_rig):
     from stereo_gui.sources.sim import SimSource
 
@@ -266,6 +267,7 @@ def test_snapshot_writes_each_shown_view_as_png(qtbot, ctx, live, sim_rig, wall_
     assert img.shape == (480, 640, 3)
 
 
+@pytest.mark.slow
 def test_pause_freezes_and_resume_continues(qtbot, ctx, live, sim_rig, wall_pair, array_source):
     _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
     live.set_paused(True)
@@ -296,6 +298,7 @@ def test_readings_use_the_active_fit(qtbot, ctx, live, sim_rig, wall_pair, array
     assert reading.measurement.method == fit.model and "fit" in live.readout_text()
 
 
+@pytest.mark.slow
 def test_every_view_shows_the_whole_image_filling_its_panel(
         qtbot, ctx, live, sim_rig, wall_pair, array_source):
     """The views (the colour one narrower, beside its colour bar) each fit the image after the
@@ -414,6 +417,7 @@ def test_views_are_drawn_one_event_loop_turn_apart_and_the_newest_frame_wins(
     _event_loop_turns(qtbot, len(keys) + 1)  # the remaining turns draw nothing, raise nothing
 
 
+@pytest.mark.slow
 def test_a_new_calibration_closes_the_processor_it_replaces(qtbot, ctx, live, sim_rig):
     """Its pipelines and its health thread go; the frames go on with the new one, and the old
     one, closed while a frame may be in work, shows no error."""

@@ -46,6 +46,7 @@ def test_the_live_tab_draws_the_frames_cloud(qtbot, ctx, live, sim_rig, wall_pai
     win.close()
 
 
+@pytest.mark.slow
 def test_a_context_too_old_for_pyqtgraph_is_refused(tmp_path):
     """Offscreen Qt with an X display present makes an OpenGL 2.0 context, which pyqtgraph's
     view refuses (it stayed black or crashed): the check says so instead. Needs xvfb-run."""

@@ -10,6 +10,7 @@ from PySide6.QtCore import QPoint, Qt
 from stereo_gui.qt.dialogs.source_dialog import SourceChoice
 
 
+@pytest.mark.slow
 def test_record_play_back_step_and_measure_the_same_distance(qtbot, ctx, window, sim_rig,
                                                              tmp_path):
     from stereo_gui.files.recording import open_recording

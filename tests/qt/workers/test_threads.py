@@ -9,6 +9,7 @@ import sys
 import threading
 import time
 
+import pytest
 from PySide6.QtCore import QCoreApplication, QThread
 
 from stereo_gui.core.jobs import Progress
@@ -179,6 +180,7 @@ sys.exit(run_app(source="sim"))
 """
 
 
+@pytest.mark.slow
 def test_closing_during_a_blocked_read_exits_0_within_3_s(tmp_path):
     """A read, a job and a generator job that never return: closing shares one 2 s deadline
     among them and leaves; no abort, exit status 0."""
