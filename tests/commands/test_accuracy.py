@@ -51,11 +51,13 @@ def test_quality_reads_the_whole_frame_within_its_stated_bound(reports):
     assert reps[-1].wall_mm == 3000.0 and reps[-1].median_bound_pct <= 1.0
 
 
+@pytest.mark.slow
 def test_live_worst_error(reports):
     for r in reports["live"]:
         assert r.worst_pct <= 1.5, format_table("true", reports["live"])
 
 
+@pytest.mark.slow
 def test_points_the_right_camera_cannot_see_say_so(reports):
     for reps in reports.values():
         unseen = [g for r in reps for g in r.readings if not g.seen and math.isfinite(g.true_z_mm)]

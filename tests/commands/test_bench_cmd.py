@@ -80,6 +80,7 @@ def test_bench_runs_a_parallel_preset_in_the_frame_lanes_and_restores_opencv(fil
     assert cv2.getNumThreads() == before
 
 
+@pytest.mark.slow
 def test_bench_on_the_simulated_rig_prints_a_table(capsys):
     assert main(["bench", "--frames", "1"]) == 0
     out = capsys.readouterr().out

@@ -46,7 +46,7 @@ def test_a_preset_matching_some_scenes_reduced_is_held_to_each_scenes_baseline(t
                                                                                 capsys):
     """A preset with a largest matching width (quality at most 300 px wide) matches a 240 px
     scene at full size and a 400 px one reduced: each scene holds it to plain OpenCV at that
-    size. It ended in a KeyError: the last scene's baseline was looked up on every scene."""
+    size (each scene's own baseline, not the last scene's looked up on every one)."""
     preset = json.loads(resource_path("presets", "quality.json").read_text())
     preset["name"] = "q300"
     preset["params"]["max_match_width"] = 300

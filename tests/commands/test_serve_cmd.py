@@ -81,6 +81,7 @@ def test_sigterm_stops_it_with_the_recording_whole(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["run.mcap"]  # no temporary file left
 
 
+@pytest.mark.slow
 def test_a_client_that_vanishes_leaves_no_error_on_the_terminal(tmp_path):
     """A robot's terminal shows the stream's own lines, not the SDK's about a client that went
     away without closing (they are the client's, and shown with -v)."""

@@ -149,6 +149,7 @@ def test_images_agree_with_the_truth(tmp_path, small_plan):
     assert residual(0.0) < min(residual(-0.1), residual(0.1))
 
 
+@pytest.mark.slow
 def test_second_run_needs_overwrite_and_replaces_cleanly(tmp_path, small_plan, capsys):
     out = tmp_path / "o"
     assert main(["simulate", str(out), "--click-scenes", "--seeds", "2"]) == 0
@@ -200,6 +201,7 @@ def test_folder_that_is_a_file(tmp_path, capsys):
     assert "is a file" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_centre_z_matches_the_wall_to_a_thousandth():
     from stereo_gui.sources.sim.click_scenes import centre_check, true_disparity
 

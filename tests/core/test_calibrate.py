@@ -246,6 +246,7 @@ def test_a_lens_model_that_folds_is_fitted_again_with_fewer_terms(model):
             pairs, board, size, model=model).calibration.warnings)
 
 
+@pytest.mark.slow
 def test_a_lens_model_that_folds_even_at_its_simplest_is_refused_with_the_remedy(monkeypatch):
     import stereo_gui.core.calibrate as calibrate_module
 
@@ -291,6 +292,7 @@ def _pairs_with_moved_boards(seed: int, every: int = 5):
     return board, pairs, size
 
 
+@pytest.mark.slow
 def test_pairs_whose_board_moved_between_the_pictures_are_left_out_with_the_reason():
     """Seed 1: three of the four moved pairs drew the baseline to 116.8 mm (truth 110) and the
     epipolar error after rectification to 1.23 px, each camera's own fit staying good. Each

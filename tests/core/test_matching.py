@@ -201,7 +201,7 @@ def test_final_output_is_never_worse_than_the_seeds_raw_sgbm_on_middlebury(share
     """The quality preset's final map (what the view shows and every export writes) has a bad-2.0
     rate no higher than the seed's raw SGBM and a density no lower (within 2 points), on both
     benchmark pairs; and it is better than its own raw map (the WLS output is kept only where
-    its left-right confidence holds, so the filter no longer invents values)."""
+    its left-right confidence holds, so the filter invents no values)."""
     from stereo_gui.commands.accuracy import middlebury_scores
 
     scores = {(s.pair, s.preset, s.stage): s for s in middlebury_scores(shared_data / "middlebury")}

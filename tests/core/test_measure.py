@@ -454,6 +454,7 @@ def weak_rig():
 
 
 @pytest.mark.parametrize("preset", ["live", "quality"])
+@pytest.mark.slow
 def test_a_painted_wall_of_weak_texture_is_read_over_the_whole_frame(weak_rig, preset):
     """A smooth wall at 1 m whose texture is about as strong as the sensor noise (a 9x9 window's
     grey-level spread near 1.5): a reading at nearly every point of a grid over the whole frame,

@@ -148,6 +148,7 @@ def test_uncertainty_object_of_the_json(good):
     assert data["baseline_mm"] == pytest.approx(math.sqrt(t @ u.covariance[np.ix_(idx, idx)] @ t))
 
 
+@pytest.mark.slow
 def test_a_calibration_from_central_poses_proposes_to_fix_k3_and_names_the_regions(central_images):
     rig, images = central_images
     result = _calibrate(rig, images)
