@@ -41,7 +41,7 @@ from stereo_gui.core.lens import (
     stereo_rectify,
     undistort_points,
 )
-from stereo_gui.core.stereo_calibration import ALPHA, PairError, StereoCalibration
+from stereo_gui.core.stereo_calibration import PairError, StereoCalibration, alpha_problem
 from stereo_gui.core.uncertainty import (
     Z95,
     CalibrationUncertainty,
@@ -465,7 +465,7 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
         raise CalibrationError(f"unknown calibration method {method!r}; use bouguet or hartley")
     if model not in LENS_MODELS:
         raise CalibrationError(f"unknown lens model {model!r}; use one of {', '.join(LENS_MODELS)}")
-    if (why := ALPHA.problem(alpha)) is not None:
+    if (why := alpha_problem(alpha)) is not None:
         raise CalibrationError(why)
     detections = list(detections)
     n = len(detections)

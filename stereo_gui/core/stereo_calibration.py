@@ -154,7 +154,7 @@ class StereoCalibration:
         if self.method not in METHODS:
             _refuse(f"unknown method {self.method!r}")
         alpha = _as_float(self.alpha)
-        if (why := ALPHA.problem(alpha)) is not None:
+        if (why := alpha_problem(alpha)) is not None:
             _refuse(why)
         object.__setattr__(self, "alpha", alpha)
         self._check_figures()
@@ -394,6 +394,13 @@ MAX_DISTORTION = 1e6
 # the rectification's scaling as every caller checks it: the command line, calibrate_stereo and
 # a calibration being built (a file's too)
 ALPHA: Param = params_of(StereoCalibration)["alpha"]
+OPENCV_DEFAULT_ALPHA = -1.0  # stereoRectify's own choice: files of OpenCV's samples hold it
+
+
+def alpha_problem(alpha: float) -> str | None:
+    """Why `alpha` is no rectification's free scaling, or None: the declaration's range, or
+    OpenCV's default (-1), which calibrations made elsewhere keep."""
+    return None if alpha == OPENCV_DEFAULT_ALPHA else ALPHA.problem(alpha)
 
 
 def _refuse(text: str) -> NoReturn:

@@ -87,7 +87,7 @@ def test_the_arrays_are_copies_of_what_it_was_built_with():
     ({"model": "fisheye"}, "a fisheye calibration needs 4 distortion coefficients per camera"),
     ({"D2": np.zeros((1, 8))}, "distortion D1 has 5 coefficients and D2 8"),
     ({"alpha": 1.5}, "alpha must be a number from 0 to 1, not 1.5"),
-    ({"alpha": -1.0}, "alpha must be a number from 0 to 1, not -1.0"),
+    ({"alpha": -0.5}, "alpha must be a number from 0 to 1, not -0.5"),
     ({"epipolar_error_px": -0.1}, "epipolar_error_px is -0.1"),
 ])
 def test_what_no_camera_has_is_refused_on_construction_naming_it(changes, message):
@@ -137,3 +137,9 @@ def test_a_rotation_written_to_four_decimals_is_still_a_rotation():
     assert GOOD.with_updates(R=rounded).R == pytest.approx(rounded)
     with pytest.raises(CalibrationValueError, match="matrix R is not a rotation"):
         GOOD.with_updates(R=R * 1.005)  # R^T R 1 % off the identity
+
+
+def test_opencvs_default_alpha_is_kept_from_files_made_elsewhere():
+    """OpenCV's samples rectify with alpha -1 (stereoRectify's own choice) and write it: such a
+    calibration loads, as it did."""
+    assert GOOD.with_updates(alpha=-1.0).alpha == -1.0
