@@ -874,11 +874,16 @@ def reads_nearer_edge(left_gray: np.ndarray, right_gray: np.ndarray, disparity_p
     own = region[wy0:y - y0 + half + 1, wx0:x - x0 + half + 1]
     if own.all():
         return False  # the window is all the click's region: the usual checks judge it
+    ay0, ax0 = y0 + wy0, x0 + wx0
+    left_own = left_gray[ay0:ay0 + own.shape[0], ax0:ax0 + own.shape[1]][own]
+    if left_own.size >= 9 and float(np.std(left_own)) >= TEXTURE_MIN_STD:
+        # a region of one grey on rich texture (a blob of it) holds texture of its own: not
+        # plain (on the rig's textured boxes the rule refused 31 right readings beside edges)
+        return False
     plane = _region_plane_at(disparity_px, region, x0, y0, x, y)
     if plane is None or plane >= d - SURFACE_BAND_PX:
         return False  # the region's surface is where the reading is (or nearer)
     w = left_gray.shape[1]
-    ay0, ax0 = y0 + wy0, x0 + wx0
     cols = np.arange(ax0, ax0 + own.shape[1], dtype=np.float32)
     rows = np.arange(ay0, ay0 + own.shape[0], dtype=np.float32)
     own = own & ((cols - d >= 2) & (cols - d <= w - 3))[None, :]
