@@ -779,7 +779,7 @@ def test_the_texture_evidence_is_judged_without_the_row_offsets_fit():
 
 
 def _edge_pair(wall_d: float, object_d: float, wall_contrast: float = 0.0, seed: int = 4,
-               size: tuple[int, int] = (300, 140), edge_row: int = 70):
+               size: tuple[int, int] = (300, 140), edge_row: int = 70, blur: float = 1.5):
     """A 300x140 pair: a wall of one grey (170, `wall_contrast` grey levels of texture of its own)
     at disparity `wall_d` over rows 0-69, a dark textured object at `object_d` from row 70
     (`edge_row`) down (its top edge horizontal), each camera's own noise 1 grey level (float32
@@ -788,7 +788,8 @@ def _edge_pair(wall_d: float, object_d: float, wall_contrast: float = 0.0, seed:
     rng = np.random.default_rng(seed)
     tex = cv2.GaussianBlur(rng.random((height, width + 200)).astype(np.float32), (0, 0), 1.5)
     tex = (tex - tex.mean()) / tex.std()
-    wall = 170.0 + wall_contrast * tex
+    own = cv2.GaussianBlur(rng.random((height, width + 200)).astype(np.float32), (0, 0), blur)
+    wall = 170.0 + wall_contrast * (own - own.mean()) / own.std()
     obj = 60.0 + 30.0 * np.roll(tex, 17, axis=1)
     xs = np.arange(width, dtype=np.float32)
     ys = np.repeat(np.arange(height, dtype=np.float32)[:, None], width, axis=1)
@@ -847,7 +848,15 @@ def test_a_plain_region_whose_own_surface_the_reading_is_stands():
     left, right = _edge_pair(30.0, 30.0)
     assert not reads_nearer_edge(left, right, np.full((140, 300), 30.0, np.float32), 150, 64,
                                  30.0, 6)
-    left, right = _edge_pair(30.0, 30.0, wall_contrast=6.0)
+    # a faint texture of its own (weaker than the plain-region threshold) that the reading fits
+    left, right = _edge_pair(30.0, 30.0, wall_contrast=2.5)
+    assert not reads_nearer_edge(left, right, _fattened_map(20.0, 30.0), 150, 64, 30.0, 12)
+    # ... and the same region read at the wrong disparity: refused
+    left, right = _edge_pair(20.0, 30.0, wall_contrast=2.5)
+    assert reads_nearer_edge(left, right, _fattened_map(20.0, 30.0), 150, 64, 30.0, 12)
+    # a region of one grey that holds texture of its own (a blob of the rig's boxes' texture)
+    # is no plain wall: the usual checks judge it
+    left, right = _edge_pair(20.0, 30.0, wall_contrast=8.0, blur=6.0)
     assert not reads_nearer_edge(left, right, _fattened_map(20.0, 30.0), 150, 64, 30.0, 6)
     left, right = _edge_pair(20.0, 30.0)
     assert not reads_nearer_edge(left, right, _fattened_map(20.0, 30.0), 150, 30, 30.0, 6)
