@@ -157,11 +157,14 @@ def test_match_exposure_makes_the_right_image_as_bright_as_the_left(qtbot, ctx, 
     assert lm / rm == pytest.approx(1.0, abs=0.04)
 
 
-def test_the_skew_of_the_rig_with_a_20_ms_offset_is_shown_and_marked(qtbot, ctx, panel):
-    ctx.frames.set_source(_sim(time_offset_s=0.020))
-    qtbot.waitUntil(lambda: "20.0 ms median" in panel.skew_label.text(), timeout=WAIT)
-    assert "20.0 ms worst (right after left)" in panel.skew_label.text()
-    assert "ffcdd2" in panel.skew_label.styleSheet()  # more than a third of a 30 fps frame
+def test_the_skew_of_the_rig_with_a_200_ms_offset_is_shown_and_marked(qtbot, ctx, panel):
+    # (the mark is for a skew above a third of the frame interval the panel measures: 200 ms
+    # is above it down to 1.5 frames a second, as a loaded test machine may run; 20 ms was
+    # marked only above 17)
+    ctx.frames.set_source(_sim(time_offset_s=0.200))
+    qtbot.waitUntil(lambda: "200.0 ms median" in panel.skew_label.text(), timeout=WAIT)
+    assert "200.0 ms worst (right after left)" in panel.skew_label.text()
+    assert "ffcdd2" in panel.skew_label.styleSheet()
     qtbot.waitUntil(lambda: "hold the board still" in panel.warning.text(), timeout=WAIT)
 
 
