@@ -7,23 +7,25 @@ import cv2
 import numpy as np
 import pytest
 
+from stereo_gui.core.align import (
+    map_slope,
+    one_surface,
+    refine_disparity,
+    refine_point,
+    window_correlation,
+)
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import MatcherParams, Preset, StereoPipeline
 from stereo_gui.core.measure import (
-    Z95,
     Reason,
     histogram_mode,
-    map_slope,
     measure_point,
-    one_surface,
     reads_nearer_edge,
-    refine_disparity,
-    refine_point,
     triangulate,
-    window_correlation,
 )
 from stereo_gui.core.regression import fit_inverse
 from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.core.uncertainty import Z95
 from stereo_gui.files.presets import load_preset
 from stereo_gui.sources.sim import Scene, SimRig
 
@@ -502,7 +504,7 @@ def test_a_blank_wall_is_refused_for_having_no_texture(weak_rig, preset):
 def test_correlated_stderr_counts_residuals_that_move_together():
     """Independent residuals: about the usual standard error. Residuals shared by 8 x 8 blocks
     (what MJPG leaves): several times more, as the fit has far fewer independent pixels."""
-    from stereo_gui.core.measure import correlated_stderr
+    from stereo_gui.core.align import correlated_stderr
 
     rng = np.random.default_rng(3)
     shape = (32, 32)
