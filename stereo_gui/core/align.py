@@ -64,6 +64,41 @@ def robust_spread(values: np.ndarray) -> float:
     return float(MAD_TO_SIGMA * np.median(np.abs(values - np.median(values))))
 
 
+def _mad_about_zero(resid: np.ndarray) -> float:
+    return MAD_TO_SIGMA * float(np.median(np.abs(resid)))
+
+
+@dataclass(frozen=True)
+class PlaneFit:
+    """A plane of disparity through a window's values: its value at the point it was fitted
+    about (px), its slopes along x and y (px per px), each value's residual, and which values it
+    kept (those within 3 robust sigma of it at the last round)."""
+
+    at_point: float
+    gx: float
+    gy: float
+    resid: np.ndarray
+    keep: np.ndarray
+
+
+def fit_plane(win: np.ndarray, ok: np.ndarray, x0: int, y0: int, x: int, y: int, rounds: int,
+              about_median: bool = False) -> PlaneFit:
+    """Least squares plane through the values `win[ok]` (a window whose top-left pixel is
+    (x0, y0)) about the point (x, y), `rounds` times with the values off it by more than 3 robust
+    sigma left out: the residuals' median absolute deviation about zero, or about their median
+    (`about_median`), never below SGBM's step."""
+    vy, vx = np.nonzero(ok)
+    A = np.column_stack([np.ones(vx.size), vx + x0 - x, vy + y0 - y]).astype(np.float64)
+    b = win[ok].astype(np.float64)
+    keep = np.ones(b.size, bool)
+    spread = robust_spread if about_median else _mad_about_zero
+    for _ in range(rounds):
+        sol, *_ = np.linalg.lstsq(A[keep], b[keep], rcond=None)
+        resid = b - A @ sol
+        keep = np.abs(resid) <= 3.0 * max(spread(resid[keep]), QUANTUM_PX)
+    return PlaneFit(float(sol[0]), float(sol[1]), float(sol[2]), resid, keep)
+
+
 @dataclass(frozen=True)
 class Refinement:
     """A refined disparity (px), its standard error from the fit's residuals (px, 1 sigma),
@@ -303,15 +338,9 @@ def map_slope(disparity_px: np.ndarray, x: int, y: int, half: int) -> tuple[floa
     ok = np.isfinite(win)
     if int(ok.sum()) < max(9, win.size // 4):
         return 0.0, 0.0
-    vy, vx = np.nonzero(ok)
-    A = np.column_stack([np.ones(vx.size), vx + x0 - x, vy + y0 - y]).astype(np.float64)
+    plane = fit_plane(win, ok, x0, y0, x, y, 2, about_median=True)
+    gx, gy, resid, keep = plane.gx, plane.gy, plane.resid, plane.keep
     b = win[ok].astype(np.float64)
-    keep = np.ones(b.size, bool)
-    for _ in range(2):
-        sol, *_ = np.linalg.lstsq(A[keep], b[keep], rcond=None)
-        resid = b - A @ sol
-        keep = np.abs(resid) <= 3.0 * max(robust_spread(resid[keep]), QUANTUM_PX)
-    gx, gy = float(sol[1]), float(sol[2])
     if (abs(gx) + abs(gy)) * half < SLOPE_MIN_PX:
         return 0.0, 0.0
     # a slope the map's values show only in their noise (blobs of wrong matches on an MJPG

@@ -25,6 +25,7 @@ from stereo_gui.core.align import (
     REFINE_HALF_PX,
     SURFACE_BAND_PX,
     Refinement,
+    fit_plane,
     one_surface,
     refine_point,
     robust_spread,
@@ -434,18 +435,12 @@ def surrounding_estimate(result: PipelineResult, x: int, y: int) -> float | None
         n = int(usable.sum())
         if n < max(9, SURROUND_MIN_SHARE * win.size):
             continue
-        vy, vx = np.nonzero(usable)
-        A = np.column_stack([np.ones(n), vx + x0 - x, vy + y0 - y]).astype(np.float64)
-        b = win[usable].astype(np.float64)
-        keep = np.ones(n, bool)
-        for _ in range(3):
-            sol, *_ = np.linalg.lstsq(A[keep], b[keep], rcond=None)
-            resid = b - A @ sol
-            scale = max(MAD_TO_SIGMA * float(np.median(np.abs(resid[keep]))), QUANTUM_PX)
-            keep = np.abs(resid) <= 3.0 * scale
+        plane = fit_plane(win, usable, x0, y0, x, y, 3)
+        resid, keep = plane.resid, plane.keep
+        vx = np.nonzero(usable)[1]
         if not (keep.mean() >= SURROUND_INLIERS and robust_spread(resid[keep]) <= EDGE_SPREAD_PX):
             continue
-        estimate = float(sol[0])
+        estimate = plane.at_point
         # the surface must lie on both sides of the click where either camera sees on: beside a
         # near object, the strip the object hides from the right camera has the object on one
         # side only (left of the click, the right camera sees nothing within `estimate` of the
@@ -505,16 +500,7 @@ def _region_plane_at(disparity_px: np.ndarray, region: np.ndarray, x0: int, y0: 
     ok = region & np.isfinite(win)
     if int(ok.sum()) < 9:
         return None
-    vy, vx = np.nonzero(ok)
-    A = np.column_stack([np.ones(vx.size), vx + x0 - x, vy + y0 - y]).astype(np.float64)
-    b = win[ok].astype(np.float64)
-    keep = np.ones(b.size, bool)
-    for _ in range(3):
-        sol, *_ = np.linalg.lstsq(A[keep], b[keep], rcond=None)
-        resid = b - A @ sol
-        scale = max(MAD_TO_SIGMA * float(np.median(np.abs(resid[keep]))), QUANTUM_PX)
-        keep = np.abs(resid) <= 3.0 * scale
-    return float(sol[0])
+    return fit_plane(win, ok, x0, y0, x, y, 3).at_point
 
 
 def reads_nearer_edge(left_gray: np.ndarray, right_gray: np.ndarray, disparity_px: np.ndarray,
