@@ -18,6 +18,8 @@ a wall is rendered: weak texture, webcam effects) and `live` (SimSource). Every 
 """
 
 from stereo_gui.sources.sim.calibration_set import (
+    HAND_SPEED_MM_S,
+    HAND_SPIN_RAD_S,
     SCENE_FOLDER,
     SCENE_WALL_DISTANCES_MM,
     calibration_set_names,
@@ -71,7 +73,7 @@ __all__ = [
     "AUTO_TARGET", "AUTO_WB_K", "AUTOFOCUS_RATE", "FOCAL_CHANGE_PER_STEP", "MAX_AUTO_EXPOSURE",
     "NEUTRAL_WB_K", "REFERENCE_EXPOSURE", "SIM_CONVENTION", "TRUE_FOCUS", "CameraLook",
     "SimCameraDevice", "sim_controls", "CONDITIONS", "WEAK_CONTRAST", "Condition", "condition_named",
-    "MIN_POINT_SPACING_PX", "OCTAVES", "SCENE_FOLDER", "SCENE_WALL_DISTANCES_MM", "TRUTH_FORMAT_VERSION", "BoardOutOfView",
+    "HAND_SPEED_MM_S", "HAND_SPIN_RAD_S", "MIN_POINT_SPACING_PX", "OCTAVES", "SCENE_FOLDER", "SCENE_WALL_DISTANCES_MM", "TRUTH_FORMAT_VERSION", "BoardOutOfView",
     "BoardPose",
     "CameraTruth", "RayMap", "RigConfig", "RigTruth", "Scene", "SceneObject", "SimFrameTruth",
     "SimRig", "SimSource", "calibration_set_names", "load_truth", "ray_map",
