@@ -744,7 +744,8 @@ class StereoPipeline:
     Runs a frame's stages one after the other in the calling thread (frames in flight are the
     parallelism, pipeline.concurrency), so it is not for use by several threads at once;
     `set_params` may be called from any thread and takes effect with the next frame. `close()`
-    (or the pipeline as a context manager) ends its use.
+    (or the end of a `with` block) releases its rectification maps and matchers and ends its
+    use: a closed pipeline refuses to rectify or process.
     """
 
     def __init__(self, calibration: StereoCalibration,
@@ -759,6 +760,7 @@ class StereoPipeline:
         # None: the preset's), and how many frames in a row have asked for less
         self._scene_top_px: float | None = None
         self._shrink_votes = 0
+        self._closed = False
         self._build()
 
     # ---- configuration -------------------------------------------------------------------
@@ -773,7 +775,13 @@ class StereoPipeline:
             self._pending = Preset.of(params)
 
     def close(self) -> None:
-        """Nothing to release today; kept so that callers end a pipeline's use explicitly."""
+        """Release the rectification maps, matchers and shading maps (tens of MB at 1280x720)
+        now rather than when the last reference goes, and refuse any later frame (the maps gone,
+        a frame would otherwise pass unrectified). May be called more than once."""
+        self._closed = True
+        self._maps = None
+        self._left = self._second = self._right = self._wls = None
+        self._shading_full = self._shading_gains = None
 
     def __enter__(self) -> StereoPipeline:
         return self
@@ -911,6 +919,8 @@ class StereoPipeline:
         """Both raw images remapped into the rectified frame (identity calibrations: unchanged).
         With `right_colour` False the right one is remapped as gray (a third of the work: the
         matcher needs no more, and only a view of the right image needs its colours)."""
+        if self._closed:
+            raise RuntimeError("the stereo pipeline is closed")
         w, h = self.calibration.image_size
         for name, img in (("left", left_bgr), ("right", right_bgr)):
             if img is None or img.ndim not in (2, 3):
@@ -1053,6 +1063,8 @@ class StereoPipeline:
         and always runs. `previous_scale`: the colour scale of the stream's frame before (a
         "view" colour range stays put while the view stays in it, `color_scale`); the pipeline
         keeps no such state itself (its caller owns the stream)."""
+        if self._closed:
+            raise RuntimeError("the stereo pipeline is closed")
         self._apply_pending()
         p = self._params
         t = {}

@@ -162,6 +162,18 @@ def test_set_params_applies_to_the_next_frame_and_without_wls_final_is_closed():
     assert "bilateral" in r.timings_ms
 
 
+def test_a_closed_pipeline_refuses_frames():
+    left, right = textured_pair()
+    with StereoPipeline(calib(), MatcherParams(min_disparity=0, num_disparities=32)) as pipe:
+        assert pipe.process(left, right).valid.any()
+    # its maps and matchers are gone: a frame is refused, not passed through unrectified
+    with pytest.raises(RuntimeError, match="closed"):
+        pipe.process(left, right)
+    with pytest.raises(RuntimeError, match="closed"):
+        pipe.rectify(left, right)
+    pipe.close()  # again: nothing happens
+
+
 def test_wrong_image_size_is_an_input_error():
     left, right = textured_pair()
     pipe = StereoPipeline(calib(w=W + 2), MatcherParams(min_disparity=0, num_disparities=32))
