@@ -10,7 +10,7 @@ import pytest
 
 from stereo_gui.core.errors import SourceError, StereoGuiError
 from stereo_gui.files.recording import RecordingWriter
-from stereo_gui.sources.base import FrameSource, StereoFrame
+from stereo_gui.sources.base import StereoFrame
 from stereo_gui.sources.playback import PlaybackSource
 
 W, H = 40, 24
@@ -45,7 +45,9 @@ def _same(a: StereoFrame, b: StereoFrame) -> bool:
 def test_plays_back_the_same_images_and_timestamps_then_loops(recorded):
     folder, frames = recorded
     src = PlaybackSource(folder, paced=False)
-    assert isinstance(src, FrameSource)
+    # the capabilities it has and has not: its own playback controls, no cameras, no rig
+    assert src.playback() is src
+    assert src.camera_controls() is None and src.simulated_rig() is None
     # the rate the frames were recorded at (recording.json), not the source's nominal 30 fps
     recorded_fps = 4 / (frames[-1].t_left - frames[0].t_left)
     assert src.frame_count == 5 and src.name == "Playback of rec"

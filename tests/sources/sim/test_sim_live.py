@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from stereo_gui.core.errors import InputError, SourceError
-from stereo_gui.sources.base import FrameSource
 from stereo_gui.sources.sim import (
     RigConfig,
     SimFrameTruth,
@@ -17,7 +16,9 @@ from stereo_gui.sources.sim import (
 
 def test_sim_source_frames():
     src = SimSource(SimRig(RigConfig(supersample=2)), mode="mixed", paced=False, seed=1)
-    assert isinstance(src, FrameSource)
+    # the capabilities it has and has not: its rig and the rig's cameras, no playback
+    assert src.simulated_rig() is src.rig and src.camera_controls() is not None
+    assert src.playback() is None
     assert src.name == "Simulated rig" and src.nominal_fps == 30.0
     frames = [src.read() for _ in range(4)]
     assert [f.index for f in frames] == [0, 1, 2, 3]
