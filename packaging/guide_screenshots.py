@@ -140,13 +140,14 @@ def main(argv: list[str]) -> int:
     # 6. live views with two distance markers and a ruler measurement
     live = window.live_tab
     window.show_tab("live")
-    first = live.frames_shown
-    wait_for("live frames", lambda: live.frames_shown > first + 10)
+    drawn = []  # each frame as its views are drawn
+    live.frameShown.connect(drawn.append)
+    wait_for("live frames", lambda: len(drawn) > 10)
     live.set_paused(True)
     live.pause_button.setChecked(True)
-    pump(0.5)
+    pump(0.5)  # (a frame being drawn is finished)
     w, h = ctx.calibration.image_size
-    points = _pick_points(live.shown_output.result.valid, live.shown_output.result.final_px)
+    points = _pick_points(drawn[-1].result.valid, drawn[-1].result.final_px)
     for x, y in points["single"]:
         live.measure_at(x, y)
         pump(1.0)

@@ -67,7 +67,7 @@ def cloud_view() -> dict:
         report["opengl_platform"] = type(OpenGL.platform.PLATFORM).__module__
         live.cloud_button.click()
         view = live.cloud_view
-        report["window_visible"] = bool(live.cloud_window and live.cloud_window.isVisible())
+        report["window_visible"] = view is not None and view.window().isVisible()
         if view.problem:
             return {**report, "problem": view.problem, "gl_view": view.gl is not None}
         shown = _wait(live.cloudShown, TIMEOUT_S)

@@ -94,7 +94,7 @@ class LiveTab(QWidget):
     calibrateRequested = Signal()
     loadCalibrationRequested = Signal()
     measured = Signal(object)  # Measurement, after its marker was drawn
-    frameShown = Signal()  # a new frame was drawn (for tests and benchmarks)
+    frameShown = Signal(LiveOutput)  # the frame whose views were all just drawn
     hoverRead = Signal(object)  # PointerReading, after the readout line shows it
     cloudShown = Signal(object)  # CloudPoints, after the 3D view drew them
 
@@ -385,11 +385,6 @@ class LiveTab(QWidget):
         self.shown_frame = pf.frame
         self.show_output(pf.output)
 
-    @property
-    def shown_output(self) -> LiveOutput | None:
-        """The processed frame the views show (or are being given), None when cleared."""
-        return self._output
-
     def show_output(self, out: LiveOutput) -> None:
         """Draw one processed frame (UI thread: array hand-over only). The views get their
         images one event-loop turn apart, so that each is painted on its own and the window
@@ -431,7 +426,7 @@ class LiveTab(QWidget):
 
     def _frame_drawn(self) -> None:
         self.frames_shown += 1
-        self.frameShown.emit()
+        self.frameShown.emit(self._output)
 
     def _update_color_bars(self, out: LiveOutput) -> None:
         scale = out.result.color_scale
@@ -453,19 +448,10 @@ class LiveTab(QWidget):
         return self.cloud.show()
 
     @property
-    def cloud_window(self) -> QWidget | None:
-        return self.cloud.window
-
-    @property
     def cloud_view(self):
         return self.cloud.view
 
     # ---- the watched region (see LiveRegion) ------------------------------------------------
-    @property
-    def last_region(self):
-        """RegionStats of the last frame shown with a region (None before)."""
-        return self.region.last
-
     def set_region(self, box: tuple[int, int, int, int] | None,
                    alarm_m: float | None = None) -> None:
         """Watch the box (x0, y0, x1, y1) px of the colour view (None: stop), with an alarm
@@ -476,10 +462,6 @@ class LiveTab(QWidget):
     def measure_at(self, x: float, y: float, key: str = "depth") -> int | None:
         """Measure at rectified-left pixel (x, y) on the frame now shown; returns the job id."""
         return self.readings.measure_at(x, y, key)
-
-    def readout_text(self) -> str:
-        """What the readout line says now."""
-        return self.readout.text()
 
     @property
     def last_reading(self):

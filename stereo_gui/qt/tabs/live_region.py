@@ -32,7 +32,6 @@ class LiveRegion(QObject):
         self._view_check = view_check
         self._processor = processor
         self._output = output  # the LiveOutput shown (None: none yet)
-        self.last = None  # RegionStats of the last frame shown with a region
         self._alarm_on = False
         self.button = QPushButton("Region")
         self.button.setCheckable(True)
@@ -124,7 +123,6 @@ class LiveRegion(QObject):
         """Show the region figures of the frame drawn (None: it has none)."""
         if stats is None or not self.button.isChecked():
             return
-        self.last = stats
         if stats.note:
             text = f"Region: {stats.note}"
         else:

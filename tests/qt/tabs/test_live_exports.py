@@ -16,10 +16,10 @@ def _show_wall(qtbot, ctx, live, calib, wall_pair, array_source):
     _scene, left, right = wall_pair
     ctx.calibration_model.set(calib, None, note=TRUE_CALIBRATION_NOTE)
     ctx.frames.set_source(array_source(left, right, fps=30))
-    with qtbot.waitSignal(live.frameShown, timeout=30000):
+    with qtbot.waitSignal(live.frameShown, timeout=30000) as sig:
         pass
-    live.set_paused(True)
-    return live.shown_output.result
+    live.set_paused(True)  # (at once: the frame signalled is the one the views show)
+    return sig.args[0].result
 
 
 def _read_ply(path):
@@ -155,4 +155,7 @@ def test_a_calibration_of_another_aspect_ratio_is_refused_with_the_reason(
         ctx.frames.set_source(array_source(left, right, fps=30))
     text = sig.args[0]
     assert "1280x720" in text and "640x480" in text and "aspect ratio" in text
-    assert live.frames_shown == 0 and live.shown_output is None  # nothing silently wrong is shown
+    assert live.frames_shown == 0  # nothing silently wrong is shown
+    with qtbot.waitSignal(ctx.errorOccurred, timeout=2000) as err:
+        assert live.measure_at(320.0, 240.0) is None  # nor measured on
+    assert err.args[0] == "No frame to measure on yet."

@@ -5,13 +5,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 
 import numpy as np
 import pytest
 from PySide6.QtCore import Qt
 
 from stereo_gui.pipeline.readout import format_distance
-from stereo_gui.qt.tabs.live import TRUE_CALIBRATION_NOTE, LiveOutput
+from stereo_gui.qt.tabs.live import TRUE_CALIBRATION_NOTE
 
 
 def double_click(qtbot, widget, pos):
@@ -22,6 +23,16 @@ def double_click(qtbot, widget, pos):
     qtbot.mouseRelease(widget, left, pos=pos)
     qtbot.mouseDClick(widget, left, pos=pos)
     qtbot.mouseRelease(widget, left, pos=pos)
+
+
+# the region line of a box in the left strip the right camera does not see (no depth there)
+LEFT_EDGE_REGION_LINE = "Region: too little depth in the region"
+
+
+def region_median_mm(live) -> float:
+    """The median distance the region line shows, mm (NaN when it shows none)."""
+    found = re.search(r"median ([0-9.]+) m", live.region_label.text())
+    return 1000.0 * float(found.group(1)) if found else math.nan
 
 
 def _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source):
@@ -42,8 +53,6 @@ def test_live_view_updates_on_the_sim_rig(qtbot, ctx, live, sim_rig):
     assert live.stack.currentIndex() == 1
     ctx.frames.set_source(SimSource(rig=sim_rig, mode="scene", fps=30))
     qtbot.waitUntil(lambda: live.frames_shown >= 2, timeout=60000)
-    out = live.shown_output
-    assert isinstance(out, LiveOutput)
     for key in live.visible_views():
         img = live.panels[key].item.image
         assert img is not None and img.dtype == np.uint8
@@ -156,17 +165,17 @@ def test_hover_reads_what_a_double_click_gives_at_that_pixel(qtbot, ctx, live, s
         if click.valid:
             assert hover.Z_mm == click.Z_mm
             assert hover.expected_error_mm == click.expected_error_mm
-            assert format_distance(click.Z_mm) in live.readout_text()
-            assert f"± {click.expected_error_mm:.1f} mm" in live.readout_text()
+            assert format_distance(click.Z_mm) in live.readout.text()
+            assert f"± {click.expected_error_mm:.1f} mm" in live.readout.text()
         else:  # the click's reason, e.g. "not seen by the right camera" at the left edge
-            assert click.reason in live.readout_text()
+            assert click.reason in live.readout.text()
     assert "right image" in _hover(qtbot, live, "right", 320.0, 240.0).note
     assert "outside" in _hover(qtbot, live, "wls", 5000.0, 10.0).note
     live.panels["wls"].hovered.emit("wls", math.nan, math.nan)  # the pointer leaves
-    assert "double-click" in live.readout_text()
+    assert "double-click" in live.readout.text()
     # and comes back to the pixel it read last: read again, not left saying "Point at a view"
     _hover(qtbot, live, "wls", 5000.0, 10.0)
-    assert "outside" in live.readout_text()
+    assert "outside" in live.readout.text()
 
 
 def test_fast_pointer_moves_do_not_queue_readings(qtbot, ctx, live, sim_rig, wall_pair,
@@ -184,7 +193,7 @@ def test_fast_pointer_moves_do_not_queue_readings(qtbot, ctx, live, sim_rig, wal
             pass
         reading = sig.args[0]
     assert live.hover_jobs_submitted - before == 2  # the first and the newest, nothing between
-    assert "x  259" in live.readout_text()
+    assert "x  259" in live.readout.text()
     assert not ctx.jobs.is_busy()
 
 
@@ -203,20 +212,22 @@ def test_hover_on_the_simulated_rig_shows_the_true_distance_labelled(
     reading = _hover(qtbot, live, "wls", 320.0, 240.0)
     truth = sim_rig.true_point_rectified(calib, scene, 320.0, 240.0)
     assert reading.true_z_mm == pytest.approx(truth[2])
-    assert f"TRUE (simulated scene): Z {format_distance(truth[2])}" in live.readout_text()
+    assert f"TRUE (simulated scene): Z {format_distance(truth[2])}" in live.readout.text()
     assert reading.measurement.Z_mm == pytest.approx(truth[2], rel=0.01)
 
 
 def test_parameter_change_applies_to_next_frame(qtbot, ctx, live, sim_rig, wall_pair,
                                                 array_source):
+    shown = []
+    live.frameShown.connect(shown.append)
     _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
-    before = live.shown_output.result.params.closing_kernel
+    before = shown[-1].result.params.closing_kernel
     new = 5 if before != 5 else 7
     live.params_panel.editors["closing_kernel"].setValue(new)
-    qtbot.waitUntil(lambda: live.shown_output.result.params.closing_kernel == new, timeout=30000)
+    qtbot.waitUntil(lambda: shown[-1].result.params.closing_kernel == new, timeout=30000)
     # and switching the WLS filter off leaves its view showing the depth, and saying so
     live.params_panel.editors["wls"].setChecked(False)
-    qtbot.waitUntil(lambda: live.shown_output.result.wls_px is None, timeout=30000)
+    qtbot.waitUntil(lambda: shown[-1].result.wls_px is None, timeout=30000)
     assert "No WLS" in live.panels["wls"].title.text
 
 
@@ -295,7 +306,7 @@ def test_readings_use_the_active_fit(qtbot, ctx, live, sim_rig, wall_pair, array
     assert ctx.measurement_log.records[-1].method == fit.model
     live.set_paused(True)
     reading = _hover(qtbot, live, "wls", 320.0, 240.0)
-    assert reading.measurement.method == fit.model and "fit" in live.readout_text()
+    assert reading.measurement.method == fit.model and "fit" in live.readout.text()
 
 
 @pytest.mark.slow
@@ -334,20 +345,17 @@ def test_region_box_watches_the_nearest_distance_and_alarms(qtbot, ctx, live, si
     ctx.statusMessage.connect(statuses.append)
     live.set_region((250, 180, 400, 300), alarm_m=1.0)  # the wall is at 1.5 m: no alarm
     assert live.panels["depth"].region() == (250, 180, 400, 300)
-    qtbot.waitUntil(lambda: live.last_region is not None
-                    and live.last_region.region.x0 == 250, timeout=30000)
-    stats = live.last_region
-    assert stats.median_mm == pytest.approx(1500.0, rel=0.03) and not stats.alarm
-    assert "nearest" in live.region_label.text() and "ALARM" not in live.region_label.text()
+    qtbot.waitUntil(lambda: "nearest" in live.region_label.text(), timeout=30000)
+    assert region_median_mm(live) == pytest.approx(1500.0, rel=0.03)
+    assert "ALARM" not in live.region_label.text()
     live.alarm_spin.setValue(2.0)  # now anything nearer than 2 m: the wall
-    qtbot.waitUntil(lambda: live.last_region.alarm, timeout=30000)
-    assert "ALARM" in live.region_label.text()
+    qtbot.waitUntil(lambda: "ALARM" in live.region_label.text(), timeout=30000)
     assert any(s.startswith("ALARM") for s in statuses)
     assert live.panels["depth"].region_box.pen.color().name() == REGION_ALARM
     # dragged elsewhere (what the box reports when the user lets go)
     live.panels["depth"].show_region((10, 10, 40, 40))
     live.panels["depth"].regionChanged.emit((10, 10, 40, 40))
-    qtbot.waitUntil(lambda: live.last_region.region.x0 == 10, timeout=30000)
+    qtbot.waitUntil(lambda: live.region_label.text() == LEFT_EDGE_REGION_LINE, timeout=30000)
     live.set_region(None)
     assert live.panels["depth"].region_box is None and not live.region_label.isVisibleTo(live)
 
@@ -392,8 +400,10 @@ def test_views_are_drawn_one_event_loop_turn_apart_and_the_newest_frame_wins(
     answers in between); frameShown follows the last view; a frame that comes meanwhile is
     the one the remaining views show; a new calibration drops what was still to be drawn."""
     _wall_live(qtbot, ctx, live, sim_rig, wall_pair, array_source)
-    live.set_paused(True)  # no frame is shown any more; the one being drawn is finished
-    first = live.shown_output
+    with qtbot.waitSignal(live.frameShown, timeout=30000) as sig:
+        pass
+    live.set_paused(True)  # no frame is shown any more
+    first = sig.args[0]
     keys = [k for k in live.visible_views() if k in first.images]
     qtbot.waitUntil(lambda: all(np.array_equal(live.panels[k].item.image, first.images[k])
                                 for k in keys), timeout=30000)
@@ -411,9 +421,11 @@ def test_views_are_drawn_one_event_loop_turn_apart_and_the_newest_frame_wins(
     for k in keys[1:]:
         assert not live.panels[k].item.image.any()  # the newer frame's
     live.show_output(first)
-    # a new calibration clears the views' frame
+    # a new calibration clears the views' frame: nothing to measure on
     ctx.calibration_model.set(ctx.calibration, ctx.calibration_path, ctx.calibration_note)
-    assert live.shown_output is None
+    with qtbot.waitSignal(ctx.errorOccurred, timeout=2000) as err:
+        assert live.measure_at(320.0, 240.0) is None
+    assert err.args[0] == "No frame to measure on yet."
     _event_loop_turns(qtbot, len(keys) + 1)  # the remaining turns draw nothing, raise nothing
 
 
