@@ -45,7 +45,7 @@ class CalibrationModel(QObject):
     the settings remember what the next start should load.
     """
 
-    changed = Signal(object)  # StereoCalibration | None
+    changed = Signal(object)  # StereoCalibration | None (object: None is emitted too)
 
     def __init__(self, settings: SettingsModel, report: Reporter,
                  frame_size: Callable[[], tuple[int, int]],

@@ -29,7 +29,7 @@ class MeasurementLog(QObject):
     """
 
     changed = Signal()
-    activeFitChanged = Signal(object)  # FitResult | None
+    activeFitChanged = Signal(object)  # FitResult | None (object: None is emitted too)
 
     def __init__(self, report: Reporter, parent: QObject | None = None) -> None:
         super().__init__(parent)

@@ -20,7 +20,7 @@ class SettingsModel(QObject):
     `changed(Settings)`; `save` writes the settings file.
     """
 
-    changed = Signal(object)  # Settings
+    changed = Signal(Settings)
 
     def __init__(self, settings: Settings | None = None, parent: QObject | None = None) -> None:
         super().__init__(parent)

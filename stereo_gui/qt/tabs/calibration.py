@@ -70,7 +70,7 @@ _MONO.setStyleHint(QFont.StyleHint.TypeWriter)
 class CalibrationTab(QWidget):
     """Calibrate, review and save/load the stereo calibration (see module docstring)."""
 
-    calibrationFinished = Signal(object)  # CalibrationRun
+    calibrationFinished = Signal(CalibrationRun)
 
     def __init__(self, ctx: AppContext, parent: QWidget | None = None) -> None:
         super().__init__(parent)

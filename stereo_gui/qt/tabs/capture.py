@@ -67,7 +67,9 @@ log = logging.getLogger(__name__)
 class CaptureTab(QWidget):
     """Capture target pairs into a session folder, with review, auto-capture and coverage."""
 
-    sessionChanged = Signal(object)  # the CaptureSession now open, or None
+    # the CaptureSession now open, or None: object, as Signal(CaptureSession) would promise a
+    # session every time
+    sessionChanged = Signal(object)
     pairSaved = Signal(str)  # name of the pair just written
 
     def __init__(self, ctx: AppContext, parent: QWidget | None = None) -> None:

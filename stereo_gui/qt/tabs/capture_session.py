@@ -40,7 +40,7 @@ from stereo_gui.qt.workers.job_worker import JobWorker
 class SessionPairs(QObject):
     """The capture session open and its saved pairs (see the module docstring)."""
 
-    sessionChanged = Signal(object)  # the CaptureSession now open
+    sessionChanged = Signal(CaptureSession)  # the session now open
     pairsChanged = Signal()  # the list of saved pairs was filled again (read, scanned, deleted)
 
     def __init__(self, settings: SettingsModel, report: Reporter, workers: WorkerRegistry,

@@ -33,7 +33,10 @@ from PySide6.QtWidgets import (
 
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.matching import COLORMAPS, Preset, color_scale_caption
+from stereo_gui.core.measure import Measurement
+from stereo_gui.pipeline.cloud import CloudPoints
 from stereo_gui.pipeline.live import NO_MATCH_RGB, NOT_SEEN_RGB, LiveOutput, LiveProcessor
+from stereo_gui.pipeline.readout import PointerReading
 from stereo_gui.qt.context import TRUE_CALIBRATION_NOTE, AppContext
 from stereo_gui.qt.source_capabilities import simulated_rig
 from stereo_gui.qt.tabs.live_cloud import LiveCloud
@@ -93,10 +96,10 @@ class LiveTab(QWidget):
 
     calibrateRequested = Signal()
     loadCalibrationRequested = Signal()
-    measured = Signal(object)  # Measurement, after its marker was drawn
+    measured = Signal(Measurement)  # after its marker was drawn
     frameShown = Signal(LiveOutput)  # the frame whose views were all just drawn
-    hoverRead = Signal(object)  # PointerReading, after the readout line shows it
-    cloudShown = Signal(object)  # CloudPoints, after the 3D view drew them
+    hoverRead = Signal(PointerReading)  # after the readout line shows it
+    cloudShown = Signal(CloudPoints)  # after the 3D view drew them
 
     def __init__(self, ctx: AppContext, parent: QWidget | None = None) -> None:
         super().__init__(parent)

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 from PySide6.QtCore import QObject, Qt, QTimer, Signal
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 
+from stereo_gui.pipeline.cloud import CloudPoints
 from stereo_gui.qt.workers.job_runner import JobRunner
 
 if TYPE_CHECKING:
@@ -21,7 +22,7 @@ class LiveCloud(QObject):
     """Owns the 3D window (made on first use), its timer and its job thread. `output` returns
     the LiveOutput shown (or None)."""
 
-    shown = Signal(object)  # CloudPoints, after the 3D view drew them
+    shown = Signal(CloudPoints)  # after the 3D view drew them
 
     def __init__(self, ctx: AppContext, owner: QWidget, output: Callable[[], object]) -> None:
         super().__init__(owner)

@@ -21,8 +21,8 @@ from typing import TYPE_CHECKING
 from PySide6.QtCore import QObject, Signal
 from PySide6.QtWidgets import QLabel
 
-from stereo_gui.core.measure import Reason
-from stereo_gui.files.measurement_record import RULER_METHOD
+from stereo_gui.core.measure import Measurement, Reason
+from stereo_gui.files.measurement_record import RULER_METHOD, MeasurementRecord
 from stereo_gui.pipeline.readout import (
     MEASURABLE_VIEWS,
     PointerReading,
@@ -81,9 +81,9 @@ class LiveReadings(QObject):
     """The readings of one Live tab, read from and drawn on its `screen`; `ctx` is the
     AppContext, whose job thread runs every reading."""
 
-    measured = Signal(object)  # Measurement, after its marker was drawn
-    logged = Signal(object)  # MeasurementRecord of each reading put into the log (and a ruler's)
-    hoverRead = Signal(object)  # PointerReading, after the readout line shows it
+    measured = Signal(Measurement)  # after its marker was drawn
+    logged = Signal(MeasurementRecord)  # each reading put into the log (and a ruler's)
+    hoverRead = Signal(PointerReading)  # after the readout line shows it
 
     def __init__(self, ctx: AppContext, screen: ReadingScreen,
                  parent: QObject | None = None) -> None:

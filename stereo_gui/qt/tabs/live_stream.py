@@ -32,7 +32,9 @@ class LiveStream(QObject):
     `processor` returns the LiveProcessor in use (or None)."""
 
     changed = Signal(bool)  # streaming on or off (the File menu's action follows)
-    recordingChanged = Signal(object)  # the MCAP file being recorded, None when none
+    # the MCAP file being recorded (Path), None when none: object, as a Signal(Path) would
+    # promise a Path every time
+    recordingChanged = Signal(object)
 
     def __init__(self, ctx: AppContext, owner: QWidget, processor: Callable[[], object]) -> None:
         super().__init__(owner)

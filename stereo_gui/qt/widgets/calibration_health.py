@@ -23,6 +23,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from stereo_gui.core.health import Refinement
 from stereo_gui.core.jobs import Progress
 from stereo_gui.qt.source_capabilities import simulated_rig
 from stereo_gui.qt.widgets import folder_dialog
@@ -54,7 +55,7 @@ def refine_job(calib, left, right, source: str):
 class CalibrationHealthPanel(QFrame):
     """See the module docstring. `refined(Refinement)` after a refinement has been applied."""
 
-    refined = Signal(object)  # core.health.Refinement
+    refined = Signal(Refinement)
 
     def __init__(self, ctx: AppContext, parent: QWidget | None = None) -> None:
         super().__init__(parent)

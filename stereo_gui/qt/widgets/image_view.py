@@ -375,7 +375,7 @@ class ImagePanel(pg.GraphicsLayoutWidget):
 
     hovered = Signal(str, float, float)  # view key, x, y px (NaN when left)
     doubleClicked = Signal(str, float, float)  # view key, x, y px
-    regionChanged = Signal(object)  # (x0, y0, x1, y1) px of the region box, after a drag
+    regionChanged = Signal(tuple)  # (x0, y0, x1, y1) px of the region box, after a drag
     _full_title: str | None = None  # the title as set; None while the base class is built
 
     def __init__(self, key: str, title: str, color_bar: bool = False, parent=None) -> None:

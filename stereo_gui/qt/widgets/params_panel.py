@@ -195,7 +195,7 @@ class ParamsPanel(QWidget):
     """Edits a Preset. `params()` is the current value; `set_params()` shows one. `editors` maps
     each edited parameter's name (a key of PRESET_PARAMS) to its widget."""
 
-    paramsChanged = Signal(object)  # Preset
+    paramsChanged = Signal(Preset)
     presetSaved = Signal(str)
 
     def __init__(self, params: Preset | None = None, parent: QWidget | None = None) -> None:

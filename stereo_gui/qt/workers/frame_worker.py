@@ -115,10 +115,12 @@ class FrameWorker(QObject):
     _published = Signal()  # processing lanes -> UI thread (queued); never disconnected
     errorOccurred = Signal(str)  # a message for the user (source or processor failure)
     sourceChanged = Signal(str)  # the name of the new source ("" when none)
-    streamStatus = Signal(object)  # StreamStatus, when the stream's state changes
-    # (task id, what run_on_source's function returned or the exception it raised); UI thread
+    streamStatus = Signal(StreamStatus)  # when the stream's state changes
+    # (task id, what run_on_source's function returned or the exception it raised: object, it
+    # can be anything); UI thread
     sourceTaskDone = Signal(int, object)
-    _task_finished = Signal(object)  # reader -> UI thread (queued); never disconnected
+    # (task id, result) from the reader to the UI thread (queued); never disconnected
+    _task_finished = Signal(tuple)
 
     def __init__(self, parent: QObject | None = None) -> None:
         super().__init__(parent)

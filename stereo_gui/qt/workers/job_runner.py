@@ -17,7 +17,7 @@ from collections.abc import Callable
 
 from PySide6.QtCore import QObject, Qt, Signal
 
-from stereo_gui.core.jobs import Job, JobControl, JobState, JobTicket, run_job
+from stereo_gui.core.jobs import Job, JobControl, JobState, JobTicket, Progress, run_job
 from stereo_gui.qt.workers.threads import WorkerThread
 
 log = logging.getLogger(__name__)
@@ -42,8 +42,8 @@ class JobRunner(QObject):
     never delivered (an opened source to close).
     """
 
-    progress = Signal(int, object)  # job id, Progress
-    finished = Signal(int, object)  # job id, its result
+    progress = Signal(int, Progress)  # job id, its progress
+    finished = Signal(int, object)  # job id, its result (object: whatever the job returns)
     failed = Signal(int, str)  # job id, a message for a person
     cancelled = Signal(int)  # job id
     _dropped = Signal(int)  # cancel() of a queued job -> cancelled, queued like the others

@@ -46,8 +46,8 @@ class JobWorker(QObject):
     job still running then is left to end on its own; its thread is never deleted while it runs.
     """
 
-    progress = Signal(object)  # Progress
-    finished_ok = Signal(object)  # the job's result
+    progress = Signal(Progress)
+    finished_ok = Signal(object)  # the job's result (object: whatever the job returns)
     failed = Signal(str)  # a message for a person
     cancelled = Signal()
     done = Signal()  # after any of the three above

@@ -69,7 +69,7 @@ class Recorder(QObject):
     """Records the frame worker's raw frames (see module doc). One recording at a time."""
 
     started = Signal(str)  # folder
-    stopped = Signal(object)  # RecordingResult
+    stopped = Signal(RecordingResult)
     _tapFailed = Signal(str)  # from the reader thread to the UI thread
 
     def __init__(self, frames: FrameWorker, parent: QObject | None = None) -> None:
