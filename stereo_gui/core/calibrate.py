@@ -244,6 +244,7 @@ def _solve(pairs: list[PairDetection], board: BoardSpec, image_size: tuple[int, 
     own = [max(_rms_px(model, ol[k], il[k], rv1[k], tv1[k], M1, D1),
                _rms_px(model, orr[k], ir[k], rv2[k], tv2[k], M2, D2)) for k in range(len(pairs))]
     unsynchronised = _unsynchronised(transfer, own)
+    poses = _pair_poses(rv1, tv1, rv2, tv2)
     if unsynchronised:
         # a joint refinement would bend both lenses to make boards that moved meet (on the rig
         # with the right camera 50 ms late: the rotation off by 1.7-8.8 deg, fx by 5 %); each
@@ -252,8 +253,6 @@ def _solve(pairs: list[PairDetection], board: BoardSpec, image_size: tuple[int, 
                  "each camera's own fit %.2f px): each camera keeps its own intrinsics",
                  float(np.median(transfer)), float(np.median(own)))
         joint = False
-    poses = _pair_poses(rv1, tv1, rv2, tv2)
-    if unsynchronised:
         # each pair is one independent look at the rig's pose, off by its board's motion:
         # their mean is the pose (a least-squares fit over every corner weighs the pairs
         # unequally and read the baseline 2.3 mm RMS off on the rig 50 ms apart, the mean
@@ -313,7 +312,7 @@ def _pair_poses(rv_l, tv_l, rv_r, tv_r) -> np.ndarray:
     return np.array(out, np.float64).reshape(-1, 6)
 
 
-def _unsync_uncertainty(sol: _Solve, model: str, held: bool) -> CalibrationUncertainty:
+def _unsync_uncertainty(sol: _Solve, model: str) -> CalibrationUncertainty:
     """The parameters' covariance of a calibration from pairs taken at different moments:
     the bundle's, scaled to the noise of the cameras' own fits (the residuals of boards that
     moved are no measure of how well a lens is known), with the scatter of the pairs' own views
@@ -567,7 +566,7 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
                             sol.M1, sol.D1, R1, P1, sol.M2, sol.D2, R2, P2, model)
     per_pair = tuple(PairError(name, float(el), float(er))
                      for name, (el, er) in zip(sol.names, sol.errors))
-    unc = (_unsync_uncertainty(sol, model, bool(held)) if sol.unsynchronised
+    unc = (_unsync_uncertainty(sol, model) if sol.unsynchronised
            else uncertainty_from_bundle(sol.bundle, model, bool(held), sol.mono_sigmas))
     calib = StereoCalibration(
         image_size=image_size, M1=sol.M1, D1=sol.D1, M2=sol.M2, D2=sol.D2, R=sol.R, T=sol.T,
