@@ -317,10 +317,10 @@ def test_reduced_resolution_preset_rematches_a_full_resolution_strip(rig, walls)
 
 def test_where_the_full_resolution_strip_finds_nothing_the_frames_own_values_stand(
         monkeypatch, rig, walls):
-    """A full-resolution window can miss the texture the reduced frame matched (Adirondack's
-    floor, Bowling1's ball: the live map right, the strip empty): the frame's own values are
-    read, refined against the images; where the strip has values, only those agreeing with the
-    frame's count."""
+    """A full-resolution window can miss the texture the reduced frame matched (the webcams'
+    walls: the live map right, the strip empty): the frame's own values are read where they lie
+    on the surface around them, refined against the images; where the strip has values, only
+    those agreeing with the frame's count."""
     import stereo_gui.core.measure as measure
 
     calib = rig.true_calibration()
@@ -333,6 +333,17 @@ def test_where_the_full_resolution_strip_finds_nothing_the_frames_own_values_sta
     m = measure_point(result, 320, 240)
     assert m.valid and m.Z_mm == pytest.approx(true_z, rel=0.01)
     assert m.valid_fraction > 0.5  # the patch's own values, not the surface around an empty one
+    # ... only where they lie on the surface the checked matches around show (a blob of wrong
+    # values in a dim corner read a wall at 0.5 m as 2.75 m)
+    around = measure.surrounding_estimate(result, 320, 240)
+    assert around == pytest.approx(m.raw_disparity_px, abs=1.0)
+    monkeypatch.setattr(measure, "surrounding_estimate", lambda r, x, y: around + 10.0)
+    assert measure_point(result, 320, 240).valid_fraction == 0.0
+    monkeypatch.setattr(measure, "surrounding_estimate", lambda r, x, y: None)
+    assert measure_point(result, 320, 240).valid_fraction == 0.0
+    monkeypatch.undo()
+    monkeypatch.setattr(measure, "rematch_strip",
+                        lambda r, y, half: np.full((2 * half + 1, 640), np.nan, np.float32))
     # a strip that disagrees with the frame everywhere leaves the patch empty
     monkeypatch.setattr(measure, "rematch_strip",
                         lambda r, y, half: np.full((2 * half + 1, 640), 5.0, np.float32))
