@@ -402,6 +402,8 @@ def _frame_values_fit_around(result: PipelineResult, x: int, y: int, values: np.
     values that its full-resolution strip could not confirm are read only so (a blob of wrong
     values in a dim MJPG corner read a wall at 0.5 m as 2.75 m; with this check 3 of 4 such
     readings on the rig's click scenes are refused, 256 of 310 right ones kept)."""
+    # (with its check for an object the matcher missed, which needs the filled view: without
+    # it, 2 of the 4 wrong readings, a wall at 0.5 m read as 1.15 m among them, passed)
     around = surrounding_estimate(result, x, y)
     return around is not None and abs(float(np.median(values)) - around) <= 2.0 / result.match_scale
 
@@ -518,7 +520,7 @@ def reads_nearer_edge(left_gray: np.ndarray, right_gray: np.ndarray, disparity_p
     """Whether a reading `d` (px) of the window of `half` around (x, y) is a nearer object's
     edge read beside a plain region of the click's own: the click lies in a region of one grey
     (`click_region`, at least SEGMENT_MIN_SHARE of its 13 px window) that does not fill the
-    window; the depth map over that region (SEGMENT_REACH_PX around) lies on a surface farther
+    window and is plain (its pixels there spread less than TEXTURE_MIN_STD); the depth map over that region (SEGMENT_REACH_PX around) lies on a surface farther
     than `d` by more than SURFACE_BAND_PX at the click; and the region's own pixels in the
     window, aligned at `d`, share nothing with the right image that noise could not give
     (the texture check's statistic). Then the window's evidence is the edge, not the click's
