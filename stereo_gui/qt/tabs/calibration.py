@@ -42,7 +42,7 @@ from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.calibrate import HARTLEY_NOTE
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.jobs import Progress
-from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.core.stereo_calibration import ALPHA, StereoCalibration
 from stereo_gui.files.session import CaptureSession
 from stereo_gui.pipeline.calibration import (
     CalibrationRun,
@@ -143,11 +143,10 @@ class CalibrationTab(QWidget):
                                  self.ctx.workers, self.is_running, self)
         self.swap_check = self.actions.swap_check
         self.alpha_spin = QDoubleSpinBox()
-        self.alpha_spin.setRange(0.0, 1.0)
+        self.alpha_spin.setRange(float(ALPHA.lo), float(ALPHA.hi))  # as declared
         self.alpha_spin.setSingleStep(0.1)
-        self.alpha_spin.setValue(0.0)
-        self.alpha_spin.setToolTip("stereoRectify alpha: 0 keeps only valid pixels (zoomed in), "
-                                   "1 keeps every source pixel (black borders)")
+        self.alpha_spin.setValue(float(ALPHA.default))
+        self.alpha_spin.setToolTip(ALPHA.help)
         group(self.swap_check, QLabel("Alpha:"), self.alpha_spin)
         self.baseline_spin = QDoubleSpinBox()
         self.baseline_spin.setRange(1.0, 5000.0)

@@ -309,3 +309,11 @@ def test_the_tab_shows_the_calibration_in_use_and_its_run_until_another_replaces
     assert tab.calibration is true and tab.run is None and tab.state is CalibrationState.IDLE
     assert not tab.recalibrate_button.isEnabled()
     assert tab.chart.bar_count() == len(true.per_pair)
+
+
+def test_the_alpha_box_offers_what_the_calibration_declares(tab):
+    from stereo_gui.core.stereo_calibration import ALPHA
+
+    assert (tab.alpha_spin.minimum(), tab.alpha_spin.maximum()) == (ALPHA.lo, ALPHA.hi)
+    assert tab.alpha_spin.value() == ALPHA.default
+    assert tab.alpha_spin.toolTip() == ALPHA.help
