@@ -1,8 +1,8 @@
-"""Spreadsheets: every sheet read back with openpyxl, the chart, appending, atomic writes, CSV."""
+"""Spreadsheets: every sheet read back with openpyxl, the chart, appending, atomic writes (the
+CSV file alone: test_measurement_csv.py)."""
 
 from __future__ import annotations
 
-import dataclasses
 import datetime as _dt
 import math
 import re
@@ -16,6 +16,7 @@ import pytest
 
 from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.errors import InputError
+from stereo_gui.files import sheet_calibration, sheet_regression
 from stereo_gui.files import spreadsheet as ss
 from stereo_gui.files.spreadsheet import (
     HEADERS,
@@ -210,7 +211,7 @@ def test_regression_sheet_and_native_chart(tmp_path):
     from openpyxl.utils import get_column_letter
 
     assert ws.column_dimensions[get_column_letter(gcol + 1)].hidden
-    grid_rows = rows[h + 1:h + 1 + ss.CURVE_POINTS]
+    grid_rows = rows[h + 1:h + 1 + sheet_regression.CURVE_POINTS]
     grid = np.array([r[gcol] for r in grid_rows], float)
     assert grid.min() < min(s[0] for s in samples) and grid.max() > max(s[0] for s in samples)
     for k, fit in enumerate(fits):
@@ -242,14 +243,14 @@ def test_chart_markers_and_fit_lines_have_colours_of_their_own(tmp_path):
     series = _series(xml)
     assert len(series) == 1 + len(fits)
     marker = re.search(r"<(?:c:)?marker>.*?</(?:c:)?marker>", series[0], re.S).group(0)
-    assert f'srgbClr val="{ss.SAMPLE_COLOUR}"' in marker  # a filled, dark marker
-    assert ss.SAMPLE_COLOUR.upper() not in ("FFFFFF",)
+    assert f'srgbClr val="{sheet_regression.SAMPLE_COLOUR}"' in marker  # a filled, dark marker
+    assert sheet_regression.SAMPLE_COLOUR.upper() not in ("FFFFFF",)
     colours, dashes = [], []
     for ser in series[1:]:
         colours.append(re.search(r'<a:ln[^>]*>.*?srgbClr val="([0-9A-F]{6})"', ser, re.S).group(1))
         dashes.append(re.search(r'prstDash val="(\w+)"', ser).group(1))
     assert len(set(colours)) == len(fits) and len(set(dashes)) == len(fits)
-    assert ss.SAMPLE_COLOUR not in colours
+    assert sheet_regression.SAMPLE_COLOUR not in colours
 
 
 def test_samples_without_fits_come_from_true_distances(tmp_path):
@@ -281,7 +282,7 @@ def test_calibration_sheet_holds_matrices_and_figures(tmp_path):
 
     # matrices in column E, each under its name
     col_e = [c.value for c in ws["E"]]
-    for name in ss.CALIBRATION_MATRICES:
+    for name in sheet_calibration.CALIBRATION_MATRICES:
         expected = np.atleast_2d(getattr(calib, name))
         r0 = col_e.index(name) + 2  # 1-based row of the first matrix row
         got = np.array([[ws.cell(row=r0 + i, column=5 + j).value for j in range(expected.shape[1])]
@@ -379,96 +380,6 @@ def test_missing_folder_is_an_input_error(tmp_path):
         write_workbook(tmp_path / "nowhere" / "log.xlsx", make_records(1))
 
 
-# ---- CSV -------------------------------------------------------------------------------------
-def test_csv_round_trip(tmp_path):
-    recs = make_records()
-    write_csv(tmp_path / "log.csv", recs)
-    text = (tmp_path / "log.csv").read_text(encoding="utf-8")
-    assert text.splitlines()[0].startswith("Time (ISO 8601),x (px),y (px),Disparity (px)")
-    back = read_csv(tmp_path / "log.csv")
-    assert len(back) == len(recs)
-    for a, b in zip(back, recs, strict=True):
-        names = [f.name for f in dataclasses.fields(MeasurementRecord)]
-        for name, x, y in zip(names, astuple(a), astuple(b), strict=True):
-            if isinstance(y, float) and math.isnan(y):
-                assert math.isnan(x), name
-            elif isinstance(y, float):
-                # rounded to its meaning: 0.1 mm, 0.001 px, 0.1 % of a fraction
-                assert x == pytest.approx(y, abs=0.5 * 10.0 ** -ss.csv_decimals(name)), name
-            else:
-                assert x == y, name
-    import csv
-
-    rows = list(csv.reader(text.splitlines()))
-    assert rows[-1][HEADERS.index("Z (mm)")] == ""  # NaN is an empty field
-
-
-def test_csv_numbers_are_rounded_to_their_meaning(tmp_path):
-    rec = replace(make_record(1), x_px=100.123456789, disparity_px=47.123456789,
-                  Z_mm=1750.987654321, X_mm=-0.0123, valid_fraction=0.87654321,
-                  calibration_rms_px=0.2134567)
-    write_csv(tmp_path / "log.csv", [rec])
-    import csv
-
-    lines = list(csv.reader((tmp_path / "log.csv").read_text().splitlines()))
-    row = dict(zip(lines[0], lines[1], strict=True))
-    assert row["x (px)"] == "100.123"
-    assert row["Disparity (px)"] == "47.123"
-    assert row["Z (mm)"] == "1751.0"
-    assert row["X (mm)"] == "0.0"  # not "-0.0"
-    assert row["Valid fraction"] == "0.877"
-    assert row["Calibration RMS (px)"] == "0.213"
-    assert row["Time (ISO 8601)"] == rec.time
-
-
-def test_error_columns_say_how_far_z_is_from_the_true_distance(tmp_path):
-    import csv
-
-    rec = make_records(1)[0]
-    rec = ss.MeasurementRecord(**{**rec.__dict__, "Z_mm": 1512.0, "valid": True,
-                                  "true_mm": 1500.0})
-    assert ss.record_error(rec) == pytest.approx((12.0, 0.8))
-    blank = ss.MeasurementRecord(**{**rec.__dict__, "true_mm": None})
-    assert all(math.isnan(v) for v in ss.record_error(blank))
-    write_csv(tmp_path / "log.csv", [rec, blank])
-    rows = list(csv.reader((tmp_path / "log.csv").read_text(encoding="utf-8").splitlines()))
-    i = rows[0].index("Error Z - true (mm)")
-    assert float(rows[1][i]) == pytest.approx(12.0) and float(rows[1][i + 1]) == pytest.approx(0.8)
-    assert rows[2][i] == "" and rows[2][i + 1] == ""
-    assert len(read_csv(tmp_path / "log.csv")) == 2  # the derived columns are not read back
-    path = write_workbook(tmp_path / "log.xlsx", [rec, blank])
-    ws = openpyxl.load_workbook(path)["Measurements"]
-    header = [c.value for c in ws[1]]
-    j = header.index("Error (%)") + 1
-    assert ws.cell(row=2, column=j).value == pytest.approx(0.8)
-    assert ws.cell(row=3, column=j).value is None
-    assert len(read_measurements(path)) == 2
-
-
-def test_a_csv_written_before_the_error_columns_still_reads(tmp_path):
-    recs = make_records(2)
-    text = ss.records_to_csv(recs).splitlines()
-    n = len(ss.ERROR_HEADERS) + 1  # and the note
-    old = "\n".join(",".join(line.split(",")[:-n]) for line in text) + "\n"
-    (tmp_path / "old.csv").write_text(old, encoding="utf-8")
-    assert len(read_csv(tmp_path / "old.csv")) == len(recs)
-
-
-def test_csv_of_something_else_is_refused(tmp_path):
-    (tmp_path / "x.csv").write_text("a,b\n1,2\n")
-    with pytest.raises(InputError, match="x.csv"):
-        read_csv(tmp_path / "x.csv")
-
-
-def test_a_hand_edited_cell_that_is_not_a_number_is_named(tmp_path):
-    path = write_workbook(tmp_path / "log.xlsx", make_records(1))
-    wb = openpyxl.load_workbook(path)
-    wb["Measurements"].cell(row=2, column=HEADERS.index("Z (mm)") + 1, value="about a metre")
-    wb.save(path)
-    with pytest.raises(InputError, match=r"row 2: column 'Z \(mm\)'"):
-        read_measurements(path)
-
-
 def test_a_cancelled_export_writes_nothing_and_leaves_no_temporary_file(tmp_path):
     from stereo_gui.core.detect import Cancelled
 
@@ -557,15 +468,35 @@ def test_every_sheet_prints_landscape_one_page_wide_with_the_header_on_every_pag
                     assert len(c.value) <= dim.width, (ws.title, c.value, dim.width)
 
 
-def test_csv_keeps_an_error_in_percent_to_what_it_means(tmp_path):
-    """An error of -0.6 mm at 2 m is -0.03 %: the CSV wrote 0.0 (rounded to 0.1 %); it keeps
-    as many decimals as the error's 0.1 mm asks at that distance."""
+# ---- the error columns, in a workbook and a CSV ------------------------------------------
+def test_error_columns_say_how_far_z_is_from_the_true_distance(tmp_path):
     import csv
 
-    rec = dataclasses.replace(make_record(1), Z_mm=1999.4, range_mm=1999.4, true_mm=2000.0)
-    near = dataclasses.replace(make_record(2), Z_mm=499.6, range_mm=499.6, true_mm=500.0)
-    rows = list(csv.reader(ss.records_to_csv([rec, near]).splitlines()))
-    col = rows[0].index("Error (%)")
-    assert rows[1][col] == "-0.030" and rows[1][rows[0].index("Error Z - true (mm)")] == "-0.6"
-    assert rows[2][col] == "-0.08"
-    assert ss.pct_decimals(None) == 1 and ss.pct_decimals(3000.0) == 3
+    rec = make_records(1)[0]
+    rec = ss.MeasurementRecord(**{**rec.__dict__, "Z_mm": 1512.0, "valid": True,
+                                  "true_mm": 1500.0})
+    assert ss.record_error(rec) == pytest.approx((12.0, 0.8))
+    blank = ss.MeasurementRecord(**{**rec.__dict__, "true_mm": None})
+    assert all(math.isnan(v) for v in ss.record_error(blank))
+    write_csv(tmp_path / "log.csv", [rec, blank])
+    rows = list(csv.reader((tmp_path / "log.csv").read_text(encoding="utf-8").splitlines()))
+    i = rows[0].index("Error Z - true (mm)")
+    assert float(rows[1][i]) == pytest.approx(12.0) and float(rows[1][i + 1]) == pytest.approx(0.8)
+    assert rows[2][i] == "" and rows[2][i + 1] == ""
+    assert len(read_csv(tmp_path / "log.csv")) == 2  # the derived columns are not read back
+    path = write_workbook(tmp_path / "log.xlsx", [rec, blank])
+    ws = openpyxl.load_workbook(path)["Measurements"]
+    header = [c.value for c in ws[1]]
+    j = header.index("Error (%)") + 1
+    assert ws.cell(row=2, column=j).value == pytest.approx(0.8)
+    assert ws.cell(row=3, column=j).value is None
+    assert len(read_measurements(path)) == 2
+
+
+def test_a_hand_edited_cell_that_is_not_a_number_is_named(tmp_path):
+    path = write_workbook(tmp_path / "log.xlsx", make_records(1))
+    wb = openpyxl.load_workbook(path)
+    wb["Measurements"].cell(row=2, column=HEADERS.index("Z (mm)") + 1, value="about a metre")
+    wb.save(path)
+    with pytest.raises(InputError, match=r"row 2: column 'Z \(mm\)'"):
+        read_measurements(path)
