@@ -97,7 +97,7 @@ def ros_partner(path: Path) -> Path | None:
 
 
 def _load_ros(path: Path) -> LoadedCalibration:
-    from stereo_gui.files.calibration_file import import_ros
+    from stereo_gui.files.ros_camera_info import import_ros
 
     other = ros_partner(path)
     if other is None:

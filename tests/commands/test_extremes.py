@@ -120,7 +120,7 @@ def test_a_negative_at_value_is_explained(pair, capsys):
 
 def test_permission_denied_is_said_as_such(tmp_path, pair, capsys, monkeypatch):
     """As root every file is readable, so the refusal of the system is made here."""
-    from stereo_gui.files import calibration_file
+    from stereo_gui.files import calibration_file_checks
 
     real = np.fromfile
 
@@ -141,7 +141,7 @@ def test_permission_denied_is_said_as_such(tmp_path, pair, capsys, monkeypatch):
     def deny(path, *a, **k):
         raise PermissionError(errno.EACCES, "Permission denied", str(path))
 
-    monkeypatch.setattr(calibration_file, "open", deny, raising=False)
+    monkeypatch.setattr(calibration_file_checks, "open", deny, raising=False)
     code = main(["measure", "--calib", str(calib), str(pair[0]), str(pair[1]), "--at", "1,1"])
     _one_line(capsys, code, "permission denied")
 
