@@ -154,11 +154,10 @@ def _essential(R: np.ndarray, T: np.ndarray) -> np.ndarray:
     return tx @ R
 
 
-def read_opencv_stereo(path: str | Path, image_size: SizeHint = None) -> OpenCVStereoFile:
-    """Read OpenCV stereo sample files starting from `path` (one file, or either file of the
-    intrinsics + extrinsics pair). `image_size` (width, height) px is used when the files hold
-    none. Raises CalibrationFileError naming the file and what is missing or wrong."""
-    path = Path(path)
+def _read_with_partner(path: Path
+                       ) -> tuple[dict[str, np.ndarray], tuple[int, int] | None, list[Path]]:
+    """The matrices and image size of `path` and, when it lacks intrinsics or extrinsics, of
+    its partner file (what `path` holds wins); the files read."""
     mats, size = _read_all(path)
     files = [path]
     missing_intrinsics = [n for n in INTRINSIC_NAMES if n not in mats]
@@ -171,7 +170,10 @@ def read_opencv_stereo(path: str | Path, image_size: SizeHint = None) -> OpenCVS
                 mats.setdefault(name, m)
             size = size or more_size
             files.append(other)
-    where = " + ".join(str(p) for p in files)
+    return mats, size, files
+
+
+def _check_required(mats: dict[str, np.ndarray], files: list[Path], where: str) -> None:
     missing = [n for n in REQUIRED if n not in mats]
     if missing:
         hint = ""
@@ -182,20 +184,40 @@ def read_opencv_stereo(path: str | Path, image_size: SizeHint = None) -> OpenCVS
                     f"beside it")
         raise CalibrationFileError(f"{where}: {', '.join(missing)} missing (a stereo calibration "
                                    f"needs {' '.join(REQUIRED)}){hint}")
+
+
+def _image_size(size: tuple[int, int] | None, image_size: SizeHint,
+                where: str) -> tuple[tuple[int, int], bool]:
+    """The files' image size, else the caller's; and whether it came from the files."""
     if size is None:
-        image_size = resolve_size(image_size)
-        if image_size is None:
+        hint = resolve_size(image_size)
+        if hint is None:
             raise CalibrationFileError(
                 f"{where} does not say which image size it was made for (no image_width and "
                 "image_height): open it together with images or a source, whose size is then "
                 "used, or add image_width and image_height to the file")
-        size = (int(image_size[0]), int(image_size[1]))
+        size = (int(hint[0]), int(hint[1]))
         size_from_file = False
     else:
         size_from_file = True
     if size[0] <= 0 or size[1] <= 0:
         raise CalibrationFileError(f"{where}: image size {size[0]}x{size[1]} is not valid")
+    return size, size_from_file
 
+
+@dataclass(frozen=True)
+class _Cameras:
+    """The matrices every stereo calibration file holds, checked and in our shapes."""
+
+    M1: np.ndarray
+    D1: np.ndarray
+    M2: np.ndarray
+    D2: np.ndarray
+    R: np.ndarray
+    T: np.ndarray
+
+
+def _cameras(mats: dict[str, np.ndarray], where: str) -> _Cameras:
     M1, M2 = mats["M1"], mats["M2"]
     D1, D2 = mats["D1"].reshape(1, -1), mats["D2"].reshape(1, -1)
     R = mats["R"]
@@ -218,14 +240,20 @@ def read_opencv_stereo(path: str | Path, image_size: SizeHint = None) -> OpenCVS
                                        f"14 coefficients, found {D.size}")
     if not np.any(T):
         raise CalibrationFileError(f"{where}: T is zero: the two cameras are at one place")
+    return _Cameras(M1, D1, M2, D2, R, T)
 
+
+def _completed(mats: dict[str, np.ndarray], cams: _Cameras, size: tuple[int, int],
+               where: str) -> tuple[dict[str, np.ndarray], list[str]]:
+    """R1 R2 P1 P2 Q E F: from the files, else computed; and the names of those computed."""
     computed: list[str] = []
     rect = {n: mats.get(n) for n in ("R1", "R2", "P1", "P2")}
     Q = mats.get("Q")
     if any(m is None for m in rect.values()):
         try:
             R1, R2, P1, P2, Q, _, _ = cv2.stereoRectify(
-                M1, D1, M2, D2, size, R, T, flags=cv2.CALIB_ZERO_DISPARITY, alpha=0.0)
+                cams.M1, cams.D1, cams.M2, cams.D2, size, cams.R, cams.T,
+                flags=cv2.CALIB_ZERO_DISPARITY, alpha=0.0)
         except cv2.error as exc:
             raise CalibrationFileError(f"{where}: cv2.stereoRectify failed on these matrices "
                                        f"({str(exc).strip().splitlines()[-1]})") from None
@@ -236,17 +264,32 @@ def read_opencv_stereo(path: str | Path, image_size: SizeHint = None) -> OpenCVS
         computed.append("Q")
     E = mats.get("E")
     if E is None:
-        E = _essential(R, T)
+        E = _essential(cams.R, cams.T)
         computed.append("E")
     F = mats.get("F")
     if F is None:
-        F = np.linalg.inv(M2).T @ E @ np.linalg.inv(M1)
+        F = np.linalg.inv(cams.M2).T @ E @ np.linalg.inv(cams.M1)
         F = F / F[2, 2] if abs(F[2, 2]) > 1e-12 else F
         computed.append("F")
+    return {**rect, "Q": Q, "E": E, "F": F}, computed
+
+
+def read_opencv_stereo(path: str | Path, image_size: SizeHint = None) -> OpenCVStereoFile:
+    """Read OpenCV stereo sample files starting from `path` (one file, or either file of the
+    intrinsics + extrinsics pair). `image_size` (width, height) px is used when the files hold
+    none. Raises CalibrationFileError naming the file and what is missing or wrong."""
+    path = Path(path)
+    mats, size_in_files, files = _read_with_partner(path)
+    where = " + ".join(str(p) for p in files)
+    _check_required(mats, files, where)
+    size, size_from_file = _image_size(size_in_files, image_size, where)
+    cams = _cameras(mats, where)
+    rest, computed = _completed(mats, cams, size, where)
     with from_file(where):
-        calib = StereoCalibration(image_size=size, M1=M1, D1=D1, M2=M2, D2=D2, R=R, T=T, E=E,
-                                  F=F, R1=rect["R1"], R2=rect["R2"], P1=rect["P1"], P2=rect["P2"],
-                                  Q=Q, method="bouguet")
+        calib = StereoCalibration(image_size=size, M1=cams.M1, D1=cams.D1, M2=cams.M2,
+                                  D2=cams.D2, R=cams.R, T=cams.T, E=rest["E"], F=rest["F"],
+                                  R1=rest["R1"], R2=rest["R2"], P1=rest["P1"], P2=rest["P2"],
+                                  Q=rest["Q"], method="bouguet")
     if calib.baseline_mm < 1.0:
         log.warning("%s: the baseline is %.4g; stereo-gui reads T in millimetres, but OpenCV's "
                     "stereo sample writes it in board squares unless given the square size (-s)",

@@ -415,9 +415,9 @@ def _header_fields(header: dict, hpath: Path) -> tuple[tuple[int, int], float, s
             for v in size)):
         raise bad("size", f"is {size!r:.60}; it must be [width, height] in px (1 to "
                           f"{MAX_SIDE_PX})")
-    for field in ("source", "created"):
-        if not isinstance(header.get(field, ""), str):
-            raise bad(field, "should be text")
+    for key in ("source", "created"):
+        if not isinstance(header.get(key, ""), str):
+            raise bad(key, "should be text")
     complete = header.get("complete", False)
     if not isinstance(complete, bool):
         raise bad("complete", "should be true or false")
@@ -448,15 +448,8 @@ def _image_path(folder: Path, rel: str, where: str, field: str) -> Path | None:
     return path
 
 
-def open_recording(folder: str | os.PathLike) -> Recording:
-    """Read a recording folder's header and frame list; raise InputError naming the file and the
-    field when it is not one or is damaged (indices that are negative, repeated or go backwards,
-    times that are not finite or go backwards, image paths outside the folder, ...).
-
-    A recording cut short by a crash opens with what was written (`complete` False): a torn last
-    line of frames.csv and frames whose images are missing are left out with a warning.
-    """
-    folder = Path(folder)
+def _read_header(folder: Path) -> tuple[dict, Path]:
+    """The recording's header as JSON and its path; InputError when it is not ours or newer."""
     hpath = folder / HEADER
     if not hpath.is_file():
         raise InputError(f"{folder} is not a recording (no {HEADER})")
@@ -467,8 +460,27 @@ def open_recording(folder: str | os.PathLike) -> Recording:
     if isinstance(version, bool) or not isinstance(version, int) or version > FORMAT_VERSION:
         raise InputError(f"{hpath} has format version {version!r:.40}; this version reads "
                          f"{FORMAT_VERSION} and older")
-    size, fps, source, created, complete, video_name, images = _header_fields(header, hpath)
-    warnings: list[str] = []
+    return header, hpath
+
+
+def _parse_frame_line(row: list[str], images: bool,
+                      unfinished: bool) -> tuple[int, float, float, str, str]:
+    """(index, t_left, t_right, left image, right image) of a line of frames.csv; ValueError
+    when it cannot be read (`unfinished`: the file ends in the middle of it)."""
+    if len(row) != len(FRAME_COLUMNS):
+        raise ValueError(f"it has {len(row)} fields, not {len(FRAME_COLUMNS)}")
+    idx, tl, tr = int(row[0]), float(row[1]), float(row[2])
+    lrel, rrel = row[3], row[4]
+    if images and not (lrel and rrel):
+        raise ValueError("an image file is missing from the line")
+    if unfinished:
+        raise ValueError("the line is not finished")
+    return idx, tl, tr, lrel, rrel
+
+
+def _read_frames(folder: Path, images: bool, warnings: list[str]) -> list[RecordedFrame]:
+    """The frames frames.csv lists whose images are there; a torn last line and frames whose
+    images are missing are left out, said in `warnings`."""
     frames: list[RecordedFrame] = []
     fpath = folder / FRAMES
     rows = read_csv_rows(fpath, FRAME_COLUMNS, "a recording's frame list")
@@ -481,14 +493,7 @@ def open_recording(folder: str | os.PathLike) -> Recording:
         if not row:
             continue
         try:
-            if len(row) != len(FRAME_COLUMNS):
-                raise ValueError(f"it has {len(row)} fields, not {len(FRAME_COLUMNS)}")
-            idx, tl, tr = int(row[0]), float(row[1]), float(row[2])
-            lrel, rrel = row[3], row[4]
-            if images and not (lrel and rrel):
-                raise ValueError("an image file is missing from the line")
-            if torn_end and is_last:
-                raise ValueError("the line is not finished")
+            idx, tl, tr, lrel, rrel = _parse_frame_line(row, images, torn_end and is_last)
         except ValueError as exc:
             if is_last:  # the process died while writing it: what came before is whole
                 warnings.append(f"{where}: torn last line left out ({exc})")
@@ -509,6 +514,22 @@ def open_recording(folder: str | os.PathLike) -> Recording:
             warnings.append(f"{where}: images missing, frame {idx} left out")
             continue
         frames.append(RecordedFrame(idx, tl, tr, left, right))
+    return frames
+
+
+def open_recording(folder: str | os.PathLike) -> Recording:
+    """Read a recording folder's header and frame list; raise InputError naming the file and the
+    field when it is not one or is damaged (indices that are negative, repeated or go backwards,
+    times that are not finite or go backwards, image paths outside the folder, ...).
+
+    A recording cut short by a crash opens with what was written (`complete` False): a torn last
+    line of frames.csv and frames whose images are missing are left out with a warning.
+    """
+    folder = Path(folder)
+    header, hpath = _read_header(folder)
+    size, fps, source, created, complete, video_name, images = _header_fields(header, hpath)
+    warnings: list[str] = []
+    frames = _read_frames(folder, images, warnings)
     video = folder / video_name if video_name else None
     if video is not None and not video.is_file():
         warnings.append(f"{folder}: video {video.name} is missing (recording not closed?)")

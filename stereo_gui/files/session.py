@@ -150,6 +150,88 @@ def _inside(folder: Path, rel, field: str) -> Path:
     return path
 
 
+def _manifest_board(b) -> BoardSpec | None:
+    """The manifest's `board`, or None; ValueError naming what is wrong."""
+    if b is None:
+        return None
+    if not isinstance(b, dict):
+        raise ValueError("board should be an object")
+    target = b.get("target", "chessboard")
+    dictionary = b.get("dictionary", DEFAULT_DICTIONARY)
+    if not (isinstance(target, str) and isinstance(dictionary, str)):
+        raise ValueError("board target and dictionary should be text")
+    try:
+        return BoardSpec(_whole(b.get("cols"), "board cols"),
+                         _whole(b.get("rows"), "board rows"),
+                         _number(b.get("square_mm"), "board square_mm"), target,
+                         _number(b.get("marker_mm", 0.0), "board marker_mm"), dictionary)
+    except InputError as exc:
+        raise ValueError(f"board: {exc}") from None
+
+
+def _manifest_resolution(res) -> tuple[int, int] | None:
+    """The manifest's `resolution` [width, height], or None."""
+    if res is None:
+        return None
+    if not isinstance(res, list) or len(res) != 2:
+        raise ValueError("resolution should be [width, height]")
+    return (_whole(res[0], "resolution width", 1, MAX_SIDE_PX),
+            _whole(res[1], "resolution height", 1, MAX_SIDE_PX))
+
+
+def _manifest_cameras(cams) -> CameraIds:
+    if not isinstance(cams, dict):
+        raise ValueError("cameras should be an object")
+    return CameraIds(_text(cams.get("left", ""), "cameras left"),
+                     _text(cams.get("right", ""), "cameras right"))
+
+
+def _listed_pairs(folder: Path, raw_pairs: list, excluded: set[str],
+                  warnings: list[str]) -> tuple[list[PairEntry], int]:
+    """The pairs the manifest lists whose images are there, and how many entries were dropped
+    as unusable; what is left out is said in `warnings`."""
+    pairs: list[PairEntry] = []
+    names: set[str] = set()
+    numbers: set[int] = set()
+    files: set[Path] = set()
+    dropped = 0
+    for i, p in enumerate(raw_pairs, start=1):
+        # an entry that cannot be used (a file outside the folder, a number listed twice)
+        # is left out alone: the other pairs and the exclusions still hold
+        try:
+            e = _pair_entry(folder, p, i, excluded, names, numbers, files)
+        except ValueError as exc:
+            dropped += 1
+            warnings.append(f"{folder / MANIFEST}: {exc}; that entry is left out (the "
+                            f"manifest is kept as {MANIFEST}.unreadable when the session "
+                            "changes)")
+            continue
+        if not (e.left.is_file() and e.right.is_file()):
+            warnings.append(f"{folder}: pair {e.name} is listed but its images are missing; "
+                            "it is left out")
+            continue
+        pairs.append(e)
+    return pairs, dropped
+
+
+def _unlisted_pairs(folder: Path, pairs: list[PairEntry], excluded: set[str],
+                    warnings: list[str]) -> list[PairEntry]:
+    """Images saved but not listed (a crash before the manifest was rewritten): they are kept,
+    and said in `warnings`."""
+    listed = {e.left.resolve() for e in pairs} | {e.right.resolve() for e in pairs}
+    found: list[PairEntry] = []
+    for e in _discover(folder, warnings):
+        if e.left.resolve() in listed or e.right.resolve() in listed:
+            continue
+        if any(p.name == e.name for p in pairs + found):
+            e = replace(e, name=f"{e.name}-{e.number}")
+        e = replace(e, excluded=e.name in excluded)  # exclusions are kept by name
+        warnings.append(f"{folder}: pair {e.left.name}/{e.right.name} was not in the "
+                        "manifest; it is added")
+        found.append(e)
+    return found
+
+
 class CaptureSession:
     """A capture session folder. Methods that change it write through to disk at once.
 
@@ -235,34 +317,9 @@ class CaptureSession:
         if isinstance(version, bool) or not isinstance(version, int) or not \
                 1 <= version <= FORMAT_VERSION:
             raise ValueError(f"format version {version!r} is not one this version reads")
-        b = data.get("board")
-        board = None
-        if b is not None:
-            if not isinstance(b, dict):
-                raise ValueError("board should be an object")
-            target = b.get("target", "chessboard")
-            dictionary = b.get("dictionary", DEFAULT_DICTIONARY)
-            if not (isinstance(target, str) and isinstance(dictionary, str)):
-                raise ValueError("board target and dictionary should be text")
-            try:
-                board = BoardSpec(_whole(b.get("cols"), "board cols"),
-                                  _whole(b.get("rows"), "board rows"),
-                                  _number(b.get("square_mm"), "board square_mm"), target,
-                                  _number(b.get("marker_mm", 0.0), "board marker_mm"), dictionary)
-            except InputError as exc:
-                raise ValueError(f"board: {exc}") from None
-        res = data.get("resolution")
-        resolution = None
-        if res is not None:
-            if not isinstance(res, list) or len(res) != 2:
-                raise ValueError("resolution should be [width, height]")
-            resolution = (_whole(res[0], "resolution width", 1, MAX_SIDE_PX),
-                          _whole(res[1], "resolution height", 1, MAX_SIDE_PX))
-        cams = data.get("cameras") or {}
-        if not isinstance(cams, dict):
-            raise ValueError("cameras should be an object")
-        cameras = CameraIds(_text(cams.get("left", ""), "cameras left"),
-                            _text(cams.get("right", ""), "cameras right"))
+        board = _manifest_board(data.get("board"))
+        resolution = _manifest_resolution(data.get("resolution"))
+        cameras = _manifest_cameras(data.get("cameras") or {})
         excluded_raw = data.get("excluded", [])
         if not isinstance(excluded_raw, list):
             raise ValueError("excluded should be a list of pair names")
@@ -271,38 +328,8 @@ class CaptureSession:
         if not isinstance(raw_pairs, list):
             raise ValueError("pairs should be a list")
         warnings: list[str] = []
-        pairs: list[PairEntry] = []
-        names: set[str] = set()
-        numbers: set[int] = set()
-        files: set[Path] = set()
-        dropped = 0
-        for i, p in enumerate(raw_pairs, start=1):
-            # an entry that cannot be used (a file outside the folder, a number listed twice)
-            # is left out alone: the other pairs and the exclusions still hold
-            try:
-                e = _pair_entry(folder, p, i, excluded, names, numbers, files)
-            except ValueError as exc:
-                dropped += 1
-                warnings.append(f"{folder / MANIFEST}: {exc}; that entry is left out (the "
-                                f"manifest is kept as {MANIFEST}.unreadable when the session "
-                                "changes)")
-                continue
-            if not (e.left.is_file() and e.right.is_file()):
-                warnings.append(f"{folder}: pair {e.name} is listed but its images are missing; "
-                                "it is left out")
-                continue
-            pairs.append(e)
-        # images saved but not listed (a crash before the manifest was rewritten) are kept
-        listed = {e.left.resolve() for e in pairs} | {e.right.resolve() for e in pairs}
-        for e in _discover(folder, warnings):
-            if e.left.resolve() in listed or e.right.resolve() in listed:
-                continue
-            if any(p.name == e.name for p in pairs):
-                e = replace(e, name=f"{e.name}-{e.number}")
-            e = replace(e, excluded=e.name in excluded)  # exclusions are kept by name
-            warnings.append(f"{folder}: pair {e.left.name}/{e.right.name} was not in the "
-                            "manifest; it is added")
-            pairs.append(e)
+        pairs, dropped = _listed_pairs(folder, raw_pairs, excluded, warnings)
+        pairs += _unlisted_pairs(folder, pairs, excluded, warnings)
         for w in warnings:
             log.warning("%s", w)
         s = cls(folder, board, resolution, cameras, _text(data.get("created", ""), "created"),
