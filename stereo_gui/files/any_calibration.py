@@ -30,7 +30,11 @@ import cv2
 from stereo_gui.core.errors import CalibrationFileError
 from stereo_gui.core.plausibility import check_plausible
 from stereo_gui.core.stereo_calibration import StereoCalibration
-from stereo_gui.files.opencv_calibration import SizeHint, resolve_size
+from stereo_gui.files import kalibr_calibration as kalibr
+from stereo_gui.files import rectified_calibration as rect
+from stereo_gui.files.calibration_file import load_calibration
+from stereo_gui.files.opencv_calibration import SizeHint, read_opencv_stereo, resolve_size
+from stereo_gui.files.ros_camera_info import import_ros
 
 log = logging.getLogger(__name__)
 
@@ -97,8 +101,6 @@ def ros_partner(path: Path) -> Path | None:
 
 
 def _load_ros(path: Path) -> LoadedCalibration:
-    from stereo_gui.files.ros_camera_info import import_ros
-
     other = ros_partner(path)
     if other is None:
         raise CalibrationFileError(
@@ -133,8 +135,6 @@ def _is_left_ros(a: Path, b: Path) -> bool:
 
 def _load_robotics(path: Path) -> LoadedCalibration | None:
     """A Kalibr camchain or a EuRoC sensor.yaml pair, or None when `path` is neither."""
-    from stereo_gui.files import kalibr_calibration as kalibr
-
     if kalibr.looks_like_kalibr(path):
         got, kind, what = kalibr.read_kalibr_camchain(path), "kalibr", "Kalibr camchain"
     elif kalibr.looks_like_euroc(path):
@@ -162,8 +162,6 @@ def load_any_calibration(spec: str | Path, image_size: SizeHint = None) -> Loade
 
 
 def _load_any(spec: str | Path, image_size: SizeHint) -> LoadedCalibration:
-    from stereo_gui.files import rectified_calibration as rect
-
     if rect.is_rectified_spec(spec):
         parsed = rect.parse_rectified_spec(str(spec))
         image_size = resolve_size(image_size)
@@ -190,15 +188,11 @@ def _load_any(spec: str | Path, image_size: SizeHint) -> LoadedCalibration:
     names = _peek(path) if path.is_file() else None
     if names is None or "format_version" in names:
         # ours, or nothing OpenCV can read: our loader says exactly what is wrong
-        from stereo_gui.files.calibration_file import load_calibration
-
         return LoadedCalibration(load_calibration(path), path, "stereo-gui", (path,),
                                  path.name)
     if {"camera_matrix", "projection_matrix"} <= names:
         return _load_ros(path)
     if names & {"M1", "D1", "M2", "D2", "R", "T"}:
-        from stereo_gui.files.opencv_calibration import read_opencv_stereo
-
         got = read_opencv_stereo(path, image_size)
         check_plausible(got.calibration, " + ".join(map(str, got.files)))
         size = got.calibration.image_size

@@ -23,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import gc
+import json
 import logging
 import os
 import secrets
@@ -31,6 +32,8 @@ import sys
 import traceback
 from collections.abc import Callable, Iterator
 from pathlib import Path
+
+import cv2
 
 from stereo_gui.core.errors import InputError, StereoGuiError
 
@@ -281,16 +284,12 @@ def write_text_atomic(target: str | os.PathLike, text: str, verify: Verify | Non
 
 
 def _verify_json(path: Path) -> None:
-    import json
-
     json.loads(path.read_text(encoding="utf-8"))
 
 
 def json_item(target: str | os.PathLike, doc):
     """`doc` as indented JSON for `target`, parsed back before the rename: an item of
     `write_many_atomic`."""
-    import json
-
     return (target, (json.dumps(doc, indent=2) + "\n").encode("utf-8"), _verify_json)
 
 
@@ -373,8 +372,6 @@ def write_atomic(target: str | os.PathLike, writer: Callable[[Path], None],
 def encode_image(target: str | os.PathLike, image) -> bytes:
     """`image` (a numpy array) encoded in the format the suffix of `target` names; InputError
     naming the target when OpenCV cannot."""
-    import cv2
-
     target = Path(target)
     try:
         ok, buf = cv2.imencode(target.suffix or ".png", image)

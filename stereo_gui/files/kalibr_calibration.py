@@ -104,7 +104,7 @@ def looks_like_euroc(path: Path) -> bool:
 # ---- parsing -------------------------------------------------------------------------------
 def _load_yaml(path: Path) -> dict:
     """The top-level mapping of a plain YAML file."""
-    try:
+    try:  # guarded: without PyYAML the error says what to install (a test checks it)
         import yaml
     except ImportError:
         raise CalibrationFileError(f"{path}: reading Kalibr and EuRoC files needs PyYAML "

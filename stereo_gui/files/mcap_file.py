@@ -11,6 +11,10 @@ import contextlib
 import logging
 from pathlib import Path
 
+import foxglove
+from foxglove.mcap import MCAPCompression, MCAPWriteOptions
+from mcap.reader import make_reader
+
 from stereo_gui.core.errors import InputError
 from stereo_gui.files.atomic import atomic_path
 
@@ -24,8 +28,6 @@ ZSTD_LEVEL = 1
 
 def verify_mcap(path: Path) -> None:
     """Raise InputError unless `path` is an MCAP file whose summary the reader finds."""
-    from mcap.reader import make_reader
-
     try:
         with open(path, "rb") as f:
             summary = make_reader(f).get_summary()
@@ -37,8 +39,6 @@ def verify_mcap(path: Path) -> None:
 
 def read_topics(path) -> dict[str, int]:
     """How many messages each topic of an MCAP file holds (from its statistics)."""
-    from mcap.reader import make_reader
-
     with open(path, "rb") as f:
         summary = make_reader(f).get_summary()
     if summary is None or summary.statistics is None:
@@ -52,9 +52,6 @@ class McapRecording:
     renames it into place (InputError when it cannot be written or read back)."""
 
     def __init__(self, path: Path, context) -> None:
-        import foxglove
-        from foxglove.mcap import MCAPCompression, MCAPWriteOptions
-
         self.path = Path(path)
         if self.path.suffix.lower() != ".mcap":
             raise InputError(f"a recording's name must end in .mcap, not {self.path.name}")

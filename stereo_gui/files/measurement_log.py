@@ -15,6 +15,8 @@ import os
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
+import platformdirs
+
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.regression import FitResult, fit_from_dict, fit_to_dict
 from stereo_gui.files.atomic import write_text_atomic
@@ -47,8 +49,6 @@ def data_dir() -> Path:
     env = os.environ.get("STEREO_GUI_DATA_DIR")
     if env:
         return Path(env)
-    import platformdirs
-
     return Path(platformdirs.user_data_dir(APP_NAME, appauthor=False))
 
 

@@ -20,6 +20,7 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.errors import InputError
+from stereo_gui.files.images import read_image_file
 
 log = logging.getLogger(__name__)
 
@@ -159,8 +160,6 @@ def discover_pairs(folder: str | Path) -> PairDiscovery:
 def load_image(path: str | Path, grayscale: bool = False) -> np.ndarray:
     """Read an image file (BGR uint8, or gray); raise InputError naming the file if it cannot
     (too large files and headers are refused before decoding: files.images)."""
-    from stereo_gui.files.images import read_image_file
-
     return read_image_file(path, cv2.IMREAD_GRAYSCALE if grayscale else cv2.IMREAD_COLOR)
 
 

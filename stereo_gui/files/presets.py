@@ -14,6 +14,8 @@ import os
 import re
 from pathlib import Path
 
+import platformdirs
+
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import Preset
 from stereo_gui.files.atomic import write_json_atomic
@@ -33,8 +35,6 @@ def user_preset_dir() -> Path:
     base = os.environ.get("STEREO_GUI_CONFIG_DIR")
     if base:
         return Path(base) / "presets"
-    import platformdirs
-
     return Path(platformdirs.user_config_dir("stereo-gui")) / "presets"
 
 

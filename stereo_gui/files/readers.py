@@ -6,6 +6,7 @@ import csv
 import json
 import logging
 import os
+import shutil
 import stat
 from pathlib import Path
 
@@ -39,8 +40,6 @@ def set_aside(path: str | os.PathLike) -> Path | None:
 def copy_aside(path: str | os.PathLike) -> Path | None:
     """Copy a remembered file used only in part to `<name>.unreadable` (numbered), before the
     next save writes it without what was left out; the copy's path, or None (logged)."""
-    import shutil
-
     return _put_aside(Path(path), shutil.copy2)
 
 

@@ -31,10 +31,12 @@ import logging
 import math
 import os
 import queue
+import shutil
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from stereo_gui.core.errors import InputError
@@ -272,8 +274,6 @@ class RecordingWriter:
                 self._queue.task_done()
 
     def _write_now(self, frame) -> None:
-        import cv2
-
         left, right = frame.left, frame.right
         size = (int(left.shape[1]), int(left.shape[0]))
         if right.shape[:2] != left.shape[:2]:
@@ -316,8 +316,6 @@ class RecordingWriter:
         return rate if rate is not None and rate <= MAX_FPS else None
 
     def _write_video(self, left: np.ndarray, right: np.ndarray) -> None:
-        import cv2
-
         def bgr(img):
             return cv2.cvtColor(img, cv2.COLOR_GRAY2BGR) if img.ndim == 2 else img
 
@@ -332,8 +330,6 @@ class RecordingWriter:
         self._video.write(np.ascontiguousarray(sbs))
 
     def _verify_video(self) -> None:
-        import cv2
-
         cap = cv2.VideoCapture(str(self._video_tmp))
         try:
             frames = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) if cap.isOpened() else 0
@@ -547,8 +543,6 @@ def _remove_empty_recording(folder: Path, made: bool) -> None:
     """Remove what a recording that holds no frame made (its empty left/ and right/, its frame
     list and header; the folder itself when `made` by it), as a failed start leaves it; anything
     else there is kept."""
-    import shutil
-
     try:
         for side in ("left", "right"):
             if (folder / side).is_dir() and any((folder / side).iterdir()):

@@ -35,6 +35,18 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from rosbags.interfaces import (
+    Qos,
+    QosDurability,
+    QosHistory,
+    QosLiveliness,
+    QosReliability,
+    QosTime,
+)
+from rosbags.rosbag2 import Reader, Writer
+from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
+from rosbags.rosbag2.errors import ReaderError, WriterError
+from rosbags.typesys import Stores, get_typestore
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.files.atomic import os_error_text, syscalls
@@ -253,23 +265,12 @@ def _remove(path: Path) -> None:
 
 # ---- messages ---------------------------------------------------------------------------------
 def _typestore():
-    from rosbags.typesys import Stores, get_typestore
-
     return get_typestore(Stores.ROS2_JAZZY)
 
 
 def _qos():
     """What a camera driver offers: reliable, volatile (history unknown, as rosbag2 records
     it); the durations "infinite" as rosbags' own converter writes them."""
-    from rosbags.interfaces import (
-        Qos,
-        QosDurability,
-        QosHistory,
-        QosLiveliness,
-        QosReliability,
-        QosTime,
-    )
-
     forever = QosTime(2147483647, 4294967295)
     return [Qos(QosHistory.UNKNOWN, 0, QosReliability.RELIABLE, QosDurability.VOLATILE,
                 forever, forever, QosLiveliness.AUTOMATIC, forever, False)]
@@ -353,10 +354,6 @@ def write_ros2_bag(target: str | os.PathLike, frames: Iterable[BagFrame], replac
     at `target`, atomically (see the module doc); `replace` allows an earlier bag there to be
     replaced. `progress(frames written)` is called after each frame. InputError when nothing
     could be written, the disk is full, or the bag does not read back."""
-    from rosbags.rosbag2 import Writer
-    from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
-    from rosbags.rosbag2.errors import WriterError
-
     target = Path(target)
     typestore = _typestore()
     counts = {key: 0 for key in TOPICS}
@@ -394,8 +391,6 @@ def write_ros2_bag(target: str | os.PathLike, frames: Iterable[BagFrame], replac
 def _verify_bag(path: Path, expected: dict[str, int]) -> None:
     """Read the bag at `path` back with rosbags: its metadata and every message, counted by
     topic against `expected`; InputError on any difference."""
-    from rosbags.rosbag2 import Reader
-
     got = {topic: 0 for topic in expected}
     with Reader(path) as reader:
         listed = {c.topic: c.msgcount for c in reader.connections}
@@ -409,9 +404,6 @@ def _verify_bag(path: Path, expected: dict[str, int]) -> None:
 def read_bag_counts(path: str | os.PathLike) -> dict[str, int]:
     """How many messages each topic of a ROS 2 bag holds (from its metadata); InputError when
     `path` is not a bag rosbags reads."""
-    from rosbags.rosbag2 import Reader
-    from rosbags.rosbag2.errors import ReaderError
-
     try:
         with Reader(Path(path)) as reader:
             return {c.topic: c.msgcount for c in reader.connections}

@@ -24,6 +24,7 @@ import numpy as np
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.files.atomic import os_error_text
+from stereo_gui.files.images import read_image_file
 from stereo_gui.files.readers import read_user_text
 
 MAX_LIST_BYTES = 1 << 20  # a list of scenes, not a data set
@@ -171,6 +172,4 @@ def load_scene(spec: SceneSpec) -> Scene:
 
 
 def _imread(path: Path, flags: int, what: str) -> np.ndarray:
-    from stereo_gui.files.images import read_image_file
-
     return read_image_file(path, flags, name=f"{what} {path}")

@@ -22,12 +22,14 @@ import threading
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from stereo_gui.core.board import DEFAULT_DICTIONARY, BoardSpec
 from stereo_gui.core.camera_settings import PairSettings
 from stereo_gui.core.errors import InputError, StereoGuiError
 from stereo_gui.files.atomic import write_bytes_atomic, write_json_atomic
+from stereo_gui.files.pairs import discover_pairs
 
 log = logging.getLogger(__name__)
 
@@ -68,8 +70,6 @@ class CameraIds:
 
 def _discover(folder: Path, warnings: list[str] | None = None) -> list[PairEntry]:
     """Pairs found in the folder by their file names (stereo_gui.files.pairs)."""
-    from stereo_gui.files.pairs import discover_pairs
-
     try:
         found = discover_pairs(folder)
     except StereoGuiError as exc:  # an empty folder is a fine start for a session
@@ -369,8 +369,6 @@ class CaptureSession:
         raise InputError(f"session {self.folder} has no pair named {name!r}")
 
     def _first_image_size(self) -> tuple[int, int] | None:
-        import cv2
-
         for p in self._pairs:
             img = cv2.imread(str(p.left), cv2.IMREAD_UNCHANGED)
             if img is not None:
@@ -384,8 +382,6 @@ class CaptureSession:
         Raises InputError (and leaves the folder as it was) when the images do not fit the
         session or cannot be written, for instance on a full disk or a vanished folder.
         """
-        import cv2
-
         if left is None or right is None or left.shape[:2] != right.shape[:2]:
             raise InputError("left and right images of a pair must have the same size")
         size = (int(left.shape[1]), int(left.shape[0]))

@@ -16,6 +16,8 @@ import re
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
+import platformdirs
+
 from stereo_gui.core.board import (
     MAX_BOARD_CORNERS,
     MAX_SQUARE_MM,
@@ -159,8 +161,6 @@ def config_dir() -> Path:
     env = os.environ.get("STEREO_GUI_CONFIG_DIR")
     if env:
         return Path(env)
-    import platformdirs
-
     return Path(platformdirs.user_config_dir(APP_NAME, appauthor=False))
 
 

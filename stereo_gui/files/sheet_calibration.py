@@ -5,15 +5,15 @@ wide."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
+from stereo_gui.core.lens import distortion_names
+from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.core.uncertainty import corner_sigma_px
 from stereo_gui.files.sheet_columns import cell_value
 from stereo_gui.files.sheet_draft import SheetDraft
-
-if TYPE_CHECKING:  # only for annotations: the regression module is imported where used
-    from stereo_gui.core.stereo_calibration import StereoCalibration
 
 _MATRIX_NOTES = {
     "M1": "left camera matrix (px)",
@@ -60,9 +60,6 @@ def _calibration_figures(calib: StereoCalibration, calib_file: str | None
 
 def _camera_rows(calib: StereoCalibration, side: str) -> list[tuple[str, float, float | None]]:
     """(name with unit, value, 1 sigma or None) of one camera's intrinsics and distortion."""
-    from stereo_gui.core.lens import distortion_names
-    from stereo_gui.core.uncertainty import corner_sigma_px
-
     M, D = (calib.M1, calib.D1) if side == "left" else (calib.M2, calib.D2)
     M, D = np.asarray(M, float), np.asarray(D, float).reshape(-1)
     u = calib.uncertainty

@@ -7,10 +7,13 @@ import math
 from collections.abc import Callable
 from typing import Any
 
+from openpyxl.cell import WriteOnlyCell
+from openpyxl.styles import Alignment, Font
+from openpyxl.utils import get_column_letter
+from openpyxl.worksheet._write_only import WriteOnlyWorksheet
+
 
 def bold_font():
-    from openpyxl.styles import Font
-
     return Font(bold=True)
 
 
@@ -41,8 +44,6 @@ class SheetDraft:
             self.wrapped.add((row, col))
 
     def to_sheet(self, ws) -> None:
-        from openpyxl.worksheet._write_only import WriteOnlyWorksheet
-
         self._lay_out(ws)
         style = self._styler()
         if isinstance(ws, WriteOnlyWorksheet):
@@ -55,8 +56,6 @@ class SheetDraft:
 
     def _lay_out(self, ws) -> None:
         """Column widths, hidden columns, the heights of rows of wrapped text, printing."""
-        from openpyxl.utils import get_column_letter
-
         for col, width in self.widths.items():
             ws.column_dimensions[get_column_letter(col)].width = width
         for col in self.hidden:
@@ -80,8 +79,6 @@ class SheetDraft:
     def _styler(self) -> Callable[[Any, int, int, str | None, bool], None]:
         """What styles a cell: its number format, bold, wrapped text and the top alignment of
         the other cells of a row of wrapped text."""
-        from openpyxl.styles import Alignment
-
         bold = bold_font()
         wrap = Alignment(wrap_text=True, vertical="top")
         top = Alignment(vertical="top")  # the other cells of a row of wrapped text
@@ -101,8 +98,6 @@ class SheetDraft:
 
     def _append_rows(self, ws, style: Callable[[Any, int, int, str | None, bool], None]
                      ) -> None:
-        from openpyxl.cell import WriteOnlyCell
-
         n_rows = max((r for r, _ in self.cells), default=0)
         n_cols = max((c for _, c in self.cells), default=0)
         for r in range(1, n_rows + 1):

@@ -5,6 +5,9 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 
+from openpyxl.cell import WriteOnlyCell
+from openpyxl.utils import get_column_letter
+
 from stereo_gui.core.jobs import check_cancel
 from stereo_gui.core.util import how_many
 from stereo_gui.files.measurement_record import MeasurementRecord
@@ -24,8 +27,6 @@ CANCEL_EVERY_ROWS = 500  # a streamed export looks at its cancel flag and report
 
 def _lay_out(ws) -> None:
     """Column widths, the frozen header, printing."""
-    from openpyxl.utils import get_column_letter
-
     widths = [c[3] for c in COLUMNS] + [c[2] for c in ERROR_COLUMNS] + [NOTE_COLUMN[3]]
     names = [c[0] for c in COLUMNS] + list(ERROR_FIELDS) + [NOTE_COLUMN[0]]
     for i, (name, header, width) in enumerate(zip(names, XLSX_HEADERS, widths, strict=True),
@@ -46,8 +47,6 @@ def write_measurements_sheet(ws, records: Sequence[MeasurementRecord], cancel=No
 
     `cancel` (see core.jobs.Cancel) is looked at and `progress(done, total, text)` called
     every CANCEL_EVERY_ROWS rows."""
-    from openpyxl.cell import WriteOnlyCell
-
     _lay_out(ws)
     bold = bold_font()
     header = []

@@ -9,6 +9,9 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
+from openpyxl.chart import Reference, ScatterChart, Series
+from openpyxl.chart.shapes import GraphicalProperties
+from openpyxl.drawing.line import LineProperties
 
 from stereo_gui.files.measurement_record import MeasurementRecord
 from stereo_gui.files.sheet_columns import cell_value
@@ -57,10 +60,6 @@ FIT_STYLES: tuple[tuple[str, str, int], ...] = (
 
 
 def _sample_series(ys, xs):
-    from openpyxl.chart import Series
-    from openpyxl.chart.shapes import GraphicalProperties
-    from openpyxl.drawing.line import LineProperties
-
     s = Series(ys, xs, title="Samples (true distance)")
     s.marker.symbol = "circle"
     s.marker.size = 7
@@ -71,8 +70,6 @@ def _sample_series(ys, xs):
 
 
 def _fit_series(ys, xs, title: str, k: int):
-    from openpyxl.chart import Series
-
     colour, dash, width = FIT_STYLES[k % len(FIT_STYLES)]
     line = Series(ys, xs, title=title)
     line.marker.symbol = "none"
@@ -162,8 +159,6 @@ def _curves(draft: SheetDraft, header_row: int, gcol: int, samples: list[tuple[f
 def _chart(ws, first_row: int, last_row: int, gcol: int, grid_rows: int, fits: Sequence):
     """The scatter chart: the samples (columns A and B, `first_row` to `last_row`) as markers,
     each fit's curve (from column `gcol`) as a line."""
-    from openpyxl.chart import Reference, ScatterChart
-
     chart = ScatterChart()
     chart.title = "Distance against disparity"
     chart.scatterStyle = "lineMarker"  # required by the schema; openpyxl leaves it out otherwise

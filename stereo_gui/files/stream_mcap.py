@@ -16,7 +16,9 @@ import os
 from collections.abc import Iterator
 from pathlib import Path
 
+import cv2
 import numpy as np
+from mcap.reader import make_reader
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.files.ros2_bag import BagFrame, RectifiedCamera
@@ -61,8 +63,6 @@ class StreamRecording:
     cut short, or without the stream's depth and camera topics); `frames()` reads it."""
 
     def __init__(self, path: str | os.PathLike) -> None:
-        from mcap.reader import make_reader
-
         self.path = Path(path)
         if not self.path.is_file():
             raise InputError(f"{self.path}: no such MCAP file")
@@ -99,8 +99,7 @@ class StreamRecording:
 
     def frames(self, limit: int | None = None) -> Iterator[BagFrame]:
         """The recording's frames in time order (at most `limit`)."""
-        try:
-            from mcap.reader import make_reader
+        try:  # guarded: without the package the error says what to install
             from mcap_protobuf.decoder import DecoderFactory
         except ImportError as exc:
             raise InputError("reading a depth recording (MCAP) needs the package "
@@ -169,8 +168,6 @@ def _depth(msg, path: Path) -> np.ndarray:
 
 
 def _jpeg(msg, path: Path) -> np.ndarray:
-    import cv2
-
     img = cv2.imdecode(np.frombuffer(bytes(msg.data), np.uint8), cv2.IMREAD_COLOR)
     if img is None:
         raise InputError(f"{path}: a left picture ({msg.format or 'no format'}) does not decode")

@@ -18,6 +18,7 @@ from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.errors import InputError
 from stereo_gui.files import sheet_calibration, sheet_regression
 from stereo_gui.files import spreadsheet as ss
+from stereo_gui.files import workbook
 from stereo_gui.files.spreadsheet import (
     HEADERS,
     MeasurementRecord,
@@ -106,7 +107,7 @@ def test_measurements_sheet_holds_what_was_written(tmp_path):
     assert ws.cell(row=2, column=col).number_format == "0.0%"
     assert ws.cell(row=2, column=1).is_date
     assert ws.cell(row=2, column=1).number_format == "yyyy-mm-dd hh:mm:ss.000"
-    assert wb.properties.keywords == ss.WORKBOOK_KEYWORDS
+    assert wb.properties.keywords == workbook.WORKBOOK_KEYWORDS
 
 
 def test_times_in_other_zones_and_with_milliseconds_become_utc_date_times(tmp_path):
