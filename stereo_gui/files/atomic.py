@@ -177,7 +177,7 @@ def _prepare(target: Path, data: bytes, verify: Verify | None) -> Path:
     return tmp_path
 
 
-def write_bytes_atomic(target: str | os.PathLike, data: bytes,
+def write_bytes_atomic(target: str | os.PathLike[str], data: bytes,
                        verify: Verify | None = None) -> Path:
     """Write `data` to `target` atomically and checked (see the module doc); return the target."""
     return write_many_atomic([(target, data, verify)])[0]
@@ -278,7 +278,7 @@ def _discard(tmp_path: Path, fd: int) -> None:
         tmp_path.unlink(missing_ok=True)
 
 
-def write_text_atomic(target: str | os.PathLike, text: str, verify: Verify | None = None) -> Path:
+def write_text_atomic(target: str | os.PathLike[str], text: str, verify: Verify | None = None) -> Path:
     """Write `text` as UTF-8 atomically and checked; return the target."""
     return write_bytes_atomic(target, text.encode("utf-8"), verify)
 
@@ -287,19 +287,19 @@ def _verify_json(path: Path) -> None:
     json.loads(path.read_text(encoding="utf-8"))
 
 
-def json_item(target: str | os.PathLike, doc):
+def json_item(target: str | os.PathLike[str], doc):
     """`doc` as indented JSON for `target`, parsed back before the rename: an item of
     `write_many_atomic`."""
     return (target, (json.dumps(doc, indent=2) + "\n").encode("utf-8"), _verify_json)
 
 
-def write_json_atomic(target: str | os.PathLike, doc) -> Path:
+def write_json_atomic(target: str | os.PathLike[str], doc) -> Path:
     """Write `doc` as indented JSON atomically; the file is parsed back before the rename."""
     return write_bytes_atomic(*json_item(target, doc))
 
 
 @contextlib.contextmanager
-def atomic_path(target: str | os.PathLike, suffix: str | None = None,
+def atomic_path(target: str | os.PathLike[str], suffix: str | None = None,
                 verify: Verify | None = None) -> Iterator[Path]:
     """Yield a temporary path in the target's folder; when the block is done, check the file
     (it exists, is not empty, `verify` accepts it) and rename it over the target.
@@ -361,7 +361,7 @@ def _release_abandoned(exc: BaseException) -> None:
         sys.unraisablehook = previous
 
 
-def write_atomic(target: str | os.PathLike, writer: Callable[[Path], None],
+def write_atomic(target: str | os.PathLike[str], writer: Callable[[Path], None],
                  verify: Verify | None = None) -> Path:
     """Call `writer(tmp_path)` and move the result over `target` atomically; return the target."""
     with atomic_path(target, verify=verify) as tmp:
@@ -369,7 +369,7 @@ def write_atomic(target: str | os.PathLike, writer: Callable[[Path], None],
     return Path(target)
 
 
-def encode_image(target: str | os.PathLike, image) -> bytes:
+def encode_image(target: str | os.PathLike[str], image) -> bytes:
     """`image` (a numpy array) encoded in the format the suffix of `target` names; InputError
     naming the target when OpenCV cannot."""
     target = Path(target)
@@ -383,6 +383,6 @@ def encode_image(target: str | os.PathLike, image) -> bytes:
     return buf.tobytes()
 
 
-def write_image_atomic(target: str | os.PathLike, image) -> Path:
+def write_image_atomic(target: str | os.PathLike[str], image) -> Path:
     """Encode `image` (a numpy array) in the format its suffix names and write it atomically."""
     return write_bytes_atomic(target, encode_image(target, image))

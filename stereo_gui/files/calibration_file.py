@@ -28,7 +28,6 @@ from __future__ import annotations
 import logging
 import math
 from pathlib import Path
-from typing import cast
 
 import cv2
 import numpy as np
@@ -40,7 +39,6 @@ from stereo_gui.core.shading import PairShading
 from stereo_gui.core.stereo_calibration import (
     MATRIX_NAMES,
     METHODS,
-    Method,
     PairError,
     StereoCalibration,
     check_image_size,
@@ -190,7 +188,7 @@ def load_calibration(path: str | Path) -> StereoCalibration:
     return calib
 
 
-def _read_calibration(fs, where: str) -> StereoCalibration:
+def _read_calibration(fs: cv2.FileStorage, where: str) -> StereoCalibration:
     vnode = fs.getNode("format_version")
     if vnode.empty() or vnode.isNone():
         raise CalibrationFileError(f"{where}: not a stereo-gui calibration file (format_version "
@@ -201,10 +199,11 @@ def _read_calibration(fs, where: str) -> StereoCalibration:
                                    f"reads {FORMAT_VERSION})")
     w = read_int(fs, "image_width", where)
     h = read_int(fs, "image_height", where)
-    mats = {name: read_mat(fs, name, where) for name in MATRIX_NAMES}
+    found = {name: read_mat(fs, name, where) for name in MATRIX_NAMES}
     with from_file(where):
         check_image_size(w, h)
-        check_matrices(mats)  # (before the distortion's length says which lens model)
+        check_matrices(found)  # (before the distortion's length says which lens model)
+    mats = {name: m for name, m in found.items() if m is not None}  # all: checked just above
     board = None
     if not fs.getNode("board_cols").empty():
         try:
@@ -232,7 +231,7 @@ def _read_calibration(fs, where: str) -> StereoCalibration:
             rms_right=read_real(fs, "rms_right", where, nan),
             rms_stereo=read_real(fs, "rms_stereo", where, nan),
             epipolar_error_px=read_real(fs, "epipolar_error_px", where, nan),
-            per_pair=tuple(per_pair), method=cast(Method, method),
+            per_pair=tuple(per_pair), method=method,
             alpha=read_real(fs, "alpha", where, 0.0),
             optimal_M1=read_mat(fs, "optimal_M1", where),
             optimal_M2=read_mat(fs, "optimal_M2", where),
@@ -245,7 +244,7 @@ def _read_calibration(fs, where: str) -> StereoCalibration:
             lens_shading=read_lens_shading(fs, where))
 
 
-def _scaled_from(fs, where: str) -> tuple[int, int] | None:
+def _scaled_from(fs: cv2.FileStorage, where: str) -> tuple[int, int] | None:
     present = [not fs.getNode(n).empty() for n in ("scaled_from_width", "scaled_from_height")]
     if not any(present):
         return None
@@ -254,8 +253,8 @@ def _scaled_from(fs, where: str) -> tuple[int, int] | None:
     return (read_int(fs, "scaled_from_width", where), read_int(fs, "scaled_from_height", where))
 
 
-def _per_pair(fs, where: str) -> list[PairError]:
-    per_pair = []
+def _per_pair(fs: cv2.FileStorage, where: str) -> list[PairError]:
+    per_pair: list[PairError] = []
     pp = fs.getNode("per_pair")
     if pp.empty() or pp.isNone():
         return per_pair

@@ -11,6 +11,7 @@ from typing import NoReturn
 
 import cv2
 import numpy as np
+from numpy.typing import NDArray
 
 from stereo_gui.core.errors import CalibrationFileError
 from stereo_gui.files.atomic import os_error_text
@@ -90,7 +91,7 @@ def fail(where: str, text: str) -> NoReturn:
     raise CalibrationFileError(f"{where}: {text}")
 
 
-def read_real(fs, name: str, where: str, default: float | None = None) -> float:
+def read_real(fs: cv2.FileStorage, name: str, where: str, default: float | None = None) -> float:
     node = fs.getNode(name)
     if node.empty() or node.isNone():
         if default is not None:
@@ -101,7 +102,7 @@ def read_real(fs, name: str, where: str, default: float | None = None) -> float:
     return float(node.real())
 
 
-def read_int(fs, name: str, where: str) -> int:
+def read_int(fs: cv2.FileStorage, name: str, where: str) -> int:
     node = fs.getNode(name)
     if node.empty() or node.isNone():
         raise CalibrationFileError(f"{where}: {name} is missing")
@@ -110,12 +111,13 @@ def read_int(fs, name: str, where: str) -> int:
     return int(node.real())
 
 
-def read_string(fs, name: str, default: str) -> str:
+def read_string(fs: cv2.FileStorage, name: str, default: str) -> str:
     node = fs.getNode(name)
     return node.string() if node.isString() else default
 
 
-def read_mat(fs, name: str, where: str, max_side: int = 16) -> np.ndarray | None:
+def read_mat(fs: cv2.FileStorage, name: str, where: str,
+             max_side: int = 16) -> NDArray[np.float64] | None:
     node = fs.getNode(name)
     if node.empty() or node.isNone():
         return None

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import cast
 
 import cv2
 import numpy as np
@@ -26,7 +25,7 @@ MAX_UNCERTAINTY_PARAMETERS = 128  # both cameras' intrinsics and distortion, rot
 
 
 # ---- lens model, uncertainty, origin and warnings ------------------------------------------
-def write_lens_and_uncertainty(fs, calib: StereoCalibration) -> None:
+def write_lens_and_uncertainty(fs: cv2.FileStorage, calib: StereoCalibration) -> None:
     """The lens model, where the calibration came from, its warnings and its 1-sigma covariance
     (names in order, then the matrix)."""
     fs.write("lens_model", calib.model)
@@ -63,17 +62,17 @@ def write_lens_and_uncertainty(fs, calib: StereoCalibration) -> None:
         fs.write("uncertainty_covariance", np.asarray(u.covariance, np.float64))
 
 
-def read_lens_model(fs, where: str, n_dist: int) -> LensModel:
+def read_lens_model(fs: cv2.FileStorage, where: str, n_dist: int) -> LensModel:
     model = read_string(fs, "lens_model", "")
     if not model:  # files before lens models: the coefficient count says which pinhole model
         return "rational" if n_dist > 5 else "pinhole"
     if model not in LENS_MODELS:
         raise CalibrationFileError(f"{where}: unknown lens_model {model!r} (use one of "
                                    f"{', '.join(LENS_MODELS)})")
-    return cast(LensModel, model)
+    return model
 
 
-def read_warnings(fs) -> tuple[CalibrationWarning, ...]:
+def read_warnings(fs: cv2.FileStorage) -> tuple[CalibrationWarning, ...]:
     warnings = []
     wn = fs.getNode("warnings")
     if not wn.empty() and wn.isSeq():
@@ -87,7 +86,7 @@ def read_warnings(fs) -> tuple[CalibrationWarning, ...]:
     return tuple(warnings)
 
 
-def read_left_out(fs) -> tuple[tuple[str, str], ...]:
+def read_left_out(fs: cv2.FileStorage) -> tuple[tuple[str, str], ...]:
     left_out = []
     ln = fs.getNode("pairs_left_out")
     if not ln.empty() and ln.isSeq():  # (what cannot be read there is left out: a note only)
@@ -99,7 +98,7 @@ def read_left_out(fs) -> tuple[tuple[str, str], ...]:
     return tuple(left_out)
 
 
-def read_uncertainty(fs, where: str, model: LensModel,
+def read_uncertainty(fs: cv2.FileStorage, where: str, model: LensModel,
                      n_dist: int) -> CalibrationUncertainty | None:
     nn = fs.getNode("uncertainty_names")
     if nn.empty() or nn.isNone():
@@ -124,7 +123,7 @@ def read_uncertainty(fs, where: str, model: LensModel,
 
 
 # ---- lens shading ---------------------------------------------------------------------------
-def write_lens_shading(fs, calib: StereoCalibration) -> None:
+def write_lens_shading(fs: cv2.FileStorage, calib: StereoCalibration) -> None:
     shading = calib.lens_shading
     if shading is None:
         return
@@ -140,7 +139,7 @@ def write_lens_shading(fs, calib: StereoCalibration) -> None:
     fs.endWriteStruct()
 
 
-def read_lens_shading(fs, where: str) -> PairShading | None:
+def read_lens_shading(fs: cv2.FileStorage, where: str) -> PairShading | None:
     """The `lens_shading` node, or None (missing; or damaged: then said in the log, and the
     images are matched as they come)."""
     node = fs.getNode("lens_shading")
@@ -184,7 +183,7 @@ def controls_of(calib: StereoCalibration) -> PairSettings | None:
     return None if c is None or c.empty else c
 
 
-def write_camera_controls(fs, calib: StereoCalibration) -> None:
+def write_camera_controls(fs: cv2.FileStorage, calib: StereoCalibration) -> None:
     c = controls_of(calib)
     if c is None:
         return
@@ -200,7 +199,7 @@ def write_camera_controls(fs, calib: StereoCalibration) -> None:
     fs.endWriteStruct()
 
 
-def read_camera_controls(fs, where: str) -> PairSettings | None:
+def read_camera_controls(fs: cv2.FileStorage, where: str) -> PairSettings | None:
     """The `camera_controls` node, or None (missing, or damaged: then said in the log)."""
     node = fs.getNode("camera_controls")
     if node.empty() or node.isNone():
@@ -211,7 +210,7 @@ def read_camera_controls(fs, where: str) -> PairSettings | None:
         sides = {}
         for side in ("left", "right"):
             n = node.getNode(side)
-            data: dict = {}
+            data: dict[str, str | bool | float] = {}
             if not n.empty() and not n.isNone():
                 if not n.isMap():
                     raise ValueError(f"camera_controls {side} should be a map")

@@ -13,6 +13,7 @@ import re
 
 import cv2
 import numpy as np
+from numpy.typing import NDArray
 
 from stereo_gui.core.errors import CalibrationFileError
 
@@ -20,14 +21,14 @@ _DT = re.compile(r"^\s*(\d*)\s*([ucwsifdh])\s*$")
 MAX_ELEMENTS = 1_000_000  # far above any calibration matrix; keeps a hostile header harmless
 
 
-def _whole(node) -> int | None:
+def _whole(node: cv2.FileNode) -> int | None:
     if node.empty() or not (node.isInt() or node.isReal()):
         return None
     v = node.real()
     return int(v) if v == int(v) else None
 
 
-def read_matrix(node, name: str, where: str) -> np.ndarray:
+def read_matrix(node: cv2.FileNode, name: str, where: str) -> NDArray[np.float64]:
     """The float64 matrix in FileStorage node `node` (an `!!opencv-matrix`, or a plain sequence
     of numbers as a column); CalibrationFileError naming `name` and `where` when the node is not
     a matrix or its header (rows, cols, dt) disagrees with its data."""
@@ -63,7 +64,7 @@ def read_matrix(node, name: str, where: str) -> np.ndarray:
                                    ) from None
     if m is None:
         raise CalibrationFileError(f"{where}: {name} is not a matrix")
-    m = np.asarray(m, np.float64)
+    out = np.asarray(m, np.float64)
     if channels > 1:
-        m = m.reshape(rows, cols * channels)
-    return m
+        out = out.reshape(rows, cols * channels)
+    return out

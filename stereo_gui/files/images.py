@@ -233,7 +233,7 @@ def decode_image(data: np.ndarray, flags: int, name: str) -> np.ndarray:
     return img
 
 
-def read_image_file(path: str | os.PathLike, flags: int = cv2.IMREAD_COLOR,
+def read_image_file(path: str | os.PathLike[str], flags: int = cv2.IMREAD_COLOR,
                     name: str | None = None) -> np.ndarray:
     """The image in `path` (see `decode_image`); InputError starting with `name` (default
     "image PATH") when it cannot be read, is too large, or is not an image."""

@@ -31,18 +31,23 @@ from __future__ import annotations
 import logging
 import math
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
 
 from stereo_gui.core.errors import CalibrationFileError
-from stereo_gui.core.lens import stereo_rectify
+from stereo_gui.core.lens import LensModel, stereo_rectify
 from stereo_gui.core.stereo_calibration import StereoCalibration, from_file
 from stereo_gui.files.atomic import os_error_text, write_text_atomic
 
 log = logging.getLogger(__name__)
+
+# a YAML mapping as PyYAML parses it: any values, checked where they are read
+YamlMap = dict[str, Any]
 
 MAX_FILE_BYTES = 1 << 20  # a camera chain is a few hundred bytes
 ROTATION_TOL = 1e-4  # R^T R = I within this: files hold 8 or more digits
@@ -50,8 +55,10 @@ MAX_PX = 1e6  # focal lengths and principal points beyond any camera's (and over
 MAX_TRANSLATION_M = 1000.0  # far beyond any rig (check_plausible has the finer limit)
 SNIFF_BYTES = 65536
 # distortion_model -> our lens model (core.lens) and its number of coefficients in the file
-DISTORTIONS = {"radtan": ("pinhole", 4), "radial-tangential": ("pinhole", 4),
-               "none": ("pinhole", 0), "equidistant": ("fisheye", 4)}
+# distortion_model -> (core.lens model, coefficient count)
+DISTORTIONS: dict[str, tuple[LensModel, int]] = {
+    "radtan": ("pinhole", 4), "radial-tangential": ("pinhole", 4), "none": ("pinhole", 0),
+    "equidistant": ("fisheye", 4)}
 _OPENCV_DIRECTIVE = re.compile(r"\A\ufeff?%YAML:\d+\.\d+[^\n]*\n")
 _KALIBR_CAM = re.compile(rb"^cam\d+\s*:\s*(#.*)?$", re.MULTILINE)
 _KALIBR_FIELD = re.compile(rb"^\s+(camera_model|intrinsics|distortion_model)\s*:", re.MULTILINE)
@@ -73,7 +80,7 @@ class RoboticsCalibration:
 class _Camera:
     M: np.ndarray  # 3x3, px
     D: np.ndarray  # 1xN, of `model`
-    model: str  # core.lens model
+    model: LensModel
     size: tuple[int, int]  # (width, height), px
     distortion_model: str  # as the file names it
 
@@ -102,7 +109,7 @@ def looks_like_euroc(path: Path) -> bool:
 
 
 # ---- parsing -------------------------------------------------------------------------------
-def _load_yaml(path: Path) -> dict:
+def _load_yaml(path: Path) -> YamlMap:
     """The top-level mapping of a plain YAML file."""
     try:  # guarded: without PyYAML the error says what to install (a test checks it)
         import yaml
@@ -137,7 +144,7 @@ def _read_text(path: Path) -> str:
         raise CalibrationFileError(f"{path} is not UTF-8 text") from None
 
 
-def _number(v) -> float | None:
+def _number(v: object) -> float | None:
     if isinstance(v, bool):  # YAML's yes/no/on/off
         return None
     if isinstance(v, (int, float)):
@@ -152,7 +159,7 @@ def _number(v) -> float | None:
     return f if math.isfinite(f) else None
 
 
-def _numbers(doc: dict, key: str, where: str, count: int | None = None) -> np.ndarray:
+def _numbers(doc: YamlMap, key: str, where: str, count: int | None = None) -> np.ndarray:
     """The list of finite numbers doc[key], of `count` elements when given."""
     if key not in doc:
         raise CalibrationFileError(f"{where}: {key} is missing")
@@ -166,14 +173,14 @@ def _numbers(doc: dict, key: str, where: str, count: int | None = None) -> np.nd
     return np.array(values, np.float64)
 
 
-def _text(doc: dict, key: str, where: str) -> str:
+def _text(doc: YamlMap, key: str, where: str) -> str:
     value = doc.get(key)
     if value is None:
         raise CalibrationFileError(f"{where}: {key} is missing")
     return str(value).strip()
 
 
-def _size(doc: dict, where: str) -> tuple[int, int]:
+def _size(doc: YamlMap, where: str) -> tuple[int, int]:
     w, h = _numbers(doc, "resolution", where, 2)
     if not (w == int(w) and h == int(h) and 0 < w <= 100_000 and 0 < h <= 100_000):
         raise CalibrationFileError(f"{where}: resolution should be two positive whole numbers "
@@ -181,7 +188,7 @@ def _size(doc: dict, where: str) -> tuple[int, int]:
     return int(w), int(h)
 
 
-def _camera(doc, where: str, coeffs_key: str) -> _Camera:
+def _camera(doc: object, where: str, coeffs_key: str) -> _Camera:
     """One camera's lens from Kalibr's or EuRoC's fields (their names differ only for the
     distortion coefficients)."""
     if not isinstance(doc, dict):
@@ -211,7 +218,7 @@ def _camera(doc, where: str, coeffs_key: str) -> _Camera:
     return _Camera(M, D, model, _size(doc, where), name)
 
 
-def _transform(value, key: str, where: str) -> np.ndarray:
+def _transform(value: object, key: str, where: str) -> np.ndarray:
     """A 4x4 rigid transform: Kalibr's list of 4 rows, or EuRoC's {rows, cols, data}."""
     if isinstance(value, dict):
         rows, cols = _number(value.get("rows")), _number(value.get("cols"))
@@ -358,11 +365,12 @@ def _yaml_float(x: float) -> str:
     return f"{mantissa}.0e{exponent}" if e and "." not in mantissa else text
 
 
-def _flow(values) -> str:
+def _flow(values: Iterable[float]) -> str:
     return "[" + ", ".join(_yaml_float(v) for v in values) + "]"
 
 
-def _kalibr_distortion(calib: StereoCalibration, D: np.ndarray, name: str) -> tuple[str, list]:
+def _kalibr_distortion(calib: StereoCalibration, D: np.ndarray,
+                       name: str) -> tuple[str, list[float]]:
     """(distortion_model, coefficients) of one camera; refused when Kalibr has no such lens."""
     d = np.asarray(D, np.float64).reshape(-1)
     if calib.model == "fisheye":

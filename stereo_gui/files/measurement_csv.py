@@ -62,10 +62,10 @@ def records_to_csv(records: Iterable[MeasurementRecord]) -> str:
                 + [csv_decimals(name) for name in ERROR_FIELDS] + [None])
     pct = len(COLUMNS) + ERROR_FIELDS.index("error_pct")
     for rec in records:
-        row = []
+        row: list[object] = []
         decimals[pct] = pct_decimals(rec.true_mm)
-        for v, dec in zip(file_values(rec), decimals, strict=True):
-            v = cell_value(v)
+        for value, dec in zip(file_values(rec), decimals, strict=True):
+            v = cell_value(value)
             if v is None:
                 row.append("")
             elif isinstance(v, float):
@@ -76,12 +76,12 @@ def records_to_csv(records: Iterable[MeasurementRecord]) -> str:
     return buf.getvalue()
 
 
-def write_csv(path: str | os.PathLike, records: Iterable[MeasurementRecord]) -> Path:
+def write_csv(path: str | os.PathLike[str], records: Iterable[MeasurementRecord]) -> Path:
     """Write the log as a UTF-8 CSV file (atomically)."""
     return write_text_atomic(path, records_to_csv(records))
 
 
-def read_csv(path: str | os.PathLike) -> list[MeasurementRecord]:
+def read_csv(path: str | os.PathLike[str]) -> list[MeasurementRecord]:
     """Read a CSV file written by `write_csv` (with the error and note columns or, older,
     without them)."""
     what = "a measurement CSV of stereo-gui"

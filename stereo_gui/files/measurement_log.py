@@ -166,7 +166,7 @@ def log_from_json(text: str, where: str, warnings: list[str] | None = None) -> K
     return KeptLog(lists[0], lists[1], fit)
 
 
-def save_log(kept: KeptLog, path: str | os.PathLike | None = None) -> Path:
+def save_log(kept: KeptLog, path: str | os.PathLike[str] | None = None) -> Path:
     """Write the log atomically (creating the folder); InputError if it cannot."""
     path = Path(path) if path is not None else default_log_path()
     try:
@@ -176,7 +176,7 @@ def save_log(kept: KeptLog, path: str | os.PathLike | None = None) -> Path:
     return write_text_atomic(path, log_to_json(kept))
 
 
-def load_log(path: str | os.PathLike | None = None) -> tuple[KeptLog, list[str]]:
+def load_log(path: str | os.PathLike[str] | None = None) -> tuple[KeptLog, list[str]]:
     """The kept log and warnings about what could not be used (never raises).
 
     A missing file is an empty log. A file that cannot be read or used is renamed to

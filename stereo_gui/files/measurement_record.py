@@ -9,6 +9,8 @@ import math
 import os
 from dataclasses import dataclass
 
+from stereo_gui.core.measure import Measurement
+
 __all__ = ["RULER_METHOD", "MeasurementRecord", "record_error"]
 
 
@@ -39,8 +41,8 @@ class MeasurementRecord:
     note: str = ""  # what was measured, in the technician's words
 
     @classmethod
-    def from_measurement(cls, m, *, time: str | None = None, true_mm: float | None = None,
-                         calibration_file: str | os.PathLike = "",
+    def from_measurement(cls, m: Measurement, *, time: str | None = None, true_mm: float | None = None,
+                         calibration_file: str | os.PathLike[str] = "",
                          calibration_rms_px: float = float("nan")) -> MeasurementRecord:
         """The log entry of a `stereo_gui.core.measure.Measurement` (time defaults to now)."""
         if time is None:

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from numpy.typing import NDArray
 
 from stereo_gui.core.errors import CalibrationFileError
 from stereo_gui.core.stereo_calibration import (
@@ -85,7 +86,7 @@ def holds_stereo_sample_matrices(fs: cv2.FileStorage) -> bool:
     return any(_present(fs, n) for n in REQUIRED)
 
 
-def _matrix(fs: cv2.FileStorage, name: str, where: Path) -> np.ndarray:
+def _matrix(fs: cv2.FileStorage, name: str, where: Path) -> NDArray[np.float64]:
     m = read_matrix(fs.getNode(name), name, str(where))
     if not np.all(np.isfinite(m)):
         raise CalibrationFileError(f"{where}: matrix {name} holds values that are not finite")
@@ -94,7 +95,7 @@ def _matrix(fs: cv2.FileStorage, name: str, where: Path) -> np.ndarray:
 
 def _size_in(fs: cv2.FileStorage, where: Path) -> tuple[int, int] | None:
     """The image size a file holds, (width, height) px, or None."""
-    def positive_int(node) -> int | None:
+    def positive_int(node: cv2.FileNode) -> int | None:
         if node.empty() or not (node.isInt() or node.isReal()):
             return None
         v = node.real()
@@ -139,7 +140,7 @@ def partner_file(path: Path) -> Path | None:
     return None
 
 
-def _read_all(path: Path) -> tuple[dict[str, np.ndarray], tuple[int, int] | None]:
+def _read_all(path: Path) -> tuple[dict[str, NDArray[np.float64]], tuple[int, int] | None]:
     fs = _open(path)
     try:
         mats = {n: _matrix(fs, n, path) for n in REQUIRED + OPTIONAL if _present(fs, n)}
@@ -148,14 +149,14 @@ def _read_all(path: Path) -> tuple[dict[str, np.ndarray], tuple[int, int] | None
         fs.release()
 
 
-def _essential(R: np.ndarray, T: np.ndarray) -> np.ndarray:
+def _essential(R: NDArray[np.float64], T: NDArray[np.float64]) -> NDArray[np.float64]:
     t = T.reshape(3)
     tx = np.array([[0, -t[2], t[1]], [t[2], 0, -t[0]], [-t[1], t[0], 0]], np.float64)
     return tx @ R
 
 
-def _read_with_partner(path: Path
-                       ) -> tuple[dict[str, np.ndarray], tuple[int, int] | None, list[Path]]:
+def _read_with_partner(path: Path) -> tuple[dict[str, NDArray[np.float64]],
+                                            tuple[int, int] | None, list[Path]]:
     """The matrices and image size of `path` and, when it lacks intrinsics or extrinsics, of
     its partner file (what `path` holds wins); the files read."""
     mats, size = _read_all(path)
@@ -173,7 +174,7 @@ def _read_with_partner(path: Path
     return mats, size, files
 
 
-def _check_required(mats: dict[str, np.ndarray], files: list[Path], where: str) -> None:
+def _check_required(mats: dict[str, NDArray[np.float64]], files: list[Path], where: str) -> None:
     missing = [n for n in REQUIRED if n not in mats]
     if missing:
         hint = ""
@@ -209,20 +210,20 @@ def _image_size(size: tuple[int, int] | None, image_size: SizeHint,
 class _Cameras:
     """The matrices every stereo calibration file holds, checked and in our shapes."""
 
-    M1: np.ndarray
-    D1: np.ndarray
-    M2: np.ndarray
-    D2: np.ndarray
-    R: np.ndarray
-    T: np.ndarray
+    M1: NDArray[np.float64]
+    D1: NDArray[np.float64]
+    M2: NDArray[np.float64]
+    D2: NDArray[np.float64]
+    R: NDArray[np.float64]
+    T: NDArray[np.float64]
 
 
-def _cameras(mats: dict[str, np.ndarray], where: str) -> _Cameras:
+def _cameras(mats: dict[str, NDArray[np.float64]], where: str) -> _Cameras:
     M1, M2 = mats["M1"], mats["M2"]
     D1, D2 = mats["D1"].reshape(1, -1), mats["D2"].reshape(1, -1)
     R = mats["R"]
     if R.size == 3:  # a rotation vector (Rodrigues), as some tools write
-        R, _ = cv2.Rodrigues(R.reshape(3, 1))
+        R = np.asarray(cv2.Rodrigues(R.reshape(3, 1))[0], np.float64)
     T = mats["T"]
     if T.size != 3:
         raise CalibrationFileError(f"{where}: T should hold 3 numbers, found {T.size}")
@@ -243,21 +244,24 @@ def _cameras(mats: dict[str, np.ndarray], where: str) -> _Cameras:
     return _Cameras(M1, D1, M2, D2, R, T)
 
 
-def _completed(mats: dict[str, np.ndarray], cams: _Cameras, size: tuple[int, int],
-               where: str) -> tuple[dict[str, np.ndarray], list[str]]:
+def _completed(mats: dict[str, NDArray[np.float64]], cams: _Cameras, size: tuple[int, int],
+               where: str) -> tuple[dict[str, NDArray[np.float64]], list[str]]:
     """R1 R2 P1 P2 Q E F: from the files, else computed; and the names of those computed."""
     computed: list[str] = []
-    rect = {n: mats.get(n) for n in ("R1", "R2", "P1", "P2")}
+    rect: dict[str, NDArray[np.float64]] = {n: mats[n] for n in ("R1", "R2", "P1", "P2")
+                                            if n in mats}
     Q = mats.get("Q")
-    if any(m is None for m in rect.values()):
+    if len(rect) < 4:
         try:
-            R1, R2, P1, P2, Q, _, _ = cv2.stereoRectify(
+            R1, R2, P1, P2, q, _, _ = cv2.stereoRectify(
                 cams.M1, cams.D1, cams.M2, cams.D2, size, cams.R, cams.T,
                 flags=cv2.CALIB_ZERO_DISPARITY, alpha=0.0)
         except cv2.error as exc:
             raise CalibrationFileError(f"{where}: cv2.stereoRectify failed on these matrices "
                                        f"({str(exc).strip().splitlines()[-1]})") from None
-        rect = {"R1": R1, "R2": R2, "P1": P1, "P2": P2}
+        rect = {n: np.asarray(m, np.float64)
+                for n, m in (("R1", R1), ("R2", R2), ("P1", P1), ("P2", P2))}
+        Q = np.asarray(q, np.float64)
         computed += ["R1", "R2", "P1", "P2", "Q"]
     elif Q is None:
         Q = q_from_projections(rect["P1"], rect["P2"])

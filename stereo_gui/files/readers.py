@@ -30,14 +30,14 @@ def _aside_name(path: Path) -> Path:
     return aside
 
 
-def set_aside(path: str | os.PathLike) -> Path | None:
+def set_aside(path: str | os.PathLike[str]) -> Path | None:
     """Rename a remembered file that cannot be used to `<name>.unreadable` (numbered when one is
     there already), so that the next save does not overwrite what a person may still want;
     return the new path, or None when it could not be renamed (the reason is logged)."""
     return _put_aside(Path(path), os.rename)
 
 
-def copy_aside(path: str | os.PathLike) -> Path | None:
+def copy_aside(path: str | os.PathLike[str]) -> Path | None:
     """Copy a remembered file used only in part to `<name>.unreadable` (numbered), before the
     next save writes it without what was left out; the copy's path, or None (logged)."""
     return _put_aside(Path(path), shutil.copy2)
@@ -53,7 +53,7 @@ def _put_aside(path: Path, how) -> Path | None:
     return aside
 
 
-def read_user_text(path: str | os.PathLike, what: str, max_bytes: int = MAX_JSON_BYTES) -> str:
+def read_user_text(path: str | os.PathLike[str], what: str, max_bytes: int = MAX_JSON_BYTES) -> str:
     """The UTF-8 text of the regular file `path`, at most `max_bytes`; InputError naming `what`
     for a device, a pipe or a folder (/dev/zero never ends, a FIFO waits for ever), a file too
     large, or a name the system cannot take. UnicodeDecodeError for text that is not UTF-8."""
@@ -74,7 +74,7 @@ def read_user_text(path: str | os.PathLike, what: str, max_bytes: int = MAX_JSON
     return data.decode("utf-8")
 
 
-def read_json_object(path: str | os.PathLike, what: str) -> dict:
+def read_json_object(path: str | os.PathLike[str], what: str) -> dict:
     """The JSON object in `path`; InputError naming `what` and the file if it cannot be read,
     is not JSON or holds something other than an object."""
     path = Path(path)
@@ -91,7 +91,7 @@ def read_json_object(path: str | os.PathLike, what: str) -> dict:
     return doc
 
 
-def read_csv_rows(path: str | os.PathLike, columns: tuple[str, ...], what: str) -> list[list[str]]:
+def read_csv_rows(path: str | os.PathLike[str], columns: tuple[str, ...], what: str) -> list[list[str]]:
     """The rows after the header of the UTF-8 CSV file `path`; InputError naming `what` and the
     file if it cannot be read or its first row is not `columns`."""
     path = Path(path)

@@ -124,7 +124,7 @@ class RecordingWriter:
     Use as a context manager, or call `close()`.
     """
 
-    def __init__(self, folder: str | os.PathLike, *, source_name: str = "", fps: float = 30.0,
+    def __init__(self, folder: str | os.PathLike[str], *, source_name: str = "", fps: float = 30.0,
                  images: bool = True, video: str | None = None, background: bool = True,
                  queue_size: int = 32) -> None:
         if not images and video is None:
@@ -365,7 +365,7 @@ class RecordingWriter:
         write_json_atomic(self.folder / HEADER, header)
 
 
-def is_recording(folder: str | os.PathLike) -> bool:
+def is_recording(folder: str | os.PathLike[str]) -> bool:
     return (Path(folder) / HEADER).is_file()
 
 
@@ -513,7 +513,7 @@ def _read_frames(folder: Path, images: bool, warnings: list[str]) -> list[Record
     return frames
 
 
-def open_recording(folder: str | os.PathLike) -> Recording:
+def open_recording(folder: str | os.PathLike[str]) -> Recording:
     """Read a recording folder's header and frame list; raise InputError naming the file and the
     field when it is not one or is damaged (indices that are negative, repeated or go backwards,
     times that are not finite or go backwards, image paths outside the folder, ...).

@@ -138,7 +138,7 @@ def unpack_rgb(rgb_field: np.ndarray) -> np.ndarray:
 
 
 # ---- the target folder ------------------------------------------------------------------------
-def check_bag_target(target: str | os.PathLike, replace: bool = False) -> bool:
+def check_bag_target(target: str | os.PathLike[str], replace: bool = False) -> bool:
     """Raise InputError unless a bag may be written to `target`: its folder exists, and the
     target does not (or, with `replace`, is a bag folder or an empty one: never another folder
     or a file). True when there is one to replace."""
@@ -162,7 +162,7 @@ def check_bag_target(target: str | os.PathLike, replace: bool = False) -> bool:
 
 
 @contextlib.contextmanager
-def atomic_folder(target: str | os.PathLike, verify: Callable[[Path], None] | None = None,
+def atomic_folder(target: str | os.PathLike[str], verify: Callable[[Path], None] | None = None,
                   replace: bool = False) -> Iterator[Path]:
     """Yield a path with the target's name inside a new temporary folder beside `target` (the
     path itself is not created: the caller's writer makes it, and may name its files after
@@ -348,7 +348,7 @@ class _Messages:
 
 
 # ---- writing ----------------------------------------------------------------------------------
-def write_ros2_bag(target: str | os.PathLike, frames: Iterable[BagFrame], replace: bool = False,
+def write_ros2_bag(target: str | os.PathLike[str], frames: Iterable[BagFrame], replace: bool = False,
                    progress: Callable[[int], None] | None = None) -> BagSummary:
     """Write `frames` (any iterable: each frame is written as it comes) as a ROS 2 bag folder
     at `target`, atomically (see the module doc); `replace` allows an earlier bag there to be
@@ -401,7 +401,7 @@ def _verify_bag(path: Path, expected: dict[str, int]) -> None:
                          f"{listed}), not {expected}")
 
 
-def read_bag_counts(path: str | os.PathLike) -> dict[str, int]:
+def read_bag_counts(path: str | os.PathLike[str]) -> dict[str, int]:
     """How many messages each topic of a ROS 2 bag holds (from its metadata); InputError when
     `path` is not a bag rosbags reads."""
     try:

@@ -10,12 +10,15 @@ from __future__ import annotations
 import datetime as _dt
 import logging
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
 import numpy as np
+from numpy.typing import NDArray
 
 from stereo_gui.core.errors import CalibrationFileError, InputError
+from stereo_gui.core.lens import LensModel
 from stereo_gui.core.plausibility import check_plausible
 from stereo_gui.core.stereo_calibration import (
     StereoCalibration,
@@ -30,8 +33,8 @@ from stereo_gui.files.calibration_file_checks import check_parsable, parse_error
 
 log = logging.getLogger(__name__)
 
-ROS_DISTORTION_MODELS = {"pinhole": "plumb_bob", "rational": "rational_polynomial",
-                         "fisheye": "equidistant"}
+ROS_DISTORTION_MODELS: dict[LensModel, str] = {
+    "pinhole": "plumb_bob", "rational": "rational_polynomial", "fisheye": "equidistant"}
 
 
 def _num(x: float) -> str:
@@ -42,14 +45,15 @@ def _num(x: float) -> str:
     raise CalibrationFileError(f"cannot export a non-finite value ({x}) to ROS camera_info")
 
 
-def _ros_matrix(name: str, m: np.ndarray) -> str:
+def _ros_matrix(name: str, m: NDArray[np.float64]) -> str:
     m = np.atleast_2d(np.asarray(m, np.float64))
     rows, cols = m.shape
     data = ", ".join(_num(v) for v in m.reshape(-1))
     return f"{name}:\n  rows: {rows}\n  cols: {cols}\n  data: [{data}]\n"
 
 
-def ros_camera_info_text(calib: StereoCalibration, side: str, camera_name: str | None = None) -> str:
+def ros_camera_info_text(calib: StereoCalibration, side: str,
+                         camera_name: str | None = None) -> str:
     """The ROS camera_info YAML of one camera ('left' or 'right'); the projection matrix's
     translation term is in metres, as ROS expects."""
     if side not in ("left", "right"):
@@ -71,7 +75,8 @@ def ros_camera_info_text(calib: StereoCalibration, side: str, camera_name: str |
             + _ros_matrix("projection_matrix", P))
 
 
-def export_ros(calib: StereoCalibration, folder: str | Path, prefix: str = "") -> tuple[Path, Path]:
+def export_ros(calib: StereoCalibration, folder: str | Path,
+               prefix: str = "") -> tuple[Path, Path]:
     """Write `left.yaml` and `right.yaml` (ROS camera_info) into `folder`; return both paths."""
     if not calib.metric:
         log.warning("exporting a Hartley calibration to ROS: its baseline is not metric")
@@ -85,7 +90,72 @@ def export_ros(calib: StereoCalibration, folder: str | Path, prefix: str = "") -
     return out[0], out[1]
 
 
-def _ros_read(path: Path) -> dict:
+@dataclass(frozen=True)
+class _RosCamera:
+    """What one camera_info file holds (the projection's translation term still in metres)."""
+
+    image_width: int
+    image_height: int
+    distortion_model: str
+    camera_matrix: NDArray[np.float64]
+    distortion_coefficients: NDArray[np.float64]
+    rectification_matrix: NDArray[np.float64]
+    projection_matrix: NDArray[np.float64]
+
+
+def _ros_int(fs: cv2.FileStorage, key: str, where: str) -> int:
+    n = fs.getNode(key)
+    if n.empty() or not n.isInt():
+        raise CalibrationFileError(f"{where}: {key} is missing or not a whole number")
+    return int(n.real())
+
+
+def _ros_mat(fs: cv2.FileStorage, key: str, shape: tuple[int, int] | None,
+             where: str) -> NDArray[np.float64]:
+    """The {rows, cols, data} matrix `key`, of `shape` when one is given."""
+    n = fs.getNode(key)
+    if n.empty() or not n.isMap():
+        raise CalibrationFileError(f"{where}: {key} is missing")
+    rows, cols, data = n.getNode("rows"), n.getNode("cols"), n.getNode("data")
+    if rows.empty() or cols.empty() or data.empty() or not data.isSeq():
+        raise CalibrationFileError(f"{where}: {key} needs rows, cols and data")
+    if not (rows.isInt() and cols.isInt() and 1 <= rows.real() <= 4
+            and 1 <= cols.real() <= 14):
+        raise CalibrationFileError(f"{where}: {key} rows and cols should be whole "
+                                   "numbers from 1 to 14")
+    r, c = int(rows.real()), int(cols.real())
+    if data.size() > 64 or not all(data.at(i).isReal() or data.at(i).isInt()
+                                   for i in range(data.size())):
+        raise CalibrationFileError(f"{where}: {key} data should be numbers")
+    vals = np.array([data.at(i).real() for i in range(data.size())], np.float64)
+    if vals.size != r * c:
+        raise CalibrationFileError(f"{where}: {key} has {vals.size} values, rows x cols "
+                                   f"is {r}x{c}")
+    m = vals.reshape(r, c)
+    if shape is not None and m.shape != shape:
+        raise CalibrationFileError(f"{where}: {key} should be {shape[0]}x{shape[1]}, "
+                                   f"found {r}x{c}")
+    if not np.all(np.isfinite(m)):
+        raise CalibrationFileError(f"{where}: {key} holds values that are not finite")
+    return m
+
+
+def _ros_camera(fs: cv2.FileStorage, where: str) -> _RosCamera:
+    width, height = _ros_int(fs, "image_width", where), _ros_int(fs, "image_height", where)
+    with from_file(where):
+        check_image_size(width, height)
+    model = read_string(fs, "distortion_model", "plumb_bob")
+    if model not in ROS_DISTORTION_MODELS.values():
+        raise CalibrationFileError(f"{where}: distortion model {model!r} is "
+                                   "not supported (plumb_bob, rational_polynomial or "
+                                   "equidistant)")
+    return _RosCamera(width, height, model, _ros_mat(fs, "camera_matrix", (3, 3), where),
+                      _ros_mat(fs, "distortion_coefficients", None, where),
+                      _ros_mat(fs, "rectification_matrix", (3, 3), where),
+                      _ros_mat(fs, "projection_matrix", (3, 4), where))
+
+
+def _ros_read(path: Path) -> _RosCamera:
     where = str(path)
     if not path.exists():
         raise CalibrationFileError(f"ROS camera_info file {path} does not exist")
@@ -97,48 +167,7 @@ def _ros_read(path: Path) -> dict:
     try:
         if not fs.isOpened():
             raise CalibrationFileError(f"{path} is not a readable YAML file")
-        out: dict = {}
-        for key in ("image_width", "image_height"):
-            n = fs.getNode(key)
-            if n.empty() or not n.isInt():
-                raise CalibrationFileError(f"{where}: {key} is missing or not a whole number")
-            out[key] = int(n.real())
-        with from_file(where):
-            check_image_size(out["image_width"], out["image_height"])
-        out["distortion_model"] = read_string(fs, "distortion_model", "plumb_bob")
-        if out["distortion_model"] not in ROS_DISTORTION_MODELS.values():
-            raise CalibrationFileError(f"{where}: distortion model {out['distortion_model']!r} is "
-                                       "not supported (plumb_bob, rational_polynomial or "
-                                       "equidistant)")
-        shapes = {"camera_matrix": (3, 3), "distortion_coefficients": None,
-                  "rectification_matrix": (3, 3), "projection_matrix": (3, 4)}
-        for key, shape in shapes.items():
-            n = fs.getNode(key)
-            if n.empty() or not n.isMap():
-                raise CalibrationFileError(f"{where}: {key} is missing")
-            rows, cols, data = n.getNode("rows"), n.getNode("cols"), n.getNode("data")
-            if rows.empty() or cols.empty() or data.empty() or not data.isSeq():
-                raise CalibrationFileError(f"{where}: {key} needs rows, cols and data")
-            if not (rows.isInt() and cols.isInt() and 1 <= rows.real() <= 4
-                    and 1 <= cols.real() <= 14):
-                raise CalibrationFileError(f"{where}: {key} rows and cols should be whole "
-                                           "numbers from 1 to 14")
-            r, c = int(rows.real()), int(cols.real())
-            if data.size() > 64 or not all(data.at(i).isReal() or data.at(i).isInt()
-                                           for i in range(data.size())):
-                raise CalibrationFileError(f"{where}: {key} data should be numbers")
-            vals = np.array([data.at(i).real() for i in range(data.size())], np.float64)
-            if vals.size != r * c:
-                raise CalibrationFileError(f"{where}: {key} has {vals.size} values, rows x cols "
-                                           f"is {r}x{c}")
-            m = vals.reshape(r, c)
-            if shape is not None and m.shape != shape:
-                raise CalibrationFileError(f"{where}: {key} should be {shape[0]}x{shape[1]}, "
-                                           f"found {r}x{c}")
-            if not np.all(np.isfinite(m)):
-                raise CalibrationFileError(f"{where}: {key} holds values that are not finite")
-            out[key] = m
-        return out
+        return _ros_camera(fs, where)
     except UnicodeDecodeError:
         raise CalibrationFileError(f"{where}: a text value is not UTF-8") from None
     except (cv2.error, SystemError) as exc:
@@ -156,26 +185,27 @@ def import_ros(left_path: str | Path, right_path: str | Path) -> StereoCalibrati
     """
     lp, rp = Path(left_path), Path(right_path)
     left, right = _ros_read(lp), _ros_read(rp)
-    size = (left["image_width"], left["image_height"])
-    if size != (right["image_width"], right["image_height"]):
+    size = (left.image_width, left.image_height)
+    if size != (right.image_width, right.image_height):
         raise CalibrationFileError(f"{lp} is {size[0]}x{size[1]} but {rp} is "
-                                   f"{right['image_width']}x{right['image_height']}")
-    M1, M2 = left["camera_matrix"], right["camera_matrix"]
+                                   f"{right.image_width}x{right.image_height}")
+    M1, M2 = left.camera_matrix, right.camera_matrix
     for path, side in ((lp, left), (rp, right)):
         with from_file(str(path)):
-            check_camera_matrix(side["camera_matrix"], "camera_matrix")
-            check_projection_focal(side["projection_matrix"], "projection_matrix")
-    D1 = left["distortion_coefficients"].reshape(1, -1)
-    D2 = right["distortion_coefficients"].reshape(1, -1)
-    R1, R2 = left["rectification_matrix"], right["rectification_matrix"]
-    P1 = left["projection_matrix"].copy()
-    P2 = right["projection_matrix"].copy()
+            check_camera_matrix(side.camera_matrix, "camera_matrix")
+            check_projection_focal(side.projection_matrix, "projection_matrix")
+    D1 = left.distortion_coefficients.reshape(1, -1)
+    D2 = right.distortion_coefficients.reshape(1, -1)
+    R1, R2 = left.rectification_matrix, right.rectification_matrix
+    P1 = left.projection_matrix.copy()
+    P2 = right.projection_matrix.copy()
     P1[:, 3] *= 1000.0  # m -> mm
     P2[:, 3] *= 1000.0
     t_rect = np.array([[P2[0, 3] / P2[0, 0]], [P2[1, 3] / P2[1, 1]], [0.0]])
     if not np.any(t_rect):
         raise CalibrationFileError(f"{rp}: projection_matrix has no baseline term (P[0,3] and "
-                                   "P[1,3] are zero), so it is not the right camera of a stereo pair")
+                                   "P[1,3] are zero), so it is not the right camera of a stereo "
+                                   "pair")
     R = R2.T @ R1
     T = R2.T @ t_rect
     tx = np.array([[0, -T[2, 0], T[1, 0]], [T[2, 0], 0, -T[0, 0]], [-T[1, 0], T[0, 0], 0]])
@@ -184,10 +214,10 @@ def import_ros(left_path: str | Path, right_path: str | Path) -> StereoCalibrati
     F = F / F[2, 2] if abs(F[2, 2]) > 1e-12 else F
     Q = q_from_projections(P1, P2)
     models = {v: k for k, v in ROS_DISTORTION_MODELS.items()}
-    if left["distortion_model"] != right["distortion_model"]:
+    if left.distortion_model != right.distortion_model:
         raise CalibrationFileError(f"{lp} and {rp} have different distortion models "
-                                   f"({left['distortion_model']}, {right['distortion_model']})")
-    model = models[left["distortion_model"]]
+                                   f"({left.distortion_model}, {right.distortion_model})")
+    model = models[left.distortion_model]
     if model == "fisheye" and (D1.size != 4 or D2.size != 4):
         raise CalibrationFileError(f"{lp} + {rp}: equidistant distortion needs 4 coefficients")
     if model != "fisheye":

@@ -59,7 +59,7 @@ class Scene:
         return self.left.shape[1], self.left.shape[0]
 
 
-def read_scene_list(path: str | os.PathLike) -> list[SceneSpec]:
+def read_scene_list(path: str | os.PathLike[str]) -> list[SceneSpec]:
     """The scenes of a list file; InputError with the file and line for anything malformed."""
     path = Path(path)
     try:
@@ -109,7 +109,7 @@ def _beside(image: Path, name: str) -> Path | None:
     return candidate if candidate.is_file() else None
 
 
-def read_pfm(path: str | os.PathLike) -> np.ndarray:
+def read_pfm(path: str | os.PathLike[str]) -> np.ndarray:
     """A single-channel PFM image as float32, top row first (PFM stores the bottom row first;
     a negative scale means little-endian)."""
     path = Path(path)
@@ -135,7 +135,7 @@ def read_pfm(path: str | os.PathLike) -> np.ndarray:
     return np.ascontiguousarray(image[::-1]).astype(np.float32)
 
 
-def read_truth(path: str | os.PathLike, divide_by: float) -> np.ndarray:
+def read_truth(path: str | os.PathLike[str], divide_by: float) -> np.ndarray:
     """Ground-truth disparity in float32 px, 0 where unknown (PFM: inf or NaN; images: 0)."""
     path = Path(path)
     if path.suffix.lower() == ".pfm":

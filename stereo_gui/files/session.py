@@ -260,7 +260,7 @@ class CaptureSession:
 
     # ---- creating and opening ---------------------------------------------------------------
     @classmethod
-    def create(cls, folder: str | os.PathLike, board: BoardSpec | None = None,
+    def create(cls, folder: str | os.PathLike[str], board: BoardSpec | None = None,
                resolution: tuple[int, int] | None = None,
                cameras: CameraIds | tuple[str, str] | None = None) -> CaptureSession:
         """Start a session in `folder` (created if needed; pairs already there are kept)."""
@@ -281,7 +281,7 @@ class CaptureSession:
         return s
 
     @classmethod
-    def open(cls, folder: str | os.PathLike) -> CaptureSession:
+    def open(cls, folder: str | os.PathLike[str]) -> CaptureSession:
         """Open a session folder, or a plain folder of pairs (its manifest is written on change)."""
         folder = Path(folder)
         if not folder.is_dir():

@@ -146,7 +146,7 @@ class Settings:
                        square_mm=board.square_mm, board_target=board.target,
                        marker_mm=board.marker_mm, board_dictionary=board.dictionary)
 
-    def with_recent(self, path: str | os.PathLike, limit: int = RECENT_LIMIT) -> Settings:
+    def with_recent(self, path: str | os.PathLike[str], limit: int = RECENT_LIMIT) -> Settings:
         """These settings with `path` first in the recent files (no duplicates, at most `limit`)."""
         p = str(path)
         recent = (p,) + tuple(r for r in self.recent_files if r != p)
@@ -202,7 +202,7 @@ def settings_to_dict(settings: Settings) -> dict:
 
 
 # ---- load and save --------------------------------------------------------------------------
-def load_settings(path: str | os.PathLike | None = None) -> tuple[Settings, list[str]]:
+def load_settings(path: str | os.PathLike[str] | None = None) -> tuple[Settings, list[str]]:
     """Read the settings; return them with warnings about whatever had to be ignored.
 
     Never raises for a bad file: a missing file gives the defaults silently, anything else
@@ -276,7 +276,7 @@ def _version_on_disk(path: Path):
     return data.get("format_version") if isinstance(data, dict) else None
 
 
-def save_settings(settings: Settings, path: str | os.PathLike | None = None) -> Path:
+def save_settings(settings: Settings, path: str | os.PathLike[str] | None = None) -> Path:
     """Write the settings atomically (creating the folder); raise InputError if it cannot.
 
     A settings file written by a newer version of the application is never replaced (the newer

@@ -13,7 +13,7 @@ from stereo_gui.core.lens import distortion_names
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.core.uncertainty import corner_sigma_px
 from stereo_gui.files.sheet_columns import cell_value
-from stereo_gui.files.sheet_draft import SheetDraft
+from stereo_gui.files.sheet_draft import Sheet, SheetDraft
 
 _MATRIX_NOTES = {
     "M1": "left camera matrix (px)",
@@ -158,7 +158,8 @@ def _matrices(draft: SheetDraft, calib: StereoCalibration) -> None:
         draft.widths[col0 + j] = 14
 
 
-def write_calibration_sheet(ws, calib: StereoCalibration | None, calib_file: str | None) -> None:
+def write_calibration_sheet(ws: Sheet, calib: StereoCalibration | None,
+                            calib_file: str | None) -> None:
     """The calibration in use: its figures, each camera's parameters, each with its 1-sigma
     uncertainty where the calibration has one, its warnings, the pairs it was not made from,
     each pair's error, and the matrices. Printed landscape, one page wide."""

@@ -61,7 +61,7 @@ XLSX_HEADERS = tuple(XLSX_TIME_HEADER if name == "time" else header
 
 
 # ---- cell values ----------------------------------------------------------------------------
-def cell_value(value: Any) -> Any:
+def cell_value(value: object) -> object:
     """A value Excel can hold: NaN, inf and None become empty cells, numpy scalars plain numbers."""
     if value is None:
         return None
@@ -75,7 +75,7 @@ def cell_value(value: Any) -> Any:
     return value
 
 
-def _time_cell(text: str) -> Any:
+def _time_cell(text: str) -> _dt.datetime | str | None:
     """An ISO 8601 time as a naive UTC datetime for a date-time cell (text that is not a time
     stays text)."""
     try:
@@ -119,14 +119,14 @@ def record_from_row(values: Sequence[Any], where: str) -> MeasurementRecord:
 
 
 # ---- a record's cells ----------------------------------------------------------------------
-def file_values(rec: MeasurementRecord) -> tuple:
+def file_values(rec: MeasurementRecord) -> tuple[object, ...]:
     """A record's values in the order of a file's columns: the measured fields, the derived
     errors, the note."""
     values = astuple(rec)
     return values[:len(COLUMNS)] + record_error(rec) + (rec.note,)
 
 
-def row_values(rec: MeasurementRecord) -> list[Any]:
+def row_values(rec: MeasurementRecord) -> list[object]:
     """A record's cells in a workbook's row: its time a date-time, no NaN."""
     values = [cell_value(v) for v in file_values(rec)]
     values[0] = _time_cell(rec.time)

@@ -5,19 +5,25 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any
+from typing import Any, TypeAlias
 
 from openpyxl.cell import WriteOnlyCell
 from openpyxl.styles import Alignment, Font
 from openpyxl.utils import get_column_letter
 from openpyxl.worksheet._write_only import WriteOnlyWorksheet
+from openpyxl.worksheet.worksheet import Worksheet
+
+# a sheet of a workbook being streamed (write-only) or loaded (openpyxl has no type hints)
+Sheet: TypeAlias = Worksheet | WriteOnlyWorksheet
+# what styles a cell: (cell, row, column, number format, bold)
+CellStyler = Callable[[Any, int, int, str | None, bool], None]
 
 
-def bold_font():
+def bold_font() -> Font:
     return Font(bold=True)
 
 
-def print_landscape_one_page_wide(ws) -> None:
+def print_landscape_one_page_wide(ws: Sheet) -> None:
     """Print (or make a PDF of) the sheet landscape, scaled to one page's width."""
     ws.page_setup.orientation = "landscape"
     ws.sheet_properties.pageSetUpPr.fitToPage = True
@@ -43,7 +49,7 @@ class SheetDraft:
         if wrap:  # long text wraps within its column's width, not past the printed page
             self.wrapped.add((row, col))
 
-    def to_sheet(self, ws) -> None:
+    def to_sheet(self, ws: Sheet) -> None:
         self._lay_out(ws)
         style = self._styler()
         if isinstance(ws, WriteOnlyWorksheet):
@@ -54,7 +60,7 @@ class SheetDraft:
         for chart, anchor in self.charts:
             ws.add_chart(chart, anchor)
 
-    def _lay_out(self, ws) -> None:
+    def _lay_out(self, ws: Sheet) -> None:
         """Column widths, hidden columns, the heights of rows of wrapped text, printing."""
         for col, width in self.widths.items():
             ws.column_dimensions[get_column_letter(col)].width = width
@@ -76,7 +82,7 @@ class SheetDraft:
             heights[r] = max(heights.get(r, 1), math.ceil(len(text) / per_line))
         return heights
 
-    def _styler(self) -> Callable[[Any, int, int, str | None, bool], None]:
+    def _styler(self) -> CellStyler:
         """What styles a cell: its number format, bold, wrapped text and the top alignment of
         the other cells of a row of wrapped text."""
         bold = bold_font()
@@ -96,8 +102,7 @@ class SheetDraft:
 
         return style
 
-    def _append_rows(self, ws, style: Callable[[Any, int, int, str | None, bool], None]
-                     ) -> None:
+    def _append_rows(self, ws: WriteOnlyWorksheet, style: CellStyler) -> None:
         n_rows = max((r for r, _ in self.cells), default=0)
         n_cols = max((c for _, c in self.cells), default=0)
         for r in range(1, n_rows + 1):

@@ -7,8 +7,9 @@ from collections.abc import Iterable, Sequence
 
 from openpyxl.cell import WriteOnlyCell
 from openpyxl.utils import get_column_letter
+from openpyxl.worksheet._write_only import WriteOnlyWorksheet
 
-from stereo_gui.core.jobs import check_cancel
+from stereo_gui.core.jobs import Cancel, ProgressCallback, check_cancel
 from stereo_gui.core.util import how_many
 from stereo_gui.files.measurement_record import MeasurementRecord
 from stereo_gui.files.sheet_columns import (
@@ -20,12 +21,12 @@ from stereo_gui.files.sheet_columns import (
     number_formats,
     row_values,
 )
-from stereo_gui.files.sheet_draft import bold_font, print_landscape_one_page_wide
+from stereo_gui.files.sheet_draft import Sheet, bold_font, print_landscape_one_page_wide
 
 CANCEL_EVERY_ROWS = 500  # a streamed export looks at its cancel flag and reports this often
 
 
-def _lay_out(ws) -> None:
+def _lay_out(ws: WriteOnlyWorksheet) -> None:
     """Column widths, the frozen header, printing."""
     widths = [c[3] for c in COLUMNS] + [c[2] for c in ERROR_COLUMNS] + [NOTE_COLUMN[3]]
     names = [c[0] for c in COLUMNS] + list(ERROR_FIELDS) + [NOTE_COLUMN[0]]
@@ -41,8 +42,9 @@ def _lay_out(ws) -> None:
     ws.print_title_rows = "1:1"
 
 
-def write_measurements_sheet(ws, records: Sequence[MeasurementRecord], cancel=None,
-                             progress=None) -> int:
+def write_measurements_sheet(ws: WriteOnlyWorksheet, records: Sequence[MeasurementRecord],
+                             cancel: Cancel = None,
+                             progress: ProgressCallback | None = None) -> int:
     """Stream the header and one row per record into a write-only sheet; return the count.
 
     `cancel` (see core.jobs.Cancel) is looked at and `progress(done, total, text)` called
@@ -72,7 +74,7 @@ def write_measurements_sheet(ws, records: Sequence[MeasurementRecord], cancel=No
     return n
 
 
-def append_measurement_rows(ws, records: Iterable[MeasurementRecord]) -> int:
+def append_measurement_rows(ws: Sheet, records: Iterable[MeasurementRecord]) -> int:
     """Append records below the last row of a loaded (not write-only) sheet."""
     # the sheet's size is read once: ws.max_row scans every cell, so asking it per row made a
     # 20,000-row export quadratic

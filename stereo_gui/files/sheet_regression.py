@@ -9,30 +9,32 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import NDArray
 from openpyxl.chart import Reference, ScatterChart, Series
 from openpyxl.chart.shapes import GraphicalProperties
 from openpyxl.drawing.line import LineProperties
 
+from stereo_gui.core.regression import FitResult
 from stereo_gui.files.measurement_record import MeasurementRecord
 from stereo_gui.files.sheet_columns import cell_value
-from stereo_gui.files.sheet_draft import SheetDraft
+from stereo_gui.files.sheet_draft import Sheet, SheetDraft
 
 CURVE_POINTS = 60  # points of each fitted curve drawn in the chart
 
 
-def _predict(fit, d: np.ndarray) -> np.ndarray:
+def _predict(fit: FitResult, d: NDArray[np.float64]) -> NDArray[np.float64]:
     """The fit evaluated on disparities `d` (px), mm (element by element if it takes scalars)."""
     try:
-        out = np.asarray(fit.predict(d), dtype=float)
+        out = np.asarray(fit.predict(d), dtype=np.float64)
         if out.shape == d.shape:
             return out
     except (TypeError, ValueError):
         pass
-    return np.array([float(fit.predict(float(x))) for x in d], dtype=float)
+    return np.array([float(fit.predict(float(x))) for x in d], dtype=np.float64)
 
 
 def regression_samples(records: Sequence[MeasurementRecord],
-                       fits: Sequence) -> list[tuple[float, float]]:
+                       fits: Sequence[FitResult]) -> list[tuple[float, float]]:
     """The regression samples: those of the fits (in order, no duplicates), else the log's
     valid readings that carry a true distance."""
     seen: dict[tuple[float, float], None] = {}
@@ -59,7 +61,7 @@ FIT_STYLES: tuple[tuple[str, str, int], ...] = (
     ("009E73", "sysDot", 38100), ("CC79A7", "lgDash", 31750))
 
 
-def _sample_series(ys, xs):
+def _sample_series(ys: Reference, xs: Reference) -> Series:
     s = Series(ys, xs, title="Samples (true distance)")
     s.marker.symbol = "circle"
     s.marker.size = 7
@@ -69,7 +71,7 @@ def _sample_series(ys, xs):
     return s
 
 
-def _fit_series(ys, xs, title: str, k: int):
+def _fit_series(ys: Reference, xs: Reference, title: str, k: int) -> Series:
     colour, dash, width = FIT_STYLES[k % len(FIT_STYLES)]
     line = Series(ys, xs, title=title)
     line.marker.symbol = "none"
@@ -81,7 +83,7 @@ def _fit_series(ys, xs, title: str, k: int):
 
 
 
-def _models_table(draft: SheetDraft, fits: Sequence) -> tuple[list[str], int]:
+def _models_table(draft: SheetDraft, fits: Sequence[FitResult]) -> tuple[list[str], int]:
     """The models from row 3: a header, one row per fit, then each model's formula on a row of
     its own, where it runs across the empty cells to its right. Returns the header and the first
     row below."""
@@ -110,7 +112,7 @@ def _models_table(draft: SheetDraft, fits: Sequence) -> tuple[list[str], int]:
 
 
 def _samples_table(draft: SheetDraft, header_row: int, samples: list[tuple[float, float]],
-                   fits: Sequence) -> list[str]:
+                   fits: Sequence[FitResult]) -> list[str]:
     """Under a header at `header_row`: A disparity, B true distance, then prediction and
     residual per fit, one row per sample. Returns the header."""
     header = ["Disparity (px)", "True distance (mm)"]
@@ -135,7 +137,7 @@ def _samples_table(draft: SheetDraft, header_row: int, samples: list[tuple[float
 
 
 def _curves(draft: SheetDraft, header_row: int, gcol: int, samples: list[tuple[float, float]],
-            fits: Sequence) -> int:
+            fits: Sequence[FitResult]) -> int:
     """The fitted curves on a disparity grid over the samples, from column `gcol` in hidden
     columns the chart reads; returns the grid's rows (0 without fits or samples)."""
     if not (fits and samples):
@@ -156,7 +158,8 @@ def _curves(draft: SheetDraft, header_row: int, gcol: int, samples: list[tuple[f
     return len(grid)
 
 
-def _chart(ws, first_row: int, last_row: int, gcol: int, grid_rows: int, fits: Sequence):
+def _chart(ws: Sheet, first_row: int, last_row: int, gcol: int, grid_rows: int,
+           fits: Sequence[FitResult]) -> ScatterChart:
     """The scatter chart: the samples (columns A and B, `first_row` to `last_row`) as markers,
     each fit's curve (from column `gcol`) as a line."""
     chart = ScatterChart()
@@ -183,7 +186,8 @@ def _chart(ws, first_row: int, last_row: int, gcol: int, grid_rows: int, fits: S
     return chart
 
 
-def write_regression_sheet(ws, samples: list[tuple[float, float]], fits: Sequence) -> None:
+def write_regression_sheet(ws: Sheet, samples: list[tuple[float, float]],
+                           fits: Sequence[FitResult]) -> None:
     draft = SheetDraft()
     draft.set(1, 1, "Regression: distance against disparity", bold=True)
     # the models first, then the samples below them: one page wide when printed (the models

@@ -34,6 +34,8 @@ import os
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
+from stereo_gui.core.jobs import Cancel, ProgressCallback
+from stereo_gui.core.regression import FitResult
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.measurement_csv import (
     csv_decimals,
@@ -58,10 +60,10 @@ __all__ = [
 # the window imports this module for MeasurementRecord and the exports.
 
 
-def write_workbook(path: str | os.PathLike, records: Iterable[MeasurementRecord],
-                   fits: Sequence = (), calibration: StereoCalibration | None = None,
-                   calibration_file: str | os.PathLike | None = None, cancel=None,
-                   progress=None) -> Path:
+def write_workbook(path: str | os.PathLike[str], records: Iterable[MeasurementRecord],
+                   fits: Sequence[FitResult] = (), calibration: StereoCalibration | None = None,
+                   calibration_file: str | os.PathLike[str] | None = None, cancel: Cancel = None,
+                   progress: ProgressCallback | None = None) -> Path:
     """Write a new workbook (replacing `path` atomically) with the three sheets and the chart.
 
     `fits` are `stereo_gui.core.regression.FitResult`s; `calibration_file` names the file the
@@ -76,17 +78,17 @@ def write_workbook(path: str | os.PathLike, records: Iterable[MeasurementRecord]
                                    progress)
 
 
-def read_measurements(path: str | os.PathLike) -> list[MeasurementRecord]:
+def read_measurements(path: str | os.PathLike[str]) -> list[MeasurementRecord]:
     """The measurement log of a workbook written by `write_workbook` / `append_measurements`."""
     from stereo_gui.files import workbook  # openpyxl: loaded on first use (see above)
 
     return workbook.read_measurements(path)
 
 
-def append_measurements(path: str | os.PathLike, records: Iterable[MeasurementRecord],
-                        fits: Sequence | None = None,
+def append_measurements(path: str | os.PathLike[str], records: Iterable[MeasurementRecord],
+                        fits: Sequence[FitResult] | None = None,
                         calibration: StereoCalibration | None = None,
-                        calibration_file: str | os.PathLike | None = None) -> int:
+                        calibration_file: str | os.PathLike[str] | None = None) -> int:
     """Append `records` to the workbook at `path`, keeping every earlier row; return the count.
 
     The workbook is created if missing. `fits` / `calibration`, when given, replace the

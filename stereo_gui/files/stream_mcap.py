@@ -46,7 +46,7 @@ _REQUIRED = ("depth", "left_info", "right_info")
 _NUMERIC = {1: "u1", 2: "i1", 3: "<u2", 4: "<i2", 5: "<u4", 6: "<i4", 7: "<f4", 8: "<f8"}
 
 
-def is_mcap(path: str | os.PathLike) -> bool:
+def is_mcap(path: str | os.PathLike[str]) -> bool:
     """True when `path` is a file that starts as an MCAP file does, or is named .mcap."""
     path = Path(path)
     if path.suffix.lower() == ".mcap":
@@ -62,7 +62,7 @@ class StreamRecording:
     """An MCAP file of the depth stream, checked when opened (InputError: missing, not MCAP,
     cut short, or without the stream's depth and camera topics); `frames()` reads it."""
 
-    def __init__(self, path: str | os.PathLike) -> None:
+    def __init__(self, path: str | os.PathLike[str]) -> None:
         self.path = Path(path)
         if not self.path.is_file():
             raise InputError(f"{self.path}: no such MCAP file")

@@ -11,20 +11,21 @@ import logging
 import os
 import zipfile
 import zlib
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 from openpyxl import Workbook, load_workbook
 from openpyxl.utils.exceptions import InvalidFileException
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.jobs import check_cancel
+from stereo_gui.core.jobs import Cancel, ProgressCallback, check_cancel
+from stereo_gui.core.regression import FitResult
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.atomic import atomic_path, os_error_text
 from stereo_gui.files.measurement_record import MeasurementRecord
 from stereo_gui.files.sheet_calibration import write_calibration_sheet
 from stereo_gui.files.sheet_columns import HEADERS, XLSX_HEADERS, record_from_row
-from stereo_gui.files.sheet_draft import bold_font
+from stereo_gui.files.sheet_draft import Sheet, bold_font
 from stereo_gui.files.sheet_measurements import append_measurement_rows, write_measurements_sheet
 from stereo_gui.files.sheet_regression import regression_samples, write_regression_sheet
 
@@ -44,16 +45,18 @@ def _check_xlsx_name(path: Path) -> None:
         raise InputError(f"{path}: a workbook file name must end in .xlsx")
 
 
-def _new_workbook(records, fits, calibration, calibration_file, target: Path, cancel=None,
-                  progress=None):
+def _new_workbook(records: Sequence[MeasurementRecord], fits: Sequence[FitResult] | None,
+                  calibration: StereoCalibration | None, calibration_file: str | None,
+                  target: Path, cancel: Cancel = None,
+                  progress: ProgressCallback | None = None) -> Workbook:
     wb = Workbook(write_only=True)  # streamed: linear in the rows
     try:
         # write-only sheets stream their rows into temporary files as they are appended, so a
         # full disk already shows here
         write_measurements_sheet(wb.create_sheet(MEASUREMENTS_SHEET), records, cancel, progress)
-        fits = tuple(fits or ())
+        fitted = tuple(fits or ())
         write_regression_sheet(wb.create_sheet(REGRESSION_SHEET),
-                               regression_samples(records, fits), fits)
+                               regression_samples(records, fitted), fitted)
         write_calibration_sheet(wb.create_sheet(CALIBRATION_SHEET), calibration,
                                 calibration_file)
     except OSError as exc:
@@ -78,7 +81,7 @@ def _verify_xlsx(path: Path) -> None:
         raise ValueError(f"{bad} is damaged")
 
 
-def _save(wb, path: Path) -> Path:
+def _save(wb: Workbook, path: Path) -> Path:
     try:
         with atomic_path(path, verify=_verify_xlsx) as tmp:
             wb.save(tmp)
@@ -88,7 +91,7 @@ def _save(wb, path: Path) -> Path:
     return path
 
 
-def _discard_write_only(wb) -> None:
+def _discard_write_only(wb: Workbook) -> None:
     """After a failed save, close the streamed sheets of a write-only workbook and remove their
     temporary files (left open, they print a traceback when they are collected later)."""
     if not getattr(wb, "write_only", False):
@@ -107,10 +110,10 @@ def _discard_write_only(wb) -> None:
             log.debug("removing the temporary file of sheet %s", ws.title, exc_info=True)
 
 
-def write_workbook(path: str | os.PathLike, records: Iterable[MeasurementRecord],
-                   fits: Sequence = (), calibration: StereoCalibration | None = None,
-                   calibration_file: str | os.PathLike | None = None, cancel=None,
-                   progress=None) -> Path:
+def write_workbook(path: str | os.PathLike[str], records: Iterable[MeasurementRecord],
+                   fits: Sequence[FitResult] = (), calibration: StereoCalibration | None = None,
+                   calibration_file: str | os.PathLike[str] | None = None, cancel: Cancel = None,
+                   progress: ProgressCallback | None = None) -> Path:
     """Write a new workbook (replacing `path` atomically) with the three sheets and the chart.
 
     `fits` are `stereo_gui.core.regression.FitResult`s; `calibration_file` names the file the
@@ -135,7 +138,7 @@ def write_workbook(path: str | os.PathLike, records: Iterable[MeasurementRecord]
     return path
 
 
-def _load_ours(path: Path):
+def _load_ours(path: Path) -> Workbook:
     """Load an existing workbook of ours, or raise InputError naming what is wrong (untouched)."""
     try:
         wb = load_workbook(path)
@@ -157,7 +160,7 @@ def _load_ours(path: Path):
     return wb
 
 
-def read_measurements(path: str | os.PathLike) -> list[MeasurementRecord]:
+def read_measurements(path: str | os.PathLike[str]) -> list[MeasurementRecord]:
     """The measurement log of a workbook written by `write_workbook` / `append_measurements`."""
     path = Path(path)
     if not path.is_file():
@@ -165,10 +168,10 @@ def read_measurements(path: str | os.PathLike) -> list[MeasurementRecord]:
     return _records_in(_load_ours(path), f"{path}, ")
 
 
-def append_measurements(path: str | os.PathLike, records: Iterable[MeasurementRecord],
-                        fits: Sequence | None = None,
+def append_measurements(path: str | os.PathLike[str], records: Iterable[MeasurementRecord],
+                        fits: Sequence[FitResult] | None = None,
                         calibration: StereoCalibration | None = None,
-                        calibration_file: str | os.PathLike | None = None) -> int:
+                        calibration_file: str | os.PathLike[str] | None = None) -> int:
     """Append `records` to the workbook at `path`, keeping every earlier row; return the count.
 
     The workbook is created if missing. `fits` / `calibration`, when given, replace the
@@ -202,14 +205,14 @@ def append_measurements(path: str | os.PathLike, records: Iterable[MeasurementRe
     return n
 
 
-def _records_in(wb, where: str = "") -> list[MeasurementRecord]:
+def _records_in(wb: Workbook, where: str = "") -> list[MeasurementRecord]:
     ws = wb[MEASUREMENTS_SHEET]
     return [record_from_row(row, f"{where}row {i}")
             for i, row in enumerate(ws.iter_rows(min_row=2, values_only=True), start=2)
             if row and any(v is not None for v in row)]
 
 
-def _replace_sheet(wb, title: str, index: int, fill) -> None:
+def _replace_sheet(wb: Workbook, title: str, index: int, fill: Callable[[Sheet], None]) -> None:
     if title in wb.sheetnames:
         index = wb.sheetnames.index(title)
         wb.remove(wb[title])
