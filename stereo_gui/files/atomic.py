@@ -30,17 +30,22 @@ import secrets
 import stat
 import sys
 import traceback
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 import cv2
+import numpy as np
 
 from stereo_gui.core.errors import InputError, StereoGuiError
 
 log = logging.getLogger(__name__)
 
 # what `verify` may raise to say the file does not read back
-Verify = Callable[[Path], None]
+Verify = Callable[[Path], object]  # raises when the file is wrong; what it returns is not used
+# a file's path as the callers give it
+StrPath = str | os.PathLike[str]
+# one file of write_many_atomic: (target, its data, the check of what was written or None)
+AtomicItem = tuple[StrPath, bytes, Verify | None]
 READ_BACK_LIMIT = 4 << 20  # bytes: files up to this size are read back and compared whole
 
 
@@ -141,7 +146,7 @@ def _commit(tmp_path: Path, target: Path, folder: Path) -> None:
 
 def _prepare(target: Path, data: bytes, verify: Verify | None) -> Path:
     """Write `data` to a new temporary file beside `target` and check it; return its path."""
-    data = memoryview(data).cast("B")
+    view = memoryview(data).cast("B")
     folder = _folder_of(target)
     existed = target.exists()
     tmp_path, fd = _create_temp(target, folder, target.suffix or ".tmp")
@@ -149,8 +154,8 @@ def _prepare(target: Path, data: bytes, verify: Verify | None) -> Path:
         try:
             _keep_mode(target, tmp_path)
             done = 0
-            while done < len(data):
-                n = syscalls.write(fd, data[done:])
+            while done < len(view):
+                n = syscalls.write(fd, view[done:])
                 if not n or n < 0:  # a write that makes no progress: the device is full
                     raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
                 done += n
@@ -160,10 +165,10 @@ def _prepare(target: Path, data: bytes, verify: Verify | None) -> Path:
             closing, fd = fd, -1
             syscalls.close(closing)
         size = tmp_path.stat().st_size
-        if size != len(data):
-            raise InputError(f"cannot write {target}: {size} of {len(data)} bytes reached the "
+        if size != len(view):
+            raise InputError(f"cannot write {target}: {size} of {len(view)} bytes reached the "
                              f"disk; {_kept(target, existed)}")
-        if len(data) <= READ_BACK_LIMIT and tmp_path.read_bytes() != data:
+        if len(view) <= READ_BACK_LIMIT and tmp_path.read_bytes() != view:
             raise InputError(f"cannot write {target}: the file written differs from the data; "
                              f"{_kept(target, existed)}")
         _run_verify(verify, tmp_path, target, existed)
@@ -183,7 +188,7 @@ def write_bytes_atomic(target: str | os.PathLike[str], data: bytes,
     return write_many_atomic([(target, data, verify)])[0]
 
 
-def write_many_atomic(items, what: str | None = None) -> list[Path]:
+def write_many_atomic(items: Iterable[AtomicItem], what: str | None = None) -> list[Path]:
     """Write several files as one: `items` are (target, data bytes, verify or None), and may be
     a generator (each file's data is made when its turn comes, so a large set is never in
     memory at once). Every file is written and checked under its temporary name before any
@@ -278,7 +283,7 @@ def _discard(tmp_path: Path, fd: int) -> None:
         tmp_path.unlink(missing_ok=True)
 
 
-def write_text_atomic(target: str | os.PathLike[str], text: str, verify: Verify | None = None) -> Path:
+def write_text_atomic(target: StrPath, text: str, verify: Verify | None = None) -> Path:
     """Write `text` as UTF-8 atomically and checked; return the target."""
     return write_bytes_atomic(target, text.encode("utf-8"), verify)
 
@@ -287,13 +292,13 @@ def _verify_json(path: Path) -> None:
     json.loads(path.read_text(encoding="utf-8"))
 
 
-def json_item(target: str | os.PathLike[str], doc):
+def json_item(target: str | os.PathLike[str], doc: object) -> AtomicItem:
     """`doc` as indented JSON for `target`, parsed back before the rename: an item of
     `write_many_atomic`."""
     return (target, (json.dumps(doc, indent=2) + "\n").encode("utf-8"), _verify_json)
 
 
-def write_json_atomic(target: str | os.PathLike[str], doc) -> Path:
+def write_json_atomic(target: str | os.PathLike[str], doc: object) -> Path:
     """Write `doc` as indented JSON atomically; the file is parsed back before the rename."""
     return write_bytes_atomic(*json_item(target, doc))
 
@@ -349,7 +354,7 @@ def _release_abandoned(exc: BaseException) -> None:
     """
     previous = sys.unraisablehook
 
-    def quiet(unraisable) -> None:
+    def quiet(unraisable: sys.UnraisableHookArgs) -> None:
         log.debug("closing a file abandoned by a failed write failed too: %s",
                   unraisable.exc_value)
 
@@ -369,7 +374,7 @@ def write_atomic(target: str | os.PathLike[str], writer: Callable[[Path], None],
     return Path(target)
 
 
-def encode_image(target: str | os.PathLike[str], image) -> bytes:
+def encode_image(target: str | os.PathLike[str], image: np.ndarray) -> bytes:
     """`image` (a numpy array) encoded in the format the suffix of `target` names; InputError
     naming the target when OpenCV cannot."""
     target = Path(target)
@@ -377,12 +382,12 @@ def encode_image(target: str | os.PathLike[str], image) -> bytes:
         ok, buf = cv2.imencode(target.suffix or ".png", image)
     except cv2.error:
         ok, buf = False, None
-    if not ok:
+    if not ok or buf is None:
         raise InputError(f"cannot write {target}: OpenCV could not encode the image as "
                          f"{target.suffix or 'an image'}")
     return buf.tobytes()
 
 
-def write_image_atomic(target: str | os.PathLike[str], image) -> Path:
+def write_image_atomic(target: str | os.PathLike[str], image: np.ndarray) -> Path:
     """Encode `image` (a numpy array) in the format its suffix names and write it atomically."""
     return write_bytes_atomic(target, encode_image(target, image))

@@ -16,7 +16,7 @@ import numpy as np
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import DISP_SCALE
 from stereo_gui.core.stereo_calibration import StereoCalibration
-from stereo_gui.files.atomic import encode_image, write_bytes_atomic
+from stereo_gui.files.atomic import AtomicItem, StrPath, encode_image, write_bytes_atomic
 
 UINT16_MAX = np.iinfo(np.uint16).max
 
@@ -77,21 +77,21 @@ def depth_to_png16(depth: np.ndarray) -> np.ndarray:
 
 # Each export is made as an item (path, bytes, verify or None) that files.atomic writes: alone
 # (the write_* functions) or with others as one set (write_many_atomic), all or none.
-def _png16_item(path, image: np.ndarray):
+def _png16_item(path: StrPath, image: np.ndarray) -> AtomicItem:
     if Path(path).suffix.lower() != ".png":
         raise InputError(f"{path}: a 16-bit image must be written as .png")
     return (path, encode_image(path, image), None)
 
 
-def disparity_png16_item(path, disparity_px: np.ndarray):
+def disparity_png16_item(path: StrPath, disparity_px: np.ndarray) -> AtomicItem:
     return _png16_item(path, disparity_to_png16(disparity_px))
 
 
-def write_disparity_png16(path, disparity_px: np.ndarray) -> Path:
+def write_disparity_png16(path: StrPath, disparity_px: np.ndarray) -> Path:
     return write_bytes_atomic(*disparity_png16_item(path, disparity_px))
 
 
-def disparity_npy_item(path, disparity_px: np.ndarray):
+def disparity_npy_item(path: StrPath, disparity_px: np.ndarray) -> AtomicItem:
     d = _check(disparity_px)
     buf = io.BytesIO()
     np.save(buf, d.astype(np.float32))
@@ -105,19 +105,21 @@ def disparity_npy_item(path, disparity_px: np.ndarray):
     return (path, buf.getvalue(), verify)
 
 
-def write_disparity_npy(path, disparity_px: np.ndarray) -> Path:
+def write_disparity_npy(path: StrPath, disparity_px: np.ndarray) -> Path:
     return write_bytes_atomic(*disparity_npy_item(path, disparity_px))
 
 
-def depth_png16_item(path, disparity_px: np.ndarray, calibration: StereoCalibration):
+def depth_png16_item(path: StrPath, disparity_px: np.ndarray,
+                     calibration: StereoCalibration) -> AtomicItem:
     return _png16_item(path, depth_to_png16(depth_mm(disparity_px, calibration)))
 
 
-def write_depth_png16(path, disparity_px: np.ndarray, calibration: StereoCalibration) -> Path:
+def write_depth_png16(path: StrPath, disparity_px: np.ndarray,
+                      calibration: StereoCalibration) -> Path:
     return write_bytes_atomic(*depth_png16_item(path, disparity_px, calibration))
 
 
-def write_ply(path, disparity_px: np.ndarray, color_bgr: np.ndarray,
+def write_ply(path: StrPath, disparity_px: np.ndarray, color_bgr: np.ndarray,
               calibration: StereoCalibration) -> int:
     """Binary little-endian PLY of the valid points: x y z (float32 mm), red green blue (uchar).
 
@@ -129,8 +131,8 @@ def write_ply(path, disparity_px: np.ndarray, color_bgr: np.ndarray,
     return n
 
 
-def ply_item(path, disparity_px: np.ndarray, color_bgr: np.ndarray,
-             calibration: StereoCalibration):
+def ply_item(path: StrPath, disparity_px: np.ndarray, color_bgr: np.ndarray,
+             calibration: StereoCalibration) -> tuple[AtomicItem, int]:
     """(the PLY's item, the number of points in it); see write_ply."""
     xyz = points_mm(disparity_px, calibration)
     color = np.asarray(color_bgr)

@@ -20,10 +20,13 @@ import struct
 import sys
 import tempfile
 import threading
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Protocol, SupportsIndex, overload
 
 import cv2
 import numpy as np
+from numpy.typing import NDArray
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.files.atomic import os_error_text
@@ -38,6 +41,18 @@ LIMITS_TEXT = (f"at most {MAX_IMAGE_SIDE_PX} px a side and {MAX_IMAGE_PIXELS // 
 
 
 # ---- the size a header gives ---------------------------------------------------------------
+class _Header(Protocol):
+    """What the parsers below read: a length, single bytes as ints, slices as `bytes`."""
+
+    def __len__(self) -> int: ...
+
+    @overload
+    def __getitem__(self, key: SupportsIndex) -> int: ...
+
+    @overload
+    def __getitem__(self, key: slice) -> bytes: ...
+
+
 class _Bytes:
     """A file's bytes as the parsers below read them: slices are small `bytes`, taken from a
     buffer that may be a gigabyte (a TIFF keeps its header wherever it likes, often at the end)."""
@@ -48,19 +63,25 @@ class _Bytes:
     def __len__(self) -> int:
         return len(self._view)
 
-    def __getitem__(self, key):
+    @overload
+    def __getitem__(self, key: SupportsIndex) -> int: ...
+
+    @overload
+    def __getitem__(self, key: slice) -> bytes: ...
+
+    def __getitem__(self, key: SupportsIndex | slice) -> int | bytes:
         if isinstance(key, slice):
             return bytes(self._view[key])
         return self._view[key]
 
 
-def _png(data: bytes):
+def _png(data: _Header) -> tuple[int, int] | None:
     if data[:8] == b"\x89PNG\r\n\x1a\n" and data[12:16] == b"IHDR" and len(data) >= 24:
         return struct.unpack(">II", data[16:24])
     return None
 
 
-def _jpeg(data: bytes):
+def _jpeg(data: _Header) -> tuple[int, int] | None:
     if data[:2] != b"\xff\xd8":
         return None
     i = 2
@@ -80,7 +101,7 @@ def _jpeg(data: bytes):
     return None
 
 
-def _bmp(data: bytes):
+def _bmp(data: _Header) -> tuple[int, int] | None:
     if data[:2] == b"BM" and len(data) >= 26:
         header = struct.unpack("<I", data[14:18])[0]
         if header == 12:
@@ -91,7 +112,7 @@ def _bmp(data: bytes):
     return None
 
 
-def _tiff(data: bytes):
+def _tiff(data: _Header) -> tuple[int, int] | None:
     order = {b"II": "<", b"MM": ">"}.get(data[:2])
     if order is None or len(data) < 8 or struct.unpack(order + "H", data[2:4])[0] != 42:
         return None
@@ -111,7 +132,7 @@ def _tiff(data: bytes):
     return (size[256], size[257]) if len(size) == 2 else None
 
 
-def _webp(data: bytes):
+def _webp(data: _Header) -> tuple[int, int] | None:
     if data[:4] != b"RIFF" or data[8:12] != b"WEBP" or len(data) < 30:
         return None
     kind = data[12:16]
@@ -131,19 +152,21 @@ def _webp(data: bytes):
 _PNM = re.compile(rb"^P[1-7]\s+(?:#[^\n]*\s+)*(\d{1,12})\s+(?:#[^\n]*\s+)*(\d{1,12})\s")
 
 
-def _pnm(data: bytes):
+def _pnm(data: _Header) -> tuple[int, int] | None:
     m = _PNM.match(data[:512])
     return (int(m.group(1)), int(m.group(2))) if m else None
 
 
-def header_size(data) -> tuple[int, int] | None:
+def header_size(data: bytes | bytearray | memoryview | NDArray[np.uint8]
+                ) -> tuple[int, int] | None:
     """(width, height) px the header of an image file claims (`data`: its bytes, or a buffer
     of them, read without copying), or None when it is of a format not read here (the decoded
     image is checked then)."""
-    data = _Bytes(memoryview(data).cast("B"))
+    view = data.data if isinstance(data, np.ndarray) else memoryview(data)
+    header = _Bytes(view.cast("B"))
     for read in (_png, _jpeg, _bmp, _tiff, _webp, _pnm):
         try:
-            size = read(data)
+            size = read(header)
         except (struct.error, ValueError, IndexError):
             size = None
         if size is not None:
@@ -165,7 +188,7 @@ _LIBRARY_LINE = re.compile(r"^(libpng|libjpeg|libtiff|libwebp|OpenJPEG|TIFF\w*|J
 
 
 @contextlib.contextmanager
-def library_noise_caught(lines: list[str]):
+def library_noise_caught(lines: list[str]) -> Iterator[None]:
     """Within the block, what C libraries write to the process's stderr (file descriptor 2) is
     caught into `lines` instead of reaching the terminal (Python's own sys.stderr is untouched
     when it is not that descriptor)."""
@@ -194,7 +217,7 @@ def library_noise_caught(lines: list[str]):
         if _LIBRARY_LINE.search(line):
             lines.append(line.strip())
             log.debug("image decoder: %s", line.strip())
-        else:
+        elif sys.__stderr__ is not None:
             with contextlib.suppress(OSError, ValueError, AttributeError):
                 sys.__stderr__.write(line + "\n")
                 sys.__stderr__.flush()

@@ -9,10 +9,11 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import os
 from pathlib import Path
 
 import foxglove
-from foxglove.mcap import MCAPCompression, MCAPWriteOptions
+from foxglove.mcap import MCAPCompression, MCAPWriteOptions, MCAPWriter
 from mcap.reader import make_reader
 
 from stereo_gui.core.errors import InputError
@@ -37,7 +38,7 @@ def verify_mcap(path: Path) -> None:
         raise InputError(f"the recording {path.name} has no summary: it was not closed whole")
 
 
-def read_topics(path) -> dict[str, int]:
+def read_topics(path: str | os.PathLike[str]) -> dict[str, int]:
     """How many messages each topic of an MCAP file holds (from its statistics)."""
     with open(path, "rb") as f:
         summary = make_reader(f).get_summary()
@@ -51,7 +52,7 @@ class McapRecording:
     """An MCAP file being written by the SDK for `context`'s channels; `close` finishes it and
     renames it into place (InputError when it cannot be written or read back)."""
 
-    def __init__(self, path: Path, context) -> None:
+    def __init__(self, path: Path, context: foxglove.Context) -> None:
         self.path = Path(path)
         if self.path.suffix.lower() != ".mcap":
             raise InputError(f"a recording's name must end in .mcap, not {self.path.name}")
@@ -62,8 +63,8 @@ class McapRecording:
         try:
             options = MCAPWriteOptions(compression=MCAPCompression.Zstd,
                                        compression_level=ZSTD_LEVEL)
-            self._writer = foxglove.open_mcap(str(tmp), allow_overwrite=True, context=context,
-                                              writer_options=options)
+            self._writer: MCAPWriter | None = foxglove.open_mcap(
+                str(tmp), allow_overwrite=True, context=context, writer_options=options)
         except Exception as exc:
             self._stack.__exit__(type(exc), exc, exc.__traceback__)
             raise InputError(f"cannot record to {self.path}: {exc}") from exc

@@ -14,6 +14,7 @@ import math
 import os
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
+from typing import Any
 
 import platformdirs
 
@@ -56,8 +57,8 @@ def default_log_path() -> Path:
     return data_dir() / LOG_FILE
 
 
-def _record_to_json(r: MeasurementRecord) -> dict:
-    def value(v):
+def _record_to_json(r: MeasurementRecord) -> dict[str, object]:
+    def value(v: object) -> object:
         return None if isinstance(v, float) and not math.isfinite(v) else v
 
     return {k: value(v) for k, v in asdict(r).items()}
@@ -69,10 +70,11 @@ _VALID_NEEDS = ("Z_mm", "range_mm")
 NO_DISTANCE_KEPT = "no distance was kept for it"
 
 
-def _record_from_json(doc, where: str, warnings: list[str] | None = None) -> MeasurementRecord:
+def _record_from_json(doc: object, where: str,
+                      warnings: list[str] | None = None) -> MeasurementRecord:
     if not isinstance(doc, dict):
         raise InputError(f"{where}: a reading is not a JSON object")
-    kw = {}
+    kw: dict[str, Any] = {}  # the record's fields as JSON gave them, checked one by one
     for f in fields(MeasurementRecord):
         if f.name not in doc:
             continue

@@ -41,7 +41,8 @@ class MeasurementRecord:
     note: str = ""  # what was measured, in the technician's words
 
     @classmethod
-    def from_measurement(cls, m: Measurement, *, time: str | None = None, true_mm: float | None = None,
+    def from_measurement(cls, m: Measurement, *, time: str | None = None,
+                         true_mm: float | None = None,
                          calibration_file: str | os.PathLike[str] = "",
                          calibration_rms_px: float = float("nan")) -> MeasurementRecord:
         """The log entry of a `stereo_gui.core.measure.Measurement` (time defaults to now)."""

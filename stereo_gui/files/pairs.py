@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import logging
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -63,7 +64,7 @@ class PairDiscovery:
         return f"{len(self.unpaired)} unpaired image file(s) ignored: {_list_unpaired(self.unpaired, limit)}"
 
 
-def _list_unpaired(unpaired, limit: int = 8) -> str:
+def _list_unpaired(unpaired: Sequence[UnpairedFile], limit: int = 8) -> str:
     shown = [f"{u.path.name} ({u.reason})" for u in unpaired[:limit]]
     more = len(unpaired) - len(shown)
     return ", ".join(shown) + (f" and {more} more" if more > 0 else "")
@@ -81,9 +82,13 @@ def _subfolder(folder: Path, name: str) -> Path | None:
     return None
 
 
-def _pair_up(left: dict, right: dict, unpaired: list[UnpairedFile]) -> list[ImagePair]:
+# one side's images: (prefix, number) -> (number, number as written, prefix, path)
+_SideMap = dict[tuple[str, int], tuple[int, str, str, Path]]
+
+
+def _pair_up(left: _SideMap, right: _SideMap, unpaired: list[UnpairedFile]) -> list[ImagePair]:
     """Join {key: (number, numtext, prefix, path)} of both sides on their key."""
-    pairs = []
+    pairs: list[ImagePair] = []
     for key in sorted(set(left) | set(right), key=lambda k: (k[1], k[0])):
         if key in left and key in right:
             n, text, prefix, lp = left[key]
@@ -97,7 +102,8 @@ def _pair_up(left: dict, right: dict, unpaired: list[UnpairedFile]) -> list[Imag
     return pairs
 
 
-def _add(side_map: dict, key, value, path: Path, unpaired: list[UnpairedFile]) -> None:
+def _add(side_map: _SideMap, key: tuple[str, int], value: tuple[int, str, str, Path],
+         path: Path, unpaired: list[UnpairedFile]) -> None:
     if key in side_map:
         unpaired.append(UnpairedFile(path, f"same number as {side_map[key][3].name}"))
     else:
@@ -112,8 +118,8 @@ def discover_pairs(folder: str | Path) -> PairDiscovery:
     if not folder.is_dir():
         raise InputError(f"{folder} is not a folder")
     unpaired: list[UnpairedFile] = []
-    left: dict = {}
-    right: dict = {}
+    left: _SideMap = {}
+    right: _SideMap = {}
     lsub, rsub = _subfolder(folder, "left"), _subfolder(folder, "right")
     if lsub is not None and rsub is not None:
         layout = "subfolders"
@@ -196,7 +202,8 @@ def check_same_size(named_sizes: list[tuple[str, tuple[int, int]]]) -> tuple[int
         raise InputError("no images to check")
     counts: dict[tuple[int, int], int] = {}
     for _, s in named_sizes:
-        counts[tuple(s)] = counts.get(tuple(s), 0) + 1
+        key = (s[0], s[1])
+        counts[key] = counts.get(key, 0) + 1
     common = max(counts, key=lambda s: counts[s])
     for name, s in named_sizes:
         if tuple(s) != common:

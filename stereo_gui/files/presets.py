@@ -12,6 +12,7 @@ import errno
 import logging
 import os
 import re
+from collections.abc import Iterable
 from pathlib import Path
 
 import platformdirs
@@ -88,7 +89,7 @@ def load_preset(name: str) -> Preset:
                      f"{', '.join(list_presets())}")
 
 
-def load_presets(names, reserved: tuple[str, ...] = ()) -> dict[str, Preset]:
+def load_presets(names: Iterable[str], reserved: tuple[str, ...] = ()) -> dict[str, Preset]:
     """`load_preset` of each name or path, labelled by the preset's own name (a file's path is
     no label for a table), or by what was given where two presets share a name or the name is
     one of the table's others (`reserved`, also as "name@...")."""

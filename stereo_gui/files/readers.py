@@ -8,7 +8,9 @@ import logging
 import os
 import shutil
 import stat
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.files.atomic import os_error_text
@@ -43,7 +45,7 @@ def copy_aside(path: str | os.PathLike[str]) -> Path | None:
     return _put_aside(Path(path), shutil.copy2)
 
 
-def _put_aside(path: Path, how) -> Path | None:
+def _put_aside(path: Path, how: Callable[[Path, Path], object]) -> Path | None:
     aside = _aside_name(path)
     try:
         how(path, aside)
@@ -74,7 +76,7 @@ def read_user_text(path: str | os.PathLike[str], what: str, max_bytes: int = MAX
     return data.decode("utf-8")
 
 
-def read_json_object(path: str | os.PathLike[str], what: str) -> dict:
+def read_json_object(path: str | os.PathLike[str], what: str) -> dict[str, Any]:
     """The JSON object in `path`; InputError naming `what` and the file if it cannot be read,
     is not JSON or holds something other than an object."""
     path = Path(path)
@@ -91,7 +93,8 @@ def read_json_object(path: str | os.PathLike[str], what: str) -> dict:
     return doc
 
 
-def read_csv_rows(path: str | os.PathLike[str], columns: tuple[str, ...], what: str) -> list[list[str]]:
+def read_csv_rows(path: str | os.PathLike[str], columns: tuple[str, ...],
+                  what: str) -> list[list[str]]:
     """The rows after the header of the UTF-8 CSV file `path`; InputError naming `what` and the
     file if it cannot be read or its first row is not `columns`."""
     path = Path(path)

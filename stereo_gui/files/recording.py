@@ -35,6 +35,8 @@ import shutil
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import TracebackType
+from typing import Any, Protocol
 
 import cv2
 import numpy as np
@@ -53,7 +55,6 @@ FRAMES = "frames.csv"
 VIDEO = "stereo.avi"
 FRAME_COLUMNS = ("index", "t_left", "t_right", "left", "right")
 VIDEO_CODECS = ("MJPG", "FFV1")
-_STOP = object()
 
 
 def _now() -> str:
@@ -99,6 +100,25 @@ class Recording:
         """How far apart in time the two cameras took their pictures, over the whole
         recording (from each frame's t_left and t_right)."""
         return skew_stats([f.t_left for f in self.frames], [f.t_right for f in self.frames])
+
+
+class RecordableFrame(Protocol):
+    """What a recording takes of a frame: a `stereo_gui.sources.base.StereoFrame` is one."""
+
+    @property
+    def left(self) -> np.ndarray: ...
+
+    @property
+    def right(self) -> np.ndarray: ...
+
+    @property
+    def t_left(self) -> float: ...
+
+    @property
+    def t_right(self) -> float: ...
+
+    @property
+    def index(self) -> int: ...
 
 
 @dataclass(frozen=True, eq=False)
@@ -155,7 +175,7 @@ class RecordingWriter:
         self._count = 0
         self._t_span: tuple[float, float] | None = None  # first and last frame time, s
         self._times: list[tuple[float, float]] = []  # (t_left, t_right) of each frame, s
-        self._video = None
+        self._video: cv2.VideoWriter | None = None
         self._video_tmp = self.folder / f".{VIDEO}.partial.avi"
         self._error: BaseException | None = None
         self._closed = False
@@ -177,11 +197,12 @@ class RecordingWriter:
             _remove_empty_recording(self.folder, self._made_folder)
             why = os_error_text(exc) if isinstance(exc, OSError) else str(exc)
             raise InputError(f"cannot record into {self.folder}: {why}") from exc
-        self._queue: queue.Queue | None = None
+        self._queue: queue.Queue[_Queued | None] | None = None  # None: the writer stops
         self._thread: threading.Thread | None = None
         if background:
             self._queue = queue.Queue(maxsize=max(1, queue_size))
-            self._thread = threading.Thread(target=self._run, name="recording-writer", daemon=True)
+            self._thread = threading.Thread(target=self._run, args=(self._queue,),
+                                            name="recording-writer", daemon=True)
             self._thread.start()
 
     # ---- public -----------------------------------------------------------------------------
@@ -190,7 +211,7 @@ class RecordingWriter:
         with self._lock:
             return self._count
 
-    def write(self, frame) -> None:
+    def write(self, frame: RecordableFrame) -> None:
         """Record one frame (raw images and their timestamps)."""
         if self._closed:
             raise InputError(f"recording {self.folder} is closed")
@@ -212,8 +233,8 @@ class RecordingWriter:
         """Finish the recording (wait for queued frames), write its header; return it read back."""
         if not self._closed:
             self._closed = True
-            if self._thread is not None:
-                self._queue.put(_STOP)
+            if self._thread is not None and self._queue is not None:
+                self._queue.put(None)
                 self._thread.join()
             try:
                 self._csv_file.close()
@@ -238,7 +259,8 @@ class RecordingWriter:
     def __enter__(self) -> RecordingWriter:
         return self
 
-    def __exit__(self, exc_type, exc, tb) -> None:
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
         if exc_type is None:
             self.close()
         else:  # keep what was recorded, but do not hide the original error
@@ -260,20 +282,20 @@ class RecordingWriter:
                 else "; nothing was recorded")
         raise InputError(f"recording to {self.folder} failed: {msg}{kept}") from err
 
-    def _run(self) -> None:
+    def _run(self, frames: queue.Queue[_Queued | None]) -> None:
         while True:
-            item = self._queue.get()
+            item = frames.get()
             try:
-                if item is _STOP:
+                if item is None:
                     return
                 if self._error is None:  # after an error: drain, the caller hears of it
                     self._write_now(item)
             except BaseException as exc:  # noqa: BLE001 - handed to the caller's thread
                 self._error = exc
             finally:
-                self._queue.task_done()
+                frames.task_done()
 
-    def _write_now(self, frame) -> None:
+    def _write_now(self, frame: RecordableFrame) -> None:
         left, right = frame.left, frame.right
         size = (int(left.shape[1]), int(left.shape[0]))
         if right.shape[:2] != left.shape[:2]:
@@ -294,7 +316,7 @@ class RecordingWriter:
                     raise InputError(f"frame {frame.index} could not be encoded as PNG")
                 write_bytes_atomic(self.folder / rel, png.tobytes())
         if self.codec is not None:
-            self._write_video(left, right)
+            self._write_video(self.codec, left, right)
         self._csv.writerow([self._count, repr(float(frame.t_left)), repr(float(frame.t_right)),
                             lrel, rrel])
         self._csv_file.flush()
@@ -315,18 +337,18 @@ class RecordingWriter:
         # header cannot hold that rate (the reader refuses one above MAX_FPS); the nominal one goes
         return rate if rate is not None and rate <= MAX_FPS else None
 
-    def _write_video(self, left: np.ndarray, right: np.ndarray) -> None:
-        def bgr(img):
+    def _write_video(self, codec: str, left: np.ndarray, right: np.ndarray) -> None:
+        def bgr(img: np.ndarray) -> np.ndarray:
             return cv2.cvtColor(img, cv2.COLOR_GRAY2BGR) if img.ndim == 2 else img
 
         sbs = np.hstack([bgr(left), bgr(right)])
         if self._video is None:
             h, w = sbs.shape[:2]
-            self._video = cv2.VideoWriter(str(self._video_tmp), cv2.VideoWriter_fourcc(*self.codec),
+            self._video = cv2.VideoWriter(str(self._video_tmp), cv2.VideoWriter.fourcc(*codec),
                                           self.fps, (w, h))
             if not self._video.isOpened():
                 self._video = None
-                raise InputError(f"cannot write a {self.codec} video in {self.folder}")
+                raise InputError(f"cannot write a {codec} video in {self.folder}")
         self._video.write(np.ascontiguousarray(sbs))
 
     def _verify_video(self) -> None:
@@ -389,8 +411,8 @@ def _ends_with_newline(path: Path) -> bool:
         return True
 
 
-def _header_fields(header: dict, hpath: Path) -> tuple[tuple[int, int], float, str, str, bool,
-                                                         str | None, bool]:
+def _header_fields(header: dict[str, Any], hpath: Path
+                   ) -> tuple[tuple[int, int], float, str, str, bool, str | None, bool]:
     """size, fps, source, created, complete, video name, images: checked, or InputError naming
     the field."""
     def bad(field: str, text: str) -> InputError:
@@ -444,7 +466,7 @@ def _image_path(folder: Path, rel: str, where: str, field: str) -> Path | None:
     return path
 
 
-def _read_header(folder: Path) -> tuple[dict, Path]:
+def _read_header(folder: Path) -> tuple[dict[str, Any], Path]:
     """The recording's header as JSON and its path; InputError when it is not ours or newer."""
     hpath = folder / HEADER
     if not hpath.is_file():

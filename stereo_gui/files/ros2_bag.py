@@ -33,6 +33,7 @@ import shutil
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Final
 
 import numpy as np
 from rosbags.interfaces import (
@@ -47,13 +48,17 @@ from rosbags.rosbag2 import Reader, Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
 from rosbags.rosbag2.errors import ReaderError, WriterError
 from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys.store import Typestore
+
+if TYPE_CHECKING:  # rosbags declares its message protocol for type checkers only
+    from rosbags.typesys.store import MsgType
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.files.atomic import os_error_text, syscalls
 
 log = logging.getLogger(__name__)
 
-BAG_VERSION = 8  # rosbag2's metadata version of Jazzy (rosbags also writes 9, Kilted's)
+BAG_VERSION: Final = 8  # rosbag2's metadata version of Jazzy (rosbags also writes 9, Kilted's)
 TOPICS = {
     "depth": "/stereo/depth",
     "left": "/stereo/left/image_rect",
@@ -264,11 +269,11 @@ def _remove(path: Path) -> None:
 
 
 # ---- messages ---------------------------------------------------------------------------------
-def _typestore():
+def _typestore() -> Typestore:
     return get_typestore(Stores.ROS2_JAZZY)
 
 
-def _qos():
+def _qos() -> list[Qos]:
     """What a camera driver offers: reliable, volatile (history unknown, as rosbag2 records
     it); the durations "infinite" as rosbags' own converter writes them."""
     forever = QosTime(2147483647, 4294967295)
@@ -279,7 +284,7 @@ def _qos():
 class _Messages:
     """Builds and serialises (CDR) the messages of one frame."""
 
-    def __init__(self, typestore) -> None:
+    def __init__(self, typestore: Typestore) -> None:
         self.ts = typestore
         t = typestore.types
         self._Time = t["builtin_interfaces/msg/Time"]
@@ -289,21 +294,21 @@ class _Messages:
         self._Roi = t["sensor_msgs/msg/RegionOfInterest"]
         self._PointCloud2 = t["sensor_msgs/msg/PointCloud2"]
         PointField = t["sensor_msgs/msg/PointField"]
-        f32 = PointField.FLOAT32
+        f32 = getattr(PointField, "FLOAT32")  # a constant of a message class made at run time
         self._fields = [PointField(name=n, offset=o, datatype=f32, count=1)
                         for n, o in (("x", 0), ("y", 4), ("z", 8), ("rgb", 12))]
 
-    def _header(self, stamp_ns: int, frame_id: str):
+    def _header(self, stamp_ns: int, frame_id: str) -> MsgType:
         sec, nsec = divmod(int(stamp_ns), 1_000_000_000)
         return self._Header(stamp=self._Time(sec=sec, nanosec=nsec), frame_id=frame_id)
 
-    def _image(self, header, img: np.ndarray, encoding: str):
+    def _image(self, header: MsgType, img: np.ndarray, encoding: str) -> MsgType:
         h, w = img.shape[:2]
         data = np.ascontiguousarray(img)
         return self._Image(header=header, height=h, width=w, encoding=encoding, is_bigendian=0,
                            step=data.strides[0], data=data.reshape(-1).view(np.uint8))
 
-    def _info(self, stamp_ns: int, cam: RectifiedCamera):
+    def _info(self, stamp_ns: int, cam: RectifiedCamera) -> MsgType:
         f64 = np.float64
         return self._CameraInfo(
             header=self._header(stamp_ns, cam.frame_id), height=int(cam.height),
@@ -348,7 +353,8 @@ class _Messages:
 
 
 # ---- writing ----------------------------------------------------------------------------------
-def write_ros2_bag(target: str | os.PathLike[str], frames: Iterable[BagFrame], replace: bool = False,
+def write_ros2_bag(target: str | os.PathLike[str], frames: Iterable[BagFrame],
+                   replace: bool = False,
                    progress: Callable[[int], None] | None = None) -> BagSummary:
     """Write `frames` (any iterable: each frame is written as it comes) as a ROS 2 bag folder
     at `target`, atomically (see the module doc); `replace` allows an earlier bag there to be

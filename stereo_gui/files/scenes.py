@@ -153,7 +153,8 @@ def read_seen_mask(spec: SceneSpec) -> np.ndarray | None:
     if spec.mask is None:
         return None
     raw = _imread(spec.mask, cv2.IMREAD_GRAYSCALE, f"{spec.name}: mask")
-    return raw == 255
+    seen: np.ndarray = raw == 255
+    return seen
 
 
 def load_scene(spec: SceneSpec) -> Scene:

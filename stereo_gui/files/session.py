@@ -21,6 +21,7 @@ import os
 import threading
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -84,7 +85,7 @@ MAX_SIDE_PX = 100_000
 MAX_TEXT = 4096
 
 
-def _whole(v, field: str, lo: int = -(2**31), hi: int = 2**31) -> int:
+def _whole(v: object, field: str, lo: int = -(2**31), hi: int = 2**31) -> int:
     if isinstance(v, bool) or not isinstance(v, int):
         raise ValueError(f"{field} should be a whole number, not {v!r:.40}")
     if not lo <= v <= hi:
@@ -92,7 +93,7 @@ def _whole(v, field: str, lo: int = -(2**31), hi: int = 2**31) -> int:
     return v
 
 
-def _number(v, field: str) -> float:
+def _number(v: object, field: str) -> float:
     if isinstance(v, bool) or not isinstance(v, int | float):
         raise ValueError(f"{field} should be a number, not {v!r:.40}")
     try:
@@ -101,14 +102,14 @@ def _number(v, field: str) -> float:
         raise ValueError(f"{field} should be a number of at most 1e308, not {v!r:.40}") from None
 
 
-def _text(v, field: str, empty: bool = True) -> str:
+def _text(v: object, field: str, empty: bool = True) -> str:
     if not isinstance(v, str) or len(v) > MAX_TEXT or "\0" in v or (not empty and not v):
         raise ValueError(f"{field} should be {'a' if empty else 'a non-empty'} text of at most "
                          f"{MAX_TEXT} characters")
     return v
 
 
-def _pair_entry(folder: Path, p, i: int, excluded: set[str], names: set[str],
+def _pair_entry(folder: Path, p: object, i: int, excluded: set[str], names: set[str],
                 numbers: set[int], files: set[Path]) -> PairEntry:
     """The manifest's pairs entry `p` (number `i`), checked against those before it (their
     names, numbers and files, which this one joins); ValueError naming what is wrong."""
@@ -139,7 +140,7 @@ def _is_inside(folder: Path, path: Path) -> bool:
     return True
 
 
-def _inside(folder: Path, rel, field: str) -> Path:
+def _inside(folder: Path, rel: object, field: str) -> Path:
     """The manifest's relative path `rel` as a path inside `folder`; ValueError for a path that
     leads out of it (an absolute path, "..", a link pointing elsewhere)."""
     rel = _text(rel, field, empty=False)
@@ -150,7 +151,7 @@ def _inside(folder: Path, rel, field: str) -> Path:
     return path
 
 
-def _manifest_board(b) -> BoardSpec | None:
+def _manifest_board(b: object) -> BoardSpec | None:
     """The manifest's `board`, or None; ValueError naming what is wrong."""
     if b is None:
         return None
@@ -169,7 +170,7 @@ def _manifest_board(b) -> BoardSpec | None:
         raise ValueError(f"board: {exc}") from None
 
 
-def _manifest_resolution(res) -> tuple[int, int] | None:
+def _manifest_resolution(res: object) -> tuple[int, int] | None:
     """The manifest's `resolution` [width, height], or None."""
     if res is None:
         return None
@@ -179,14 +180,14 @@ def _manifest_resolution(res) -> tuple[int, int] | None:
             _whole(res[1], "resolution height", 1, MAX_SIDE_PX))
 
 
-def _manifest_cameras(cams) -> CameraIds:
+def _manifest_cameras(cams: object) -> CameraIds:
     if not isinstance(cams, dict):
         raise ValueError("cameras should be an object")
     return CameraIds(_text(cams.get("left", ""), "cameras left"),
                      _text(cams.get("right", ""), "cameras right"))
 
 
-def _listed_pairs(folder: Path, raw_pairs: list, excluded: set[str],
+def _listed_pairs(folder: Path, raw_pairs: list[object], excluded: set[str],
                   warnings: list[str]) -> tuple[list[PairEntry], int]:
     """The pairs the manifest lists whose images are there, and how many entries were dropped
     as unusable; what is left out is said in `warnings`."""
@@ -275,7 +276,8 @@ class CaptureSession:
         if isinstance(cameras, tuple):
             cameras = CameraIds(*cameras)
         existing = _discover(folder)
-        s = cls(folder, board, tuple(resolution) if resolution else None, cameras or CameraIds(),
+        size = (resolution[0], resolution[1]) if resolution else None
+        s = cls(folder, board, size, cameras or CameraIds(),
                 _now(), existing, has_manifest=False)
         s._write_manifest()
         return s
@@ -308,7 +310,7 @@ class CaptureSession:
         return s
 
     @classmethod
-    def _from_manifest(cls, folder: Path, data) -> CaptureSession:
+    def _from_manifest(cls, folder: Path, data: object) -> CaptureSession:
         """The session a parsed manifest describes; ValueError naming the field that is wrong
         (the caller then falls back to the pairs found in the folder)."""
         if not isinstance(data, dict):
@@ -495,7 +497,7 @@ class CaptureSession:
                 raise
 
     # ---- manifest ---------------------------------------------------------------------------
-    def manifest(self) -> dict:
+    def manifest(self) -> dict[str, Any]:
         """The manifest as written to `session.json`."""
         def rel(p: Path) -> str:
             try:

@@ -15,6 +15,7 @@ import os
 import re
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
+from typing import Any, TypeVar
 
 import platformdirs
 
@@ -47,18 +48,20 @@ MAX_TEXT = 4096  # characters of a path or name; longer is a damaged file
 MAX_GEOMETRY = 65536  # characters of a base64 window geometry or state
 _BASE64 = re.compile(r"[A-Za-z0-9+/=]*")
 _TEXT = f"text of at most {MAX_TEXT} characters"
+T = TypeVar("T")
 
 
-def _text_ok(v) -> bool:
+def _text_ok(v: str | None) -> bool:
     return v is None or (len(v) <= MAX_TEXT and "\0" not in v)
 
 
-def _base64_ok(v) -> bool:
+def _base64_ok(v: str) -> bool:
     # QByteArray.fromBase64 needs ASCII: anything else would stop the window from opening
     return len(v) <= MAX_GEOMETRY and bool(_BASE64.fullmatch(v))
 
 
-def _text(default, help: str = ""):
+def _text(default: T, help: str = "") -> T:
+    # (a field as dataclasses.field is typed: as its default, so that the class's fields check)
     return param(default, check=_text_ok, check_text=_TEXT, help=help)
 
 
@@ -152,7 +155,8 @@ class Settings:
         recent = (p,) + tuple(r for r in self.recent_files if r != p)
         return replace(self, recent_files=recent[:limit])
 
-    def with_updates(self, **changes) -> Settings:
+    def with_updates(self, **changes: Any) -> Settings:
+        # (any fields by name, each of its own type: replace refuses an unknown name)
         return replace(self, **changes)
 
 
@@ -168,11 +172,11 @@ def settings_path() -> Path:
     return config_dir() / SETTINGS_FILE
 
 
-def settings_from_dict(data: dict) -> tuple[Settings, list[str]]:
+def settings_from_dict(data: dict[str, object]) -> tuple[Settings, list[str]]:
     """Settings built from a parsed settings file, with a warning for every value not used."""
     warnings: list[str] = []
     specs = params_of(Settings)
-    values: dict[str, object] = {}
+    values: dict[str, Any] = {}  # each converted to its field's type and checked below
     for key, raw in data.items():
         if key == "format_version":
             continue
@@ -194,8 +198,8 @@ def settings_from_dict(data: dict) -> tuple[Settings, list[str]]:
     return Settings(**values), warnings
 
 
-def settings_to_dict(settings: Settings) -> dict:
-    data = {"format_version": FORMAT_VERSION}
+def settings_to_dict(settings: Settings) -> dict[str, object]:
+    data: dict[str, object] = {"format_version": FORMAT_VERSION}
     for key, value in asdict(settings).items():
         data[key] = list(value) if isinstance(value, tuple) else value
     return data
@@ -263,11 +267,11 @@ def load_settings(path: str | os.PathLike[str] | None = None) -> tuple[Settings,
     return Settings(), warnings
 
 
-def _newer(version) -> bool:
+def _newer(version: object) -> bool:
     return isinstance(version, int) and not isinstance(version, bool) and version > FORMAT_VERSION
 
 
-def _version_on_disk(path: Path):
+def _version_on_disk(path: Path) -> object:
     """The format_version of the settings file at `path`, or None when there is none to read."""
     try:
         data = json.loads(read_user_text(path, "settings file", MAX_SETTINGS_BYTES))

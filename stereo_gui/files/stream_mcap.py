@@ -15,6 +15,7 @@ import logging
 import os
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -24,6 +25,10 @@ from stereo_gui.core.errors import InputError
 from stereo_gui.files.ros2_bag import BagFrame, RectifiedCamera
 
 log = logging.getLogger(__name__)
+
+# a protobuf message as the reader decodes it with the file's own schema: its class is made at
+# run time, so its fields are read unchecked (and checked here as they are read)
+Decoded = Any
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 # the topics of pipeline.stream.TOPICS this reader takes (a test checks that they agree)
@@ -106,7 +111,7 @@ class StreamRecording:
                              "mcap-protobuf-support: pip install mcap-protobuf-support") from exc
         by_topic = {t: k for k, t in STREAM_TOPICS.items()}
         done = skipped = 0
-        group: dict[str, object] = {}
+        group: dict[str, Decoded] = {}
         group_time: int | None = None
         try:
             with open(self.path, "rb") as f:
@@ -125,7 +130,7 @@ class StreamRecording:
                         group = {}
                     group_time = message.log_time
                     group[by_topic[channel.topic]] = decoded
-                if group:
+                if group and group_time is not None:
                     frame = self._frame(group, group_time)
                     if frame is None:
                         skipped += 1
@@ -142,7 +147,7 @@ class StreamRecording:
                 log.warning("%s: %d frame(s) without their depth or camera calibration were "
                             "left out", self.path.name, skipped)
 
-    def _frame(self, group: dict, log_time: int) -> BagFrame | None:
+    def _frame(self, group: dict[str, Decoded], log_time: int) -> BagFrame | None:
         if any(k not in group for k in _REQUIRED):
             return None
         depth_msg = group["depth"]
@@ -155,7 +160,7 @@ class StreamRecording:
                         left, points, rgb)
 
 
-def _depth(msg, path: Path) -> np.ndarray:
+def _depth(msg: Decoded, path: Path) -> np.ndarray:
     if msg.encoding != "16UC1":
         raise InputError(f"{path}: a depth image is {msg.encoding!r}, not 16UC1")
     h, w, step = int(msg.height), int(msg.width), int(msg.step)
@@ -167,21 +172,21 @@ def _depth(msg, path: Path) -> np.ndarray:
     return np.ascontiguousarray(rows).view("<u2").astype(np.uint16)
 
 
-def _jpeg(msg, path: Path) -> np.ndarray:
+def _jpeg(msg: Decoded, path: Path) -> np.ndarray:
     img = cv2.imdecode(np.frombuffer(bytes(msg.data), np.uint8), cv2.IMREAD_COLOR)
     if img is None:
         raise InputError(f"{path}: a left picture ({msg.format or 'no format'}) does not decode")
     return img
 
 
-def _camera(msg) -> RectifiedCamera:
+def _camera(msg: Decoded) -> RectifiedCamera:
     return RectifiedCamera(frame_id=msg.frame_id, width=int(msg.width), height=int(msg.height),
                            K=tuple(float(v) for v in msg.K), P=tuple(float(v) for v in msg.P),
                            R=tuple(float(v) for v in msg.R), D=tuple(float(v) for v in msg.D),
                            distortion_model=msg.distortion_model or "plumb_bob")
 
 
-def _points(msg, path: Path) -> tuple[np.ndarray, np.ndarray | None]:
+def _points(msg: Decoded, path: Path) -> tuple[np.ndarray, np.ndarray | None]:
     """(N, 3) float32 metres and (N, 3) uint8 colours (None: uncoloured) of a PointCloud."""
     stride = int(msg.point_stride)
     fields = {f.name: f for f in msg.fields}

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from numpy.typing import NDArray
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.target_sheet import TargetSheet
@@ -72,14 +73,18 @@ def pdf_content(sheet: TargetSheet) -> str:
         ops.append(f"{_num(r.x)} {_num(r.y)} {_num(r.w)} {_num(r.h)} re f")
     c4 = 0.5522847498
     for c in sheet.circles:
-        x, y, r = c.cx, c.cy, c.r
-        d = c4 * r
+        x, y, rad = c.cx, c.cy, c.r
+        d = c4 * rad
         ops.append(
-            f"{_num(x + r)} {_num(y)} m "
-            f"{_num(x + r)} {_num(y + d)} {_num(x + d)} {_num(y + r)} {_num(x)} {_num(y + r)} c "
-            f"{_num(x - d)} {_num(y + r)} {_num(x - r)} {_num(y + d)} {_num(x - r)} {_num(y)} c "
-            f"{_num(x - r)} {_num(y - d)} {_num(x - d)} {_num(y - r)} {_num(x)} {_num(y - r)} c "
-            f"{_num(x + d)} {_num(y - r)} {_num(x + r)} {_num(y - d)} {_num(x + r)} {_num(y)} c f")
+            f"{_num(x + rad)} {_num(y)} m "
+            f"{_num(x + rad)} {_num(y + d)} {_num(x + d)} {_num(y + rad)} "
+            f"{_num(x)} {_num(y + rad)} c "
+            f"{_num(x - d)} {_num(y + rad)} {_num(x - rad)} {_num(y + d)} "
+            f"{_num(x - rad)} {_num(y)} c "
+            f"{_num(x - rad)} {_num(y - d)} {_num(x - d)} {_num(y - rad)} "
+            f"{_num(x)} {_num(y - rad)} c "
+            f"{_num(x + d)} {_num(y - rad)} {_num(x + rad)} {_num(y - d)} "
+            f"{_num(x + rad)} {_num(y)} c f")
     b = sheet.scale_bar
     ops.append(f"{_num(b.x)} {_num(b.y)} {_num(b.w)} {_num(b.h)} re f")
     ops.append("Q")
@@ -170,15 +175,14 @@ def png_image(sheet: TargetSheet, dpi: float) -> np.ndarray:
     img = np.full((h, w), 255, np.uint8)
     f = float(1 << _SHIFT)
 
-    def poly(x0, y0, x1, y1):
+    def poly(x0: float, y0: float, x1: float, y1: float) -> NDArray[np.int32]:
         # pixel (i, j) covers [i, i + 1): the mm edge x maps to pixel edge x * k, whose
         # centre-based coordinate is x * k - 0.5
-        return np.array([[[(x0 * k - 0.5) * f, (y0 * k - 0.5) * f], [(x1 * k - 0.5) * f, (y0 * k - 0.5) * f],
-                          [(x1 * k - 0.5) * f, (y1 * k - 0.5) * f], [(x0 * k - 0.5) * f, (y1 * k - 0.5) * f]]],
-                        np.int32)
+        x0, y0, x1, y1 = ((v * k - 0.5) * f for v in (x0, y0, x1, y1))
+        return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], np.int32)
 
     o = sheet.outline
-    cv2.polylines(img, poly(o.x, o.y, o.x + o.w, o.y + o.h), True, 190, max(1, int(0.2 * k)),
+    cv2.polylines(img, [poly(o.x, o.y, o.x + o.w, o.y + o.h)], True, 190, max(1, int(0.2 * k)),
                   cv2.LINE_AA, _SHIFT)
     shapes = [poly(r.x, r.y, r.x + r.w, r.y + r.h) for r in sheet.rects]
     b = sheet.scale_bar

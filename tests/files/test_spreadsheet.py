@@ -16,9 +16,8 @@ import pytest
 
 from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.errors import InputError
-from stereo_gui.files import sheet_calibration, sheet_regression
+from stereo_gui.files import sheet_calibration, sheet_regression, workbook
 from stereo_gui.files import spreadsheet as ss
-from stereo_gui.files import workbook
 from stereo_gui.files.spreadsheet import (
     HEADERS,
     MeasurementRecord,
