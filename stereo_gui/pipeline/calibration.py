@@ -17,10 +17,12 @@ from stereo_gui.core.calibrate import CalibrationResult, calibrate_stereo
 from stereo_gui.core.detect import PairDetection, PairInput, detect_pairs
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.jobs import JobControl, Progress
-from stereo_gui.core.lens import project_points, undistort_points
+from stereo_gui.core.lens import distortion_names, project_points, undistort_points
 from stereo_gui.core.shading import with_measured_shading
 from stereo_gui.core.stereo_calibration import RectifyMaps, StereoCalibration
 from stereo_gui.core.util import how_many
+from stereo_gui.files.images import read_image_file
+from stereo_gui.files.session import CaptureSession
 
 log = logging.getLogger(__name__)
 
@@ -138,8 +140,6 @@ EXCLUDED_BY_YOU = "excluded by you"  # why an excluded pair is not in a calibrat
 
 def read_image(path: str) -> np.ndarray:
     """A BGR image from `path`; InputError if it cannot be read."""
-    from stereo_gui.files.images import read_image_file
-
     return read_image_file(path, cv2.IMREAD_COLOR)
 
 
@@ -149,8 +149,6 @@ def calibration_job(folder: Path, board: BoardSpec, alpha: float, method: str,
     left and right exchanged when the session says the cameras are swapped)."""
 
     def job(control: JobControl):
-        from stereo_gui.files.session import CaptureSession
-
         yield Progress(0, 1, f"reading {folder}")
         session = CaptureSession.open(folder)
         included = list(session.included_pairs())
@@ -210,8 +208,6 @@ def _fmt_matrix(m: np.ndarray | None, digits: int = 3) -> str:
 
 
 def _dist_text(d: np.ndarray, model: str = "pinhole", sigmas=None) -> str:
-    from stereo_gui.core.lens import distortion_names
-
     d = np.asarray(d, np.float64).reshape(-1)
     names = distortion_names(model, d.size)
     if sigmas is None:

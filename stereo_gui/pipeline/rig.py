@@ -31,9 +31,13 @@ from stereo_gui.core.errors import InputError, SourceError, StereoGuiError
 from stereo_gui.core.matching import PipelineResult
 from stereo_gui.core.measure import PATCH_PX, Measurement, measure_point
 from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.files.any_calibration import load_any_calibration
+from stereo_gui.files.presets import load_preset
 from stereo_gui.pipeline.live import LiveOutput, LiveProcessor
 from stereo_gui.pipeline.region import Region, RegionStats, region_stats
+from stereo_gui.pipeline.stream import depth_image_mm
 from stereo_gui.sources.base import FrameSource, StereoFrame
+from stereo_gui.sources.open import open_source
 
 log = logging.getLogger(__name__)
 
@@ -99,8 +103,6 @@ class Frame:
     def depth_mm(self) -> np.ndarray:
         """(H, W) uint16 Z in mm of the rectified left image, 0 where there is no value (the map
         the double-click reads)."""
-        from stereo_gui.pipeline.stream import depth_image_mm
-
         return depth_image_mm(self.result)
 
     @property
@@ -197,8 +199,6 @@ class Rig:
     def __init__(self, source: FrameSource, calibration: StereoCalibration, preset,
                  description: str = "") -> None:
         if isinstance(preset, str):
-            from stereo_gui.files.presets import load_preset
-
             preset = load_preset(preset)
         self.source = source
         self.calibration = calibration
@@ -283,10 +283,6 @@ def open_rig(source: str | None = "sim", calibration: str | StereoCalibration | 
     recorded pairs, auto) with a calibration (a file as `--calib` takes, or a
     StereoCalibration; on the simulated rig None means the rig's true calibration) and a
     matcher preset (live, quality, seed, a user preset or a .json file)."""
-    from stereo_gui.files.any_calibration import load_any_calibration
-    from stereo_gui.files.presets import load_preset
-    from stereo_gui.sources.open import open_source
-
     params = load_preset(preset)  # before a camera is opened: a wrong name costs nothing
     opened = open_source(source, size=size)
     src = opened.source

@@ -33,13 +33,18 @@ from pathlib import Path
 from typing import Self
 
 import cv2
+import foxglove
 import numpy as np
+from foxglove import channels as ch
+from foxglove import messages as m
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import PipelineResult
 from stereo_gui.core.measure import reading_map
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.depth_export import depth_mm, depth_to_png16
+from stereo_gui.files.mcap_file import McapRecording
+from stereo_gui.files.measurement_record import RULER_METHOD
 from stereo_gui.pipeline.cloud import reproject_every
 
 log = logging.getLogger(__name__)
@@ -211,10 +216,6 @@ class DepthStream:
     recording (renamed into place only when written whole)."""
 
     def __init__(self) -> None:
-        import foxglove
-        from foxglove import channels as ch
-
-        self._foxglove = foxglove
         self._context = foxglove.Context()
         ctx = self._context
         self._ch = {
@@ -247,7 +248,7 @@ class DepthStream:
             return self.address
         _quiet_client_noise()
         try:
-            self._server = self._foxglove.start_server(
+            self._server = foxglove.start_server(
                 name="stereo-gui", host=host, port=port, context=self._context,
                 server_listener=self._clients, message_backlog_size=CLIENT_BACKLOG)
         except Exception as exc:  # the SDK raises its own RuntimeError kinds for a bind failure
@@ -266,8 +267,6 @@ class DepthStream:
     def record(self, path) -> Path:
         """Record every topic to the MCAP file `path` (written under a temporary name, renamed
         when closed whole; InputError when it cannot be made: its folder, its name, the disk)."""
-        from stereo_gui.files.mcap_file import McapRecording
-
         if self._recording is not None:
             raise InputError(f"already recording to {self._recording.path}")
         self._recording = McapRecording(Path(path), self._context)
@@ -313,11 +312,9 @@ class DepthStream:
     def _stamp(self, t_s: float):
         """(Timestamp, nanoseconds) of a capture time: monotonic seconds (a live source's)
         are put on the wall clock; a time that is one already (after 2001) is kept."""
-        from foxglove.messages import Timestamp
-
         wall = t_s if t_s > 1e9 else t_s + self._epoch_offset_s
         ns = round(wall * 1e9)
-        return Timestamp(sec=ns // 1_000_000_000, nsec=ns % 1_000_000_000), ns
+        return m.Timestamp(sec=ns // 1_000_000_000, nsec=ns % 1_000_000_000), ns
 
     def publish(self, result: PipelineResult, t_capture_s: float, region=None,
                 health=None) -> None:
@@ -334,8 +331,6 @@ class DepthStream:
 
     def _publish(self, result: PipelineResult, t_capture_s: float, region, health,
                  fps: float | None) -> None:
-        from foxglove import messages as m
-
         stamp, ns = self._stamp(t_capture_s)
         calib = result.calibration
         c = self._ch
@@ -375,8 +370,6 @@ class DepthStream:
         c["health"].log(health_message(health, fps), log_time=ns)
 
     def _transforms(self, stamp, calib: StereoCalibration):
-        from foxglove import messages as m
-
         ident = m.Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
         baseline_m = float(calib.rectified_baseline_mm) / 1000.0
         return m.FrameTransforms(transforms=[
@@ -406,8 +399,6 @@ def region_message(stats) -> dict:
 def record_message(record) -> dict:
     """A logged reading (files.measurement_record.MeasurementRecord: a click, or a ruler's A-B
     distance, whose range is the length) as the `/stereo/readings` message (metres)."""
-    from stereo_gui.files.measurement_record import RULER_METHOD
-
     ok = bool(record.valid)
     return {"kind": "ruler" if record.method.startswith(RULER_METHOD) else "click",
             "x": float(record.x_px), "y": float(record.y_px), "valid": ok,
