@@ -9,13 +9,23 @@ from __future__ import annotations
 import gc
 import logging
 import os
+import signal
 import sys
-from typing import TYPE_CHECKING
+
+import pyqtgraph as pg
+from PySide6.QtCore import QTimer
+from PySide6.QtWidgets import QApplication
 
 from stereo_gui.core.errors import InputError, StereoGuiError
-
-if TYPE_CHECKING:
-    from stereo_gui.qt.context import AppContext
+from stereo_gui.files.any_calibration import load_any_calibration
+from stereo_gui.files.measurement_log import default_log_path
+from stereo_gui.files.settings import load_settings
+from stereo_gui.pipeline.concurrency import use_opencv_threads_beside_lanes
+from stereo_gui.qt.context import AppContext
+from stereo_gui.qt.dialogs.about import application_icon
+from stereo_gui.qt.dialogs.source_dialog import SourceChoice
+from stereo_gui.qt.main_window import MainWindow
+from stereo_gui.sources.open import expected_frame_size, parse_source_spec
 
 log = logging.getLogger(__name__)
 
@@ -50,15 +60,11 @@ def freeze_startup_objects() -> int:
 
 def check_source_spec(spec: str) -> None:
     """Raise InputError for a --source value that names no source (nothing is opened)."""
-    from stereo_gui.sources.open import parse_source_spec
-
     parse_source_spec(spec)
 
 
 def configure_pyqtgraph() -> None:
     """Row-major images (numpy's own order) and no antialiasing cost on live images."""
-    import pyqtgraph as pg
-
     pg.setConfigOptions(imageAxisOrder="row-major", antialias=False,
                         background="#202020", foreground="#dddddd")
 
@@ -87,11 +93,6 @@ def build_window(source: str | None = None, calib: str | None = None):
     one line and exit 2); a remembered calibration or source that fails is reported in the window.
     Returns (ctx, window). A QApplication must exist.
     """
-    from stereo_gui.files.settings import load_settings
-    from stereo_gui.qt.context import AppContext
-    from stereo_gui.qt.dialogs.source_dialog import SourceChoice
-    from stereo_gui.qt.main_window import MainWindow
-
     configure_pyqtgraph()
     settings, warnings = load_settings()
     ctx = AppContext(settings)
@@ -99,9 +100,6 @@ def build_window(source: str | None = None, calib: str | None = None):
     if source:
         check_source_spec(source)  # a bad --source is a user mistake: exit 2 before the window
     spec = source or settings.source or "auto"
-
-    from stereo_gui.files.any_calibration import load_any_calibration
-    from stereo_gui.sources.open import expected_frame_size
 
     def frame_size():  # for a file without an image size (OpenCV's sample writes none)
         return expected_frame_size(spec, size)
@@ -127,8 +125,6 @@ def build_window(source: str | None = None, calib: str | None = None):
         ctx.settings_model.update(last_calibration=calib or settings.last_calibration)
     # opening takes seconds (devices, the simulated rig's ray maps): done off the UI thread
     window.open_source(SourceChoice(spec, size, settings.swap_lr), fallback_to_auto=not source)
-    from stereo_gui.files.measurement_log import default_log_path
-
     # the log, the readings of the last Clear log and the active fit of the last run
     warnings = [*warnings, *ctx.measurement_log.keep(default_log_path())]
     problems = [w for w in warnings] + ([calib_error] if calib_error else [])
@@ -145,10 +141,6 @@ def close_on_signals(window):
     saved, a recording closed, the workers stopped. (Python runs a signal's handler only between
     its own instructions, so a timer gives it a moment now and then while Qt's loop waits.)
     Returns what puts the handlers before back."""
-    import signal
-
-    from PySide6.QtCore import QTimer
-
     def close(signum, _frame) -> None:
         log.info("signal %d: closing the window", signum)
         QTimer.singleShot(0, window.close)
@@ -169,19 +161,12 @@ def close_on_signals(window):
 
 def run_app(source: str | None = None, calib: str | None = None) -> int:
     """Run the GUI until its window closes; return the exit status."""
-    from PySide6.QtCore import QTimer
-    from PySide6.QtWidgets import QApplication
-
-    from stereo_gui.pipeline.concurrency import use_opencv_threads_beside_lanes
-
     use_opencv_threads_beside_lanes()  # our threads (the frame lanes first) share the cores
     quit_after = quit_after_seconds()
     app = QApplication.instance() or QApplication(sys.argv[:1])
     app.setApplicationName("Stereo GUI")
     app.setOrganizationName("stereo-gui")
     app.setDesktopFileName("stereo-gui")  # matches resources/stereo-gui.desktop
-    from stereo_gui.qt.dialogs.about import application_icon
-
     app.setWindowIcon(application_icon())
     ctx, window = build_window(source, calib)
     window.show()

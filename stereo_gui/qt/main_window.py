@@ -28,8 +28,12 @@ from PySide6.QtWidgets import (
 )
 
 from stereo_gui.core.states import Transitions
+from stereo_gui.files.recording import is_recording
+from stereo_gui.files.session import MANIFEST
 from stereo_gui.qt.context import AppContext
-from stereo_gui.qt.dialogs.closing import CloseWaiter
+from stereo_gui.qt.dialogs.about import show_about
+from stereo_gui.qt.dialogs.closing import CloseWaiter, ask_unsaved_calibration, tell_cancelled
+from stereo_gui.qt.dialogs.help import add_help_actions
 from stereo_gui.qt.dialogs.source_dialog import SourceChoice, SourceDialog, describe_spec
 from stereo_gui.qt.models.calibration import order_left_right
 from stereo_gui.qt.source_capabilities import playback_of, simulated_rig
@@ -43,6 +47,9 @@ from stereo_gui.qt.widgets.error_bar import ErrorBar
 from stereo_gui.qt.widgets.helpers import pane
 from stereo_gui.qt.workers.frame_worker import StreamState, StreamStatus
 from stereo_gui.qt.workers.job_runner import JobRunner
+from stereo_gui.qt.workers.recorder import format_elapsed
+from stereo_gui.sources.open import open_source
+from stereo_gui.sources.playback import VIDEO_EXTENSIONS
 
 log = logging.getLogger(__name__)
 
@@ -85,16 +92,11 @@ def recent_entry(path: str) -> tuple[str, str, str]:
     if not p.exists():
         return "missing", path, f"{p.name} (missing)"
     if p.is_dir():
-        from stereo_gui.files.recording import is_recording
-        from stereo_gui.files.session import MANIFEST
-
         if (p / MANIFEST).is_file():
             return "session", path, f"Session: {p.name}   ({p.parent})"
         if is_recording(p):
             return "recording", path, f"Recording: {p.name}   ({p.parent})"
         return "folder", path, f"Folder of pairs: {p.name}   ({p.parent})"
-    from stereo_gui.sources.playback import VIDEO_EXTENSIONS
-
     if p.suffix.lower() in VIDEO_EXTENSIONS:
         return "video", path, f"Video: {p.name}   ({p.parent})"
     return "calibration", path, f"Calibration: {p.name}   ({p.parent})"
@@ -320,8 +322,6 @@ class MainWindow(QMainWindow):
                 file_menu.addAction(a)
         self._build_shortcuts()
         help_menu = self.menuBar().addMenu("&Help")
-        from stereo_gui.qt.dialogs.help import add_help_actions
-
         self.help_actions = add_help_actions(self, help_menu)
         about = QAction("&About Stereo GUI", self)
         about.triggered.connect(self.show_about)
@@ -439,8 +439,6 @@ class MainWindow(QMainWindow):
         With `fallback_to_auto`, a source that fails is replaced by automatic selection (used
         for the remembered source at start-up). Returns the request id.
         """
-        from stereo_gui.sources.open import open_source
-
         spec, size, swap = choice.spec, tuple(choice.size), bool(choice.swap)
         # the remembered cameras are found again by name and USB ids if their indices changed
         s = self.ctx.settings
@@ -527,8 +525,6 @@ class MainWindow(QMainWindow):
     def _update_recording_label(self) -> None:
         rec = self.ctx.recorder
         if rec.is_recording:
-            from stereo_gui.qt.workers.recorder import format_elapsed
-
             self.recording_label.setText(f"● REC {format_elapsed(rec.elapsed_s)}, "
                                          f"{rec.frames_written} frames")
             self.recording_label.setToolTip(str(rec.folder))
@@ -653,8 +649,6 @@ class MainWindow(QMainWindow):
         self.statusBar().showMessage(text, 10000)
 
     def show_about(self) -> None:
-        from stereo_gui.qt.dialogs.about import show_about
-
         show_about(self)
 
     # ---- geometry and shutdown ---------------------------------------------------------------
@@ -711,8 +705,6 @@ class MainWindow(QMainWindow):
         what = self.calibration_tab.unsaved_calibration()
         if not what or self._close.calibration_discarded:
             return True
-        from stereo_gui.qt.dialogs.closing import ask_unsaved_calibration
-
         answer = ask_unsaved_calibration(self, what)
         if answer == QMessageBox.StandardButton.Save:
             return self.save_calibration()
@@ -746,8 +738,6 @@ class MainWindow(QMainWindow):
         self.statusBar().showMessage("Not closed: the export goes on", 8000)
 
     def _cancel_work_and_close(self, timed_out: bool) -> None:
-        from stereo_gui.qt.dialogs.closing import tell_cancelled
-
         waiter = self._close.waiter
         waited_s = waiter.wait_s if waiter is not None and timed_out else None
         self._close.move(ClosePhase.OPEN)

@@ -9,6 +9,7 @@ is checked; Windows and macOS always have their platform plugin's libraries.
 from __future__ import annotations
 
 import ctypes
+import importlib.util
 import logging
 import os
 import re
@@ -83,8 +84,6 @@ def platform_name(env) -> str:
 
 
 def _qt_dir() -> Path | None:
-    import importlib.util
-
     spec = importlib.util.find_spec("PySide6")
     if spec is None or not spec.submodule_search_locations:
         return None

@@ -9,7 +9,11 @@ from __future__ import annotations
 import platform
 import sys
 
-from PySide6.QtCore import Qt
+import cv2
+import numpy
+import pyqtgraph
+import PySide6
+from PySide6.QtCore import Qt, qVersion
 from PySide6.QtGui import QGuiApplication, QIcon
 from PySide6.QtWidgets import (
     QDialog,
@@ -34,12 +38,6 @@ ICON_SIZES = (16, 24, 32, 48, 64, 128, 256)
 
 def versions() -> dict[str, str]:
     """Versions of the application and of the libraries it runs on, by name."""
-    import cv2
-    import numpy
-    import PySide6
-    import pyqtgraph
-    from PySide6.QtCore import qVersion
-
     return {
         "Stereo GUI": __version__,
         "Python": platform.python_version(),

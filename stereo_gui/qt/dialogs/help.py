@@ -37,6 +37,10 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from stereo_gui.files.measurement_log import data_dir
+from stereo_gui.files.presets import user_preset_dir
+from stereo_gui.files.settings import settings_path
+from stereo_gui.qt.workers.recorder import recordings_dir
 from stereo_gui.resources import guide_path
 
 log = logging.getLogger(__name__)
@@ -193,11 +197,6 @@ class ShortcutsDialog(QDialog):
 
 def kept_folders(settings) -> list[tuple[str, Path]]:
     """(what, folder) of everything the application keeps between runs."""
-    from stereo_gui.files.measurement_log import data_dir
-    from stereo_gui.files.presets import user_preset_dir
-    from stereo_gui.files.settings import settings_path
-    from stereo_gui.qt.workers.recorder import recordings_dir
-
     return [("Settings (settings.json)", settings_path().parent),
             ("Your presets", user_preset_dir()),
             ("The measurement log kept between runs (measurement-log.json)", data_dir()),

@@ -11,6 +11,9 @@ from PySide6.QtCore import QObject, Signal
 
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.files.any_calibration import load_any_calibration
+from stereo_gui.files.calibration_file import export_ros, import_ros, save_calibration
+from stereo_gui.files.kalibr_calibration import write_kalibr_camchain
 from stereo_gui.qt.models.settings import SettingsModel
 
 log = logging.getLogger(__name__)
@@ -92,8 +95,6 @@ class CalibrationModel(QObject):
         files.any_calibration), use it and remember it for the next start; False (after
         reporting why) when it cannot be read. A file without an image size takes the size of
         the frames shown."""
-        from stereo_gui.files.any_calibration import load_any_calibration
-
         try:
             loaded = load_any_calibration(path, self._frame_size)
         except (StereoGuiError, OSError) as exc:
@@ -107,8 +108,6 @@ class CalibrationModel(QObject):
     def save_file(self, calib: StereoCalibration, path: str | Path) -> bool:
         """Write `calib` to `path`, use it from there and remember it for the next start; False
         (after reporting why) when it cannot be written."""
-        from stereo_gui.files.calibration_file import save_calibration
-
         try:
             save_calibration(calib, path)
         except (StereoGuiError, OSError) as exc:
@@ -121,8 +120,6 @@ class CalibrationModel(QObject):
     def export_ros(self, folder: str | Path) -> tuple[Path, Path] | None:
         """Write the calibration as ROS camera_info left.yaml and right.yaml into `folder`;
         both paths, or None (after reporting why)."""
-        from stereo_gui.files.calibration_file import export_ros
-
         paths = self._export(lambda c: export_ros(c, folder),
                              f"Cannot export ROS camera_info into {folder}")
         if paths is not None:
@@ -135,8 +132,6 @@ class CalibrationModel(QObject):
     def export_kalibr(self, path: str | Path) -> Path | None:
         """Write the calibration as a Kalibr camchain.yaml; its path, or None (after reporting
         why: no calibration, or lenses Kalibr has no model for)."""
-        from stereo_gui.files.kalibr_calibration import write_kalibr_camchain
-
         done = self._export(lambda c: write_kalibr_camchain(path, c),
                             f"Cannot export a Kalibr camchain to {path}")
         if done is not None:
@@ -159,8 +154,6 @@ class CalibrationModel(QObject):
     def import_ros(self, left: str | Path, right: str | Path) -> bool:
         """Use the calibration of a ROS camera_info pair (not saved: the note names the two
         files); False (after reporting why) when they cannot be read."""
-        from stereo_gui.files.calibration_file import import_ros
-
         try:
             calib = import_ros(left, right)
         except (StereoGuiError, OSError) as exc:

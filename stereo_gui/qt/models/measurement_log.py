@@ -10,6 +10,7 @@ from PySide6.QtCore import QObject, QTimer, Signal
 
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.regression import FitResult
+from stereo_gui.files.measurement_log import KeptLog, load_log, save_log
 from stereo_gui.files.spreadsheet import MeasurementRecord
 from stereo_gui.qt.models.calibration import Reporter
 
@@ -125,8 +126,6 @@ class MeasurementLog(QObject):
     def keep(self, path: str | Path) -> list[str]:
         """Restore the log, the cleared readings and the active fit from `path` and save them
         there from now on; returns warnings about what could not be restored."""
-        from stereo_gui.files.measurement_log import load_log
-
         kept, warnings = load_log(path)
         self._path = None  # restoring is no change to save
         self._records = list(kept.records)
@@ -143,8 +142,6 @@ class MeasurementLog(QObject):
         self._save_timer.stop()
         if self._path is None:
             return True
-        from stereo_gui.files.measurement_log import KeptLog, save_log
-
         try:
             save_log(KeptLog(tuple(self._records), tuple(self._cleared), self._active_fit),
                      self._path)

@@ -52,8 +52,10 @@ from stereo_gui.qt.tabs.capture_state import CAPTURE_MOVES, CaptureState
 from stereo_gui.qt.widgets.board_row import BoardRow
 from stereo_gui.qt.widgets.camera_controls import CameraControlsPanel
 from stereo_gui.qt.widgets.helpers import pane, wrapping_label
+from stereo_gui.qt.widgets.playback_bar import PlaybackBar
 from stereo_gui.qt.widgets.saved_pairs import SavedPairsPanel
 from stereo_gui.qt.widgets.stereo_pair_view import StereoPairView
+from stereo_gui.qt.widgets.target_dialog import TargetDialog
 from stereo_gui.sources.base import StereoFrame
 
 if TYPE_CHECKING:
@@ -126,8 +128,6 @@ class CaptureTab(QWidget):
         row.edited.connect(self._board_edited)
         row.auto_check.toggled.connect(self._auto_toggled)
         row.printRequested.connect(self.open_target_dialog)
-
-        from stereo_gui.qt.widgets.playback_bar import PlaybackBar
 
         self.playback = PlaybackBar(self.ctx)  # shown only for a recorded source
         self.playback.used.connect(self._playback_used)
@@ -230,8 +230,6 @@ class CaptureTab(QWidget):
 
     def open_target_dialog(self) -> None:
         """Print a target...: write the current target as PDF, SVG or PNG at true scale."""
-        from stereo_gui.qt.widgets.target_dialog import TargetDialog
-
         start = (self.session.folder if self.session is not None else Path.home())
         dlg = TargetDialog(self.board, Path(start), self)
         dlg.written.connect(lambda path: self.ctx.show_status(f"Wrote the target to {path}"))

@@ -9,7 +9,8 @@ from typing import TYPE_CHECKING
 from PySide6.QtCore import QObject, Qt, QTimer, Signal
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 
-from stereo_gui.pipeline.cloud import CloudPoints
+from stereo_gui.pipeline.cloud import CloudPoints, cloud_points
+from stereo_gui.qt.widgets.cloud_view import CloudView
 from stereo_gui.qt.workers.job_runner import JobRunner
 
 if TYPE_CHECKING:
@@ -42,8 +43,6 @@ class LiveCloud(QObject):
 
     def show(self) -> QWidget:
         """Open (or raise) the 3D view of the frame shown."""
-        from stereo_gui.qt.widgets.cloud_view import CloudView
-
         if self.window is None:
             win = QWidget(self._owner, Qt.WindowType.Window)
             win.setWindowTitle("Stereo GUI – 3D point cloud of the frame shown")
@@ -73,8 +72,6 @@ class LiveCloud(QObject):
         colouring = self.view.colouring
         if self._made_of == (out, colouring):
             return
-        from stereo_gui.pipeline.cloud import cloud_points
-
         result = out.result
         self._made_of = (out, colouring)
         self._job = self._jobs.submit(lambda _control: cloud_points(result, colouring)).id

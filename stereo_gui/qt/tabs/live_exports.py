@@ -4,6 +4,7 @@ on the context's job runner), every file atomically."""
 from __future__ import annotations
 
 import datetime as _dt
+import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -14,6 +15,8 @@ from PySide6.QtWidgets import QFileDialog, QMenu, QToolButton, QWidget
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.jobs import JobState, JobTicket
 from stereo_gui.core.util import how_many
+from stereo_gui.files import depth_export as dx
+from stereo_gui.files.atomic import write_bytes_atomic
 from stereo_gui.qt.widgets import folder_dialog
 
 if TYPE_CHECKING:
@@ -84,8 +87,6 @@ class LiveExports(QObject):
     def cancel_unfinished_work(self, timeout_ms: int = 2000) -> list[str]:
         """Drop the exports not started yet and wait at most `timeout_ms` for the one being
         written (a frame's files take well under a second); says what became of each."""
-        import time
-
         deadline = time.monotonic() + timeout_ms / 1000.0
         said = []
         for job_id, (ticket, where) in list(self._runs.items()):
@@ -140,8 +141,6 @@ class LiveExports(QObject):
         images = {k: out.images[k] for k in self._views() if k in out.images}
 
         def write() -> list[Path]:
-            from stereo_gui.files.atomic import write_bytes_atomic
-
             written = []
             for key, img in images.items():
                 bgr = img if img.ndim == 2 else cv2.cvtColor(img, cv2.COLOR_RGB2BGR)
@@ -215,8 +214,6 @@ class LiveExports(QObject):
         calib = result.calibration  # the one the frame was rectified with (scaled if it was)
 
         def write() -> list[tuple[str, Path, str]]:
-            from stereo_gui.files import depth_export as dx
-
             done = []
             for kind, path in paths.items():
                 if kind == "disparity_png":

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 from PySide6.QtCore import QObject, Signal
 from PySide6.QtWidgets import QLabel
 
-from stereo_gui.core.measure import Measurement, Reason
+from stereo_gui.core.measure import Measurement, Reason, measure_point
 from stereo_gui.files.measurement_record import RULER_METHOD, MeasurementRecord
 from stereo_gui.pipeline.readout import (
     MEASURABLE_VIEWS,
@@ -178,8 +178,6 @@ class LiveReadings(QObject):
         if out is None:
             self.ctx.report_error("No frame to measure on yet.")
             return None
-        from stereo_gui.core.measure import measure_point
-
         patch = int(self.ctx.settings.patch_size)
         fit = self.ctx.active_fit
         result = out.result
@@ -251,8 +249,6 @@ class LiveReadings(QObject):
                 f"disparity {m.disparity_px:.2f} px, {m.valid_fraction:.0%} valid ({m.method})")
 
     def _record(self, m):
-        from stereo_gui.files.measurement_record import MeasurementRecord
-
         calib = self.ctx.calibration
         path = self.ctx.calibration_path
         return MeasurementRecord(
@@ -269,8 +265,6 @@ class LiveReadings(QObject):
     def _ruler_record(self, a, b, dist_mm: float, bound_mm: float):
         """The log entry of a ruler distance: at B's pixel, X/Y/Z the components of B - A
         (mm), Range the length |B - A|, ± the two points' bounds added in quadrature."""
-        from stereo_gui.files.measurement_record import MeasurementRecord
-
         rec = self._record(b)
         return MeasurementRecord(**{
             **rec.__dict__, "disparity_px": float("nan"), "X_mm": b.X_mm - a.X_mm,

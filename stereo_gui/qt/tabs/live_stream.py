@@ -16,6 +16,7 @@ from PySide6.QtCore import QObject, Qt, QTimer, Signal
 from PySide6.QtWidgets import QLabel, QPushButton, QSizePolicy, QWidget
 
 from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.pipeline.stream import DepthStream, record_message
 from stereo_gui.qt.widgets import folder_dialog
 
 if TYPE_CHECKING:
@@ -97,8 +98,6 @@ class LiveStream(QObject):
 
     def _ensure_stream(self):
         if self._stream is None:
-            from stereo_gui.pipeline.stream import DepthStream
-
             self._stream = DepthStream()
             self.apply()
         return self._stream
@@ -218,6 +217,4 @@ class LiveStream(QObject):
         """Publish a reading just logged (a files.measurement_record.MeasurementRecord)."""
         if self._stream is None:
             return
-        from stereo_gui.pipeline.stream import record_message
-
         self._stream.publish_reading(record_message(record), time.monotonic())

@@ -22,6 +22,7 @@ from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (
     QAbstractItemDelegate,
     QAbstractItemView,
+    QApplication,
     QComboBox,
     QFileDialog,
     QGroupBox,
@@ -36,8 +37,11 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from stereo_gui.core import regression
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.util import how_many
+from stereo_gui.files.fit_file import load_fit, save_fit
+from stereo_gui.files.spreadsheet import read_csv, read_measurements
 from stereo_gui.qt.tabs.measurement_exports import ExportFolder, MeasurementExports
 from stereo_gui.qt.widgets import folder_dialog
 from stereo_gui.qt.widgets.helpers import pane, wrapping_label
@@ -185,8 +189,6 @@ class MeasurementsTab(QWidget):
     # ---- regression --------------------------------------------------------------------------
     def refit(self) -> None:
         """Fit both models to the current samples and show them."""
-        from stereo_gui.core import regression
-
         recs = self.ctx.measurement_log.records
         n_true = sum(1 for r in recs if r.true_mm is not None)
         samples = samples_from(recs)
@@ -341,8 +343,6 @@ class MeasurementsTab(QWidget):
     def open_log(self, path, replace: bool = False) -> bool:
         """Read a log exported by Stereo GUI (.csv or .xlsx) into the log (after the readings
         there, or instead of them); False (with a message) when it cannot be read."""
-        from stereo_gui.files.spreadsheet import read_csv, read_measurements
-
         path = Path(path)
         reader = read_measurements if path.suffix.lower() == ".xlsx" else read_csv
         try:
@@ -377,8 +377,6 @@ class MeasurementsTab(QWidget):
             self.save_fit(fit, path)
 
     def save_fit(self, fit, path) -> bool:
-        from stereo_gui.files.fit_file import save_fit
-
         try:
             save_fit(fit, path)
         except (StereoGuiError, OSError) as exc:
@@ -396,8 +394,6 @@ class MeasurementsTab(QWidget):
 
     def load_fit(self, path) -> bool:
         """Load a saved fit and make live readings use it."""
-        from stereo_gui.files.fit_file import load_fit
-
         try:
             fit = load_fit(path)
         except (StereoGuiError, OSError, ValueError) as exc:
@@ -417,8 +413,6 @@ class MeasurementsTab(QWidget):
     def commit_edits(self) -> None:
         """Put a true distance still being typed in its cell (the window closes, or the log
         is exported) into the log."""
-        from PySide6.QtWidgets import QApplication
-
         editor = QApplication.focusWidget()
         if (self.table.state() == QAbstractItemView.State.EditingState and editor is not None
                 and self.table.isAncestorOf(editor)):

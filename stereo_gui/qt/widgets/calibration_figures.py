@@ -6,10 +6,11 @@ from __future__ import annotations
 
 import math
 
-from PySide6.QtWidgets import QFormLayout, QGroupBox, QLabel
+from PySide6.QtWidgets import QFormLayout, QGroupBox, QSizePolicy
 
 from stereo_gui.core.calibrate import HARTLEY_NOTE
 from stereo_gui.core.shading import shading_text
+from stereo_gui.core.uncertainty import corner_sigma_px
 from stereo_gui.qt.widgets.helpers import wrapping_label
 
 
@@ -65,8 +66,6 @@ class CalibrationFigures(QGroupBox):
         self.note_label = wrapping_label()
         self.note_label.setStyleSheet("color: #b03a2e; font-weight: bold")
         form.addRow(self.note_label)
-        from PySide6.QtWidgets import QSizePolicy
-
         # every row stays readable: the matrices below give way instead
         self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Minimum)
 
@@ -143,7 +142,5 @@ def corners_text(c) -> str:
     """How uncertain the lens models are at the image corners (1 sigma)."""
     if c.uncertainty is None:
         return "—"
-    from stereo_gui.core.uncertainty import corner_sigma_px
-
     return (f"±{corner_sigma_px(c, 'left'):.2f} px left, ±{corner_sigma_px(c, 'right'):.2f} px "
             "right")

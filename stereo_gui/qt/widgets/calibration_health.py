@@ -23,7 +23,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from stereo_gui.core.health import Refinement
+from stereo_gui.core.health import Refinement, refine_rotation
 from stereo_gui.core.jobs import Progress
 from stereo_gui.qt.source_capabilities import simulated_rig
 from stereo_gui.qt.widgets import folder_dialog
@@ -42,8 +42,6 @@ def refine_job(calib, left, right, source: str):
     """A JobWorker job: refine the rotation between the cameras from one scene pair."""
 
     def job(control):
-        from stereo_gui.core.health import refine_rotation
-
         yield Progress(0, 1, "matching features in the scene")
         result = refine_rotation(calib, left, right, source)
         yield Progress(1, 1, "done")

@@ -9,8 +9,11 @@ module needs PyOpenGL and an OpenGL context: where either is missing the view sa
 from __future__ import annotations
 
 import logging
+import os
+import sys
 
 from PySide6.QtCore import Signal
+from PySide6.QtGui import QGuiApplication, QOffscreenSurface, QOpenGLContext, QVector3D
 from PySide6.QtWidgets import QComboBox, QHBoxLayout, QLabel, QVBoxLayout, QWidget
 
 from stereo_gui.core.util import how_many
@@ -28,11 +31,6 @@ def _match_pyopengl_to_qt() -> None:
     """PyOpenGL chooses GLX or EGL when it is first imported, from the session (EGL when
     WAYLAND_DISPLAY is set); Qt on X11 (xcb, also under XWayland) makes GLX contexts unless told
     otherwise. Where they would disagree, PyOpenGL is told Qt's choice (the view stayed empty)."""
-    import os
-    import sys
-
-    from PySide6.QtGui import QGuiApplication
-
     if "OpenGL" in sys.modules or "PYOPENGL_PLATFORM" in os.environ:
         return
     if QGuiApplication.platformName() == "xcb":
@@ -44,13 +42,12 @@ def opengl_problem() -> str:
     """Why no OpenGL view can be made here ("" when it can): PyOpenGL missing, or no context."""
     _match_pyopengl_to_qt()
     try:
+        # imported here, after _match_pyopengl_to_qt: PyOpenGL fixes GLX or EGL on import
         import OpenGL.GL  # noqa: F401 - what pyqtgraph.opengl needs
     except ImportError as exc:
         return f"the 3D view needs PyOpenGL ({exc})"
     except Exception as exc:  # noqa: BLE001 - PyOpenGL raises other errors without a GL library
         return f"the 3D view needs an OpenGL library ({type(exc).__name__}: {exc})"
-    from PySide6.QtGui import QOffscreenSurface, QOpenGLContext
-
     ctx = QOpenGLContext()
     if not ctx.create():
         return "no OpenGL context can be made on this display"
@@ -99,6 +96,7 @@ class CloudView(QWidget):
             self.colour_combo.setEnabled(False)
             self.info.setText("")
             return
+        # lazy: pyqtgraph.opengl and PyOpenGL cost 170-220 ms, for a window most runs never open
         import pyqtgraph.opengl as gl
 
         self.gl = gl.GLViewWidget()
@@ -131,8 +129,6 @@ class CloudView(QWidget):
         self.gl.setBackgroundColor(cloud.background_rgb)  # (by distance: a grey of its own)
         self.scatter.setData(pos=cloud.xyz_m, color=cloud.rgba)
         if not self._centred and cloud.count:
-            from PySide6.QtGui import QVector3D
-
             mid = (cloud.z_near_m + cloud.z_far_m) / 2
             self.gl.opts["center"] = QVector3D(0.0, float(mid), 0.0)
             self.gl.setCameraPosition(distance=max(1.0, 1.6 * mid))

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import QPointF, QRectF, Qt, Signal
@@ -248,8 +249,6 @@ class _Marker:
 
 def colormap_lut(colormap_id: int) -> np.ndarray:
     """256 x 3 RGB uint8 lookup table of an OpenCV colour map (index = 8-bit level)."""
-    import cv2
-
     ramp = np.arange(256, dtype=np.uint8).reshape(256, 1)
     bgr = cv2.applyColorMap(ramp, colormap_id).reshape(256, 3)
     return np.ascontiguousarray(bgr[:, ::-1])

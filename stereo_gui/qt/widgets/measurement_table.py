@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 from PySide6.QtCore import QAbstractTableModel, QModelIndex, Qt
 from PySide6.QtGui import QBrush, QColor
 
+from stereo_gui.core.measure import triangulate
 from stereo_gui.files.measurement_record import RULER_METHOD, record_error
 
 if TYPE_CHECKING:
@@ -184,8 +185,6 @@ def triangulation_errors_mm(records, calibration=None) -> list[float]:
     logged Z where triangulation made it, else triangulated again through `calibration` (a
     metric StereoCalibration) from the logged pixel and disparity; readings that cannot be
     triangulated are left out."""
-    from stereo_gui.core.measure import triangulate
-
     out = []
     for r in records:
         if r.true_mm is None or not r.valid or not math.isfinite(r.disparity_px):

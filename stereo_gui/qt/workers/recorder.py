@@ -20,6 +20,7 @@ from PySide6.QtCore import QObject, Signal
 
 from stereo_gui.core.errors import InputError, StereoGuiError
 from stereo_gui.core.jobs import JobControl
+from stereo_gui.files.recording import RecordingWriter, open_recording
 from stereo_gui.files.settings import Settings
 from stereo_gui.qt.workers.frame_worker import FrameWorker
 from stereo_gui.qt.workers.job_runner import JobRunner
@@ -114,8 +115,6 @@ class Recorder(QObject):
     # ---- control (UI thread) ----------------------------------------------------------------
     def start(self, folder: str | Path, source_name: str = "", fps: float = 30.0) -> Path:
         """Start recording into the new folder `folder`; raise StereoGuiError if it cannot."""
-        from stereo_gui.files.recording import RecordingWriter
-
         if self._writer is not None:
             raise InputError(f"already recording into {self._folder}")
         fps = float(fps) if fps and fps > 0 else 30.0
@@ -142,8 +141,6 @@ class Recorder(QObject):
         folder = self._folder
 
         def close(_control: JobControl) -> RecordingResult:
-            from stereo_gui.files.recording import open_recording
-
             why = error
             try:
                 rec = writer.close()
