@@ -31,6 +31,7 @@ from PySide6.QtWidgets import (
 )
 
 from stereo_gui.core.errors import InputError
+from stereo_gui.sources import cameras as camera_devices
 from stereo_gui.sources.open import parse_source_spec
 from stereo_gui.sources.sim.conditions import CONDITIONS
 from stereo_gui.sources.sim.live import SimSource
@@ -79,14 +80,9 @@ def describe_spec(spec: str) -> str:
 
 
 def _list_cameras() -> list:
-    """[CameraInfo(index, name, path)] or [] when the cameras module is not available."""
+    """[CameraInfo(index, name, path)], or [] when listing them fails."""
     try:
-        from stereo_gui.sources.cameras import list_cameras
-    except ImportError:
-        log.warning("camera listing is not available")
-        return []
-    try:
-        return list(list_cameras())
+        return list(camera_devices.list_cameras())
     except Exception as exc:  # noqa: BLE001 - listing devices must never stop the dialog
         log.warning("listing cameras failed: %s", exc)
         return []

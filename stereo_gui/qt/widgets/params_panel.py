@@ -31,6 +31,7 @@ from PySide6.QtWidgets import (
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.matching import PRESET_PARAMS, Preset
 from stereo_gui.core.params import Param
+from stereo_gui.files import presets
 
 log = logging.getLogger(__name__)
 
@@ -38,13 +39,9 @@ BUILTIN_PRESETS = ("seed", "live", "quality")
 MODIFIED = " (modified)"  # a preset's name after an edit: what runs is no longer the preset
 
 
-# ---- presets (stereo_gui.files.presets when present) -------------------------------------------
+# ---- presets (stereo_gui.files.presets) -------------------------------------------------------
 def preset_names() -> list[str]:
     """Names of the built-in and user presets, built-ins first."""
-    try:
-        from stereo_gui.files import presets
-    except ImportError:
-        return ["seed"]
     try:
         names = list(presets.list_presets())
     except StereoGuiError as exc:
@@ -56,18 +53,10 @@ def preset_names() -> list[str]:
 
 def load_preset(name: str) -> Preset:
     """The preset's parameters; InputError if it does not exist or is broken."""
-    try:
-        from stereo_gui.files import presets
-    except ImportError:
-        if name == "seed":
-            return Preset(name="seed")
-        raise StereoGuiError(f"preset {name!r}: presets are not available") from None
     return presets.load_preset(name)
 
 
 def save_user_preset(params: Preset, name: str):
-    from stereo_gui.files import presets
-
     return presets.save_user_preset(params.replace(name=name), name)
 
 
@@ -334,7 +323,7 @@ class ParamsPanel(QWidget):
             return False
         try:
             save_user_preset(self._params, name)
-        except (StereoGuiError, OSError, ImportError) as exc:
+        except (StereoGuiError, OSError) as exc:
             self._show_error(f"Preset not saved: {exc}")
             return False
         self._params = self._params.replace(name=name)
