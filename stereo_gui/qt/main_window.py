@@ -206,6 +206,32 @@ class MainWindow(QMainWindow):
         early_errors: list[str] = []
         collect = early_errors.append
         ctx.errorOccurred.connect(collect)
+        self._build_source_opener()
+        self.setWindowTitle("Stereo GUI")
+        self.resize(*default_window_size(self._available_geometry()))
+        self._build_central()
+        self._last_session_seen = ctx.settings.last_session
+        self._build_menus()
+        self._build_status_bar()
+        ctx.settings_model.changed.connect(self._settings_changed)
+
+        ctx.errorOccurred.disconnect(collect)
+        ctx.errorOccurred.connect(self.show_error)
+        for text in early_errors:
+            self.show_error(text)
+        self._connect_context()
+        self._update_calibration_label()
+        self._fps_timer = QTimer(self)
+        self._fps_timer.setInterval(500)
+        self._fps_timer.timeout.connect(self._update_fps)
+        self._fps_timer.start()
+        self._restore_geometry()
+        self.show_tab("live")
+        self._tab_changed(self.tabs.currentIndex())
+
+    # ---- construction ------------------------------------------------------------------------
+    def _build_source_opener(self) -> None:
+        """The remembered source, the closing state, and the thread that opens sources."""
         self.source_choice = self._choice_from_settings()
         self._close = CloseState()
         self._opening: tuple[SourceChoice, bool] = (self.source_choice, False)
@@ -215,14 +241,23 @@ class MainWindow(QMainWindow):
                                  dispose=lambda opened: _close_source(opened.source))
         self._opener.finished.connect(self._source_opened)
         self._opener.failed.connect(self._source_failed)
-        ctx.workers.register(self._opener)
-        self.setWindowTitle("Stereo GUI")
-        self.resize(*default_window_size(self._available_geometry()))
+        self.ctx.workers.register(self._opener)
 
+    def _build_central(self) -> None:
+        """The simulated rig's banner and the error bar above the four tabs."""
         self.banner = _MessageBar(
             "background: #ffd54f; color: #3e2700; font-weight: bold;", closable=False)
         self.error_bar = ErrorBar()  # every problem kept, the newest shown
+        self._build_tabs()
+        central, col = pane()
+        col.setSpacing(0)
+        col.addWidget(self.banner)
+        col.addWidget(self.error_bar)
+        col.addWidget(self.tabs, 1)
+        self.setCentralWidget(central)
 
+    def _build_tabs(self) -> None:
+        ctx = self.ctx
         self.tabs = QTabWidget()
         self.tabs.setDocumentMode(True)
         self.capture_tab = CaptureTab(ctx)
@@ -237,22 +272,9 @@ class MainWindow(QMainWindow):
         self.live_tab.calibrateRequested.connect(lambda: self.show_tab("calibration"))
         self.live_tab.loadCalibrationRequested.connect(self.open_calibration)
 
-        central, col = pane()
-        col.setSpacing(0)
-        col.addWidget(self.banner)
-        col.addWidget(self.error_bar)
-        col.addWidget(self.tabs, 1)
-        self.setCentralWidget(central)
-
-        self._last_session_seen = ctx.settings.last_session
-        self._build_menus()
-        self._build_status_bar()
-        ctx.settings_model.changed.connect(self._settings_changed)
-
-        ctx.errorOccurred.disconnect(collect)
-        ctx.errorOccurred.connect(self.show_error)
-        for text in early_errors:
-            self.show_error(text)
+    def _connect_context(self) -> None:
+        """The status bar, the calibration, source and stream labels, and the recorder's."""
+        ctx = self.ctx
         ctx.statusMessage.connect(lambda text: self.statusBar().showMessage(text, 8000))
         ctx.calibration_model.changed.connect(self._update_calibration_label)
         ctx.frames.sourceChanged.connect(self._update_source_label)
@@ -261,16 +283,7 @@ class MainWindow(QMainWindow):
         ctx.recorder.started.connect(lambda _f: self._update_recording_label())
         ctx.recorder.stopped.connect(lambda _r: self._update_recording_label())
         ctx.recorder.stopped.connect(self._recording_stopped)
-        self._update_calibration_label()
-        self._fps_timer = QTimer(self)
-        self._fps_timer.setInterval(500)
-        self._fps_timer.timeout.connect(self._update_fps)
-        self._fps_timer.start()
-        self._restore_geometry()
-        self.show_tab("live")
-        self._tab_changed(self.tabs.currentIndex())
 
-    # ---- construction ------------------------------------------------------------------------
     def _build_menus(self) -> None:
         file_menu = self.menuBar().addMenu("&File")
         self.act_source = QAction("Choose &source…", self)

@@ -96,7 +96,26 @@ class SourceDialog(QDialog):
         super().__init__(parent)
         self.setWindowTitle("Choose the frame source")
         self._cameras = _list_cameras() if cameras is None else list(cameras)
+        self._build_choices()
+        browse, browse_video = self._build_path()
+        self.resolution = QComboBox()
+        for w, h in RESOLUTIONS:
+            self.resolution.addItem(f"{w} x {h}", (w, h))
+        self.swap = QCheckBox("Swap left and right")
+        grid = self._build_grid(browse, browse_video)
+        opts = self._build_options_row()
+        buttons = self._build_buttons()
 
+        layout = QVBoxLayout(self)
+        layout.addLayout(grid)
+        layout.addLayout(opts)
+        layout.addWidget(buttons)
+        self._group.buttonToggled.connect(self._update_enabled)
+        self.set_choice(current)
+
+    def _build_choices(self) -> None:
+        """A radio button per kind of source, and what each kind asks: the cameras, what the
+        simulated rig looks at and the wall's distance."""
         self.auto = QRadioButton("Automatic: two cameras if found, otherwise the simulated rig")
         self.sim = QRadioButton("Simulated stereo rig (no cameras needed)")
         self.cams = QRadioButton("Two cameras")
@@ -134,6 +153,9 @@ class SourceDialog(QDialog):
         self.wall_distance.setSuffix(" m")
         self.wall_distance.setToolTip("How far the wall is from the cameras")
         self.sim_view.currentIndexChanged.connect(self._update_enabled)
+
+    def _build_path(self) -> tuple[QPushButton, QPushButton]:
+        """The recording's path, and its Folder… and Video… buttons (returned)."""
         self.path_edit = QLineEdit()
         self.path_edit.setPlaceholderText("recording or folder of image pairs, or a video file")
         browse = QPushButton("Folder…")
@@ -142,12 +164,10 @@ class SourceDialog(QDialog):
         browse_video = QPushButton("Video…")
         browse_video.setToolTip("A side-by-side stereo video (left half | right half)")
         browse_video.clicked.connect(self._browse_video)
+        return browse, browse_video
 
-        self.resolution = QComboBox()
-        for w, h in RESOLUTIONS:
-            self.resolution.addItem(f"{w} x {h}", (w, h))
-        self.swap = QCheckBox("Swap left and right")
-
+    def _build_grid(self, browse: QPushButton, browse_video: QPushButton) -> QGridLayout:
+        """The kinds of source, each with what it asks under it."""
         grid = QGridLayout()
         grid.addWidget(self.auto, 0, 0, 1, 4)
         grid.addWidget(self.sim, 1, 0, 1, 4)
@@ -170,25 +190,24 @@ class SourceDialog(QDialog):
             note = QLabel("No cameras were found on this computer.")
             note.setStyleSheet("color: #a05000")
             grid.addWidget(note, 10, 0, 1, 4)
+        return grid
 
+    def _build_options_row(self) -> QHBoxLayout:
+        """Resolution and Swap left and right."""
         opts = QHBoxLayout()
         opts.addWidget(QLabel("Resolution:"))
         opts.addWidget(self.resolution)
         opts.addSpacing(20)
         opts.addWidget(self.swap)
         opts.addStretch(1)
+        return opts
 
+    def _build_buttons(self) -> QDialogButtonBox:
         buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok
                                    | QDialogButtonBox.StandardButton.Cancel)
         buttons.accepted.connect(self.accept)
         buttons.rejected.connect(self.reject)
-
-        layout = QVBoxLayout(self)
-        layout.addLayout(grid)
-        layout.addLayout(opts)
-        layout.addWidget(buttons)
-        self._group.buttonToggled.connect(self._update_enabled)
-        self.set_choice(current)
+        return buttons
 
     def _camera_combo(self) -> QComboBox:
         combo = QComboBox()

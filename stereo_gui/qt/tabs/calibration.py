@@ -99,7 +99,21 @@ class CalibrationTab(QWidget):
     # ---- layout ------------------------------------------------------------------------------
     def _build(self) -> None:
         root = QVBoxLayout(self)
+        root.addLayout(self._build_folder_row())
+        root.addWidget(self._build_options())
+        self.progress_label = QLabel("")
+        self.progress_label.setStyleSheet("color: gray")
+        root.addWidget(self.progress_label)
 
+        split = QSplitter(Qt.Orientation.Horizontal)
+        root.addWidget(split, 1)
+        split.addWidget(self._build_results())
+        split.addWidget(self._build_review())
+        split.setSizes([520, 760])
+        self._update_buttons()
+
+    def _build_folder_row(self) -> QHBoxLayout:
+        """The pairs folder and its Browse… button."""
         row = QHBoxLayout()
         row.addWidget(QLabel("Pairs folder:"))
         self.folder_edit = QLineEdit()
@@ -109,8 +123,11 @@ class CalibrationTab(QWidget):
         browse.clicked.connect(self._browse)
         row.addWidget(self.folder_edit, 1)
         row.addWidget(browse)
-        root.addLayout(row)
+        return row
 
+    def _build_options(self) -> QWidget:
+        """Method, lens, swap, alpha, baseline and Calibrate, with the parts they drive
+        (`CalibrationActions`, `PairReview`)."""
         # groups that wrap onto a second row on a narrow window (a laptop screen)
         options = QWidget()
         flow = FlowLayout(options, spacing=14)
@@ -166,15 +183,10 @@ class CalibrationTab(QWidget):
         self.progress.setFormat("%p%")
         self.progress.setMinimumWidth(160)
         group(self.calibrate_button, self.cancel_button, self.progress)
-        root.addWidget(options)
-        self.progress_label = QLabel("")
-        self.progress_label.setStyleSheet("color: gray")
-        root.addWidget(self.progress_label)
+        return options
 
-        split = QSplitter(Qt.Orientation.Horizontal)
-        root.addWidget(split, 1)
-
-        # left: figures and matrices
+    def _build_results(self) -> QWidget:
+        """The left side: figures, warnings, rejected pairs and matrices, over Load and Save."""
         left, ll = pane()
         self.figures = CalibrationFigures()
         ll.addWidget(self.figures)
@@ -210,9 +222,10 @@ class CalibrationTab(QWidget):
         left_box, lb = pane()
         lb.addWidget(left_scroll, 1)
         lb.addLayout(files)
-        split.addWidget(left_box)
+        return left_box
 
-        # right: chart and rectification check
+    def _build_review(self) -> QSplitter:
+        """The right side: the pairs' error chart over the rectification check."""
         right = QSplitter(Qt.Orientation.Vertical)
         chart_box, cl = pane()
         self.chart = self.review.chart
@@ -238,9 +251,7 @@ class CalibrationTab(QWidget):
         self.rect_view = self.review.rect_view
         right.addWidget(self.rect_view)
         right.setSizes([300, 400])
-        split.addWidget(right)
-        split.setSizes([520, 760])
-        self._update_buttons()
+        return right
 
     # ---- settings ------------------------------------------------------------------------------
     def _settings_changed(self, s) -> None:

@@ -104,31 +104,19 @@ class CaptureTab(QWidget):
         root = QHBoxLayout(self)
         split = QSplitter(Qt.Orientation.Horizontal)
         root.addWidget(split)
+        split.addWidget(self._build_main())
+        split.addWidget(self._build_side())
+        split.setStretchFactor(0, 3)
+        split.setStretchFactor(1, 1)
+        split.setSizes([900, 330])
+        self._update_controls()
 
+    def _build_main(self) -> QWidget:
+        """The session line, the board, playback and camera controls, the pair's views and
+        the review under them."""
         main, ml = pane()
-
-        bar = QHBoxLayout()
-        self.new_button = QPushButton("New session…")
-        self.open_button = QPushButton("Open session…")
-        self.session_label = QLabel("No session: choose New session… before saving pairs")
-        self.session_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
-        bar.addWidget(self.new_button)
-        bar.addWidget(self.open_button)
-        bar.addWidget(self.session_label, 1)
-        ml.addLayout(bar)
-
-        self.board_row = BoardRow(
-            f"Take a pair by itself when the board holds still (corners move less than "
-            f"{STEADY_PX:g} px over {STEADY_FRAMES} frames or {STEADY_S:g} s) and its pose differs "
-            "from those kept")
-        row = self.board_row
-        self.cols_spin, self.rows_spin = row.cols_spin, row.rows_spin
-        self.square_spin, self.auto_check = row.square_spin, row.auto_check
-        ml.addWidget(row)
-        row.edited.connect(self._board_edited)
-        row.auto_check.toggled.connect(self._auto_toggled)
-        row.printRequested.connect(self.open_target_dialog)
-
+        ml.addLayout(self._build_session_bar())
+        ml.addWidget(self._build_board_row())
         self.playback = PlaybackBar(self.ctx)  # shown only for a recorded source
         self.playback.used.connect(self._playback_used)
         ml.addWidget(self.playback)
@@ -137,7 +125,37 @@ class CaptureTab(QWidget):
         self.pairSaved.connect(lambda _name: self.camera_controls.record_in(lambda: self.session))
         self.view = StereoPairView()
         ml.addWidget(self.view, 1)
+        ml.addLayout(self._build_review())
+        return main
 
+    def _build_session_bar(self) -> QHBoxLayout:
+        """New session…, Open session… and the session's name."""
+        bar = QHBoxLayout()
+        self.new_button = QPushButton("New session…")
+        self.open_button = QPushButton("Open session…")
+        self.session_label = QLabel("No session: choose New session… before saving pairs")
+        self.session_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        bar.addWidget(self.new_button)
+        bar.addWidget(self.open_button)
+        bar.addWidget(self.session_label, 1)
+        return bar
+
+    def _build_board_row(self) -> BoardRow:
+        """The board's size, its squares, automatic capture and Print a target…."""
+        self.board_row = BoardRow(
+            f"Take a pair by itself when the board holds still (corners move less than "
+            f"{STEADY_PX:g} px over {STEADY_FRAMES} frames or {STEADY_S:g} s) and its pose differs "
+            "from those kept")
+        row = self.board_row
+        self.cols_spin, self.rows_spin = row.cols_spin, row.rows_spin
+        self.square_spin, self.auto_check = row.square_spin, row.auto_check
+        row.edited.connect(self._board_edited)
+        row.auto_check.toggled.connect(self._auto_toggled)
+        row.printRequested.connect(self.open_target_dialog)
+        return row
+
+    def _build_review(self) -> QHBoxLayout:
+        """The prompt, and Save pair, Cancel and Back to live stacked beside it."""
         review = QHBoxLayout()
         self.prompt = wrapping_label()
         f = self.prompt.font()
@@ -160,9 +178,11 @@ class CaptureTab(QWidget):
         for b in (self.save_button, self.cancel_button, self.live_button):
             buttons.addWidget(b)
         review.addLayout(buttons)
-        ml.addLayout(review)
-        split.addWidget(main)
+        return review
 
+    def _build_side(self) -> SavedPairsPanel:
+        """The saved pairs and their coverage, with the session they are kept in
+        (`SessionPairs`)."""
         side = SavedPairsPanel()
         side.pairClicked.connect(self.show_saved_pair)
         side.delete_button.clicked.connect(self._delete_selected)
@@ -176,11 +196,7 @@ class CaptureTab(QWidget):
         self.open_button.clicked.connect(self.pairs.choose_open)
         self.coverage, self.pairs_label = side.coverage, side.pairs_label
         self.pair_list, self.delete_button = side.pair_list, side.delete_button
-        split.addWidget(side)
-        split.setStretchFactor(0, 3)
-        split.setStretchFactor(1, 1)
-        split.setSizes([900, 330])
-        self._update_controls()
+        return side
 
     @property
     def state(self) -> CaptureState:

@@ -112,8 +112,17 @@ class LiveTab(QWidget):
         self.frames_shown = 0
         self._to_draw: list[str] = []  # views still to get the image of the frame shown
         self._draw_scheduled = False
+        scroll = self._build_params()
+        self._build_views()
+        self._build_toolbar()
+        views_page = self._build_views_page()
+        self._build_layout(views_page, scroll)
+        self._connect()
+        self._calibration_changed(ctx.calibration)
 
-        # params
+    # ---- set-up ------------------------------------------------------------------------------
+    def _build_params(self) -> QScrollArea:
+        """The matcher parameters' panel, in the scroll area beside the views."""
         self.params_panel = ParamsPanel(self._initial_params())
         self.params_panel.paramsChanged.connect(self._params_changed)
         scroll = QScrollArea()
@@ -122,8 +131,11 @@ class LiveTab(QWidget):
         scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
         scroll.setMinimumWidth(self.params_panel.sizeHint().width()
                                + scroll.verticalScrollBar().sizeHint().width() + 4)
+        return scroll
 
-        # views
+    def _build_views(self) -> None:
+        """The view grid, the pointer's readout and the readings (hover, double-click, ruler)."""
+        ctx = self.ctx
         self.views = ViewGrid(ctx.settings.visible_views)
         self.panels, self.view_checks = self.views.panels, self.views.checks
         self.readout = QLabel(HOVER_HINT)
@@ -145,7 +157,10 @@ class LiveTab(QWidget):
             panel.hovered.connect(self.readings.hovered)
             panel.doubleClicked.connect(self.readings.double_clicked)
 
-        # toolbar
+    def _build_toolbar(self) -> None:
+        """The buttons above the views and the parts they drive (exports, region, stream, 3D
+        view, recording), then the playback bar."""
+        ctx = self.ctx
         self.pause_button = QPushButton("Pause")
         self.pause_button.setCheckable(True)
         self.pause_button.toggled.connect(self.set_paused)
@@ -203,6 +218,9 @@ class LiveTab(QWidget):
         self.playback = PlaybackBar(ctx)
         self.playback.used.connect(lambda: self.set_paused(False))
 
+    def _build_views_page(self) -> QWidget:
+        """The page shown with a calibration: toolbar, notes, the views and the lines under them."""
+        ctx = self.ctx
         self.legend = QLabel(LEGEND)
         self._caption = ""  # the depth colours' caption the legend shows
         self.legend.setStyleSheet("padding: 0px 4px;")
@@ -230,7 +248,10 @@ class LiveTab(QWidget):
         vcol.addWidget(self.readout)
         self.health = CalibrationHealthPanel(ctx)  # drift figure and refinement
         vcol.addWidget(self.health)
+        return views_page
 
+    def _build_layout(self, views_page: QWidget, scroll: QScrollArea) -> None:
+        """The no-calibration page or the views, beside the parameters."""
         self.no_calib = NoCalibrationPage()
         self.no_calib.calibrate.clicked.connect(self.calibrateRequested)
         self.no_calib.load.clicked.connect(self.loadCalibrationRequested)
@@ -251,6 +272,9 @@ class LiveTab(QWidget):
         outer.setContentsMargins(0, 0, 0, 0)
         outer.addWidget(splitter)
 
+    def _connect(self) -> None:
+        """The views laid out, the region and stream restored, and the context's signals."""
+        ctx = self.ctx
         self.views.changed.connect(self._views_changed)
         self.views.lay_out()
         self.region.restore()
@@ -258,9 +282,7 @@ class LiveTab(QWidget):
         ctx.calibration_model.changed.connect(self._calibration_changed)
         ctx.frames.frameReady.connect(self._frame_ready)
         ctx.frames.sourceChanged.connect(self._source_changed)
-        self._calibration_changed(ctx.calibration)
 
-    # ---- set-up ------------------------------------------------------------------------------
     def _initial_params(self) -> Preset:
         name = self.ctx.settings.preset or "live"
         failed = []

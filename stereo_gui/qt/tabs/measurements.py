@@ -89,7 +89,12 @@ class MeasurementsTab(QWidget):
         root = QVBoxLayout(self)
         split = QSplitter(Qt.Orientation.Horizontal)
         root.addWidget(split, 1)
+        split.addWidget(self._build_log())
+        split.addWidget(self._build_regression())
+        split.setSizes([700, 560])
 
+    def _build_log(self) -> QWidget:
+        """The left side: the readings' table over its buttons."""
         left, ll = pane()
         self.count_label = wrapping_label()
         ll.addWidget(self.count_label)
@@ -109,6 +114,11 @@ class MeasurementsTab(QWidget):
         hh.setStretchLastSection(True)
         self.table.verticalHeader().setDefaultSectionSize(22)
         ll.addWidget(self.table, 1)
+        ll.addLayout(self._build_log_buttons())
+        return left
+
+    def _build_log_buttons(self) -> QHBoxLayout:
+        """Remove, Clear, Undo clear; Open log and the exports (`MeasurementExports`)."""
         row = QHBoxLayout()
         self.remove_button = QPushButton("Remove selected")
         self.remove_button.clicked.connect(self._remove_selected)
@@ -138,9 +148,11 @@ class MeasurementsTab(QWidget):
         row.addWidget(self.open_button)
         row.addWidget(self.xlsx_button)
         row.addWidget(self.csv_button)
-        ll.addLayout(row)
-        split.addWidget(left)
+        return row
 
+    def _build_regression(self) -> QWidget:
+        """The right side: the fits' figures, their plot, the model the live readings use,
+        and Save fit / Load fit."""
         right, rl = pane()
         box = QGroupBox("Regression: true distance against disparity")
         bl = QVBoxLayout(box)
@@ -178,8 +190,7 @@ class MeasurementsTab(QWidget):
         fits.addWidget(self.load_fit_button)
         bl.addLayout(fits)
         rl.addWidget(box, 1)
-        split.addWidget(right)
-        split.setSizes([700, 560])
+        return right
 
     def set_active(self, active: bool) -> None:
         """This tab shows no live frames: while it is shown, frames are not processed."""

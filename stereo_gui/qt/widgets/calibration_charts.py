@@ -263,6 +263,22 @@ class RectifiedPairView(QWidget):
             self.mode_combo.addItem(text, key)
         self.mode_combo.setToolTip("How to look at the rectified pair")
         self.mode_combo.currentIndexChanged.connect(lambda _i: self._draw())
+        self._build_views()
+        row = self._build_controls_row()
+        col = QVBoxLayout(self)
+        col.setContentsMargins(0, 0, 0, 0)
+        col.addLayout(row)
+        col.addWidget(self.glw, 1)
+        self.shown: str | None = None
+        self._pair: tuple[np.ndarray, np.ndarray] | None = None
+        self._title = ""
+        # (detected, reprojected) rectified px per side, and how much longer errors are drawn
+        self._corners: tuple[tuple[np.ndarray, np.ndarray], ...] | None = None
+        self.error_scale = 1.0
+
+    def _build_views(self) -> None:
+        """The title over the two halves, each a view box with its image, lines and corners;
+        one zoom for both."""
         self.glw = pg.GraphicsLayoutWidget()
         self.glw.setBackground("#202020")
         self.title = pg.LabelItem("Rectification check: select a pair", color="w")
@@ -300,6 +316,9 @@ class RectifiedPairView(QWidget):
         self.vb = self.views[0]
         self.image = self.images[0]
         self.lines = self.line_items[0]
+
+    def _build_controls_row(self) -> QHBoxLayout:
+        """Show: the mode, and the corners' check box."""
         row = QHBoxLayout()
         row.setContentsMargins(0, 0, 0, 0)
         row.addWidget(QLabel("Show:"))
@@ -313,16 +332,7 @@ class RectifiedPairView(QWidget):
         self.corners_check.toggled.connect(lambda _on: self._draw())
         row.addWidget(self.corners_check)
         row.addStretch(1)
-        col = QVBoxLayout(self)
-        col.setContentsMargins(0, 0, 0, 0)
-        col.addLayout(row)
-        col.addWidget(self.glw, 1)
-        self.shown: str | None = None
-        self._pair: tuple[np.ndarray, np.ndarray] | None = None
-        self._title = ""
-        # (detected, reprojected) rectified px per side, and how much longer errors are drawn
-        self._corners: tuple[tuple[np.ndarray, np.ndarray], ...] | None = None
-        self.error_scale = 1.0
+        return row
 
     @property
     def mode(self) -> str:

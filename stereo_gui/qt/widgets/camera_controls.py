@@ -336,7 +336,19 @@ class CameraControlsPanel(QWidget):
         outer = QVBoxLayout(self)
         outer.setContentsMargins(0, 0, 0, 0)
         outer.setSpacing(2)
+        outer.addLayout(self._build_head())
+        outer.addWidget(self._build_warning_row())
+        outer.addWidget(self._build_body())
 
+        self._timer = QTimer(self)
+        self._timer.setInterval(SKEW_POLL_MS)
+        self._timer.timeout.connect(self.show_timing)
+        self._timer.start()
+        self.model.changed.connect(self.show_state)
+        self.show_state()
+
+    def _build_head(self) -> QHBoxLayout:
+        """The header line: the fold button and the skew."""
         head = QHBoxLayout()
         self.fold = QToolButton()
         self.fold.setText("Camera controls")
@@ -351,8 +363,10 @@ class CameraControlsPanel(QWidget):
             "is seen at two moments.")
         head.addWidget(self.fold)
         head.addWidget(self.skew_label, 1)
-        outer.addLayout(head)
+        return head
 
+    def _build_warning_row(self) -> QWidget:
+        """What needs attention, with Restore and Lock focus beside it (hidden until then)."""
         self.warning = QLabel()
         self.warning.setWordWrap(True)
         self.warning.setStyleSheet(WARN_STYLE)
@@ -369,11 +383,33 @@ class CameraControlsPanel(QWidget):
         wr.addWidget(self.restore_button)
         wr.addWidget(self.lock_warning_button)
         self.warning_row.hide()
-        outer.addWidget(self.warning_row)
+        return self.warning_row
 
+    def _build_body(self) -> QScrollArea:
+        """The unfolded part: the rows of controls, the buttons under them and the note, in a
+        scroll area."""
         self.body = QWidget()
         body = QVBoxLayout(self.body)
         body.setContentsMargins(0, 0, 0, 0)
+        body.addLayout(self._build_rows())
+        body.addLayout(self._build_buttons())
+        self.note_label = QLabel()
+        self.note_label.setWordWrap(True)
+        body.addWidget(self.note_label)
+        # the rows scroll within BODY_MAX_PX: unfolded, they must not make the window ask for
+        # more height than a 720 px screen has (they asked for 735 px, 772 with the warning)
+        self.body_scroll = QScrollArea()
+        self.body_scroll.setWidget(self.body)
+        self.body_scroll.setWidgetResizable(True)
+        self.body_scroll.setFrameShape(QFrame.Shape.NoFrame)
+        self.body_scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+        self.body_scroll.setMaximumHeight(BODY_MAX_PX)
+        self.body_scroll.setMinimumHeight(0)
+        self.body_scroll.hide()
+        return self.body_scroll
+
+    def _build_rows(self) -> QGridLayout:
+        """A row per control (ROWS), the left and the right camera's cell side by side."""
         grid = QGridLayout()
         grid.setHorizontalSpacing(8)
         grid.setVerticalSpacing(1)
@@ -390,7 +426,10 @@ class CameraControlsPanel(QWidget):
                 grid.addWidget(cell, r, c)
         grid.setColumnStretch(1, 1)
         grid.setColumnStretch(2, 1)
-        body.addLayout(grid)
+        return grid
+
+    def _build_buttons(self) -> QHBoxLayout:
+        """Same for both cameras, Lock focus, Match exposure, Read again."""
         buttons = QHBoxLayout()
         self.same_check = QCheckBox("Same for both cameras")
         self.same_check.setToolTip("A change to one camera's control is written to both")
@@ -408,28 +447,7 @@ class CameraControlsPanel(QWidget):
         for w in (self.same_check, self.lock_button, self.match_button, self.read_button):
             buttons.addWidget(w)
         buttons.addStretch(1)
-        body.addLayout(buttons)
-        self.note_label = QLabel()
-        self.note_label.setWordWrap(True)
-        body.addWidget(self.note_label)
-        # the rows scroll within BODY_MAX_PX: unfolded, they must not make the window ask for
-        # more height than a 720 px screen has (they asked for 735 px, 772 with the warning)
-        self.body_scroll = QScrollArea()
-        self.body_scroll.setWidget(self.body)
-        self.body_scroll.setWidgetResizable(True)
-        self.body_scroll.setFrameShape(QFrame.Shape.NoFrame)
-        self.body_scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
-        self.body_scroll.setMaximumHeight(BODY_MAX_PX)
-        self.body_scroll.setMinimumHeight(0)
-        self.body_scroll.hide()
-        outer.addWidget(self.body_scroll)
-
-        self._timer = QTimer(self)
-        self._timer.setInterval(SKEW_POLL_MS)
-        self._timer.timeout.connect(self.show_timing)
-        self._timer.start()
-        self.model.changed.connect(self.show_state)
-        self.show_state()
+        return buttons
 
     # ---- showing -------------------------------------------------------------------------------
     def set_unfolded(self, on: bool) -> None:

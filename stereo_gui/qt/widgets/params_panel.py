@@ -196,8 +196,26 @@ class ParamsPanel(QWidget):
         self.error_label.setStyleSheet("color: #ff6e6e")
         self.error_label.setWordWrap(True)
         self.error_label.hide()
+        prow = self._build_preset_row()
+        self._build_editors()
+        sgbm_box = self._build_sgbm_box()
+        closing_box = self._build_closing_box()
+        wls_box = self._build_wls_box()
 
-        # presets
+        col = QVBoxLayout(self)
+        col.addLayout(prow)
+        col.addWidget(self.error_label)
+        col.addWidget(sgbm_box)
+        col.addWidget(closing_box)
+        col.addWidget(wls_box)
+        col.addStretch(1)
+
+        self._show(self._params)
+        self._connect_editors()
+
+    # ---- building ----------------------------------------------------------------------------
+    def _build_preset_row(self) -> QHBoxLayout:
+        """The preset chooser and Save as…."""
         self.preset = QComboBox()
         self.preset.setToolTip("seed: the reference loop's parameters; live: fast; quality: "
                                "most accurate")
@@ -210,7 +228,10 @@ class ParamsPanel(QWidget):
         prow.addWidget(self.save_preset)
         self.reload_presets()
         self.preset.activated.connect(self._preset_activated)
+        return prow
 
+    def _build_editors(self) -> None:
+        """An editor per declared parameter, and the choices the declarations do not make."""
         self.editors: dict[str, QWidget] = {
             key: make_editor(PRESET_PARAMS[key]) for key in SGBM_KEYS + CLOSING_KEYS + WLS_KEYS}
         ed = self.editors
@@ -236,13 +257,17 @@ class ParamsPanel(QWidget):
         self.scale_note.setStyleSheet("color: gray")
         self.scale_note.hide()
 
-        def rows(form: QFormLayout, keys) -> None:
-            for key in keys:
-                if isinstance(ed[key], QCheckBox):
-                    form.addRow(ed[key])
-                else:
-                    form.addRow(PRESET_PARAMS[key].label or key, ed[key])
+    def _add_rows(self, form: QFormLayout, keys) -> None:
+        """A row per parameter in `keys`: a check box alone, other editors after a label."""
+        for key in keys:
+            editor = self.editors[key]
+            if isinstance(editor, QCheckBox):
+                form.addRow(editor)
+            else:
+                form.addRow(PRESET_PARAMS[key].label or key, editor)
 
+    def _build_sgbm_box(self) -> QGroupBox:
+        rows = self._add_rows
         sgbm = QFormLayout()
         rows(sgbm, ("block_size", "min_disparity", "num_disparities"))
         sgbm.addRow(self.range_from_z)
@@ -256,29 +281,27 @@ class ParamsPanel(QWidget):
         rows(sgbm, ("parallel",))
         sgbm_box = QGroupBox("SGBM matcher")
         sgbm_box.setLayout(sgbm)
+        return sgbm_box
 
+    def _build_closing_box(self) -> QGroupBox:
         closing = QFormLayout()
-        rows(closing, CLOSING_KEYS)
+        self._add_rows(closing, CLOSING_KEYS)
         closing_box = QGroupBox("Closing filter")
         closing_box.setLayout(closing)
+        return closing_box
 
+    def _build_wls_box(self) -> QGroupBox:
         wls = QFormLayout()
-        rows(wls, ("wls", "wls_lambda", "wls_sigma", "colormap"))
+        self._add_rows(wls, ("wls", "wls_lambda", "wls_sigma", "colormap"))
         wls.addRow("colour range", self.color_range)
-        rows(wls, ("color_z_near_mm", "color_z_far_mm"))
+        self._add_rows(wls, ("color_z_near_mm", "color_z_far_mm"))
         wls_box = QGroupBox("WLS filter and colours")
         wls_box.setLayout(wls)
+        return wls_box
 
-        col = QVBoxLayout(self)
-        col.addLayout(prow)
-        col.addWidget(self.error_label)
-        col.addWidget(sgbm_box)
-        col.addWidget(closing_box)
-        col.addWidget(wls_box)
-        col.addStretch(1)
-
-        self._show(self._params)
-        for w in ed.values():
+    def _connect_editors(self) -> None:
+        """Every edit goes through `_edited`."""
+        for w in self.editors.values():
             editor_changed(w).connect(self._edited)
         self.scale.currentIndexChanged.connect(self._edited)
         self.color_range.currentIndexChanged.connect(self._edited)
