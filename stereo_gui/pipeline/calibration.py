@@ -6,7 +6,9 @@ matrices laid out as the original scripts printed them, so a user can compare th
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable, Generator, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from functools import partial
 from pathlib import Path
 
 import cv2
@@ -74,7 +76,8 @@ def reproject_pair(calib: StereoCalibration, det: PairDetection,
     r_lr = cv2.Rodrigues(np.asarray(calib.R, np.float64))[0]
     t_lr = np.asarray(calib.T, np.float64).reshape(3, 1)
 
-    def residuals(rb, tb):
+    def residuals(rb: np.ndarray, tb: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         pl, jl = project_points(model, obj_l, rb, tb, calib.M1, calib.D1, jacobian=True)
         r2, t2, dr3dr1, dr3dt1, _, _, dt3dr1, dt3dt1, _, _ = cv2.composeRT(rb, tb, r_lr, t_lr)
         pr, jr = project_points(model, obj_r, r2, t2, calib.M2, calib.D2, jacobian=True)
@@ -104,10 +107,10 @@ def reproject_pair(calib: StereoCalibration, det: PairDetection,
     return PairReprojection(det.name, img_l, pl, img_r, pr, _rms(pl, img_l), _rms(pr, img_r))
 
 
-def reproject_pairs(calib: StereoCalibration, detections, board: BoardSpec,
-                    names) -> dict[str, PairReprojection]:
+def reproject_pairs(calib: StereoCalibration, detections: Mapping[str, PairDetection],
+                    board: BoardSpec, names: Iterable[str]) -> dict[str, PairReprojection]:
     """`reproject_pair` for each named pair whose detection is known (failures are logged)."""
-    out = {}
+    out: dict[str, PairReprojection] = {}
     for name in names:
         det = detections.get(name)
         if det is None:
@@ -138,17 +141,18 @@ class CalibrationRun:
 EXCLUDED_BY_YOU = "excluded by you"  # why an excluded pair is not in a calibration
 
 
-def read_image(path: str) -> np.ndarray:
+def read_image(path: str | Path) -> np.ndarray:
     """A BGR image from `path`; InputError if it cannot be read."""
     return read_image_file(path, cv2.IMREAD_COLOR)
 
 
 def calibration_job(folder: Path, board: BoardSpec, alpha: float, method: str,
-                    model: str = "pinhole", fix_k3: bool = False):
+                    model: str = "pinhole", fix_k3: bool = False
+                    ) -> Callable[[JobControl], Generator[Progress, None, CalibrationRun]]:
     """A JobWorker job: detect the board in the session's included pairs and calibrate (with
     left and right exchanged when the session says the cameras are swapped)."""
 
-    def job(control: JobControl):
+    def job(control: JobControl) -> Generator[Progress, None, CalibrationRun]:
         yield Progress(0, 1, f"reading {folder}")
         session = CaptureSession.open(folder)
         included = list(session.included_pairs())
@@ -159,7 +163,7 @@ def calibration_job(folder: Path, board: BoardSpec, alpha: float, method: str,
                              + (f" ({len(excluded)} excluded)" if excluded else ""))
         sides = [(p.right, p.left) if swapped else (p.left, p.right) for p in included]
         files = {p.name: (str(a), str(b)) for p, (a, b) in zip(included, sides)}
-        inputs = [PairInput(p.name, (lambda f=a: read_image(f)), (lambda f=b: read_image(f)),
+        inputs = [PairInput(p.name, partial(read_image, a), partial(read_image, b),
                             Path(a).name, Path(b).name) for p, (a, b) in zip(included, sides)]
         n = len(inputs)
         total = n + 10
@@ -207,7 +211,8 @@ def _fmt_matrix(m: np.ndarray | None, digits: int = 3) -> str:
     return "\n".join("  [ " + "  ".join(c.rjust(width) for c in row) + " ]" for row in cells)
 
 
-def _dist_text(d: np.ndarray, model: str = "pinhole", sigmas=None) -> str:
+def _dist_text(d: np.ndarray, model: str = "pinhole",
+               sigmas: Sequence[float | None] | None = None) -> str:
     d = np.asarray(d, np.float64).reshape(-1)
     names = distortion_names(model, d.size)
     if sigmas is None:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -73,14 +74,14 @@ def calibration_controls_in_source_order(calib: StereoCalibration | None) -> Pai
 
 
 def _mismatches(pair: PairControls, calib: StereoCalibration | None,
-                size_now) -> tuple[SettingsMismatch, ...]:
+                size_now: tuple[int, int] | None) -> tuple[SettingsMismatch, ...]:
     if calib is None:
         return ()
     now = pair.settings()
     if calib.swapped_inputs:
         now = now.swapped()
-    return tuple(compare_with_calibration(calib.camera_controls, now,
-                                          tuple(calib.image_size), size_now))
+    return tuple(compare_with_calibration(calib.camera_controls, now, calib.image_size,
+                                          size_now))
 
 
 def read_controls(pair: PairControls, calib: StereoCalibration | None = None,
@@ -90,7 +91,8 @@ def read_controls(pair: PairControls, calib: StereoCalibration | None = None,
     return ControlsReport(left, right, (), _mismatches(pair, calib, size_now))
 
 
-def write_control(pair: PairControls, name: str, value, sides=("left", "right"),
+def write_control(pair: PairControls, name: str, value: bool | float,
+                  sides: Sequence[str] = ("left", "right"),
                   calib: StereoCalibration | None = None,
                   size_now: tuple[int, int] | None = None) -> ControlsReport:
     """Write one control to the `sides` cameras (both: "same for both cameras")."""
@@ -113,7 +115,8 @@ def restore_calibration_controls(pair: PairControls, calib: StereoCalibration | 
     return ControlsReport(left, right, results, _mismatches(pair, calib, size_now))
 
 
-def lock_focus(pair: PairControls, sides=("left", "right"), calib: StereoCalibration | None = None,
+def lock_focus(pair: PairControls, sides: Sequence[str] = ("left", "right"),
+               calib: StereoCalibration | None = None,
                size_now: tuple[int, int] | None = None) -> ControlsReport:
     """Turn autofocus off on the `sides` cameras, holding the focus where it is now."""
     results = []

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import logging
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Generator, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 
@@ -28,9 +28,11 @@ from stereo_gui.core.detect import (
     pair_pose,
 )
 from stereo_gui.core.errors import StereoGuiError
-from stereo_gui.core.jobs import Progress
+from stereo_gui.core.jobs import JobControl, Progress
+from stereo_gui.core.timing import SkewStats
 from stereo_gui.core.util import to_gray
 from stereo_gui.files.pairs import load_image
+from stereo_gui.files.session import PairEntry
 from stereo_gui.pipeline.images import display_rgb
 from stereo_gui.sources.base import StereoFrame
 
@@ -118,7 +120,7 @@ def misplaced_point(pair: PairDetection, board: BoardSpec) -> str:
     return ""
 
 
-def make_capture_processor(board: BoardSpec):
+def make_capture_processor(board: BoardSpec) -> Callable[[StereoFrame], CaptureOutput]:
     """The frame worker processor of the capture tab, for `board` (it runs in the worker's one
     processing thread, and remembers in which images the board was found last)."""
     seen = [False, False]
@@ -131,7 +133,12 @@ def make_capture_processor(board: BoardSpec):
     return process
 
 
-def session_scan_job(pairs, board: BoardSpec, thumb_size: tuple[int, int]):
+# a scanned pair: (name, PairDetection or None, [left, right] thumbnails BGR or None)
+ScannedPair = tuple[str, PairDetection | None, list[np.ndarray] | None]
+
+
+def session_scan_job(pairs: Sequence[PairEntry], board: BoardSpec, thumb_size: tuple[int, int]
+                     ) -> Callable[[JobControl], Generator[Progress, None, list[ScannedPair]]]:
     """A JobWorker job over a session's saved pairs (files.session pairs): detect the board in
     each (for coverage) and shrink both images to `thumb_size` (w, h) px for thumbnails.
 
@@ -139,8 +146,8 @@ def session_scan_job(pairs, board: BoardSpec, thumb_size: tuple[int, int]):
     logged and listed with None.
     """
 
-    def job(cancel):
-        out = []
+    def job(cancel: JobControl) -> Generator[Progress, None, list[ScannedPair]]:
+        out: list[ScannedPair] = []
         for i, p in enumerate(pairs):
             cancel.check()
             yield Progress(i, len(pairs), f"reading pair {p.name}")
@@ -218,7 +225,7 @@ class CaptureRules:
         # the same for the right camera: (its frame time s or None, right corners (N, 2))
         self.recent_right: deque[tuple[float | None, np.ndarray]] = deque(maxlen=16)
         self.last_reviewed_pose: PoseDescriptor | None = None
-        self.timing = None  # core.timing.SkewStats of the source now, or None when unknown
+        self.timing: SkewStats | None = None  # of the source now, None when unknown
         self._last_seen: np.ndarray | None = None  # left corners of the frame before
 
     def reset_steadiness(self) -> None:
@@ -267,6 +274,7 @@ class CaptureRules:
             # (a first sight cannot tell: one more frame says whether the board holds still)
             return CaptureStep(CaptureAction.SHOW, "Hold the board still." + self._skew_note())
         if auto:
+            assert pose is not None  # (the board found in both images: pair_pose gives one)
             return self._auto_step(out, pose, saved_poses(), have_session,
                                    fills(det) if fills is not None else {},
                                    empty_regions if empty_regions is not None else dict)
@@ -292,9 +300,10 @@ class CaptureRules:
         # two pictures of the pair
         return skew == 0.0 or max(left, right) * skew < STILL_ACROSS_SKEW_PX
 
-    def _auto_step(self, out: CaptureOutput, pose: PoseDescriptor | None,
+    def _auto_step(self, out: CaptureOutput, pose: PoseDescriptor,
                    saved: list[PoseDescriptor], have_session: bool,
-                   fills: dict[str, list[str]], empty_regions) -> CaptureStep:
+                   fills: dict[str, list[str]],
+                   empty_regions: Callable[[], dict[str, list[str]]]) -> CaptureStep:
         corners = out.detection.left.corners.reshape(-1, 2)  # type: ignore[union-attr]
         self.recent_corners.append((out.time_s, corners))
         skew = out.skew_s
@@ -325,7 +334,8 @@ class CaptureRules:
         return CaptureStep(CaptureAction.SAVE, "Pair taken. Move the board to the next pose")
 
 
-def _steady_over(recent, min_span_s: float = 0.0) -> float | None:
+def _steady_over(recent: deque[tuple[float | None, np.ndarray]],
+                 min_span_s: float = 0.0) -> float | None:
     """Whether the newest corners of `recent` ((time s or None, corners) oldest first) moved
     less than STEADY_PX from each of the frames before them, back over STEADY_FRAMES frames or
     STEADY_S seconds, whichever comes first, and over at least `min_span_s`: the corners' speed

@@ -15,6 +15,7 @@ import numpy as np
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import COLORMAPS, PipelineResult
+from stereo_gui.core.stereo_calibration import StereoCalibration
 
 COLOURINGS = ("image", "distance")
 MAX_POINTS = 120_000  # what the view draws at interactive rates on a small machine
@@ -51,7 +52,8 @@ class CloudPoints:
         return int(self.xyz_m.shape[0])
 
 
-def reproject_every(disparity_px: np.ndarray, calibration, step: int):
+def reproject_every(disparity_px: np.ndarray, calibration: StereoCalibration, step: int
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Every `step`-th pixel of a disparity map (px, NaN invalid) through Q: (its disparities
     (rows x cols float32), (N, 3) float64 X, Y, Z mm in the left rectified camera, N bools of
     the points in front of the camera). The 3D view and the depth stream's cloud share it."""

@@ -33,7 +33,7 @@ class HealthMonitor:
         self.interval_s = float(interval_s)
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="health")
         self._lock = threading.Lock()
-        self._pending: Future | None = None
+        self._pending: Future[CalibrationHealth] | None = None
         self._last_start = -1e18
         self._latest: CalibrationHealth | None = None
         self._closed = False

@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import logging
 import threading
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from typing import Protocol
 
 import cv2
 import numpy as np
@@ -25,6 +27,8 @@ from stereo_gui.core.matching import (
     colorize,
     paint,
 )
+from stereo_gui.core.regression import FitResult
+from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.pipeline.concurrency import lanes_for, use_preset_threads
 from stereo_gui.pipeline.health import HealthMonitor
 from stereo_gui.pipeline.images import display_rgb
@@ -86,7 +90,20 @@ def frame_lanes(params: Preset | MatcherParams, cpus: int | None = None) -> int:
     return lanes_for(Preset.of(params).threads.parallel, cpus)
 
 
-def _publish(stream, out: LiveOutput, frame: StereoFrame, said: set) -> None:
+class FramePublisher(Protocol):
+    """What a processed frame is published on (pipeline.stream.DepthStream)."""
+
+    def publish(self, result: PipelineResult, t_capture_s: float,
+                region: RegionStats | None = None,
+                health: CalibrationHealth | None = None) -> None: ...
+
+
+# the watched region: (region, alarm below mm or None, the fit its distances go through or None)
+Watched = tuple[Region, float | None, FitResult | None]
+
+
+def _publish(stream: FramePublisher, out: LiveOutput, frame: StereoFrame, said: set[str]
+             ) -> None:
     """Publish a processed frame; a failure is logged (each reason once, not at 30 frames a
     second), never the frame's: the view goes on."""
     try:
@@ -110,7 +127,7 @@ class LiveProcessor:
     reason, for every frame, so it is never silently wrong.
     """
 
-    def __init__(self, calibration, params: Preset | MatcherParams) -> None:
+    def __init__(self, calibration: StereoCalibration, params: Preset | MatcherParams) -> None:
         params = Preset.of(params)
         self.calibration = calibration
         self._lock = threading.Lock()
@@ -124,9 +141,9 @@ class LiveProcessor:
         self._scaled = calibration  # the calibration scaled to that size
         self._note = ""
         self._closed = False
-        self._region: tuple[Region, float | None, object] | None = None
+        self._region: Watched | None = None
         self._views: frozenset[str] = frozenset(VIEW_KEYS)
-        self._stream = None  # a pipeline.stream.DepthStream every frame is published on
+        self._stream: FramePublisher | None = None  # every frame is published on it
         self._stream_said: set[str] = set()  # why publishing failed, said once each
         # the colour scale of the newest frame processed: a "view" colour range follows the
         # scene from it (core.matching.color_scale), so its colours do not flicker
@@ -140,13 +157,13 @@ class LiveProcessor:
         with self._lock:
             return self._lanes
 
-    def set_views(self, keys) -> None:
+    def set_views(self, keys: Iterable[str]) -> None:
         """Make display images only of the views in `keys` (any thread; the next frame): the
         others cost time and nobody sees them. The right image is rectified in colour only
         when its view is shown (gray is all the matcher needs)."""
-        keys = frozenset(keys) & frozenset(VIEW_KEYS)
+        shown = frozenset(keys) & frozenset(VIEW_KEYS)
         with self._lock:
-            self._views = keys
+            self._views = shown
 
     def set_params(self, params: Preset | MatcherParams) -> None:
         params = Preset.of(params)
@@ -156,14 +173,14 @@ class LiveProcessor:
             for pipeline in (*self._idle, *self._busy):
                 pipeline.set_params(lane)
 
-    def set_stream(self, stream) -> None:
+    def set_stream(self, stream: FramePublisher | None) -> None:
         """Publish every frame from the next on with `stream` (a pipeline.stream.DepthStream;
         None: stop), in the lane that processed it (any thread)."""
         with self._lock:
             self._stream = stream
 
     def set_region(self, region: Region | None, alarm_mm: float | None = None,
-                   fit=None) -> None:
+                   fit: FitResult | None = None) -> None:
         """Watch `region` (None: no region) from the next frame on: its distances through
         `fit` (a FitResult, None: triangulation) and an alarm below `alarm_mm` (any thread)."""
         with self._lock:
@@ -230,13 +247,14 @@ class LiveProcessor:
         finally:
             self._give_back(pipeline, size)
 
-    def _process(self, pipeline: StereoPipeline, frame: StereoFrame, note: str, watched,
-                 views: frozenset[str], previous: ColorScale | None) -> LiveOutput:
+    def _process(self, pipeline: StereoPipeline, frame: StereoFrame, note: str,
+                 watched: Watched | None, views: frozenset[str], previous: ColorScale | None
+                 ) -> LiveOutput:
         r = pipeline.process(*self.calibration.ordered(frame.left, frame.right),
                              right_colour="right" in views, wls="wls" in views,
                              previous_scale=previous)
         lo, hi = r.disparity_range_px
-        make = {
+        make: dict[str, Callable[[], np.ndarray]] = {
             "left": lambda: display_rgb(r.rectified_left),
             "right": lambda: display_rgb(r.rectified_right),
             "raw": lambda: _gray_disparity(r.disparity_px, lo, hi, r.not_seen, r.not_seen_cols),

@@ -15,6 +15,8 @@ import numpy as np
 
 from stereo_gui.core.matching import PipelineResult
 from stereo_gui.core.measure import Measurement, measure_point, reading_map
+from stereo_gui.core.regression import FitResult
+from stereo_gui.core.stereo_calibration import StereoCalibration
 
 # views sharing the left image's pixel frame: a reading there is a reading of the left image
 MEASURABLE_VIEWS = ("left", "raw", "closed", "depth", "wls")
@@ -41,11 +43,15 @@ def disparity_of_view(result: PipelineResult | None, key: str) -> np.ndarray | N
     """The disparity (px, NaN invalid) view `key` shows: raw, closed, or the final one."""
     if result is None:
         return None
-    r = result
-    return {"raw": r.disparity_px, "closed": r.closed_px}.get(key, r.final_px)
+    if key == "raw":
+        return result.disparity_px
+    if key == "closed":
+        return result.closed_px
+    return result.final_px
 
 
-def true_point(truth, calibration, x: float, y: float) -> np.ndarray | None:
+def true_point(truth: object | None, calibration: StereoCalibration | None, x: float, y: float
+               ) -> np.ndarray | None:
     """The true (X, Y, Z) mm seen at rectified pixel (x, y) when the frame carries ground truth
     that can say so (`StereoFrame.truth` of the simulated rig), else None."""
     locate = getattr(truth, "point_rectified", None)
@@ -76,7 +82,8 @@ class PointerReading:
 
 
 def read_pointer(result: PipelineResult | None, key: str, x: float, y: float,
-                 patch: int, fit=None, truth=None) -> PointerReading:
+                 patch: int, fit: FitResult | None = None, truth: object | None = None
+                 ) -> PointerReading:
     """The reading for the pointer at (x, y) px of view `key` of `result` (None: no frame yet):
     `measure_point` with the click's patch and fit, so hover and double-click agree. Runs the
     matcher's refinement and scans: call it off the UI thread."""

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stereo_gui.core.matching import PipelineResult
+from stereo_gui.core.regression import FitResult
 
 NEAREST_PERCENTILE = 1.0
 MIN_PIXELS = 20
@@ -54,7 +55,7 @@ class RegionStats:
 
 
 def region_stats(result: PipelineResult, region: Region, alarm_mm: float | None = None,
-                 fit=None) -> RegionStats:
+                 fit: FitResult | None = None) -> RegionStats:
     """The distances in `region` of `result`'s final disparity (see the module docstring)."""
     disp = result.final_px
     h, w = disp.shape[:2]

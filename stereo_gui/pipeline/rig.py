@@ -20,7 +20,7 @@ import logging
 import math
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Self
@@ -28,7 +28,7 @@ from typing import Self
 import numpy as np
 
 from stereo_gui.core.errors import InputError, SourceError, StereoGuiError
-from stereo_gui.core.matching import PipelineResult
+from stereo_gui.core.matching import PipelineResult, Preset
 from stereo_gui.core.measure import PATCH_PX, Measurement, measure_point
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.any_calibration import load_any_calibration
@@ -97,7 +97,10 @@ class Frame:
 
     @property
     def calibration(self) -> StereoCalibration:
-        return self.result.calibration
+        calib = self.result.calibration
+        if calib is None:  # (the live processor always rectifies with one)
+            raise InputError("this frame has no calibration")
+        return calib
 
     @cached_property
     def depth_mm(self) -> np.ndarray:
@@ -196,7 +199,7 @@ class Rig:
     """An opened source with its calibration and preset (a Preset, or a name `load_preset`
     knows; see `open_rig`). The rig owns the source: closing it closes the source."""
 
-    def __init__(self, source: FrameSource, calibration: StereoCalibration, preset,
+    def __init__(self, source: FrameSource, calibration: StereoCalibration, preset: Preset | str,
                  description: str = "") -> None:
         if isinstance(preset, str):
             preset = load_preset(preset)
@@ -245,7 +248,7 @@ class Rig:
             self._newest = _Newest(self.source)
         return self._newest.take()
 
-    def _every_frame(self):
+    def _every_frame(self) -> Callable[[], StereoFrame | None]:
         playback = self.source.playback()
         if playback is not None:
             playback.set_loop(False)
@@ -273,7 +276,7 @@ class Rig:
     def __enter__(self) -> Self:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
 

@@ -30,24 +30,30 @@ import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Self
+from typing import Any, Self
 
 import cv2
 import foxglove
 import numpy as np
 from foxglove import channels as ch
 from foxglove import messages as m
+from foxglove.websocket import ChannelView, Client, ServerListener, WebSocketServer
 
 from stereo_gui.core.errors import InputError
+from stereo_gui.core.health import CalibrationHealth
 from stereo_gui.core.matching import PipelineResult
 from stereo_gui.core.measure import reading_map
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.depth_export import depth_mm, depth_to_png16
 from stereo_gui.files.mcap_file import McapRecording
-from stereo_gui.files.measurement_record import RULER_METHOD
+from stereo_gui.files.measurement_record import RULER_METHOD, MeasurementRecord
 from stereo_gui.pipeline.cloud import reproject_every
+from stereo_gui.pipeline.region import RegionStats
 
 log = logging.getLogger(__name__)
+
+# a JSON message of the topics below (and a CameraCalibration's fields): the SDK's JsonMessage
+Message = dict[str, Any]
 
 RIG_FRAME = "stereo_rig"
 LEFT_FRAME = "stereo_left_optical"
@@ -108,13 +114,20 @@ def _metres(mm: float | None) -> float | None:
     return None if mm is None or not math.isfinite(mm) else round(float(mm) / 1000.0, 6)
 
 
+def _calibration_of(result: PipelineResult) -> StereoCalibration:
+    """The calibration the frame was rectified with (InputError: none)."""
+    if result.calibration is None:
+        raise InputError("depth in millimetres needs the frame's calibration")
+    return result.calibration
+
+
 def depth_image_mm(result: PipelineResult) -> np.ndarray:
     """(H, W) uint16 Z in whole millimetres of the map the double-click reads; 0 = no value
     (or beyond 65.535 m): the depth PNG export's."""
-    return depth_to_png16(depth_mm(reading_map(result), result.calibration))
+    return depth_to_png16(depth_mm(reading_map(result), _calibration_of(result)))
 
 
-def camera_infos(calibration: StereoCalibration) -> tuple[dict, dict]:
+def camera_infos(calibration: StereoCalibration) -> tuple[Message, Message]:
     """The rectified cameras' CameraCalibration fields (left, right), as ROS's stereo drivers
     give them: K the rectified projection's 3x3, R identity (the pictures are rectified), D
     zero, P with the right camera's Tx = -fx * baseline in metres (OpenCV's P2 holds mm)."""
@@ -138,7 +151,7 @@ def cloud_packed(result: PipelineResult, max_points: int = MAX_CLOUD_POINTS
     disp = reading_map(result)
     h, w = disp.shape[:2]
     step = max(1, math.ceil(math.sqrt(h * w / max_points)))
-    _d, xyz, good = reproject_every(disp, result.calibration, step)
+    _d, xyz, good = reproject_every(disp, _calibration_of(result), step)
     img = result.rectified_left[::step, ::step]
     if img.ndim == 2:
         img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
@@ -169,6 +182,21 @@ def _quiet_client_noise() -> None:
 
 
 @dataclass(frozen=True)
+class _Channels:
+    """The stream's channels, one a topic (TOPICS)."""
+
+    depth: ch.RawImageChannel
+    left: ch.CompressedImageChannel
+    left_info: ch.CameraCalibrationChannel
+    right_info: ch.CameraCalibrationChannel
+    points: ch.PointCloudChannel
+    tf: ch.FrameTransformsChannel
+    region: foxglove.Channel
+    readings: foxglove.Channel
+    health: foxglove.Channel
+
+
+@dataclass(frozen=True)
 class StreamStats:
     """What the stream has done: frames published, its rate over the last RATE_WINDOW_S
     (frames per second, None before two frames), clients subscribed now, the server's address
@@ -181,7 +209,7 @@ class StreamStats:
     recording: str | None
 
 
-class _Clients:
+class _Clients(ServerListener):
     """The server's listener: which clients hold a subscription (what the window and `serve`
     count as connected). The SDK calls it from its own threads."""
 
@@ -189,12 +217,12 @@ class _Clients:
         self._lock = threading.Lock()
         self._subs: dict[int, set[int]] = {}
 
-    def on_subscribe(self, client, channel) -> None:
+    def on_subscribe(self, client: Client, channel: ChannelView) -> None:
         with self._lock:
             self._subs.setdefault(client.id, set()).add(channel.id)
         log.info("stream: client %d subscribed to %s", client.id, channel.topic)
 
-    def on_unsubscribe(self, client, channel) -> None:
+    def on_unsubscribe(self, client: Client, channel: ChannelView) -> None:
         with self._lock:
             subs = self._subs.get(client.id)
             if subs is not None:
@@ -218,25 +246,26 @@ class DepthStream:
     def __init__(self) -> None:
         self._context = foxglove.Context()
         ctx = self._context
-        self._ch = {
-            "depth": ch.RawImageChannel(TOPICS["depth"], context=ctx),
-            "left": ch.CompressedImageChannel(TOPICS["left"], context=ctx),
-            "left_info": ch.CameraCalibrationChannel(TOPICS["left_info"], context=ctx),
-            "right_info": ch.CameraCalibrationChannel(TOPICS["right_info"], context=ctx),
-            "points": ch.PointCloudChannel(TOPICS["points"], context=ctx),
-            "tf": ch.FrameTransformsChannel(TOPICS["tf"], context=ctx),
-            "region": foxglove.Channel(TOPICS["region"], schema=REGION_SCHEMA, context=ctx),
-            "readings": foxglove.Channel(TOPICS["readings"], schema=READING_SCHEMA, context=ctx),
-            "health": foxglove.Channel(TOPICS["health"], schema=HEALTH_SCHEMA, context=ctx),
-        }
+        self._ch = _Channels(
+            depth=ch.RawImageChannel(TOPICS["depth"], context=ctx),
+            left=ch.CompressedImageChannel(TOPICS["left"], context=ctx),
+            left_info=ch.CameraCalibrationChannel(TOPICS["left_info"], context=ctx),
+            right_info=ch.CameraCalibrationChannel(TOPICS["right_info"], context=ctx),
+            points=ch.PointCloudChannel(TOPICS["points"], context=ctx),
+            tf=ch.FrameTransformsChannel(TOPICS["tf"], context=ctx),
+            region=foxglove.Channel(TOPICS["region"], schema=REGION_SCHEMA, context=ctx),
+            readings=foxglove.Channel(TOPICS["readings"], schema=READING_SCHEMA, context=ctx),
+            health=foxglove.Channel(TOPICS["health"], schema=HEALTH_SCHEMA, context=ctx),
+        )
         self._lock = threading.Lock()
-        self._server = None
+        self._server: WebSocketServer | None = None
+        self._host = ""
         self._clients = _Clients()
-        self._recording = None  # the MCAP file being written (files.mcap_file.McapRecording)
+        self._recording: McapRecording | None = None  # the MCAP file being written
         self._frames = 0
         self._published: list[float] = []  # monotonic times of the last RATE_WINDOW_S's frames
         self._cloud_at = -math.inf  # monotonic time the last point cloud went out
-        self._infos: tuple[StereoCalibration, tuple] | None = None
+        self._infos: tuple[StereoCalibration, tuple[Message, Message]] | None = None
         # capture times are monotonic seconds; the topics carry wall-clock nanoseconds
         self._epoch_offset_s = time.time() - time.monotonic()
 
@@ -245,10 +274,10 @@ class DepthStream:
         """Start the live server (InputError: the port is taken or the host unknown); its
         address "ws://host:port"."""
         if self._server is not None:
-            return self.address
+            return self._address(self._server)
         _quiet_client_noise()
         try:
-            self._server = foxglove.start_server(
+            self._server = server = foxglove.start_server(
                 name="stereo-gui", host=host, port=port, context=self._context,
                 server_listener=self._clients, message_backlog_size=CLIENT_BACKLOG)
         except Exception as exc:  # the SDK raises its own RuntimeError kinds for a bind failure
@@ -256,21 +285,25 @@ class DepthStream:
         self._host = host
         if host not in ("127.0.0.1", "localhost", "::1"):
             log.warning("the depth stream listens on %s: other machines can read it", host)
-        return self.address
+        return self._address(server)
+
+    def _address(self, server: WebSocketServer) -> str:
+        return f"ws://{self._host}:{server.port}"
 
     @property
     def address(self) -> str | None:
         if self._server is None:
             return None
-        return f"ws://{self._host}:{self._server.port}"
+        return self._address(self._server)
 
-    def record(self, path) -> Path:
+    def record(self, path: str | Path) -> Path:
         """Record every topic to the MCAP file `path` (written under a temporary name, renamed
         when closed whole; InputError when it cannot be made: its folder, its name, the disk)."""
         if self._recording is not None:
             raise InputError(f"already recording to {self._recording.path}")
-        self._recording = McapRecording(Path(path), self._context)
-        return self._recording.path
+        recording = McapRecording(Path(path), self._context)
+        self._recording = recording
+        return recording.path
 
     def stop_recording(self) -> Path | None:
         """Close the recording (atomic rename); its path, None when none was running."""
@@ -305,71 +338,73 @@ class DepthStream:
     def __enter__(self) -> Self:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     # ---- messages ------------------------------------------------------------------------
-    def _stamp(self, t_s: float):
+    def _stamp(self, t_s: float) -> tuple[m.Timestamp, int]:
         """(Timestamp, nanoseconds) of a capture time: monotonic seconds (a live source's)
         are put on the wall clock; a time that is one already (after 2001) is kept."""
         wall = t_s if t_s > 1e9 else t_s + self._epoch_offset_s
         ns = round(wall * 1e9)
         return m.Timestamp(sec=ns // 1_000_000_000, nsec=ns % 1_000_000_000), ns
 
-    def publish(self, result: PipelineResult, t_capture_s: float, region=None,
-                health=None) -> None:
+    def publish(self, result: PipelineResult, t_capture_s: float,
+                region: RegionStats | None = None,
+                health: CalibrationHealth | None = None) -> None:
         """Publish one processed frame (its capture time, monotonic or wall-clock seconds),
         with the region's statistics (pipeline.region.RegionStats) and the newest
         calibration-health figure where there are any."""
-        if result.calibration is None or not result.calibration.metric:
+        calib = result.calibration
+        if calib is None or not calib.metric:
             raise InputError("the depth stream needs a calibration with a metric scale")
         with self._lock:
             now = time.monotonic()
             self._published = [t for t in self._published if now - t <= RATE_WINDOW_S] + [now]
-            self._publish(result, t_capture_s, region, health, self._rate())
+            self._publish(result, calib, t_capture_s, region, health, self._rate())
             self._frames += 1
 
-    def _publish(self, result: PipelineResult, t_capture_s: float, region, health,
+    def _publish(self, result: PipelineResult, calib: StereoCalibration, t_capture_s: float,
+                 region: RegionStats | None, health: CalibrationHealth | None,
                  fps: float | None) -> None:
         stamp, ns = self._stamp(t_capture_s)
-        calib = result.calibration
         c = self._ch
-        if c["depth"].has_sinks():  # (each picture is made only when something takes it)
+        if c.depth.has_sinks():  # (each picture is made only when something takes it)
             depth = depth_image_mm(result)
             h, w = depth.shape
-            c["depth"].log(m.RawImage(timestamp=stamp, frame_id=LEFT_FRAME, width=w, height=h,
+            c.depth.log(m.RawImage(timestamp=stamp, frame_id=LEFT_FRAME, width=w, height=h,
                                       encoding="16UC1", step=2 * w, data=depth.tobytes()),
                            log_time=ns)
         if self._infos is None or self._infos[0] is not calib:
             self._infos = (calib, camera_infos(calib))
-        for key, info in zip(("left_info", "right_info"), self._infos[1]):
-            c[key].log(m.CameraCalibration(timestamp=stamp, **info), log_time=ns)
-        c["tf"].log(self._transforms(stamp, calib), log_time=ns)
-        if c["left"].has_sinks():
+        for channel, info in zip((c.left_info, c.right_info), self._infos[1]):
+            channel.log(m.CameraCalibration(timestamp=stamp, **info), log_time=ns)
+        c.tf.log(self._transforms(stamp, calib), log_time=ns)
+        if c.left.has_sinks():
             ok, jpeg = cv2.imencode(".jpg", result.rectified_left,
                                     [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
             if ok:
-                c["left"].log(m.CompressedImage(timestamp=stamp, frame_id=LEFT_FRAME,
+                c.left.log(m.CompressedImage(timestamp=stamp, frame_id=LEFT_FRAME,
                                                 data=jpeg.tobytes(), format="jpeg"),
                               log_time=ns)
         now = time.monotonic()
-        if c["points"].has_sinks() and now - self._cloud_at >= CLOUD_EVERY_S:
+        if c.points.has_sinks() and now - self._cloud_at >= CLOUD_EVERY_S:
             self._cloud_at = now
             data, _ = cloud_packed(result)
             f32, u8 = m.PackedElementFieldNumericType.Float32, m.PackedElementFieldNumericType.Uint8
             fields = [m.PackedElementField(name=n, offset=o, type=t) for n, o, t in (
                 ("x", 0, f32), ("y", 4, f32), ("z", 8, f32), ("red", 12, u8),
                 ("green", 13, u8), ("blue", 14, u8), ("alpha", 15, u8))]
-            c["points"].log(m.PointCloud(
+            c.points.log(m.PointCloud(
                 timestamp=stamp, frame_id=LEFT_FRAME,
                 pose=m.Pose(position=m.Vector3(x=0.0, y=0.0, z=0.0),
                             orientation=m.Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)),
                 point_stride=16, fields=fields, data=data), log_time=ns)
         if region is not None:
-            c["region"].log(region_message(region), log_time=ns)
-        c["health"].log(health_message(health, fps), log_time=ns)
+            c.region.log(region_message(region), log_time=ns)
+        c.health.log(health_message(health, fps), log_time=ns)
 
-    def _transforms(self, stamp, calib: StereoCalibration):
+    def _transforms(self, stamp: m.Timestamp, calib: StereoCalibration) -> m.FrameTransforms:
         ident = m.Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
         baseline_m = float(calib.rectified_baseline_mm) / 1000.0
         return m.FrameTransforms(transforms=[
@@ -381,13 +416,13 @@ class DepthStream:
                              translation=m.Vector3(x=baseline_m, y=0.0, z=0.0), rotation=ident),
         ])
 
-    def publish_reading(self, reading: dict, t_s: float | None = None) -> None:
+    def publish_reading(self, reading: Message, t_s: float | None = None) -> None:
         """Publish one reading a person took (`reading_message`'s fields)."""
         _, ns = self._stamp(time.monotonic() if t_s is None else t_s)
-        self._ch["readings"].log(reading, log_time=ns)
+        self._ch.readings.log(reading, log_time=ns)
 
 
-def region_message(stats) -> dict:
+def region_message(stats: RegionStats) -> Message:
     """A RegionStats as the `/stereo/region` message (metres)."""
     r = stats.region
     return {"x": int(r.x0), "y": int(r.y0), "width": int(r.x1 - r.x0),
@@ -396,7 +431,7 @@ def region_message(stats) -> dict:
             "alarm": bool(stats.alarm), "alarm_m": _metres(stats.alarm_mm), "note": stats.note}
 
 
-def record_message(record) -> dict:
+def record_message(record: MeasurementRecord) -> Message:
     """A logged reading (files.measurement_record.MeasurementRecord: a click, or a ruler's A-B
     distance, whose range is the length) as the `/stereo/readings` message (metres)."""
     ok = bool(record.valid)
@@ -408,10 +443,10 @@ def record_message(record) -> dict:
             "reason": None if ok else (record.reason or None)}
 
 
-def health_message(health, fps: float | None) -> dict:
+def health_message(health: CalibrationHealth | None, fps: float | None) -> Message:
     """The calibration-health figure (core.health.CalibrationHealth, None: not measured yet)
     and the frame rate as the `/stereo/health` message."""
-    out = {"fps": None if fps is None or not math.isfinite(fps) else round(float(fps), 2),
+    out: Message = {"fps": None if fps is None or not math.isfinite(fps) else round(float(fps), 2),
            "vertical_px": None, "matches": 0, "drifted": False,
            "text": "Calibration health: not measured yet"}
     if health is not None:
