@@ -11,6 +11,8 @@ import logging
 import os
 import signal
 import sys
+from collections.abc import Callable
+from types import FrameType, TracebackType
 
 import pyqtgraph as pg
 from PySide6.QtCore import QTimer
@@ -73,7 +75,8 @@ def _install_excepthook(ctx: AppContext) -> None:
     """An unexpected exception in a slot becomes a message in the window, not a lost traceback."""
     previous = sys.excepthook
 
-    def hook(exc_type, exc, tb):
+    def hook(exc_type: type[BaseException], exc: BaseException,
+             tb: TracebackType | None) -> None:
         if issubclass(exc_type, KeyboardInterrupt):
             previous(exc_type, exc, tb)
             return
@@ -86,7 +89,8 @@ def _install_excepthook(ctx: AppContext) -> None:
     sys.excepthook = hook
 
 
-def build_window(source: str | None = None, calib: str | None = None):
+def build_window(source: str | None = None, calib: str | None = None
+                 ) -> tuple[AppContext, MainWindow]:
     """Create the context and main window, load the calibration and open the source.
 
     Explicit arguments that cannot be used raise StereoGuiError (the command line turns that into
@@ -96,12 +100,13 @@ def build_window(source: str | None = None, calib: str | None = None):
     configure_pyqtgraph()
     settings, warnings = load_settings()
     ctx = AppContext(settings)
-    size = tuple(settings.resolution)
+    w, h = settings.resolution
+    size = (w, h)
     if source:
         check_source_spec(source)  # a bad --source is a user mistake: exit 2 before the window
     spec = source or settings.source or "auto"
 
-    def frame_size():  # for a file without an image size (OpenCV's sample writes none)
+    def frame_size() -> tuple[int, int] | None:  # for a file without an image size (OpenCV's sample writes none)
         return expected_frame_size(spec, size)
 
     loaded, calib_error = None, ""
@@ -136,12 +141,12 @@ def build_window(source: str | None = None, calib: str | None = None):
 SIGNAL_POLL_MS = 200  # how often Python gets to run a signal's handler while Qt waits
 
 
-def close_on_signals(window):
+def close_on_signals(window: MainWindow) -> Callable[[], None]:
     """Ctrl+C in the terminal (SIGINT) and SIGTERM close the window as Ctrl+Q does: the log
     saved, a recording closed, the workers stopped. (Python runs a signal's handler only between
     its own instructions, so a timer gives it a moment now and then while Qt's loop waits.)
     Returns what puts the handlers before back."""
-    def close(signum, _frame) -> None:
+    def close(signum: int, _frame: FrameType | None) -> None:
         log.info("signal %d: closing the window", signum)
         QTimer.singleShot(0, window.close)
 
@@ -163,7 +168,8 @@ def run_app(source: str | None = None, calib: str | None = None) -> int:
     """Run the GUI until its window closes; return the exit status."""
     use_opencv_threads_beside_lanes()  # our threads (the frame lanes first) share the cores
     quit_after = quit_after_seconds()
-    app = QApplication.instance() or QApplication(sys.argv[:1])
+    existing = QApplication.instance()
+    app = existing if isinstance(existing, QApplication) else QApplication(sys.argv[:1])
     app.setApplicationName("Stereo GUI")
     app.setOrganizationName("stereo-gui")
     app.setDesktopFileName("stereo-gui")  # matches resources/stereo-gui.desktop

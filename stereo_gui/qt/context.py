@@ -22,8 +22,8 @@ from PySide6.QtCore import QObject, Signal
 
 from stereo_gui.core.regression import FitResult
 from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.files.measurement_record import MeasurementRecord
 from stereo_gui.files.settings import Settings
-from stereo_gui.files.spreadsheet import MeasurementRecord
 from stereo_gui.qt.models import (
     TRUE_CALIBRATION_NOTE,
     CalibrationModel,
@@ -107,10 +107,11 @@ class AppContext(QObject):
         latest = self.frames.latest()
         if latest is not None:
             return int(latest.frame.left.shape[1]), int(latest.frame.left.shape[0])
-        return tuple(self.settings.resolution)
+        w, h = self.settings.resolution
+        return w, h
 
     # ---- one-line forwards to the models -----------------------------------------------------
-    def update_settings(self, **changes) -> None:
+    def update_settings(self, **changes: object) -> None:
         """`settings_model.update(**changes)`."""
         self.settings_model.update(**changes)
 

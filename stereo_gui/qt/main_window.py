@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from enum import Enum
 from pathlib import Path
 
-from PySide6.QtCore import QByteArray, Qt, QTimer, Signal
+from PySide6.QtCore import QByteArray, QRect, Qt, QTimer, Signal
 from PySide6.QtGui import QAction, QCloseEvent, QGuiApplication, QKeySequence, QShortcut
 from PySide6.QtWidgets import (
     QFileDialog,
@@ -30,6 +31,7 @@ from PySide6.QtWidgets import (
 from stereo_gui.core.states import Transitions
 from stereo_gui.files.recording import is_recording
 from stereo_gui.files.session import MANIFEST
+from stereo_gui.files.settings import Settings
 from stereo_gui.qt.context import AppContext
 from stereo_gui.qt.dialogs.about import show_about
 from stereo_gui.qt.dialogs.closing import CloseWaiter, ask_unsaved_calibration, tell_cancelled
@@ -47,8 +49,9 @@ from stereo_gui.qt.widgets.error_bar import ErrorBar
 from stereo_gui.qt.widgets.helpers import pane
 from stereo_gui.qt.workers.frame_worker import StreamState, StreamStatus
 from stereo_gui.qt.workers.job_runner import JobRunner
-from stereo_gui.qt.workers.recorder import format_elapsed
-from stereo_gui.sources.open import open_source
+from stereo_gui.qt.workers.recorder import RecordingResult, format_elapsed
+from stereo_gui.sources.base import FrameSource
+from stereo_gui.sources.open import OpenedSource, open_source
 from stereo_gui.sources.playback import VIDEO_EXTENSIONS
 
 log = logging.getLogger(__name__)
@@ -58,7 +61,7 @@ _FRAME_PX = 32  # room left for the window manager's title bar, px
 NARROW_SCREEN_PX = 1200  # below this width the Live tab starts with its parameters hidden
 
 
-def default_window_size(available) -> tuple[int, int]:
+def default_window_size(available: QRect | None) -> tuple[int, int]:
     """(width, height) px of a new window: DEFAULT_SIZE, within `available` (a QRect of the
     screen's usable area, None when unknown) less room for the title bar."""
     w, h = DEFAULT_SIZE
@@ -75,11 +78,17 @@ SIM_BANNER = ("Running on the SIMULATED stereo rig: {why}. Distances are of the 
               "are connected.")
 
 
-def _close_source(source) -> None:
+def _close_source(source: FrameSource) -> None:
     try:
         source.close()
     except Exception:
         log.warning("closing an unused source failed", exc_info=True)
+
+
+def _close_opened(opened: object) -> None:
+    """The source opener's `dispose`: a source opened after the window closed is closed."""
+    if isinstance(opened, OpenedSource):
+        _close_source(opened.source)
 
 
 SOURCE_SHORTCUT = "Ctrl+Shift+O"  # File > Choose source…
@@ -102,7 +111,7 @@ def recent_entry(path: str) -> tuple[str, str, str]:
     return "calibration", path, f"Calibration: {p.name}   ({p.parent})"
 
 
-def _quietly(fn, default=False):
+def _quietly(fn: Callable[[], bool], default: bool = False) -> bool:
     """fn() or `default` when it raises (a property of a source closed meanwhile)."""
     try:
         return fn()
@@ -110,12 +119,12 @@ def _quietly(fn, default=False):
         return default
 
 
-def is_simulated(source) -> bool:
+def is_simulated(source: FrameSource) -> bool:
     """Whether `source` renders the simulated rig (its frames are of no real scene)."""
     return simulated_rig(source) is not None
 
 
-def _format_rms(value) -> str:
+def _format_rms(value: float) -> str:
     try:
         v = float(value)
     except (TypeError, ValueError):
@@ -237,8 +246,7 @@ class MainWindow(QMainWindow):
         self._opening: tuple[SourceChoice, bool] = (self.source_choice, False)
         self._opening_id = 0
         # a source opened after the window closed is closed, not leaked
-        self._opener = JobRunner("source-opener", self,
-                                 dispose=lambda opened: _close_source(opened.source))
+        self._opener = JobRunner("source-opener", self, dispose=_close_opened)
         self._opener.finished.connect(self._source_opened)
         self._opener.failed.connect(self._source_failed)
         self.ctx.workers.register(self._opener)
@@ -335,7 +343,7 @@ class MainWindow(QMainWindow):
                 file_menu.addAction(a)
         self._build_shortcuts()
         help_menu = self.menuBar().addMenu("&Help")
-        self.help_actions = add_help_actions(self, help_menu)
+        self.help_actions = add_help_actions(self, help_menu, self.ctx)
         about = QAction("&About Stereo GUI", self)
         about.triggered.connect(self.show_about)
         help_menu.addAction(about)
@@ -362,12 +370,12 @@ class MainWindow(QMainWindow):
         """Put `path` (a calibration, session, recording or video) first in File > Open recent."""
         self.ctx.settings_model.remember_recent(str(Path(path).expanduser().resolve()))
 
-    def _recording_stopped(self, result) -> None:
+    def _recording_stopped(self, result: RecordingResult) -> None:
         """A recording just made is in File > Open recent at once, not only once played."""
         if result.frames and result.recording is not None:
             self.remember_recent(result.folder)
 
-    def _settings_changed(self, settings) -> None:
+    def _settings_changed(self, settings: Settings) -> None:
         session = settings.last_session
         if session and session != self._last_session_seen:
             self._last_session_seen = session
@@ -400,7 +408,8 @@ class MainWindow(QMainWindow):
             self.capture_tab.open_session(path)
             return True
         c = self.source_choice
-        self.open_source(SourceChoice(path, tuple(c.size), bool(c.swap)))
+        w, h = c.size
+        self.open_source(SourceChoice(path, (w, h), bool(c.swap)))
         self.show_tab("live")
         return True
 
@@ -420,7 +429,8 @@ class MainWindow(QMainWindow):
 
     def _choice_from_settings(self) -> SourceChoice:
         s = self.ctx.settings
-        return SourceChoice(s.source or "auto", tuple(s.resolution), bool(s.swap_lr))
+        w, h = s.resolution
+        return SourceChoice(s.source or "auto", (w, h), bool(s.swap_lr))
 
     # ---- tabs --------------------------------------------------------------------------------
     def show_tab(self, name: str) -> None:
@@ -452,7 +462,8 @@ class MainWindow(QMainWindow):
         With `fallback_to_auto`, a source that fails is replaced by automatic selection (used
         for the remembered source at start-up). Returns the request id.
         """
-        spec, size, swap = choice.spec, tuple(choice.size), bool(choice.swap)
+        w, h = choice.size
+        spec, size, swap = choice.spec, (w, h), bool(choice.swap)
         # the remembered cameras are found again by name and USB ids if their indices changed
         s = self.ctx.settings
         known = tuple(s.cameras) if spec == s.source else ()
@@ -467,7 +478,7 @@ class MainWindow(QMainWindow):
     def is_opening_source(self) -> bool:
         return self._opener.is_busy()
 
-    def _source_opened(self, job_id: int, opened) -> None:
+    def _source_opened(self, job_id: int, opened: OpenedSource) -> None:
         if job_id != self._opening_id or self._close.phase is ClosePhase.CLOSING:
             _close_source(opened.source)  # a newer request or the window closed meanwhile
             return
@@ -489,7 +500,7 @@ class MainWindow(QMainWindow):
         if fallback and choice.spec != "auto":
             self.open_source(SourceChoice("auto", choice.size, choice.swap))
 
-    def use_source(self, source, choice: SourceChoice, fell_back_to_sim: bool = False,
+    def use_source(self, source: FrameSource, choice: SourceChoice, fell_back_to_sim: bool = False,
                    message: str = "", cameras: tuple[str, ...] = ()) -> None:
         """Use an already opened source (remembered in the settings, with the identities of its
         cameras)."""
@@ -564,7 +575,7 @@ class MainWindow(QMainWindow):
         self.processing_fps_label.setText(f"Processing: {s.processing_fps:.1f} fps")
 
     # ---- calibration files -------------------------------------------------------------------
-    def _update_calibration_label(self, *_args) -> None:
+    def _update_calibration_label(self, *_args: object) -> None:
         c = self.ctx.calibration
         if c is None:
             self.calibration_label.setText("No calibration")
@@ -610,7 +621,7 @@ class MainWindow(QMainWindow):
         stop the one running; the file being recorded, None when none."""
         return self.live_tab.stream.toggle_recording(self, path)
 
-    def _mcap_changed(self, path) -> None:
+    def _mcap_changed(self, path: Path | None) -> None:
         self.act_mcap.setText("Stop &MCAP recording" if path is not None else "Record &MCAP…")
 
     def export_ros(self, folder: str | None = None) -> tuple[Path, Path] | None:
@@ -665,7 +676,7 @@ class MainWindow(QMainWindow):
         show_about(self)
 
     # ---- geometry and shutdown ---------------------------------------------------------------
-    def _available_geometry(self):
+    def _available_geometry(self) -> QRect | None:
         """The part of the screen a window may use (without panels and docks), or None."""
         screen = self.screen() or QGuiApplication.primaryScreen()
         return screen.availableGeometry() if screen is not None else None
@@ -690,8 +701,8 @@ class MainWindow(QMainWindow):
 
     def save_settings(self) -> None:
         """Store geometry (and whatever the tabs changed) in the settings file."""
-        geometry = bytes(self.saveGeometry().toBase64()).decode("ascii")
-        state = bytes(self.saveState().toBase64()).decode("ascii")
+        geometry = bytes(self.saveGeometry().toBase64().data()).decode("ascii")
+        state = bytes(self.saveState().toBase64().data()).decode("ascii")
         self.ctx.settings_model.update(window_geometry=geometry, window_state=state)
         self.ctx.settings_model.save()
 
@@ -733,7 +744,7 @@ class MainWindow(QMainWindow):
         if self._close.work_settled or not self.unfinished_work():
             return False
         waiter = CloseWaiter(self, self.unfinished_work)
-        waiter.done.connect(self._work_done_close)
+        waiter.workDone.connect(self._work_done_close)
         waiter.cancelRequested.connect(self._cancel_work_and_close)
         waiter.aborted.connect(self._close_aborted)
         self._close.move(ClosePhase.WAITING, waiter)
@@ -770,7 +781,9 @@ class MainWindow(QMainWindow):
             # closed again while waiting: the user insists. After this event, since a close()
             # from within closeEvent would be refused
             event.ignore()
-            QTimer.singleShot(0, self._close.waiter.insist)
+            waiter = self._close.waiter
+            assert waiter is not None  # (CloseState.move shows one while WAITING)
+            QTimer.singleShot(0, waiter.insist)
             return
         if self._close.phase is ClosePhase.OPEN:
             # a true distance still being typed belongs in the log that is kept

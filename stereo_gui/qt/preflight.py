@@ -16,11 +16,15 @@ import re
 import shutil
 import subprocess
 import sys
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 from stereo_gui.core.errors import StereoGuiError
 
 log = logging.getLogger(__name__)
+
+# loads a shared library by path or name (ctypes.CDLL; the tests give fakes)
+Loader = Callable[[str], ctypes.CDLL]
 
 NO_DISPLAY = ("no display found (DISPLAY and WAYLAND_DISPLAY are not set): start stereo-gui from "
               "a desktop session, under a virtual X server (xvfb-run -a stereo-gui), or without "
@@ -72,7 +76,7 @@ class PreflightError(StereoGuiError):
     """Qt cannot start here; the message is the one line to show (exit status 2)."""
 
 
-def platform_name(env) -> str:
+def platform_name(env: Mapping[str, str]) -> str:
     """The Qt platform plugin Qt will load: QT_QPA_PLATFORM's first, else xcb or wayland."""
     chosen = env.get("QT_QPA_PLATFORM", "").strip()
     if chosen:
@@ -103,7 +107,8 @@ def _missing_with_ldd(path: Path) -> list[str]:
                    if "not found" in line})
 
 
-def missing_libraries(load=ctypes.CDLL, env=None) -> list[str]:
+def missing_libraries(load: Loader = ctypes.CDLL, env: Mapping[str, str] | None = None
+                      ) -> list[str]:
     """The system libraries missing for Qt's GUI modules and the platform plugin Qt will use
     ([] when all load). `load(path)` loads a shared library (ctypes.CDLL; tests replace it)."""
     env = os.environ if env is None else env
@@ -129,7 +134,7 @@ def missing_libraries(load=ctypes.CDLL, env=None) -> list[str]:
     return []
 
 
-def _can_connect_x(display: str, load=ctypes.CDLL) -> bool | None:
+def _can_connect_x(display: str, load: Loader = ctypes.CDLL) -> bool | None:
     """Whether an X server answers at `display` (None when libxcb cannot be loaded to ask)."""
     try:
         xcb = load("libxcb.so.1")
@@ -141,7 +146,7 @@ def _can_connect_x(display: str, load=ctypes.CDLL) -> bool | None:
     xcb.xcb_disconnect.argtypes = [ctypes.c_void_p]
     conn = xcb.xcb_connect(display.encode(), None)
     try:
-        return xcb.xcb_connection_has_error(conn) == 0
+        return bool(xcb.xcb_connection_has_error(conn) == 0)
     finally:
         xcb.xcb_disconnect(conn)
 
@@ -160,7 +165,8 @@ def libraries_message(libs: list[str]) -> str:
     return text
 
 
-def check_gui_can_start(env=None, platform: str | None = None, load=ctypes.CDLL) -> None:
+def check_gui_can_start(env: Mapping[str, str] | None = None, platform: str | None = None,
+                        load: Loader = ctypes.CDLL) -> None:
     """Raise PreflightError with one line when Qt's window cannot start here: no display, a
     display that does not answer, or a missing system library."""
     env = os.environ if env is None else env

@@ -3,7 +3,7 @@
 - `ask_unsaved_calibration(parent, what)`: Save / Discard / Cancel for a calibration that was
   computed and not saved.
 - `CloseWaiter`: shown while exports still run when the window is closed. It lists them (with
-  their progress) and a countdown, and ends in one of three ways: every export is done (`done`:
+  their progress) and a countdown, and ends in one of three ways: every export is done (`workDone`:
   the window closes), the user insists or the time is up (`cancelRequested(timed_out)`: the window
   cancels them, says what became of each, and closes), or the user keeps working (`aborted`).
   Nothing here waits in a loop: a timer looks at `pending()` a few times a second.
@@ -57,7 +57,7 @@ class CloseWaiter(QDialog):
     """Waits (without blocking) for `pending()` (descriptions of the work still running) to
     be empty; see the module docstring."""
 
-    done = Signal()
+    workDone = Signal()  # (not `done`: that is QDialog's own slot, done(result))
     cancelRequested = Signal(bool)  # True when the wait ran out, False when the user insisted
     aborted = Signal()
 
@@ -101,7 +101,7 @@ class CloseWaiter(QDialog):
             return
         work = self._pending()
         if not work:
-            self._end(self.done.emit)
+            self._end(self.workDone.emit)
             return
         left = self.seconds_left()
         if left <= 0:
@@ -126,7 +126,7 @@ class CloseWaiter(QDialog):
     def reject(self) -> None:  # Escape, or the dialog's own close button: keep working
         self._keep_working()
 
-    def _end(self, emit) -> None:
+    def _end(self, emit: Callable[[], object]) -> None:
         if self._ended:
             return
         self._ended = True

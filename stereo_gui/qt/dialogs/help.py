@@ -2,7 +2,7 @@
 application, with its pictures), the keyboard shortcuts, and where the settings and data are
 kept.
 
-`add_help_actions(window, menu)` puts them into the main window's Help menu.
+`add_help_actions(window, menu, ctx)` puts them into the main window's Help menu.
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ from PySide6.QtWidgets import (
     QDialogButtonBox,
     QGridLayout,
     QLabel,
+    QMenu,
     QPushButton,
     QTableWidget,
     QTableWidgetItem,
@@ -39,7 +40,8 @@ from PySide6.QtWidgets import (
 
 from stereo_gui.files.measurement_log import data_dir
 from stereo_gui.files.presets import user_preset_dir
-from stereo_gui.files.settings import settings_path
+from stereo_gui.files.settings import Settings, settings_path
+from stereo_gui.qt.context import AppContext
 from stereo_gui.qt.workers.recorder import recordings_dir
 from stereo_gui.resources import guide_path
 
@@ -191,11 +193,14 @@ class ShortcutsDialog(QDialog):
         self.resize(620, 420)
 
     def rows(self) -> list[tuple[str, str]]:
-        return [(self.table.item(r, 0).text(), self.table.item(r, 1).text())
-                for r in range(self.table.rowCount())]
+        return [(self._text(r, 0), self._text(r, 1)) for r in range(self.table.rowCount())]
+
+    def _text(self, row: int, col: int) -> str:
+        item = self.table.item(row, col)
+        return item.text() if item is not None else ""
 
 
-def kept_folders(settings) -> list[tuple[str, Path]]:
+def kept_folders(settings: Settings) -> list[tuple[str, Path]]:
     """(what, folder) of everything the application keeps between runs."""
     return [("Settings (settings.json)", settings_path().parent),
             ("Your presets", user_preset_dir()),
@@ -244,7 +249,7 @@ class FoldersDialog(QDialog):
             grid.addWidget(path, 2 * r + 1, 0)
             button = QPushButton("Open")
             button.setEnabled(folder.is_dir())
-            button.clicked.connect(lambda _c=False, f=folder: self.open(f))
+            button.clicked.connect(lambda _c=False, f=folder: self.open_in_file_manager(f))
             grid.addWidget(button, 2 * r + 1, 1)
             copy = QPushButton("Copy path")
             copy.clicked.connect(lambda _c=False, f=folder: self.copy(f))
@@ -263,7 +268,7 @@ class FoldersDialog(QDialog):
         lay.addWidget(self.said)
         lay.addWidget(buttons)
 
-    def open(self, folder: Path) -> bool:
+    def open_in_file_manager(self, folder: Path) -> bool:  # (open() is QDialog's own)
         """Open `folder` in the file manager; where there is none, say so and copy its path."""
         if open_folder(folder):
             self.said.setText(f"Opening {folder} in the file manager…")
@@ -278,17 +283,17 @@ class FoldersDialog(QDialog):
         self.said.setText(f"Copied {folder}")
 
 
-def add_help_actions(window, menu) -> dict[str, QAction]:
+def add_help_actions(window: QWidget, menu: QMenu, ctx: AppContext) -> dict[str, QAction]:
     """The Help menu's guide, shortcuts and folders (before About); returns them by name."""
-    acts = {}
+    acts: dict[str, QAction] = {}
     guide = QAction("Technician's &guide", window)
     guide.setShortcut(QKeySequence(GUIDE_SHORTCUT))
-    guide.triggered.connect(lambda: show_guide(window))
+    guide.triggered.connect(lambda: show_guide(window, ctx))
     keys = QAction("&Keyboard shortcuts", window)
     keys.triggered.connect(lambda: ShortcutsDialog(shortcut_rows(window), window).exec())
     folders = QAction("&Where files are kept", window)
     folders.triggered.connect(
-        lambda: FoldersDialog(kept_folders(window.ctx.settings), window).exec())
+        lambda: FoldersDialog(kept_folders(ctx.settings), window).exec())
     for name, act in (("guide", guide), ("shortcuts", keys), ("folders", folders)):
         menu.addAction(act)
         acts[name] = act
@@ -296,11 +301,11 @@ def add_help_actions(window, menu) -> dict[str, QAction]:
     return acts
 
 
-def show_guide(parent) -> GuideWindow | None:
+def show_guide(parent: QWidget, ctx: AppContext) -> GuideWindow | None:
     """Open the guide (the Markdown shipped with the application) in a window of its own."""
     path = guide_path()
     if not path.is_file():
-        parent.ctx.report_error(f"The guide is not installed with this copy ({path} is missing).")
+        ctx.report_error(f"The guide is not installed with this copy ({path} is missing).")
         return None
     window = GuideWindow(path, parent)
     window.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)

@@ -32,6 +32,7 @@ from PySide6.QtWidgets import (
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.sources import cameras as camera_devices
+from stereo_gui.sources.cameras import CameraInfo
 from stereo_gui.sources.open import parse_source_spec
 from stereo_gui.sources.sim.conditions import CONDITIONS
 from stereo_gui.sources.sim.live import SimSource
@@ -79,7 +80,7 @@ def describe_spec(spec: str) -> str:
     return f"Playback of {spec}"
 
 
-def _list_cameras() -> list:
+def _list_cameras() -> list[CameraInfo]:
     """[CameraInfo(index, name, path)], or [] when listing them fails."""
     try:
         return list(camera_devices.list_cameras())
@@ -91,7 +92,7 @@ def _list_cameras() -> list:
 class SourceDialog(QDialog):
     """Choose where frames come from. `choice()` is the result after `exec()` accepted."""
 
-    def __init__(self, current: SourceChoice, cameras: list | None = None,
+    def __init__(self, current: SourceChoice, cameras: list[CameraInfo] | None = None,
                  parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.setWindowTitle("Choose the frame source")
@@ -232,7 +233,7 @@ class SourceDialog(QDialog):
             self.path_edit.setText(path)
             self.folder.setChecked(True)
 
-    def _update_enabled(self, *_args) -> None:
+    def _update_enabled(self, *_args: object) -> None:
         self.sim_view.setEnabled(self.sim.isChecked())
         self.wall_distance.setEnabled(self.sim.isChecked()
                                       and str(self.sim_view.currentData()).startswith("sim:wall"))

@@ -5,7 +5,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Protocol
+from typing import Protocol, TypeVar
 
 from PySide6.QtCore import QObject, Signal
 
@@ -17,6 +17,8 @@ from stereo_gui.files.kalibr_calibration import write_kalibr_camchain
 from stereo_gui.qt.models.settings import SettingsModel
 
 log = logging.getLogger(__name__)
+
+T = TypeVar("T")  # what an export returns
 
 # the note of the simulated rig's true calibration (the status bar and the Live tab show it)
 TRUE_CALIBRATION_NOTE = "simulated rig's TRUE calibration"
@@ -123,8 +125,8 @@ class CalibrationModel(QObject):
         paths = self._export(lambda c: export_ros(c, folder),
                              f"Cannot export ROS camera_info into {folder}")
         if paths is not None:
-            extra = ("" if self._calibration.metric
-                     else " (Hartley calibration: the baseline is not metric)")
+            hartley = self._calibration is not None and not self._calibration.metric
+            extra = " (Hartley calibration: the baseline is not metric)" if hartley else ""
             self._report.show_status(f"Exported ROS camera_info {paths[0].name} and "
                                      f"{paths[1].name} into {folder}{extra}")
         return paths
@@ -138,7 +140,7 @@ class CalibrationModel(QObject):
             self._report.show_status(f"Exported the Kalibr camchain {done}")
         return done
 
-    def _export(self, write, failed: str):
+    def _export(self, write: Callable[[StereoCalibration], T], failed: str) -> T | None:
         """`write(calibration)`'s result, or None after saying why (no calibration; `failed`
         and the reason)."""
         if self._calibration is None:

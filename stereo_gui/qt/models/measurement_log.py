@@ -11,7 +11,7 @@ from PySide6.QtCore import QObject, QTimer, Signal
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.regression import FitResult
 from stereo_gui.files.measurement_log import KeptLog, load_log, save_log
-from stereo_gui.files.spreadsheet import MeasurementRecord
+from stereo_gui.files.measurement_record import MeasurementRecord
 from stereo_gui.qt.models.calibration import Reporter
 
 log = logging.getLogger(__name__)

@@ -30,11 +30,11 @@ class SettingsModel(QObject):
     def current(self) -> Settings:
         return self._current
 
-    def update(self, **changes) -> None:
+    def update(self, **changes: object) -> None:
         """Replace settings fields (unknown names raise TypeError, as dataclasses.replace does)."""
         self._set(self._current.with_updates(**changes))
 
-    def remember_recent(self, path: str | Path, **changes) -> None:
+    def remember_recent(self, path: str | Path, **changes: object) -> None:
         """Put `path` first in the recent files (with other `changes` in the same step)."""
         p = str(path)
         if self._current.recent_files[:1] == (p,) and not changes:

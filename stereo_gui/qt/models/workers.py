@@ -51,7 +51,8 @@ class WorkerRegistry(QObject):
         """
         ok = True
         deadline = time.monotonic() + timeout_ms / 1000.0
-        for w in [self.recorder, self.frames, self.jobs, *self._extra]:
+        workers: list[StoppableWorker] = [self.recorder, self.frames, self.jobs, *self._extra]
+        for w in workers:
             left_ms = max(1, int((deadline - time.monotonic()) * 1000))
             try:
                 ok = bool(w.stop(timeout_ms=left_ms)) and ok

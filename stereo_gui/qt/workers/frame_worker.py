@@ -51,6 +51,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 
 from PySide6.QtCore import QObject, QTimer, Signal
 
@@ -348,7 +349,7 @@ class FrameWorker(QObject):
             self._reader.start()
         if not self._lanes:
             for lane in range(LANES):
-                t = WorkerThread(lambda lane=lane: self._lane_loop(lane),
+                t = WorkerThread(partial(self._lane_loop, lane),
                                  f"frame-lane-{lane + 1}", self._request_stop)
                 self._lanes.append(t)
                 t.start()
@@ -435,6 +436,7 @@ class FrameWorker(QObject):
             elif error is not None:
                 self._source_failed(source, error)
             else:
+                assert frame is not None  # (read() gives a frame or raises)
                 self._frame_read(source, source_gen, frame)
 
     def _source_unavailable(self, source: FrameSource, exc: SourceUnavailable) -> None:
@@ -513,7 +515,7 @@ class FrameWorker(QObject):
                     result = exc
             self._task_finished.emit((task.id, result))
 
-    def _task_delivered(self, done) -> None:
+    def _task_delivered(self, done: tuple[int, object]) -> None:
         tid, result = done
         self.sourceTaskDone.emit(tid, result)
 
@@ -532,6 +534,7 @@ class FrameWorker(QObject):
                 if self._lanes_stopping:
                     return
                 frame, self._frame = self._frame, None
+                assert frame is not None  # (the wait above ends with one, or returns)
                 seq, fn, gen = self._frame_seq, self._processor, self._frame_gen
                 self._in_work += 1
             output, failure = None, None

@@ -15,9 +15,9 @@ import logging
 import threading
 from collections.abc import Callable
 
-from PySide6.QtCore import QObject, Qt, Signal
+from PySide6.QtCore import QObject, Qt, Signal, SignalInstance
 
-from stereo_gui.core.jobs import Job, JobControl, JobState, JobTicket, Progress, run_job
+from stereo_gui.core.jobs import Job, JobControl, JobEnd, JobState, JobTicket, Progress, run_job
 from stereo_gui.qt.workers.threads import WorkerThread
 
 log = logging.getLogger(__name__)
@@ -72,18 +72,20 @@ class JobRunner(QObject):
         with self._cond:
             job_id = self._next_id
             self._next_id += 1
-            ticket = JobTicket(job_id, JobControl(
-                lambda p, job_id=job_id: self.progress.emit(job_id, p)))
+
+            def report(p: Progress, job_id: int = job_id) -> None:
+                self.progress.emit(job_id, p)
+
+            ticket = JobTicket(job_id, JobControl(report))
             self._jobs.append((ticket, job))
             self._cond.notify_all()
-            start = self._thread is None or not self._thread.isRunning() or self._idle_end
-            if start:
+            new: WorkerThread | None = None
+            if self._thread is None or not self._thread.isRunning() or self._idle_end:
                 self._stopping = self._idle_end = False
-                self._thread = WorkerThread(self._loop, self._name, self._request_stop,
-                                            low_priority=False)
-            thread = self._thread
-        if start:
-            thread.start()
+                self._thread = new = WorkerThread(self._loop, self._name, self._request_stop,
+                                                  low_priority=False)
+        if new is not None:
+            new.start()
         return ticket
 
     def _request_stop(self) -> None:
@@ -148,7 +150,7 @@ class JobRunner(QObject):
                 self._thread = None
         return True
 
-    def _emit(self, signal, *args) -> None:
+    def _emit(self, signal: SignalInstance, *args: object) -> None:
         try:
             signal.emit(*args)
         except RuntimeError:  # the receiver side was deleted while the job ran (at exit)
@@ -179,10 +181,11 @@ class JobRunner(QObject):
                     log.warning("%s: releasing an undelivered result failed", self._name,
                                 exc_info=True)
 
-    def _deliver(self, job_id: int, end) -> None:
+    def _deliver(self, job_id: int, end: JobEnd) -> None:
         if end.state is JobState.FINISHED:
             self._emit(self.finished, job_id, end.result)
         elif end.state is JobState.FAILED:
+            assert end.error is not None  # (run_job's FAILED end carries its error)
             self._emit(self.failed, job_id, self._explain(end.error))
         else:
             self._emit(self.cancelled, job_id)

@@ -52,7 +52,7 @@ class JobWorker(QObject):
     cancelled = Signal()
     done = Signal()  # after any of the three above
 
-    def __init__(self, job: Job, name: str = "job", parent=None) -> None:
+    def __init__(self, job: Job, name: str = "job", parent: QObject | None = None) -> None:
         super().__init__(parent)
         self._job = job
         self.job_name = name

@@ -24,6 +24,7 @@ from stereo_gui.files.recording import RecordingWriter, open_recording
 from stereo_gui.files.settings import Settings
 from stereo_gui.qt.workers.frame_worker import FrameWorker
 from stereo_gui.qt.workers.job_runner import JobRunner
+from stereo_gui.sources.base import StereoFrame
 
 log = logging.getLogger(__name__)
 
@@ -76,7 +77,7 @@ class Recorder(QObject):
     def __init__(self, frames: FrameWorker, parent: QObject | None = None) -> None:
         super().__init__(parent)
         self.frames = frames
-        self._writer = None
+        self._writer: RecordingWriter | None = None
         self._folder: Path | None = None
         self._t0 = 0.0
         self._last: tuple[int, float] | None = None  # (index, t_left) of the last frame taken
@@ -138,7 +139,7 @@ class Recorder(QObject):
         with self._lock:
             self._writer = None
         duration = time.monotonic() - self._t0
-        folder = self._folder
+        folder = writer.folder  # (the folder start() was given)
 
         def close(_control: JobControl) -> RecordingResult:
             why = error
@@ -175,7 +176,7 @@ class Recorder(QObject):
         return self._closer.stop(timeout_ms=max(1, int((deadline - time.monotonic()) * 1000)))
 
     # ---- threads ----------------------------------------------------------------------------
-    def _tap(self, frame) -> None:
+    def _tap(self, frame: StereoFrame) -> None:
         """Reader thread: hand the raw frame to the writer (it copies and queues it)."""
         with self._lock:
             writer = self._writer

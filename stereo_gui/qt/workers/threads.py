@@ -77,7 +77,7 @@ class WorkerThread(QThread):
         self._given_up = False  # a join already waited its time in vain: later ones only look
         self.finished.connect(_reaper.reap)  # queued: the reaper lives in the main thread
 
-    def start(self, *args) -> None:  # noqa: D102 - QThread.start, plus the bookkeeping
+    def start(self, *args: QThread.Priority) -> None:  # noqa: D102 - QThread.start, plus the bookkeeping
         with _lock:
             _live.add(self)
         super().start(*args)

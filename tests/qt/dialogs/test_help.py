@@ -79,14 +79,14 @@ def test_open_without_a_file_manager_says_so_and_copies_the_path(qtbot, window, 
     dialog = FoldersDialog([("Settings", tmp_path)], window)
     qtbot.addWidget(dialog)
     monkeypatch.setattr(help_dialog, "file_manager_missing", lambda: True)
-    assert not dialog.open(tmp_path)
+    assert not dialog.open_in_file_manager(tmp_path)
     assert "No file manager" in dialog.said.text() and str(tmp_path) in dialog.said.text()
     assert QGuiApplication.clipboard().text() == str(tmp_path)
     opened = []
     monkeypatch.setattr(help_dialog, "file_manager_missing", lambda: False)
     monkeypatch.setattr(help_dialog.QDesktopServices, "openUrl",
                         lambda url: opened.append(url.toLocalFile()) or True)
-    assert dialog.open(tmp_path)
+    assert dialog.open_in_file_manager(tmp_path)
     assert opened == [str(tmp_path)] and dialog.said.text().startswith("Opening")
 
 
