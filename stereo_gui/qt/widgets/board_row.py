@@ -91,8 +91,8 @@ class BoardRow(QWidget):
         self.dict_combo.currentIndexChanged.connect(self._fields_edited)
         for w in (self.cols_spin, self.rows_spin):
             w.valueChanged.connect(self._fields_edited)
-        for w in (self.square_spin, self.marker_spin):
-            w.valueChanged.connect(self._fields_edited)
+        for box in (self.square_spin, self.marker_spin):
+            box.valueChanged.connect(self._fields_edited)
         self.show_board(self._board)
 
     @property

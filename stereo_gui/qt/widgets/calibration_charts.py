@@ -6,11 +6,13 @@ horizontal lines to check the rectification by eye: side by side with one zoom f
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 
 import cv2
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import Qt, Signal
+from pyqtgraph.GraphicsScene.mouseEvents import MouseClickEvent
+from PySide6.QtCore import QRectF, Qt, Signal
 from PySide6.QtWidgets import QCheckBox, QComboBox, QHBoxLayout, QLabel, QVBoxLayout, QWidget
 
 LINE_EVERY_PX = 32  # rectification check: a horizontal line every this many rows
@@ -44,13 +46,13 @@ def error_scale(mean_px: float | None) -> float:
     return 1.0
 
 
-class ErrorBarChart(pg.PlotWidget):
+class ErrorBarChart(pg.PlotWidget):  # type: ignore[misc]  # pyqtgraph ships no types
     """Reprojection error per pair (left and right bars); a click selects a pair."""
 
     pairClicked = Signal(str)
     thresholdMoved = Signal(float)  # the threshold line dragged to this error, px
 
-    def __init__(self, parent=None) -> None:
+    def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.setLabel("left", "reprojection error", units="px")
         self.getAxis("left").enableAutoSIPrefix(False)  # not "mpx"
@@ -147,9 +149,10 @@ class ErrorBarChart(pg.PlotWidget):
                 break
         self.plotItem.layout.setRowFixedHeight(0, legend.height() + 4 if entries else 0)
 
-    def legend_rect(self):
+    def legend_rect(self) -> QRectF:
         """Where the legend is drawn, scene px."""
-        return self._legend.sceneBoundingRect()
+        rect: QRectF = self._legend.sceneBoundingRect()
+        return rect
 
     def set_threshold(self, px: float) -> None:
         """Put the threshold line at `px` (no thresholdMoved)."""
@@ -176,7 +179,7 @@ class ErrorBarChart(pg.PlotWidget):
         self._update_line_legend()
         self.thresholdMoved.emit(v)
 
-    def set_excluded(self, names) -> None:
+    def set_excluded(self, names: Iterable[str]) -> None:
         """Hatch the bars of the pairs excluded in the session: they are still part of this
         calibration until Recalibrate, and the chart must say which ones will go."""
         self.excluded = set(names)
@@ -212,7 +215,7 @@ class ErrorBarChart(pg.PlotWidget):
         lh, rh = self.heights()
         self._mark.setOpts(x=[float(i)], height=[float(max(lh[i], rh[i])) * 1.05 + 1e-3])
 
-    def _clicked(self, ev) -> None:
+    def _clicked(self, ev: MouseClickEvent) -> None:
         if not self.names:
             return
         p = self.plotItem.vb.mapSceneToView(ev.scenePos())
@@ -256,7 +259,7 @@ class RectifiedPairView(QWidget):
     """A rectified pair with horizontal lines: matching points sit on one line. Side by side
     (both halves zoom and pan together), as an anaglyph or blended into one image."""
 
-    def __init__(self, parent=None) -> None:
+    def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.mode_combo = QComboBox()
         for key, text in RECT_MODES.items():
@@ -343,7 +346,8 @@ class RectifiedPairView(QWidget):
         self.mode_combo.setCurrentIndex(list(RECT_MODES).index(mode))
 
     def show_pair(self, name: str, left_rect: np.ndarray, right_rect: np.ndarray,
-                  note: str = "", corners=None, error_scale: float = 1.0) -> None:
+                  note: str = "", corners: tuple[tuple[np.ndarray, np.ndarray], ...] | None = None,
+                  error_scale: float = 1.0) -> None:
         """Show a rectified pair; `corners` ((detected, reprojected) of the left image, the same
         of the right), in rectified pixels, are drawn in the side-by-side mode with the errors
         drawn `error_scale` times longer."""
@@ -362,6 +366,7 @@ class RectifiedPairView(QWidget):
         left, right = self._pair
         h, w = left.shape[:2]
         side = self.mode == "side"
+        shown: tuple[np.ndarray, np.ndarray | None]
         if side:
             shown = (left[:, :, ::-1], right[:, :, ::-1])
         else:

@@ -6,10 +6,11 @@ from __future__ import annotations
 
 import math
 
-from PySide6.QtWidgets import QFormLayout, QGroupBox, QSizePolicy
+from PySide6.QtWidgets import QFormLayout, QGroupBox, QSizePolicy, QWidget
 
 from stereo_gui.core.calibrate import HARTLEY_NOTE
 from stereo_gui.core.shading import shading_text
+from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.core.uncertainty import corner_sigma_px
 from stereo_gui.qt.widgets.helpers import wrapping_label
 
@@ -21,7 +22,7 @@ def format_px(v: float) -> str:
 class CalibrationFigures(QGroupBox):
     """The "Result" group: one label per figure (see the module docstring)."""
 
-    def __init__(self, parent=None) -> None:
+    def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__("Result", parent)
         form = QFormLayout(self)
         # every value wraps: at the default divider position the pane is narrower than the
@@ -78,7 +79,7 @@ class CalibrationFigures(QGroupBox):
         self.source_label.setText("none yet: calibrate, or load a calibration file")
         self.note_label.setText("")
 
-    def show_calibration(self, c, source: str, nominal: float, pairs: str) -> None:
+    def show_calibration(self, c: StereoCalibration, source: str, nominal: float, pairs: str) -> None:
         """Show StereoCalibration `c`; `source` says where it came from, `nominal` is the nominal
         baseline (mm), `pairs` how many pairs it used."""
         self.source_label.setText(f"{source}; {c.image_size[0]}x{c.image_size[1]} px, "
@@ -119,7 +120,7 @@ _MODEL_NAMES = {"pinhole": "pinhole, 5 coefficients", "rational": "rational, 8 c
                 "fisheye": "fisheye (equidistant), 4 coefficients"}
 
 
-def _model_text(c) -> str:
+def _model_text(c: StereoCalibration) -> str:
     text = _MODEL_NAMES.get(c.model, c.model)
     text += "; ± is 1 sigma" if c.uncertainty is not None else "; no uncertainty recorded"
     if c.swapped_inputs:
@@ -127,7 +128,7 @@ def _model_text(c) -> str:
     return text
 
 
-def camera_text(c, side: str) -> str:
+def camera_text(c: StereoCalibration, side: str) -> str:
     """'fx 752.08±0.35  fy ...  cx ...  cy ... px' of one camera (± 1 sigma)."""
     M = c.M1 if side == "left" else c.M2
     u = c.uncertainty
@@ -138,7 +139,7 @@ def camera_text(c, side: str) -> str:
     return "  ".join(parts) + " px"
 
 
-def corners_text(c) -> str:
+def corners_text(c: StereoCalibration) -> str:
     """How uncertain the lens models are at the image corners (1 sigma)."""
     if c.uncertainty is None:
         return "—"

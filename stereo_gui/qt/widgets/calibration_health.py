@@ -8,9 +8,11 @@ camera by a small angle, to try it out."""
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable, Generator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import numpy as np
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import (
     QComboBox,
@@ -23,11 +25,15 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from stereo_gui.core.health import Refinement, refine_rotation
-from stereo_gui.core.jobs import Progress
+from stereo_gui.core.health import CalibrationHealth, Refinement, refine_rotation
+from stereo_gui.core.jobs import JobControl, Progress
+from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.pipeline.live import LiveOutput
 from stereo_gui.qt.source_capabilities import simulated_rig
 from stereo_gui.qt.widgets import folder_dialog
 from stereo_gui.qt.workers.job_worker import JobWorker
+from stereo_gui.sources.base import StereoFrame
+from stereo_gui.sources.sim.rig import SimRig
 
 if TYPE_CHECKING:
     from stereo_gui.qt.context import AppContext
@@ -38,10 +44,11 @@ _OK = "color: #1e7b34"
 _WARN = "background: #fde2c8; color: #7a3300; padding: 2px 6px; font-weight: bold"
 
 
-def refine_job(calib, left, right, source: str):
+def refine_job(calib: StereoCalibration, left: np.ndarray, right: np.ndarray, source: str
+               ) -> Callable[[JobControl], Generator[Progress, None, Refinement]]:
     """A JobWorker job: refine the rotation between the cameras from one scene pair."""
 
-    def job(control):
+    def job(control: JobControl) -> Generator[Progress, None, Refinement]:
         yield Progress(0, 1, "matching features in the scene")
         result = refine_rotation(calib, left, right, source)
         yield Progress(1, 1, "done")
@@ -58,8 +65,8 @@ class CalibrationHealthPanel(QFrame):
     def __init__(self, ctx: AppContext, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.ctx = ctx
-        self.health = None
-        self._frame = None
+        self.health: CalibrationHealth | None = None
+        self._frame: StereoFrame | None = None
         self._worker: JobWorker | None = None
         self.save_to: str | Path | None = None  # where the next refinement goes (None: ask)
         lay = QVBoxLayout(self)
@@ -110,7 +117,7 @@ class CalibrationHealthPanel(QFrame):
         self._update_buttons()
 
     # ---- the figure ------------------------------------------------------------------------
-    def show_output(self, out, frame) -> None:
+    def show_output(self, out: LiveOutput, frame: StereoFrame | None) -> None:
         """Called with every frame the Live tab draws (UI thread: text only)."""
         self._frame = frame
         h = out.health
@@ -159,7 +166,7 @@ class CalibrationHealthPanel(QFrame):
         self.refine_button.setText("Refine rectification from the scene")
         self._update_buttons()
 
-    def _refined(self, ref) -> None:
+    def _refined(self, ref: Refinement) -> None:
         path = self.save_to
         if path is None:
             cp = self.ctx.calibration_path
@@ -183,7 +190,7 @@ class CalibrationHealthPanel(QFrame):
         return self._worker is not None
 
     # ---- the simulated rig -----------------------------------------------------------------
-    def _sim_rig(self):
+    def _sim_rig(self) -> SimRig | None:
         return simulated_rig(self.ctx.frames.source())
 
     def _update_sim_row(self) -> None:

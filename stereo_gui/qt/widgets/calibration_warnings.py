@@ -3,8 +3,12 @@ window offers in one click (Fix k3 and recalibrate, Swap the cameras and recalib
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QGroupBox, QHBoxLayout, QLabel, QPushButton, QVBoxLayout, QWidget
+
+from stereo_gui.core.uncertainty import CalibrationWarning
 
 ACTIONS = {"fix_k3": "Fix k3 and recalibrate", "swap": "Swap the cameras and recalibrate"}
 
@@ -22,34 +26,35 @@ class CalibrationWarnings(QGroupBox):
         self.labels: list[QLabel] = []
         self.setVisible(False)
 
-    def show_warnings(self, warnings) -> None:
+    def show_warnings(self, warnings: Sequence[CalibrationWarning]) -> None:
         for i in reversed(range(self._layout.count())):
             item = self._layout.takeAt(i)
             w = item.widget() if item is not None else None
+            lay = item.layout() if item is not None else None
             if w is not None:
                 w.deleteLater()
-            elif item is not None and item.layout() is not None:
-                lay = item.layout()
+            elif lay is not None:
                 while lay.count():
-                    sub = lay.takeAt(0).widget()
+                    taken = lay.takeAt(0)
+                    sub = taken.widget() if taken is not None else None
                     if sub is not None:
                         sub.deleteLater()
         self.buttons = {}
         self.labels = []
-        for w in warnings:
+        for warning in warnings:
             row = QHBoxLayout()
-            lab = QLabel(w.message)
+            lab = QLabel(warning.message)
             lab.setWordWrap(True)
-            colour = "#b03a2e" if w.code == "swapped" else "#9a5b00"
+            colour = "#b03a2e" if warning.code == "swapped" else "#9a5b00"
             lab.setStyleSheet(f"color: {colour}")
-            lab.setToolTip(f"warning code: {w.code}")
+            lab.setToolTip(f"warning code: {warning.code}")
             row.addWidget(lab, 1)
             self.labels.append(lab)
-            if w.proposal in ACTIONS and w.proposal not in self.buttons:
-                b = QPushButton(ACTIONS[w.proposal])
-                b.clicked.connect(lambda _=False, p=w.proposal: self.actionRequested.emit(p))
+            if warning.proposal in ACTIONS and warning.proposal not in self.buttons:
+                b = QPushButton(ACTIONS[warning.proposal])
+                b.clicked.connect(lambda _=False, p=warning.proposal: self.actionRequested.emit(p))
                 row.addWidget(b)
-                self.buttons[w.proposal] = b
+                self.buttons[warning.proposal] = b
             self._layout.addLayout(row)
         self.setVisible(bool(warnings))
 

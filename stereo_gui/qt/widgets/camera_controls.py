@@ -13,7 +13,8 @@ comes back. A control the camera does not have (or that refused or ignored a wri
 from __future__ import annotations
 
 import logging
-from typing import TYPE_CHECKING
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from PySide6.QtCore import QObject, Qt, QTimer, Signal
 from PySide6.QtWidgets import (
@@ -33,8 +34,11 @@ from PySide6.QtWidgets import (
 )
 
 from stereo_gui.core.camera_settings import PairSettings
+from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.files.session import CaptureSession
 from stereo_gui.pipeline import camera_setup as setup
-from stereo_gui.sources.camera_controls import ControlReading
+from stereo_gui.sources.base import FrameSource, StereoFrame
+from stereo_gui.sources.camera_controls import ControlReading, PairControls
 
 if TYPE_CHECKING:
     from stereo_gui.qt.context import AppContext
@@ -53,7 +57,16 @@ WARN_STYLE = "background: #fff3b0; color: #3e2700; border: 1px solid #d4a017; pa
 BAD_STYLE = "background: #ffcdd2; color: #5d0000; padding: 2px 4px"
 
 
-def _sides_text(sides) -> str:
+T = TypeVar("T")
+# what the reader thread runs on the cameras: (pair, calibration in use, frame size, source,
+# newest frame) -> the answer its `on_answer` takes on the UI thread
+SetupTask = Callable[[PairControls, StereoCalibration | None, tuple[int, int] | None,
+                      FrameSource, StereoFrame | None], T]
+# a match step's answer: the step and the controls read after it, or the step alone (no frame)
+MatchAnswer = setup.MatchStep | tuple[setup.MatchStep, setup.ControlsReport]
+
+
+def _sides_text(sides: Sequence[str]) -> str:
     return " and ".join(sides) + (" cameras" if len(sides) > 1 else " camera")
 
 
@@ -79,19 +92,23 @@ class CameraSetup(QObject):
         self.unavailable = ""  # why there are no controls ("" when there are, or not known yet)
         self.note = ""  # what the last request did, for the technician ("" when nothing to say)
         self.matching = False  # exposure matching under way
-        self._tasks: dict[int, object] = {}  # task id -> how to take its answer
+        # task id -> how to take its answer (it comes back through FrameWorker.sourceTaskDone,
+        # an object; _run pairs each task with the taker of its own answer's type)
+        self._tasks: dict[int, Callable[[Any], None]] = {}
         self._match_steps = 0
         self._write_busy = False
-        self._queued_write: tuple | None = None  # the newest write asked while one was under way
+        # the newest write asked while one was under way: (name, value, sides)
+        self._queued_write: tuple[str, bool | float, tuple[str, ...]] | None = None
         ctx.frames.sourceTaskDone.connect(self._answered)
         ctx.frames.sourceChanged.connect(self._source_changed)
         ctx.calibration_model.changed.connect(lambda _c: self.refresh())
 
     # ---- requests (UI thread) ------------------------------------------------------------------
-    def _run(self, fn, on_answer, after_frames: int = 0) -> int:
+    def _run(self, fn: SetupTask[T], on_answer: Callable[[T], None],
+             after_frames: int = 0) -> int:
         calib = self.ctx.calibration
 
-        def task(source, frame):
+        def task(source: FrameSource, frame: StereoFrame | None) -> T | None:
             pair = source.camera_controls()
             if pair is None:
                 return None
@@ -112,7 +129,8 @@ class CameraSetup(QObject):
         self._run(lambda pair, calib, size, _s, _f:
                   setup.restore_calibration_controls(pair, calib, size), self._take_report)
 
-    def write(self, name: str, value, sides=("left", "right")) -> None:
+    def write(self, name: str, value: bool | float,
+              sides: Sequence[str] = ("left", "right")) -> None:
         """Write one control (newest wins: a slider dragged sends its last value once the
         write before it is answered)."""
         if self._write_busy:
@@ -123,7 +141,7 @@ class CameraSetup(QObject):
                   setup.write_control(pair, name, value, tuple(sides), calib, size),
                   self._take_write)
 
-    def lock_focus(self, sides=("left", "right")) -> None:
+    def lock_focus(self, sides: Sequence[str] = ("left", "right")) -> None:
         self._run(lambda pair, calib, size, _s, _f:
                   setup.lock_focus(pair, tuple(sides), calib, size), self._take_report)
 
@@ -136,13 +154,15 @@ class CameraSetup(QObject):
         self.note = "Matching the right camera's exposure to the left's…"
         self.changed.emit()
 
-        def begin(pair, calib, size, source, frame):
+        def begin(pair: PairControls, calib: StereoCalibration | None,
+                  size: tuple[int, int] | None, source: FrameSource,
+                  frame: StereoFrame | None) -> setup.ControlsReport:
             setup.begin_exposure_matching(pair)
             return setup.read_controls(pair, calib, size)
 
         self._run(begin, self._match_begun)
 
-    def record_in(self, session_of) -> None:
+    def record_in(self, session_of: Callable[[], CaptureSession | None]) -> None:
         """Keep the controls in the capture session `session_of()` gives when they are read
         (the tab's session then: it may have been opened again meanwhile): read again now,
         since automatic modes move them between requests."""
@@ -160,7 +180,7 @@ class CameraSetup(QObject):
         self._run(lambda pair, calib, size, _s, _f: setup.read_controls(pair, calib, size), keep)
 
     # ---- answers (UI thread) -------------------------------------------------------------------
-    def _answered(self, tid: int, result) -> None:
+    def _answered(self, tid: int, result: object) -> None:
         take = self._tasks.pop(tid, None)
         if take is None:
             return  # another's task
@@ -197,7 +217,9 @@ class CameraSetup(QObject):
         self._match_next()
 
     def _match_next(self) -> None:
-        def step(pair, calib, size, source, frame):
+        def step(pair: PairControls, calib: StereoCalibration | None,
+                 size: tuple[int, int] | None, source: FrameSource,
+                 frame: StereoFrame | None) -> MatchAnswer:
             if frame is None:
                 return setup.MatchStep(float("nan"), True, "no frame to measure")
             limit = setup.exposure_limit(pair.right.read_one("exposure"),
@@ -207,7 +229,7 @@ class CameraSetup(QObject):
 
         self._run(step, self._match_answered, setup.MATCH_SETTLE_FRAMES)
 
-    def _match_answered(self, answer) -> None:
+    def _match_answered(self, answer: MatchAnswer) -> None:
         if isinstance(answer, setup.MatchStep):  # (no frame yet)
             step, report = answer, None
         else:
@@ -307,6 +329,8 @@ class _CameraCell(QWidget):
                 w.blockSignals(False)
 
     def _auto_toggled(self, on: bool) -> None:
+        if self.switch is None:  # (a row without a switch hides its box)
+            return
         self.panel.edited(self.switch, bool(on), self.side)
 
     def _slid(self, v: int) -> None:
@@ -510,7 +534,7 @@ class CameraControlsPanel(QWidget):
         has = report is not None
         for b in (self.lock_button, self.match_button, self.same_check):
             b.setEnabled(has and not m.matching)
-        self.lock_button.setEnabled(has and bool(report.autofocus_on()))
+        self.lock_button.setEnabled(report is not None and bool(report.autofocus_on()))
         self.note_label.setText(m.unavailable or m.note)
         self._show_warnings()
         self.fold.setText("Camera controls" + (" (none on this source)" if m.unavailable else ""))
@@ -522,12 +546,12 @@ class CameraControlsPanel(QWidget):
         if text != self.warning.text():
             self.warning.setText(text)
         self.warning_row.setVisible(bool(warns))
-        has = report is not None
-        self.restore_button.setVisible(has and any(x.restorable for x in report.mismatches))
-        self.lock_warning_button.setVisible(has and bool(report.autofocus_on()))
+        self.restore_button.setVisible(report is not None
+                                       and any(x.restorable for x in report.mismatches))
+        self.lock_warning_button.setVisible(report is not None and bool(report.autofocus_on()))
 
     # ---- edits -----------------------------------------------------------------------------
-    def edited(self, name: str, value, side: str) -> None:
+    def edited(self, name: str, value: bool | float, side: str) -> None:
         """A control changed in the panel: write it (to both cameras with "same for both")."""
         sides = ("left", "right") if self.same_check.isChecked() else (side,)
         self.model.write(name, value, sides)
@@ -542,6 +566,6 @@ class CameraControlsPanel(QWidget):
         r = self.model.report
         return r.settings if r is not None else None
 
-    def record_in(self, session_of) -> None:
+    def record_in(self, session_of: Callable[[], CaptureSession | None]) -> None:
         """Keep the controls, read again, in the session `session_of()` gives."""
         self.model.record_in(session_of)

@@ -17,7 +17,7 @@ from PySide6.QtGui import QGuiApplication, QOffscreenSurface, QOpenGLContext, QV
 from PySide6.QtWidgets import QComboBox, QHBoxLayout, QLabel, QVBoxLayout, QWidget
 
 from stereo_gui.core.util import how_many
-from stereo_gui.pipeline.cloud import IMAGE_BACKGROUND_RGB
+from stereo_gui.pipeline.cloud import IMAGE_BACKGROUND_RGB, CloudPoints
 
 log = logging.getLogger(__name__)
 
@@ -42,8 +42,9 @@ def opengl_problem() -> str:
     """Why no OpenGL view can be made here ("" when it can): PyOpenGL missing, or no context."""
     _match_pyopengl_to_qt()
     try:
-        # imported here, after _match_pyopengl_to_qt: PyOpenGL fixes GLX or EGL on import
-        import OpenGL.GL  # noqa: F401 - what pyqtgraph.opengl needs
+        # imported here, after _match_pyopengl_to_qt: PyOpenGL fixes GLX or EGL on import;
+        # it is what pyqtgraph.opengl needs, and ships no types
+        import OpenGL.GL  # type: ignore[import-untyped]  # noqa: F401
     except ImportError as exc:
         return f"the 3D view needs PyOpenGL ({exc})"
     except Exception as exc:  # noqa: BLE001 - PyOpenGL raises other errors without a GL library
@@ -120,11 +121,11 @@ class CloudView(QWidget):
     def colouring(self) -> str:
         return str(self.colour_combo.currentData())
 
-    def show_points(self, cloud) -> None:
+    def show_points(self, cloud: CloudPoints) -> None:
         """Draw a `stereo_gui.pipeline.cloud.CloudPoints` (arrays handed over, nothing more)."""
         self.info.setText(f"{how_many(cloud.count, 'point')}, {cloud.z_near_m:.2f} – {cloud.z_far_m:.2f} m")
         self.points = cloud
-        if self.scatter is None:
+        if self.gl is None or self.scatter is None:
             return
         self.gl.setBackgroundColor(cloud.background_rgb)  # (by distance: a grey of its own)
         self.scatter.setData(pos=cloud.xyz_m, color=cloud.rgba)

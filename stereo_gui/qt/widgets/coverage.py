@@ -13,7 +13,7 @@ only draws: the numbers come from the capture tab (which gets them from the core
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,7 +31,8 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from stereo_gui.core.coverage import GRID, MIN_POINTS_PER_CELL, REGIONS
+from stereo_gui.core.coverage import GRID, MIN_POINTS_PER_CELL, REGIONS, Readiness
+from stereo_gui.core.detect import Coverage
 
 GRID_COLS = GRID  # cells across the image in a corner map: the regions' cells
 GRID_ROWS = GRID
@@ -70,16 +71,16 @@ def _map_lut() -> np.ndarray:
     return lut
 
 
-def _region_rect(cells) -> QRectF:
+def _region_rect(cells: Iterable[tuple[int, int]]) -> QRectF:
     rows = [r for r, _ in cells]
     cols = [c for _, c in cells]
     return QRectF(min(cols), min(rows), max(cols) - min(cols) + 1, max(rows) - min(rows) + 1)
 
 
-class CornerMap(pg.GraphicsLayoutWidget):
+class CornerMap(pg.GraphicsLayoutWidget):  # type: ignore[misc]  # pyqtgraph ships no types
     """A coarse grid over one image, coloured by how many board corners fell in each cell."""
 
-    def __init__(self, title: str, parent=None) -> None:
+    def __init__(self, title: str, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.setBackground(None)
         self.ci.setContentsMargins(1, 1, 1, 1)
@@ -104,7 +105,7 @@ class CornerMap(pg.GraphicsLayoutWidget):
         self.view.setRange(xRange=(0, GRID_COLS), yRange=(0, GRID_ROWS), padding=0.03)
         self._redraw()
 
-    def show_counts(self, counts: np.ndarray, empty_regions) -> None:
+    def show_counts(self, counts: np.ndarray, empty_regions: Iterable[str]) -> None:
         """Show one camera's cell counts (GRID x GRID) and outline `empty_regions` (names of
         core.coverage.REGIONS): both from the same Readiness as the words under the maps."""
         self.counts = np.asarray(counts, np.int32).reshape(GRID_ROWS, GRID_COLS).copy()
@@ -134,16 +135,16 @@ class CornerMap(pg.GraphicsLayoutWidget):
             pen.setCosmetic(True)  # screen px, whatever the map's size
             box.setPen(pen)
             box.setZValue(6 if empty else 4)  # an empty region's outline is never hidden
-        empty = ", ".join(self._empty) or "none"
+        empty_text = ", ".join(self._empty) or "none"
         self.setToolTip(f"{self.title}: where the target's points have been seen in the kept "
                         "pairs (dark red = none yet, amber = too few; a region counts when all "
-                        f"its cells are green). Outlined in red, not yet covered: {empty}.")
+                        f"its cells are green). Outlined in red, not yet covered: {empty_text}.")
 
 
 class CoverageWidget(QWidget):
     """Maps of corner positions for both cameras and pose-coverage bars with a pair count."""
 
-    def __init__(self, parent=None) -> None:
+    def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         outer = QVBoxLayout(self)
         outer.setContentsMargins(0, 0, 0, 0)
@@ -155,12 +156,12 @@ class CoverageWidget(QWidget):
         self.left_map = CornerMap("Left camera")
         self.right_map = CornerMap("Right camera")
         for title, m in (("Left", self.left_map), ("Right", self.right_map)):
-            col = QVBoxLayout()
+            column = QVBoxLayout()
             lab = QLabel(title)
             lab.setAlignment(Qt.AlignmentFlag.AlignHCenter)
-            col.addWidget(lab)
-            col.addWidget(m)
-            maps.addLayout(col)
+            column.addWidget(lab)
+            column.addWidget(m)
+            maps.addLayout(column)
         layout.addLayout(maps)
 
         grid = QGridLayout()
@@ -206,7 +207,7 @@ class CoverageWidget(QWidget):
             bar.setToolTip(f"{name}: how much of its range the kept poses span"
                            + (f" ({self._hints[name]})" if self._hints[name] else ""))
 
-    def set_coverage(self, cov) -> None:
+    def set_coverage(self, cov: Coverage) -> None:
         """Show a core `detect.Coverage` (bars, count against the recommended count)."""
         names = {"x": "X", "y": "Y", "size": "Size", "skew": "Tilt"}
         hints = {"x": "left-right", "y": "up-down", "size": "near-far", "skew": "tilt"}
@@ -219,7 +220,7 @@ class CoverageWidget(QWidget):
         missing = cov.missing()
         self.count_label.setToolTip("; ".join(missing) if missing else "coverage is complete")
 
-    def set_readiness(self, r) -> None:
+    def set_readiness(self, r: Readiness) -> None:
         """Show a core.coverage.Readiness: its counts and empty regions on the maps, ready or
         not, and what is missing in words."""
         empty = r.empty

@@ -90,7 +90,8 @@ class FlowLayout(QLayout):
 
     # ---- placement ------------------------------------------------------------------------------
     def _visible(self) -> list[QLayoutItem]:
-        return [it for it in self._items if not (it.widget() and it.widget().isHidden())]
+        return [it for it in self._items
+                if not ((w := it.widget()) is not None and w.isHidden())]
 
     def _rows(self, width: int) -> list[list[QLayoutItem]]:
         rows: list[list[QLayoutItem]] = [[]]

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from PySide6.QtCore import Qt
+from PySide6.QtCore import QSize, Qt
 from PySide6.QtWidgets import QLabel, QScrollArea, QVBoxLayout, QWidget
 
 
@@ -28,7 +28,7 @@ class VerticalScroll(QScrollArea):
         super().__init__()
         self.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
 
-    def minimumSizeHint(self):
+    def minimumSizeHint(self) -> QSize:  # noqa: N802 - Qt API
         w = self.widget()
         hint = super().minimumSizeHint()
         if w is not None:

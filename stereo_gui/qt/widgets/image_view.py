@@ -9,17 +9,20 @@ after rounding — the convention of OpenCV and of `core.measure`.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import cv2
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import QPointF, QRectF, Qt, Signal
-from PySide6.QtGui import QBrush, QColor, QFont, QFontMetrics, QPen, QTransform
+from pyqtgraph.GraphicsScene.mouseEvents import HoverEvent, MouseClickEvent
+from PySide6.QtCore import QPoint, QPointF, QRectF, Qt, Signal
+from PySide6.QtGui import QBrush, QColor, QFont, QFontMetrics, QPen, QResizeEvent, QTransform
 from PySide6.QtWidgets import (
     QGraphicsItem,
     QGraphicsLineItem,
     QGraphicsRectItem,
     QGraphicsSimpleTextItem,
+    QWidget,
 )
 
 from stereo_gui.core.matching import ColorScale, color_scale_caption
@@ -35,7 +38,7 @@ _NICE_MM_TIERS = (
 )
 
 
-class StereoImageItem(pg.ImageItem):
+class StereoImageItem(pg.ImageItem):  # type: ignore[misc]  # pyqtgraph ships no types
     """An ImageItem that reports hover and double-click positions in image pixel coordinates."""
 
     hovered = Signal(float, float)  # x, y px; NaN, NaN when the pointer leaves
@@ -50,14 +53,14 @@ class StereoImageItem(pg.ImageItem):
         """Item coordinates (pixel corners at integers) -> pixel-centre coordinates."""
         return pos.x() - 0.5, pos.y() - 0.5
 
-    def hoverEvent(self, ev) -> None:  # noqa: N802 - pyqtgraph API
+    def hoverEvent(self, ev: HoverEvent) -> None:  # noqa: N802 - pyqtgraph API
         if ev.isExit():
             self.hovered.emit(math.nan, math.nan)
             return
         x, y = self.to_pixel(ev.pos())
         self.hovered.emit(x, y)
 
-    def mouseClickEvent(self, ev) -> None:  # noqa: N802 - pyqtgraph API
+    def mouseClickEvent(self, ev: MouseClickEvent) -> None:  # noqa: N802 - pyqtgraph API
         if ev.button() == Qt.MouseButton.LeftButton and ev.double():
             ev.accept()
             x, y = self.to_pixel(ev.pos())
@@ -180,7 +183,7 @@ def _overlap(rect: QRectF, taken: list[QRectF]) -> float:
 
 def choose_offset(anchor: QPointF, size: tuple[float, float], bounds: QRectF | None,
                   taken: list[QRectF], centred: bool = False,
-                  edges: list[QRectF] = ()) -> tuple[float, float]:
+                  edges: Sequence[QRectF] = ()) -> tuple[float, float]:
     """Where a label goes: the offset of `label_offsets` whose label rect (screen px, at
     `anchor` + offset) lies inside `bounds`, covers none of `taken` (labels, dots) and, among
     those, costs least: crossing an edge of the region box (`edges`) is worth a few places
@@ -305,7 +308,7 @@ SCALE_KIND_TITLES = {"view": "follows the view", "fixed": "fixed range",
                      "minmax": "each frame's range"}
 
 
-class DistanceColorBar(pg.PlotItem):
+class DistanceColorBar(pg.PlotItem):  # type: ignore[misc]  # pyqtgraph ships no types
     """A vertical colour bar whose axis is labelled in distance (near at the top)."""
 
     def __init__(self) -> None:
@@ -323,7 +326,8 @@ class DistanceColorBar(pg.PlotItem):
         self._img = pg.ImageItem(axisOrder="row-major")
         self.addItem(self._img)
         self._lut_id: int | None = None
-        self._ticks_of: tuple | None = None  # the range the ticks were made for
+        # the range the ticks were made for: (kind, mode, far, near)
+        self._ticks_of: tuple[str, str, float, float] | None = None
         self.setXRange(0, 1, padding=0)
         # room above and below the ramp: the end labels are centred on the ends (the bottom
         # one was cut in half)
@@ -343,7 +347,8 @@ class DistanceColorBar(pg.PlotItem):
     @property
     def title(self) -> str:
         """The axis title up the side of the bar: the kind of scale."""
-        return self.getAxis("right").labelText
+        text: str = self.getAxis("right").labelText
+        return text
 
     @property
     def ticks(self) -> list[tuple[float, str]]:
@@ -369,7 +374,7 @@ class DistanceColorBar(pg.PlotItem):
         self.setToolTip(self._caption)
 
 
-class ImagePanel(pg.GraphicsLayoutWidget):
+class ImagePanel(pg.GraphicsLayoutWidget):  # type: ignore[misc]  # pyqtgraph ships no types
     """One titled live view: an image with markers, optionally with a distance colour bar."""
 
     hovered = Signal(str, float, float)  # view key, x, y px (NaN when left)
@@ -377,7 +382,8 @@ class ImagePanel(pg.GraphicsLayoutWidget):
     regionChanged = Signal(tuple)  # (x0, y0, x1, y1) px of the region box, after a drag
     _full_title: str | None = None  # the title as set; None while the base class is built
 
-    def __init__(self, key: str, title: str, color_bar: bool = False, parent=None) -> None:
+    def __init__(self, key: str, title: str, color_bar: bool = False,
+                 parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.key = key
         self.setMinimumSize(200, 160)
@@ -435,7 +441,7 @@ class ImagePanel(pg.GraphicsLayoutWidget):
             self.title.setText(shown)
         self.setToolTip(self._full_title if shown != self._full_title else "")
 
-    def resizeEvent(self, event) -> None:  # noqa: N802 (Qt's name)
+    def resizeEvent(self, event: QResizeEvent) -> None:  # noqa: N802 (Qt's name)
         self._fit_title()  # first: the scene is laid out to the view's size with this title
         super().resizeEvent(event)
 
@@ -471,7 +477,8 @@ class ImagePanel(pg.GraphicsLayoutWidget):
         """Where item coordinate (x, y) of the view (pixel corners at integers) is drawn,
         in scene px (the frame of the labels' offsets)."""
         self.view.updateMatrix()
-        return self.view.mapViewToScene(QPointF(x, y))
+        pos: QPointF = self.view.mapViewToScene(QPointF(x, y))
+        return pos
 
     def view_rect(self) -> QRectF | None:
         """The part of the scene showing the image (the view box), None before layout."""
@@ -487,7 +494,7 @@ class ImagePanel(pg.GraphicsLayoutWidget):
         box.setTransform(QTransform.fromTranslate(dx, dy))
         _set_leader(box, dx, dy)
 
-    def _relayout_labels(self, *_args) -> None:
+    def _relayout_labels(self, *_args: object) -> None:
         """Place every label again, oldest first: labels keep their size on screen, so a zoom
         or a resize of the view moves them relative to each other."""
         taken = self.dot_rects()
@@ -503,7 +510,7 @@ class ImagePanel(pg.GraphicsLayoutWidget):
         r = box.rect()
         return QRectF(p.x() + t.dx(), p.y() + t.dy(), r.width(), r.height())
 
-    def dot_rects(self, more_points: list[tuple[float, float]] = ()) -> list[QRectF]:
+    def dot_rects(self, more_points: Sequence[tuple[float, float]] = ()) -> list[QRectF]:
         """Where the markers' dots (and `more_points`, image coordinates) are drawn, scene px:
         no label may hide a point."""
         rects = []
@@ -572,7 +579,7 @@ class ImagePanel(pg.GraphicsLayoutWidget):
             self.region_box.setPen(pen)
             self.region_box.currentPen = pen  # what it draws until hovered
 
-    def _region_moved(self, *_args) -> None:
+    def _region_moved(self, *_args: object) -> None:
         self.regionChanged.emit(self.region())
 
     def clear_markers(self) -> None:
@@ -586,11 +593,13 @@ class ImagePanel(pg.GraphicsLayoutWidget):
     def scene_pos_of_pixel(self, x: float, y: float) -> QPointF:
         """Scene position of image pixel (x, y) (for tests and tooltips)."""
         self.view.updateMatrix()  # the view applies a new range lazily, at the next paint
-        return self.item.mapToScene(QPointF(x + 0.5, y + 0.5))
+        pos: QPointF = self.item.mapToScene(QPointF(x + 0.5, y + 0.5))
+        return pos
 
-    def widget_pos_of_pixel(self, x: float, y: float):
+    def widget_pos_of_pixel(self, x: float, y: float) -> QPoint:
         """Widget (viewport) position of image pixel (x, y), a QPoint."""
-        return self.mapFromScene(self.scene_pos_of_pixel(x, y))
+        pos: QPoint = self.mapFromScene(self.scene_pos_of_pixel(x, y))
+        return pos
 
 
 REGION_OK = "#69f0ae"

@@ -6,20 +6,25 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
+from collections.abc import Iterable
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
-from PySide6.QtCore import QAbstractTableModel, QModelIndex, Qt
+from PySide6.QtCore import QAbstractTableModel, QModelIndex, QObject, QPersistentModelIndex, Qt
 from PySide6.QtGui import QBrush, QColor
 
 from stereo_gui.core.measure import triangulate
-from stereo_gui.files.measurement_record import RULER_METHOD, record_error
+from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.files.measurement_record import RULER_METHOD, MeasurementRecord, record_error
 
 if TYPE_CHECKING:
     from stereo_gui.qt.context import AppContext
 
 
-def _num(v, digits: int = 1) -> str:
+ModelIndex = QModelIndex | QPersistentModelIndex
+
+
+def _num(v: float | None, digits: int = 1) -> str:
     if v is None:
         return ""
     try:
@@ -37,11 +42,11 @@ def _short_time(iso: str) -> str:
     return t.astimezone().strftime("%H:%M:%S") if t.tzinfo else t.strftime("%H:%M:%S")
 
 
-def _is_ruler(r) -> bool:
+def _is_ruler(r: MeasurementRecord) -> bool:
     return r.method.startswith(RULER_METHOD)
 
 
-def _xyz(v: float, r) -> str:
+def _xyz(v: float, r: MeasurementRecord) -> str:
     """X, Y or Z of a reading; of a ruler distance they are the components of B - A."""
     return f"Δ {_num(v)}" if _is_ruler(r) else _num(v)
 
@@ -81,7 +86,7 @@ NOTE_MAX_CHARS = 500  # a note is a few words; longer text is cut there
 class MeasurementModel(QAbstractTableModel):
     """A table over ctx.measurement_log.records; the true-distance column is editable."""
 
-    def __init__(self, ctx: AppContext, parent=None) -> None:
+    def __init__(self, ctx: AppContext, parent: QObject | None = None) -> None:
         super().__init__(parent)
         self.ctx = ctx
         self._rows = len(ctx.measurement_log.records)
@@ -99,13 +104,14 @@ class MeasurementModel(QAbstractTableModel):
         self._rows = n
         self.endResetModel()
 
-    def rowCount(self, parent=QModelIndex()) -> int:  # noqa: N802 - Qt API
+    def rowCount(self, parent: ModelIndex = QModelIndex()) -> int:  # noqa: N802 - Qt API
         return 0 if parent.isValid() else len(self.ctx.measurement_log.records)
 
-    def columnCount(self, parent=QModelIndex()) -> int:  # noqa: N802 - Qt API
+    def columnCount(self, parent: ModelIndex = QModelIndex()) -> int:  # noqa: N802 - Qt API
         return 0 if parent.isValid() else len(COLUMNS)
 
-    def headerData(self, section, orientation, role=Qt.ItemDataRole.DisplayRole):  # noqa: N802
+    def headerData(self, section: int, orientation: Qt.Orientation,  # noqa: N802
+                   role: int = Qt.ItemDataRole.DisplayRole) -> object:
         if orientation == Qt.Orientation.Horizontal:
             if role == Qt.ItemDataRole.DisplayRole:
                 return COLUMNS[section][0]
@@ -115,7 +121,7 @@ class MeasurementModel(QAbstractTableModel):
             return str(section + 1)
         return None
 
-    def data(self, index, role=Qt.ItemDataRole.DisplayRole):
+    def data(self, index: ModelIndex, role: int = Qt.ItemDataRole.DisplayRole) -> object:
         if not index.isValid():
             return None
         rec = self.ctx.measurement_log.records[index.row()]
@@ -138,13 +144,14 @@ class MeasurementModel(QAbstractTableModel):
             return rec.reason
         return None
 
-    def flags(self, index):
+    def flags(self, index: ModelIndex) -> Qt.ItemFlag:
         f = super().flags(index)
         if index.isValid() and index.column() in (TRUE_COL, NOTE_COL):
             f |= Qt.ItemFlag.ItemIsEditable
         return f
 
-    def setData(self, index, value, role=Qt.ItemDataRole.EditRole) -> bool:  # noqa: N802
+    def setData(self, index: ModelIndex, value: object,  # noqa: N802
+                role: int = Qt.ItemDataRole.EditRole) -> bool:
         if role != Qt.ItemDataRole.EditRole or index.column() not in (TRUE_COL, NOTE_COL):
             return False
         if index.column() == NOTE_COL:
@@ -171,7 +178,7 @@ class MeasurementModel(QAbstractTableModel):
         return True
 
 
-def samples_from(records) -> list[tuple[float, float]]:
+def samples_from(records: Iterable[MeasurementRecord]) -> list[tuple[float, float]]:
     """(disparity px, true distance mm) of the valid readings that have a true distance."""
     out = []
     for r in records:
@@ -180,7 +187,8 @@ def samples_from(records) -> list[tuple[float, float]]:
     return out
 
 
-def triangulation_errors_mm(records, calibration=None) -> list[float]:
+def triangulation_errors_mm(records: Iterable[MeasurementRecord],
+                            calibration: StereoCalibration | None = None) -> list[float]:
     """Z - true distance (mm) of triangulation for the valid readings with a true distance: the
     logged Z where triangulation made it, else triangulated again through `calibration` (a
     metric StereoCalibration) from the logged pixel and disparity; readings that cannot be

@@ -10,8 +10,9 @@ the pipeline, which applies it from the next frame on.
 from __future__ import annotations
 
 import logging
+from pathlib import Path
 
-from PySide6.QtCore import Qt, Signal
+from PySide6.QtCore import Qt, Signal, SignalInstance
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -31,6 +32,7 @@ from PySide6.QtWidgets import (
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.matching import PRESET_PARAMS, Preset
 from stereo_gui.core.params import Param
+from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files import presets
 
 log = logging.getLogger(__name__)
@@ -56,7 +58,7 @@ def load_preset(name: str) -> Preset:
     return presets.load_preset(name)
 
 
-def save_user_preset(params: Preset, name: str):
+def save_user_preset(params: Preset, name: str) -> Path:
     return presets.save_user_preset(params.replace(name=name), name)
 
 
@@ -111,19 +113,30 @@ class SliderSpin(QWidget):
 
 
 # ---- an editor made from a parameter's declaration -------------------------------------------
-def make_editor(spec: Param) -> QWidget:
+WholeEditor = SliderSpin | QSpinBox
+Editor = QCheckBox | QComboBox | WholeEditor | QDoubleSpinBox
+EditorValue = bool | str | int | float
+
+
+def make_editor(spec: Param) -> Editor:
     """The widget that edits one parameter: a check box, a list of its choices, a slider with a
     spin box (whole numbers), a spin box (large whole numbers) or a decimal spin box, offering
     the declaration's panel range and step, its unit as a suffix of decimals, its help as the
     tool tip."""
     tp = spec.base
+    w: Editor
     if tp is bool:
         w = QCheckBox(spec.label or spec.name)
     elif spec.choices:
         w = QComboBox()
         w.addItems(list(spec.choices))
     else:
-        lo, hi, step = spec.panel or (spec.lo, spec.hi, 1)
+        if spec.panel is not None:
+            lo, hi, step = spec.panel
+        elif spec.lo is not None and spec.hi is not None:
+            lo, hi, step = spec.lo, spec.hi, 1
+        else:
+            raise ValueError(f"{spec.name}: a number's editor needs its range declared")
         if tp is int and hi - lo <= 10_000:
             w = SliderSpin(int(lo), int(hi), int(step))
         elif tp is int:
@@ -140,7 +153,7 @@ def make_editor(spec: Param) -> QWidget:
     return w
 
 
-def editor_value(w: QWidget):
+def editor_value(w: Editor) -> EditorValue:
     """The value an editor of `make_editor` shows."""
     if isinstance(w, QCheckBox):
         return w.isChecked()
@@ -149,17 +162,19 @@ def editor_value(w: QWidget):
     return w.value()
 
 
-def show_value(w: QWidget, value) -> None:
+def show_value(w: Editor, value: EditorValue) -> None:
     """Show `value` in an editor of `make_editor`."""
     if isinstance(w, QCheckBox):
         w.setChecked(bool(value))
     elif isinstance(w, QComboBox):
-        w.setCurrentText(value)
+        w.setCurrentText(str(value))
+    elif isinstance(w, QDoubleSpinBox):
+        w.setValue(float(value))
     else:
-        w.setValue(value)
+        w.setValue(int(value))
 
 
-def editor_changed(w: QWidget):
+def editor_changed(w: Editor) -> SignalInstance:
     """The signal an editor of `make_editor` emits on an edit."""
     if isinstance(w, QCheckBox):
         return w.toggled
@@ -190,7 +205,7 @@ class ParamsPanel(QWidget):
     def __init__(self, params: Preset | None = None, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self._params = params or Preset()
-        self._calibration = None  # see set_calibration
+        self._calibration: StereoCalibration | None = None  # see set_calibration
         self._updating = False
         self.error_label = QLabel()
         self.error_label.setStyleSheet("color: #ff6e6e")
@@ -232,10 +247,9 @@ class ParamsPanel(QWidget):
 
     def _build_editors(self) -> None:
         """An editor per declared parameter, and the choices the declarations do not make."""
-        self.editors: dict[str, QWidget] = {
+        self.editors: dict[str, Editor] = {
             key: make_editor(PRESET_PARAMS[key]) for key in SGBM_KEYS + CLOSING_KEYS + WLS_KEYS}
-        ed = self.editors
-        ed["z_max_mm"].setSpecialValueText("∞ (infinity)")
+        self._decimal("z_max_mm").setSpecialValueText("∞ (infinity)")
         self.range_from_z = QCheckBox("range from working distances")
         self.range_from_z.setToolTip("derive min_disp and num_disp from the nearest and farthest "
                                      "distance through d = f·B/Z")
@@ -257,7 +271,7 @@ class ParamsPanel(QWidget):
         self.scale_note.setStyleSheet("color: gray")
         self.scale_note.hide()
 
-    def _add_rows(self, form: QFormLayout, keys) -> None:
+    def _add_rows(self, form: QFormLayout, keys: tuple[str, ...]) -> None:
         """A row per parameter in `keys`: a check box alone, other editors after a label."""
         for key in keys:
             editor = self.editors[key]
@@ -363,7 +377,7 @@ class ParamsPanel(QWidget):
         self._params = params
         self._show(params)
 
-    def set_calibration(self, calibration) -> None:
+    def set_calibration(self, calibration: StereoCalibration | None) -> None:
         """The calibration the parameters apply to: a range from working distances is shown
         as the min_disp / num_disp it gives (d = f·B/Z) with it."""
         self._calibration = calibration
@@ -376,16 +390,17 @@ class ParamsPanel(QWidget):
         p, ed = preset.matcher, self.editors
         self._updating = True
         try:
-            ed["block_size"].setValue(p.block_size)
+            self._whole("block_size").setValue(p.block_size)
             if p.p1 is None and p.p2 is None:
-                ed["p1"].setValue(p.p1_value)
-                ed["p2"].setValue(p.p2_value)
+                self._whole("p1").setValue(p.p1_value)
+                self._whole("p2").setValue(p.p2_value)
             if p.z_min_mm is not None and self._calibration is not None:
                 lo, num = p.disparity_range(self._calibration)
                 for key, v in (("min_disparity", lo), ("num_disparities", num)):
-                    if v > ed[key].maximum():
-                        ed[key].setMaximum(int(v))
-                    ed[key].setValue(int(v))
+                    box = self._whole(key)
+                    if v > box.maximum():
+                        box.setMaximum(int(v))
+                    box.setValue(int(v))
                 tip = (f"from the working distances: {lo} .. {lo + num - 1} px "
                        f"for this calibration")
             else:
@@ -418,14 +433,15 @@ class ParamsPanel(QWidget):
         self._updating = True
         try:
             for key, w in self.editors.items():
-                if preset.get(key) is not None:
-                    show_value(w, preset.get(key))
+                value = preset.get(key)
+                if value is not None:
+                    show_value(w, value)
             # what a box shows for a parameter left unset (the check boxes say it is unset)
-            self.editors["z_min_mm"].setValue(p.z_min_mm if p.z_min_mm is not None
-                                              else Z_UNSET_MM)
-            self.editors["z_max_mm"].setValue(p.z_max_mm if p.z_max_mm is not None else 0.0)
-            self.editors["p1"].setValue(p.p1_value)
-            self.editors["p2"].setValue(p.p2_value)
+            self._decimal("z_min_mm").setValue(p.z_min_mm if p.z_min_mm is not None
+                                               else Z_UNSET_MM)
+            self._decimal("z_max_mm").setValue(p.z_max_mm if p.z_max_mm is not None else 0.0)
+            self._whole("p1").setValue(p.p1_value)
+            self._whole("p2").setValue(p.p2_value)
             self.range_from_z.setChecked(p.z_min_mm is not None)
             self.p_auto.setChecked(p.p1 is None and p.p2 is None)
             i = self.scale.findData(p.scale)
@@ -451,16 +467,18 @@ class ParamsPanel(QWidget):
         for key in ("p1", "p2"):
             ed[key].setEnabled(not self.p_auto.isChecked())
         for key in ("wls_lambda", "wls_sigma"):
-            ed[key].setEnabled(ed["wls"].isChecked())
+            ed[key].setEnabled(self._check("wls").isChecked())
         for key in ("color_z_near_mm", "color_z_far_mm"):
             # (a range that follows the view starts from them, and keeps to them while
             # nothing is in view)
             ed[key].setEnabled(self.color_range.currentData() != "minmax")
 
     def _read(self) -> Preset:
-        values = {key: editor_value(w) for key, w in self.editors.items()}
-        if values["block_size"] % 2 == 0:
-            values["block_size"] += 1  # SGBM needs an odd window
+        values: dict[str, EditorValue | None] = {
+            key: editor_value(w) for key, w in self.editors.items()}
+        block = values["block_size"]
+        if isinstance(block, int) and block % 2 == 0:
+            values["block_size"] = block + 1  # SGBM needs an odd window
         if not self.range_from_z.isChecked():
             values["z_min_mm"] = values["z_max_mm"] = None
         else:
@@ -473,7 +491,7 @@ class ParamsPanel(QWidget):
         return self._params.replace(
             name=name if name.endswith(MODIFIED) else f"{name}{MODIFIED}", **values)
 
-    def _edited(self, *_args) -> None:
+    def _edited(self, *_args: object) -> None:
         if self._updating:
             return
         self._sync_enabled()
@@ -488,6 +506,25 @@ class ParamsPanel(QWidget):
         if params != self._params:
             self._params = params
             self.paramsChanged.emit(params)
+
+    # the editors the panel sets by name, as what they are (make_editor made them so)
+    def _whole(self, key: str) -> WholeEditor:
+        w = self.editors[key]
+        if not isinstance(w, (SliderSpin, QSpinBox)):
+            raise TypeError(f"{key}'s editor holds no whole number")
+        return w
+
+    def _decimal(self, key: str) -> QDoubleSpinBox:
+        w = self.editors[key]
+        if not isinstance(w, QDoubleSpinBox):
+            raise TypeError(f"{key}'s editor holds no decimal number")
+        return w
+
+    def _check(self, key: str) -> QCheckBox:
+        w = self.editors[key]
+        if not isinstance(w, QCheckBox):
+            raise TypeError(f"{key}'s editor is no check box")
+        return w
 
     def _show_error(self, text: str) -> None:
         self.error_label.setText(text)

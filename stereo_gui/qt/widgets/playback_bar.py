@@ -13,6 +13,7 @@ import logging
 from typing import TYPE_CHECKING
 
 from PySide6.QtCore import Qt, QTimer, Signal
+from PySide6.QtGui import QMouseEvent
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -54,7 +55,7 @@ class SeekSlider(QSlider):
         return QStyle.sliderValueFromPosition(self.minimum(), self.maximum(), pos, span,
                                               opt.upsideDown)
 
-    def mousePressEvent(self, ev) -> None:  # noqa: N802 - Qt API
+    def mousePressEvent(self, ev: QMouseEvent) -> None:  # noqa: N802 - Qt API
         if ev.button() == Qt.MouseButton.LeftButton:
             opt = QStyleOptionSlider()
             self.initStyleOption(opt)
@@ -123,7 +124,7 @@ class PlaybackBar(QWidget):
         self._source_changed()
 
     # ---- binding ------------------------------------------------------------------------------
-    def source(self):
+    def source(self) -> PlaybackSource | None:
         return self._source
 
     def _source_changed(self) -> None:
@@ -186,7 +187,7 @@ class PlaybackBar(QWidget):
         if i >= 0:
             self.speed_combo.setCurrentIndex(i)
 
-    def _speed_chosen(self, *_args) -> None:
+    def _speed_chosen(self, *_args: object) -> None:
         s = self._source
         if s is not None:
             s.set_speed(float(self.speed_combo.currentData()))

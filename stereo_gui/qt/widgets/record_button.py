@@ -8,11 +8,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from PySide6.QtCore import QTimer
-from PySide6.QtWidgets import QMenu, QToolButton
+from PySide6.QtWidgets import QMenu, QToolButton, QWidget
 
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.qt.widgets import folder_dialog
 from stereo_gui.qt.workers.recorder import (
+    RecordingResult,
     describe_result,
     format_elapsed,
     new_recording_folder,
@@ -28,7 +29,7 @@ RECORD_TEXT = "● Record"
 class RecordButton(QToolButton):
     """Record / Stop for `ctx.recorder`; checked while recording."""
 
-    def __init__(self, ctx: AppContext, parent=None) -> None:
+    def __init__(self, ctx: AppContext, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.ctx = ctx
         self.setText(RECORD_TEXT)
@@ -125,7 +126,7 @@ class RecordButton(QToolButton):
         self._sync_record_button()
         self.ctx.show_status(f"Recording into {folder}")
 
-    def _recording_stopped(self, result) -> None:
+    def _recording_stopped(self, result: RecordingResult) -> None:
         self._record_timer.stop()
         self._sync_record_button()
         self._update_record_tooltip()

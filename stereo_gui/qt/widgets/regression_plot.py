@@ -3,9 +3,14 @@ residuals of each fit."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt
+from PySide6.QtWidgets import QWidget
+
+from stereo_gui.core.regression import FitResult
 
 MODELS = ("cubic", "inverse")
 _COLOURS = {"cubic": "#f39c12", "inverse": "#5dade2"}  # curves, on the plots' dark background
@@ -14,10 +19,10 @@ _COLOURS = {"cubic": "#f39c12", "inverse": "#5dade2"}  # curves, on the plots' d
 RESIDUAL_MIN_MM = 1.0  # the residual axis shows at least +- this
 
 
-class RegressionPlot(pg.GraphicsLayoutWidget):
+class RegressionPlot(pg.GraphicsLayoutWidget):  # type: ignore[misc]  # pyqtgraph ships no types
     """Distance against disparity (samples and both fits) above the residuals of each fit."""
 
-    def __init__(self, parent=None) -> None:
+    def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.main = self.addPlot(row=0, col=0)
         self.main.setLabel("left", "true distance", units="mm")
@@ -49,7 +54,8 @@ class RegressionPlot(pg.GraphicsLayoutWidget):
                                                       pen=None)
             self.resid.addItem(self.resid_points[m])
 
-    def draw(self, samples, fits: dict) -> None:
+    def draw(self, samples: Sequence[tuple[float, float]], fits: Mapping[str, FitResult]
+             ) -> None:
         if samples:
             d = np.array([s[0] for s in samples])
             z = np.array([s[1] for s in samples])
@@ -67,7 +73,7 @@ class RegressionPlot(pg.GraphicsLayoutWidget):
                 self.resid_points[m].setData([], [])
                 continue
             with np.errstate(all="ignore"):
-                y = np.asarray(fit.predict(grid), float)
+                y = np.asarray(fit.predict(grid), np.float64)
             y = np.where(np.isfinite(y), y, np.nan)
             self.curves[m].setData(grid, y, connect="finite")
             fd = np.array([s[0] for s in fit.samples], float)

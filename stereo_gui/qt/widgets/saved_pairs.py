@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from PySide6.QtCore import QEvent, QObject, QSize, Qt, Signal
-from PySide6.QtGui import QIcon, QImage, QPixmap
+from PySide6.QtGui import QIcon, QImage, QKeyEvent, QPixmap
 from PySide6.QtWidgets import (
     QFrame,
     QHBoxLayout,
@@ -97,7 +97,7 @@ class SavedPairsPanel(QWidget):
 
     def eventFilter(self, obj: QObject, event: QEvent) -> bool:
         if (obj is self.pair_list and event.type() == QEvent.Type.KeyPress
-                and event.key() == Qt.Key.Key_Delete and self.delete_button.isEnabled()):
+                and isinstance(event, QKeyEvent) and event.key() == Qt.Key.Key_Delete and self.delete_button.isEnabled()):
             self.delete_button.click()
             return True
         return super().eventFilter(obj, event)
@@ -134,7 +134,8 @@ class SavedPairsPanel(QWidget):
         finally:
             self._quiet -= 1
 
-    def _current_changed(self, item, _previous) -> None:
+    def _current_changed(self, item: QListWidgetItem | None,
+                         _previous: QListWidgetItem | None) -> None:
         if self._quiet or item is None:
             return
         self.pairClicked.emit(item.data(Qt.ItemDataRole.UserRole))
@@ -150,7 +151,8 @@ class SavedPairsPanel(QWidget):
 
     def current_name(self) -> str | None:
         item = self.pair_list.currentItem()
-        return item.data(Qt.ItemDataRole.UserRole) if item is not None else None
+        name: str | None = item.data(Qt.ItemDataRole.UserRole) if item is not None else None
+        return name
 
     def select(self, name: str) -> None:
         """Make pair `name` the current one, scrolled into view (no pairClicked)."""
@@ -169,7 +171,7 @@ class SavedPairsPanel(QWidget):
         """No current pair (none is shown; no pairClicked)."""
         self._quiet += 1
         try:
-            self.pair_list.setCurrentItem(None)
+            self.pair_list.setCurrentRow(-1)
             self.pair_list.clearSelection()
         finally:
             self._quiet -= 1

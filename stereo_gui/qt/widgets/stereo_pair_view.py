@@ -15,7 +15,7 @@ _MISSING = "#c0392b"
 class StereoPairView(QWidget):
     """Left and right images side by side (equal size), each with a title and the corners."""
 
-    def __init__(self, parent=None) -> None:
+    def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         row = QHBoxLayout(self)
         row.setContentsMargins(0, 0, 0, 0)

@@ -23,7 +23,7 @@ from PySide6.QtWidgets import (
 
 from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.errors import StereoGuiError
-from stereo_gui.core.target_sheet import PAGES_MM, describe, layout
+from stereo_gui.core.target_sheet import PAGES_MM, TargetSheet, describe, layout
 from stereo_gui.files.target_sheet import png_image, write_target
 from stereo_gui.qt.widgets import folder_dialog
 
@@ -40,7 +40,7 @@ class TargetDialog(QDialog):
         self.setWindowTitle("Print a target")
         self.board = board
         self.folder = Path(folder)
-        self.sheet = None
+        self.sheet: TargetSheet | None = None
         lay = QVBoxLayout(self)
         self.what_label = QLabel(describe(board))
         self.what_label.setWordWrap(True)
@@ -77,7 +77,7 @@ class TargetDialog(QDialog):
 
     def _update(self) -> None:
         try:
-            self.sheet = layout(self.board, self.page_combo.currentData())
+            sheet = layout(self.board, self.page_combo.currentData())
         except StereoGuiError as exc:
             self.sheet = None
             self.preview.clear()
@@ -85,14 +85,15 @@ class TargetDialog(QDialog):
             self.status_label.setStyleSheet("color: #b03a2e")
             self.save_button.setEnabled(False)
             return
-        img = png_image(self.sheet, _PREVIEW_DPI)
+        self.sheet = sheet
+        img = png_image(sheet, _PREVIEW_DPI)
         qimg = QImage(img.data, img.shape[1], img.shape[0], img.strides[0],
                       QImage.Format.Format_Grayscale8).copy()
         self.preview.setPixmap(QPixmap.fromImage(qimg))
-        w, h = self.sheet.page_mm
+        w, h = sheet.page_mm
         self.status_label.setStyleSheet("")
         self.status_label.setText(
-            f"On {self.sheet.page_name} {'landscape' if w > h else 'portrait'}. Print at 100 % "
+            f"On {sheet.page_name} {'landscape' if w > h else 'portrait'}. Print at 100 % "
             "(no 'fit to page') and check the 100 mm bar with a ruler; glue the sheet flat.")
         self.save_button.setEnabled(True)
 
