@@ -16,6 +16,7 @@ from the session and the rig recalibrated.
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -43,7 +44,9 @@ from stereo_gui.core.calibrate import HARTLEY_NOTE
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.jobs import Progress
 from stereo_gui.core.stereo_calibration import ALPHA, StereoCalibration
+from stereo_gui.core.uncertainty import CalibrationWarning
 from stereo_gui.files.session import CaptureSession
+from stereo_gui.files.settings import Settings
 from stereo_gui.pipeline.calibration import (
     CalibrationRun,
     calibration_job,
@@ -67,6 +70,14 @@ _MONO = QFont("Monospace")
 _MONO.setStyleHint(QFont.StyleHint.TypeWriter)
 
 
+def _alpha_declared() -> tuple[float, float, float]:
+    """The alpha box's range and default: the calibration's declaration (ALPHA) of them."""
+    lo, hi, default = ALPHA.lo, ALPHA.hi, ALPHA.default
+    if lo is None or hi is None or not isinstance(default, int | float):
+        raise TypeError("the calibration's alpha is declared without its range or default")
+    return float(lo), float(hi), float(default)
+
+
 class CalibrationTab(QWidget):
     """Calibrate, review and save/load the stereo calibration (see module docstring)."""
 
@@ -85,7 +96,7 @@ class CalibrationTab(QWidget):
         self.baseline_spin.setValue(float(s.nominal_baseline_mm))
         self.model_combo.setCurrentIndex(max(0, self.model_combo.findData(s.lens_model)))
         self.fix_k3_check.setChecked(bool(s.fix_k3))
-        self.folder_edit.textChanged.connect(self.actions.show_session_swap)
+        self.folder_edit.textChanged.connect(self.calibration_actions.show_session_swap)
         self.folder_edit.textChanged.connect(self._folder_changed)
         if s.last_session:
             self.folder_edit.setText(str(s.last_session))
@@ -154,15 +165,17 @@ class CalibrationTab(QWidget):
             lambda on: self.ctx.settings_model.update(fix_k3=bool(on)))
         group(QLabel("Lens:"), self.model_combo, self.fix_k3_check)
         model = self.ctx.calibration_model
-        self.actions = CalibrationActions(model, self._session, self.ctx, self.start_calibration,
-                                          self.fix_k3_check, self.folder_edit.text, self)
+        self.calibration_actions = CalibrationActions(
+            model, self._session, self.ctx, self.start_calibration, self.fix_k3_check,
+            self.folder_edit.text, self)
         self.review = PairReview(model, lambda: self.run, self._session, self.ctx,
                                  self.ctx.workers, self.is_running, self)
-        self.swap_check = self.actions.swap_check
+        self.swap_check = self.calibration_actions.swap_check
         self.alpha_spin = QDoubleSpinBox()
-        self.alpha_spin.setRange(float(ALPHA.lo), float(ALPHA.hi))  # as declared
+        lo, hi, default = _alpha_declared()
+        self.alpha_spin.setRange(lo, hi)  # as declared
         self.alpha_spin.setSingleStep(0.1)
-        self.alpha_spin.setValue(float(ALPHA.default))
+        self.alpha_spin.setValue(default)
         self.alpha_spin.setToolTip(ALPHA.help)
         group(self.swap_check, QLabel("Alpha:"), self.alpha_spin)
         self.baseline_spin = QDoubleSpinBox()
@@ -191,7 +204,7 @@ class CalibrationTab(QWidget):
         self.figures = CalibrationFigures()
         ll.addWidget(self.figures)
         self.warnings = CalibrationWarnings()
-        self.warnings.actionRequested.connect(self.actions.apply_remedy)
+        self.warnings.actionRequested.connect(self.calibration_actions.apply_remedy)
         ll.addWidget(self.warnings)
         self.rejected_list = self.review.rejected_list
         ll.addWidget(QLabel("Rejected or excluded pairs:"))
@@ -206,8 +219,8 @@ class CalibrationTab(QWidget):
         files = QHBoxLayout()
         self.load_button = QPushButton("Load calibration…")
         self.save_button = QPushButton("Save calibration…")
-        self.load_button.clicked.connect(self.actions.choose_load)
-        self.save_button.clicked.connect(self.actions.choose_save)
+        self.load_button.clicked.connect(self.calibration_actions.choose_load)
+        self.save_button.clicked.connect(self.calibration_actions.choose_save)
         files.addWidget(self.load_button)
         files.addWidget(self.save_button)
         files.addStretch(1)
@@ -254,7 +267,7 @@ class CalibrationTab(QWidget):
         return right
 
     # ---- settings ------------------------------------------------------------------------------
-    def _settings_changed(self, s) -> None:
+    def _settings_changed(self, s: Settings) -> None:
         # follow the capture tab's session unless a calibration is running
         if s.last_session and self.worker is None \
                 and self.folder_edit.text() != str(s.last_session):
@@ -420,7 +433,7 @@ class CalibrationTab(QWidget):
         return self.worker.stop(timeout_ms)
 
     # ---- showing a calibration -----------------------------------------------------------------
-    def _calibration_changed(self, calib) -> None:
+    def _calibration_changed(self, calib: StereoCalibration | None) -> None:
         run_replaced = self.run is not None and calib is not self.run.result.calibration
         if run_replaced:
             self.run = None  # a loaded file replaces the last run
@@ -467,7 +480,7 @@ class CalibrationTab(QWidget):
             txt = f"{len(c.per_pair)} used"
         self.figures.show_calibration(c, src, nominal, txt)
 
-    def _warnings_of(self, calib):
+    def _warnings_of(self, calib: StereoCalibration | None) -> Sequence[CalibrationWarning]:
         if calib is None:
             return ()
         if self.run is not None and self.run.result.calibration is calib:

@@ -90,7 +90,12 @@ class CalibrationActions(QObject):
 
     def save_calibration(self, path: str | Path) -> bool:
         """Save the calibration in use to `path`; False (said why) when it was not."""
-        return self._calibration.save_file(self._calibration.calibration, path)
+        calib = self._calibration.calibration
+        if calib is None:  # (the window's Save says the same)
+            self._report.report_error(
+                "There is no calibration to save: calibrate or open one first.")
+            return False
+        return self._calibration.save_file(calib, path)
 
     def choose_load(self) -> None:
         """Load calibration…: ask for a file and use the calibration it holds."""

@@ -195,7 +195,7 @@ class PairReview(QObject):
         # pair-view thread: the UI thread only draws what comes back (_pair_ready)
         self._job = self._jobs.submit(lambda _control: _read_rectified(name, files, c, maps)).id
 
-    def _pair_ready(self, job_id: int, result) -> None:
+    def _pair_ready(self, job_id: int, result: RectifiedPair) -> None:
         if job_id != self._job:
             return  # an older click's pair, or one of another calibration
         self._job = None
@@ -204,7 +204,7 @@ class PairReview(QObject):
             return
         if self._maps_for is not c:
             self._maps, self._maps_for = maps, c
-        if lr is None:  # the images are not of the calibration's size
+        if lr is None or rr is None:  # the images are not of the calibration's size
             self.rect_view.clear_pair()
             return
         note = " (Hartley: row-aligned, no metric scale)" if not c.metric else ""
@@ -216,7 +216,8 @@ class PairReview(QObject):
             self._job = None
             self._report.report_error(message)
 
-    def _rectified_corners(self, name: str, c: StereoCalibration):
+    def _rectified_corners(self, name: str, c: StereoCalibration
+                           ) -> tuple[tuple[np.ndarray, np.ndarray], ...] | None:
         """The pair's detected and reprojected corners in rectified pixels (None when this
         calibration's run did not reproject it: a loaded file, an excluded pair)."""
         run = self._run()
@@ -349,8 +350,12 @@ class PairReview(QObject):
             self.exclude_button.setText("Include pair again" if excluded else "Exclude pair")
 
 
+# (name, rectified left, rectified right, calibration, maps): what the pair-view thread gives
+RectifiedPair = tuple[str, np.ndarray | None, np.ndarray | None, StereoCalibration, RectifyMaps]
+
+
 def _read_rectified(name: str, files: tuple[str, str], c: StereoCalibration,
-                    maps: RectifyMaps | None):
+                    maps: RectifyMaps | None) -> RectifiedPair:
     """(name, rectified left, rectified right, c, maps) of a pair (on the pair-view thread);
     the images are None when they are not of the calibration's size. StereoGuiError when a
     file cannot be read."""

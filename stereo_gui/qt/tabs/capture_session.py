@@ -23,7 +23,7 @@ from stereo_gui.core.detect import PairDetection, PoseDescriptor, coverage, pair
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.files.pairs import load_image
 from stereo_gui.files.session import MANIFEST, CaptureSession
-from stereo_gui.pipeline.capture import session_scan_job
+from stereo_gui.pipeline.capture import ScannedPair, session_scan_job
 from stereo_gui.qt.models.calibration import Reporter
 from stereo_gui.qt.models.settings import SettingsModel
 from stereo_gui.qt.models.workers import WorkerRegistry
@@ -137,7 +137,8 @@ class SessionPairs(QObject):
 
     def new_session(self, folder: str | Path) -> None:
         """Start a session in `folder` with the current board."""
-        size = self._seen_size() or tuple(self._settings.current.resolution)
+        w, h = self._settings.current.resolution
+        size = self._seen_size() or (w, h)
         session = CaptureSession.create(folder, self._board(), size, self._camera_names())
         self._use_session(session)
 
@@ -161,7 +162,7 @@ class SessionPairs(QObject):
         self._panel.clear()
         self._update_coverage()
         self.sessionChanged.emit(session)
-        self._start_scan()
+        self._start_scan(session)
 
     def reload(self) -> bool:
         """Read the session again (the Calibration tab may have excluded pairs meanwhile);
@@ -191,9 +192,9 @@ class SessionPairs(QObject):
             return (int(res[0]), int(res[1]))
         return self._seen_size() or (640, 480)
 
-    def _start_scan(self) -> None:
+    def _start_scan(self, session: CaptureSession) -> None:
         """Detect the board in the session's saved pairs (off the UI thread) for coverage."""
-        pairs = list(self._session.pairs)
+        pairs = list(session.pairs)
         if not pairs:
             return
         job = session_scan_job(pairs, self._board(),
@@ -207,7 +208,7 @@ class SessionPairs(QObject):
         self._scan = worker
         worker.start()
 
-    def _scan_done(self, results) -> None:
+    def _scan_done(self, results: list[ScannedPair]) -> None:
         if self.sender() is not self._scan:
             return
         self._scan = None
@@ -247,7 +248,9 @@ class SessionPairs(QObject):
     # ---- coverage ----------------------------------------------------------------------------
     def saved_poses(self) -> list[PoseDescriptor]:
         """Pose descriptors of the saved pairs in which both cameras saw the board."""
-        return [pair_pose(d, self._board()) for d in self._kept_detections()]
+        board = self._board()
+        return [pose for d in self._kept_detections()
+                if (pose := pair_pose(d, board)) is not None]  # (found: each has its pose)
 
     def _kept_detections(self) -> list[PairDetection]:
         return [i.detection for i in self._saved.values()
@@ -261,8 +264,11 @@ class SessionPairs(QObject):
         size = det.image_size
         out = {}
         kept = self._kept_detections()
-        for side, d, kept_side in (("left", det.left, [k.left.corners for k in kept]),
-                                   ("right", det.right, [k.right.corners for k in kept])):
+        # (kept: found in both images)
+        kept_left = [k.left.corners for k in kept if k.left is not None]
+        kept_right = [k.right.corners for k in kept if k.right is not None]
+        for side, d, kept_side in (("left", det.left, kept_left),
+                                   ("right", det.right, kept_right)):
             out[side] = ([] if d is None else
                          regions_filled(d.corners, cell_counts(kept_side, size), size))
         return out
@@ -277,8 +283,12 @@ class SessionPairs(QObject):
     # ---- saved pairs -----------------------------------------------------------------------------
     def add_pair(self, left: np.ndarray, right: np.ndarray, det: PairDetection) -> str | None:
         """Write a pair into the session and list it; its name, or None (after saying why)."""
+        session = self._session
+        if session is None:  # (the tab takes no pair without one)
+            self._report.report_error("could not save the pair: there is no session")
+            return None
         try:
-            pair = self._session.add_pair(left, right)
+            pair = session.add_pair(left, right)
         except (StereoGuiError, OSError) as exc:
             self._report.report_error(f"could not save the pair: {exc}")
             return None
@@ -287,13 +297,14 @@ class SessionPairs(QObject):
         self._add_list_item(info)
         self._panel.show_newest()  # the pair just taken is in view, however long the list
         self._update_coverage()
-        self._report.show_status(f"Saved pair {pair.name} to {self._session.folder}")
+        self._report.show_status(f"Saved pair {pair.name} to {session.folder}")
         return pair.name
 
     def load_pair(self, name: str) -> tuple[np.ndarray, np.ndarray, PairDetection | None]:
         """The saved pair's images and what the scan detected in them (None: not read yet);
         StereoGuiError when it is gone or cannot be read."""
-        pair = next((p for p in self._session.pairs if p.name == name), None)
+        pairs = self._session.pairs if self._session is not None else []
+        pair = next((p for p in pairs if p.name == name), None)
         if pair is None:
             raise StereoGuiError(f"pair {name} is no longer in the session")
         left, right = load_image(pair.left), load_image(pair.right)

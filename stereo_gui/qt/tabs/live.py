@@ -17,6 +17,7 @@ Snapshot and depth exports are `live_exports.LiveExports`; recording is the
 from __future__ import annotations
 
 import logging
+from collections.abc import Collection, Iterable
 from pathlib import Path
 
 from PySide6.QtCore import Qt, QTimer, Signal
@@ -32,8 +33,9 @@ from PySide6.QtWidgets import (
 )
 
 from stereo_gui.core.errors import StereoGuiError
-from stereo_gui.core.matching import COLORMAPS, Preset, color_scale_caption
+from stereo_gui.core.matching import COLORMAPS, PipelineResult, Preset, color_scale_caption
 from stereo_gui.core.measure import Measurement
+from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.pipeline.cloud import CloudPoints
 from stereo_gui.pipeline.live import NO_MATCH_RGB, NOT_SEEN_RGB, LiveOutput, LiveProcessor
 from stereo_gui.pipeline.readout import PointerReading
@@ -47,12 +49,14 @@ from stereo_gui.qt.tabs.live_stream import LiveStream
 from stereo_gui.qt.tabs.live_views import COLOR_VIEWS, VIEWS, ViewGrid
 from stereo_gui.qt.widgets.calibration_health import CalibrationHealthPanel
 from stereo_gui.qt.widgets.camera_controls import CameraControlsPanel
+from stereo_gui.qt.widgets.cloud_view import CloudView
 from stereo_gui.qt.widgets.flow_layout import FlowLayout
 from stereo_gui.qt.widgets.no_calibration_page import NoCalibrationPage
 from stereo_gui.qt.widgets.params_panel import MODIFIED, ParamsPanel, load_preset
 from stereo_gui.qt.widgets.playback_bar import PlaybackBar
 from stereo_gui.qt.widgets.record_button import RecordButton
 from stereo_gui.sources.base import StereoFrame
+from stereo_gui.sources.sim.rig import SimRig
 
 log = logging.getLogger(__name__)
 
@@ -60,7 +64,7 @@ NO_WLS_TITLE = "No WLS filter in this preset: the depth view"
 WLS_MEASURED_TITLE = "WLS filtered: this preset's depth (what a click reads)"
 
 
-def _hex(rgb) -> str:
+def _hex(rgb: Iterable[int]) -> str:
     return "#" + "".join(f"{int(v):02x}" for v in rgb)
 
 
@@ -78,7 +82,7 @@ def legend_text(caption: str = "") -> str:
     return f"{LEGEND} &nbsp;·&nbsp; {caption}" if caption else LEGEND
 
 
-def wls_title(result) -> str:
+def wls_title(result: PipelineResult) -> str:
     """The WLS view's title for a frame: a picture, or the preset's depth itself."""
     if result.wls_px is None:
         return NO_WLS_TITLE
@@ -312,7 +316,7 @@ class LiveTab(QWidget):
         """The views the processor makes images of: those shown (the snapshot saves those)."""
         return self.visible_views()
 
-    def set_visible_views(self, keys) -> None:
+    def set_visible_views(self, keys: Collection[str]) -> None:
         self.views.set_visible(keys)
 
     # ---- activation, calibration, parameters -------------------------------------------------
@@ -341,7 +345,7 @@ class LiveTab(QWidget):
                 self.ctx.frames.set_processor(None)
             processor.close(wait=False)
 
-    def _calibration_changed(self, calib) -> None:
+    def _calibration_changed(self, calib: StereoCalibration | None) -> None:
         self.params_panel.set_calibration(calib)
         replaced = self._processor
         self._processor = (LiveProcessor(calib, self.params_panel.params())
@@ -378,7 +382,7 @@ class LiveTab(QWidget):
     def _update_no_calib_page(self) -> None:
         self.no_calib.use_true.setVisible(self._sim_rig() is not None)
 
-    def _sim_rig(self):
+    def _sim_rig(self) -> SimRig | None:
         return simulated_rig(self.ctx.frames.source())
 
     def use_true_calibration(self) -> bool:
@@ -473,7 +477,7 @@ class LiveTab(QWidget):
         return self.cloud.show()
 
     @property
-    def cloud_view(self):
+    def cloud_view(self) -> CloudView | None:
         return self.cloud.view
 
     # ---- the watched region (see LiveRegion) ------------------------------------------------
@@ -489,7 +493,7 @@ class LiveTab(QWidget):
         return self.readings.measure_at(x, y, key)
 
     @property
-    def last_reading(self):
+    def last_reading(self) -> PointerReading | None:
         return self.readings.last_reading
 
     @property
@@ -539,7 +543,8 @@ class LiveTab(QWidget):
         return self.exports.snapshot(folder)
 
     # ---- depth exports of the frame shown ----------------------------------------------------
-    def export_frame(self, target: str | Path, kinds=tuple(EXPORTS)) -> int | None:
+    def export_frame(self, target: str | Path, kinds: Iterable[str] = tuple(EXPORTS)
+                     ) -> int | None:
         """Write the shown frame's depth off the UI thread (see LiveExports.export_frame)."""
         return self.exports.export_frame(target, kinds)
 

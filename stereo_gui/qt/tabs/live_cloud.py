@@ -10,6 +10,7 @@ from PySide6.QtCore import QObject, Qt, QTimer, Signal
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 
 from stereo_gui.pipeline.cloud import CloudPoints, cloud_points
+from stereo_gui.pipeline.live import LiveOutput
 from stereo_gui.qt.widgets.cloud_view import CloudView
 from stereo_gui.qt.workers.job_runner import JobRunner
 
@@ -25,18 +26,20 @@ class LiveCloud(QObject):
 
     shown = Signal(CloudPoints)  # after the 3D view drew them
 
-    def __init__(self, ctx: AppContext, owner: QWidget, output: Callable[[], object]) -> None:
+    def __init__(self, ctx: AppContext, owner: QWidget,
+                 output: Callable[[], LiveOutput | None]) -> None:
         super().__init__(owner)
         self._owner = owner
         self._output = output
         self.window: QWidget | None = None
-        self.view = None  # the CloudView, once the window exists
+        self.view: CloudView | None = None  # once the window exists
         self._jobs = JobRunner("cloud", self)  # its own thread: clicks do not wait on it
         ctx.workers.register(self._jobs)
         self._jobs.finished.connect(self._done)
         self._jobs.failed.connect(self._failed)
         self._job: int | None = None
-        self._made_of = None  # (output, colouring) the cloud shown was made from
+        # (output, colouring) the cloud shown was made from
+        self._made_of: tuple[LiveOutput, str] | None = None
         self._timer = QTimer(self)
         self._timer.setInterval(CLOUD_INTERVAL_MS)
         self._timer.timeout.connect(self.update)
@@ -46,11 +49,11 @@ class LiveCloud(QObject):
         if self.window is None:
             win = QWidget(self._owner, Qt.WindowType.Window)
             win.setWindowTitle("Stereo GUI – 3D point cloud of the frame shown")
-            self.view = CloudView(win)
-            self.view.colouringChanged.connect(lambda _c: self.update())
+            self.view = view = CloudView(win)
+            view.colouringChanged.connect(lambda _c: self.update())
             lay = QVBoxLayout(win)
             lay.setContentsMargins(0, 0, 0, 0)
-            lay.addWidget(self.view)
+            lay.addWidget(view)
             win.resize(720, 540)
             self.window = win
         self.window.show()
@@ -66,17 +69,17 @@ class LiveCloud(QObject):
         if win is None or not win.isVisible():
             self._timer.stop()
             return
-        out = self._output()
-        if out is None or self._job is not None or self.view.problem:
+        out, view = self._output(), self.view  # (the window holds its view)
+        if out is None or view is None or self._job is not None or view.problem:
             return
-        colouring = self.view.colouring
+        colouring = view.colouring
         if self._made_of == (out, colouring):
             return
         result = out.result
         self._made_of = (out, colouring)
         self._job = self._jobs.submit(lambda _control: cloud_points(result, colouring)).id
 
-    def _done(self, job_id: int, cloud) -> None:
+    def _done(self, job_id: int, cloud: CloudPoints) -> None:
         if job_id != self._job:
             return
         self._job = None

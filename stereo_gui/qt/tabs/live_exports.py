@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import datetime as _dt
 import time
+from collections.abc import Callable, Iterable
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -12,11 +14,13 @@ import cv2
 from PySide6.QtCore import QObject
 from PySide6.QtWidgets import QFileDialog, QMenu, QToolButton, QWidget
 
-from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.core.errors import InputError, StereoGuiError
 from stereo_gui.core.jobs import JobState, JobTicket
+from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.core.util import how_many
 from stereo_gui.files import depth_export as dx
 from stereo_gui.files.atomic import write_bytes_atomic
+from stereo_gui.pipeline.live import LiveOutput
 from stereo_gui.qt.widgets import folder_dialog
 
 if TYPE_CHECKING:
@@ -34,6 +38,10 @@ EXPORTS: dict[str, tuple[str, str, str]] = {
 }
 
 
+# what an export wrote: (kind, file, a note such as the number of points)
+Written = tuple[str, Path, str]
+
+
 def _stamp() -> str:
     return _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
 
@@ -43,7 +51,9 @@ class LiveExports(QObject):
     first frame); `views()` lists the views shown, which a snapshot saves. File dialogs open
     over `parent`; results and failures reach the user through the context."""
 
-    def __init__(self, ctx: AppContext, parent: QWidget, current, views) -> None:
+    def __init__(self, ctx: AppContext, parent: QWidget,
+                 current: Callable[[], LiveOutput | None],
+                 views: Callable[[], list[str]]) -> None:
         super().__init__(parent)
         self.ctx = ctx
         self._parent = parent
@@ -67,13 +77,13 @@ class LiveExports(QObject):
         button.setPopupMode(QToolButton.ToolButtonPopupMode.InstantPopup)
         export_menu = QMenu(button)
         for key, (text, _suffix, _what) in EXPORTS.items():
-            export_menu.addAction(text, lambda k=key: self._export_clicked(k))
+            export_menu.addAction(text, partial(self._export_clicked, key))
         export_menu.addSeparator()
         export_menu.addAction("All four into a folder…", self._export_all_clicked)
         button.setMenu(export_menu)
         return button
 
-    def _submit(self, write, where: str) -> int:
+    def _submit(self, write: Callable[[], object], where: str) -> int:
         """Run `write()` on the job thread, followed for closing (`unfinished_work`)."""
         ticket = self.ctx.jobs.submit(lambda _control: write())
         self._runs[ticket.id] = (ticket, where)
@@ -106,8 +116,10 @@ class LiveExports(QObject):
                             "is written whole or not at all.")
         return said
 
-    def _job_finished(self, job_id: int, result) -> None:
+    def _job_finished(self, job_id: int, result: object) -> None:
         self._runs.pop(job_id, None)
+        if not isinstance(result, list):
+            return  # another's job (a snapshot's and an export's results are lists)
         if not self._snapshot_done(job_id, result):
             self._export_done(job_id, result)
 
@@ -141,7 +153,7 @@ class LiveExports(QObject):
         images = {k: out.images[k] for k in self._views() if k in out.images}
 
         def write() -> list[Path]:
-            written = []
+            written: list[Path] = []
             for key, img in images.items():
                 bgr = img if img.ndim == 2 else cv2.cvtColor(img, cv2.COLOR_RGB2BGR)
                 ok, buf = cv2.imencode(".png", bgr)
@@ -155,7 +167,7 @@ class LiveExports(QObject):
         self._snapshots.add(job)
         return job
 
-    def _snapshot_done(self, job_id: int, paths) -> bool:
+    def _snapshot_done(self, job_id: int, paths: list[Path]) -> bool:
         if job_id in self._snapshots:
             self._snapshots.discard(job_id)
             self.ctx.show_status(f"Snapshot saved: {how_many(len(paths), 'file')} in {Path(paths[0]).parent}"
@@ -192,7 +204,8 @@ class LiveExports(QObject):
             self.export_frame(folder)
             self.ctx.settings_model.update(last_export_dir=folder)
 
-    def export_frame(self, target: str | Path, kinds=tuple(EXPORTS)) -> int | None:
+    def export_frame(self, target: str | Path, kinds: Iterable[str] = tuple(EXPORTS)
+                     ) -> int | None:
         """Write the shown frame's depth off the UI thread; returns the job id.
 
         With one kind, `target` is the file; with several, a folder that receives
@@ -202,19 +215,24 @@ class LiveExports(QObject):
         if out is None:
             self.ctx.report_error("No frame to export yet.")
             return None
-        kinds = tuple(kinds)
+        chosen = tuple(kinds)
         target = Path(target)
-        if len(kinds) == 1:
-            paths = {kinds[0]: target}
+        if len(chosen) == 1:
+            paths = {chosen[0]: target}
         else:
             stamp = _stamp()
-            paths = {k: target / f"frame-{stamp}{EXPORTS[k][1]}" for k in kinds}
+            paths = {k: target / f"frame-{stamp}{EXPORTS[k][1]}" for k in chosen}
         result = out.result
         disparity = result.final_px
         calib = result.calibration  # the one the frame was rectified with (scaled if it was)
 
-        def write() -> list[tuple[str, Path, str]]:
-            done = []
+        def calibrated() -> StereoCalibration:
+            if calib is None:  # (the Live tab shows frames only with a calibration)
+                raise InputError("depth in millimetres needs the frame's calibration")
+            return calib
+
+        def write() -> list[Written]:
+            done: list[Written] = []
             for kind, path in paths.items():
                 if kind == "disparity_png":
                     dx.write_disparity_png16(path, disparity)
@@ -223,20 +241,20 @@ class LiveExports(QObject):
                     dx.write_disparity_npy(path, disparity)
                     note = ""
                 elif kind == "depth_png":
-                    dx.write_depth_png16(path, disparity, calib)
+                    dx.write_depth_png16(path, disparity, calibrated())
                     note = ""
                 else:
-                    n = dx.write_ply(path, disparity, result.rectified_left, calib)
+                    n = dx.write_ply(path, disparity, result.rectified_left, calibrated())
                     note = how_many(n, "point")
                 done.append((kind, Path(path), note))
             return done
 
-        what = "frame's depth" if len(kinds) > 1 else EXPORTS[kinds[0]][2]
+        what = "frame's depth" if len(chosen) > 1 else EXPORTS[chosen[0]][2]
         job = self._submit(write, f"the export of the {what} to {target}")
         self._exports[job] = what
         return job
 
-    def _export_done(self, job_id: int, done) -> bool:
+    def _export_done(self, job_id: int, done: list[Written]) -> bool:
         if job_id not in self._exports:
             return False
         del self._exports[job_id]

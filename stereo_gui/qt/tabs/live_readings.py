@@ -22,7 +22,9 @@ from PySide6.QtCore import QObject, Signal
 from PySide6.QtWidgets import QLabel
 
 from stereo_gui.core.measure import Measurement, Reason, measure_point
+from stereo_gui.core.regression import FitResult
 from stereo_gui.files.measurement_record import RULER_METHOD, MeasurementRecord
+from stereo_gui.pipeline.live import LiveOutput
 from stereo_gui.pipeline.readout import (
     MEASURABLE_VIEWS,
     PointerReading,
@@ -34,7 +36,6 @@ from stereo_gui.pipeline.readout import (
 from stereo_gui.qt.widgets.image_view import marker_color
 
 if TYPE_CHECKING:
-    from stereo_gui.pipeline.live import LiveOutput
     from stereo_gui.qt.context import AppContext
     from stereo_gui.qt.widgets.image_view import ImagePanel
     from stereo_gui.sources.base import StereoFrame
@@ -42,6 +43,10 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 MEASURABLE = MEASURABLE_VIEWS  # views sharing the left image's pixel frame
+# a hover reading asked for: (output, view key, x, y, fit, patch px, the frame's ground truth)
+HoverRequest = tuple[LiveOutput, str, float, float, FitResult | None, int, object | None]
+# the pixel a hover reading was last asked of: (output, view key, x, y, id of the fit)
+HoverPixel = tuple[LiveOutput, str, int, int, int]
 HOVER_REFRESH_S = 0.25  # a resting pointer's reading follows new frames at most this often
 HOVER_HINT = "Point at a view to read the distance there; double-click to log it."
 # marker labels stay short (the full reason is in the status bar and the log)
@@ -92,13 +97,13 @@ class LiveReadings(QObject):
         self._screen = screen
         self._hover: tuple[str, float, float] | None = None
         self._hover_job: int | None = None  # id of the hover reading running on the job thread
-        self._hover_next: tuple | None = None  # the newest pointer request waiting for it
-        self._hover_last: tuple | None = None  # (output, key, pixel, fit) last asked for
+        self._hover_next: HoverRequest | None = None  # the newest request waiting for it
+        self._hover_last: HoverPixel | None = None  # the pixel last asked for
         self.hover_jobs_submitted = 0
         self._hover_t = 0.0  # when the last hover reading was asked for, time.monotonic() s
         self.last_reading: PointerReading | None = None
         self._pending: dict[int, tuple[str, bool]] = {}  # job id -> (view key, ruler click)
-        self._ruler_a = None  # first Measurement of a ruler pair
+        self._ruler_a: Measurement | None = None  # first point of a ruler pair
         self.last_ruler_mm: float | None = None
         ctx.jobs.finished.connect(self._job_finished)
         ctx.jobs.failed.connect(self._job_failed)
@@ -129,21 +134,22 @@ class LiveReadings(QObject):
             self._screen.readout.setText(f"x {round(x):4d}  y {round(y):4d}   no frame yet")
             return
         fit = self.ctx.active_fit
-        ask = (out, key if key not in MEASURABLE else "left", round(x), round(y), id(fit))
+        ask: HoverPixel = (out, key if key not in MEASURABLE else "left", round(x), round(y),
+                           id(fit))
         if ask == self._hover_last:
             if self._hover_job is not None:
                 self._hover_next = None  # the reading running is of this very pixel
             return  # the same pixel of the same frame: the line says (or will say) it
         frame = self._screen.frame()
-        request = (out, key, x, y, fit, int(self.ctx.settings.patch_size),
-                   frame.truth if frame is not None else None)
+        request: HoverRequest = (out, key, x, y, fit, int(self.ctx.settings.patch_size),
+                                 frame.truth if frame is not None else None)
         if self._hover_job is not None:
             self._hover_next = request
             return
         self._submit_reading(request)
         self._hover_last = ask
 
-    def _submit_reading(self, request) -> None:
+    def _submit_reading(self, request: HoverRequest) -> None:
         out, key, x, y, fit, patch, truth = request
         self._hover_t = time.monotonic()
         result = out.result
@@ -151,7 +157,7 @@ class LiveReadings(QObject):
             lambda _control: read_pointer(result, key, x, y, patch, fit, truth)).id
         self.hover_jobs_submitted += 1
 
-    def _hover_finished(self, reading) -> None:
+    def _hover_finished(self, reading: PointerReading) -> None:
         self._hover_job = None
         if self._hover is not None:
             self.last_reading = reading
@@ -159,7 +165,7 @@ class LiveReadings(QObject):
             self.hoverRead.emit(reading)
         request, self._hover_next = self._hover_next, None
         if request is not None and self._hover is not None:
-            out, key, x, y, fit = request[:5]
+            out, key, x, y, fit, _patch, _truth = request
             self._hover_last = (out, key if key not in MEASURABLE else "left", round(x),
                                 round(y), id(fit))
             self._submit_reading(request)
@@ -186,11 +192,11 @@ class LiveReadings(QObject):
         self._pending[job] = (key, self._screen.ruler_on())
         return job
 
-    def _job_finished(self, job_id: int, m) -> None:
-        if job_id == self._hover_job:
+    def _job_finished(self, job_id: int, m: Measurement | PointerReading) -> None:
+        if job_id == self._hover_job and isinstance(m, PointerReading):
             self._hover_finished(m)
             return
-        if job_id not in self._pending:
+        if job_id not in self._pending or not isinstance(m, Measurement):
             return  # another tab's job
         _key, ruler = self._pending.pop(job_id)
         color = marker_color(m.valid)
@@ -241,14 +247,14 @@ class LiveReadings(QObject):
         if self._pending.pop(job_id, None) is not None:
             self.ctx.report_error(f"Measurement failed: {message}")
 
-    def _status_text(self, m) -> str:
+    def _status_text(self, m: Measurement) -> str:
         if not m.valid:
             return f"({m.x:.0f}, {m.y:.0f}): no distance: {m.reason}"
         return (f"({m.x:.0f}, {m.y:.0f}): Z {format_distance(m.Z_mm)}, range "
                 f"{format_distance(m.range_mm)} {format_error(m.expected_error_mm)}, "
                 f"disparity {m.disparity_px:.2f} px, {m.valid_fraction:.0%} valid ({m.method})")
 
-    def _record(self, m):
+    def _record(self, m: Measurement) -> MeasurementRecord:
         calib = self.ctx.calibration
         path = self.ctx.calibration_path
         return MeasurementRecord(
@@ -262,7 +268,8 @@ class LiveReadings(QObject):
             calibration_rms_px=float(calib.rms_stereo) if calib is not None else float("nan"),
         )
 
-    def _ruler_record(self, a, b, dist_mm: float, bound_mm: float):
+    def _ruler_record(self, a: Measurement, b: Measurement, dist_mm: float, bound_mm: float
+                      ) -> MeasurementRecord:
         """The log entry of a ruler distance: at B's pixel, X/Y/Z the components of B - A
         (mm), Range the length |B - A|, ± the two points' bounds added in quadrature."""
         rec = self._record(b)

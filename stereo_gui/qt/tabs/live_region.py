@@ -12,8 +12,9 @@ from typing import TYPE_CHECKING
 from PySide6.QtCore import QObject, Qt
 from PySide6.QtWidgets import QCheckBox, QDoubleSpinBox, QLabel, QPushButton, QSizePolicy, QWidget
 
+from stereo_gui.pipeline.live import LiveOutput, LiveProcessor
 from stereo_gui.pipeline.readout import format_distance
-from stereo_gui.pipeline.region import Region, region_stats
+from stereo_gui.pipeline.region import Region, RegionStats, region_stats
 from stereo_gui.qt.widgets.image_view import ImagePanel
 
 if TYPE_CHECKING:
@@ -25,7 +26,8 @@ class LiveRegion(QObject):
     the box, `view_check` its Show box, `processor` returns the LiveProcessor in use (or None)."""
 
     def __init__(self, ctx: AppContext, owner: QWidget, panel: ImagePanel, view_check: QCheckBox,
-                 processor: Callable[[], object], output: Callable[[], object]) -> None:
+                 processor: Callable[[], LiveProcessor | None],
+                 output: Callable[[], LiveOutput | None]) -> None:
         super().__init__(owner)
         self.ctx = ctx
         self._panel = panel
@@ -68,7 +70,8 @@ class LiveRegion(QObject):
         if s.region_alarm_m:
             self.alarm_spin.setValue(s.region_alarm_m)
         if len(s.region_box) == 4:
-            self.set_region(tuple(s.region_box))
+            x0, y0, x1, y1 = s.region_box
+            self.set_region((x0, y0, x1, y1))
 
     def _remember(self) -> None:
         """Keep the region and alarm in the settings, for the next run."""
@@ -119,7 +122,7 @@ class LiveRegion(QObject):
         if region is not None and shown is not None:
             self.show(region_stats(shown.result, region, alarm_mm, self.ctx.active_fit))
 
-    def show(self, stats) -> None:
+    def show(self, stats: RegionStats | None) -> None:
         """Show the region figures of the frame drawn (None: it has none)."""
         if stats is None or not self.button.isChecked():
             return
@@ -128,15 +131,16 @@ class LiveRegion(QObject):
         else:
             text = (f"Region: nearest {format_distance(stats.nearest_mm)}   median "
                     f"{format_distance(stats.median_mm)}   {stats.valid_fraction:.0%} with depth")
-        if stats.alarm:
-            text += f"   ALARM: nearer than {format_distance(stats.alarm_mm)}"
+        alarm_mm = stats.alarm_mm if stats.alarm else None  # (an alarm has its distance)
+        if alarm_mm is not None:
+            text += f"   ALARM: nearer than {format_distance(alarm_mm)}"
         self.label.setText(text)
         self.label.setStyleSheet("background: #c62828; color: white; font-weight: bold;"
                                  if stats.alarm else "")
         self._panel.set_region_alarm(stats.alarm)
-        if stats.alarm and not self._alarm_on:
+        if alarm_mm is not None and not self._alarm_on:
             self.ctx.show_status(f"ALARM: something at {format_distance(stats.nearest_mm)} in "
-                                 f"the region, nearer than {format_distance(stats.alarm_mm)}")
+                                 f"the region, nearer than {format_distance(alarm_mm)}")
         elif self._alarm_on and not stats.alarm:  # the alarm's words go with the alarm
             self.ctx.show_status("Alarm over: " + (
                 stats.note if stats.note else

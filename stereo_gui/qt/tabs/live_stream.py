@@ -16,7 +16,9 @@ from PySide6.QtCore import QObject, Qt, QTimer, Signal
 from PySide6.QtWidgets import QLabel, QPushButton, QSizePolicy, QWidget
 
 from stereo_gui.core.errors import StereoGuiError
-from stereo_gui.pipeline.stream import DepthStream, record_message
+from stereo_gui.files.measurement_record import MeasurementRecord
+from stereo_gui.pipeline.live import LiveProcessor
+from stereo_gui.pipeline.stream import DepthStream, StreamStats, record_message
 from stereo_gui.qt.widgets import folder_dialog
 
 if TYPE_CHECKING:
@@ -37,11 +39,12 @@ class LiveStream(QObject):
     # promise a Path every time
     recordingChanged = Signal(object)
 
-    def __init__(self, ctx: AppContext, owner: QWidget, processor: Callable[[], object]) -> None:
+    def __init__(self, ctx: AppContext, owner: QWidget,
+                 processor: Callable[[], LiveProcessor | None]) -> None:
         super().__init__(owner)
         self.ctx = ctx
         self._processor = processor
-        self._stream = None  # pipeline.stream.DepthStream while serving or recording
+        self._stream: DepthStream | None = None  # while serving or recording
         self.button = QPushButton("Stream")
         self.button.setCheckable(True)
         self.button.setToolTip("Serve the depth to robots' programs and Foxglove on this machine "
@@ -69,7 +72,7 @@ class LiveStream(QObject):
     def address(self) -> str | None:
         return self._stream.address if self._stream is not None else None
 
-    def stats(self):
+    def stats(self) -> StreamStats | None:
         return self._stream.stats() if self._stream is not None else None
 
     def restore(self) -> None:
@@ -96,10 +99,11 @@ class LiveStream(QObject):
         self._update_line()
         self.changed.emit(on)
 
-    def _ensure_stream(self):
+    def _ensure_stream(self) -> DepthStream:
         if self._stream is None:
-            self._stream = DepthStream()
+            self._stream = stream = DepthStream()
             self.apply()
+            return stream
         return self._stream
 
     def _start_server(self) -> bool:
@@ -199,7 +203,7 @@ class LiveStream(QObject):
         st = self.stats()
         active = st is not None and (st.address is not None or st.recording is not None)
         self.label.setVisible(active)
-        if not active:
+        if st is None or not active:
             self._timer.stop()
             return
         if not self._timer.isActive():
@@ -213,7 +217,7 @@ class LiveStream(QObject):
         rate = f"{st.fps:.0f} frames/s" if st.fps else "no frames yet (the Live tab publishes)"
         self.label.setText(", ".join(parts) + f" · {rate}")
 
-    def publish_record(self, record) -> None:
+    def publish_record(self, record: MeasurementRecord) -> None:
         """Publish a reading just logged (a files.measurement_record.MeasurementRecord)."""
         if self._stream is None:
             return

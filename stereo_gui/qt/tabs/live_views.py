@@ -5,7 +5,10 @@ size), an odd last one spanning its row."""
 
 from __future__ import annotations
 
+from collections.abc import Collection, Iterable, Sequence
+
 from PySide6.QtCore import Signal
+from PySide6.QtGui import QResizeEvent
 from PySide6.QtWidgets import QCheckBox, QGridLayout, QWidget
 
 from stereo_gui.pipeline.live import DEFAULT_VIEWS
@@ -58,7 +61,7 @@ class ViewGrid(QWidget):
 
     changed = Signal(list)
 
-    def __init__(self, shown=(), parent: QWidget | None = None) -> None:
+    def __init__(self, shown: Iterable[str] = (), parent: QWidget | None = None) -> None:
         super().__init__(parent)
         shown = tuple(v for v in (shown or DEFAULT_VIEWS) if v in VIEWS) or DEFAULT_VIEWS
         self.panels: dict[str, ImagePanel] = {}
@@ -82,7 +85,7 @@ class ViewGrid(QWidget):
     def visible(self) -> list[str]:
         return [k for k in VIEWS if self.checks[k].isChecked()]
 
-    def set_visible(self, keys) -> None:
+    def set_visible(self, keys: Collection[str]) -> None:
         for k, c in self.checks.items():
             c.blockSignals(True)
             c.setChecked(k in keys)
@@ -93,19 +96,19 @@ class ViewGrid(QWidget):
         """The columns the views shown are laid out in now."""
         return self._cols
 
-    def _best_columns(self, keys) -> int:
+    def _best_columns(self, keys: Sequence[str]) -> int:
         width, height = self.width(), self.height()
         if width < PANEL_MIN_WIDTH_PX or height < GRID_MIN_HEIGHT_PX // 2:  # not laid out yet
             return 1 if len(keys) == 1 else 2
         return best_columns(len(keys), width, height, self._grid.spacing(),
                             sum(k in COLOR_VIEWS for k in keys))
 
-    def resizeEvent(self, event) -> None:  # noqa: N802 (Qt's name)
+    def resizeEvent(self, event: QResizeEvent) -> None:  # noqa: N802 (Qt's name)
         super().resizeEvent(event)
         if self._best_columns(self.visible()) != self._cols:
             self._place()  # the same views in other columns: nothing to tell
 
-    def lay_out(self, *_args) -> None:
+    def lay_out(self, *_args: object) -> None:
         """Place the panels of the views ticked, and say which they are (`changed`)."""
         self._place()
         self.changed.emit(self.visible())

@@ -9,14 +9,14 @@ the folder exports start in (`ExportFolder`, which the tab's other file dialogs 
 from __future__ import annotations
 
 import datetime as _dt
-from collections.abc import Callable
+from collections.abc import Callable, Generator
 from pathlib import Path
 
 from PySide6.QtCore import QObject, Signal
 from PySide6.QtWidgets import QPushButton, QWidget
 
 from stereo_gui.core.errors import StereoGuiError
-from stereo_gui.core.jobs import JobState, Progress
+from stereo_gui.core.jobs import JobControl, JobState, Progress
 from stereo_gui.core.regression import FitResult
 from stereo_gui.core.util import how_many
 from stereo_gui.files import spreadsheet
@@ -75,7 +75,7 @@ class MeasurementExports(QObject):
                 path += ".xlsx"
             self.export_xlsx(path)
 
-    def export_xlsx(self, path) -> bool:
+    def export_xlsx(self, path: str | Path) -> bool:
         """Write the log, the regression and the calibration to `path` in a worker."""
         if self._export is not None:
             self._report.report_error("an export is still running")
@@ -83,28 +83,29 @@ class MeasurementExports(QObject):
         records = list(self._log.records)
         fits = self._fits()
         calib, calib_path = self._calibration.calibration, self._calibration.path
-        path = Path(path)
+        target = Path(path)
 
-        def job(control):
-            yield Progress(0, 1, f"writing {path.name}")
-            return spreadsheet.write_workbook(path, records, fits, calib, calib_path, cancel=control,
-                                  progress=control.report)
+        def job(control: JobControl) -> Generator[Progress, None, Path]:
+            yield Progress(0, 1, f"writing {target.name}")
+            return spreadsheet.write_workbook(target, records, fits, calib, calib_path,
+                                              cancel=control, progress=control.report)
 
         w = JobWorker(job, "export")
         w.finished_ok.connect(lambda p: self._export_done(str(p)))
-        w.failed.connect(lambda msg: self._report.report_error(f"export to {path} failed: {msg}"))
+        w.failed.connect(
+            lambda msg: self._report.report_error(f"export to {target} failed: {msg}"))
         w.cancelled.connect(lambda: self._report.show_status(
-            f"Export to {path} cancelled: nothing was written"))
+            f"Export to {target} cancelled: nothing was written"))
         w.progress.connect(self._export_progressed)
         w.done.connect(self._export_ended)
         self._workers.register(w)
         self._export = w
-        self._export_path = path
+        self._export_path = target
         self._export_progress = how_many(len(records), "row")
         self._xlsx_button.setEnabled(False)
-        self._report.show_status(f"Exporting {how_many(len(records), 'reading')} to {path}…")
+        self._report.show_status(f"Exporting {how_many(len(records), 'reading')} to {target}…")
         w.start()
-        self._folder.remember(path)
+        self._folder.remember(target)
         return True
 
     def _export_progressed(self, p: Progress) -> None:
@@ -133,7 +134,7 @@ class MeasurementExports(QObject):
         if path:
             self.export_csv(path)
 
-    def export_csv(self, path) -> bool:
+    def export_csv(self, path: str | Path) -> bool:
         try:
             spreadsheet.write_csv(path, list(self._log.records))
         except (StereoGuiError, OSError) as exc:

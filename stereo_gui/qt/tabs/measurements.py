@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from PySide6.QtCore import Qt, Signal
+from PySide6.QtGui import QStandardItemModel
 from PySide6.QtWidgets import (
     QAbstractItemDelegate,
     QAbstractItemView,
@@ -39,6 +40,7 @@ from PySide6.QtWidgets import (
 
 from stereo_gui.core import regression
 from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.core.regression import FitResult
 from stereo_gui.core.util import how_many
 from stereo_gui.files.fit_file import load_fit, save_fit
 from stereo_gui.files.spreadsheet import read_csv, read_measurements
@@ -73,9 +75,10 @@ class MeasurementsTab(QWidget):
     def __init__(self, ctx: AppContext, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.ctx = ctx
-        self.fits: dict[str, object] = {}  # model name -> FitResult
+        self.fits: dict[str, FitResult] = {}  # model name -> its fit
         self.fit_errors: dict[str, str] = {}
-        self._loaded_fit = None  # a fit loaded from a file (not refitted from the log)
+        # a fit loaded from a file (not refitted from the log)
+        self._loaded_fit: FitResult | None = None
         self._folder = ExportFolder(ctx.settings_model)  # where the file dialogs start
         self._build()
         ctx.measurement_log.changed.connect(self.refit)
@@ -262,9 +265,10 @@ class MeasurementsTab(QWidget):
 
     def _update_model_choices(self) -> None:
         view = self.model_combo.model()
+        items = view if isinstance(view, QStandardItemModel) else None  # (a combo box's own)
         for i in range(self.model_combo.count()):
             key = self.model_combo.itemData(i)
-            item = view.item(i)
+            item = items.item(i) if items is not None else None
             if item is not None and key in MODELS:
                 item.setEnabled(key in self.fits)
         key = self.model_combo.currentData()
@@ -288,7 +292,7 @@ class MeasurementsTab(QWidget):
         if self.ctx.settings.measure_model != key:
             self.ctx.settings_model.update(measure_model=key)
 
-    def _active_fit_changed(self, fit) -> None:
+    def _active_fit_changed(self, fit: FitResult | None) -> None:
         key = "triangulation" if fit is None else fit.model
         if fit is not None and key in MODELS and self.fits.get(key) != fit:
             # a fit that the log does not give (loaded from a file, restored at start-up)
@@ -351,7 +355,7 @@ class MeasurementsTab(QWidget):
             replace = box.clickedButton() is rep
         self.open_log(path, replace=replace)
 
-    def open_log(self, path, replace: bool = False) -> bool:
+    def open_log(self, path: str | Path, replace: bool = False) -> bool:
         """Read a log exported by Stereo GUI (.csv or .xlsx) into the log (after the readings
         there, or instead of them); False (with a message) when it cannot be read."""
         path = Path(path)
@@ -387,7 +391,7 @@ class MeasurementsTab(QWidget):
         if path:
             self.save_fit(fit, path)
 
-    def save_fit(self, fit, path) -> bool:
+    def save_fit(self, fit: FitResult, path: str | Path) -> bool:
         try:
             save_fit(fit, path)
         except (StereoGuiError, OSError) as exc:
@@ -403,7 +407,7 @@ class MeasurementsTab(QWidget):
         if path:
             self.load_fit(path)
 
-    def load_fit(self, path) -> bool:
+    def load_fit(self, path: str | Path) -> bool:
         """Load a saved fit and make live readings use it."""
         try:
             fit = load_fit(path)
@@ -436,11 +440,11 @@ class MeasurementsTab(QWidget):
         return self.exports.stop(timeout_ms)
 
     # ---- exports (see MeasurementExports) -------------------------------------------------------
-    def export_xlsx(self, path) -> bool:
+    def export_xlsx(self, path: str | Path) -> bool:
         """Write the log, the regression and the calibration to `path` in a worker."""
         return self.exports.export_xlsx(path)
 
-    def export_csv(self, path) -> bool:
+    def export_csv(self, path: str | Path) -> bool:
         return self.exports.export_csv(path)
 
     def unfinished_work(self) -> list[str]:

@@ -138,7 +138,7 @@ def test_save_and_load_calibration_file(tab, ctx, qtbot, session_folder, tmp_pat
     assert tab.state is CalibrationState.UNSAVED
     assert "NOT SAVED" in tab.figures.source_label.text()
     path = tmp_path / "calib.yaml"
-    assert tab.actions.save_calibration(path) and path.exists()
+    assert tab.calibration_actions.save_calibration(path) and path.exists()
     assert ctx.calibration_path == path and "calib.yaml" in tab.figures.source_label.text()
     # the run's line no longer says "Not saved yet" once it is saved
     assert "Not saved yet" not in tab.progress_label.text()
@@ -149,14 +149,14 @@ def test_save_and_load_calibration_file(tab, ctx, qtbot, session_folder, tmp_pat
     ctx.calibration_model.set(None)  # another calibration (none) replaces the run's
     assert tab.state is CalibrationState.IDLE and tab.run is None
     assert tab.figures.rms_stereo_label.text() == "—" and tab.chart.bar_count() == 0
-    assert tab.actions.load_calibration(path)
+    assert tab.calibration_actions.load_calibration(path)
     assert ctx.calibration.rms_stereo == pytest.approx(run.result.calibration.rms_stereo)
     assert tab.chart.bar_count() == len(run.result.calibration.per_pair)
     errors = []
     ctx.errorOccurred.connect(errors.append)
     bad = tmp_path / "bad.yaml"
     bad.write_text("not a calibration")
-    assert not tab.actions.load_calibration(bad)
+    assert not tab.calibration_actions.load_calibration(bad)
     assert errors and "bad.yaml" in errors[0]
 
 
@@ -205,7 +205,7 @@ def test_exclusions_are_shown_before_recalibration_and_after_a_restart(
     tab.exclude_button.click()
     assert tab.chart.excluded_bars() == [name]
     assert f"{name}: excluded (Recalibrate leaves it out)" in tab.review.rejected_lines()
-    assert tab.actions.save_calibration(tmp_path / "calib.yaml")
+    assert tab.calibration_actions.save_calibration(tmp_path / "calib.yaml")
     # a restart: a new tab, the calibration loaded from its file, no run
     ctx.calibration_model.set(None)
     assert ctx.calibration_model.open_file(tmp_path / "calib.yaml")

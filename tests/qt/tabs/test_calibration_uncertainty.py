@@ -86,7 +86,7 @@ def test_fix_k3_remedy_recalibrates_with_k3_held(make_tab, ctx, qtbot, calib_set
     shutil.copytree(calib_set, folder)
     tab = make_tab(CalibrationTab)
     tab.folder_edit.setText(str(folder))
-    run = _calibrate(tab, qtbot, start=lambda: tab.actions.apply_remedy("fix_k3"))
+    run = _calibrate(tab, qtbot, start=lambda: tab.calibration_actions.apply_remedy("fix_k3"))
     assert tab.fix_k3_check.isChecked() and ctx.settings.fix_k3
     c = run.result.calibration
     assert c.D1[0, 4] == 0.0 and c.uncertainty.index("left.k3") is None
