@@ -164,13 +164,7 @@ class CalibrationTab(QWidget):
         self.fix_k3_check.toggled.connect(
             lambda on: self.ctx.settings_model.update(fix_k3=bool(on)))
         group(QLabel("Lens:"), self.model_combo, self.fix_k3_check)
-        model = self.ctx.calibration_model
-        self.calibration_actions = CalibrationActions(
-            model, self._session, self.ctx, self.start_calibration, self.fix_k3_check,
-            self.folder_edit.text, self)
-        self.review = PairReview(model, lambda: self.run, self._session, self.ctx,
-                                 self.ctx.workers, self.is_running, self)
-        self.swap_check = self.calibration_actions.swap_check
+        self._build_parts()
         self.alpha_spin = QDoubleSpinBox()
         lo, hi, default = _alpha_declared()
         self.alpha_spin.setRange(lo, hi)  # as declared
@@ -197,6 +191,17 @@ class CalibrationTab(QWidget):
         self.progress.setMinimumWidth(160)
         group(self.calibrate_button, self.cancel_button, self.progress)
         return options
+
+    def _build_parts(self) -> None:
+        """The parts the tab owns: `CalibrationActions` (Load, Save, the warnings' remedies,
+        the swap box) and `PairReview` (the pairs' chart and rectification check)."""
+        model = self.ctx.calibration_model
+        self.calibration_actions = CalibrationActions(
+            model, self._session, self.ctx, self.start_calibration, self.fix_k3_check,
+            self.folder_edit.text, self)
+        self.review = PairReview(model, lambda: self.run, self._session, self.ctx,
+                                 self.ctx.workers, self.is_running, self)
+        self.swap_check = self.calibration_actions.swap_check
 
     def _build_results(self) -> QWidget:
         """The left side: figures, warnings, rejected pairs and matrices, over Load and Save."""
