@@ -16,10 +16,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
+import cv2_enumerate_cameras
 import numpy as np
 
+from stereo_gui.core.camera_settings import CameraSettings
 from stereo_gui.core.errors import SourceError, SourceUnavailable
 from stereo_gui.sources.base import FramePacer, FrameSource, StereoFrame
+from stereo_gui.sources.camera_controls import CameraControls, PairControls
 
 log = logging.getLogger(__name__)
 
@@ -88,9 +91,8 @@ def _enumerate(enumerate_fn=None, backends=None) -> list[CameraInfo]:
     """Cameras from cv2-enumerate-cameras (or `enumerate_fn(backend)`, a stand-in with the same
     results), each once, under the best backend that lists it."""
     if enumerate_fn is None:
-        from cv2_enumerate_cameras import enumerate_cameras, supported_backends
-
-        enumerate_fn, backends = enumerate_cameras, supported_backends
+        enumerate_fn = cv2_enumerate_cameras.enumerate_cameras
+        backends = cv2_enumerate_cameras.supported_backends
     order = {b: i for i, b in enumerate(_BACKEND_ORDER)}
     cams: list[CameraInfo] = []
     seen: set = set()
@@ -247,8 +249,6 @@ class _Camera:
     @property
     def controls(self):
         """The device's CameraControls (None while it is missing)."""
-        from stereo_gui.sources.camera_controls import CameraControls
-
         if self.cap is None:
             return None
         if self._controls is None or self._controls.cap is not self.cap:
@@ -263,8 +263,6 @@ class _Camera:
         self.cap = _open_camera(int(index), self.size, self.role, backend)
         self.index, self.backend = int(index), backend
         if wanted:
-            from stereo_gui.core.camera_settings import CameraSettings
-
             controls = self.controls
             results = controls.apply(CameraSettings(controls.backend, **wanted))
             log.info("%s: controls restored after reconnecting: %s", self.describe(),
@@ -411,8 +409,6 @@ class TwoCameraSource(_CameraSource):
     def camera_controls(self):
         """The two cameras' controls (sources.camera_controls.PairControls), or None while one
         of them is missing. Only the thread that reads frames may use them."""
-        from stereo_gui.sources.camera_controls import PairControls
-
         left, right = (c.controls for c in self._cams)
         return PairControls(left, right) if left is not None and right is not None else None
 

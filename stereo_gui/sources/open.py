@@ -4,12 +4,19 @@ VIDEO."""
 from __future__ import annotations
 
 import logging
+import math
 import re
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 from stereo_gui.core.errors import InputError, SourceError
+from stereo_gui.sources import cameras
 from stereo_gui.sources.base import FrameSource, StereoFrame
+from stereo_gui.sources.camera_controls import PairControls
+from stereo_gui.sources.cameras import SideBySideSource, TwoCameraSource
+from stereo_gui.sources.playback import PlaybackSource
+from stereo_gui.sources.sim import RigConfig, SimRig, SimSource
+from stereo_gui.sources.sim.conditions import condition_named
 
 log = logging.getLogger(__name__)
 
@@ -120,8 +127,6 @@ class _SwappedSource(FrameSource):
         pair = self._inner.camera_controls()
         if pair is None:
             return None
-        from stereo_gui.sources.camera_controls import PairControls
-
         pair.left.side, pair.right.side = "right", "left"
         return PairControls(pair.right, pair.left)
 
@@ -131,11 +136,6 @@ class _SwappedSource(FrameSource):
 
 def _sim_wall_spec(text: str, condition: str, metres: str | None) -> SourceSpec:
     """sim:wall[:CONDITION[:METRES]], checked: a known condition, a distance the rig can show."""
-    import math
-
-    from stereo_gui.sources.sim.conditions import condition_named
-    from stereo_gui.sources.sim.live import SimSource
-
     try:
         condition_named(condition)
     except InputError as exc:
@@ -152,8 +152,6 @@ def _sim_wall_spec(text: str, condition: str, metres: str | None) -> SourceSpec:
 
 
 def _sim(spec: SourceSpec, size: tuple[int, int], swap: bool) -> FrameSource:
-    from stereo_gui.sources.sim import RigConfig, SimRig, SimSource
-
     # live, 2x2 anti-aliasing is plenty and halves the rendering time, leaving the CPU to the
     # pipeline (the ground-truth sets of `simulate` and the tests keep 3x3)
     config = replace(RigConfig.for_size(size), supersample=2)
@@ -163,9 +161,7 @@ def _sim(spec: SourceSpec, size: tuple[int, int], swap: bool) -> FrameSource:
 
 
 def _auto(size: tuple[int, int], swap: bool) -> OpenedSource:
-    from stereo_gui.sources.cameras import TwoCameraSource, list_cameras
-
-    cams = list_cameras()
+    cams = cameras.list_cameras()
     if len(cams) >= 2:
         try:
             src = TwoCameraSource(cams[0].index, cams[1].index, size=size, swap=swap,
@@ -196,8 +192,6 @@ def expected_frame_size(spec: str | None, size: tuple[int, int] = (640, 480)
         return None
     if s.kind in ("auto", "sim", "cams", "sbs"):
         return int(size[0]), int(size[1])
-    from stereo_gui.sources.playback import PlaybackSource
-
     try:
         src = PlaybackSource(s.path, paced=False)
     except (SourceError, OSError) as exc:
@@ -216,11 +210,9 @@ def expected_frame_size(spec: str | None, size: tuple[int, int] = (640, 480)
 def _cameras(indices: tuple[int, ...], remembered: tuple[str, ...]):
     """(indices, backends, identities, notes) of the cameras a spec names, found again by their
     remembered identities when they moved to other indices."""
-    from stereo_gui.sources.cameras import find_camera, find_cameras_again, list_cameras
-
-    listed = list_cameras()
-    indices, notes = find_cameras_again(tuple(indices), tuple(remembered), listed)
-    infos = [find_camera(i, listed) for i in indices]
+    listed = cameras.list_cameras()
+    indices, notes = cameras.find_cameras_again(tuple(indices), tuple(remembered), listed)
+    infos = [cameras.find_camera(i, listed) for i in indices]
     backends = tuple(c.backend if c is not None else None for c in infos)
     idents = tuple(c.identity if c is not None else "" for c in infos)
     for n in notes:
@@ -246,16 +238,12 @@ def open_source(spec: str | None, size: tuple[int, int] = (640, 480), swap: bool
     if s.kind == "sim":
         return OpenedSource(_sim(s, size, swap), False, "simulated rig")
     if s.kind == "cams":
-        from stereo_gui.sources.cameras import TwoCameraSource
-
         (left, right), backends, idents, notes = _cameras(s.indices, remembered_cameras)
         src = TwoCameraSource(left, right, size=size, swap=swap, backends=backends,
                               identities=idents)
         return OpenedSource(src, False, "; ".join([src.name, *notes]),
                             spec=f"cams:{left},{right}", cameras=idents)
     if s.kind == "sbs":
-        from stereo_gui.sources.cameras import SideBySideSource
-
         (index,), (backend,), idents, notes = _cameras(s.indices, remembered_cameras)
         src = SideBySideSource(index, size=(2 * size[0], size[1]), swap=swap, backend=backend,
                                identity=idents[0] if idents else "")
@@ -263,8 +251,6 @@ def open_source(spec: str | None, size: tuple[int, int] = (640, 480), swap: bool
                             cameras=idents)
     # a folder of pairs, a recording, or a side-by-side video: all play back like a recording
     # (pause, step, seek and loop); remembered by absolute path, so that it opens from anywhere
-    from stereo_gui.sources.playback import PlaybackSource  # owned elsewhere; import at use
-
     src = PlaybackSource(s.path)
     warnings = src.warnings
     src = _SwappedSource(src) if swap else src

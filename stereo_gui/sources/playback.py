@@ -27,9 +27,12 @@ import threading
 import time
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from stereo_gui.core.errors import SourceError, StereoGuiError
+from stereo_gui.files.pairs import discover_pairs, load_image
+from stereo_gui.files.recording import is_recording, open_recording
 from stereo_gui.sources.base import FrameSource, StereoFrame
 
 log = logging.getLogger(__name__)
@@ -49,8 +52,6 @@ class _ImageStore:
         self.count = len(files)
 
     def load(self, i: int) -> tuple[np.ndarray, np.ndarray]:
-        from stereo_gui.files.pairs import load_image
-
         left, right = self.files[i]
         try:
             images = load_image(left), load_image(right)
@@ -70,8 +71,6 @@ class _VideoStore:
     """Frames of a side-by-side video (left half | right half)."""
 
     def __init__(self, path: Path, limit: int | None = None) -> None:
-        import cv2
-
         self.path = path
         self._cap = cv2.VideoCapture(str(path))
         if not self._cap.isOpened():
@@ -87,15 +86,11 @@ class _VideoStore:
         self._next = 0  # index the capture reads next
 
     def _reopen(self) -> None:
-        import cv2
-
         self._cap.release()
         self._cap = cv2.VideoCapture(str(self.path))
         self._next = 0
 
     def load(self, i: int) -> tuple[np.ndarray, np.ndarray]:
-        import cv2
-
         if i != self._next:
             self._cap.set(cv2.CAP_PROP_POS_FRAMES, i)
             self._next = i
@@ -141,8 +136,6 @@ class PlaybackSource(FrameSource):
         recorded_size: tuple[int, int] | None = None  # what a recording's header says
         self.warnings: tuple[str, ...] = ()  # what opening tolerated (a torn last frame, ...)
         if self.path.is_dir():
-            from stereo_gui.files.recording import is_recording, open_recording
-
             if is_recording(self.path):
                 rec = open_recording(self.path)
                 self.warnings = tuple(rec.warnings)
@@ -160,8 +153,6 @@ class PlaybackSource(FrameSource):
                     raise SourceError(f"recording {self.path} holds neither images nor a video")
                 self.name = f"Playback of {self.path.name}"
             else:
-                from stereo_gui.files.pairs import discover_pairs
-
                 found = discover_pairs(self.path)
                 self._store = _ImageStore([(p.left, p.right) for p in found.pairs])
                 self.name = f"Pairs in {self.path.name}"

@@ -9,8 +9,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from stereo_gui.core import lens
 from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.errors import InputError
+from stereo_gui.files.readers import read_json_object
 
 TRUTH_FORMAT_VERSION = 1
 
@@ -25,13 +27,12 @@ class CameraTruth:
     model: str = "pinhole"
 
     def __post_init__(self) -> None:
-        from stereo_gui.core.lens import DIST_COUNT, check_model
-
-        check_model(self.model)
+        lens.check_model(self.model)
         object.__setattr__(self, "M", np.asarray(self.M, np.float64).reshape(3, 3))
         D = np.asarray(self.D, np.float64).reshape(1, -1)
-        if D.shape[1] != DIST_COUNT[self.model]:
-            raise InputError(f"a {self.model} camera needs {DIST_COUNT[self.model]} distortion "
+        count = lens.DIST_COUNT[self.model]
+        if D.shape[1] != count:
+            raise InputError(f"a {self.model} camera needs {count} distortion "
                              f"coefficients, not {D.shape[1]}")
         object.__setattr__(self, "D", D)
 
@@ -253,8 +254,6 @@ class RigTruth:
 
 def load_truth(path: str | Path) -> RigTruth:
     """The rig truth of a `truth.json` written by `write_calibration_set` (or its folder)."""
-    from stereo_gui.files.readers import read_json_object
-
     path = Path(path)
     if path.is_dir():
         path = path / "truth.json"

@@ -31,8 +31,11 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.errors import InputError
+from stereo_gui.core.lens import rectify_map
+from stereo_gui.core.matching import MatcherParams, StereoPipeline
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.atomic import encode_image, write_many_atomic
+from stereo_gui.files.scenes import read_pfm
 from stereo_gui.sources.sim.camera import RigConfig
 from stereo_gui.sources.sim.conditions import CONDITIONS
 from stereo_gui.sources.sim.rig import SimRig
@@ -108,8 +111,6 @@ def true_disparity(rig: SimRig, calib: StereoCalibration, scene: Scene
     Both cameras see it where x_right and the point's raw right pixel lie inside the images and
     no object stands between it and the right camera.
     """
-    from stereo_gui.core.lens import rectify_map
-
     w, h = (int(v) for v in calib.image_size)
     P1 = np.asarray(calib.P1, np.float64)
     P2 = np.asarray(calib.P2, np.float64)
@@ -184,8 +185,6 @@ def encode_pfm(image: np.ndarray) -> bytes:
 
 def _verify_pfm(shape: tuple[int, int]):
     def verify(path: Path) -> None:
-        from stereo_gui.files.scenes import read_pfm
-
         if read_pfm(path).shape != shape:
             raise ValueError("the PFM reads back at another size")
     return verify
@@ -222,8 +221,6 @@ def write_click_scenes(out_dir, seeds=(0, 1, 2), config: RigConfig | None = None
     truths: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
 
     def files():
-        from stereo_gui.core.matching import MatcherParams, StereoPipeline
-
         lines = ["# stereo-gui simulate --click-scenes: rectified pairs of the simulated rig with "
                  "their true disparity",
                  "# name\tleft\tright\tground_truth\tdivide_by\tcalib\tmask"]

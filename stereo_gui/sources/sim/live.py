@@ -8,7 +8,7 @@ import time
 import cv2
 import numpy as np
 
-from stereo_gui.core.errors import InputError
+from stereo_gui.core.errors import InputError, SourceError
 from stereo_gui.sources.base import FramePacer, FrameSource, StereoFrame
 from stereo_gui.sources.camera_controls import PairControls
 from stereo_gui.sources.sim.conditions import condition_named
@@ -118,8 +118,6 @@ class SimSource(FrameSource):
         return self.rig
 
     def read(self) -> StereoFrame:
-        from stereo_gui.core.errors import SourceError
-
         if self._closed:
             raise SourceError("the simulated rig was closed")
         if self.paced:

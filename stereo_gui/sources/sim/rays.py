@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from stereo_gui.core.lens import project_points, undistort_points
 from stereo_gui.sources.sim.camera import CameraTruth
 
 
@@ -78,8 +79,6 @@ _RAY_GRID_PX = 4
 
 @functools.lru_cache(maxsize=8)
 def _ray_map_cached(M_bytes: bytes, D_bytes: bytes, model: str, w: int, h: int, s: int) -> RayMap:
-    from stereo_gui.core.lens import project_points, undistort_points
-
     M = np.frombuffer(M_bytes, np.float64).reshape(3, 3)
     D = np.frombuffer(D_bytes, np.float64).reshape(1, -1)
     # Exact inversion (OpenCV's iterative undistortion, tight criteria) on a grid every

@@ -6,12 +6,15 @@ from __future__ import annotations
 
 import math
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
 
+from stereo_gui.core import detect
 from stereo_gui.core.errors import InputError
+from stereo_gui.core.lens import project_points, stereo_rectify
+from stereo_gui.core.shading import LensShading, PairShading
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.sources.sim.camera import RigConfig, RigTruth
 from stereo_gui.sources.sim.rays import ray_map
@@ -116,8 +119,6 @@ class SimRig:
     def set_board(self, board) -> None:
         """Show another target from the next frame on (the Capture tab's choice, for demos);
         the truth's board follows."""
-        from dataclasses import replace
-
         with self._lock:
             self.config = replace(self.config, board=board)
             self.truth = replace(self.truth, board=board)
@@ -135,8 +136,6 @@ class SimRig:
         """Turn the right camera about its own centre by `angle_deg` (tilt: about its x axis,
         pan: y, roll: z), as a webcam head that moved after calibration; the truth follows
         (R' = dR R, T' = dR T: the camera's centre stays). Cumulative; reset_turn() undoes."""
-        from dataclasses import replace
-
         if axis not in self.TURN_AXES:
             raise ValueError(f"axis must be one of {', '.join(self.TURN_AXES)}, not {axis!r}")
         v = np.zeros(3)
@@ -177,8 +176,6 @@ class SimRig:
 
     def project(self, points_left_mm: np.ndarray, cam: int) -> np.ndarray:
         """Project (N, 3) left-frame points (mm) into camera `cam`'s image, (N, 2) px."""
-        from stereo_gui.core.lens import project_points
-
         t = self.truth
         M, D = (t.M1, t.D1) if cam == 0 else (t.M2, t.D2)
         rvec = np.zeros(3) if cam == 0 else cv2.Rodrigues(t.R)[0]
@@ -259,11 +256,9 @@ class SimRig:
             if np.any(self._to_camera(cam, pts)[:, 2] < 100.0):
                 return False
         b = self.config.board
-        from stereo_gui.core.detect import CHARUCO_MIN_GAP_PX
-
         # the gap between corners and markers must stay large enough to place the corners
         gap = (b.square_mm - b.marker_mm) / (2.0 * b.square_mm)
-        if self._point_spacing_px(pose) * gap < 1.3 * CHARUCO_MIN_GAP_PX:
+        if self._point_spacing_px(pose) * gap < 1.3 * detect.CHARUCO_MIN_GAP_PX:
             return False
         # a corner is found only next to whole markers: keep a square's width inside the images
         m = margin_px + 1.1 * self._square_px(pose)
@@ -670,8 +665,6 @@ class SimRig:
         """The calibration a perfect calibration would find (Bouguet rectification)."""
         t = self.truth
         size = tuple(int(v) for v in t.image_size)
-        from stereo_gui.core.lens import stereo_rectify
-
         R1, R2, P1, P2, Q = stereo_rectify(t.model, t.M1, t.D1, t.M2, t.D2, size, t.R, t.T, alpha)
         tx = t.T.reshape(3)
         Tx = np.array([[0, -tx[2], tx[1]], [tx[2], 0, -tx[0]], [-tx[1], tx[0], 0]], np.float64)
@@ -692,8 +685,6 @@ class SimRig:
         v = float(self.config.vignetting)
         if v <= 0.0:
             return None
-        from stereo_gui.core.shading import LensShading, PairShading
-
         return PairShading(LensShading(-v, 0.0, 0.0),
                            LensShading(-v, 0.0, float(self.config.black_right)))
 
