@@ -33,16 +33,25 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import cv2
 import numpy as np
 
+from stereo_gui.core.calibrate import calibrate_stereo
 from stereo_gui.core.click_score import plain_patch_disparity
+from stereo_gui.core.detect import detect_pairs
 from stereo_gui.core.errors import InputError
+from stereo_gui.core.lens import rectify_map, undistort_points
 from stereo_gui.core.matching import MatcherParams, Preset, StereoPipeline
 from stereo_gui.core.measure import PATCH_PX, Measurement, measure_point
+from stereo_gui.core.reference_loop import ReferenceLoop
+from stereo_gui.core.scene_score import plain_sgbm
+from stereo_gui.core.shading import measure_pair_shading
 from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.files.presets import load_preset
 from stereo_gui.pipeline.concurrency import preset_pipeline
+from stereo_gui.sources.sim import Scene, SimRig
 from stereo_gui.sources.sim.conditions import CONDITIONS, Condition
 
 WALLS_MM = (500.0, 1000.0, 2000.0, 3000.0)
@@ -157,8 +166,6 @@ class WallTruth:
     """True depth and visibility of rectified pixels of `calib` for a wall rendered by `rig`."""
 
     def __init__(self, rig, calib: StereoCalibration, wall_mm: float) -> None:
-        from stereo_gui.core.lens import rectify_map
-
         self.rig = rig
         self.calib = calib
         self.wall_mm = float(wall_mm)
@@ -182,8 +189,6 @@ class WallTruth:
         u, v = self._raw(0, x, y)
         if not (0 <= u <= w - 1 and 0 <= v <= h - 1):
             return float("nan"), False
-        from stereo_gui.core.lens import undistort_points
-
         xn, yn = undistort_points(t.model, np.array([[u, v]]), t.M1, t.D1)[0]
         ray = np.array([xn, yn, 1.0])
         p_left = ray * (self.wall_mm / ray[2])  # the wall is the plane Z = wall_mm
@@ -231,8 +236,6 @@ def plain_disparity(calib: StereoCalibration, left: np.ndarray, right: np.ndarra
                     z_min_mm: float = 450.0) -> np.ndarray:
     """Plain OpenCV SGBM (`plain_sgbm`) on the rectified pair, disparities 0 .. the working
     distance's (as the presets search), full resolution."""
-    from stereo_gui.core.scene_score import plain_sgbm
-
     pipe = StereoPipeline(calib, MatcherParams(z_min_mm=z_min_mm))
     rl, rr = pipe.rectify(left, right)
     d_max = calib.focal_px * calib.rectified_baseline_mm / z_min_mm - calib.disparity_offset_px
@@ -245,8 +248,6 @@ def evaluate_wall(rig, calib: StereoCalibration, params: Preset | MatcherParams 
                   ) -> WallReport:
     """Render a wall at `wall_mm` (under `condition`, default the rig's usual texture), run one
     preset (or "report": the reference loop; "plain": plain OpenCV) and measure the grid."""
-    from stereo_gui.sources.sim import Scene
-
     condition = condition or CONDITIONS["rig"]
     scene = Scene.wall(wall_mm, seed=seed + int(wall_mm), contrast=condition.contrast)
     left, right = rig.render_scene(scene, np.random.default_rng(seed * 7 + int(wall_mm)))
@@ -254,8 +255,6 @@ def evaluate_wall(rig, calib: StereoCalibration, params: Preset | MatcherParams 
     readings = []
     plain = None
     if params == "report":
-        from stereo_gui.core.reference_loop import ReferenceLoop
-
         result = ReferenceLoop(calib).process(left, right)
         name = "report"
     elif params == PLAIN:
@@ -263,8 +262,6 @@ def evaluate_wall(rig, calib: StereoCalibration, params: Preset | MatcherParams 
         name = PLAIN
     else:
         if isinstance(params, str):
-            from stereo_gui.files.presets import load_preset
-
             params = load_preset(params)
         params = Preset.of(params)
         with preset_pipeline(calib, params) as pipe:
@@ -288,10 +285,6 @@ def evaluate_wall(rig, calib: StereoCalibration, params: Preset | MatcherParams 
 
 def computed_calibration(rig, pairs: int = 20, seed: int = BENCH_SEED) -> StereoCalibration:
     """A calibration computed the way the application does from `pairs` rendered board pairs."""
-    from stereo_gui.core.calibrate import calibrate_stereo
-    from stereo_gui.core.detect import detect_pairs
-    from stereo_gui.core.shading import measure_pair_shading
-
     images = rig.calibration_set(pairs, seed=seed)
     board = rig.config.board
     detections = detect_pairs([(f"pair{i}", l, r) for i, (l, r) in enumerate(images)], board)
@@ -310,8 +303,6 @@ def run_accuracy(presets=("report", "seed", "live", "quality"), walls=WALLS_MM,
     cameras (true: with their lens shading; computed: from board pairs they rendered, as a
     technician calibrates the cameras they measure with); otherwise the rig's own, computed
     once."""
-    from stereo_gui.sources.sim import SimRig
-
     if not walls:
         raise InputError("no wall distances to measure")
     unknown = [c for c in conditions if c not in CONDITIONS]
@@ -425,10 +416,6 @@ def middlebury_scores(folder, presets=("seed", "live", "quality")) -> list[Bench
     """Raw and final maps of each preset on the Middlebury pairs found in `folder`. Presets other
     than seed search the benchmark's own disparity range (0..N) instead of deriving one from
     working distances; the seed keeps the reference loop's 2..129."""
-    from pathlib import Path
-
-    from stereo_gui.files.presets import load_preset
-
     folder = Path(folder)
     out = []
     for pair, (a, b, g, div, num) in MIDDLEBURY.items():

@@ -29,8 +29,28 @@ import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 
+import cv2
+import numpy as np
+
 from stereo_gui.commands import options
+from stereo_gui.commands.accuracy import (
+    BENCH_SEED,
+    CONDITIONS,
+    PLAIN,
+    condition_totals,
+    format_table,
+    run_accuracy,
+)
+from stereo_gui.commands.clicks import format_clicks, run_clicks
+from stereo_gui.commands.disparity import load_calibration, read_pair
+from stereo_gui.commands.scenes import format_scenes, run_scenes
+from stereo_gui.core import plain_loop, reference_loop
 from stereo_gui.core.errors import InputError
+from stereo_gui.files.presets import load_presets
+from stereo_gui.pipeline.concurrency import opencv_threads_beside_lanes, opencv_threads_for_lanes
+from stereo_gui.pipeline.live import DEFAULT_VIEWS, LiveProcessor
+from stereo_gui.sources.base import StereoFrame
+from stereo_gui.sources.sim import RigConfig, Scene, SimRig
 
 MAX_FRAMES = 10_000  # a preset at 2 frames per second: over an hour
 
@@ -125,13 +145,9 @@ def _input(args):
                              "for the simulated rig)")
         if args.size:
             raise InputError("--size is for the simulated rig; the images give their own size")
-        from stereo_gui.commands.disparity import load_calibration, read_pair
-
         calib = load_calibration(args.calib, args.left)
         left, right = read_pair(args.left, args.right, calib)
         return "files", calib, left, right
-    from stereo_gui.sources.sim import RigConfig, Scene, SimRig
-
     rig = SimRig(RigConfig.for_size(_size(args.size)), seed=0)
     calib = rig.true_calibration(alpha=0.0)
     left, right = rig.render_scene(Scene.demo())
@@ -189,9 +205,6 @@ def bench_preset(calib, params, left, right, frames: int, warmup: int = 2,
     conversion): as many frames at once as the processor's lanes, OpenCV with the threads
     `run_app` gives it. `processor`: a LiveProcessor of `params` to time (kept open, so that its
     health check keeps its own schedule over several calls), else one made and closed here."""
-    from stereo_gui.pipeline.concurrency import opencv_threads_for_lanes
-    from stereo_gui.sources.base import StereoFrame
-
     frame = StereoFrame(left, right, 0.0, 0.0, 0)
     proc = processor if processor is not None else live_processor(calib, params)
     with opencv_threads_for_lanes():
@@ -212,8 +225,6 @@ def bench_preset(calib, params, left, right, frames: int, warmup: int = 2,
 
 def live_processor(calib, params):
     """The Live tab's processor for `params`, with the views the Live tab starts with."""
-    from stereo_gui.pipeline.live import DEFAULT_VIEWS, LiveProcessor
-
     proc = LiveProcessor(calib, params)
     proc.set_views(DEFAULT_VIEWS)  # as the Live tab starts
     return proc
@@ -221,15 +232,12 @@ def live_processor(calib, params):
 
 def bench_reference(calib, left, right, frames: int, warmup: int = 2) -> dict:
     """Time the reference loop on the same pair."""
-    import numpy as np
-
-    from stereo_gui.core.reference_loop import MIN_DISP, NUM_DISP, WINDOW_SIZE, ReferenceLoop
-
     w = calib.image_size[0]
-    if w - (MIN_DISP + NUM_DISP) <= WINDOW_SIZE // 2:
+    lo, n = reference_loop.MIN_DISP, reference_loop.NUM_DISP
+    if w - (lo + n) <= reference_loop.WINDOW_SIZE // 2:
         raise InputError(f"the images are {w} px wide: too narrow for the reference loop, which "
-                         f"searches disparities {MIN_DISP}..{MIN_DISP + NUM_DISP - 1} px")
-    loop = ReferenceLoop(calib)
+                         f"searches disparities {lo}..{lo + n - 1} px")
+    loop = reference_loop.ReferenceLoop(calib)
 
     def step():
         t0 = time.perf_counter()
@@ -242,13 +250,12 @@ def bench_reference(calib, left, right, frames: int, warmup: int = 2) -> dict:
 
 def bench_plain(calib, left, right, frames: int, warmup: int = 2) -> dict:
     """Time the plain OpenCV program on the same pair."""
-    from stereo_gui.core.plain_loop import NUM_DISP, SCALE, WINDOW_SIZE, PlainLoop
-
-    if calib.image_size[0] * SCALE - NUM_DISP <= WINDOW_SIZE // 2:
+    n = plain_loop.NUM_DISP
+    if calib.image_size[0] * plain_loop.SCALE - n <= plain_loop.WINDOW_SIZE // 2:
         raise InputError(f"the images are {calib.image_size[0]} px wide: too narrow for the "
-                         f"plain program, which searches {NUM_DISP} disparities of the halved "
+                         f"plain program, which searches {n} disparities of the halved "
                          "images")
-    loop = PlainLoop(calib)
+    loop = plain_loop.PlainLoop(calib)
 
     def step():
         t0 = time.perf_counter()
@@ -266,8 +273,6 @@ _SHORT = {"report": "reference loop", "plain": "plain"}  # "2.5x the reference l
 
 
 def run_bench(args) -> dict:
-    from stereo_gui.files.presets import load_presets
-
     if args.frames is None:
         args.frames = 30
     if not 1 <= args.frames <= MAX_FRAMES:
@@ -278,10 +283,6 @@ def run_bench(args) -> dict:
     params = load_presets(args.preset or ["live"])  # unknown names fail before any work
     names = list(params)
     source, calib, left, right = _input(args)
-    import cv2
-
-    from stereo_gui.pipeline.concurrency import opencv_threads_beside_lanes
-
     which = getattr(args, "reference", "both")
     references = list(REFERENCES) if which == "both" else [which]
     out = {"source": source, "size": list(calib.image_size), "frames": args.frames,
@@ -353,8 +354,6 @@ def run(args) -> int:
         if args.scenes or args.accuracy or args.calib or args.left or args.right or args.size:
             raise InputError("--clicks takes its images from the scene list: no --scenes, "
                              "--accuracy, --calib, images or --size")
-        from stereo_gui.commands.clicks import format_clicks, run_clicks
-
         res = run_clicks(args.clicks, args.preset or ("live", "quality"))
         print(json.dumps(res, indent=2) if args.json else format_clicks(res))
         return 0
@@ -362,8 +361,6 @@ def run(args) -> int:
         if args.accuracy or args.calib or args.left or args.right or args.size:
             raise InputError("--scenes takes its images from the scene list: no --accuracy, "
                              "--calib, images or --size")
-        from stereo_gui.commands.scenes import format_scenes, run_scenes
-
         res = run_scenes(args.scenes, args.preset or ("live", "quality"),
                          repeat=1 if args.frames is None else args.frames)
         print(json.dumps(res, indent=2) if args.json else format_scenes(res))
@@ -406,12 +403,8 @@ def run(args) -> int:
 
 
 def run_accuracy_bench(args) -> int:
-    from stereo_gui.commands.accuracy import BENCH_SEED, format_table, run_accuracy
-
     if args.calib or args.left or args.right or args.size:
         raise InputError("--accuracy runs on the simulated rig: no --calib, images or --size")
-    from stereo_gui.commands.accuracy import CONDITIONS, PLAIN, condition_totals
-
     presets = tuple(dict.fromkeys(["report", PLAIN]
                                   + (args.preset or ["seed", "live", "quality"])))
     cal = ("true", "computed") if args.calibration == "both" else (args.calibration,)
@@ -470,8 +463,6 @@ def accuracy_over_seeds(totals: dict[int, dict[tuple[str, str], dict]]
 
 
 def _accuracy_over_seeds(args, presets, cal, conditions, seeds: list[int]) -> int:
-    from stereo_gui.commands.accuracy import CONDITIONS, condition_totals, run_accuracy
-
     totals: dict[str, dict[int, dict]] = {label: {} for label in cal}
     for s in seeds:
         res = run_accuracy(presets=presets, seed=s, calibrations=cal, conditions=conditions)

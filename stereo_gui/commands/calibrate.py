@@ -16,6 +16,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from stereo_gui.commands import options
+from stereo_gui.commands.disparity import check_outputs
 from stereo_gui.core.board import (
     DEFAULT_DICTIONARY,
     DICTIONARIES,
@@ -37,8 +38,10 @@ from stereo_gui.core.errors import InputError, StereoGuiError
 from stereo_gui.core.lens import LENS_MODELS, distortion_names
 from stereo_gui.core.shading import shading_words, with_measured_shading
 from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.files.any_calibration import load_any_calibration
 from stereo_gui.files.calibration_file import export_ros, save_calibration
 from stereo_gui.files.pairs import check_same_size, discover_pairs, load_image
+from stereo_gui.files.session import MANIFEST, CaptureSession
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -230,8 +233,6 @@ def summary_text(result: CalibrationResult, output: Path, seconds: float) -> str
 def _session_in(folder: Path):
     """The capture session in `folder`, or None without a manifest (opened once: what its
     manifest could not give is said once, as a warning)."""
-    from stereo_gui.files.session import MANIFEST, CaptureSession
-
     return CaptureSession.open(folder) if (folder / MANIFEST).is_file() else None
 
 
@@ -239,9 +240,6 @@ def _check_outputs(output: Path, ros_dir: Path | None, found, folder: Path) -> N
     """The calibration and the ROS files may be written: none is one of the set's pictures,
     its session or its truth, they are not one file, and an existing output is a calibration
     (one that is anything else is not written over)."""
-    from stereo_gui.commands.disparity import check_outputs
-    from stereo_gui.files.session import MANIFEST
-
     outputs = [(output, None)]
     if ros_dir is not None:
         outputs += [(ros_dir / "left.yaml", None), (ros_dir / "right.yaml", None)]
@@ -249,8 +247,6 @@ def _check_outputs(output: Path, ros_dir: Path | None, found, folder: Path) -> N
     inputs += [folder / MANIFEST, folder / "truth.json"]
     check_outputs(outputs, inputs)
     if output.is_file():
-        from stereo_gui.files.any_calibration import load_any_calibration
-
         try:
             load_any_calibration(output, (640, 480))
         except StereoGuiError:

@@ -19,7 +19,22 @@ import math
 import time
 
 from stereo_gui.commands.scenes import _pct
+from stereo_gui.core.click_score import (
+    Click,
+    ClickScore,
+    click_points,
+    map_right,
+    plain_patch_disparity,
+    seen_by_both,
+    true_z_mm,
+)
 from stereo_gui.core.errors import InputError
+from stereo_gui.core.measure import measure_point, reading_map
+from stereo_gui.core.scene_score import disparity_search_range, plain_sgbm
+from stereo_gui.files.any_calibration import load_any_calibration
+from stereo_gui.files.presets import load_presets
+from stereo_gui.files.scenes import load_scene, read_scene_list, read_seen_mask
+from stereo_gui.pipeline.concurrency import opencv_threads_for_lanes, preset_pipeline
 
 PLAIN = "plain"
 ASSUMED_CALIB = "rectified:1000,100"
@@ -27,13 +42,6 @@ ASSUMED_CALIB = "rectified:1000,100"
 
 def run_clicks(list_path, presets=("live", "quality")) -> dict:
     """Click every scene of the list with each preset and plain OpenCV; the `--json` result."""
-    from stereo_gui.core.click_score import ClickScore, click_points, seen_by_both, true_z_mm
-    from stereo_gui.core.scene_score import disparity_search_range, plain_sgbm
-    from stereo_gui.files.any_calibration import load_any_calibration
-    from stereo_gui.files.presets import load_presets
-    from stereo_gui.files.scenes import load_scene, read_scene_list, read_seen_mask
-    from stereo_gui.pipeline.concurrency import opencv_threads_for_lanes, preset_pipeline
-
     specs = read_scene_list(list_path)
     params = load_presets(presets, reserved=(PLAIN,))
     methods = [*params, PLAIN]
@@ -89,9 +97,6 @@ def run_clicks(list_path, presets=("live", "quality")) -> dict:
 def click_scene(result, calib, truth) -> list:
     """The clicks of one processed scene: (x, y, true disparity, true Z) each, read as a
     double-click in the window reads them."""
-    from stereo_gui.core.click_score import Click, map_right
-    from stereo_gui.core.measure import measure_point, reading_map
-
     shown = reading_map(result)
     out = []
     for x, y, d, z in truth:
@@ -106,8 +111,6 @@ def click_scene(result, calib, truth) -> list:
 
 def click_plain(disparity_px, calib, truth) -> list:
     """Plain OpenCV's clicks: the patch median, triangulated through the same calibration."""
-    from stereo_gui.core.click_score import Click, map_right, plain_patch_disparity, true_z_mm
-
     out = []
     for x, y, d, z in truth:
         read = plain_patch_disparity(disparity_px, x, y)
@@ -121,8 +124,6 @@ def click_plain(disparity_px, calib, truth) -> list:
 
 
 def _scored(clicks, seconds: float, span) -> dict:
-    from stereo_gui.core.click_score import ClickScore
-
     return {**ClickScore().add(clicks).summary(), "seconds": seconds,
             "disparity_range_px": [float(span[0]), float(span[1])]}
 

@@ -16,6 +16,11 @@ import numpy as np
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import PipelineResult, Preset, color_scale_caption
 from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.files import depth_export
+from stereo_gui.files.any_calibration import load_any_calibration
+from stereo_gui.files.atomic import encode_image, write_many_atomic
+from stereo_gui.files.images import read_image_file
+from stereo_gui.files.presets import load_preset
 from stereo_gui.pipeline.concurrency import preset_pipeline
 
 log = logging.getLogger(__name__)
@@ -32,8 +37,6 @@ CALIB_HELP = ("calibration: our file, an OpenCV stereo calibration (one YAML/XML
 def load_calibration(spec: str, left_image: str | None = None) -> StereoCalibration:
     """The calibration `spec` names (see CALIB_HELP); a file without an image size, and
     `rectified:F,B[,DOFFS]`, take the size of `left_image`."""
-    from stereo_gui.files.any_calibration import load_any_calibration
-
     def size() -> tuple[int, int] | None:
         if left_image is None:
             return None
@@ -49,8 +52,6 @@ def load_calibration(spec: str, left_image: str | None = None) -> StereoCalibrat
 def read_image(path: str, what: str) -> np.ndarray:
     """The image `path` (BGR); InputError naming it as the `what` image (too large files and
     headers are refused before decoding: files.images)."""
-    from stereo_gui.files.images import read_image_file
-
     p = Path(path)
     if not p.is_file():
         raise InputError(f"{what} image {path} does not exist")
@@ -79,8 +80,6 @@ def read_pair(left: str, right: str, calibration: StereoCalibration) -> tuple[np
 
 
 def load_params(name: str) -> Preset:
-    from stereo_gui.files.presets import load_preset
-
     return load_preset(name)
 
 
@@ -157,9 +156,6 @@ def _same_file_key(p: Path) -> tuple[int, int]:
 
 
 def run(args) -> int:
-    from stereo_gui.files import depth_export
-    from stereo_gui.files.atomic import encode_image, write_many_atomic
-
     if Path(args.output).suffix.lower() not in (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"):
         raise InputError(f"{args.output}: the colour view needs an image suffix such as .png")
     check_outputs([(args.output, None), (args.npy, ".npy"), (args.png16, ".png"),

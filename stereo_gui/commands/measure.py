@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 
 from stereo_gui.commands import options
 from stereo_gui.commands.disparity import add_pair_arguments, run_pipeline
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.measure import PATCH_PX, Measurement, measure_point
-
+from stereo_gui.files.fit_file import load_fit
+from stereo_gui.files.spreadsheet import MeasurementRecord, append_measurements
 
 MAX_PATCH_PX = 101  # as the window's own patch setting: wider patches straddle surfaces
 MAX_POINTS = 10_000
@@ -50,8 +52,6 @@ def measure_all(args) -> tuple[object, list[Measurement]]:
         raise InputError(f"{len(args.at)} --at points: give at most {MAX_POINTS} at a time")
     fit = None
     if args.model:
-        from stereo_gui.files.fit_file import load_fit
-
         fit = load_fit(args.model)
     calib, result = run_pipeline(args)
     w, h = result.size
@@ -75,10 +75,6 @@ def format_line(m: Measurement) -> str:
 def write_outputs(args, calib, measurements: list[Measurement]) -> None:
     """Print the results (text or JSON); further output files hook in here."""
     if args.xlsx:  # first: a refused workbook then fails the command before anything is printed
-        from pathlib import Path
-
-        from stereo_gui.files.spreadsheet import MeasurementRecord, append_measurements
-
         calib_file = (args.calib if args.calib.startswith("rectified:")
                       else str(Path(args.calib).resolve()))
         records = [MeasurementRecord.from_measurement(m, calibration_file=calib_file,

@@ -23,10 +23,18 @@ import sys
 import time
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from stereo_gui.commands import options
+from stereo_gui.commands.disparity import CALIB_HELP
 from stereo_gui.core.errors import InputError
+from stereo_gui.files.recording import is_recording, open_recording
+from stereo_gui.files.ros2_bag import BagFrame, RectifiedCamera, check_bag_target, write_ros2_bag
+from stereo_gui.files.stream_mcap import StreamRecording, is_mcap
+from stereo_gui.pipeline.rig import open_rig
+from stereo_gui.pipeline.stream import camera_infos, cloud_packed
+from stereo_gui.sources.open import SPEC_HELP, parse_source_spec
 
 log = logging.getLogger(__name__)
 
@@ -36,8 +44,6 @@ ENDLESS_KINDS = ("auto", "sim", "cams", "sbs")  # sources that never end by them
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from stereo_gui.commands.disparity import CALIB_HELP
-
     parser.add_argument("input", metavar="INPUT",
                         help="an MCAP file of `stereo-gui serve --mcap`, a recording folder, a "
                         "folder of pairs, a side-by-side video, sim (sim:wall:CONDITION:METRES, "
@@ -56,9 +62,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-    from stereo_gui.files.ros2_bag import check_bag_target
-    from stereo_gui.files.stream_mcap import is_mcap
-
     out = Path(args.output)
     check_bag_target(out, args.force)  # before any work: a refusal costs nothing
     status = _Status()
@@ -96,9 +99,6 @@ class _Status:
 
 
 def _from_mcap(path: Path, out: Path, args, status: _Status):
-    from stereo_gui.files.ros2_bag import write_ros2_bag
-    from stereo_gui.files.stream_mcap import StreamRecording
-
     rec = StreamRecording(path)
     status.total = min(rec.frame_count, args.frames or rec.frame_count)
     summary = write_ros2_bag(out, rec.frames(args.frames), replace=args.force, progress=status)
@@ -106,10 +106,6 @@ def _from_mcap(path: Path, out: Path, args, status: _Status):
 
 
 def _from_pipeline(spec: str, out: Path, args, status: _Status):
-    from stereo_gui.files.ros2_bag import write_ros2_bag
-    from stereo_gui.pipeline.rig import open_rig
-    from stereo_gui.sources.open import parse_source_spec
-
     s = _source_spec(spec, parse_source_spec)
     if s.kind in ENDLESS_KINDS and args.frames is None:
         raise InputError(f"{spec} never ends by itself: give --frames N")
@@ -131,8 +127,6 @@ def _from_pipeline(spec: str, out: Path, args, status: _Status):
 
 
 def _source_spec(spec: str, parse):
-    from stereo_gui.sources.open import SPEC_HELP
-
     try:
         return parse(spec)
     except InputError:
@@ -171,8 +165,6 @@ def _anchor(spec) -> float | None:
     if spec.kind not in ("folder", "video"):
         return None
     if spec.kind == "folder":
-        from stereo_gui.files.recording import is_recording, open_recording
-
         if is_recording(spec.path):
             try:
                 created = _dt.datetime.fromisoformat(open_recording(spec.path).created)
@@ -187,11 +179,6 @@ def _anchor(spec) -> float | None:
 
 def _bag_frame(frame, stamps: _Stamps):
     """A processed Frame of the rig as the bag's BagFrame (its stamp from its capture time)."""
-    import cv2
-
-    from stereo_gui.files.ros2_bag import BagFrame
-    from stereo_gui.pipeline.stream import camera_infos, cloud_packed
-
     result = frame.result
     left = result.rectified_left
     if left.ndim == 2:
@@ -205,8 +192,6 @@ def _bag_frame(frame, stamps: _Stamps):
 
 def _camera(info: dict):
     """pipeline.stream.camera_infos' fields as a RectifiedCamera."""
-    from stereo_gui.files.ros2_bag import RectifiedCamera
-
     return RectifiedCamera(frame_id=info["frame_id"], width=info["width"],
                            height=info["height"], K=tuple(info["K"]), P=tuple(info["P"]),
                            R=tuple(info["R"]), D=tuple(info["D"]),

@@ -17,6 +17,12 @@ import time
 from dataclasses import dataclass, field
 
 from stereo_gui.core.errors import InputError
+from stereo_gui.core.matching import StereoPipeline
+from stereo_gui.core.scene_score import disparity_search_range, plain_sgbm, score_disparity
+from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.files.presets import load_presets
+from stereo_gui.files.scenes import load_scene, read_scene_list
+from stereo_gui.pipeline.concurrency import opencv_threads_for_lanes
 
 BASELINE = "plain"
 MARGIN_BAD2 = 0.005  # a preset may be this much worse in bad-2 than its baseline on a scene
@@ -45,13 +51,6 @@ def baseline_of(preset: str, scale: float) -> str:
 def run_scenes(list_path, presets=("live", "quality"), repeat: int = 1) -> dict:
     """Score every preset and the baselines on every scene of the list; the result as a dict
     (the `--json` output)."""
-    from stereo_gui.core.matching import StereoPipeline
-    from stereo_gui.core.scene_score import disparity_search_range, plain_sgbm, score_disparity
-    from stereo_gui.core.stereo_calibration import StereoCalibration
-    from stereo_gui.files.presets import load_presets
-    from stereo_gui.files.scenes import load_scene, read_scene_list
-    from stereo_gui.pipeline.concurrency import opencv_threads_for_lanes
-
     if not 1 <= repeat <= 100:
         raise InputError(f"--frames must be between 1 and 100 with --scenes, not {repeat}")
     specs = read_scene_list(list_path)

@@ -13,7 +13,11 @@ import threading
 import time
 
 from stereo_gui.commands import options
+from stereo_gui.commands.disparity import CALIB_HELP
 from stereo_gui.core.errors import InputError
+from stereo_gui.pipeline.rig import open_rig
+from stereo_gui.pipeline.stream import DEFAULT_HOST, DEFAULT_PORT, DepthStream
+from stereo_gui.sources.open import SPEC_HELP
 
 log = logging.getLogger(__name__)
 
@@ -32,10 +36,6 @@ def _region(text: str) -> tuple[int, int, int, int]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from stereo_gui.commands.disparity import CALIB_HELP
-    from stereo_gui.pipeline.stream import DEFAULT_HOST, DEFAULT_PORT
-    from stereo_gui.sources.open import SPEC_HELP
-
     parser.add_argument("--source", default="auto", metavar="S", help=SPEC_HELP)
     parser.add_argument("--calib", metavar="C", help=CALIB_HELP + " (on the simulated rig: its "
                         "true calibration when not given)")
@@ -59,9 +59,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-    from stereo_gui.pipeline.rig import open_rig
-    from stereo_gui.pipeline.stream import DepthStream
-
     if args.no_server and not args.mcap:
         raise InputError("--no-server without --mcap would do nothing: give --mcap FILE.mcap")
     if args.alarm_m is not None and args.region is None:
