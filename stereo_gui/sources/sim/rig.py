@@ -94,6 +94,29 @@ class _Plane:
     height: float
 
 
+def _random_tilt(rng: np.random.Generator) -> np.ndarray | None:
+    """A random board orientation (3x3): tilts up to 40 deg about x and y, spin up to 20 deg;
+    None (having drawn only the tilts) when the tilts together exceed 45 deg."""
+    tilt_x = math.radians(rng.uniform(-40, 40))
+    tilt_y = math.radians(rng.uniform(-40, 40))
+    if math.hypot(tilt_x, tilt_y) > math.radians(45):
+        return None
+    spin = math.radians(rng.uniform(-20, 20))
+    R: np.ndarray = (cv2.Rodrigues(np.array([0.0, tilt_y, 0.0]))[0]
+                     @ cv2.Rodrigues(np.array([tilt_x, 0.0, 0.0]))[0]
+                     @ cv2.Rodrigues(np.array([0.0, 0.0, spin]))[0])
+    return R
+
+
+def _placement_fraction(rng: np.random.Generator, where: tuple[float, float] | None
+                        ) -> np.ndarray:
+    """Where in the room it leaves a board goes (x, y fractions): near `where`, or anywhere with
+    a bias towards the edges and corners."""
+    if where is None:
+        return rng.beta(0.5, 0.5, 2)
+    return np.clip(np.asarray(where, np.float64) + rng.normal(0.0, 0.08, 2), 0, 1)
+
+
 class SimRig:
     """A simulated stereo rig with known truth that renders board and scene pairs."""
 
@@ -328,69 +351,30 @@ class SimRig:
         With a `scene`, the board is held in front of its objects, never behind one.
         """
         b = self.config.board
-        w, h = self.config.image_size
         margin = 4.0
         centre_board = b.object_points_mm().astype(np.float64).mean(0)
         centre_board[2] = 0.0
         edges = self._outline_samples(9)  # the outline's image is curved: sample its edges
         outline = np.concatenate([edges, np.zeros((len(edges), 1))], 1)
         f = float(self.truth.M1[0, 0])
-        # (see below) the outer edges of the left image and of the right one are seen by both cameras only
-        # when the board is far (the other camera sees it shifted by the disparity): poses of a
-        # whole board meant for the left or right edge reach farther; a ChArUco board reaches
-        # them partly outside the other image, and must stay near enough to read its corners
-        if b.partial:
-            z_lo, z_hi = 300.0, 1000.0
-        elif where is not None and where[0] in (0.0, 1.0):
-            z_lo, z_hi = 700.0, 1600.0
-        else:
-            z_lo, z_hi = 400.0, 1200.0
-        # distances are for the default webcams (750 px focal length): a wide-angle camera
-        # sees the board as large from nearer
+        z_lo, z_hi = self._pose_depth_range(where, f)
         zoom = f / 750.0
-        z_lo, z_hi = z_lo * zoom, z_hi * zoom
-        # the nearest and farthest any whole board is placed (see above)
+        # the nearest and farthest any whole board is placed (see _pose_depth_range)
         out_of_view = self._out_of_view(400.0 * zoom, 1600.0 * zoom, f)
         if out_of_view is not None:
             raise out_of_view
         for _ in range(max_tries):
             z = rng.uniform(z_lo, z_hi)
-            tilt_x = math.radians(rng.uniform(-40, 40))
-            tilt_y = math.radians(rng.uniform(-40, 40))
-            if math.hypot(tilt_x, tilt_y) > math.radians(45):
+            R = _random_tilt(rng)
+            if R is None:
                 continue
-            spin = math.radians(rng.uniform(-20, 20))
-            R = (cv2.Rodrigues(np.array([0.0, tilt_y, 0.0]))[0]
-                 @ cv2.Rodrigues(np.array([tilt_x, 0.0, 0.0]))[0]
-                 @ cv2.Rodrigues(np.array([0.0, 0.0, spin]))[0])
             t0 = np.array([0.0, 0.0, z]) - R @ centre_board
             pts = outline @ R.T + t0
             if np.any(pts[:, 2] < 150.0 * zoom):
                 continue
-            if where is None:
-                frac = rng.beta(0.5, 0.5, 2)
-            else:
-                frac = np.clip(np.asarray(where, np.float64) + rng.normal(0.0, 0.08, 2), 0, 1)
-            # place the board at `frac` of the room it leaves: a few corrections, because the
-            # distortion does not move it in the image as far as it moves in space
-            shift = np.zeros(2)
-            for _ in range(6):
-                moved = pts + np.array([shift[0] * z / f, shift[1] * z / f, 0.0])
-                lo_room, hi_room = np.full(2, np.inf), np.full(2, np.inf)
-                for cam in (0, 1):
-                    uv = self.project(moved, cam)
-                    out = 0.5 * np.ptp(uv, axis=0) if b.partial else np.zeros(2)
-                    lo_room = np.minimum(lo_room, uv.min(0) - margin + out)
-                    hi_room = np.minimum(hi_room, np.array([w - 1.0, h - 1.0]) - margin
-                                         - uv.max(0) + out)
-                room = lo_room + hi_room
-                if np.any(room <= 0):
-                    break
-                step = frac * room - lo_room
-                shift += step
-                if np.all(np.abs(step) < 0.5):
-                    break
-            if np.any(room <= 0):
+            frac = _placement_fraction(rng, where)
+            shift = self._shift_into_room(pts, frac, z, f, margin)
+            if shift is None:
                 continue
             pose = BoardPose(R, t0 + np.array([shift[0] * z / f, shift[1] * z / f, 0.0]))
             if self._board_visible(pose, margin_px=margin - 2.0) and (
@@ -400,6 +384,51 @@ class SimRig:
                              f"simulated cameras see whole between {z_lo:.0f} and {z_hi:.0f} mm "
                              "(a board this large fits only in a few places: give a smaller "
                              "square size)")
+
+    def _pose_depth_range(self, where: tuple[float, float] | None, f: float
+                          ) -> tuple[float, float]:
+        """(nearest, farthest) mm a random board pose is drawn at, for focal length `f` px."""
+        # the outer edges of the left image and of the right one are seen by both cameras only
+        # when the board is far (the other camera sees it shifted by the disparity): poses of a
+        # whole board meant for the left or right edge reach farther; a ChArUco board reaches
+        # them partly outside the other image, and must stay near enough to read its corners
+        if self.config.board.partial:
+            z_lo, z_hi = 300.0, 1000.0
+        elif where is not None and where[0] in (0.0, 1.0):
+            z_lo, z_hi = 700.0, 1600.0
+        else:
+            z_lo, z_hi = 400.0, 1200.0
+        # distances are for the default webcams (750 px focal length): a wide-angle camera
+        # sees the board as large from nearer
+        zoom = f / 750.0
+        return z_lo * zoom, z_hi * zoom
+
+    def _shift_into_room(self, pts: np.ndarray, frac: np.ndarray, z: float, f: float,
+                         margin: float) -> np.ndarray | None:
+        """The image shift (px, x and y) that places the board outline `pts` (mm, at depth `z`)
+        at `frac` of the room it leaves in both images, `margin` px from their edges; None when
+        it has no room. A few corrections, because the distortion does not move it in the
+        image as far as it moves in space."""
+        b = self.config.board
+        w, h = self.config.image_size
+        shift = np.zeros(2)
+        for _ in range(6):
+            moved = pts + np.array([shift[0] * z / f, shift[1] * z / f, 0.0])
+            lo_room, hi_room = np.full(2, np.inf), np.full(2, np.inf)
+            for cam in (0, 1):
+                uv = self.project(moved, cam)
+                out = 0.5 * np.ptp(uv, axis=0) if b.partial else np.zeros(2)
+                lo_room = np.minimum(lo_room, uv.min(0) - margin + out)
+                hi_room = np.minimum(hi_room, np.array([w - 1.0, h - 1.0]) - margin
+                                     - uv.max(0) + out)
+            room = lo_room + hi_room
+            if np.any(room <= 0):
+                return None
+            step = frac * room - lo_room
+            shift += step
+            if np.all(np.abs(step) < 0.5):
+                break
+        return shift
 
     def _out_of_view(self, z_lo: float, z_hi: float, f: float) -> BoardOutOfView | None:
         """Why no pose between z_lo and z_hi mm can show the board to both cameras as a
