@@ -4,15 +4,18 @@ pairs, and truth.json with everything the rig was built with."""
 from __future__ import annotations
 
 import contextlib
+import os
+from collections.abc import Callable, Generator, Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.files.atomic import encode_image, json_item, write_many_atomic
+from stereo_gui.files.atomic import Verify, encode_image, json_item, write_many_atomic
 from stereo_gui.sources.sim.camera import RigConfig
 from stereo_gui.sources.sim.rig import SimRig
-from stereo_gui.sources.sim.scene import Scene
+from stereo_gui.sources.sim.scene import BoardPose, Scene
 
 SCENE_WALL_DISTANCES_MM = (500.0, 1000.0, 1500.0, 2000.0, 3000.0)
 # a board held by hand while the pair is grabbed: its speed along and about each axis (standard
@@ -21,6 +24,9 @@ HAND_SPEED_MM_S = 100.0 / np.sqrt(3.0)
 HAND_SPIN_RAD_S = np.radians(10.0) / np.sqrt(3.0)
 # scene pairs go into a subfolder so that calibrating OUT_DIR does not take them for board pairs
 SCENE_FOLDER = "scenes"
+
+FileItem = tuple[Path, bytes, Verify | None]  # one file as write_many_atomic takes it
+Progress = Callable[[int, int], None]  # progress(done, total)
 
 
 def calibration_set_names(n_pairs: int, scene: bool) -> list[str]:
@@ -32,9 +38,61 @@ def calibration_set_names(n_pairs: int, scene: bool) -> list[str]:
     return names + ["truth.json"]
 
 
-def write_calibration_set(out_dir, n_pairs: int = 20, seed: int = 0, scene: bool = False,
-                          config: RigConfig | None = None, progress=None,
-                          what: str | None = None) -> Path:
+def _pair_files(out: Path, lname: str, rname: str, left: np.ndarray, right: np.ndarray
+                ) -> Iterator[FileItem]:
+    """A rendered pair as write_many_atomic takes it: (path, encoded bytes, None) twice."""
+    yield out / lname, encode_image(out / lname, left), None
+    yield out / rname, encode_image(out / rname, right), None
+
+
+def _board_pairs(rig: SimRig, out: Path, poses: list[BoardPose], rng: np.random.Generator,
+                 hand: np.random.Generator, progress: Progress | None, total: int
+                 ) -> Generator[FileItem, None, list[dict[str, Any]]]:
+    """The board pairs' files, rendered one pair at a time; returns their truth.json entries.
+    With the rig's time offset the right camera sees the board moved by a hand (`hand`)."""
+    offset = float(rig.config.time_offset_s)
+    pairs: list[dict[str, Any]] = []
+    for n, pose in enumerate(poses, start=1):
+        lname, rname = f"chessboard-L{n}.png", f"chessboard-R{n}.png"
+        entry: dict[str, Any] = {"n": n, "left": lname, "right": rname, **pose.to_json()}
+        pose_right = pose
+        if offset:
+            # two webcams that are not synchronised: the right one grabs `offset` later,
+            # and the board, held by hand, has moved by then
+            pose_right = pose.moved(hand.normal(0.0, HAND_SPEED_MM_S, 3),
+                                    hand.normal(0.0, HAND_SPIN_RAD_S, 3), offset)
+            entry["right_camera_board"] = pose_right.to_json()
+        yield from _pair_files(out, lname, rname,
+                               *rig.render_board_pair(pose, rng, pose_right=pose_right))
+        pairs.append(entry)
+        if progress:
+            progress(n, total)
+    return pairs
+
+
+def _scene_pairs(rig: SimRig, out: Path, scenes: list[Scene], rng: np.random.Generator,
+                 progress: Progress | None, done_before: int, total: int
+                 ) -> Generator[FileItem, None, list[dict[str, Any]]]:
+    """The scene pairs' files under SCENE_FOLDER, after `done_before` board pairs (`progress`
+    counts on from them); returns their truth.json entries."""
+    entries: list[dict[str, Any]] = []
+    for k, sc in enumerate(scenes, start=1):
+        lname, rname = f"{SCENE_FOLDER}/scene-L{k}.png", f"{SCENE_FOLDER}/scene-R{k}.png"
+        yield from _pair_files(out, lname, rname, *rig.render_scene(sc, rng))
+        entry: dict[str, Any] = {"name": sc.name, "left": lname, "right": rname}
+        if len(sc.objects) == 1:
+            entry["distance_mm"] = float(sc.objects[0].center[2])
+        else:
+            entry["objects"] = [o.to_json() for o in sc.objects]
+        entries.append(entry)
+        if progress:
+            progress(done_before + k, total)
+    return entries
+
+
+def write_calibration_set(out_dir: str | os.PathLike[str], n_pairs: int = 20, seed: int = 0,
+                          scene: bool = False, config: RigConfig | None = None,
+                          progress: Progress | None = None, what: str | None = None) -> Path:
     """Write a calibration set named as a capture session names it, plus truth.json; return the
     folder.
 
@@ -62,40 +120,10 @@ def write_calibration_set(out_dir, n_pairs: int = 20, seed: int = 0, scene: bool
     if scene:
         (out / SCENE_FOLDER).mkdir(exist_ok=True)
 
-    def pair_files(lname: str, rname: str, left, right):
-        """A rendered pair as write_many_atomic takes it: (path, encoded bytes, None) twice."""
-        yield out / lname, encode_image(out / lname, left), None
-        yield out / rname, encode_image(out / rname, right), None
-
-    def files():  # rendered one pair at a time, as write_many_atomic takes them
-        pairs = []
-        for n, pose in enumerate(poses, start=1):
-            lname, rname = f"chessboard-L{n}.png", f"chessboard-R{n}.png"
-            entry = {"n": n, "left": lname, "right": rname, **pose.to_json()}
-            pose_right = pose
-            if offset:
-                # two webcams that are not synchronised: the right one grabs `offset` later,
-                # and the board, held by hand, has moved by then
-                pose_right = pose.moved(hand.normal(0.0, HAND_SPEED_MM_S, 3),
-                                        hand.normal(0.0, HAND_SPIN_RAD_S, 3), offset)
-                entry["right_camera_board"] = pose_right.to_json()
-            yield from pair_files(lname, rname,
-                                  *rig.render_board_pair(pose, rng, pose_right=pose_right))
-            pairs.append(entry)
-            if progress:
-                progress(n, total)
-        scene_entries = []
-        for k, sc in enumerate(scenes, start=1):
-            lname, rname = f"{SCENE_FOLDER}/scene-L{k}.png", f"{SCENE_FOLDER}/scene-R{k}.png"
-            yield from pair_files(lname, rname, *rig.render_scene(sc, rng))
-            entry = {"name": sc.name, "left": lname, "right": rname}
-            if len(sc.objects) == 1:
-                entry["distance_mm"] = float(sc.objects[0].center[2])
-            else:
-                entry["objects"] = [o.to_json() for o in sc.objects]
-            scene_entries.append(entry)
-            if progress:
-                progress(len(poses) + k, total)
+    def files() -> Iterator[FileItem]:  # rendered one pair at a time, as write_many_atomic
+        pairs = yield from _board_pairs(rig, out, poses, rng, hand, progress, total)
+        scene_entries = yield from _scene_pairs(rig, out, scenes, rng, progress,
+                                                len(poses), total)
         data = rig.truth.to_json()
         data.update({"seed": int(seed), "generator": "stereo_gui.sources.sim",
                      "noise_sigma": rig.config.noise_sigma, "gain_right": rig.config.gain_right,
