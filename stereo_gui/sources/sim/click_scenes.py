@@ -24,6 +24,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
+from collections.abc import Generator, Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -36,6 +37,7 @@ from stereo_gui.core.matching import MatcherParams, StereoPipeline
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.atomic import encode_image, write_many_atomic
 from stereo_gui.files.scenes import read_pfm
+from stereo_gui.sources.sim.calibration_set import FileItem
 from stereo_gui.sources.sim.camera import RigConfig
 from stereo_gui.sources.sim.conditions import CONDITIONS
 from stereo_gui.sources.sim.rig import SimRig
@@ -195,6 +197,38 @@ def _verify_png(path: Path) -> None:
         raise ValueError("the PNG does not decode")
 
 
+_LIST_HEADER = ("# stereo-gui simulate --click-scenes: rectified pairs of the simulated rig with "
+                "their true disparity",
+                "# name\tleft\tright\tground_truth\tdivide_by\tcalib\tmask")
+
+
+def _scene_files(out: Path, rig: SimRig, cs: ClickScene,
+                 truths: dict[bytes, tuple[np.ndarray, np.ndarray]]
+                 ) -> Generator[FileItem, None, str]:
+    """One click scene's files (rectified pair, true disparity, mask) as write_many_atomic
+    takes them; returns its line of the list. `truths` keeps the true disparities by geometry."""
+    calib = rig.true_calibration(alpha=0.0)
+    left, right = rig.render_scene(cs.scene, np.random.default_rng(cs.noise_seed))
+    # the pipeline's own maps and interpolation (a rectified: calibration skips them)
+    with StereoPipeline(calib, MatcherParams()) as pipe:
+        rl, rr = pipe.rectify(left, right)
+    # the truth is the geometry's alone: shared by the conditions and the seeds
+    key = _geometry_key(calib, cs.scene)
+    if key not in truths:
+        truths[key] = true_disparity(rig, calib, cs.scene)
+    disparity, seen = truths[key]
+    stem = f"{CLICK_FOLDER}/{cs.name}"
+    names = [stem + s for s in CLICK_SUFFIXES]
+    for name, img in ((names[0], rl), (names[1], rr),
+                      (names[3], np.where(seen, 255, 0).astype(np.uint8))):
+        yield out / name, encode_image(out / name, img), _verify_png
+    yield out / names[2], encode_pfm(disparity), _verify_pfm(disparity.shape)
+    log.debug("click scene %s: %d of %d pixels known, %d seen by both", cs.name,
+              int(np.isfinite(disparity).sum()), disparity.size, int(seen.sum()))
+    return "\t".join([cs.name, names[0], names[1], names[2], "1", rectified_spec(calib),
+                      names[3]])
+
+
 def write_click_scenes(out_dir, seeds=(0, 1, 2), config: RigConfig | None = None,
                        walls=CLICK_WALLS_MM, conditions=CLICK_CONDITIONS, demo: bool = True,
                        progress=None, what: str | None = None) -> list[ClickScene]:
@@ -220,11 +254,8 @@ def write_click_scenes(out_dir, seeds=(0, 1, 2), config: RigConfig | None = None
     written: list[ClickScene] = []
     truths: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
 
-    def files():
-        lines = ["# stereo-gui simulate --click-scenes: rectified pairs of the simulated rig with "
-                 "their true disparity",
-                 "# name\tleft\tright\tground_truth\tdivide_by\tcalib\tmask"]
-        done = 0
+    def files() -> Iterator[FileItem]:
+        lines = list(_LIST_HEADER)
         for seed, plan in plans:
             rigs: dict[str, SimRig] = {}
             for cs in plan:
@@ -232,30 +263,10 @@ def write_click_scenes(out_dir, seeds=(0, 1, 2), config: RigConfig | None = None
                 if rig is None:
                     rig = rigs[cs.condition] = SimRig(CONDITIONS[cs.condition].rig_config(base),
                                                       seed=seed)
-                calib = rig.true_calibration(alpha=0.0)
-                left, right = rig.render_scene(cs.scene, np.random.default_rng(cs.noise_seed))
-                # the pipeline's own maps and interpolation (a rectified: calibration skips them)
-                with StereoPipeline(calib, MatcherParams()) as pipe:
-                    rl, rr = pipe.rectify(left, right)
-                # the truth is the geometry's alone: shared by the conditions and the seeds
-                key = _geometry_key(calib, cs.scene)
-                if key not in truths:
-                    truths[key] = true_disparity(rig, calib, cs.scene)
-                disparity, seen = truths[key]
-                stem = f"{CLICK_FOLDER}/{cs.name}"
-                names = [stem + s for s in CLICK_SUFFIXES]
-                for name, img in ((names[0], rl), (names[1], rr),
-                                  (names[3], np.where(seen, 255, 0).astype(np.uint8))):
-                    yield out / name, encode_image(out / name, img), _verify_png
-                yield out / names[2], encode_pfm(disparity), _verify_pfm(disparity.shape)
-                lines.append("\t".join([cs.name, names[0], names[1], names[2], "1",
-                                        rectified_spec(calib), names[3]]))
+                lines.append((yield from _scene_files(out, rig, cs, truths)))
                 written.append(cs)
-                done += 1
-                log.debug("click scene %s: %d of %d pixels known, %d seen by both", cs.name,
-                          int(np.isfinite(disparity).sum()), disparity.size, int(seen.sum()))
                 if progress:
-                    progress(done, total)
+                    progress(len(written), total)
         yield out / CLICK_LIST, ("\n".join(lines) + "\n").encode("utf-8"), None
 
     try:
