@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -187,69 +188,86 @@ class RigTruth:
     def from_json(data: dict, where: str = "rig truth") -> RigTruth:
         """The truth `to_json` wrote; InputError naming `where` and the field when a value is
         missing, of the wrong type, not finite or not what a camera can have."""
-        def bad(text: str) -> InputError:
-            return InputError(f"{where}: {text}")
-
-        def matrix(key: str, shape: tuple[int, ...]) -> np.ndarray:
-            raw = data.get(key)
-            try:
-                m = np.array(raw, np.float64)
-            except (TypeError, ValueError, OverflowError):
-                raise bad(f"{key} should be a list of numbers") from None
-            if m.size != int(np.prod(shape)) or (m.ndim != len(shape) and m.ndim != 1):
-                raise bad(f"{key} should be {'x'.join(map(str, shape))} numbers")
-            m = m.reshape(shape)
-            if not np.all(np.isfinite(m)) or np.max(np.abs(m)) > 1e7:
-                raise bad(f"{key} holds values that are not finite or absurd")
-            return m
-
         if not isinstance(data, dict):
-            raise bad("should be a JSON object")
-        size = data.get("image_size")
-        if not (isinstance(size, list) and len(size) == 2 and all(
-                isinstance(v, int) and not isinstance(v, bool) and 0 < v <= 100_000
-                for v in size)):
-            raise bad(f"image_size should be [width, height] in px, not {size!r:.60}")
-        M1, M2 = matrix("M1", (3, 3)), matrix("M2", (3, 3))
+            raise _bad(where, "should be a JSON object")
+        size = _truth_image_size(data, where)
+        M1, M2 = _truth_matrix(data, "M1", (3, 3), where), _truth_matrix(data, "M2", (3, 3), where)
         for key, M in (("M1", M1), ("M2", M2)):
             if not (M[0, 0] > 0 and M[1, 1] > 0 and np.allclose(M[2], (0, 0, 1))):
-                raise bad(f"{key} is not a camera matrix (positive focal lengths, last row 0 0 1)")
-        D = {}
-        for key in ("D1", "D2"):
-            raw = data.get(key)
-            n = len(raw) if isinstance(raw, list) else -1
-            if n not in (4, 5, 8, 12, 14):
-                raise bad(f"{key} should have 4, 5, 8, 12 or 14 coefficients")
-            D[key] = matrix(key, (n,)).reshape(1, -1)
-        R = matrix("R", (3, 3))
+                raise _bad(where, f"{key} is not a camera matrix (positive focal lengths, last "
+                           "row 0 0 1)")
+        D1, D2 = _truth_distortion(data, "D1", where), _truth_distortion(data, "D2", where)
+        R = _truth_matrix(data, "R", (3, 3), where)
         if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) <= 0:
-            raise bad("R is not a rotation")
-        T = matrix("T", (3,)).reshape(3, 1)
+            raise _bad(where, "R is not a rotation")
+        T = _truth_matrix(data, "T", (3,), where).reshape(3, 1)
         if not np.linalg.norm(T) > 0:
-            raise bad("T is zero: the cameras would be at the same place")
-        b = data.get("board")
-        if not isinstance(b, dict):
-            raise bad("board should be an object with cols, rows, square_mm")
-        cols, rows, sq = b.get("cols"), b.get("rows"), b.get("square_mm")
-        if not (isinstance(cols, int) and isinstance(rows, int) and not isinstance(cols, bool)
-                and not isinstance(rows, bool) and isinstance(sq, int | float)
-                and not isinstance(sq, bool)):
-            raise bad("board cols and rows should be whole numbers and square_mm a number")
-        target = b.get("target", "chessboard")
-        marker = b.get("marker_mm", 0.0)
-        dictionary = b.get("dictionary", BoardSpec().dictionary)
-        if not (isinstance(target, str) and isinstance(dictionary, str)
-                and isinstance(marker, int | float) and not isinstance(marker, bool)):
-            raise bad("board target and dictionary should be text and marker_mm a number")
-        try:
-            board = BoardSpec(cols, rows, float(sq), target, float(marker), dictionary)
-        except InputError as exc:
-            raise bad(f"board: {exc}") from None
+            raise _bad(where, "T is zero: the cameras would be at the same place")
+        board = _truth_board(data.get("board"), where)
         model = data.get("model", "pinhole")
         if model not in ("pinhole", "rational", "fisheye"):
-            raise bad(f"model should be pinhole, rational or fisheye, not {model!r:.40}")
-        return RigTruth(image_size=(size[0], size[1]), M1=M1, D1=D["D1"], M2=M2, D2=D["D2"],
-                        R=R, T=T, board=board, model=model)
+            raise _bad(where, f"model should be pinhole, rational or fisheye, not {model!r:.40}")
+        return RigTruth(image_size=size, M1=M1, D1=D1, M2=M2, D2=D2, R=R, T=T, board=board,
+                        model=model)
+
+
+# ---- reading truth.json: each part checked, InputError naming the file and the field ------------
+def _bad(where: str, text: str) -> InputError:
+    return InputError(f"{where}: {text}")
+
+
+def _truth_matrix(data: dict[str, Any], key: str, shape: tuple[int, ...], where: str
+                  ) -> np.ndarray:
+    """data[key] as a finite float64 array of `shape` (given as nested or flat lists)."""
+    raw = data.get(key)
+    try:
+        m = np.array(raw, np.float64)
+    except (TypeError, ValueError, OverflowError):
+        raise _bad(where, f"{key} should be a list of numbers") from None
+    if m.size != int(np.prod(shape)) or (m.ndim != len(shape) and m.ndim != 1):
+        raise _bad(where, f"{key} should be {'x'.join(map(str, shape))} numbers")
+    m = m.reshape(shape)
+    if not np.all(np.isfinite(m)) or np.max(np.abs(m)) > 1e7:
+        raise _bad(where, f"{key} holds values that are not finite or absurd")
+    return m
+
+
+def _truth_image_size(data: dict[str, Any], where: str) -> tuple[int, int]:
+    size = data.get("image_size")
+    if not (isinstance(size, list) and len(size) == 2 and all(
+            isinstance(v, int) and not isinstance(v, bool) and 0 < v <= 100_000
+            for v in size)):
+        raise _bad(where, f"image_size should be [width, height] in px, not {size!r:.60}")
+    return size[0], size[1]
+
+
+def _truth_distortion(data: dict[str, Any], key: str, where: str) -> np.ndarray:
+    """A lens's distortion coefficients, 1xN (N one of OpenCV's counts)."""
+    raw = data.get(key)
+    n = len(raw) if isinstance(raw, list) else -1
+    if n not in (4, 5, 8, 12, 14):
+        raise _bad(where, f"{key} should have 4, 5, 8, 12 or 14 coefficients")
+    return _truth_matrix(data, key, (n,), where).reshape(1, -1)
+
+
+def _truth_board(b: object, where: str) -> BoardSpec:
+    if not isinstance(b, dict):
+        raise _bad(where, "board should be an object with cols, rows, square_mm")
+    cols, rows, sq = b.get("cols"), b.get("rows"), b.get("square_mm")
+    if not (isinstance(cols, int) and isinstance(rows, int) and not isinstance(cols, bool)
+            and not isinstance(rows, bool) and isinstance(sq, int | float)
+            and not isinstance(sq, bool)):
+        raise _bad(where, "board cols and rows should be whole numbers and square_mm a number")
+    target = b.get("target", "chessboard")
+    marker = b.get("marker_mm", 0.0)
+    dictionary = b.get("dictionary", BoardSpec().dictionary)
+    if not (isinstance(target, str) and isinstance(dictionary, str)
+            and isinstance(marker, int | float) and not isinstance(marker, bool)):
+        raise _bad(where, "board target and dictionary should be text and marker_mm a number")
+    try:
+        return BoardSpec(cols, rows, float(sq), target, float(marker), dictionary)
+    except InputError as exc:
+        raise _bad(where, f"board: {exc}") from None
 
 
 def load_truth(path: str | Path) -> RigTruth:
