@@ -25,6 +25,7 @@ import math
 import os
 import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -114,6 +115,71 @@ class _VideoStore:
         self._cap.release()
 
 
+_Store = _ImageStore | _VideoStore
+
+
+@dataclass(frozen=True)
+class _Frames:
+    """What a recording, folder or video opened to: its frames, its name, the recorded times
+    (None: none recorded), its frame rate, the size a recording's header says, and what
+    opening tolerated."""
+
+    store: _Store
+    name: str
+    times: list[tuple[float, float]] | None = None
+    default_fps: float = PLAIN_FOLDER_FPS
+    recorded_size: tuple[int, int] | None = None
+    warnings: tuple[str, ...] = ()
+
+
+def _open_frames(path: Path) -> _Frames:
+    """Open a recording folder, a plain folder of pairs or a side-by-side video file."""
+    if path.is_dir():
+        if is_recording(path):
+            return _open_recording(path)
+        found = discover_pairs(path)
+        return _Frames(_ImageStore([(p.left, p.right) for p in found.pairs]),
+                       f"Pairs in {path.name}")
+    if path.is_file():
+        video = _VideoStore(path)
+        return _Frames(video, f"Video {path.name}",
+                       default_fps=video.fps if video.fps > 0 else 30.0)
+    raise SourceError(f"{path}: no such recording, folder or video")
+
+
+def _open_recording(path: Path) -> _Frames:
+    """A recording's frames: its images, else its side-by-side video, with their times."""
+    rec = open_recording(path)
+    if not rec.frames:
+        raise SourceError(f"recording {path} holds no frames")
+    times = [(f.t_left, f.t_right) for f in rec.frames]
+    store: _Store
+    if rec.has_images:
+        store = _ImageStore([(f.left, f.right) for f in rec.frames])
+    elif rec.video is not None:
+        store = _VideoStore(rec.video, limit=len(rec.frames))
+        times = times[: store.count]
+    else:
+        raise SourceError(f"recording {path} holds neither images nor a video")
+    return _Frames(store, f"Playback of {path.name}", times, rec.fps, rec.size,
+                   tuple(rec.warnings))
+
+
+def _pacing(times: list[tuple[float, float]], fixed_rate: bool, fps: float
+            ) -> tuple[np.ndarray, float]:
+    """(the schedule paced playback follows, s from the first frame; the typical interval
+    between frames, s): the recorded times of the left frames when they can be followed
+    (no `fixed_rate`, finite, in order), else a frame every 1/`fps` s."""
+    n = len(times)
+    rec_t = np.array([t[0] for t in times], float)
+    if not fixed_rate and n > 1 and np.all(np.isfinite(rec_t)) and np.all(np.diff(rec_t) >= 0):
+        schedule = rec_t - rec_t[0]
+    else:
+        schedule = np.arange(n, dtype=float) / fps
+    interval = (float(np.median(np.diff(schedule))) if n > 1 else 1.0 / fps) or 1.0 / fps
+    return schedule, interval
+
+
 # ---- the source -----------------------------------------------------------------------------
 class PlaybackSource(FrameSource):
     """A recording, a folder of pairs or a side-by-side video as a FrameSource (see module doc).
@@ -131,55 +197,23 @@ class PlaybackSource(FrameSource):
         self.path = Path(path)
         self.paced = bool(paced)
         self.at_end = at_end
-        times: list[tuple[float, float]] | None = None
-        default_fps = PLAIN_FOLDER_FPS
-        recorded_size: tuple[int, int] | None = None  # what a recording's header says
-        self.warnings: tuple[str, ...] = ()  # what opening tolerated (a torn last frame, ...)
-        if self.path.is_dir():
-            if is_recording(self.path):
-                rec = open_recording(self.path)
-                self.warnings = tuple(rec.warnings)
-                if not rec.frames:
-                    raise SourceError(f"recording {self.path} holds no frames")
-                times = [(f.t_left, f.t_right) for f in rec.frames]
-                default_fps = rec.fps
-                recorded_size = rec.size
-                if rec.has_images:
-                    self._store = _ImageStore([(f.left, f.right) for f in rec.frames])
-                elif rec.video is not None:
-                    self._store = _VideoStore(rec.video, limit=len(rec.frames))
-                    times = times[: self._store.count]
-                else:
-                    raise SourceError(f"recording {self.path} holds neither images nor a video")
-                self.name = f"Playback of {self.path.name}"
-            else:
-                found = discover_pairs(self.path)
-                self._store = _ImageStore([(p.left, p.right) for p in found.pairs])
-                self.name = f"Pairs in {self.path.name}"
-        elif self.path.is_file():
-            self._store = _VideoStore(self.path)
-            default_fps = self._store.fps if self._store.fps > 0 else 30.0
-            self.name = f"Video {self.path.name}"
-        else:
-            raise SourceError(f"{self.path}: no such recording, folder or video")
+        opened = _open_frames(self.path)
+        self._store: _Store = opened.store
+        self.name = opened.name
+        self.warnings: tuple[str, ...] = opened.warnings  # what opening tolerated (a torn frame)
         if self._store.count == 0:
             self._store.close()
             raise SourceError(f"{self.path} holds no frames")
-        if recorded_size is not None and recorded_size != (0, 0):
-            self._check_recorded_size(recorded_size)
-        self.nominal_fps = float(fps) if fps is not None else float(default_fps)
+        if opened.recorded_size is not None and opened.recorded_size != (0, 0):
+            self._check_recorded_size(opened.recorded_size)
+        self.nominal_fps = float(fps) if fps is not None else float(opened.default_fps)
         n = self._store.count
+        times = opened.times
         if times is None:
             times = [(i / self.nominal_fps, i / self.nominal_fps) for i in range(n)]
         self._times = times  # what StereoFrame carries: the recorded capture times, s
         # the schedule (s from the first frame) that pacing follows
-        rec_t = np.array([t[0] for t in times], float)
-        if fps is None and n > 1 and np.all(np.isfinite(rec_t)) and np.all(np.diff(rec_t) >= 0):
-            self._schedule = rec_t - rec_t[0]
-        else:
-            self._schedule = np.arange(n, dtype=float) / self.nominal_fps
-        self._frame_interval = (float(np.median(np.diff(self._schedule))) if n > 1
-                                else 1.0 / self.nominal_fps) or 1.0 / self.nominal_fps
+        self._schedule, self._frame_interval = _pacing(times, fps is not None, self.nominal_fps)
 
         self._cond = threading.Condition()
         self._store_lock = threading.Lock()
