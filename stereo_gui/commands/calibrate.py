@@ -12,7 +12,7 @@ import json
 import math
 import sys
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from stereo_gui.commands import options
@@ -40,7 +40,13 @@ from stereo_gui.core.shading import shading_words, with_measured_shading
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.any_calibration import load_any_calibration
 from stereo_gui.files.calibration_file import export_ros, save_calibration
-from stereo_gui.files.pairs import check_same_size, discover_pairs, load_image
+from stereo_gui.files.pairs import (
+    ImagePair,
+    PairDiscovery,
+    check_same_size,
+    discover_pairs,
+    load_image,
+)
 from stereo_gui.files.session import MANIFEST, CaptureSession
 
 
@@ -258,63 +264,19 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     board = parse_board(args.board or ("7x5" if args.target == "charuco" else "9x6"),
                         args.square_mm, args.target, args.marker_mm, args.dict)
-    output = Path(args.output)
-    if not output.parent.is_dir() and str(output.parent):
-        raise InputError(f"cannot write {output}: folder {output.parent} does not exist")
-    if args.ros_dir is not None and not args.ros_dir:
-        raise InputError("--ros-dir is empty: give the folder for left.yaml and right.yaml")
-    ros_dir = Path(args.ros_dir) if args.ros_dir else None
-    if ros_dir is not None and not ros_dir.is_dir():
-        raise InputError(f"--ros-dir {ros_dir} is not an existing folder")
-
+    output, ros_dir = _output_paths(args)
     found = discover_pairs(args.folder)
     _check_outputs(output, ros_dir, found, Path(args.folder))
     if found.unpaired:
         sys.stderr.write(f"stereo-gui: warning: {found.warning()}\n")
-    session = _session_in(Path(args.folder))
-    excluded = {p.name for p in session.pairs if p.excluded} if session else set()
-    pairs = [p for p in found.pairs if p.name not in excluded]
-    if found.pairs and not pairs:
-        raise InputError(f"every pair in {args.folder} is excluded in its capture session")
-    swap = bool(args.swap) or bool(session and session.swapped)
-    sides = [(p.right, p.left) if swap else (p.left, p.right) for p in pairs]
-    items = [PairInput(p.name, (lambda f=a: load_image(f)), (lambda f=b: load_image(f)),
-                       a.name, b.name) for p, (a, b) in zip(pairs, sides)]
+    chosen = _chosen_pairs(args.folder, found, bool(args.swap))
     progress = _StderrProgress(force_lines=args.progress)
     try:
-        detections = detect_pairs(items, board, method=args.detector,
-                                  progress=lambda d, t, _: progress(
-                                      d, t, f"detecting {TARGET_NAMES[board.target]}s"))
-        size = check_same_size([(d.left_file, d.image_size) for d in detections])
-        if args.method == "hartley" and not any(d.found for d in detections):
-            # no board anywhere: Hartley can still work from features matched in the scene
-            sys.stderr.write("stereo-gui: warning: no chessboard found; rectifying from "
-                             "matched scene features (Hartley, no metric scale, no undistortion)\n")
-            result = calibrate_hartley_features(
-                [(p.name, load_image(a), load_image(b)) for p, (a, b) in zip(pairs, sides)],
-                progress=lambda d, t, text: progress(d, t, "matching features"))
-        else:
-            result = calibrate_stereo(
-                detections, board, size, alpha=args.alpha, method=args.method,
-                # what is being done, in the calibration's own words ("calibrating the left
-                # camera", "... folds over: calibrating again with k3 held at zero", ...)
-                progress=lambda d, t, text: progress(d, t, text),
-                min_pairs=args.min_pairs, reject_outliers=not args.keep_outliers,
-                model=args.model, fix_k3=args.fix_k3,
-                origin=f"{args.folder}" + (" with left and right exchanged" if swap else ""))
-            if swap:
-                result = replace(result, calibration=result.calibration.with_updates(
-                    swapped_inputs=True))
-            result = replace(result, calibration=with_measured_shading(
-                result.calibration, detections, items, board))
-            controls = session.camera_controls if session is not None else None
-            if controls is not None:  # the cameras' focus and exposure go with the calibration
-                result = replace(result, calibration=result.calibration.with_updates(
-                    camera_controls=controls.swapped() if swap else controls))
+        result = _calibrate_pairs(args, board, chosen, progress)
     finally:
         progress.clear()
     skipped = [RejectedPair(p.name, "excluded in the capture session")
-               for p in found.pairs if p.name in excluded]
+               for p in found.pairs if p.name in chosen.excluded]
     if skipped:
         r = result.report
         result = replace(result, report=replace(r, pairs_found=r.pairs_found + len(skipped),
@@ -331,3 +293,78 @@ def run(args: argparse.Namespace) -> int:
             sys.stdout.write(f"wrote {ros_dir / 'left.yaml'} and {ros_dir / 'right.yaml'} "
                              "(ROS camera_info, baseline in metres)\n")
     return 0
+
+
+def _output_paths(args: argparse.Namespace) -> tuple[Path, Path | None]:
+    """(the calibration file, the folder for the ROS files or None), checked before any work."""
+    output = Path(args.output)
+    if not output.parent.is_dir() and str(output.parent):
+        raise InputError(f"cannot write {output}: folder {output.parent} does not exist")
+    if args.ros_dir is not None and not args.ros_dir:
+        raise InputError("--ros-dir is empty: give the folder for left.yaml and right.yaml")
+    ros_dir = Path(args.ros_dir) if args.ros_dir else None
+    if ros_dir is not None and not ros_dir.is_dir():
+        raise InputError(f"--ros-dir {ros_dir} is not an existing folder")
+    return output, ros_dir
+
+
+@dataclass(frozen=True)
+class _ChosenPairs:
+    """The pairs to calibrate from: those of the folder its capture session does not exclude,
+    each as (left file, right file) after the exchange the user or the session asks for."""
+
+    session: CaptureSession | None
+    excluded: set[str]
+    pairs: list[ImagePair]
+    sides: list[tuple[Path, Path]]
+    swap: bool
+
+
+def _chosen_pairs(folder: str, found: PairDiscovery, swap_asked: bool) -> _ChosenPairs:
+    session = _session_in(Path(folder))
+    excluded = {p.name for p in session.pairs if p.excluded} if session else set()
+    pairs = [p for p in found.pairs if p.name not in excluded]
+    if found.pairs and not pairs:
+        raise InputError(f"every pair in {folder} is excluded in its capture session")
+    swap = swap_asked or bool(session and session.swapped)
+    sides = [(p.right, p.left) if swap else (p.left, p.right) for p in pairs]
+    return _ChosenPairs(session, excluded, pairs, sides, swap)
+
+
+def _calibrate_pairs(args: argparse.Namespace, board: BoardSpec, chosen: _ChosenPairs,
+                     progress: _StderrProgress) -> CalibrationResult:
+    """Find the target in the chosen pairs and calibrate from them (with no target anywhere
+    and --method hartley, from features matched in the scene)."""
+    items = [PairInput(p.name, (lambda f=a: load_image(f)), (lambda f=b: load_image(f)),
+                       a.name, b.name) for p, (a, b) in zip(chosen.pairs, chosen.sides)]
+    detections = detect_pairs(items, board, method=args.detector,
+                              progress=lambda d, t, _: progress(
+                                  d, t, f"detecting {TARGET_NAMES[board.target]}s"))
+    size = check_same_size([(d.left_file, d.image_size) for d in detections])
+    if args.method == "hartley" and not any(d.found for d in detections):
+        # no board anywhere: Hartley can still work from features matched in the scene
+        sys.stderr.write("stereo-gui: warning: no chessboard found; rectifying from "
+                         "matched scene features (Hartley, no metric scale, no undistortion)\n")
+        images = [(p.name, load_image(a), load_image(b))
+                  for p, (a, b) in zip(chosen.pairs, chosen.sides)]
+        return calibrate_hartley_features(
+            images, progress=lambda d, t, text: progress(d, t, "matching features"))
+    swap = chosen.swap
+    result = calibrate_stereo(
+        detections, board, size, alpha=args.alpha, method=args.method,
+        # what is being done, in the calibration's own words ("calibrating the left
+        # camera", "... folds over: calibrating again with k3 held at zero", ...)
+        progress=lambda d, t, text: progress(d, t, text),
+        min_pairs=args.min_pairs, reject_outliers=not args.keep_outliers,
+        model=args.model, fix_k3=args.fix_k3,
+        origin=f"{args.folder}" + (" with left and right exchanged" if swap else ""))
+    if swap:
+        result = replace(result, calibration=result.calibration.with_updates(
+            swapped_inputs=True))
+    result = replace(result, calibration=with_measured_shading(
+        result.calibration, detections, items, board))
+    controls = chosen.session.camera_controls if chosen.session is not None else None
+    if controls is not None:  # the cameras' focus and exposure go with the calibration
+        result = replace(result, calibration=result.calibration.with_updates(
+            camera_controls=controls.swapped() if swap else controls))
+    return result
