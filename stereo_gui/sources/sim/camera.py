@@ -13,6 +13,7 @@ import numpy as np
 from stereo_gui.core import lens
 from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.errors import InputError
+from stereo_gui.core.lens import LensModel
 from stereo_gui.files.readers import read_json_object
 
 TRUTH_FORMAT_VERSION = 1
@@ -25,7 +26,7 @@ class CameraTruth:
 
     M: np.ndarray
     D: np.ndarray
-    model: str = "pinhole"
+    model: LensModel = "pinhole"
 
     def __post_init__(self) -> None:
         lens.check_model(self.model)
@@ -103,7 +104,7 @@ class RigConfig:
     supersample: int = 3  # samples per pixel along each axis (anti-aliasing)
 
     @property
-    def model(self) -> str:
+    def model(self) -> LensModel:
         """The lens model of both cameras."""
         return self.left.model
 
@@ -120,7 +121,7 @@ class RigConfig:
             raise InputError(f"black level must be from -255 to 255, not {self.black_right}")
 
     @staticmethod
-    def fisheye(**changes) -> RigConfig:
+    def fisheye(**changes: Any) -> RigConfig:
         """A rig of two wide-angle (fisheye) webcams, 110 mm apart."""
         return RigConfig(left=_fisheye_left(), right=_fisheye_right(), **changes)
 
@@ -160,7 +161,7 @@ class RigTruth:
     R: np.ndarray  # R_right_left
     T: np.ndarray  # T_right_left, 3x1, mm
     board: BoardSpec
-    model: str = "pinhole"  # lens model of both cameras (core.lens)
+    model: LensModel = "pinhole"  # lens model of both cameras (core.lens)
 
     @property
     def baseline_mm(self) -> float:
@@ -171,7 +172,7 @@ class RigTruth:
         rvec, _ = cv2.Rodrigues(self.R)
         return float(np.degrees(np.linalg.norm(rvec)))
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {
             "format_version": TRUTH_FORMAT_VERSION,
             "image_size": [int(self.image_size[0]), int(self.image_size[1])],
@@ -185,7 +186,7 @@ class RigTruth:
         }
 
     @staticmethod
-    def from_json(data: dict, where: str = "rig truth") -> RigTruth:
+    def from_json(data: dict[str, Any], where: str = "rig truth") -> RigTruth:
         """The truth `to_json` wrote; InputError naming `where` and the field when a value is
         missing, of the wrong type, not finite or not what a camera can have."""
         if not isinstance(data, dict):

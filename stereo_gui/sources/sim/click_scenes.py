@@ -24,7 +24,8 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
-from collections.abc import Generator, Iterator
+import os
+from collections.abc import Generator, Iterable, Iterator, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -35,9 +36,9 @@ from stereo_gui.core.errors import InputError
 from stereo_gui.core.lens import rectify_map
 from stereo_gui.core.matching import MatcherParams, StereoPipeline
 from stereo_gui.core.stereo_calibration import StereoCalibration
-from stereo_gui.files.atomic import encode_image, write_many_atomic
+from stereo_gui.files.atomic import Verify, encode_image, write_many_atomic
 from stereo_gui.files.scenes import read_pfm
-from stereo_gui.sources.sim.calibration_set import FileItem
+from stereo_gui.sources.sim.calibration_set import FileItem, Progress
 from stereo_gui.sources.sim.camera import RigConfig
 from stereo_gui.sources.sim.conditions import CONDITIONS
 from stereo_gui.sources.sim.rig import SimRig
@@ -65,8 +66,9 @@ class ClickScene:
     distance_mm: float | None  # a wall's distance; None for the demo scene
 
 
-def click_scene_plan(seed: int, walls=CLICK_WALLS_MM, conditions=CLICK_CONDITIONS,
-                     demo: bool = True) -> list[ClickScene]:
+def click_scene_plan(seed: int, walls: Sequence[float] = CLICK_WALLS_MM,
+                     conditions: Sequence[str] = CLICK_CONDITIONS, demo: bool = True
+                     ) -> list[ClickScene]:
     """The scenes of one seed: each wall under each condition, then the demo scene under each
     condition. The textures and the noise follow the seed (as bench --accuracy renders its
     walls: texture seed + distance, noise seed * 7 + distance)."""
@@ -86,8 +88,9 @@ def click_scene_plan(seed: int, walls=CLICK_WALLS_MM, conditions=CLICK_CONDITION
     return out
 
 
-def click_scene_names(seeds, walls=CLICK_WALLS_MM, conditions=CLICK_CONDITIONS,
-                      demo: bool = True) -> list[str]:
+def click_scene_names(seeds: Iterable[int], walls: Sequence[float] = CLICK_WALLS_MM,
+                      conditions: Sequence[str] = CLICK_CONDITIONS, demo: bool = True
+                      ) -> list[str]:
     """The files (relative to OUT_DIR) write_click_scenes writes for these arguments."""
     names = [f"{CLICK_FOLDER}/{s.name}{suffix}" for seed in seeds
              for s in click_scene_plan(seed, walls, conditions, demo) for suffix in CLICK_SUFFIXES]
@@ -185,7 +188,7 @@ def encode_pfm(image: np.ndarray) -> bytes:
     return header + np.ascontiguousarray(a[::-1]).astype("<f4").tobytes()
 
 
-def _verify_pfm(shape: tuple[int, int]):
+def _verify_pfm(shape: tuple[int, ...]) -> Verify:
     def verify(path: Path) -> None:
         if read_pfm(path).shape != shape:
             raise ValueError("the PFM reads back at another size")
@@ -229,9 +232,11 @@ def _scene_files(out: Path, rig: SimRig, cs: ClickScene,
                       names[3]])
 
 
-def write_click_scenes(out_dir, seeds=(0, 1, 2), config: RigConfig | None = None,
-                       walls=CLICK_WALLS_MM, conditions=CLICK_CONDITIONS, demo: bool = True,
-                       progress=None, what: str | None = None) -> list[ClickScene]:
+def write_click_scenes(out_dir: str | os.PathLike[str], seeds: Iterable[int] = (0, 1, 2),
+                       config: RigConfig | None = None, walls: Sequence[float] = CLICK_WALLS_MM,
+                       conditions: Sequence[str] = CLICK_CONDITIONS, demo: bool = True,
+                       progress: Progress | None = None, what: str | None = None
+                       ) -> list[ClickScene]:
     """Write the click scenes of every seed into OUT_DIR/CLICK_FOLDER and their list
     OUT_DIR/CLICK_LIST; return the scenes. `progress(done, total)` after each scene.
 

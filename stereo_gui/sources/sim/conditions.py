@@ -8,6 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 from stereo_gui.core.errors import InputError
+from stereo_gui.sources.sim.camera import RigConfig
 
 
 @dataclass(frozen=True)
@@ -33,15 +34,13 @@ class Condition:
         return bool(self.gain_right is not None or self.black_right or self.vignetting
                     or self.jpeg_quality is not None)
 
-    def rig_config(self, base):
+    def rig_config(self, base: RigConfig) -> RigConfig:
         """`base` (a RigConfig) with this condition's sensor and webcam effects."""
-        changes = {"black_right": self.black_right, "vignetting": self.vignetting,
-                   "jpeg_quality": self.jpeg_quality}
-        if self.noise_sigma is not None:
-            changes["noise_sigma"] = self.noise_sigma
-        if self.gain_right is not None:
-            changes["gain_right"] = self.gain_right
-        return replace(base, **changes)
+        return replace(
+            base, black_right=self.black_right, vignetting=self.vignetting,
+            jpeg_quality=self.jpeg_quality,
+            noise_sigma=base.noise_sigma if self.noise_sigma is None else self.noise_sigma,
+            gain_right=base.gain_right if self.gain_right is None else self.gain_right)
 
 
 # a painted wall: a 9x9 window's grey-level spread about 2.5 with the sensor noise of 1.5

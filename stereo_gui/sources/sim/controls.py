@@ -77,11 +77,11 @@ class SimCameraDevice:
         v = self._v[switch]
         return v in (0.0, 3.0) if switch == cv2.CAP_PROP_AUTO_EXPOSURE else v == 1.0
 
-    def get(self, prop) -> float:
+    def get(self, prop: int) -> float:
         with self._lock:
             return float(self._v.get(int(prop), -1.0))
 
-    def set(self, prop, value) -> bool:
+    def set(self, prop: int, value: float) -> bool:
         prop, value = int(prop), float(value)
         with self._lock:
             if prop not in self._v or not math.isfinite(value):

@@ -59,6 +59,7 @@ class SimSource(FrameSource):
         self.paced = bool(paced)
         self.name = "Simulated rig"
         self.condition = None
+        self.scene: Scene | None  # what the rig shows besides the board (None: the board alone)
         if mode == "wall":
             lo, hi = self.WALL_MM
             if not lo <= wall_mm <= hi:

@@ -14,7 +14,8 @@ from stereo_gui.core.lens import project_points, undistort_points
 from stereo_gui.sources.sim.camera import CameraTruth
 
 
-def _distort(x: np.ndarray, y: np.ndarray, D: np.ndarray):
+def _distort(x: np.ndarray, y: np.ndarray, D: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """OpenCV's distortion (k1 k2 p1 p2 k3) of normalised coordinates, with its Jacobian."""
     k1, k2, p1, p2, k3 = (float(v) for v in D.reshape(-1)[:5])
     r2 = x * x + y * y

@@ -10,13 +10,17 @@ from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
+from numpy.typing import ArrayLike
 
 from stereo_gui.core import detect
+from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.lens import project_points, stereo_rectify
 from stereo_gui.core.shading import LensShading, PairShading
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.sources.sim.camera import RigConfig, RigTruth
+from stereo_gui.sources.sim.conditions import Condition
+from stereo_gui.sources.sim.controls import CameraLook
 from stereo_gui.sources.sim.rays import ray_map
 from stereo_gui.sources.sim.scene import BoardPose, Scene, SceneObject
 from stereo_gui.sources.sim.textures import _board_texture, _texture
@@ -66,7 +70,7 @@ class SimFrameTruth:
         return R1 @ (min(hits) * ray) if hits else None
 
 
-def _board_hit(pose: BoardPose, board, ray: np.ndarray) -> float | None:
+def _board_hit(pose: BoardPose, board: BoardSpec, ray: np.ndarray) -> float | None:
     """Ray parameter (mm along the unit `ray` from the left camera) of its hit with the
     printed board, or None."""
     R, t = np.asarray(pose.R, np.float64), np.asarray(pose.t, np.float64).reshape(3)
@@ -127,26 +131,28 @@ class SimRig:
         R, _ = cv2.Rodrigues(np.asarray(c.rvec_right_left, np.float64).reshape(3, 1))
         tdir = np.asarray(c.t_direction, np.float64).reshape(3)
         T = (tdir / np.linalg.norm(tdir) * c.baseline_mm).reshape(3, 1)
-        self.truth = RigTruth(tuple(c.image_size), c.left.M.copy(), c.left.D.copy(),
+        self.truth = RigTruth((c.image_size[0], c.image_size[1]), c.left.M.copy(), c.left.D.copy(),
                               c.right.M.copy(), c.right.D.copy(), R, T, c.board, c.model)
         # rays beyond this tangent of the off-axis angle are not trusted: the pinhole models'
         # polynomials fold back beyond about 50 degrees; the fisheye model holds further out
         self._max_tan = 0.9 if c.model != "fisheye" else 2.5
         self._rays = (ray_map(c.left, c.image_size, c.supersample),
                       ray_map(c.right, c.image_size, c.supersample))
-        self._scene_cache: dict[tuple, tuple] = {}
+        # (camera, id(scene)) -> (scene, supersampled image, depth buffer, image)
+        self._scene_cache: dict[tuple[int, int], tuple[Scene | None, np.ndarray, np.ndarray,
+                                                       np.ndarray]] = {}
         self._noise: dict[int | str, np.ndarray] = {}  # noise banks per camera, the vignette
         self._lock = threading.Lock()
         self._untouched: RigTruth | None = None  # the truth before turn_right_camera
 
-    def set_board(self, board) -> None:
+    def set_board(self, board: BoardSpec) -> None:
         """Show another target from the next frame on (the Capture tab's choice, for demos);
         the truth's board follows."""
         with self._lock:
             self.config = replace(self.config, board=board)
             self.truth = replace(self.truth, board=board)
 
-    def set_sensor(self, condition) -> None:
+    def set_sensor(self, condition: Condition) -> None:
         """Render from the next frame on with the sensor and webcam effects of `condition`
         (sim/conditions.py: noise, the right camera's gain and black level, vignetting, JPEG)."""
         with self._lock:
@@ -192,7 +198,8 @@ class SimRig:
         """Points (..., 3) in the left frame -> camera `cam` (0 left, 1 right) frame."""
         if cam == 0:
             return p
-        return p @ self.truth.R.T + self.truth.T.reshape(3)
+        moved: np.ndarray = p @ self.truth.R.T + self.truth.T.reshape(3)
+        return moved
 
     def _dir_to_camera(self, cam: int, d: np.ndarray) -> np.ndarray:
         return d if cam == 0 else d @ self.truth.R.T
@@ -246,7 +253,7 @@ class SimRig:
         for cam in (0, 1):
             if np.any(self._to_camera(cam, pts)[:, 2] < 50.0):
                 return 0.0
-            seen = np.zeros(rows * cols, bool)
+            seen: np.ndarray = np.zeros(rows * cols, bool)
             seen[self.visible_point_ids(pose, cam)] = True
             seen = seen.reshape(rows, cols)
             uv = self.project(pts, cam).reshape(rows, cols, 2)
@@ -473,7 +480,8 @@ class SimRig:
                                       where=tuple(where + 0.5 * (0.5 - where)))
 
     # ---- rendering ------------------------------------------------------------------------
-    def _plane_in_camera(self, cam: int, origin, u, v, width: float, height: float) -> _Plane:
+    def _plane_in_camera(self, cam: int, origin: ArrayLike, u: ArrayLike, v: ArrayLike,
+                         width: float, height: float) -> _Plane:
         return _Plane(self._to_camera(cam, np.asarray(origin, np.float64)),
                       self._dir_to_camera(cam, np.asarray(u, np.float64)),
                       self._dir_to_camera(cam, np.asarray(v, np.float64)), width, height)
@@ -539,10 +547,12 @@ class SimRig:
         tmap = cv2.perspectiveTransform(xy, H)
         sampled = cv2.remap(tex, tmap, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
                             borderValue=(0, 0, 0, 0))
-        mask = cv2.compare(sampled[..., 3], 127, cv2.CMP_GT)
+        # (OpenCV's stubs take no number for src2; cv2.compare does)
+        mask = cv2.compare(sampled[..., 3], 127, cv2.CMP_GT)  # type: ignore[call-overload]
         Hz = np.array([[0.0, 0.0, npo], [0.0, 0.0, 0.0], n])  # (x, y, 1) -> (depth, 0)
         z = cv2.perspectiveTransform(xy, Hz)[..., 0]
-        cv2.bitwise_and(mask, cv2.compare(z, 0.0, cv2.CMP_GT), dst=mask)
+        cv2.bitwise_and(mask, cv2.compare(z, 0.0, cv2.CMP_GT),  # type: ignore[call-overload]
+                        dst=mask)
         if zbuf is not None:
             zb = zbuf[y0 - oy:y1 - oy, x0 - ox:x1 - ox]
             cv2.bitwise_and(mask, cv2.compare(z, zb, cv2.CMP_LT), dst=mask)
@@ -559,7 +569,8 @@ class SimRig:
         origin = pose.t + pose.R @ np.array([a0, b0, 0.0])
         return _Plane(origin, pose.R[:, 0], pose.R[:, 1], a1 - a0, b1 - b0)
 
-    def _background(self, cam: int, scene: Scene | None):
+    def _background(self, cam: int, scene: Scene | None
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Supersampled image (uint8 BGR), depth buffer and averaged image of the static scene
         for one camera (cached: the scene does not move)."""
         key = (cam, id(scene))
@@ -596,7 +607,7 @@ class SimRig:
         return bank
 
     def _render_camera(self, cam: int, pose: BoardPose | None, scene: Scene | None,
-                       rng: np.random.Generator, look=None) -> np.ndarray:
+                       rng: np.random.Generator, look: CameraLook | None = None) -> np.ndarray:
         """Camera `cam`'s image of the board at `pose` (None: none) and `scene`; `look`
         (sim.controls.CameraLook) is what its controls do to the image (None: as built)."""
         s = self.config.supersample
@@ -634,10 +645,13 @@ class SimRig:
             img = cv2.convertScaleAbs(out, alpha=gain, beta=black)
         if c.jpeg_quality is not None:
             ok, data = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, int(c.jpeg_quality)])
-            img = cv2.imdecode(data, cv2.IMREAD_COLOR)
+            decoded = cv2.imdecode(data, cv2.IMREAD_COLOR)
+            if decoded is None:  # (its own JPEG: only short of memory)
+                raise RuntimeError("the simulated camera's JPEG does not decode")
+            img = decoded
         return img
 
-    def _apply_look(self, cam: int, img: np.ndarray, look) -> np.ndarray:
+    def _apply_look(self, cam: int, img: np.ndarray, look: CameraLook) -> np.ndarray:
         """The focal length scaled about the principal point and the colour tint of `look`
         (its gain and offset are applied with the sensor's)."""
         if abs(look.focal_scale - 1.0) > 1e-9:
@@ -664,11 +678,13 @@ class SimRig:
             self._noise["vignette"] = v
         return v
 
-    def _render(self, pose: BoardPose | None, scene: Scene | None, rng) -> tuple[np.ndarray, np.ndarray]:
+    def _render(self, pose: BoardPose | None, scene: Scene | None,
+                rng: np.random.Generator | None) -> tuple[np.ndarray, np.ndarray]:
         rng = rng if rng is not None else np.random.default_rng()
         return self._render_camera(0, pose, scene, rng), self._render_camera(1, pose, scene, rng)
 
-    def render_board_pair(self, pose: BoardPose, rng=None, scene: Scene | None = None,
+    def render_board_pair(self, pose: BoardPose, rng: np.random.Generator | None = None,
+                          scene: Scene | None = None,
                           pose_right: BoardPose | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Left and right BGR uint8 (h, w, 3) images of the board at `pose` (optionally in front
         of a scene); the right camera sees it at `pose_right` where that is given (a board that
@@ -685,7 +701,8 @@ class SimRig:
         rng = np.random.default_rng(self.seed * 104729 + 5 if seed is None else seed)
         return [self.render_board_pair(p, rng) for p in self.board_poses(n_pairs, seed)]
 
-    def render_scene(self, scene: Scene, rng=None) -> tuple[np.ndarray, np.ndarray]:
+    def render_scene(self, scene: Scene, rng: np.random.Generator | None = None
+                     ) -> tuple[np.ndarray, np.ndarray]:
         """Left and right BGR uint8 images of a scene."""
         return self._render(None, scene, rng)
 
@@ -693,7 +710,7 @@ class SimRig:
     def true_calibration(self, alpha: float = 0.0) -> StereoCalibration:
         """The calibration a perfect calibration would find (Bouguet rectification)."""
         t = self.truth
-        size = tuple(int(v) for v in t.image_size)
+        size = (int(t.image_size[0]), int(t.image_size[1]))
         R1, R2, P1, P2, Q = stereo_rectify(t.model, t.M1, t.D1, t.M2, t.D2, size, t.R, t.T, alpha)
         tx = t.T.reshape(3)
         Tx = np.array([[0, -tx[2], tx[1]], [tx[2], 0, -tx[0]], [-tx[1], tx[0], 0]], np.float64)
@@ -707,7 +724,7 @@ class SimRig:
                                  model=t.model, origin="the simulated rig's truth",
                                  lens_shading=self.true_shading())
 
-    def true_shading(self):
+    def true_shading(self) -> PairShading | None:
         """Both cameras' true lens shading (core.shading.PairShading), None without vignetting:
         the rig darkens both cameras' corners alike, 1 - vignetting * r^2 of the raw image,
         before each camera's gain and black level."""
@@ -728,4 +745,5 @@ class SimRig:
         t = scene.depth_along_ray(np.zeros(3), ray_left)
         if t is None:
             return None
-        return R1 @ (t * ray_left)
+        point: np.ndarray = R1 @ (t * ray_left)
+        return point

@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import cv2
 import numpy as np
+from numpy.typing import ArrayLike
 
 from stereo_gui.core.board import BoardSpec
 from stereo_gui.core.errors import InputError
@@ -30,9 +32,10 @@ class BoardPose:
     def corners_left_mm(self, board: BoardSpec) -> np.ndarray:
         """Inner corners in the left camera frame, (N, 3) float64 mm, OpenCV order."""
         obj = board.object_points_mm().astype(np.float64)
-        return obj @ self.R.T + self.t
+        corners: np.ndarray = obj @ self.R.T + self.t
+        return corners
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {"R_left_board": self.R.tolist(), "t_left_board_mm": self.t.tolist()}
 
     def moved(self, velocity_mm_s: np.ndarray, spin_rad_s: np.ndarray, seconds: float
@@ -70,7 +73,8 @@ class SceneObject:
     @property
     def normal(self) -> np.ndarray:
         n = np.cross(self.u, self.v)
-        return n / np.linalg.norm(n)
+        unit: np.ndarray = n / np.linalg.norm(n)
+        return unit
 
     @property
     def corner_origin(self) -> np.ndarray:
@@ -91,7 +95,7 @@ class SceneObject:
             return t
         return None
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {"name": self.name, "center_mm": self.center.tolist(), "u": self.u.tolist(),
                 "contrast": self.contrast,
                 "v": self.v.tolist(), "width_mm": self.width_mm, "height_mm": self.height_mm,
@@ -137,7 +141,7 @@ class Scene:
             _fronto("poster-2m", 30.0, 250.0, 2000.0, 600.0, 380.0, 14),
         ), name="demo")
 
-    def depth_along_ray(self, origin, direction) -> float | None:
+    def depth_along_ray(self, origin: ArrayLike, direction: ArrayLike) -> float | None:
         """Distance (mm, along the normalised direction) from origin to the first hit, or None."""
         o = np.asarray(origin, np.float64).reshape(3)
         d = np.asarray(direction, np.float64).reshape(3)
@@ -145,5 +149,5 @@ class Scene:
         hits = [t for t in (obj.hit(o, d) for obj in self.objects) if t is not None]
         return min(hits) if hits else None
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {"name": self.name, "objects": [o.to_json() for o in self.objects]}

@@ -9,6 +9,8 @@ import math
 import cv2
 import numpy as np
 
+from stereo_gui.core.board import BoardSpec
+
 # grey levels of the printed board (not 0/255, so that noise does not clip)
 _BLACK = 28.0
 _WHITE = 225.0
@@ -49,7 +51,7 @@ def _texture(seed: int, width_mm: float, height_mm: float, contrast: float = 1.0
 
 
 @functools.lru_cache(maxsize=8)
-def _board_texture(board) -> tuple[np.ndarray, float]:
+def _board_texture(board: BoardSpec) -> tuple[np.ndarray, float]:
     """The printed target (BGRA uint8) over its outline (BoardSpec.outline_mm), and its texel
     size in mm: texel (i, j) has its centre at outline origin + (j + 0.5, i + 0.5) * texel.
 
@@ -85,7 +87,7 @@ def _board_texture(board) -> tuple[np.ndarray, float]:
     return tex, texel
 
 
-def _circle_distance(board, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def _circle_distance(board: BoardSpec, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Distance (mm) from each (b, a) texel centre to the nearest circle centre of a grid."""
     s = float(board.square_mm)
     cols, rows = board.pattern_size
