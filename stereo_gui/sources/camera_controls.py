@@ -31,7 +31,9 @@ from __future__ import annotations
 import logging
 import math
 import sys
-from dataclasses import dataclass
+from collections.abc import Iterable
+from dataclasses import dataclass, replace
+from typing import Protocol
 
 import cv2
 
@@ -45,6 +47,15 @@ from stereo_gui.core.camera_settings import (
 )
 
 log = logging.getLogger(__name__)
+
+
+class Device(Protocol):
+    """What controls are read from and written to: a cv2.VideoCapture, or the simulated rig's
+    camera (sim/controls.py)."""
+
+    def get(self, prop: int, /) -> float: ...
+
+    def set(self, prop: int, value: float, /) -> bool: ...
 
 MISSING = -1.0  # what V4L2, DirectShow and Media Foundation read for a control a device lacks
 
@@ -181,13 +192,13 @@ class CameraState:
                 return r
         raise KeyError(name)
 
-    def value(self, name: str):
+    def value(self, name: str) -> bool | float | None:
         """What control `name` reads now (None when the camera does not report it)."""
         return self.reading(name).value
 
     def settings(self) -> CameraSettings:
-        return CameraSettings(self.backend, **{r.name: r.value for r in self.readings
-                                               if r.value is not None})
+        return CameraSettings(self.backend).with_values(
+            **{r.name: r.value for r in self.readings if r.value is not None})
 
     def freed(self, name: str) -> bool:
         """Whether value `name` is held by hand now (its automatic switch is off or missing),
@@ -216,7 +227,7 @@ class WriteResult:
         return self.outcome in ("took", "adjusted")
 
 
-def _fmt(v) -> str:
+def _fmt(v: bool | float | None) -> str:
     if isinstance(v, bool):
         return "on" if v else "off"
     if v is None:
@@ -230,7 +241,7 @@ class CameraControls:
 
     Not thread-safe: used only by the thread that reads the camera's frames."""
 
-    def __init__(self, cap, backend: int | None, side: str,
+    def __init__(self, cap: Device, backend: int | None, side: str,
                  convention: Convention | None = None) -> None:
         self.cap = cap
         self.side = side
@@ -264,18 +275,18 @@ class CameraControls:
         if spec is None:
             why = self.convention.note or f"{self.backend} offers no {LABELS[name].lower()}"
             return ControlReading(name, False, note=why)
-        base = dict(lo=spec.lo, hi=spec.hi, step=spec.step, unit=spec.unit)
+        slider = ControlReading(name, False, lo=spec.lo, hi=spec.hi, step=spec.step,
+                                unit=spec.unit)
         raw = self._get(spec)
         if name in self._lost:  # it cannot be set; what it reads is still what it is
             value = None if raw is None or raw == MISSING else self._decode(spec, raw)
-            return ControlReading(name, False, value, note=self._lost[name], **base)
+            return replace(slider, value=value, note=self._lost[name])
         if raw is None or raw == MISSING:
-            return ControlReading(name, False, note="this camera does not have it", **base)
-        value = self._decode(spec, raw)
+            return replace(slider, note="this camera does not have it")
         if not spec.switch:
             # the device's own value may lie outside the typical range: widen the slider to it
-            base["lo"], base["hi"] = min(spec.lo, raw), max(spec.hi, raw)
-        return ControlReading(name, True, value, **base)
+            slider = replace(slider, lo=min(spec.lo, raw), hi=max(spec.hi, raw))
+        return replace(slider, available=True, value=self._decode(spec, raw))
 
     def read(self) -> CameraState:
         """Every control, read from the device now."""
@@ -300,6 +311,7 @@ class CameraControls:
         after = self.read_one(name)
         got = after.value if after.available else None
         what = f"{self.side} camera: {LABELS[name].lower()}"
+        asked: bool | float
         if spec.switch:
             asked = bool(value)
             if got is asked:
@@ -406,7 +418,8 @@ class PairControls:
     def settings(self) -> PairSettings:
         return PairSettings(self.left.read().settings(), self.right.read().settings())
 
-    def write(self, name: str, value, sides=("left", "right")) -> list[WriteResult]:
+    def write(self, name: str, value: bool | float, sides: Iterable[str] = ("left", "right")
+              ) -> list[WriteResult]:
         return [self.side(s).write(name, value) for s in sides]
 
     def apply(self, settings: PairSettings) -> list[WriteResult]:

@@ -10,10 +10,13 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import os
 import threading
 import time
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NoReturn, Protocol
 
 import cv2
 import cv2_enumerate_cameras
@@ -40,6 +43,19 @@ BACKEND_NAMES = {cv2.CAP_V4L2: "V4L2", cv2.CAP_MSMF: "MSMF", cv2.CAP_DSHOW: "Dir
 READ_TIMEOUT_MS = 1500
 RECONNECT_INTERVAL_S = 3.0  # a camera that vanished is looked for again this often
 UNAVAILABLE_WAIT_S = 0.25  # while it is missing, a read returns (SourceUnavailable) this soon
+
+
+class ListedCamera(Protocol):
+    """A camera as cv2-enumerate-cameras lists it (or a stand-in with the same fields)."""
+
+    index: int
+    name: str
+    path: str | None
+    vid: int | None
+    pid: int | None
+
+
+EnumerateFn = Callable[[int], Iterable[ListedCamera]]  # the cameras a backend lists
 
 
 class EndOfSource(SourceError):
@@ -87,7 +103,8 @@ def _metadata_node(path: str | None) -> bool:
         return False
 
 
-def _enumerate(enumerate_fn=None, backends=None) -> list[CameraInfo]:
+def _enumerate(enumerate_fn: EnumerateFn | None = None, backends: Iterable[int] | None = None
+               ) -> list[CameraInfo]:
     """Cameras from cv2-enumerate-cameras (or `enumerate_fn(backend)`, a stand-in with the same
     results), each once, under the best backend that lists it."""
     if enumerate_fn is None:
@@ -95,7 +112,7 @@ def _enumerate(enumerate_fn=None, backends=None) -> list[CameraInfo]:
         backends = cv2_enumerate_cameras.supported_backends
     order = {b: i for i, b in enumerate(_BACKEND_ORDER)}
     cams: list[CameraInfo] = []
-    seen: set = set()
+    seen: set[str | tuple[str, int | None, int | None, int]] = set()
     for backend in sorted(backends or (), key=lambda b: order.get(b, len(order))):
         for c in enumerate_fn(backend):
             key = c.path or (c.name, c.vid, c.pid, c.index)
@@ -120,7 +137,8 @@ def _probe(max_index: int) -> list[CameraInfo]:
     return cams
 
 
-def list_cameras(max_probe: int = 4, enumerate_fn=None, backends=None) -> list[CameraInfo]:
+def list_cameras(max_probe: int = 4, enumerate_fn: EnumerateFn | None = None,
+                 backends: Iterable[int] | None = None) -> list[CameraInfo]:
     """The video devices present, with names, backends and USB ids from cv2-enumerate-cameras
     (Windows, Linux, macOS; no device is opened); never raises (an empty list when none).
 
@@ -172,7 +190,7 @@ _log_lock = threading.Lock()
 
 
 @contextlib.contextmanager
-def quiet_opencv():
+def quiet_opencv() -> Iterator[None]:
     """Keep OpenCV's own lines (`[ WARN:0@1.1] ... can't open camera by index`, "OpenCV should be
     configured with libavdevice") off the terminal while a camera is opened: our SourceError
     says what happened and what to do."""
@@ -193,7 +211,8 @@ def _as_bgr(img: np.ndarray) -> np.ndarray:
     return img
 
 
-def _open_camera(index: int, size: tuple[int, int], role: str, backend: int | None = None):
+def _open_camera(index: int, size: tuple[int, int], role: str, backend: int | None = None
+                 ) -> cv2.VideoCapture:
     """Open camera `index` (with OpenCV backend `backend`, as the listing reports it) at `size`
     (width, height) px or raise SourceError."""
     with quiet_opencv():
@@ -218,7 +237,7 @@ def _open_camera(index: int, size: tuple[int, int], role: str, backend: int | No
     return cap
 
 
-def _fps(cap, default: float = 30.0) -> float:
+def _fps(cap: cv2.VideoCapture, default: float = 30.0) -> float:
     try:
         fps = float(cap.get(cv2.CAP_PROP_FPS))
     except Exception:  # noqa: BLE001 - some backends do not report it
@@ -235,19 +254,27 @@ class _Camera:
                  identity: str = "") -> None:
         self.role, self.index, self.size = role, int(index), size
         self.backend, self.identity = backend, identity
-        self.cap = _open_camera(self.index, size, role, backend)
-        self._controls = None  # CameraControls of `cap`, made when first asked for
+        # its capture while it is there (None after it vanished)
+        self.cap: cv2.VideoCapture | None = _open_camera(self.index, size, role, backend)
+        self._controls: CameraControls | None = None  # of `cap`, made when first asked for
 
     @property
     def present(self) -> bool:
         return self.cap is not None
+
+    @property
+    def device(self) -> cv2.VideoCapture:
+        """The capture of a camera that is present (the sources' read() makes sure first)."""
+        if self.cap is None:
+            raise SourceError(f"{self.describe()} is not connected")
+        return self.cap
 
     def describe(self) -> str:
         """'right camera 2 (HD Webcam C270 [046d:0825])', for messages."""
         return f"{self.role} camera {self.index}" + (f" ({self.identity})" if self.identity else "")
 
     @property
-    def controls(self):
+    def controls(self) -> CameraControls | None:
         """The device's CameraControls (None while it is missing)."""
         if self.cap is None:
             return None
@@ -259,12 +286,13 @@ class _Camera:
         """Open the device again (at `index` now) at the size it had; SourceError if it fails.
         The controls written before it vanished are written again: a webcam plugged in again
         starts in its automatic modes."""
-        wanted = dict(self._controls.wanted) if self._controls is not None else {}
+        wanted: dict[str, bool | float] = (dict(self._controls.wanted)
+                                           if self._controls is not None else {})
         self.cap = _open_camera(int(index), self.size, self.role, backend)
         self.index, self.backend = int(index), backend
-        if wanted:
-            controls = self.controls
-            results = controls.apply(CameraSettings(controls.backend, **wanted))
+        controls = self.controls if wanted else None  # (None only if nothing was written)
+        if controls is not None:
+            results = controls.apply(CameraSettings(controls.backend).with_values(**wanted))
             log.info("%s: controls restored after reconnecting: %s", self.describe(),
                      ", ".join(f"{r.name} {r.outcome}" for r in results))
 
@@ -304,7 +332,7 @@ class _CameraSource(FrameSource):
         self._closed = False
 
     @property
-    def _caps(self) -> list:
+    def _caps(self) -> list[cv2.VideoCapture]:
         return [c.cap for c in self._cams if c.cap is not None]
 
     def _reconnecting_text(self) -> str:
@@ -312,7 +340,7 @@ class _CameraSource(FrameSource):
         return (f"Reconnecting to {lost}… it {self._lost_reason}; trying again every "
                 f"{self.reconnect_interval_s:g} s")
 
-    def _lose(self, cams: list[_Camera], why: str) -> None:
+    def _lose(self, cams: list[_Camera], why: str) -> NoReturn:
         """Release `cams` (they stopped delivering frames) and raise SourceUnavailable."""
         for c in cams:
             c.release()
@@ -404,9 +432,9 @@ class TwoCameraSource(_CameraSource):
             self.close()
             raise
         self._renamed()
-        self.nominal_fps = min(_fps(c.cap) for c in self._cams)
+        self.nominal_fps = min(_fps(c.device) for c in self._cams)
 
-    def camera_controls(self):
+    def camera_controls(self) -> PairControls | None:
         """The two cameras' controls (sources.camera_controls.PairControls), or None while one
         of them is missing. Only the thread that reads frames may use them."""
         left, right = (c.controls for c in self._cams)
@@ -427,9 +455,9 @@ class TwoCameraSource(_CameraSource):
         failures = 0
         left, right = self._cams
         while True:
-            ok_l = left.cap.grab()
+            ok_l = left.device.grab()
             t_l = time.monotonic()
-            ok_r = right.cap.grab()
+            ok_r = right.device.grab()
             t_r = time.monotonic()
             if ok_l and ok_r:
                 return t_l, t_r
@@ -445,8 +473,8 @@ class TwoCameraSource(_CameraSource):
         self._ensure_present()
         for _ in range(MAX_FAILED_GRABS):
             t_l, t_r = self._grab_both()
-            ok_l, left = self._cams[0].cap.retrieve()
-            ok_r, right = self._cams[1].cap.retrieve()
+            ok_l, left = self._cams[0].device.retrieve()
+            ok_r, right = self._cams[1].device.retrieve()
             bad = [c for c, ok, img in ((self._cams[0], ok_l, left), (self._cams[1], ok_r, right))
                    if not ok or img is None]
             if not bad:
@@ -510,7 +538,7 @@ class SideBySideSource(_CameraSource, _SideBySideCapture):
         self._init_faults()
         self._cams = [_Camera("side-by-side", index, self.size, backend, identity)]
         self._renamed()
-        self.nominal_fps = _fps(self._cams[0].cap)
+        self.nominal_fps = _fps(self._cams[0].device)
         self._index = 0
 
     @property
@@ -526,9 +554,9 @@ class SideBySideSource(_CameraSource, _SideBySideCapture):
         self._ensure_present()
         cam = self._cams[0]
         for _ in range(MAX_FAILED_GRABS):
-            if cam.cap.grab():
+            if cam.device.grab():
                 t = time.monotonic()
-                ok, frame = cam.cap.retrieve()
+                ok, frame = cam.device.retrieve()
                 if ok and frame is not None:
                     break
                 self.skipped_frames += 1
@@ -547,7 +575,10 @@ class VideoFileSource(_SideBySideCapture):
     Timestamps are the video's own (seconds from its start, plus one duration per loop).
     """
 
-    def __init__(self, path, loop: bool = True, swap: bool = False, paced: bool = True):
+    _cap: cv2.VideoCapture  # (opened in __init__, released by close)
+
+    def __init__(self, path: str | os.PathLike[str], loop: bool = True, swap: bool = False,
+                 paced: bool = True) -> None:
         self.path = Path(path)
         if not self.path.is_file():
             raise SourceError(f"video file {self.path} does not exist")

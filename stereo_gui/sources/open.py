@@ -116,13 +116,17 @@ class _SwappedSource(FrameSource):
     def skipped_frames(self) -> int:
         return self._inner.skipped_frames
 
-    def playback(self):
+    @skipped_frames.setter
+    def skipped_frames(self, count: int) -> None:
+        self._inner.skipped_frames = count
+
+    def playback(self) -> PlaybackSource | None:
         return self._inner.playback()
 
-    def simulated_rig(self):
+    def simulated_rig(self) -> SimRig | None:
         return self._inner.simulated_rig()
 
-    def camera_controls(self):
+    def camera_controls(self) -> PairControls | None:
         """The inner source's camera controls with left and right exchanged (None if none)."""
         pair = self._inner.camera_controls()
         if pair is None:
@@ -130,7 +134,7 @@ class _SwappedSource(FrameSource):
         pair.left.side, pair.right.side = "right", "left"
         return PairControls(pair.right, pair.left)
 
-    def __getattr__(self, name):
+    def __getattr__(self, name: str) -> object:
         return getattr(self._inner, name)
 
 
@@ -190,7 +194,7 @@ def expected_frame_size(spec: str | None, size: tuple[int, int] = (640, 480)
         s = parse_source_spec(spec)
     except InputError:
         return None
-    if s.kind in ("auto", "sim", "cams", "sbs"):
+    if s.kind in ("auto", "sim", "cams", "sbs") or s.path is None:
         return int(size[0]), int(size[1])
     try:
         src = PlaybackSource(s.path, paced=False)
@@ -207,7 +211,8 @@ def expected_frame_size(spec: str | None, size: tuple[int, int] = (640, 480)
         src.close()
 
 
-def _cameras(indices: tuple[int, ...], remembered: tuple[str, ...]):
+def _cameras(indices: tuple[int, ...], remembered: tuple[str, ...]
+             ) -> tuple[tuple[int, ...], tuple[int | None, ...], tuple[str, ...], list[str]]:
     """(indices, backends, identities, notes) of the cameras a spec names, found again by their
     remembered identities when they moved to other indices."""
     listed = cameras.list_cameras()
@@ -238,20 +243,22 @@ def open_source(spec: str | None, size: tuple[int, int] = (640, 480), swap: bool
     if s.kind == "sim":
         return OpenedSource(_sim(s, size, swap), False, "simulated rig")
     if s.kind == "cams":
-        (left, right), backends, idents, notes = _cameras(s.indices, remembered_cameras)
-        src = TwoCameraSource(left, right, size=size, swap=swap, backends=backends,
-                              identities=idents)
-        return OpenedSource(src, False, "; ".join([src.name, *notes]),
+        (left, right), (b_left, b_right), idents, notes = _cameras(s.indices,
+                                                                    remembered_cameras)
+        pair = TwoCameraSource(left, right, size=size, swap=swap, backends=(b_left, b_right),
+                               identities=idents)
+        return OpenedSource(pair, False, "; ".join([pair.name, *notes]),
                             spec=f"cams:{left},{right}", cameras=idents)
     if s.kind == "sbs":
         (index,), (backend,), idents, notes = _cameras(s.indices, remembered_cameras)
-        src = SideBySideSource(index, size=(2 * size[0], size[1]), swap=swap, backend=backend,
+        one = SideBySideSource(index, size=(2 * size[0], size[1]), swap=swap, backend=backend,
                                identity=idents[0] if idents else "")
-        return OpenedSource(src, False, "; ".join([src.name, *notes]), spec=f"sbs:{index}",
+        return OpenedSource(one, False, "; ".join([one.name, *notes]), spec=f"sbs:{index}",
                             cameras=idents)
     # a folder of pairs, a recording, or a side-by-side video: all play back like a recording
     # (pause, step, seek and loop); remembered by absolute path, so that it opens from anywhere
-    src = PlaybackSource(s.path)
-    warnings = src.warnings
-    src = _SwappedSource(src) if swap else src
-    return OpenedSource(src, False, src.name, spec=str(s.path), warnings=warnings)
+    if s.path is None:  # (parse_source_spec gives the other kinds a path)
+        raise InputError(f"source {spec!r}: no folder or video file")
+    played = PlaybackSource(s.path)
+    src: FrameSource = _SwappedSource(played) if swap else played
+    return OpenedSource(src, False, src.name, spec=str(s.path), warnings=played.warnings)

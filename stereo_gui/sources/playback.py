@@ -33,7 +33,7 @@ import numpy as np
 
 from stereo_gui.core.errors import SourceError, StereoGuiError
 from stereo_gui.files.pairs import discover_pairs, load_image
-from stereo_gui.files.recording import is_recording, open_recording
+from stereo_gui.files.recording import Recording, is_recording, open_recording
 from stereo_gui.sources.base import FrameSource, StereoFrame
 
 log = logging.getLogger(__name__)
@@ -155,7 +155,7 @@ def _open_recording(path: Path) -> _Frames:
     times = [(f.t_left, f.t_right) for f in rec.frames]
     store: _Store
     if rec.has_images:
-        store = _ImageStore([(f.left, f.right) for f in rec.frames])
+        store = _ImageStore(_image_pairs(rec))
     elif rec.video is not None:
         store = _VideoStore(rec.video, limit=len(rec.frames))
         times = times[: store.count]
@@ -163,6 +163,16 @@ def _open_recording(path: Path) -> _Frames:
         raise SourceError(f"recording {path} holds neither images nor a video")
     return _Frames(store, f"Playback of {path.name}", times, rec.fps, rec.size,
                    tuple(rec.warnings))
+
+
+def _image_pairs(rec: Recording) -> list[tuple[Path, Path]]:
+    """The image files of a recording that has images, frame by frame."""
+    pairs = []
+    for f in rec.frames:
+        if f.left is None or f.right is None:
+            raise SourceError(f"recording {rec.folder}: frame {f.index} has only one image")
+        pairs.append((f.left, f.right))
+    return pairs
 
 
 def _pacing(times: list[tuple[float, float]], fixed_rate: bool, fps: float
@@ -188,7 +198,7 @@ class PlaybackSource(FrameSource):
     as they load (benchmarks, tests).
     """
 
-    def __init__(self, path: str | os.PathLike, fps: float | None = None, loop: bool = True,
+    def __init__(self, path: str | os.PathLike[str], fps: float | None = None, loop: bool = True,
                  paced: bool = True, at_end: str = "hold") -> None:
         if fps is not None and not (fps > 0 and math.isfinite(fps)):
             raise SourceError(f"playback frame rate must be positive, not {fps}")
@@ -405,10 +415,10 @@ class PlaybackSource(FrameSource):
                 and not self._changed
             if self._anchor is None or not (sequential or wrapped):
                 self._anchor = (i, now)
-            elif wrapped:
-                prev_due = self._due(self._last)
+            elif wrapped and self._last is not None:
+                prev_due = self._due(self._anchor, self._last)
                 self._anchor = (0, prev_due + self._frame_interval / self._speed)
-            due = self._due(i)
+            due = self._due(self._anchor, i)
             if due - now > 0:
                 self._changed = False
                 self._cond.wait(due - now)
@@ -435,8 +445,9 @@ class PlaybackSource(FrameSource):
                 self._finished = True
         return i
 
-    def _due(self, i: int) -> float:
-        a, t0 = self._anchor
+    def _due(self, anchor: tuple[int, float], i: int) -> float:
+        """When frame `i` is due (time.monotonic() s), paced from `anchor` (frame, when)."""
+        a, t0 = anchor
         return t0 + float(self._schedule[i] - self._schedule[a]) / self._speed
 
     def _load(self, i: int) -> tuple[np.ndarray, np.ndarray]:
