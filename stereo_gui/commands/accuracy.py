@@ -31,9 +31,13 @@ up as reading errors, as they would on a real rig.
 
 from __future__ import annotations
 
+import functools
 import math
+import os
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -43,9 +47,9 @@ from stereo_gui.core.click_score import plain_patch_disparity
 from stereo_gui.core.detect import detect_pairs
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.lens import rectify_map, undistort_points
-from stereo_gui.core.matching import MatcherParams, Preset, StereoPipeline
+from stereo_gui.core.matching import MatcherParams, PipelineResult, Preset, StereoPipeline
 from stereo_gui.core.measure import PATCH_PX, Measurement, measure_point
-from stereo_gui.core.reference_loop import ReferenceLoop
+from stereo_gui.core.reference_loop import ReferenceFrame, ReferenceLoop
 from stereo_gui.core.scene_score import plain_sgbm
 from stereo_gui.core.shading import measure_pair_shading
 from stereo_gui.core.stereo_calibration import StereoCalibration
@@ -144,7 +148,7 @@ class WallReport:
                 out[r.reason or "?"] = out.get(r.reason or "?", 0) + 1
         return out
 
-    def summary(self) -> dict:
+    def summary(self) -> dict[str, Any]:
         return {"preset": self.preset, "wall_mm": self.wall_mm, "condition": self.condition,
                 "points": len(self.readings),
                 "seen": len(self.seen), "coverage": self.coverage, "worst_pct": self.worst_pct,
@@ -165,7 +169,7 @@ def grid_pixels(size: tuple[int, int], grid: tuple[int, int] = GRID,
 class WallTruth:
     """True depth and visibility of rectified pixels of `calib` for a wall rendered by `rig`."""
 
-    def __init__(self, rig, calib: StereoCalibration, wall_mm: float) -> None:
+    def __init__(self, rig: SimRig, calib: StereoCalibration, wall_mm: float) -> None:
         self.rig = rig
         self.calib = calib
         self.wall_mm = float(wall_mm)
@@ -202,7 +206,7 @@ class WallTruth:
         return float(p_rect[2]), seen
 
 
-def _reference_reading(result, x: float, y: float, calib: StereoCalibration
+def _reference_reading(result: ReferenceFrame, x: float, y: float, calib: StereoCalibration
                        ) -> tuple[float, str | None]:
     """The reference program's measurement done with plain OpenCV: the mean raw disparity of the
     3x3 patch around the pixel (its code), over the pixels SGBM matched (it averaged the invalid marker
@@ -243,61 +247,78 @@ def plain_disparity(calib: StereoCalibration, left: np.ndarray, right: np.ndarra
     return plain_sgbm(rl, rr, num)
 
 
-def evaluate_wall(rig, calib: StereoCalibration, params: Preset | MatcherParams | str,
-                  wall_mm: float, seed: int, grid: tuple[int, int] = GRID, condition: Condition | None = None
-                  ) -> WallReport:
+# a grid point read: Z (mm, NaN when none), why there is none, the reading's 95 % bound (mm)
+GridRead = tuple[float, str | None, float]
+
+
+def _reference_read(frame: ReferenceFrame, calib: StereoCalibration, x: float, y: float
+                    ) -> GridRead:
+    return (*_reference_reading(frame, x, y, calib), float("nan"))
+
+
+def _plain_read(disparity_px: np.ndarray, calib: StereoCalibration, x: float, y: float
+                ) -> GridRead:
+    return (*_plain_reading(disparity_px, x, y, calib), float("nan"))
+
+
+def _preset_read(result: PipelineResult, x: float, y: float) -> GridRead:
+    m: Measurement = measure_point(result, x, y)
+    return (m.Z_mm if m.valid else float("nan")), m.reason, m.expected_error_mm
+
+
+def evaluate_wall(rig: SimRig, calib: StereoCalibration, params: Preset | MatcherParams | str,
+                  wall_mm: float, seed: int, grid: tuple[int, int] = GRID,
+                  condition: Condition | None = None) -> WallReport:
     """Render a wall at `wall_mm` (under `condition`, default the rig's usual texture), run one
     preset (or "report": the reference loop; "plain": plain OpenCV) and measure the grid."""
     condition = condition or CONDITIONS["rig"]
     scene = Scene.wall(wall_mm, seed=seed + int(wall_mm), contrast=condition.contrast)
     left, right = rig.render_scene(scene, np.random.default_rng(seed * 7 + int(wall_mm)))
     truth = WallTruth(rig, calib, wall_mm)
-    readings = []
-    plain = None
+    read: Callable[[float, float], GridRead]
     if params == "report":
-        result = ReferenceLoop(calib).process(left, right)
+        read = functools.partial(_reference_read, ReferenceLoop(calib).process(left, right),
+                                 calib)
         name = "report"
     elif params == PLAIN:
-        plain = plain_disparity(calib, left, right)
+        read = functools.partial(_plain_read, plain_disparity(calib, left, right), calib)
         name = PLAIN
     else:
-        if isinstance(params, str):
-            params = load_preset(params)
-        params = Preset.of(params)
-        with preset_pipeline(calib, params) as pipe:
-            result = pipe.process(left, right)
-        name = params.name
+        preset = Preset.of(load_preset(params) if isinstance(params, str) else params)
+        with preset_pipeline(calib, preset) as pipe:
+            read = functools.partial(_preset_read, pipe.process(left, right))
+        name = preset.name
+    readings = []
     for x, y in grid_pixels(calib.image_size, grid):
         z_true, seen = truth.point(x, y)
-        if name == "report":
-            z, reason = _reference_reading(result, x, y, calib)
-            bound = float("nan")
-        elif name == PLAIN:
-            z, reason = _plain_reading(plain, x, y, calib)
-            bound = float("nan")
-        else:
-            m: Measurement = measure_point(result, x, y)
-            z = m.Z_mm if m.valid else float("nan")
-            reason, bound = m.reason, m.expected_error_mm
+        z, reason, bound = read(x, y)
         readings.append(GridReading(x, y, seen, z_true, z, bound, reason))
     return WallReport(name, float(wall_mm), tuple(readings), condition.name)
 
 
-def computed_calibration(rig, pairs: int = 20, seed: int = BENCH_SEED) -> StereoCalibration:
+def _loader(image: np.ndarray) -> Callable[[], np.ndarray]:
+    """A loader of an image already in memory."""
+    return lambda: image
+
+
+def computed_calibration(rig: SimRig, pairs: int = 20, seed: int = BENCH_SEED
+                         ) -> StereoCalibration:
     """A calibration computed the way the application does from `pairs` rendered board pairs."""
     images = rig.calibration_set(pairs, seed=seed)
     board = rig.config.board
     detections = detect_pairs([(f"pair{i}", l, r) for i, (l, r) in enumerate(images)], board)
     calib = calibrate_stereo(detections, board, rig.config.image_size).calibration
-    shading = measure_pair_shading([(d, (lambda a=a: a), (lambda b=b: b))
+    shading = measure_pair_shading([(d, _loader(a), _loader(b))
                                     for d, (a, b) in zip(detections, images, strict=True)],
                                    board.cols, board.rows)
     return calib.with_updates(lens_shading=shading)
 
 
-def run_accuracy(presets=("report", "seed", "live", "quality"), walls=WALLS_MM,
-                 seed: int = BENCH_SEED, calibrations=("true", "computed"),
-                 pairs: int = 20, conditions=("rig",)) -> dict[str, list[WallReport]]:
+def run_accuracy(presets: Sequence[Preset | MatcherParams | str] = ("report", "seed", "live",
+                                                                    "quality"),
+                 walls: Sequence[float] = WALLS_MM, seed: int = BENCH_SEED,
+                 calibrations: Sequence[str] = ("true", "computed"), pairs: int = 20,
+                 conditions: Sequence[str] = ("rig",)) -> dict[str, list[WallReport]]:
     """Every preset on every wall under every condition, for each calibration; {calibration
     label: [WallReport]}. Under a condition with webcam effects the calibration is that of its
     cameras (true: with their lens shading; computed: from board pairs they rendered, as a
@@ -328,13 +349,13 @@ def run_accuracy(presets=("report", "seed", "live", "quality"), walls=WALLS_MM,
     return out
 
 
-def condition_totals(reports: list[WallReport]) -> dict[tuple[str, str], dict]:
+def condition_totals(reports: list[WallReport]) -> dict[tuple[str, str], dict[str, float]]:
     """Per (condition, preset): the whole grid over all walls: coverage, worst and RMS error (%),
     how often the +- covered the truth, and the median +- (% of the distance)."""
     groups: dict[tuple[str, str], list[WallReport]] = {}
     for r in reports:
         groups.setdefault((r.condition, r.preset), []).append(r)
-    out = {}
+    out: dict[tuple[str, str], dict[str, float]] = {}
     for key, reps in groups.items():
         seen = [g for r in reps for g in r.seen]
         read = [g for g in seen if g.read]
@@ -360,7 +381,7 @@ def format_table(label: str, reports: list[WallReport]) -> str:
              f"{'cond':>{cw}} {'wall':>6} {'preset':>8} {'cover':>7} {'worst%':>7} {'rms%':>6} "
              f"{'+-cov':>6} {'med+-%':>7}  no reading (seen points)"]
 
-    def row(cond: str, wall: str, preset: str, t: dict, tail: str) -> str:
+    def row(cond: str, wall: str, preset: str, t: dict[str, Any], tail: str) -> str:
         return (f"{cond:>{cw}} {wall:>6} {preset:>8} {_num(100 * t['coverage'], 1):>6}% "
                 f"{_num(t['worst_pct']):>7} {_num(t['rms_pct']):>6} "
                 f"{_num(100 * t['covered_fraction'], 0):>5}% {_num(t['median_bound_pct']):>7}"
@@ -412,7 +433,9 @@ def score_map(disparity_px: np.ndarray, truth_px: np.ndarray) -> tuple[float, fl
     return bad, float(ok.sum() / known.sum())
 
 
-def middlebury_scores(folder, presets=("seed", "live", "quality")) -> list[BenchmarkScore]:
+def middlebury_scores(folder: str | os.PathLike[str],
+                      presets: Sequence[str] = ("seed", "live", "quality")
+                      ) -> list[BenchmarkScore]:
     """Raw and final maps of each preset on the Middlebury pairs found in `folder`. Presets other
     than seed search the benchmark's own disparity range (0..N) instead of deriving one from
     working distances; the seed keeps the reference loop's 2..129."""

@@ -27,7 +27,9 @@ import os
 import statistics
 import threading
 import time
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
+from typing import Any
 
 import cv2
 import numpy as np
@@ -35,7 +37,6 @@ import numpy as np
 from stereo_gui.commands import options
 from stereo_gui.commands.accuracy import (
     BENCH_SEED,
-    CONDITIONS,
     PLAIN,
     condition_totals,
     format_table,
@@ -46,17 +47,23 @@ from stereo_gui.commands.disparity import load_calibration, read_pair
 from stereo_gui.commands.scenes import format_scenes, run_scenes
 from stereo_gui.core import plain_loop, reference_loop
 from stereo_gui.core.errors import InputError
+from stereo_gui.core.matching import Preset
+from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.presets import load_presets
 from stereo_gui.pipeline.concurrency import opencv_threads_beside_lanes, opencv_threads_for_lanes
 from stereo_gui.pipeline.live import DEFAULT_VIEWS, LiveProcessor
 from stereo_gui.sources.base import StereoFrame
 from stereo_gui.sources.sim import RigConfig, Scene, SimRig
+from stereo_gui.sources.sim.conditions import CONDITIONS
 
 MAX_FRAMES = 10_000  # a preset at 2 frames per second: over an hour
 
 # the reference loop (named "report" on the command line and in JSON, as scripts know it); a
 # plain OpenCV program set up with care
 REFERENCES = ("report", "plain")
+
+# one timed call: (each stage's time in ms, or None; the share of valid pixels)
+Step = Callable[[], tuple[dict[str, float] | None, float]]
 
 
 def rss_mb() -> float:
@@ -138,7 +145,7 @@ def _size(text: str | None) -> tuple[int, int]:
     return w, h
 
 
-def _input(args):
+def _input(args: argparse.Namespace) -> tuple[str, StereoCalibration, np.ndarray, np.ndarray]:
     if args.calib or args.left or args.right:
         if not (args.calib and args.left and args.right):
             raise InputError("bench needs --calib C together with LEFT and RIGHT (or none of them "
@@ -154,7 +161,7 @@ def _input(args):
     return "simulated rig, demo scene", calib, left, right
 
 
-def _time(step, frames: int, warmup: int = 2, lanes: int = 1) -> dict:
+def _time(step: Step, frames: int, warmup: int = 2, lanes: int = 1) -> dict[str, Any]:
     """Time `frames` calls of step() -> (stage timings dict or None, valid fraction), made by
     `lanes` threads at once (each makes its share of the calls, as the frame worker's lanes do)."""
     sums: dict[str, float] = {}
@@ -199,8 +206,9 @@ def _time(step, frames: int, warmup: int = 2, lanes: int = 1) -> dict:
     }
 
 
-def bench_preset(calib, params, left, right, frames: int, warmup: int = 2,
-                 processor=None) -> dict:
+def bench_preset(calib: StereoCalibration, params: Preset, left: np.ndarray, right: np.ndarray,
+                 frames: int, warmup: int = 2, processor: LiveProcessor | None = None
+                 ) -> dict[str, Any]:
     """Time one preset as the Live tab runs it with its default views (pipeline and display
     conversion): as many frames at once as the processor's lanes, OpenCV with the threads
     `run_app` gives it. `processor`: a LiveProcessor of `params` to time (kept open, so that its
@@ -209,7 +217,7 @@ def bench_preset(calib, params, left, right, frames: int, warmup: int = 2,
     proc = processor if processor is not None else live_processor(calib, params)
     with opencv_threads_for_lanes():
         try:
-            def step():
+            def step() -> tuple[dict[str, float], float]:
                 t0 = time.perf_counter()
                 out = proc(frame)
                 stages = dict(out.result.timings_ms)
@@ -223,14 +231,15 @@ def bench_preset(calib, params, left, right, frames: int, warmup: int = 2,
                 proc.close()
 
 
-def live_processor(calib, params):
+def live_processor(calib: StereoCalibration, params: Preset) -> LiveProcessor:
     """The Live tab's processor for `params`, with the views the Live tab starts with."""
     proc = LiveProcessor(calib, params)
     proc.set_views(DEFAULT_VIEWS)  # as the Live tab starts
     return proc
 
 
-def bench_reference(calib, left, right, frames: int, warmup: int = 2) -> dict:
+def bench_reference(calib: StereoCalibration, left: np.ndarray, right: np.ndarray, frames: int,
+                    warmup: int = 2) -> dict[str, Any]:
     """Time the reference loop on the same pair."""
     w = calib.image_size[0]
     lo, n = reference_loop.MIN_DISP, reference_loop.NUM_DISP
@@ -239,7 +248,7 @@ def bench_reference(calib, left, right, frames: int, warmup: int = 2) -> dict:
                          f"searches disparities {lo}..{lo + n - 1} px")
     loop = reference_loop.ReferenceLoop(calib)
 
-    def step():
+    def step() -> tuple[dict[str, float], float]:
         t0 = time.perf_counter()
         out = loop.process(left, right)
         total = (time.perf_counter() - t0) * 1000.0
@@ -248,7 +257,8 @@ def bench_reference(calib, left, right, frames: int, warmup: int = 2) -> dict:
     return _time(step, frames, warmup)
 
 
-def bench_plain(calib, left, right, frames: int, warmup: int = 2) -> dict:
+def bench_plain(calib: StereoCalibration, left: np.ndarray, right: np.ndarray, frames: int,
+                warmup: int = 2) -> dict[str, Any]:
     """Time the plain OpenCV program on the same pair."""
     n = plain_loop.NUM_DISP
     if calib.image_size[0] * plain_loop.SCALE - n <= plain_loop.WINDOW_SIZE // 2:
@@ -257,7 +267,7 @@ def bench_plain(calib, left, right, frames: int, warmup: int = 2) -> dict:
                          "images")
     loop = plain_loop.PlainLoop(calib)
 
-    def step():
+    def step() -> tuple[dict[str, float], float]:
         t0 = time.perf_counter()
         out = loop.process(left, right)
         total = (time.perf_counter() - t0) * 1000.0
@@ -272,7 +282,7 @@ _WORDS = {"report": "the reference loop, its own code",
 _SHORT = {"report": "reference loop", "plain": "plain"}  # "2.5x the reference loop"
 
 
-def run_bench(args) -> dict:
+def run_bench(args: argparse.Namespace) -> dict[str, Any]:
     if args.frames is None:
         args.frames = 30
     if not 1 <= args.frames <= MAX_FRAMES:
@@ -292,11 +302,11 @@ def run_bench(args) -> dict:
     # machine's load shows in their runs
     ref_frames = args.frames if rounds == 1 else max(2, args.frames // 8)
 
-    def time_references() -> dict[str, dict]:
+    def time_references() -> dict[str, dict[str, Any]]:
         return {r: _TIMERS[r](calib, left, right, ref_frames) for r in references}
 
     refs = [time_references()]
-    runs: dict[str, list[dict]] = {n: [] for n in names}
+    runs: dict[str, list[dict[str, Any]]] = {n: [] for n in names}
     # one processor per preset for all rounds: its health check runs every two seconds as live
     procs = {n: live_processor(calib, p) for n, p in params.items()}
     try:
@@ -333,7 +343,7 @@ def _harmonic(fps: list[float]) -> float:
     return len(fps) / sum(1.0 / f for f in fps)
 
 
-def _merged(runs: list[dict]) -> dict:
+def _merged(runs: list[dict[str, Any]]) -> dict[str, Any]:
     """Runs of one preset (equal frame counts) as one: rates over all of them, stage times and
     CPU averaged, memory from the first start to the last end."""
     if len(runs) == 1:
@@ -349,7 +359,7 @@ def _merged(runs: list[dict]) -> dict:
     return out
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     if getattr(args, "clicks", None):
         if args.scenes or args.accuracy or args.calib or args.left or args.right or args.size:
             raise InputError("--clicks takes its images from the scene list: no --scenes, "
@@ -402,7 +412,7 @@ def run(args) -> int:
     return 0
 
 
-def run_accuracy_bench(args) -> int:
+def run_accuracy_bench(args: argparse.Namespace) -> int:
     if args.calib or args.left or args.right or args.size:
         raise InputError("--accuracy runs on the simulated rig: no --calib, images or --size")
     presets = tuple(dict.fromkeys(["report", PLAIN]
@@ -440,30 +450,32 @@ _OVER_SEEDS = (("coverage", min), ("worst_pct", max), ("rms_pct", max),
                ("covered_fraction", min), ("median_bound_pct", max))
 
 
-def accuracy_over_seeds(totals: dict[int, dict[tuple[str, str], dict]]
-                        ) -> dict[tuple[str, str], dict]:
+def accuracy_over_seeds(totals: dict[int, dict[tuple[str, str], dict[str, float]]]
+                        ) -> dict[tuple[str, str], dict[str, dict[str, Any]]]:
     """Per (condition, preset): the mean over the seeds of each whole-grid figure and its
     worst seed's value (the lowest reading share and coverage of the +-, the highest errors),
     with which seed that was; `totals` is {seed: condition_totals}."""
-    out: dict[tuple[str, str], dict] = {}
+    out: dict[tuple[str, str], dict[str, dict[str, Any]]] = {}
     keys = dict.fromkeys(k for t in totals.values() for k in t)
     for key in keys:
-        row: dict = {}
+        row: dict[str, dict[str, Any]] = {}
         for name, worst in _OVER_SEEDS:
             values = {s: t[key][name] for s, t in totals.items()
                       if key in t and math.isfinite(t[key][name])}
             if not values:
                 row[name] = {"mean": float("nan"), "worst": float("nan"), "worst_seed": None}
                 continue
-            seed = worst(values, key=values.get)
+            seed = worst(values, key=values.__getitem__)
             row[name] = {"mean": float(statistics.fmean(values.values())),
                          "worst": values[seed], "worst_seed": seed}
         out[key] = row
     return out
 
 
-def _accuracy_over_seeds(args, presets, cal, conditions, seeds: list[int]) -> int:
-    totals: dict[str, dict[int, dict]] = {label: {} for label in cal}
+def _accuracy_over_seeds(args: argparse.Namespace, presets: Sequence[str], cal: Sequence[str],
+                         conditions: list[str], seeds: list[int]) -> int:
+    totals: dict[str, dict[int, dict[tuple[str, str], dict[str, float]]]] = {
+        label: {} for label in cal}
     for s in seeds:
         res = run_accuracy(presets=presets, seed=s, calibrations=cal, conditions=conditions)
         for label, reports in res.items():

@@ -8,12 +8,16 @@ Progress goes to stderr so that stdout stays clean for --json.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 import sys
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
+
+import numpy as np
 
 from stereo_gui.commands import options
 from stereo_gui.commands.disparity import check_outputs
@@ -134,7 +138,7 @@ def _finite(x: float) -> float | None:
     return float(x) if x is not None and math.isfinite(x) else None
 
 
-def _camera(M, D, model: str = "pinhole") -> dict:
+def _camera(M: np.ndarray, D: np.ndarray, model: str = "pinhole") -> dict[str, Any]:
     d = [float(v) for v in D.reshape(-1)]
     if model == "pinhole":
         d = d[:5] + [0.0] * (5 - len(d[:5]))
@@ -142,7 +146,7 @@ def _camera(M, D, model: str = "pinhole") -> dict:
             "cy": float(M[1, 2]), "dist": d}
 
 
-def result_json(result: CalibrationResult, output: Path | None = None) -> dict:
+def result_json(result: CalibrationResult, output: Path | None = None) -> dict[str, Any]:
     """The --json object: the fields scripts depend on (a contract, like the options), plus a
     few more."""
     c, r = result.calibration, result.report
@@ -236,13 +240,14 @@ def summary_text(result: CalibrationResult, output: Path, seconds: float) -> str
     return "\n".join(lines)
 
 
-def _session_in(folder: Path):
+def _session_in(folder: Path) -> CaptureSession | None:
     """The capture session in `folder`, or None without a manifest (opened once: what its
     manifest could not give is said once, as a warning)."""
     return CaptureSession.open(folder) if (folder / MANIFEST).is_file() else None
 
 
-def _check_outputs(output: Path, ros_dir: Path | None, found, folder: Path) -> None:
+def _check_outputs(output: Path, ros_dir: Path | None, found: PairDiscovery,
+                   folder: Path) -> None:
     """The calibration and the ROS files may be written: none is one of the set's pictures,
     its session or its truth, they are not one file, and an existing output is a calibration
     (one that is anything else is not written over)."""
@@ -335,7 +340,7 @@ def _calibrate_pairs(args: argparse.Namespace, board: BoardSpec, chosen: _Chosen
                      progress: _StderrProgress) -> CalibrationResult:
     """Find the target in the chosen pairs and calibrate from them (with no target anywhere
     and --method hartley, from features matched in the scene)."""
-    items = [PairInput(p.name, (lambda f=a: load_image(f)), (lambda f=b: load_image(f)),
+    items = [PairInput(p.name, functools.partial(load_image, a), functools.partial(load_image, b),
                        a.name, b.name) for p, (a, b) in zip(chosen.pairs, chosen.sides)]
     detections = detect_pairs(items, board, method=args.detector,
                               progress=lambda d, t, _: progress(

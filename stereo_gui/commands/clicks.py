@@ -16,7 +16,12 @@ truth's largest) is read as the median of the same patch.
 from __future__ import annotations
 
 import math
+import os
 import time
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
 
 from stereo_gui.commands.scenes import _pct
 from stereo_gui.core.click_score import (
@@ -29,8 +34,10 @@ from stereo_gui.core.click_score import (
     true_z_mm,
 )
 from stereo_gui.core.errors import InputError
+from stereo_gui.core.matching import PipelineResult
 from stereo_gui.core.measure import measure_point, reading_map
 from stereo_gui.core.scene_score import disparity_search_range, plain_sgbm
+from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.any_calibration import load_any_calibration
 from stereo_gui.files.presets import load_presets
 from stereo_gui.files.scenes import load_scene, read_scene_list, read_seen_mask
@@ -39,20 +46,23 @@ from stereo_gui.pipeline.concurrency import opencv_threads_for_lanes, preset_pip
 PLAIN = "plain"
 ASSUMED_CALIB = "rectified:1000,100"
 
+TruePoint = tuple[int, int, float, float]  # a click's (x, y, true disparity px, true Z mm)
 
-def run_clicks(list_path, presets=("live", "quality")) -> dict:
+
+def run_clicks(list_path: str | os.PathLike[str], presets: Sequence[str] = ("live", "quality")
+               ) -> dict[str, Any]:
     """Click every scene of the list with each preset and plain OpenCV; the `--json` result."""
     specs = read_scene_list(list_path)
     params = load_presets(presets, reserved=(PLAIN,))
     methods = [*params, PLAIN]
     totals = {m: ClickScore() for m in methods}
     metric = {m: ClickScore() for m in methods}  # the scenes with a calibration of their own
-    scenes = []
+    scenes: list[dict[str, Any]] = []
     with opencv_threads_for_lanes():
         for spec in specs:
             scene = load_scene(spec)
             own = spec.calib is not None
-            calib = load_any_calibration(spec.calib if own else ASSUMED_CALIB,
+            calib = load_any_calibration(ASSUMED_CALIB if spec.calib is None else spec.calib,
                                          scene.size).calibration
             if tuple(calib.image_size) != scene.size:
                 raise InputError(f"scene {spec.name}: its calibration is for "
@@ -62,12 +72,13 @@ def run_clicks(list_path, presets=("live", "quality")) -> dict:
             if seen is None:
                 seen = seen_by_both(scene.truth_px)
             points = click_points(scene.truth_px, seen)
-            truth = [(x, y, float(scene.truth_px[y, x])) for x, y in points]
-            truth = [(x, y, d, true_z_mm(calib, x, y, d)) for x, y, d in truth]
+            true_d = [(x, y, float(scene.truth_px[y, x])) for x, y in points]
+            truth = [(x, y, d, true_z_mm(calib, x, y, d)) for x, y, d in true_d]
             num = disparity_search_range(scene.truth_px)
-            entry = {"name": spec.name, "size": list(scene.size), "calibration":
-                     spec.calib if own else f"assumed {ASSUMED_CALIB}", "points": len(points),
-                     "methods": {}}
+            entry: dict[str, Any] = {
+                "name": spec.name, "size": list(scene.size),
+                "calibration": spec.calib if own else f"assumed {ASSUMED_CALIB}",
+                "points": len(points), "methods": {}}
             for name, preset in params.items():
                 if not own:
                     preset = preset.replace(z_min_mm=None, z_max_mm=None, min_disparity=0,
@@ -94,7 +105,8 @@ def run_clicks(list_path, presets=("live", "quality")) -> dict:
             "own_calibration": {m: t.summary() for m, t in metric.items()}}
 
 
-def click_scene(result, calib, truth) -> list:
+def click_scene(result: PipelineResult, calib: StereoCalibration, truth: list[TruePoint]
+                ) -> list[Click]:
     """The clicks of one processed scene: (x, y, true disparity, true Z) each, read as a
     double-click in the window reads them."""
     shown = reading_map(result)
@@ -109,7 +121,8 @@ def click_scene(result, calib, truth) -> list:
     return out
 
 
-def click_plain(disparity_px, calib, truth) -> list:
+def click_plain(disparity_px: np.ndarray, calib: StereoCalibration, truth: list[TruePoint]
+                ) -> list[Click]:
     """Plain OpenCV's clicks: the patch median, triangulated through the same calibration."""
     out = []
     for x, y, d, z in truth:
@@ -123,12 +136,12 @@ def click_plain(disparity_px, calib, truth) -> list:
     return out
 
 
-def _scored(clicks, seconds: float, span) -> dict:
+def _scored(clicks: list[Click], seconds: float, span: tuple[float, float]) -> dict[str, Any]:
     return {**ClickScore().add(clicks).summary(), "seconds": seconds,
             "disparity_range_px": [float(span[0]), float(span[1])]}
 
 
-def format_clicks(res: dict) -> str:
+def format_clicks(res: dict[str, Any]) -> str:
     """The table a person reads: per scene and method read / within 2 % / worst, then the sums
     (over all scenes, and over those with a calibration of their own, whose errors in % are of
     Z) with coverage of the +- and the reasons of the refusals."""

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
+from collections.abc import Iterable
 from pathlib import Path
 
 import cv2
@@ -24,6 +26,8 @@ from stereo_gui.files.presets import load_preset
 from stereo_gui.pipeline.concurrency import preset_pipeline
 
 log = logging.getLogger(__name__)
+
+PathArg = str | os.PathLike[str]  # a file named on the command line
 
 
 # ---- shared helpers ------------------------------------------------------------------------
@@ -83,7 +87,7 @@ def load_params(name: str) -> Preset:
     return load_preset(name)
 
 
-def run_pipeline(args) -> tuple[StereoCalibration, PipelineResult]:
+def run_pipeline(args: argparse.Namespace) -> tuple[StereoCalibration, PipelineResult]:
     """Calibration, images and preset from the common options, and the processed frame."""
     calib = load_calibration(args.calib, args.left)
     params = load_params(args.preset)
@@ -116,7 +120,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="coloured point cloud of the valid pixels (binary PLY, mm)")
 
 
-def check_outputs(outputs, inputs=()) -> None:
+def check_outputs(outputs: Iterable[tuple[PathArg | None, str | None]],
+                  inputs: Iterable[PathArg | None] = ()) -> None:
     """Every output path (path, required suffix or None) can be written, before any is: its
     folder exists, it is not a folder nor anything else but a regular file (a device, a FIFO),
     its suffix is right, no two are the same file, and none is one of the run's `inputs` (the
@@ -155,7 +160,7 @@ def _same_file_key(p: Path) -> tuple[int, int]:
     return st.st_dev, st.st_ino
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     if Path(args.output).suffix.lower() not in (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"):
         raise InputError(f"{args.output}: the colour view needs an image suffix such as .png")
     check_outputs([(args.output, None), (args.npy, ".npy"), (args.png16, ".png"),

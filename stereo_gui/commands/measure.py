@@ -10,8 +10,10 @@ from stereo_gui.commands import options
 from stereo_gui.commands.disparity import add_pair_arguments, run_pipeline
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.measure import PATCH_PX, Measurement, measure_point
+from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.fit_file import load_fit
-from stereo_gui.files.spreadsheet import MeasurementRecord, append_measurements
+from stereo_gui.files.measurement_record import MeasurementRecord
+from stereo_gui.files.spreadsheet import append_measurements
 
 MAX_PATCH_PX = 101  # as the window's own patch setting: wider patches straddle surfaces
 MAX_POINTS = 10_000
@@ -44,7 +46,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     # further outputs add their options here and a branch in write_outputs()
 
 
-def measure_all(args) -> tuple[object, list[Measurement]]:
+def measure_all(args: argparse.Namespace) -> tuple[StereoCalibration, list[Measurement]]:
     """Run the pipeline once and measure every --at point; returns (calibration, measurements)."""
     if args.patch < 1:
         raise InputError(f"--patch must be at least 1, not {args.patch}")
@@ -72,7 +74,8 @@ def format_line(m: Measurement) -> str:
             f"{100 * m.valid_fraction:.0f}% valid, {m.method}")
 
 
-def write_outputs(args, calib, measurements: list[Measurement]) -> None:
+def write_outputs(args: argparse.Namespace, calib: StereoCalibration,
+                  measurements: list[Measurement]) -> None:
     """Print the results (text or JSON); further output files hook in here."""
     if args.xlsx:  # first: a refused workbook then fails the command before anything is printed
         calib_file = (args.calib if args.calib.startswith("rectified:")
@@ -88,7 +91,7 @@ def write_outputs(args, calib, measurements: list[Measurement]) -> None:
             print(format_line(m))
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     calib, measurements = measure_all(args)
     write_outputs(args, calib, measurements)
     return 0

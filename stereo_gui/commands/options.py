@@ -17,17 +17,17 @@ SEED_MAX = 2**32 - 1  # numpy's seeds are never negative, and 32 bits as OpenCV 
 MAX_PAIRS = 10_000  # the pairs of a calibration set: more than anyone needs
 
 
-def whole(lo: int, hi: int) -> Callable[[str], int]:
+def whole(lo: int, hi: int) -> Callable[[str], object]:
     """An argparse type: a whole number from `lo` to `hi`."""
     return Param(lo=lo, hi=hi, type=int, name="value").argparse_type()
 
 
-def number(lo: float, hi: float, unit: str = "") -> Callable[[str], float]:
+def number(lo: float, hi: float, unit: str = "") -> Callable[[str], object]:
     """An argparse type: a finite number from `lo` to `hi` (`unit` said after them)."""
     return Param(lo=lo, hi=hi, unit=unit, type=float, name="value").argparse_type()
 
 
-def declared(cls, name: str) -> Callable[[str], object]:
+def declared(cls: type, name: str) -> Callable[[str], object]:
     """An argparse type for field `name` of the parameter dataclass `cls` (MatcherParams,
     Settings, ...): its declared range, choices and words."""
     return params_of(cls)[name].argparse_type()

@@ -21,7 +21,9 @@ import datetime as _dt
 import logging
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -30,11 +32,17 @@ from stereo_gui.commands import options
 from stereo_gui.commands.disparity import CALIB_HELP
 from stereo_gui.core.errors import InputError
 from stereo_gui.files.recording import is_recording, open_recording
-from stereo_gui.files.ros2_bag import BagFrame, RectifiedCamera, check_bag_target, write_ros2_bag
+from stereo_gui.files.ros2_bag import (
+    BagFrame,
+    BagSummary,
+    RectifiedCamera,
+    check_bag_target,
+    write_ros2_bag,
+)
 from stereo_gui.files.stream_mcap import StreamRecording, is_mcap
-from stereo_gui.pipeline.rig import open_rig
+from stereo_gui.pipeline.rig import Frame, open_rig
 from stereo_gui.pipeline.stream import camera_infos, cloud_packed
-from stereo_gui.sources.open import SPEC_HELP, parse_source_spec
+from stereo_gui.sources.open import SPEC_HELP, SourceSpec, parse_source_spec
 
 log = logging.getLogger(__name__)
 
@@ -61,7 +69,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="replace OUT_DIR when it is a bag already (atomically)")
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     out = Path(args.output)
     check_bag_target(out, args.force)  # before any work: a refusal costs nothing
     status = _Status()
@@ -98,14 +106,16 @@ class _Status:
             sys.stderr.write(f"stereo-gui: {frames}{of} frames written\n")
 
 
-def _from_mcap(path: Path, out: Path, args, status: _Status):
+def _from_mcap(path: Path, out: Path, args: argparse.Namespace, status: _Status
+               ) -> tuple[BagSummary, str, int]:
     rec = StreamRecording(path)
     status.total = min(rec.frame_count, args.frames or rec.frame_count)
     summary = write_ros2_bag(out, rec.frames(args.frames), replace=args.force, progress=status)
     return summary, f"the recording {path.name}", 0
 
 
-def _from_pipeline(spec: str, out: Path, args, status: _Status):
+def _from_pipeline(spec: str, out: Path, args: argparse.Namespace, status: _Status
+                   ) -> tuple[BagSummary, str, int]:
     s = _source_spec(spec, parse_source_spec)
     if s.kind in ENDLESS_KINDS and args.frames is None:
         raise InputError(f"{spec} never ends by itself: give --frames N")
@@ -126,7 +136,7 @@ def _from_pipeline(spec: str, out: Path, args, status: _Status):
     return summary, what[:1].lower() + what[1:], skipped
 
 
-def _source_spec(spec: str, parse):
+def _source_spec(spec: str, parse: Callable[[str], SourceSpec]) -> SourceSpec:
     try:
         return parse(spec)
     except InputError:
@@ -159,25 +169,23 @@ class _Stamps:
         return round(t_s * 1e9) + self._offset_ns
 
 
-def _anchor(spec) -> float | None:
+def _anchor(spec: SourceSpec) -> float | None:
     """The wall-clock time of a played-back source's first frame: a recording's creation time,
     else (a video, a folder of pairs) now; None for live sources."""
     if spec.kind not in ("folder", "video"):
         return None
-    if spec.kind == "folder":
-        if is_recording(spec.path):
-            try:
-                created = _dt.datetime.fromisoformat(open_recording(spec.path).created)
-                if created.tzinfo is None:
-                    created = created.replace(tzinfo=_dt.UTC)
-                return created.timestamp()
-            except (InputError, ValueError) as exc:
-                log.info("the recording's creation time is not known (%s): stamps from now",
-                         exc)
+    if spec.kind == "folder" and spec.path is not None and is_recording(spec.path):
+        try:
+            created = _dt.datetime.fromisoformat(open_recording(spec.path).created)
+            if created.tzinfo is None:
+                created = created.replace(tzinfo=_dt.UTC)
+            return created.timestamp()
+        except (InputError, ValueError) as exc:
+            log.info("the recording's creation time is not known (%s): stamps from now", exc)
     return time.time()
 
 
-def _bag_frame(frame, stamps: _Stamps):
+def _bag_frame(frame: Frame, stamps: _Stamps) -> BagFrame:
     """A processed Frame of the rig as the bag's BagFrame (its stamp from its capture time)."""
     result = frame.result
     left = result.rectified_left
@@ -190,7 +198,7 @@ def _bag_frame(frame, stamps: _Stamps):
                     _camera(right_info), left, pts["xyz"], pts["rgba"][:, :3])
 
 
-def _camera(info: dict):
+def _camera(info: dict[str, Any]) -> RectifiedCamera:
     """pipeline.stream.camera_infos' fields as a RectifiedCamera."""
     return RectifiedCamera(frame_id=info["frame_id"], width=info["width"],
                            height=info["height"], K=tuple(info["K"]), P=tuple(info["P"]),

@@ -11,14 +11,25 @@ threads the application gives it.
 
 from __future__ import annotations
 
+import functools
 import math
+import os
 import statistics
 import time
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import StereoPipeline
-from stereo_gui.core.scene_score import disparity_search_range, plain_sgbm, score_disparity
+from stereo_gui.core.scene_score import (
+    DisparityScore,
+    disparity_search_range,
+    plain_sgbm,
+    score_disparity,
+)
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.presets import load_presets
 from stereo_gui.files.scenes import load_scene, read_scene_list
@@ -36,11 +47,11 @@ class SceneRow:
     name: str
     size: tuple[int, int]
     num_disparities: int
-    scores: dict = field(default_factory=dict)  # method -> DisparityScore
-    ms: dict = field(default_factory=dict)  # method -> ms per frame
+    scores: dict[str, DisparityScore] = field(default_factory=dict)  # method -> its score
+    ms: dict[str, float] = field(default_factory=dict)  # method -> ms per frame
     # preset -> the baseline it is held to on this scene (a preset with a largest matching
     # width matches a narrow scene at full size and a wide one reduced)
-    baselines: dict = field(default_factory=dict)
+    baselines: dict[str, str] = field(default_factory=dict)
 
 
 def baseline_of(preset: str, scale: float) -> str:
@@ -48,7 +59,8 @@ def baseline_of(preset: str, scale: float) -> str:
     return BASELINE if scale >= 1.0 else f"{BASELINE}@{preset}"
 
 
-def run_scenes(list_path, presets=("live", "quality"), repeat: int = 1) -> dict:
+def run_scenes(list_path: str | os.PathLike[str], presets: Sequence[str] = ("live", "quality"),
+               repeat: int = 1) -> dict[str, Any]:
     """Score every preset and the baselines on every scene of the list; the result as a dict
     (the `--json` output)."""
     if not 1 <= repeat <= 100:
@@ -63,7 +75,8 @@ def run_scenes(list_path, presets=("live", "quality"), repeat: int = 1) -> dict:
             num = disparity_search_range(scene.truth_px)
             row = SceneRow(spec.name, (w, h), num)
             calib = StereoCalibration.identity((w, h), 1000.0, 100.0)
-            methods = {BASELINE: lambda: plain_sgbm(scene.left, scene.right, num)}
+            methods: dict[str, Callable[[], np.ndarray]] = {
+                BASELINE: functools.partial(plain_sgbm, scene.left, scene.right, num)}
             for name, p in params.items():
                 p = p.replace(z_min_mm=None, z_max_mm=None, min_disparity=0,
                               num_disparities=num, parallel=False, cv_threads=None)
@@ -71,11 +84,10 @@ def run_scenes(list_path, presets=("live", "quality"), repeat: int = 1) -> dict:
                 base = baseline_of(name, scale)
                 row.baselines[name] = base
                 if base not in methods:
-                    methods[base] = (lambda s=scale: plain_sgbm(scene.left, scene.right, num, s))
+                    methods[base] = functools.partial(plain_sgbm, scene.left, scene.right, num,
+                                                      scale)
                 pipe = StereoPipeline(calib, p)
-                methods[name] = (lambda pipe=pipe: pipe.process(scene.left, scene.right,
-                                                                right_colour=False,
-                                                                wls=False).final_px)
+                methods[name] = functools.partial(_final_map, pipe, scene.left, scene.right)
             for method, make in methods.items():
                 disparity = make()  # (the first call builds what the matcher keeps)
                 t0 = time.perf_counter()
@@ -87,6 +99,11 @@ def run_scenes(list_path, presets=("live", "quality"), repeat: int = 1) -> dict:
     return summarize(rows, list(params))
 
 
+def _final_map(pipe: StereoPipeline, left: np.ndarray, right: np.ndarray) -> np.ndarray:
+    """A preset's final map of a rectified pair (no colour for the right view, no WLS)."""
+    return pipe.process(left, right, right_colour=False, wls=False).final_px
+
+
 def _baseline_label(rows: list[SceneRow], preset: str) -> str:
     """The name of what a preset is held to: one baseline, or plain SGBM at whatever size the
     preset matched each scene."""
@@ -94,17 +111,18 @@ def _baseline_label(rows: list[SceneRow], preset: str) -> str:
     return bases[0] if len(bases) == 1 else f"{BASELINE} at {preset}'s matching size"
 
 
-def summarize(rows: list[SceneRow], presets: list[str]) -> dict:
+def summarize(rows: list[SceneRow], presets: list[str]) -> dict[str, Any]:
     """The per-scene table, each preset's verdict against its baseline, and the averages."""
     methods = list(dict.fromkeys(m for r in rows for m in r.scores))
-    out = {"scenes": [], "presets": presets,
-           "baseline_of": {p: _baseline_label(rows, p) for p in presets},
-           "margins": {"bad2": MARGIN_BAD2, "density": MARGIN_DENSITY}}
+    out: dict[str, Any] = {"scenes": [], "presets": presets,
+                           "baseline_of": {p: _baseline_label(rows, p) for p in presets},
+                           "margins": {"bad2": MARGIN_BAD2, "density": MARGIN_DENSITY}}
     for r in rows:
-        entry = {"name": r.name, "size": list(r.size), "num_disparities": r.num_disparities,
-                 "methods": {m: {**_finite(r.scores[m].to_dict()), "ms": r.ms[m]}
-                             for m in methods if m in r.scores},
-                 "baseline_of": dict(r.baselines)}
+        entry: dict[str, Any] = {
+            "name": r.name, "size": list(r.size), "num_disparities": r.num_disparities,
+            "methods": {m: {**_finite(r.scores[m].to_dict()), "ms": r.ms[m]}
+                        for m in methods if m in r.scores},
+            "baseline_of": dict(r.baselines)}
         entry["within_margins"] = {p: within(r.scores[p], r.scores[r.baselines[p]])
                                    for p in presets}
         out["scenes"].append(entry)
@@ -134,7 +152,7 @@ def summarize(rows: list[SceneRow], presets: list[str]) -> dict:
     return out
 
 
-def within(score, base) -> bool:
+def within(score: DisparityScore, base: DisparityScore) -> bool:
     """A preset's score is within the margins of its baseline's on a scene."""
     if not math.isfinite(score.bad2):
         return False
@@ -142,7 +160,7 @@ def within(score, base) -> bool:
     return bad_ok and score.density >= base.density - MARGIN_DENSITY
 
 
-def format_scenes(res: dict) -> str:
+def format_scenes(res: dict[str, Any]) -> str:
     """The table a person reads: per scene and method bad-2 % / density %, then the averages
     and each preset's verdict."""
     methods = list(res["mean"])
@@ -181,14 +199,14 @@ def format_scenes(res: dict) -> str:
     return "\n".join(lines)
 
 
-def _pct(v: float) -> str:
+def _pct(v: float | None) -> str:
     return "-" if v is None or not math.isfinite(v) else f"{100 * v:.1f}"
 
 
-def _mean(values) -> float:
-    values = [v for v in values if v is not None and math.isfinite(v)]
-    return statistics.fmean(values) if values else float("nan")
+def _mean(values: Iterable[float | None]) -> float:
+    finite = [v for v in values if v is not None and math.isfinite(v)]
+    return statistics.fmean(finite) if finite else float("nan")
 
 
-def _finite(d: dict) -> dict:
+def _finite(d: dict[str, Any]) -> dict[str, Any]:
     return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in d.items()}

@@ -15,7 +15,7 @@ import time
 from stereo_gui.commands import options
 from stereo_gui.commands.disparity import CALIB_HELP
 from stereo_gui.core.errors import InputError
-from stereo_gui.pipeline.rig import open_rig
+from stereo_gui.pipeline.rig import Rig, open_rig
 from stereo_gui.pipeline.stream import DEFAULT_HOST, DEFAULT_PORT, DepthStream
 from stereo_gui.sources.open import SPEC_HELP
 
@@ -58,7 +58,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="with --region: an alarm when anything in it is nearer than D metres")
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     if args.no_server and not args.mcap:
         raise InputError("--no-server without --mcap would do nothing: give --mcap FILE.mcap")
     if args.alarm_m is not None and args.region is None:
@@ -88,7 +88,8 @@ def run(args) -> int:
     return 0
 
 
-def _serve(rig, stream, limit: int | None, stop: threading.Event):
+def _serve(rig: Rig, stream: DepthStream, limit: int | None, stop: threading.Event
+           ) -> tuple[int, float]:
     """Publish frames until `limit` or `stop`; (frames, start time)."""
     t_start = time.monotonic()
     last_status = t_start

@@ -85,7 +85,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "synchronised, the board still)")
 
 
-def _prepare(out: Path, overwrite: bool, own=_OWN_NAMES, folder: str = SCENE_FOLDER) -> list[Path]:
+def _prepare(out: Path, overwrite: bool, own: re.Pattern[str] = _OWN_NAMES,
+             folder: str = SCENE_FOLDER) -> list[Path]:
     """Check OUT_DIR (create it); return earlier simulated files (named as `own` matches, in
     OUT_DIR and its subfolder `folder`) that --overwrite will remove."""
     if out.exists() and not out.is_dir():
