@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import logging
-import os
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -20,14 +19,12 @@ from stereo_gui.core.matching import PipelineResult, Preset, color_scale_caption
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files import depth_export
 from stereo_gui.files.any_calibration import load_any_calibration
-from stereo_gui.files.atomic import encode_image, write_many_atomic
+from stereo_gui.files.atomic import AtomicItem, StrPath, encode_image, write_many_atomic
 from stereo_gui.files.images import read_image_file
 from stereo_gui.files.presets import load_preset
 from stereo_gui.pipeline.concurrency import preset_pipeline
 
 log = logging.getLogger(__name__)
-
-PathArg = str | os.PathLike[str]  # a file named on the command line
 
 
 # ---- shared helpers ------------------------------------------------------------------------
@@ -120,8 +117,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="coloured point cloud of the valid pixels (binary PLY, mm)")
 
 
-def check_outputs(outputs: Iterable[tuple[PathArg | None, str | None]],
-                  inputs: Iterable[PathArg | None] = ()) -> None:
+def check_outputs(outputs: Iterable[tuple[StrPath | None, str | None]],
+                  inputs: Iterable[StrPath | None] = ()) -> None:
     """Every output path (path, required suffix or None) can be written, before any is: its
     folder exists, it is not a folder nor anything else but a regular file (a device, a FIFO),
     its suffix is right, no two are the same file, and none is one of the run's `inputs` (the
@@ -168,7 +165,7 @@ def run(args: argparse.Namespace) -> int:
                   inputs=(args.left, args.right, args.calib))
     calib, result = run_pipeline(args)
     d = result.final_px
-    items = [(args.output, encode_image(args.output, result.color_bgr), None)]
+    items: list[AtomicItem] = [(args.output, encode_image(args.output, result.color_bgr), None)]
     written = [args.output]
     if args.npy:
         items.append(depth_export.disparity_npy_item(args.npy, d))

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.files.atomic import Verify, encode_image, json_item, write_many_atomic
+from stereo_gui.files.atomic import AtomicItem, encode_image, json_item, write_many_atomic
 from stereo_gui.sources.sim.camera import RigConfig
 from stereo_gui.sources.sim.rig import SimRig
 from stereo_gui.sources.sim.scene import BoardPose, Scene
@@ -25,7 +25,6 @@ HAND_SPIN_RAD_S = np.radians(10.0) / np.sqrt(3.0)
 # scene pairs go into a subfolder so that calibrating OUT_DIR does not take them for board pairs
 SCENE_FOLDER = "scenes"
 
-FileItem = tuple[Path, bytes, Verify | None]  # one file as write_many_atomic takes it
 Progress = Callable[[int, int], None]  # progress(done, total)
 
 
@@ -39,7 +38,7 @@ def calibration_set_names(n_pairs: int, scene: bool) -> list[str]:
 
 
 def _pair_files(out: Path, lname: str, rname: str, left: np.ndarray, right: np.ndarray
-                ) -> Iterator[FileItem]:
+                ) -> Iterator[AtomicItem]:
     """A rendered pair as write_many_atomic takes it: (path, encoded bytes, None) twice."""
     yield out / lname, encode_image(out / lname, left), None
     yield out / rname, encode_image(out / rname, right), None
@@ -47,7 +46,7 @@ def _pair_files(out: Path, lname: str, rname: str, left: np.ndarray, right: np.n
 
 def _board_pairs(rig: SimRig, out: Path, poses: list[BoardPose], rng: np.random.Generator,
                  hand: np.random.Generator, progress: Progress | None, total: int
-                 ) -> Generator[FileItem, None, list[dict[str, Any]]]:
+                 ) -> Generator[AtomicItem, None, list[dict[str, Any]]]:
     """The board pairs' files, rendered one pair at a time; returns their truth.json entries.
     With the rig's time offset the right camera sees the board moved by a hand (`hand`)."""
     offset = float(rig.config.time_offset_s)
@@ -72,7 +71,7 @@ def _board_pairs(rig: SimRig, out: Path, poses: list[BoardPose], rng: np.random.
 
 def _scene_pairs(rig: SimRig, out: Path, scenes: list[Scene], rng: np.random.Generator,
                  progress: Progress | None, done_before: int, total: int
-                 ) -> Generator[FileItem, None, list[dict[str, Any]]]:
+                 ) -> Generator[AtomicItem, None, list[dict[str, Any]]]:
     """The scene pairs' files under SCENE_FOLDER, after `done_before` board pairs (`progress`
     counts on from them); returns their truth.json entries."""
     entries: list[dict[str, Any]] = []
@@ -120,7 +119,7 @@ def write_calibration_set(out_dir: str | os.PathLike[str], n_pairs: int = 20, se
     if scene:
         (out / SCENE_FOLDER).mkdir(exist_ok=True)
 
-    def files() -> Iterator[FileItem]:  # rendered one pair at a time, as write_many_atomic
+    def files() -> Iterator[AtomicItem]:  # rendered one pair at a time, as write_many_atomic
         pairs = yield from _board_pairs(rig, out, poses, rng, hand, progress, total)
         scene_entries = yield from _scene_pairs(rig, out, scenes, rng, progress,
                                                 len(poses), total)

@@ -36,9 +36,9 @@ from stereo_gui.core.errors import InputError
 from stereo_gui.core.lens import rectify_map
 from stereo_gui.core.matching import MatcherParams, StereoPipeline
 from stereo_gui.core.stereo_calibration import StereoCalibration
-from stereo_gui.files.atomic import Verify, encode_image, write_many_atomic
+from stereo_gui.files.atomic import AtomicItem, Verify, encode_image, write_many_atomic
 from stereo_gui.files.scenes import read_pfm
-from stereo_gui.sources.sim.calibration_set import FileItem, Progress
+from stereo_gui.sources.sim.calibration_set import Progress
 from stereo_gui.sources.sim.camera import RigConfig
 from stereo_gui.sources.sim.conditions import CONDITIONS
 from stereo_gui.sources.sim.rig import SimRig
@@ -207,7 +207,7 @@ _LIST_HEADER = ("# stereo-gui simulate --click-scenes: rectified pairs of the si
 
 def _scene_files(out: Path, rig: SimRig, cs: ClickScene,
                  truths: dict[bytes, tuple[np.ndarray, np.ndarray]]
-                 ) -> Generator[FileItem, None, str]:
+                 ) -> Generator[AtomicItem, None, str]:
     """One click scene's files (rectified pair, true disparity, mask) as write_many_atomic
     takes them; returns its line of the list. `truths` keeps the true disparities by geometry."""
     calib = rig.true_calibration(alpha=0.0)
@@ -259,7 +259,7 @@ def write_click_scenes(out_dir: str | os.PathLike[str], seeds: Iterable[int] = (
     written: list[ClickScene] = []
     truths: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
 
-    def files() -> Iterator[FileItem]:
+    def files() -> Iterator[AtomicItem]:
         lines = list(_LIST_HEADER)
         for seed, plan in plans:
             rigs: dict[str, SimRig] = {}
