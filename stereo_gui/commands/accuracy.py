@@ -47,8 +47,9 @@ from stereo_gui.core.click_score import plain_patch_disparity
 from stereo_gui.core.detect import detect_pairs
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.lens import rectify_map, undistort_points
-from stereo_gui.core.matching import MatcherParams, PipelineResult, Preset, StereoPipeline
+from stereo_gui.core.matching import PipelineResult, StereoPipeline
 from stereo_gui.core.measure import PATCH_PX, Measurement, measure_point
+from stereo_gui.core.preset import MatcherParams, Preset
 from stereo_gui.core.reference_loop import ReferenceFrame, ReferenceLoop
 from stereo_gui.core.scene_score import plain_sgbm
 from stereo_gui.core.shading import measure_pair_shading

@@ -47,7 +47,7 @@ from stereo_gui.commands.disparity import load_calibration, read_pair
 from stereo_gui.commands.scenes import format_scenes, run_scenes
 from stereo_gui.core import plain_loop, reference_loop
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import Preset
+from stereo_gui.core.preset import Preset
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.presets import load_presets
 from stereo_gui.pipeline.concurrency import opencv_threads_beside_lanes, opencv_threads_for_lanes

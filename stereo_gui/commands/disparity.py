@@ -14,8 +14,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from stereo_gui.core.colouring import color_scale_caption
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import PipelineResult, Preset, color_scale_caption
+from stereo_gui.core.matching import PipelineResult
+from stereo_gui.core.preset import Preset
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files import depth_export
 from stereo_gui.files.any_calibration import load_any_calibration

@@ -12,7 +12,7 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
-from stereo_gui.core.matching import DISP_SCALE
+from stereo_gui.core.disparity import DISP_SCALE
 from stereo_gui.core.uncertainty import Z95
 
 QUANTUM_PX = 1.0 / DISP_SCALE  # SGBM's step: no estimate is better than that unrefined

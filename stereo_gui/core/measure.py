@@ -31,11 +31,9 @@ from stereo_gui.core.align import (
     robust_spread,
     window_correlation,
 )
-from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import (
+from stereo_gui.core.disparity import (
     BLANK_HALF_PX,
     BLANK_LAG_PX,
-    PipelineResult,
     agreement,
     blank_mask,
     compute_padded,
@@ -43,6 +41,8 @@ from stereo_gui.core.matching import (
     local_contrast,
     unseen_mask,
 )
+from stereo_gui.core.errors import InputError
+from stereo_gui.core.matching import PipelineResult
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.core.uncertainty import Z95
 
@@ -598,7 +598,7 @@ def _estimate_from_right(result: PipelineResult, x: int, y: int, half: int) -> f
 
 
 def is_blank(gray: np.ndarray, x: int, y: int) -> bool:
-    """Whether the window around (x, y) holds nothing but sensor noise (`core.matching.
+    """Whether the window around (x, y) holds nothing but sensor noise (`core.disparity.
     blank_mask`'s rule on the full-resolution image, for one window)."""
     h, w = gray.shape[:2]
     half = BLANK_HALF_PX

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from stereo_gui.core.matching import compute_padded
+from stereo_gui.core.disparity import compute_padded
 
 # the look's images: at most this wide, and shrunk so that the range is at most LOOK_MAX_NUM px
 LOOK_MAX_WIDTH = 200

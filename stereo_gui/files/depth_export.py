@@ -13,8 +13,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from stereo_gui.core.disparity import DISP_SCALE
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import DISP_SCALE
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.atomic import AtomicItem, StrPath, encode_image, write_bytes_atomic
 

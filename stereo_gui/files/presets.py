@@ -18,7 +18,7 @@ from pathlib import Path
 import platformdirs
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import Preset
+from stereo_gui.core.preset import Preset
 from stereo_gui.files.atomic import write_json_atomic
 from stereo_gui.files.readers import read_json_object
 from stereo_gui.resources import resource_path

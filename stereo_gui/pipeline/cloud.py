@@ -14,7 +14,8 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import COLORMAPS, PipelineResult
+from stereo_gui.core.matching import PipelineResult
+from stereo_gui.core.preset import COLORMAPS
 from stereo_gui.core.stereo_calibration import StereoCalibration
 
 COLOURINGS = ("image", "distance")

@@ -38,7 +38,8 @@ from contextlib import contextmanager
 
 import cv2
 
-from stereo_gui.core.matching import MatcherParams, Preset, StereoPipeline
+from stereo_gui.core.matching import StereoPipeline
+from stereo_gui.core.preset import MatcherParams, Preset
 from stereo_gui.core.stereo_calibration import StereoCalibration
 
 MAX_LANES = 2  # frames processed at once at most (the frame worker has as many lanes)

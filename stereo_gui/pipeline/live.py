@@ -15,18 +15,10 @@ from typing import Protocol
 import cv2
 import numpy as np
 
+from stereo_gui.core.colouring import NO_MATCH_BGR, NOT_SEEN_BGR, ColorScale, colorize, paint
 from stereo_gui.core.health import CalibrationHealth
-from stereo_gui.core.matching import (
-    NO_MATCH_BGR,
-    NOT_SEEN_BGR,
-    ColorScale,
-    MatcherParams,
-    PipelineResult,
-    Preset,
-    StereoPipeline,
-    colorize,
-    paint,
-)
+from stereo_gui.core.matching import PipelineResult, StereoPipeline
+from stereo_gui.core.preset import MatcherParams, Preset
 from stereo_gui.core.regression import FitResult
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.pipeline.concurrency import lanes_for, use_preset_threads

@@ -28,8 +28,9 @@ from typing import Self
 import numpy as np
 
 from stereo_gui.core.errors import InputError, SourceError, StereoGuiError
-from stereo_gui.core.matching import PipelineResult, Preset
+from stereo_gui.core.matching import PipelineResult
 from stereo_gui.core.measure import PATCH_PX, Measurement, measure_point
+from stereo_gui.core.preset import Preset
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.any_calibration import load_any_calibration
 from stereo_gui.files.presets import load_preset

@@ -8,7 +8,7 @@ import pytest
 
 from stereo_gui.commands import options
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import MatcherParams
+from stereo_gui.core.preset import MatcherParams
 
 
 @pytest.mark.parametrize("text,message", [

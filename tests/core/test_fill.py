@@ -5,14 +5,10 @@ import cv2
 import numpy as np
 import pytest
 
+from stereo_gui.core.disparity import FILL_DEPTH_PX, fill_depth_px, sunk
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import (
-    FILL_DEPTH_PX,
-    MatcherParams,
-    StereoPipeline,
-    _sunk,
-    fill_depth_px,
-)
+from stereo_gui.core.matching import StereoPipeline
+from stereo_gui.core.preset import MatcherParams
 from stereo_gui.files.presets import load_preset
 from stereo_gui.sources.sim import Scene, SimRig
 from stereo_gui.sources.sim.conditions import CONDITIONS
@@ -172,14 +168,14 @@ def test_sunk_finds_a_value_farther_than_the_map_on_both_sides_of_its_hole():
                   [nan, nan, nan, nan],
                   [9.0, nan, nan, 9.0]], np.float32)
     v = np.full(m.shape, 6.0, np.float32)
-    got = _sunk(v, m, 1.0)
+    got = sunk(v, m, 1.0)
     assert got[0, 1] and got[0, 2] and got[3, 1] and got[3, 2]  # 9 left and right of them
     assert not got[1, 1] and not got[1, 2]  # 5 on their right: farther than 6
     assert got[2, 0]  # 9 above and below it
     assert not got[2, 3]  # 5 above it
     assert not got[2, 1] and not got[2, 2]  # nothing in their row or column
     # within the tolerance it is the same surface
-    assert not _sunk(np.full(m.shape, 8.5, np.float32), m, 1.0).any()
+    assert not sunk(np.full(m.shape, 8.5, np.float32), m, 1.0).any()
 
 
 def test_the_fill_finds_nothing_nearer_than_the_presets_range():

@@ -15,7 +15,7 @@ from stereo_gui.core.align import (
     window_correlation,
 )
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import MatcherParams, Preset, StereoPipeline
+from stereo_gui.core.matching import StereoPipeline
 from stereo_gui.core.measure import (
     Reason,
     histogram_mode,
@@ -23,6 +23,7 @@ from stereo_gui.core.measure import (
     reads_nearer_edge,
     triangulate,
 )
+from stereo_gui.core.preset import MatcherParams, Preset
 from stereo_gui.core.regression import fit_inverse
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.core.uncertainty import Z95

@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import PRESET_PARAMS, MatcherParams, Preset
 from stereo_gui.core.params import check_all, convert, param, params_of
+from stereo_gui.core.preset import PRESET_PARAMS, MatcherParams, Preset
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,8 @@ import cv2
 import numpy as np
 import pytest
 
-from stereo_gui.core.matching import SCENE_SHRINK_FRAMES, MatcherParams, StereoPipeline
+from stereo_gui.core.matching import SCENE_SHRINK_FRAMES, StereoPipeline
+from stereo_gui.core.preset import MatcherParams
 from stereo_gui.core.scene_range import look_at_scene
 from stereo_gui.core.stereo_calibration import StereoCalibration
 

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import MatcherParams, StereoPipeline
+from stereo_gui.core.matching import StereoPipeline
+from stereo_gui.core.preset import MatcherParams
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files import depth_export
 

@@ -128,7 +128,7 @@ def _w_ros(root, version):
 
 
 def _w_preset(root, version):
-    from stereo_gui.core.matching import MatcherParams, Preset
+    from stereo_gui.core.preset import MatcherParams, Preset
     from stereo_gui.files.presets import save_user_preset
 
     os.environ["STEREO_GUI_CONFIG_DIR"] = str(root / "config")

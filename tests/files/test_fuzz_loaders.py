@@ -153,7 +153,7 @@ def test_fits(tmp_path):
 
 
 def test_presets(tmp_path):
-    from stereo_gui.core.matching import Preset
+    from stereo_gui.core.preset import Preset
     from stereo_gui.files.presets import load_preset
     from stereo_gui.resources import resource_path
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import Preset
+from stereo_gui.core.preset import Preset
 from stereo_gui.files.presets import (
     BUILTIN,
     delete_user_preset,

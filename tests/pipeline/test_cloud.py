@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from stereo_gui.core.errors import InputError
-from stereo_gui.core.matching import MatcherParams, StereoPipeline
+from stereo_gui.core.matching import StereoPipeline
+from stereo_gui.core.preset import MatcherParams
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.pipeline.cloud import MAX_POINTS, cloud_points
 
@@ -68,7 +69,8 @@ def test_points_coloured_by_distance_take_the_depth_views_colours():
     depth view (not a range of the cloud's own)."""
     import cv2
 
-    from stereo_gui.core.matching import COLORMAPS, ColorScale
+    from stereo_gui.core.colouring import ColorScale
+    from stereo_gui.core.preset import COLORMAPS
 
     r = _plane()
     lut = cv2.applyColorMap(np.arange(256, dtype=np.uint8).reshape(-1, 1),

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 import stereo_gui
-from stereo_gui.core.matching import MatcherParams, Preset, StereoPipeline
+from stereo_gui.core.matching import StereoPipeline
+from stereo_gui.core.preset import MatcherParams, Preset
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.pipeline.concurrency import (
     opencv_threads_beside_lanes,

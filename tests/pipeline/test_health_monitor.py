@@ -7,7 +7,7 @@ import threading
 
 import numpy as np
 
-from stereo_gui.core.matching import MatcherParams
+from stereo_gui.core.preset import MatcherParams
 from stereo_gui.pipeline.health import HealthMonitor
 from stereo_gui.pipeline.live import LiveProcessor
 from stereo_gui.sources.sim import Scene

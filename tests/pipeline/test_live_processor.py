@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from stereo_gui.core.errors import CalibrationError
-from stereo_gui.core.matching import MatcherParams, Preset
+from stereo_gui.core.preset import MatcherParams, Preset
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.pipeline.live import NO_MATCH_RGB, NOT_SEEN_RGB, LiveOutput, LiveProcessor
 from stereo_gui.sources.base import StereoFrame
@@ -55,7 +55,7 @@ def test_the_not_seen_colour_is_no_colour_of_depth_in_any_view():
     """The grey views (Raw, Closed: r = g = b) and the presets' colour maps never draw depth in
     the "not seen" colour, nor in anything close to it; it is no "no match" either (the legend
     said grey while Raw and Closed are grey scale)."""
-    from stereo_gui.core.matching import COLORMAPS
+    from stereo_gui.core.preset import COLORMAPS
     from stereo_gui.files.presets import load_preset
 
     seen = np.asarray(NOT_SEEN_RGB, float)
@@ -202,7 +202,7 @@ def test_the_view_colour_range_is_kept_from_frame_to_frame():
     """The processor keeps the colour scale of the frame before (the hysteresis of a range that
     follows the view lives with the frames, not in a widget): a plane a little nearer keeps the
     range (a fresh processor would round it elsewhere), one much nearer moves it."""
-    from stereo_gui.core.matching import DisplayParams
+    from stereo_gui.core.preset import DisplayParams
 
     calib = StereoCalibration.identity((W, H), 300.0, 100.0)  # f*B = 30000 mm px
     preset = Preset(matcher=MatcherParams(num_disparities=32, block_size=5),

@@ -5,8 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from stereo_gui.core.matching import MatcherParams, StereoPipeline
+from stereo_gui.core.matching import StereoPipeline
 from stereo_gui.core.measure import measure_point
+from stereo_gui.core.preset import MatcherParams
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.pipeline.readout import (disparity_of_view, format_distance, format_error,
                                          read_pointer, readout_line)

@@ -32,9 +32,11 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from stereo_gui.core.colouring import color_scale_caption
 from stereo_gui.core.errors import StereoGuiError
-from stereo_gui.core.matching import COLORMAPS, PipelineResult, Preset, color_scale_caption
+from stereo_gui.core.matching import PipelineResult
 from stereo_gui.core.measure import Measurement
+from stereo_gui.core.preset import COLORMAPS, Preset
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.pipeline.cloud import CloudPoints
 from stereo_gui.pipeline.live import NO_MATCH_RGB, NOT_SEEN_RGB, LiveOutput, LiveProcessor

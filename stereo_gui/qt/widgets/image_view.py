@@ -25,7 +25,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from stereo_gui.core.matching import ColorScale, color_scale_caption
+from stereo_gui.core.colouring import ColorScale, color_scale_caption
 
 pg.setConfigOptions(imageAxisOrder="row-major")
 

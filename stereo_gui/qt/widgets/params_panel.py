@@ -30,8 +30,8 @@ from PySide6.QtWidgets import (
 )
 
 from stereo_gui.core.errors import StereoGuiError
-from stereo_gui.core.matching import PRESET_PARAMS, Preset
 from stereo_gui.core.params import Param
+from stereo_gui.core.preset import PRESET_PARAMS, Preset
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files import presets
 

@@ -34,7 +34,8 @@ import numpy as np
 
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.lens import rectify_map
-from stereo_gui.core.matching import MatcherParams, StereoPipeline
+from stereo_gui.core.matching import StereoPipeline
+from stereo_gui.core.preset import MatcherParams
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.atomic import AtomicItem, Verify, encode_image, write_many_atomic
 from stereo_gui.files.scenes import read_pfm

@@ -58,7 +58,7 @@ def screen(qtbot):
 @pytest.fixture(scope="module")
 def wall_output(sim_rig, wall_pair):
     """A processed frame of the 1.5 m wall (what the Live tab would be showing)."""
-    from stereo_gui.core.matching import Preset
+    from stereo_gui.core.preset import Preset
     from stereo_gui.pipeline.live import LiveProcessor
     from stereo_gui.sources.base import StereoFrame
 

@@ -9,7 +9,7 @@ import pytest
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QApplication
 
-from stereo_gui.core.matching import ColorScale
+from stereo_gui.core.colouring import ColorScale
 from stereo_gui.qt.widgets.image_view import ImagePanel, colormap_lut, distance_ticks
 
 

@@ -61,7 +61,7 @@ def test_an_edited_preset_says_modified_and_choosing_it_again_restores_it(panel)
 def test_each_editor_offers_its_declared_range_words_and_choices(panel):
     from PySide6.QtWidgets import QCheckBox, QComboBox
 
-    from stereo_gui.core.matching import PRESET_PARAMS
+    from stereo_gui.core.preset import PRESET_PARAMS
 
     for key, editor in panel.editors.items():
         spec = PRESET_PARAMS[key]
