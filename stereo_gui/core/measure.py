@@ -12,7 +12,7 @@ estimate is first replaced by a full-resolution re-match of a strip around the c
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import StrEnum
 
 import cv2
@@ -43,8 +43,9 @@ from stereo_gui.core.disparity import (
 )
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import PipelineResult
+from stereo_gui.core.regression import FitResult
 from stereo_gui.core.stereo_calibration import StereoCalibration
-from stereo_gui.core.uncertainty import Z95
+from stereo_gui.core.uncertainty import Z95, depth_sigma_mm
 
 PATCH_PX = 9  # default side of the square patch a measurement looks at, px (odd)
 
@@ -662,156 +663,118 @@ def _depth_bound_mm(fb: float, d: float, bound_px: float) -> float:
 
 
 # ---- the measurement -----------------------------------------------------------------------
-def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch: int = PATCH_PX,
-                  mode: str = "point", calibration: StereoCalibration | None = None,
-                  fit=None, refine: bool = True, rematch: bool = True) -> Measurement:
-    """Measure the distance at rectified pixel (x, y).
+@dataclass(frozen=True)
+class _Click:
+    """A click and its patch: (x, y) as given, the pixel (xi, yi) it falls in, the patch's side
+    and half side, its rows y0:y1 and columns x0:x1 (cut at the image's edges), and the mode."""
 
-    `source` is a PipelineResult (then refinement and the full-resolution re-match are possible)
-    or a float disparity map in px with NaN invalid (then `calibration` is required). `fit` is a
-    regression.FitResult used instead of triangulation for Z.
-    """
+    x: float
+    y: float
+    xi: int
+    yi: int
+    patch: int
+    half: int
+    y0: int
+    y1: int
+    x0: int
+    x1: int
+    mode: str
+
+    @classmethod
+    def at(cls, x: float, y: float, patch: int, mode: str, shape: tuple[int, ...]) -> _Click:
+        h, w = shape[:2]
+        xi, yi = int(round(x)), int(round(y))
+        half = patch // 2
+        return cls(x, y, xi, yi, patch, half, max(0, yi - half), min(h, yi + half + 1),
+                   max(0, xi - half), min(w, xi + half + 1), mode)
+
+    def invalid(self, reason: Reason, valid_fraction: float = 0.0) -> Measurement:
+        """No reading, before the map gave a disparity."""
+        return Measurement(self.x, self.y, False, reason, mode=self.mode,
+                           valid_fraction=valid_fraction)
+
+
+@dataclass(frozen=True)
+class _MapReading:
+    """What the map says at a click before the images are asked: the disparity `d` (the patch's
+    median, the estimate from its surround, or the surface's most frequent value), the values
+    it came from, the share of the patch (or surface) that held them, and why the patch itself
+    held too few (`empty`, None when it held enough)."""
+
+    d: float
+    values: np.ndarray
+    valid_fraction: float
+    empty: Reason | None = None
+    spread_px: float = field(init=False)  # the values' robust standard deviation, px
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "spread_px", robust_spread(self.values))
+
+    def refused(self, click: _Click, reason: Reason, d: float, method: str = "triangulation"
+                ) -> Measurement:
+        """No reading, with what the map gave (the disparity `d` so far)."""
+        return Measurement(click.x, click.y, False, reason, disparity_px=d,
+                           valid_fraction=self.valid_fraction, spread_px=self.spread_px,
+                           method=method, mode=click.mode, raw_disparity_px=self.d)
+
+
+def _check_request(patch: int, mode: str) -> None:
     if patch < 1:
         raise InputError(f"the patch size must be at least 1 px, not {patch}")
     if mode not in ("point", "object"):
         raise InputError(f"mode must be point or object, not {mode!r}")
-    result = source if isinstance(source, PipelineResult) else None
-    if result is not None:
-        disp = reading_map(result)
-        calibration = calibration or result.calibration
-        d_lo, d_hi = result.disparity_range_px
-    else:
-        disp = np.asarray(source, np.float32)
-        d_lo, d_hi = -math.inf, math.inf
+
+
+def _inside(x: float, y: float, shape: tuple[int, ...]) -> bool:
+    h, w = shape[:2]
+    return 0 <= x <= w - 1 and 0 <= y <= h - 1
+
+
+def measure_point(result: PipelineResult, x: float, y: float, patch: int = PATCH_PX,
+                  mode: str = "point", calibration: StereoCalibration | None = None,
+                  fit: FitResult | None = None, refine: bool = True, rematch: bool = True
+                  ) -> Measurement:
+    """Measure the distance at rectified pixel (x, y) of a processed frame: the patch's reading
+    of the map (with a reduced-resolution preset, re-matched at full resolution:
+    `_rematched`), refined to a fraction of a pixel and checked against the images (point mode:
+    `_subpixel`, `_checked_in_images`), then located, with its bound (`_located`).
+    `calibration`: instead of the frame's. `fit` is a regression.FitResult used instead of
+    triangulation for Z. A bare disparity map: `measure_map`.
+    """
+    _check_request(patch, mode)
+    disp = reading_map(result)
+    calibration = calibration or result.calibration
     if calibration is None:
         raise InputError("a measurement on a bare disparity map needs the calibration")
-    h, w = disp.shape[:2]
-    xi, yi = int(round(x)), int(round(y))
-    if not (0 <= x <= w - 1 and 0 <= y <= h - 1):
+    if not _inside(x, y, disp.shape):
         return Measurement(x, y, False, Reason.OUTSIDE, mode=mode)
-    half = patch // 2
-    y0, y1 = max(0, yi - half), min(h, yi + half + 1)
-    x0, x1 = max(0, xi - half), min(w, xi + half + 1)
-
-    def invalid(reason: Reason, **fields) -> Measurement:
-        return Measurement(x, y, False, reason, mode=mode, **fields)
-
-    if result is not None and result.not_seen is not None and result.not_seen[yi, xi]:
-        return invalid(Reason.NOT_SEEN)  # as every view shows it
+    click = _Click.at(x, y, patch, mode, disp.shape)
+    xi, yi = click.xi, click.yi
+    if result.not_seen is not None and result.not_seen[yi, xi]:
+        return click.invalid(Reason.NOT_SEEN)  # as every view shows it
     # (converted once: the checks below and the refinement all compare these)
-    gl, gr = result.matched_gray() if result is not None else (None, None)
-    if (result is not None and not result.params.check_block_size
-            and not has_texture(gl, xi, yi, half)):
-        return invalid(Reason.NO_TEXTURE)  # whatever matched there matched noise
-
-    scaled = result is not None and result.match_scale < 1.0
+    gl, gr = result.matched_gray()
+    if not result.params.check_block_size and not has_texture(gl, xi, yi, click.half):
+        return click.invalid(Reason.NO_TEXTURE)  # whatever matched there matched noise
     if mode == "point":
-        window = disp[y0:y1, x0:x1]
-        usable = np.isfinite(window)
-        checked = consistent_pixels(result, y0, y1, x0, x1) if result is not None else None
-        if checked is not None:
-            usable &= checked
-        if scaled and rematch:
-            band = rematch_strip(result, yi, half)
-            if band is not None:
-                # the full-resolution values count where they agree with the frame's own
-                # (left-right checked) match to within its resolution
-                band = band[:, x0:x1]
-                # (where the strip found nothing at all, the frame's own values stand if they
-                # lie on the surface around them: its reduced images hold the texture a
-                # full-resolution window of the same size misses, and the refinement still
-                # checks them against the images. The strip's values where the frame has none
-                # were tried and rejected: one right reading for one 50 % off on the 13 scenes)
-                own_only = (not np.isfinite(band).any() and usable.any()
-                            and _frame_values_fit_around(result, xi, yi, window[usable]))
-                if not own_only:
-                    with np.errstate(invalid="ignore"):
-                        usable &= np.abs(band - window) <= 2.0 / result.match_scale
-                    window = band
-                    usable &= np.isfinite(window)
-        values = window[usable]
-        valid_fraction = values.size / window.size
-        surround = empty = None
-        if valid_fraction < MIN_VALID_FRACTION:
-            # nothing, or a few pixels that passed where all around failed (an occlusion's
-            # edge, a repeating pattern): no reading of the patch's own
-            empty = (_why_nothing(result, xi, yi, half) if values.size == 0
-                     else Reason.TOO_FEW)
-            if empty in SURROUND_READS and refine and result is not None:
-                # the matcher found the surface all around: where the images confirm it
-                # (below), the click reads it too
-                surround = surrounding_estimate(result, xi, yi)
-            if surround is None:
-                return invalid(empty, valid_fraction=valid_fraction)
-            values = np.array([surround], np.float32)
-        d = float(np.median(values))
-        if result is not None and result.params.full_frame:
-            hidden, under = hidden_by_nearer(result.final_px, xi, y0, y1, d,
-                                             max(1.0, 2.0 / result.match_scale))
-            if hidden or (under is not None and _shows_nearer(
-                    gl, gr, xi, yi, d, under)):
-                return invalid(Reason.NOT_SEEN, valid_fraction=valid_fraction)
+        read = _read_patch(result, disp, click, gl, gr, refine, rematch)
     else:
-        view = result.final_px if result is not None else disp
-        region = surface_region(view, xi, yi, window=max(4 * patch, 16))
-        if region is None or not region.any():
-            return invalid(_why_nothing(result, xi, yi, half), valid_fraction=0.0)
-        values = disp[region]
-        values = values[np.isfinite(values)]
-        valid_fraction = values.size / int(region.sum())
-        if values.size == 0:
-            return invalid(Reason.NO_VALID_PIXELS, valid_fraction=0.0)
-        d = histogram_mode(values)
-    spread = robust_spread(values)
-    raw_d = d
-    common = dict(valid_fraction=valid_fraction, spread_px=spread, raw_disparity_px=raw_d)
-
+        read = _read_surface(result.final_px, disp, click, result)
+    if isinstance(read, Measurement):
+        return read
+    d = read.d
     ref = None
-    if refine and result is not None and mode == "point":
-        ref = refine_point(gl, gr, xi, yi, d, half, surface=disp)
-        if empty is not None and (ref is None or not ref.converged):
-            return invalid(empty, valid_fraction=valid_fraction)
-        if empty is not None and not _centre_agrees(gl, gr, xi, yi, ref):
-            # the click's own window does not show the surface the larger window aligned: an
-            # object in front of it that the matcher missed, not that surface
-            return invalid(empty, valid_fraction=valid_fraction)
-        if (ref is not None and not ref.converged and empty is None
-                and valid_fraction >= RICH_MIN_SHARE and spread <= EDGE_SPREAD_PX
-                and window_correlation(gl, gr, xi, yi, d, REFINE_HALF_PX)[0] >= RICH_MIN_CORR):
-            # the alignment runs off, but the patch's matches agree on one surface and the
-            # click's window matches there as only rich texture does: the map is right there
-            # more often than not (a slanted or curved surface, a depth edge nearby, what a
-            # window's one disparity cannot follow), and the patch is read unrefined, with an
-            # unrefined reading's bound. On a weak wall, where the map's blobs are wrong and the
-            # refusal earns its place, no window correlates so well
-            ref = None
-        if ref is not None and not ref.converged:
-            # the images pull the match away from the matcher's estimate, and nowhere near it
-            # do they settle: the estimate is contradicted, no reading
-            return invalid(Reason.AMBIGUOUS, disparity_px=d, **common)
-
-        if ref is not None:
-            corr, pixels = ref.correlation, ref.pixels
-        else:
-            # not refined (no window converged): the match still has to show in the images,
-            # over the largest window the refinement would have used on this surface
-            h_t = max(half, REFINE_HALF_PX)
-            for grown in REFINE_GROWTH:
-                if not one_surface(disp, xi, yi, max(half, grown)):
-                    break
-                h_t = max(half, grown)
-            corr, pixels = window_correlation(gl, gr, xi, yi, d, h_t)
-        if corr * math.sqrt(pixels) < TEXTURE_MIN_T * STDERR_SCALE:
-            # the aligned windows share nothing the noise could not have given them
-            return invalid(Reason.NO_TEXTURE, disparity_px=d, **common)
-        if ref is not None:
-            d = ref.disparity_px
-        if reads_nearer_edge(gl, gr, disp, xi, yi, d,
-                             ref.half_px if ref is not None else h_t):
-            # the click's own plain region shows nothing; the window read a nearer edge
-            return invalid(Reason.NEARER_EDGE, disparity_px=d, **common)
-    if result is not None and xi - d < -0.5:
-        return invalid(Reason.NOT_SEEN, disparity_px=d, **common)
+    if refine and mode == "point":
+        refined = _subpixel(gl, gr, disp, click, read)
+        if isinstance(refined, Measurement):
+            return refined
+        ref = refined.refinement
+        checked = _checked_in_images(gl, gr, disp, click, read, ref)
+        if isinstance(checked, Measurement):
+            return checked
+        d = checked
+    if xi - d < -0.5:
+        return read.refused(click, Reason.NOT_SEEN, d)
 
     # the matcher cannot report disparities outside its range: a surface nearer than the range
     # allows gives a wrong match somewhere inside it. An exhaustive correlation scan of the
@@ -819,26 +782,219 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
     # the range than at the estimate. (Only clearly: on a repeating pattern, a chessboard say,
     # the pattern's period gives peaks nearly as high as the true one, and a wrong match inside
     # the range is what the left-right check is for.)
-    step = 1.0 if result is None else 1.0 / result.match_scale
-    if result is not None and mode == "point":
-        beyond = _beyond_range(gl, gr, disp, xi, yi, d, half, (d_lo - step, d_hi + step))
+    d_lo, d_hi = result.disparity_range_px
+    step = 1.0 / result.match_scale
+    if mode == "point":
+        beyond = _beyond_range(gl, gr, disp, xi, yi, d, click.half, (d_lo - step, d_hi + step))
         if beyond is not None:
-            return invalid(beyond, disparity_px=d, **common)
+            return read.refused(click, beyond, d)
+    return _located(click, read, d, (d_lo, d_hi), step, disparity_bound_px(ref, read.spread_px),
+                    calibration, fit, refined=ref is not None)
+
+
+def measure_map(disparity_px: np.ndarray, x: float, y: float, patch: int = PATCH_PX,
+                mode: str = "point", calibration: StereoCalibration | None = None,
+                fit: FitResult | None = None) -> Measurement:
+    """Measure the distance at pixel (x, y) of a bare disparity map (float px, NaN invalid):
+    the patch's median (point mode) or its surface's most frequent value (object mode),
+    triangulated through the calibration's Q (required) or `fit`; its bound is the patch's
+    spread (at least SGBM's step). No images: no refinement."""
+    _check_request(patch, mode)
+    disp = np.asarray(disparity_px, np.float32)
+    if calibration is None:
+        raise InputError("a measurement on a bare disparity map needs the calibration")
+    if not _inside(x, y, disp.shape):
+        return Measurement(x, y, False, Reason.OUTSIDE, mode=mode)
+    click = _Click.at(x, y, patch, mode, disp.shape)
+    if mode == "point":
+        window = disp[click.y0:click.y1, click.x0:click.x1]
+        values = window[np.isfinite(window)]
+        valid_fraction = values.size / window.size
+        if valid_fraction < MIN_VALID_FRACTION:
+            return click.invalid(Reason.NO_VALID_PIXELS if values.size == 0 else Reason.TOO_FEW,
+                                 valid_fraction)
+        read: _MapReading | Measurement = _MapReading(float(np.median(values)), values,
+                                                      valid_fraction)
+    else:
+        read = _read_surface(disp, disp, click, None)
+    if isinstance(read, Measurement):
+        return read
+    return _located(click, read, read.d, (-math.inf, math.inf), 1.0,
+                    Z95 * max(read.spread_px, QUANTUM_PX), calibration, fit, refined=False)
+
+
+# ---- the steps of a reading ----------------------------------------------------------------
+def _read_patch(result: PipelineResult, disp: np.ndarray, click: _Click, gl: np.ndarray,
+                gr: np.ndarray, refine: bool, rematch: bool) -> _MapReading | Measurement:
+    """Point mode: the median of the patch's values that pass the frame's checks (re-matched at
+    full resolution, `_rematched`), or, where too few do, the surface all around it
+    (`surrounding_estimate`; only with `refine`, which must then confirm it); refused where a
+    nearer surface hides the point from the right camera."""
+    window = disp[click.y0:click.y1, click.x0:click.x1]
+    usable = np.isfinite(window)
+    checked = consistent_pixels(result, click.y0, click.y1, click.x0, click.x1)
+    if checked is not None:
+        usable &= checked
+    if result.match_scale < 1.0 and rematch:
+        window, usable = _rematched(result, click, window, usable)
+    values = window[usable]
+    valid_fraction = values.size / window.size
+    empty = None
+    if valid_fraction < MIN_VALID_FRACTION:
+        # nothing, or a few pixels that passed where all around failed (an occlusion's
+        # edge, a repeating pattern): no reading of the patch's own
+        empty = (_why_nothing(result, click.xi, click.yi, click.half) if values.size == 0
+                 else Reason.TOO_FEW)
+        surround = None
+        if empty in SURROUND_READS and refine:
+            # the matcher found the surface all around: where the images confirm it
+            # (below), the click reads it too
+            surround = surrounding_estimate(result, click.xi, click.yi)
+        if surround is None:
+            return click.invalid(empty, valid_fraction)
+        values = np.array([surround], np.float32)
+    d = float(np.median(values))
+    if result.params.full_frame:
+        hidden, under = hidden_by_nearer(result.final_px, click.xi, click.y0, click.y1, d,
+                                         max(1.0, 2.0 / result.match_scale))
+        if hidden or (under is not None and _shows_nearer(
+                gl, gr, click.xi, click.yi, d, under)):
+            return click.invalid(Reason.NOT_SEEN, valid_fraction)
+    return _MapReading(d, values, valid_fraction, empty)
+
+
+def _rematched(result: PipelineResult, click: _Click, window: np.ndarray, usable: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """The click re-match of a reduced-resolution frame: the patch's values (`window`, those
+    `usable`) replaced by a full-resolution re-match of a strip around the clicked row
+    (`rematch_strip`), counted where they agree with the frame's own (left-right checked)
+    match to within its resolution."""
+    band = rematch_strip(result, click.yi, click.half)
+    if band is None:
+        return window, usable
+    band = band[:, click.x0:click.x1]
+    # (where the strip found nothing at all, the frame's own values stand if they lie on the
+    # surface around them: its reduced images hold the texture a full-resolution window of the
+    # same size misses, and the refinement still checks them against the images. The strip's
+    # values where the frame has none were tried and rejected: one right reading for one 50 %
+    # off on the 13 scenes)
+    own_only = (not np.isfinite(band).any() and usable.any()
+                and _frame_values_fit_around(result, click.xi, click.yi, window[usable]))
+    if own_only:
+        return window, usable
+    with np.errstate(invalid="ignore"):
+        usable &= np.abs(band - window) <= 2.0 / result.match_scale
+    usable &= np.isfinite(band)
+    return band, usable
+
+
+def _read_surface(view: np.ndarray, disp: np.ndarray, click: _Click,
+                  result: PipelineResult | None) -> _MapReading | Measurement:
+    """Object mode: the most frequent value of `disp` on the surface `view` shows around the
+    click (`surface_region`)."""
+    region = surface_region(view, click.xi, click.yi, window=max(4 * click.patch, 16))
+    if region is None or not region.any():
+        return click.invalid(_why_nothing(result, click.xi, click.yi, click.half))
+    values = disp[region]
+    values = values[np.isfinite(values)]
+    valid_fraction = values.size / int(region.sum())
+    if values.size == 0:
+        return click.invalid(Reason.NO_VALID_PIXELS)
+    return _MapReading(histogram_mode(values), values, valid_fraction)
+
+
+@dataclass(frozen=True)
+class _Subpixel:
+    """The sub-pixel step's outcome: the alignment, or None where the patch is read unrefined."""
+
+    refinement: Refinement | None
+
+
+def _subpixel(gl: np.ndarray, gr: np.ndarray, disp: np.ndarray, click: _Click,
+              read: _MapReading) -> _Subpixel | Measurement:
+    """The sub-pixel step: the map's disparity refined by aligning the click's window
+    (`refine_point`). A reading from the surround stands only where the alignment converges
+    and the click's own window shows the same surface; an alignment that runs off contradicts
+    the estimate (no reading) unless the patch is rich enough to be read unrefined."""
+    xi, yi = click.xi, click.yi
+    d = read.d
+    ref = refine_point(gl, gr, xi, yi, d, click.half, surface=disp)
+    if read.empty is not None and (ref is None or not ref.converged):
+        return click.invalid(read.empty, read.valid_fraction)
+    if read.empty is not None and not _centre_agrees(gl, gr, xi, yi, ref):
+        # the click's own window does not show the surface the larger window aligned: an
+        # object in front of it that the matcher missed, not that surface
+        return click.invalid(read.empty, read.valid_fraction)
+    if (ref is not None and not ref.converged and read.empty is None
+            and read.valid_fraction >= RICH_MIN_SHARE and read.spread_px <= EDGE_SPREAD_PX
+            and window_correlation(gl, gr, xi, yi, d, REFINE_HALF_PX)[0] >= RICH_MIN_CORR):
+        # the alignment runs off, but the patch's matches agree on one surface and the
+        # click's window matches there as only rich texture does: the map is right there
+        # more often than not (a slanted or curved surface, a depth edge nearby, what a
+        # window's one disparity cannot follow), and the patch is read unrefined, with an
+        # unrefined reading's bound. On a weak wall, where the map's blobs are wrong and the
+        # refusal earns its place, no window correlates so well
+        ref = None
+    if ref is not None and not ref.converged:
+        # the images pull the match away from the matcher's estimate, and nowhere near it
+        # do they settle: the estimate is contradicted, no reading
+        return read.refused(click, Reason.AMBIGUOUS, d)
+    return _Subpixel(ref)
+
+
+def _checked_in_images(gl: np.ndarray, gr: np.ndarray, disp: np.ndarray, click: _Click,
+                       read: _MapReading, ref: Refinement | None) -> float | Measurement:
+    """The reading's disparity (refined, or the map's) where the aligned windows share more
+    than noise could give them and the click's own plain region does not show that the window
+    read a nearer edge."""
+    xi, yi, half = click.xi, click.yi, click.half
+    d = read.d
+    if ref is not None:
+        corr, pixels = ref.correlation, ref.pixels
+        h_t = ref.half_px
+    else:
+        # not refined (no window converged): the match still has to show in the images,
+        # over the largest window the refinement would have used on this surface
+        h_t = max(half, REFINE_HALF_PX)
+        for grown in REFINE_GROWTH:
+            if not one_surface(disp, xi, yi, max(half, grown)):
+                break
+            h_t = max(half, grown)
+        corr, pixels = window_correlation(gl, gr, xi, yi, d, h_t)
+    if corr * math.sqrt(pixels) < TEXTURE_MIN_T * STDERR_SCALE:
+        # the aligned windows share nothing the noise could not have given them
+        return read.refused(click, Reason.NO_TEXTURE, d)
+    if ref is not None:
+        d = ref.disparity_px
+    if reads_nearer_edge(gl, gr, disp, xi, yi, d, h_t):
+        # the click's own plain region shows nothing; the window read a nearer edge
+        return read.refused(click, Reason.NEARER_EDGE, d)
+    return d
+
+
+def _located(click: _Click, read: _MapReading, d: float, d_range: tuple[float, float],
+             step: float, bound_px: float, calibration: StereoCalibration,
+             fit: FitResult | None, refined: bool) -> Measurement:
+    """Bounds into uncertainty: the reading at disparity `d` refused where the map's estimate
+    lay at an end of the searched range `d_range` (within `step`), else located through
+    the calibration's Q or `fit`, its disparity's 95 % bound (`bound_px`) turned into
+    millimetres through the same, with the calibration's own uncertainty; refused where that
+    bound spans too much of the distance."""
+    d_lo, d_hi = d_range
+    raw_d = read.d
     if raw_d >= d_hi - step:
-        return invalid(Reason.TOO_NEAR, disparity_px=d, **common)
+        return read.refused(click, Reason.TOO_NEAR, d)
     if d_lo > 0 and raw_d <= d_lo + step:
-        return invalid(Reason.TOO_FAR, disparity_px=d, **common)
-    xyz = triangulate(calibration, x, y, d)
+        return read.refused(click, Reason.TOO_FAR, d)
+    xyz = triangulate(calibration, click.x, click.y, d)
     if xyz is None:
-        return invalid(Reason.TOO_FAR, disparity_px=d, **common)
+        return read.refused(click, Reason.TOO_FAR, d)
     X, Y, Z = xyz
     method = "triangulation"
-    bound_px = (disparity_bound_px(ref, spread) if result is not None
-                else Z95 * max(spread, QUANTUM_PX))
     if fit is not None:
         lo_s, hi_s = fit.disparity_span
         if not lo_s <= d <= hi_s:
-            return invalid(Reason.OUT_OF_FIT_RANGE, disparity_px=d, method=fit.model, **common)
+            return read.refused(click, Reason.OUT_OF_FIT_RANGE, d, method=fit.model)
         z_fit = float(fit.predict(d))
         k = z_fit / Z
         X, Y, Z = X * k, Y * k, z_fit
@@ -848,20 +1004,21 @@ def measure_point(source: PipelineResult | np.ndarray, x: float, y: float, patch
     elif not calibration.metric:
         # Hartley's rectification has no scale: triangulation would give a number in unknown
         # units; a regression fitted on true distances gives millimetres
-        return invalid(Reason.NO_METRIC_SCALE, disparity_px=d, **common)
+        return read.refused(click, Reason.NO_METRIC_SCALE, d)
     else:
         expected = _depth_bound_mm(calibration.focal_px * calibration.rectified_baseline_mm, d,
                                    bound_px) * (Z / _z_of(calibration, d))
-        expected = with_calibration_uncertainty(expected, calibration, x, y, d)
+        expected = with_calibration_uncertainty(expected, calibration, click.x, click.y, d)
     if not (math.isfinite(expected) and expected <= AMBIGUOUS_SHARE * abs(Z)):
         # the match fits so loosely that its 95 % bound spans a large part of the distance
         # (texture near the sensor noise, shading both cameras share, a match into the strip
         # the right camera cannot see): a number that says so little is no reading
-        return invalid(Reason.AMBIGUOUS, disparity_px=d, method=method, **common)
+        return read.refused(click, Reason.AMBIGUOUS, d, method=method)
     rng = math.sqrt(X * X + Y * Y + Z * Z)
-    return Measurement(x, y, True, None, disparity_px=d, X_mm=X, Y_mm=Y, Z_mm=Z, range_mm=rng,
-                       valid_fraction=valid_fraction, spread_px=spread, expected_error_mm=expected,
-                       method=method, mode=mode, refined=ref is not None, raw_disparity_px=raw_d,
+    return Measurement(click.x, click.y, True, None, disparity_px=d, X_mm=X, Y_mm=Y, Z_mm=Z,
+                       range_mm=rng, valid_fraction=read.valid_fraction,
+                       spread_px=read.spread_px, expected_error_mm=expected, method=method,
+                       mode=click.mode, refined=refined, raw_disparity_px=raw_d,
                        disparity_bound_px=bound_px)
 
 
@@ -885,7 +1042,5 @@ def with_calibration_uncertainty(bound_mm: float, calibration: StereoCalibration
     wider."""
     if calibration.uncertainty is None or not math.isfinite(bound_mm):
         return bound_mm
-    from stereo_gui.core.uncertainty import depth_sigma_mm
-
     sigma = depth_sigma_mm(calibration, x, y, d)
     return bound_mm + Z95 * sigma if math.isfinite(sigma) else bound_mm

@@ -19,6 +19,7 @@ from stereo_gui.core.matching import StereoPipeline
 from stereo_gui.core.measure import (
     Reason,
     histogram_mode,
+    measure_map,
     measure_point,
     reads_nearer_edge,
     triangulate,
@@ -126,18 +127,18 @@ def test_surface_farther_than_a_limited_range_is_too_far(rig, walls):
 def test_outside_the_image_and_no_valid_pixels():
     c = StereoCalibration.identity((64, 48), 500.0, 100.0)
     disp = np.full((48, 64), np.nan, np.float32)
-    assert measure_point(disp, 70, 10, calibration=c).reason == "outside the image"
-    assert measure_point(disp, -1, 10, calibration=c).reason == "outside the image"
-    assert measure_point(disp, 10, 10, calibration=c).reason == "no valid pixels"
+    assert measure_map(disp, 70, 10, calibration=c).reason == "outside the image"
+    assert measure_map(disp, -1, 10, calibration=c).reason == "outside the image"
+    assert measure_map(disp, 10, 10, calibration=c).reason == "no valid pixels"
     with pytest.raises(InputError):
-        measure_point(disp, 10, 10)  # a bare map needs the calibration
+        measure_map(disp, 10, 10)  # a bare map needs the calibration
 
 
 def test_a_reason_is_an_enum_member_written_as_its_words():
     import json
 
     c = StereoCalibration.identity((64, 48), 500.0, 100.0)
-    m = measure_point(np.full((48, 64), np.nan, np.float32), 70, 10, calibration=c)
+    m = measure_map(np.full((48, 64), np.nan, np.float32), 70, 10, calibration=c)
     assert m.reason is Reason.OUTSIDE and m.reason == "outside the image"
     assert f"{m.reason}" == "outside the image"
     doc = json.loads(json.dumps(m.to_json_dict()))
@@ -152,7 +153,7 @@ def test_bare_map_triangulates_through_q_with_median_and_spread():
     disp = np.full((48, 64), 25.0, np.float32)
     disp[20, 30] = 80.0  # an outlier the median ignores
     disp[21, 31] = np.nan
-    m = measure_point(disp, 30, 20, calibration=c, patch=5)
+    m = measure_map(disp, 30, 20, calibration=c, patch=5)
     assert m.valid and m.method == "triangulation"
     assert m.Z_mm == pytest.approx(f * b / 25.0)
     assert m.valid_fraction == pytest.approx(24 / 25)
@@ -171,10 +172,10 @@ def test_a_fit_replaces_triangulation_inside_its_span_only():
     c = StereoCalibration.identity((64, 48), f, b)
     fit = fit_inverse([(d, 1.01 * f * b / d) for d in (10.0, 20.0, 30.0, 40.0)])
     disp = np.full((48, 64), 25.0, np.float32)
-    m = measure_point(disp, 30, 20, calibration=c, fit=fit)
+    m = measure_map(disp, 30, 20, calibration=c, fit=fit)
     assert m.valid and m.method == "inverse"
     assert m.Z_mm == pytest.approx(1.01 * f * b / 25.0, rel=1e-6)
-    far = measure_point(np.full((48, 64), 5.0, np.float32), 30, 20, calibration=c, fit=fit)
+    far = measure_map(np.full((48, 64), 5.0, np.float32), 30, 20, calibration=c, fit=fit)
     assert not far.valid and far.reason == "out of disparity range"
     # the bound follows the fit's own curve: the larger change of Z for d +- the disparity bound
     z = 1.01 * f * b
@@ -188,11 +189,11 @@ def test_a_hartley_calibration_measures_in_mm_only_through_a_fit():
     f, b = 500.0, 100.0
     c = StereoCalibration.identity((64, 48), f, 1.0).with_updates(method="hartley")
     disp = np.full((48, 64), 25.0, np.float32)
-    m = measure_point(disp, 30, 20, calibration=c)
+    m = measure_map(disp, 30, 20, calibration=c)
     assert not m.valid and m.reason == "no metric scale" and m.disparity_px == pytest.approx(25.0)
     assert math.isnan(m.Z_mm)
     fit = fit_inverse([(d, f * b / d) for d in (10.0, 20.0, 30.0, 40.0)])
-    m = measure_point(disp, 30, 20, calibration=c, fit=fit)
+    m = measure_map(disp, 30, 20, calibration=c, fit=fit)
     assert m.valid and m.Z_mm == pytest.approx(f * b / 25.0, rel=1e-6)
 
 
@@ -293,9 +294,9 @@ def test_bad_arguments():
     disp = np.zeros((10, 10), np.float32)
     c = StereoCalibration.identity((10, 10), 500.0, 100.0)
     with pytest.raises(InputError):
-        measure_point(disp, 5, 5, calibration=c, patch=0)
+        measure_map(disp, 5, 5, calibration=c, patch=0)
     with pytest.raises(InputError):
-        measure_point(disp, 5, 5, calibration=c, mode="blob")
+        measure_map(disp, 5, 5, calibration=c, mode="blob")
     assert Preset().name == "custom"
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from stereo_gui.core.errors import CalibrationFileError
-from stereo_gui.core.measure import measure_point
+from stereo_gui.core.measure import measure_map
 from stereo_gui.core.uncertainty import CalibrationUncertainty, parameter_names
 from stereo_gui.files.calibration_file import load_calibration, save_calibration
 from stereo_gui.sources.sim import SimRig
@@ -34,7 +34,7 @@ def test_a_whole_covariance_loads_and_a_distance_is_read_with_it(saved):
     calib = load_calibration(path)
     assert calib.uncertainty is not None
     disp = np.full((calib.height, calib.width), 40.0, np.float32)
-    m = measure_point(disp, 320, 240, calibration=calib)
+    m = measure_map(disp, 320, 240, calibration=calib)
     assert m.valid and m.expected_error_mm > 0
 
 
