@@ -135,7 +135,6 @@ def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: i
     Returns the disparity and its standard error from the fit's residuals. `max_shift_px`
     (default: half the window) bounds how far it may move from d0.
     """
-    h, w = left_gray.shape[:2]
     if iterations is None:
         iterations = REFINE_ITERATIONS
     if max_shift_px is None:
@@ -143,35 +142,107 @@ def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: i
     # right-image strip that can hold every shifted window, with a margin for the cubic kernel
     margin = int(math.ceil(max_shift_px)) + 3 + int(
         math.ceil((abs(slope[0]) + abs(slope[1])) * half))
-    y0, y1 = max(0, y - half), min(h, y + half + 1)
-    # near the edges of the right image the window keeps only the columns whose match (with the
-    # margin) stays inside it, so that a point the right camera sees close to its edge is still
-    # refined (with a narrower window) instead of being read off the matcher's whole pixels
-    x0 = max(0, x - half, int(math.ceil(d0 + margin)))
-    x1 = min(w, x + half + 1, int(math.floor(w + d0 - margin)))
-    # (a point the right camera sees within the margin of its edge is refined on the window's
-    # columns beside it: the same surface, a few pixels over)
-    if not x0 - margin <= x < x1:
+    win = _Windows.around(left_gray, right_gray, x, y, d0, half, margin)
+    if win is None:
         return Refinement(d0, float("inf"), False)
-    L = left_gray[y0:y1, x0:x1].astype(np.float32)
-    if L.size < 9 or x1 - x0 < 3:
-        return Refinement(d0, float("inf"), False)
-    rx0 = int(math.floor(x0 - d0 - margin))
-    rx1 = int(math.ceil(x1 - d0 + margin))
-    if rx0 < 0 or rx1 > w:
-        return Refinement(d0, float("inf"), False)
-    ry0, ry1 = max(0, y0 - ROW_MARGIN_PX), min(h, y1 + ROW_MARGIN_PX)
-    R = right_gray[ry0:ry1, rx0:rx1].astype(np.float32)
-    vs = np.arange(y0 - 1, y1 + 1, dtype=np.float32) - ry0  # a row beyond each side: d/dv
+    fit = _gauss_newton(win, x, y, d0, slope, max_shift_px, iterations)
+    if isinstance(fit, Refinement):
+        return fit
+    Rc = fit.Rc
+    if fit.e != 0.0:
+        # the texture's evidence is judged without the row offset's fit: a free offset lets
+        # noise correlate a little better, and weak texture at the threshold would pass on it
+        map_y = np.repeat(win.vs[:, None], fit.map_x.shape[1], axis=1)
+        Rc = cv2.remap(win.R, fit.map_x, map_y, cv2.INTER_CUBIC,
+                       borderMode=cv2.BORDER_REPLICATE)[1:-1, 1:-1]
+    Lf = win.Lf
+    rc = Rc.reshape(-1).astype(np.float64)
+    denom = float(np.std(rc) * np.std(Lf))
+    corr = float(np.mean((rc - rc.mean()) * (Lf - Lf.mean())) / denom) if denom > 0 else 0.0
+    correlated = (correlated_stderr(fit.A, fit.resid, win.L.shape) / abs(fit.a) if fit.converged
+                  else float("nan"))
+    return Refinement(fit.d, fit.stderr, fit.converged, abs(fit.d - d0), corr, int(Lf.size),
+                      stderr_correlated_px=correlated, half_px=half)
+
+
+@dataclass(frozen=True, eq=False)
+class _Windows:
+    """What an alignment compares: the left window (`L`, rows y0:y1, columns x0:x1; `Lf` its
+    pixels as float64, row by row) and the strip of the right image that holds every shifted
+    window (`R`, from column rx0 and row ry0); `vs` the window's rows and one beyond each side
+    in the strip's row coordinates."""
+
+    L: np.ndarray
+    Lf: np.ndarray
+    R: np.ndarray
+    x0: int
+    x1: int
+    y0: int
+    y1: int
+    rx0: int
+    vs: np.ndarray
+
+    @classmethod
+    def around(cls, left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, d0: float,
+               half: int, margin: int) -> _Windows | None:
+        """The windows around (x, y) at disparity d0, or None where too little of the window
+        is left or its strip leaves the right image."""
+        h, w = left_gray.shape[:2]
+        y0, y1 = max(0, y - half), min(h, y + half + 1)
+        # near the edges of the right image the window keeps only the columns whose match (with
+        # the margin) stays inside it, so that a point the right camera sees close to its edge
+        # is still refined (with a narrower window) instead of being read off the matcher's
+        # whole pixels
+        x0 = max(0, x - half, int(math.ceil(d0 + margin)))
+        x1 = min(w, x + half + 1, int(math.floor(w + d0 - margin)))
+        # (a point the right camera sees within the margin of its edge is refined on the
+        # window's columns beside it: the same surface, a few pixels over)
+        if not x0 - margin <= x < x1:
+            return None
+        L = left_gray[y0:y1, x0:x1].astype(np.float32)
+        if L.size < 9 or x1 - x0 < 3:
+            return None
+        rx0 = int(math.floor(x0 - d0 - margin))
+        rx1 = int(math.ceil(x1 - d0 + margin))
+        if rx0 < 0 or rx1 > w:
+            return None
+        ry0, ry1 = max(0, y0 - ROW_MARGIN_PX), min(h, y1 + ROW_MARGIN_PX)
+        R = right_gray[ry0:ry1, rx0:rx1].astype(np.float32)
+        vs = np.arange(y0 - 1, y1 + 1, dtype=np.float32) - ry0  # a row beyond each side: d/dv
+        return cls(L, L.reshape(-1).astype(np.float64), R, x0, x1, y0, y1, rx0, vs)
+
+
+@dataclass(frozen=True, eq=False)
+class _Fit:
+    """Where the Gauss-Newton iterations stopped: disparity `d` and row offset `e`, the
+    disparity's standard error, whether the steps settled, and the last step's remap (`map_x`),
+    resampled right window (`Rc`), design matrix, residuals and gain `a`."""
+
+    d: float
+    e: float
+    stderr: float
+    converged: bool
+    map_x: np.ndarray
+    Rc: np.ndarray
+    A: np.ndarray
+    resid: np.ndarray
+    a: float
+
+
+def _gauss_newton(win: _Windows, x: int, y: int, d0: float, slope: tuple[float, float],
+                  max_shift_px: float, iterations: int) -> _Fit | Refinement:
+    """The alignment's iterations (see `refine_disparity`); an unconverged Refinement where the
+    gain vanishes, the disparity runs further than `max_shift_px` from d0 (`ran_off`) or the
+    fit is singular."""
+    L, Lf, R, rx0, vs = win.L, win.Lf, win.R, win.rx0, win.vs
     d = float(d0)
     e = 0.0
     stderr = float("inf")
     converged = False
     ones = np.ones(L.size, np.float64)
-    Lf = L.reshape(-1).astype(np.float64)
     gx, gy = slope
-    u_ext = np.arange(x0 - 1, x1 + 1, dtype=np.float32)
-    v_ext = np.arange(y0 - 1, y1 + 1, dtype=np.float32)
+    u_ext = np.arange(win.x0 - 1, win.x1 + 1, dtype=np.float32)
+    v_ext = np.arange(win.y0 - 1, win.y1 + 1, dtype=np.float32)
     du, dv = u_ext[None, :] - np.float32(x), v_ext[:, None] - np.float32(y)
     for _ in range(iterations):
         disparity = np.float32(d) + np.float32(gx) * du + np.float32(gy) * dv
@@ -207,19 +278,7 @@ def refine_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: i
         if abs(delta) < 1e-3 and abs(step_e) < 1e-3:
             converged = True
             break
-    if e != 0.0:
-        # the texture's evidence is judged without the row offset's fit: a free offset lets
-        # noise correlate a little better, and weak texture at the threshold would pass on it
-        map_y = np.repeat(vs[:, None], map_x.shape[1], axis=1)
-        Rc = cv2.remap(R, map_x, map_y, cv2.INTER_CUBIC,
-                       borderMode=cv2.BORDER_REPLICATE)[1:-1, 1:-1]
-    rc = Rc.reshape(-1).astype(np.float64)
-    denom = float(np.std(rc) * np.std(Lf))
-    corr = float(np.mean((rc - rc.mean()) * (Lf - Lf.mean())) / denom) if denom > 0 else 0.0
-    correlated = (correlated_stderr(A, resid, L.shape) / abs(a) if converged
-                  else float("nan"))
-    return Refinement(d, stderr, converged, abs(d - d0), corr, int(Lf.size),
-                      stderr_correlated_px=correlated, half_px=half)
+    return _Fit(d, e, stderr, converged, map_x, Rc, A, resid, a)
 
 
 def correlated_stderr(A: np.ndarray, resid: np.ndarray, shape: tuple[int, int],
@@ -263,20 +322,7 @@ def refine_point(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, 
     and one was pulled further than REFINE_MAX_SHIFT_PX from `d0` (the images contradict it), or
     when a wider window is pulled that far from `d0` and, allowed twice as far, settles (the
     images put the surface elsewhere than the smaller window did)."""
-    h0 = max(half, REFINE_HALF_PX)
-    # (a slanted surface, a floor or a table seen obliquely, is aligned along the plane the map
-    # shows there, as a grown window is: one disparity for the window ran off on such surfaces)
-    tilt0 = map_slope(surface, x, y, h0) if surface is not None else (0.0, 0.0)
-    big = refine_disparity(left_gray, right_gray, x, y, d0, h0,
-                           max_shift_px=REFINE_MAX_SHIFT_PX, slope=tilt0)
-    best = None
-    ran_off = big.ran_off
-    if big.converged and math.isfinite(big.stderr_px):
-        small = refine_disparity(left_gray, right_gray, x, y, d0, max(half, 3),
-                                 max_shift_px=REFINE_MAX_SHIFT_PX, slope=tilt0)
-        apart = (abs(big.disparity_px - small.disparity_px) if small.converged
-                 else big.moved_px)  # the small window alone found nothing: as unsure as the move
-        best = replace(big, windows_px=apart)
+    best, ran_off = _first_windows(left_gray, right_gray, x, y, d0, half, surface)
     for grown in REFINE_GROWTH:
         if surface is None or (best is not None and best.stderr_px <= REFINE_PRECISE_PX):
             break
@@ -286,17 +332,7 @@ def refine_point(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, 
         # (on a slanted or curved surface one disparity for a window this large is wrong: the
         # window is aligned along the plane the map shows there)
         tilt = map_slope(surface, x, y, h)
-        wider = refine_disparity(left_gray, right_gray, x, y, d0, h,
-                                 max_shift_px=REFINE_MAX_SHIFT_PX, slope=tilt)
-        if (not wider.converged and best is not None
-                and abs(best.disparity_px - d0) > REFINE_RESTART_PX):
-            # the matcher's estimate was off (a blob of wrong matches on a weak MJPG wall: 3 px
-            # at 2 m) and the smaller window has moved away from it: the wider one starts where
-            # that one settled
-            restarted = refine_disparity(left_gray, right_gray, x, y, best.disparity_px, h,
-                                         max_shift_px=REFINE_MAX_SHIFT_PX, slope=tilt)
-            if restarted.converged:
-                wider = replace(restarted, moved_px=abs(restarted.disparity_px - d0))
+        wider = _wider_window(left_gray, right_gray, x, y, d0, h, tilt, best)
         if not (wider.converged and math.isfinite(wider.stderr_px)):
             if best is None:
                 ran_off = ran_off or wider.ran_off
@@ -312,19 +348,63 @@ def refine_point(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, 
                 if again.converged and math.isfinite(again.stderr_px):
                     return Refinement(d0, float("inf"), False, ran_off=True)
             break
-        if best is None:
-            # no smaller window to check it against: as unsure as its own correction
-            best = replace(wider, windows_px=wider.moved_px)
-            continue
-        if not wider.stderr_px < best.stderr_px:
-            continue  # no surer than the smaller window: the next larger one may be
-        unexplained = max(0.0, abs(wider.disparity_px - best.disparity_px)
-                          - Z95 * best.stderr_px)
-        best = replace(wider, windows_px=unexplained)
+        best = _surer(best, wider)
     if best is None and ran_off:
         # no window converged near the estimate, and one was pulled away from it
         return Refinement(d0, float("inf"), False, ran_off=True)
     return best
+
+
+def _first_windows(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, d0: float,
+                   half: int, surface: np.ndarray | None) -> tuple[Refinement | None, bool]:
+    """The REFINE_HALF_PX window's alignment checked against the patch's own (`windows_px`),
+    None where it does not converge; and whether it ran off."""
+    h0 = max(half, REFINE_HALF_PX)
+    # (a slanted surface, a floor or a table seen obliquely, is aligned along the plane the map
+    # shows there, as a grown window is: one disparity for the window ran off on such surfaces)
+    tilt0 = map_slope(surface, x, y, h0) if surface is not None else (0.0, 0.0)
+    big = refine_disparity(left_gray, right_gray, x, y, d0, h0,
+                           max_shift_px=REFINE_MAX_SHIFT_PX, slope=tilt0)
+    best = None
+    if big.converged and math.isfinite(big.stderr_px):
+        small = refine_disparity(left_gray, right_gray, x, y, d0, max(half, 3),
+                                 max_shift_px=REFINE_MAX_SHIFT_PX, slope=tilt0)
+        apart = (abs(big.disparity_px - small.disparity_px) if small.converged
+                 else big.moved_px)  # the small window alone found nothing: as unsure as the move
+        best = replace(big, windows_px=apart)
+    return best, big.ran_off
+
+
+def _wider_window(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, d0: float,
+                  h: int, tilt: tuple[float, float], best: Refinement | None) -> Refinement:
+    """The alignment of the window of half side `h` along `tilt`, from d0, or where it does not
+    settle and the surest smaller window (`best`) moved away from d0, from where that one
+    settled (if it settles there)."""
+    wider = refine_disparity(left_gray, right_gray, x, y, d0, h,
+                             max_shift_px=REFINE_MAX_SHIFT_PX, slope=tilt)
+    if (not wider.converged and best is not None
+            and abs(best.disparity_px - d0) > REFINE_RESTART_PX):
+        # the matcher's estimate was off (a blob of wrong matches on a weak MJPG wall: 3 px
+        # at 2 m) and the smaller window has moved away from it: the wider one starts where
+        # that one settled
+        restarted = refine_disparity(left_gray, right_gray, x, y, best.disparity_px, h,
+                                     max_shift_px=REFINE_MAX_SHIFT_PX, slope=tilt)
+        if restarted.converged:
+            wider = replace(restarted, moved_px=abs(restarted.disparity_px - d0))
+    return wider
+
+
+def _surer(best: Refinement | None, wider: Refinement) -> Refinement:
+    """The surer of the surest smaller window and a wider one that converged, the wider one's
+    `windows_px` the part of their disagreement the smaller one's noise does not explain."""
+    if best is None:
+        # no smaller window to check it against: as unsure as its own correction
+        return replace(wider, windows_px=wider.moved_px)
+    if not wider.stderr_px < best.stderr_px:
+        return best  # no surer than the smaller window: the next larger one may be
+    unexplained = max(0.0, abs(wider.disparity_px - best.disparity_px)
+                      - Z95 * best.stderr_px)
+    return replace(wider, windows_px=unexplained)
 
 
 def map_slope(disparity_px: np.ndarray, x: int, y: int, half: int) -> tuple[float, float]:

@@ -91,48 +91,87 @@ def refine_stereo(views: Sequence[View], model: str, M1, D1, M2, D2, R, T,
     `fixed` names distortion coefficients (e.g. "k3") held at their starting values in both
     cameras. Raises CalibrationError when the problem is singular.
     """
-    views = list(views)
-    nv = len(views)
     D1 = np.asarray(D1, np.float64).reshape(-1)
     D2 = np.asarray(D2, np.float64).reshape(-1)
-    nd = D1.size
-    nc = 4 + nd
-    dist_names = distortion_names(model, nd)
-    cam_free = np.ones(nc, bool)
-    for name in fixed:
-        if name in dist_names:
-            cam_free[4 + dist_names.index(name)] = False
     x0 = np.concatenate([
         [M1[0, 0], M1[1, 1], M1[0, 2], M1[1, 2]], D1,
         [M2[0, 0], M2[1, 1], M2[0, 2], M2[1, 2]], D2,
         cv2.Rodrigues(np.asarray(R, np.float64))[0].reshape(3), np.asarray(T, np.float64).reshape(3)]
         + [np.concatenate([np.asarray(r, np.float64).reshape(3), np.asarray(t, np.float64).reshape(3)])
            for r, t in zip(rvecs, tvecs)])
-    n_cam = 2 * nc + 6
-    free = np.concatenate([cam_free, cam_free, np.ones(6 + 6 * nv, bool)])
-    m_obs = sum(2 * (len(v.img_left) + len(v.img_right)) for v in views)
-    # prior rows: the rational model's k1..k6 of both cameras (see RATIONAL_PRIOR)
-    prior_cols = []
-    if model == "rational":
-        for cam in (0, 1):
-            for name in ("k1", "k2", "k3", "k4", "k5", "k6"):
-                col = cam * nc + 4 + dist_names.index(name)
-                if free[col]:
-                    prior_cols.append(col)
-    m = m_obs + len(prior_cols)
-    p = int(free.sum())
-    if m_obs <= p:
-        raise CalibrationError(f"too few points ({m_obs // 2}) for the {p} parameters of the "
-                               "stereo calibration")
+    problem = _Problem.of(list(views), model, D1.size, fixed)
+    x, r, J, it = _levenberg_marquardt(problem, x0, max_iterations, tolerance)
+    cov, names, sigma2 = _camera_covariance(problem, r, J)
 
-    def residuals(x: np.ndarray, want_j: bool):
+    nc, n_cam, nv = problem.nc, problem.n_cam, len(problem.views)
+    M1n, D1n = _unpack_camera(x[:nc])
+    M2n, D2n = _unpack_camera(x[nc:2 * nc])
+    Rn = cv2.Rodrigues(x[2 * nc:2 * nc + 3].reshape(3, 1))[0]
+    Tn = x[2 * nc + 3:2 * nc + 6].reshape(3, 1)
+    obs = r[:problem.m_obs]
+    rms = float(np.sqrt(float(obs @ obs) / (problem.m_obs / 2)))
+    rv = tuple(x[n_cam + 6 * k:n_cam + 6 * k + 3].copy() for k in range(nv))
+    tv = tuple(x[n_cam + 6 * k + 3:n_cam + 6 * k + 6].copy() for k in range(nv))
+    log.debug("stereo refinement: %d iterations, rms %.4f px", it, rms)
+    return BundleResult(M1n, D1n.reshape(1, -1), M2n, D2n.reshape(1, -1), Rn, Tn, rv, tv,
+                        _view_errors(problem.views, r), rms, float(np.sqrt(sigma2)), names, cov,
+                        it)
+
+
+@dataclass(frozen=True, eq=False)
+class _Problem:
+    """The solve's layout: the parameter vector is both cameras' (fx, fy, cx, cy, distortion;
+    `nc` each), R_right_left's Rodrigues vector and T_right_left (the first `n_cam`), then each
+    view's board pose (rvec, tvec). `free` marks the parameters solved for; the residuals are
+    every observed coordinate (`m_obs`), then one prior row per column of `prior_cols`."""
+
+    views: list[View]
+    model: str
+    nd: int
+    nc: int
+    n_cam: int
+    free: np.ndarray
+    prior_cols: list[int]
+    m_obs: int
+
+    @classmethod
+    def of(cls, views: list[View], model: str, nd: int, fixed: Sequence[str]) -> _Problem:
+        nc = 4 + nd
+        dist_names = distortion_names(model, nd)
+        cam_free = np.ones(nc, bool)
+        for name in fixed:
+            if name in dist_names:
+                cam_free[4 + dist_names.index(name)] = False
+        free = np.concatenate([cam_free, cam_free, np.ones(6 + 6 * len(views), bool)])
+        m_obs = sum(2 * (len(v.img_left) + len(v.img_right)) for v in views)
+        # prior rows: the rational model's k1..k6 of both cameras (see RATIONAL_PRIOR)
+        prior_cols = []
+        if model == "rational":
+            for cam in (0, 1):
+                for name in ("k1", "k2", "k3", "k4", "k5", "k6"):
+                    col = cam * nc + 4 + dist_names.index(name)
+                    if free[col]:
+                        prior_cols.append(col)
+        p = int(free.sum())
+        if m_obs <= p:
+            raise CalibrationError(f"too few points ({m_obs // 2}) for the {p} parameters of "
+                                   "the stereo calibration")
+        return cls(views, model, nd, nc, 2 * nc + 6, free, prior_cols, m_obs)
+
+    @property
+    def m(self) -> int:
+        return self.m_obs + len(self.prior_cols)
+
+    def residuals(self, x: np.ndarray, want_j: bool):
+        """The residuals at `x` (px; then the prior rows) and, if `want_j`, their Jacobian."""
+        nc, n_cam, model = self.nc, self.n_cam, self.model
         Ml, Dl = _unpack_camera(x[:nc])
         Mr, Dr = _unpack_camera(x[nc:2 * nc])
         rRL, tRL = x[2 * nc:2 * nc + 3], x[2 * nc + 3:2 * nc + 6]
-        res = np.empty(m)
-        J = np.zeros((m, x.size)) if want_j else None
+        res = np.empty(self.m)
+        J = np.zeros((self.m, x.size)) if want_j else None
         row = 0
-        for k, v in enumerate(views):
+        for k, v in enumerate(self.views):
             o = n_cam + 6 * k
             rv, tv = x[o:o + 3], x[o + 3:o + 6]
             if len(v.img_left):
@@ -163,15 +202,21 @@ def refine_stereo(views: Sequence[View], model: str, M1, D1, M2, D2, R, T,
                 res[row:row + n2] = (uv - v.img_right).reshape(-1)
                 row += n2
         w = PRIOR_PX / RATIONAL_PRIOR
-        for col in prior_cols:
+        for col in self.prior_cols:
             res[row] = w * x[col]
             if want_j:
                 J[row, col] = w
             row += 1
         return res, J
 
+
+def _levenberg_marquardt(problem: _Problem, x0: np.ndarray, max_iterations: int,
+                         tolerance: float):
+    """Levenberg-Marquardt from `x0` over the free parameters: (x, residuals, Jacobian,
+    iterations) at the solution."""
+    free = problem.free
     x = x0.copy()
-    r, J = residuals(x, True)
+    r, J = problem.residuals(x, True)
     cost = float(r @ r)
     lam = 1e-3
     it = 0
@@ -190,7 +235,7 @@ def refine_stereo(views: Sequence[View], model: str, M1, D1, M2, D2, R, T,
                 continue
             xn = x.copy()
             xn[free] += step
-            rn, _ = residuals(xn, False)
+            rn, _ = problem.residuals(xn, False)
             cn = float(rn @ rn)
             if np.isfinite(cn) and cn < cost:
                 improved = True
@@ -200,31 +245,38 @@ def refine_stereo(views: Sequence[View], model: str, M1, D1, M2, D2, R, T,
             break
         rel = (cost - cn) / max(cost, 1e-300)
         x, cost = xn, cn
-        r, J = residuals(x, True)
+        r, J = problem.residuals(x, True)
         lam = max(lam / 10.0, 1e-12)
         if rel < tolerance:
             break
+    return x, r, J, it
 
+
+def _camera_covariance(problem: _Problem, r: np.ndarray, J: np.ndarray):
+    """The camera parameters' covariance sigma^2 (J^T J)^-1 (the board poses marginalised out),
+    the names of its rows, and sigma^2."""
+    free = problem.free
     Jf = J[:, free]
     A = Jf.T @ Jf
-    dof = m_obs - p
-    sigma2 = float(r[:m_obs] @ r[:m_obs]) / dof
+    dof = problem.m_obs - int(free.sum())
+    sigma2 = float(r[:problem.m_obs] @ r[:problem.m_obs]) / dof
     try:
         cov_free = np.linalg.inv(A) * sigma2
     except np.linalg.LinAlgError as exc:
         raise CalibrationError("the stereo calibration is singular: the views do not determine "
                                "the cameras (more varied board poses are needed)") from exc
     idx_free = np.flatnonzero(free)
-    cam_idx = [i for i, f in enumerate(idx_free) if f < n_cam]
+    cam_idx = [i for i, f in enumerate(idx_free) if f < problem.n_cam]
     cov = cov_free[np.ix_(cam_idx, cam_idx)]
-    names_all = (_camera_names("left", model, nd) + _camera_names("right", model, nd)
+    names_all = (_camera_names("left", problem.model, problem.nd)
+                 + _camera_names("right", problem.model, problem.nd)
                  + ["rvec.x", "rvec.y", "rvec.z", "T.x", "T.y", "T.z"])
     names = tuple(names_all[i] for i in idx_free[cam_idx])
+    return cov, names, sigma2
 
-    M1n, D1n = _unpack_camera(x[:nc])
-    M2n, D2n = _unpack_camera(x[nc:2 * nc])
-    Rn = cv2.Rodrigues(x[2 * nc:2 * nc + 3].reshape(3, 1))[0]
-    Tn = x[2 * nc + 3:2 * nc + 6].reshape(3, 1)
+
+def _view_errors(views: list[View], r: np.ndarray) -> tuple[tuple[float, float], ...]:
+    """Each view's RMS reprojection error (left, right), px; NaN for a side without points."""
     errors = []
     row = 0
     for v in views:
@@ -238,10 +290,4 @@ def refine_stereo(views: Sequence[View], model: str, M1, D1, M2, D2, R, T,
             e.append(float(np.sqrt(np.mean(np.sum(d * d, axis=1)))))
             row += n2
         errors.append((e[0], e[1]))
-    obs = r[:m_obs]
-    rms = float(np.sqrt(float(obs @ obs) / (m_obs / 2)))
-    rv = tuple(x[n_cam + 6 * k:n_cam + 6 * k + 3].copy() for k in range(nv))
-    tv = tuple(x[n_cam + 6 * k + 3:n_cam + 6 * k + 6].copy() for k in range(nv))
-    log.debug("stereo refinement: %d iterations, rms %.4f px", it, rms)
-    return BundleResult(M1n, D1n.reshape(1, -1), M2n, D2n.reshape(1, -1), Rn, Tn, rv, tv,
-                        tuple(errors), rms, float(np.sqrt(sigma2)), names, cov, it)
+    return tuple(errors)

@@ -222,27 +222,24 @@ def _relative_pose(rv_l, tv_l, rv_r, tv_r) -> tuple[np.ndarray, np.ndarray]:
 def _solve(pairs: list[PairDetection], board: BoardSpec, image_size: tuple[int, int],
            joint: bool, progress: ProgressCallback | None, cancel: Cancel, step0: int,
            total: int, model: str = "pinhole", held: Sequence[str] = ()) -> _Solve:
-    obj_all = board.object_points_mm()
-    ol = [p.left.object_points(board) for p in pairs]  # type: ignore[union-attr]
-    il = [p.left.corners for p in pairs]  # type: ignore[union-attr]
-    orr = [p.right.object_points(board) for p in pairs]  # type: ignore[union-attr]
-    ir = [p.right.corners for p in pairs]  # type: ignore[union-attr]
-    common = [p.common() for p in pairs]
-    oc = [obj_all[c[0]] for c in common]
+    pts = _PairPoints.of(pairs, board)
     _progress(progress, step0, total, "calibrating the left camera")
-    _, M1, D1, rv1, tv1, std1 = _calibrate_mono(ol, il, image_size, model, held)
+    _, M1, D1, rv1, tv1, std1 = _calibrate_mono(pts.obj_left, pts.img_left, image_size, model,
+                                                held)
     check_cancel(cancel)
     _progress(progress, step0 + 1, total, "calibrating the right camera")
-    _, M2, D2, rv2, tv2, std2 = _calibrate_mono(orr, ir, image_size, model, held)
+    _, M2, D2, rv2, tv2, std2 = _calibrate_mono(pts.obj_right, pts.img_right, image_size, model,
+                                                held)
     check_cancel(cancel)
     _progress(progress, step0 + 2, total, "calibrating the pair")
     # the relative pose with both cameras' intrinsics fixed: the start of the joint refinement
     rms_fixed = float("nan")
     R, T = _relative_pose(rv1, tv1, rv2, tv2)
-    transfer = [_transfer_px(model, orr[k], ir[k], rv1[k], tv1[k], R, T, M2, D2)
-                for k in range(len(pairs))]
-    own = [max(_rms_px(model, ol[k], il[k], rv1[k], tv1[k], M1, D1),
-               _rms_px(model, orr[k], ir[k], rv2[k], tv2[k], M2, D2)) for k in range(len(pairs))]
+    transfer = [_transfer_px(model, pts.obj_right[k], pts.img_right[k], rv1[k], tv1[k], R, T,
+                             M2, D2) for k in range(len(pairs))]
+    own = [max(_rms_px(model, pts.obj_left[k], pts.img_left[k], rv1[k], tv1[k], M1, D1),
+               _rms_px(model, pts.obj_right[k], pts.img_right[k], rv2[k], tv2[k], M2, D2))
+           for k in range(len(pairs))]
     unsynchronised = _unsynchronised(transfer, own)
     poses = _pair_poses(rv1, tv1, rv2, tv2)
     if unsynchronised:
@@ -260,29 +257,13 @@ def _solve(pairs: list[PairDetection], board: BoardSpec, image_size: tuple[int, 
         mean = poses.mean(axis=0)
         R, T = cv2.Rodrigues(mean[:3].reshape(3, 1))[0], mean[3:].reshape(3, 1)
     else:
-        try:
-            if model == "fisheye":
-                out = cv2.fisheye.stereoCalibrate(
-                    [o.reshape(1, -1, 3).astype(np.float64) for o in oc],
-                    [c[1].reshape(1, -1, 2).astype(np.float64) for c in common],
-                    [c[2].reshape(1, -1, 2).astype(np.float64) for c in common],
-                    M1, D1.reshape(4, 1), M2, D2.reshape(4, 1), image_size,
-                    flags=cv2.CALIB_FIX_INTRINSIC, criteria=_CRITERIA)
-                rms_fixed, R, T = float(out[0]), out[5], np.asarray(out[6]).reshape(3, 1)
-            else:
-                flags = cv2.CALIB_FIX_INTRINSIC | (cv2.CALIB_RATIONAL_MODEL if model == "rational" else 0)
-                out = cv2.stereoCalibrateExtended(
-                    [o.astype(np.float32) for o in oc],
-                    [c[1].reshape(-1, 1, 2).astype(np.float32) for c in common],
-                    [c[2].reshape(-1, 1, 2).astype(np.float32) for c in common],
-                    M1, D1, M2, D2, image_size, None, None, flags=flags, criteria=_CRITERIA)
-                rms_fixed, R, T = float(out[0]), out[5], out[6].reshape(3, 1)
-        except cv2.error as exc:
-            log.info("stereo calibration with fixed intrinsics failed (%s); starting the joint "
-                        "refinement from the board poses", str(exc).strip().splitlines()[-1])
+        fixed = _pose_with_fixed_intrinsics(pts, model, M1, D1, M2, D2, image_size)
+        if fixed is not None:
+            rms_fixed, R, T = fixed
     check_cancel(cancel)
     # every point each camera saw, the left camera's board poses as the start
-    views = [View(ol[k], il[k].reshape(-1, 2), orr[k], ir[k].reshape(-1, 2)) for k in range(len(pairs))]
+    views = [View(pts.obj_left[k], pts.img_left[k].reshape(-1, 2), pts.obj_right[k],
+                  pts.img_right[k].reshape(-1, 2)) for k in range(len(pairs))]
     bundle = refine_stereo(views, model, M1, D1, M2, D2, R, T, rv1, tv1, fixed=tuple(held),
                            max_iterations=100 if joint else 0)
     if joint:
@@ -290,14 +271,72 @@ def _solve(pairs: list[PairDetection], board: BoardSpec, image_size: tuple[int, 
     errors = list(bundle.errors)
     rl = float(np.sqrt(np.nanmean([e[0] ** 2 for e in errors])))
     rr = float(np.sqrt(np.nanmean([e[1] ** 2 for e in errors])))
+    E, F = _essential_and_fundamental(M1, M2, R, T)
+    return _Solve([p.name for p in pairs], M1, D1.reshape(1, -1), M2, D2.reshape(1, -1), R,
+                  T.reshape(3, 1), E, F, rl, rr, float(bundle.rms), rms_fixed, errors, bundle,
+                  (std1, std2), transfer, own, unsynchronised, poses)
+
+
+@dataclass(frozen=True, eq=False)
+class _PairPoints:
+    """The pairs' board points (mm) and where each camera saw them (px), per pair; and the
+    corners both cameras saw (`common`: PairDetection.common()) with their board points."""
+
+    obj_left: list[np.ndarray]
+    img_left: list[np.ndarray]
+    obj_right: list[np.ndarray]
+    img_right: list[np.ndarray]
+    common: list[tuple[np.ndarray, np.ndarray, np.ndarray]]
+    obj_common: list[np.ndarray]
+
+    @classmethod
+    def of(cls, pairs: list[PairDetection], board: BoardSpec) -> _PairPoints:
+        obj_all = board.object_points_mm()
+        common = [p.common() for p in pairs]
+        return cls([p.left.object_points(board) for p in pairs],  # type: ignore[union-attr]
+                   [p.left.corners for p in pairs],  # type: ignore[union-attr]
+                   [p.right.object_points(board) for p in pairs],  # type: ignore[union-attr]
+                   [p.right.corners for p in pairs],  # type: ignore[union-attr]
+                   common, [obj_all[c[0]] for c in common])
+
+
+def _pose_with_fixed_intrinsics(pts: _PairPoints, model: str, M1, D1, M2, D2,
+                                image_size: tuple[int, int]
+                                ) -> tuple[float, np.ndarray, np.ndarray] | None:
+    """OpenCV's stereo calibration with both cameras' intrinsics fixed, over the corners both
+    saw: (its RMS px, R, T), or None where it fails (the joint refinement then starts from the
+    board poses)."""
+    oc, common = pts.obj_common, pts.common
+    try:
+        if model == "fisheye":
+            out = cv2.fisheye.stereoCalibrate(
+                [o.reshape(1, -1, 3).astype(np.float64) for o in oc],
+                [c[1].reshape(1, -1, 2).astype(np.float64) for c in common],
+                [c[2].reshape(1, -1, 2).astype(np.float64) for c in common],
+                M1, D1.reshape(4, 1), M2, D2.reshape(4, 1), image_size,
+                flags=cv2.CALIB_FIX_INTRINSIC, criteria=_CRITERIA)
+            return float(out[0]), out[5], np.asarray(out[6]).reshape(3, 1)
+        flags = cv2.CALIB_FIX_INTRINSIC | (cv2.CALIB_RATIONAL_MODEL if model == "rational" else 0)
+        out = cv2.stereoCalibrateExtended(
+            [o.astype(np.float32) for o in oc],
+            [c[1].reshape(-1, 1, 2).astype(np.float32) for c in common],
+            [c[2].reshape(-1, 1, 2).astype(np.float32) for c in common],
+            M1, D1, M2, D2, image_size, None, None, flags=flags, criteria=_CRITERIA)
+        return float(out[0]), out[5], out[6].reshape(3, 1)
+    except cv2.error as exc:
+        log.info("stereo calibration with fixed intrinsics failed (%s); starting the joint "
+                 "refinement from the board poses", str(exc).strip().splitlines()[-1])
+        return None
+
+
+def _essential_and_fundamental(M1, M2, R, T) -> tuple[np.ndarray, np.ndarray]:
+    """E = [T]x R and F = M2^-T E M1^-1 (normalised to F[2,2] = 1 where it is not ~0)."""
     tx = np.asarray(T, np.float64).reshape(3)
     Tx = np.array([[0, -tx[2], tx[1]], [tx[2], 0, -tx[0]], [-tx[1], tx[0], 0]], np.float64)
     E = Tx @ R
     F = np.linalg.inv(M2).T @ E @ np.linalg.inv(M1)
     F = F / F[2, 2] if abs(F[2, 2]) > 1e-12 else F
-    return _Solve([p.name for p in pairs], M1, D1.reshape(1, -1), M2, D2.reshape(1, -1), R,
-                  T.reshape(3, 1), E, F, rl, rr, float(bundle.rms), rms_fixed, errors, bundle,
-                  (std1, std2), transfer, own, unsynchronised, poses)
+    return E, F
 
 
 def _pair_poses(rv_l, tv_l, rv_r, tv_r) -> np.ndarray:
@@ -460,12 +499,7 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
     `origin` names where the pairs came from (recorded in the calibration's origin).
     Raises CalibrationError when no target was found or too few pairs are usable.
     """
-    if method not in METHODS:
-        raise CalibrationError(f"unknown calibration method {method!r}; use bouguet or hartley")
-    if model not in LENS_MODELS:
-        raise CalibrationError(f"unknown lens model {model!r}; use one of {', '.join(LENS_MODELS)}")
-    if (why := alpha_problem(alpha)) is not None:
-        raise CalibrationError(why)
+    _check_arguments(method, model, alpha)
     detections = list(detections)
     n = len(detections)
     if n == 0:
@@ -474,6 +508,90 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
     if image_size is None:
         image_size = detections[0].image_size
     image_size = (int(image_size[0]), int(image_size[1]))
+    usable, rejected = _usable_pairs(detections, board, image_size, min_pairs)
+    if method == "hartley":
+        return calibrate_hartley(usable, board, image_size, alpha=alpha, n_found=n,
+                                 rejected=rejected, progress=progress, cancel=cancel)
+
+    total = 8
+    check_cancel(cancel)
+    solve = _Solver(board, image_size, joint_refinement, progress, cancel, total, model)
+    ladder = held_ladder(model, fix_k3)
+    held = ladder[0]
+    sol = solve(usable, 0, held)
+    if reject_outliers and len(usable) > min_pairs:
+        dropped = _dropped_pairs(sol, usable, min_pairs, outlier_factor, outlier_floor_px)
+        if dropped:
+            rejected.extend(dropped.values())
+            usable = [p for i, p in enumerate(usable) if i not in dropped]
+            log.info("dropped %d outlier pairs, calibrating again", len(dropped))
+            sol = solve(usable, 3, held)
+    check_cancel(cancel)
+    # a lens model that folds over inside the image (the pairs left its corners free) is fitted
+    # again with fewer terms at once: saving it would be refused, and the work lost
+    sol, held, refits = _unfolded(sol, usable, solve, ladder)
+    check_cancel(cancel)
+    _progress(progress, 6, total, "rectifying")
+    calib = _rectified(sol, usable, board, image_size, alpha, model, held, origin)
+    result = _with_warnings(calib, sol, usable, detections, rejected, refits, bool(held))
+    _progress(progress, total, total, "done")
+    return result
+
+
+def _with_warnings(calib: StereoCalibration, sol: _Solve, usable: list[PairDetection],
+                   detections: list[PairDetection], rejected: list[RejectedPair],
+                   refits: list[CalibrationWarning], held: bool) -> CalibrationResult:
+    """The calibration with its warnings (refits, unsynchronised cameras, core.uncertainty's)
+    and the pairs left out (in the order they came), and its report."""
+    regions = uncovered_regions(usable, calib.image_size)
+    unsync = (_unsync_warning(sol),) if sol.unsynchronised else ()
+    warnings = (*refits, *unsync, *calibration_warnings(calib, regions, held))
+    order = {p.name: i for i, p in enumerate(detections)}
+    rejected = sorted(rejected, key=lambda r: order.get(r.name, 0))
+    calib = calib.with_updates(warnings=warnings,
+                               left_out=tuple((r.name, r.reason) for r in rejected))
+    report = CalibrationReport(
+        pairs_found=len(detections), pairs_used=len(usable), used=tuple(sol.names),
+        rejected=tuple(rejected),
+        rms_left=sol.rms_left, rms_right=sol.rms_right, rms_stereo=sol.rms_stereo,
+        epipolar_error_px=calib.epipolar_error_px, baseline_mm=calib.baseline_mm,
+        relative_rotation_deg=calib.relative_rotation_deg, method="bouguet",
+        rms_stereo_fixed_intrinsics=sol.rms_stereo_fixed, warnings=warnings)
+    return CalibrationResult(calib, report)
+
+
+def _check_arguments(method: str, model: str, alpha: float) -> None:
+    if method not in METHODS:
+        raise CalibrationError(f"unknown calibration method {method!r}; use bouguet or hartley")
+    if model not in LENS_MODELS:
+        raise CalibrationError(f"unknown lens model {model!r}; use one of {', '.join(LENS_MODELS)}")
+    if (why := alpha_problem(alpha)) is not None:
+        raise CalibrationError(why)
+
+
+@dataclass(frozen=True)
+class _Solver:
+    """What every solve of one calibration shares: `solve(pairs, step0, held)` is `_solve` of
+    those pairs, its progress counted from step0, with the distortion terms `held` at zero."""
+
+    board: BoardSpec
+    image_size: tuple[int, int]
+    joint: bool
+    progress: ProgressCallback | None
+    cancel: Cancel
+    total: int
+    model: str
+
+    def __call__(self, pairs: list[PairDetection], step0: int, held: Sequence[str]) -> _Solve:
+        return _solve(pairs, self.board, self.image_size, self.joint, self.progress,
+                      self.cancel, step0, self.total, self.model, held)
+
+
+def _usable_pairs(detections: list[PairDetection], board: BoardSpec,
+                  image_size: tuple[int, int], min_pairs: int
+                  ) -> tuple[list[PairDetection], list[RejectedPair]]:
+    """The pairs of `image_size` whose board was found in both images, and the others with why;
+    CalibrationError when none is, or fewer than `min_pairs`."""
     rejected: list[RejectedPair] = []
     usable: list[PairDetection] = []
     for p in detections:
@@ -485,7 +603,7 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
         else:
             usable.append(p)
     if not usable:
-        rows, cols = board.grid_shape
+        n = len(detections)
         what = (f"{board.cols}x{board.rows} inner corners" if board.target == "chessboard" else
                 board.label())
         raise CalibrationError(f"no {TARGET_NAMES[board.target]} ({what}) found in "
@@ -493,44 +611,47 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
     if len(usable) < min_pairs:
         raise CalibrationError(f"only {len(usable)} usable pair{'s' if len(usable) != 1 else ''} "
                                f"(board found in both images), at least {min_pairs} are needed")
-    if method == "hartley":
-        return calibrate_hartley(usable, board, image_size, alpha=alpha, n_found=n,
-                                 rejected=rejected, progress=progress, cancel=cancel)
+    return usable, rejected
 
-    total = 8
-    check_cancel(cancel)
-    ladder = held_ladder(model, fix_k3)
+
+def _dropped_pairs(sol: _Solve, usable: list[PairDetection], min_pairs: int, factor: float,
+                   floor_px: float) -> dict[int, RejectedPair]:
+    """The pairs of a first solve to leave out, by index in `usable` (in order), with why: the
+    board moved between the two pictures (`_moved`), or an outlier's error (`_outliers`); never
+    so many that fewer than `min_pairs` stay (the best of the bad ones are kept)."""
+    moved = set(_moved(sol.transfer_px, sol.own_px))
+    bad = sorted(moved | set(_outliers(sol.errors, factor, floor_px)))
+    bad = sorted(bad, key=lambda i: -max(sol.errors[i]))[: len(usable) - min_pairs]
+    if not bad:
+        return {}
+    med = float(np.median([max(e) for e in sol.errors]))
+    med_t = float(np.median(sol.transfer_px))
+    dropped: dict[int, RejectedPair] = {}
+    for i in sorted(bad):
+        el, er = sol.errors[i]
+        if i in moved:
+            reason = (f"the board moved between the left and right pictures: the left "
+                      f"camera's view of it, carried over by the rig's pose, lands "
+                      f"{sol.transfer_px[i]:.2f} px from where the right camera saw it "
+                      f"(the median pair {med_t:.2f} px), while each camera fits its "
+                      f"own view within {sol.own_px[i]:.2f} px; the cameras did not take "
+                      "the pair at the same moment")
+        else:
+            reason = (f"reprojection error {max(el, er):.2f} px is far above the "
+                      f"median {med:.2f} px (outlier)")
+        dropped[i] = RejectedPair(usable[i].name, reason)
+    return dropped
+
+
+def _unfolded(sol: _Solve, usable: list[PairDetection], solve: _Solver,
+              ladder: list[tuple[str, ...]]
+              ) -> tuple[_Solve, tuple[str, ...], list[CalibrationWarning]]:
+    """`sol` (solved with `ladder[0]` held), or where a lens model folds over inside its image,
+    the solve again with each simpler step of the ladder until none does: the solve, the terms
+    it held, and a "refit" warning per step taken. CalibrationError when even the simplest
+    folds."""
+    model, image_size = solve.model, solve.image_size
     held = ladder[0]
-    sol = _solve(usable, board, image_size, joint_refinement, progress, cancel, 0, total,
-                 model, held)
-    if reject_outliers and len(usable) > min_pairs:
-        moved = set(_moved(sol.transfer_px, sol.own_px))
-        bad = sorted(moved | set(_outliers(sol.errors, outlier_factor, outlier_floor_px)))
-        # never drop below the minimum: keep the best of the bad ones if needed
-        bad = sorted(bad, key=lambda i: -max(sol.errors[i]))[: len(usable) - min_pairs]
-        if bad:
-            med = float(np.median([max(e) for e in sol.errors]))
-            med_t = float(np.median(sol.transfer_px))
-            for i in sorted(bad):
-                el, er = sol.errors[i]
-                if i in moved:
-                    reason = (f"the board moved between the left and right pictures: the left "
-                              f"camera's view of it, carried over by the rig's pose, lands "
-                              f"{sol.transfer_px[i]:.2f} px from where the right camera saw it "
-                              f"(the median pair {med_t:.2f} px), while each camera fits its "
-                              f"own view within {sol.own_px[i]:.2f} px; the cameras did not take "
-                              "the pair at the same moment")
-                else:
-                    reason = (f"reprojection error {max(el, er):.2f} px is far above the "
-                              f"median {med:.2f} px (outlier)")
-                rejected.append(RejectedPair(usable[i].name, reason))
-            usable = [p for i, p in enumerate(usable) if i not in set(bad)]
-            log.info("dropped %d outlier pairs, calibrating again", len(bad))
-            sol = _solve(usable, board, image_size, joint_refinement, progress, cancel, 3, total,
-                         model, held)
-    check_cancel(cancel)
-    # a lens model that folds over inside the image (the pairs left its corners free) is fitted
-    # again with fewer terms at once: saving it would be refused, and the work lost
     refits: list[CalibrationWarning] = []
     fold = _folding(sol, model, image_size)
     for simpler in ladder[1:]:
@@ -540,11 +661,10 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
                 f"{_held_words(held) if held else 'every distortion term free'}, folded over "
                 f"inside its image ({fold.where()})")
         log.info("%s: calibrating again with %s", text, _held_words(simpler))
-        _progress(progress, 5, total, f"the {fold.side} lens model folds over: calibrating "
-                                      f"again with {_held_words(simpler)}")
+        _progress(solve.progress, 5, solve.total, f"the {fold.side} lens model folds over: "
+                                                  f"calibrating again with {_held_words(simpler)}")
         held = simpler
-        sol = _solve(usable, board, image_size, joint_refinement, progress, cancel, 5, total,
-                     model, held)
+        sol = solve(usable, 5, held)
         refits.append(CalibrationWarning(
             "refit", f"{text}: the pairs do not hold the lens at the image's edges. It was "
                      f"calibrated again with {_held_words(held)}. To fit the full model, capture "
@@ -555,8 +675,14 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
             f"{fold.text()}, even with {_held_words(held)}: capture pairs with the board in the "
             f"corners and along the edges of the {fold.side} camera's image, or choose another "
             "lens model")
-    check_cancel(cancel)
-    _progress(progress, 6, total, "rectifying")
+    return sol, held, refits
+
+
+def _rectified(sol: _Solve, usable: list[PairDetection], board: BoardSpec,
+               image_size: tuple[int, int], alpha: float, model: str, held: tuple[str, ...],
+               origin: str) -> StereoCalibration:
+    """The calibration of a solve: rectified at `alpha`, with its epipolar error over the
+    pairs' common corners, per-pair errors, the parameters' uncertainty and its origin."""
     R1, R2, P1, P2, Q = stereo_rectify(model, sol.M1, sol.D1, sol.M2, sol.D2, image_size, sol.R,
                                        sol.T, alpha)
     opt1 = optimal_new_camera(model, sol.M1, sol.D1, image_size)
@@ -568,7 +694,7 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
                      for name, (el, er) in zip(sol.names, sol.errors))
     unc = (_unsync_uncertainty(sol, model) if sol.unsynchronised
            else uncertainty_from_bundle(sol.bundle, model, bool(held), sol.mono_sigmas))
-    calib = StereoCalibration(
+    return StereoCalibration(
         image_size=image_size, M1=sol.M1, D1=sol.D1, M2=sol.M2, D2=sol.D2, R=sol.R, T=sol.T,
         E=sol.E, F=sol.F, R1=R1, R2=R2, P1=P1, P2=P2, Q=Q, board=board,
         rms_left=sol.rms_left, rms_right=sol.rms_right, rms_stereo=sol.rms_stereo,
@@ -576,22 +702,6 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
         optimal_M1=opt1, optimal_M2=opt2, model=model, uncertainty=unc,
         origin=f"calibrated from {len(usable)} pairs{' in ' + origin if origin else ''} "
                f"({board.label()}, {model} model{_origin_held(model, held)})")
-    regions = uncovered_regions(usable, image_size)
-    unsync = (_unsync_warning(sol),) if sol.unsynchronised else ()
-    warnings = (*refits, *unsync, *calibration_warnings(calib, regions, bool(held)))
-    order = {p.name: i for i, p in enumerate(detections)}
-    rejected = sorted(rejected, key=lambda r: order.get(r.name, 0))
-    calib = calib.with_updates(warnings=warnings,
-                               left_out=tuple((r.name, r.reason) for r in rejected))
-    _progress(progress, total, total, "done")
-    report = CalibrationReport(
-        pairs_found=n, pairs_used=len(usable), used=tuple(sol.names),
-        rejected=tuple(rejected),
-        rms_left=sol.rms_left, rms_right=sol.rms_right, rms_stereo=sol.rms_stereo,
-        epipolar_error_px=epi, baseline_mm=calib.baseline_mm,
-        relative_rotation_deg=calib.relative_rotation_deg, method="bouguet",
-        rms_stereo_fixed_intrinsics=sol.rms_stereo_fixed, warnings=warnings)
-    return CalibrationResult(calib, report)
 
 
 def _unsync_warning(sol: _Solve) -> CalibrationWarning:

@@ -17,6 +17,7 @@ the refinement estimates it too, and says how well it is determined.
 
 from __future__ import annotations
 
+import datetime
 import math
 from dataclasses import dataclass
 
@@ -24,8 +25,9 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.errors import CalibrationError
-from stereo_gui.core.lens import stereo_rectify
+from stereo_gui.core.lens import stereo_rectify, undistort_points
 from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.core.uncertainty import CalibrationUncertainty
 from stereo_gui.core.util import mutual_ratio_matches, to_gray
 
 DRIFT_WARN_PX = 0.5  # above this median vertical disparity the cameras moved since calibration
@@ -160,8 +162,6 @@ class Refinement:
 
 def _vertical(calib: StereoCalibration, R: np.ndarray, T: np.ndarray, ul: np.ndarray,
               ur: np.ndarray) -> np.ndarray:
-    from stereo_gui.core.lens import undistort_points
-
     R1, R2, P1, P2, _ = stereo_rectify(calib.model, calib.M1, calib.D1, calib.M2, calib.D2,
                                        calib.image_size, R, T, calib.alpha)
     a = undistort_points(calib.model, ul, calib.M1, calib.D1, R=R1, P=P1)
@@ -183,52 +183,15 @@ def refine_rotation(calib: StereoCalibration, left: np.ndarray, right: np.ndarra
                                f"{MIN_MATCHES} are needed (point the cameras at texture)")
     R0 = np.asarray(calib.R, np.float64)
     T0 = np.asarray(calib.T, np.float64).reshape(3, 1)
-
-    def pose(delta):
-        dR = cv2.Rodrigues(np.asarray(delta, np.float64).reshape(3, 1))[0]
-        return dR @ R0, dR @ T0
-
     dy = _vertical(calib, R0, T0, ul, ur)
     keep = _robust(dy) & (np.abs(dy) < 40.0)
     before = float(np.median(np.abs(dy[keep]))) if keep.any() else float("nan")
     ul, ur = ul[keep], ur[keep]
     if len(ul) < MIN_MATCHES:
         raise CalibrationError(f"only {len(ul)} consistent feature matches in the scene")
-    delta = np.zeros(3)
-    h = 1e-5
-    lam = 1e-3
-    r = _vertical(calib, *pose(delta), ul, ur)
-    cost = float(r @ r)
-    J = np.zeros((len(ul), 3))
-    for _ in range(30):
-        for k in range(3):
-            e = np.zeros(3)
-            e[k] = h
-            J[:, k] = (_vertical(calib, *pose(delta + e), ul, ur)
-                       - _vertical(calib, *pose(delta - e), ul, ur)) / (2 * h)
-        A = J.T @ J
-        g = J.T @ r
-        step = np.linalg.solve(A + lam * np.diag(np.diag(A) + 1e-12), -g)
-        cand = delta + step
-        rn = _vertical(calib, *pose(cand), ul, ur)
-        cn = float(rn @ rn)
-        if cn < cost:
-            delta, r, cost, lam = cand, rn, cn, lam / 10
-            if np.abs(step).max() < 1e-8:
-                break
-        else:
-            lam *= 10
-            if lam > 1e6:
-                break
-    # the matches that still disagree (moving objects, mismatches) should not steer the result
-    inl = np.abs(r - np.median(r)) < max(3 * 1.4826 * np.median(np.abs(r - np.median(r))), 0.5)
-    sigma2 = float(r[inl] @ r[inl]) / max(int(inl.sum()) - 3, 1)
-    try:
-        cov = np.linalg.inv(J[inl].T @ J[inl]) * sigma2
-        turn_sigma = tuple(float(math.degrees(math.sqrt(max(v, 0.0)))) for v in np.diag(cov))
-    except np.linalg.LinAlgError:
-        turn_sigma = (float("inf"),) * 3
-    R, T = pose(delta)
+    delta, r, J = _solve_turn(calib, R0, T0, ul, ur)
+    cov, turn_sigma = _turn_covariance(r, J)
+    R, T = _turned(R0, T0, delta)
     R1, R2, P1, P2, Q = stereo_rectify(calib.model, calib.M1, calib.D1, calib.M2, calib.D2,
                                        calib.image_size, R, T, calib.alpha)
     tx = T.reshape(3)
@@ -238,8 +201,6 @@ def refine_rotation(calib: StereoCalibration, left: np.ndarray, right: np.ndarra
     F = F / F[2, 2] if abs(F[2, 2]) > 1e-12 else F
     after = float(np.median(np.abs(_vertical(calib, R, T, ul, ur))))
     turn = tuple(float(math.degrees(v)) for v in delta)
-    import datetime as _dt
-
     parent = calib.created or "unknown time"
     origin = (f"refined from the scene ({len(ul)} feature matches{', ' + source if source else ''})"
               f" from the calibration of {parent}"
@@ -250,8 +211,63 @@ def refine_rotation(calib: StereoCalibration, left: np.ndarray, right: np.ndarra
         R=R, T=T, E=E, F=F, R1=R1, R2=R2, P1=P1, P2=P2, Q=Q, epipolar_error_px=after,
         uncertainty=_with_turn(calib.uncertainty, cov if np.all(np.isfinite(turn_sigma)) else None),
         warnings=(), origin=origin,
-        created=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"))
+        created=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"))
     return Refinement(refined, before, after, int(len(ul)), turn, turn_sigma)
+
+
+def _turned(R0: np.ndarray, T0: np.ndarray, delta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The right camera's pose turned by the small rotation `delta` (Rodrigues vector, rad):
+    R' = dR R0, T' = dR T0."""
+    dR = cv2.Rodrigues(np.asarray(delta, np.float64).reshape(3, 1))[0]
+    return dR @ R0, dR @ T0
+
+
+def _solve_turn(calib: StereoCalibration, R0: np.ndarray, T0: np.ndarray, ul: np.ndarray,
+                ur: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The turn (Rodrigues vector, rad) that row-aligns the matches `ul`, `ur` best
+    (Levenberg-Marquardt on central differences), their rows' differences after it, and the
+    last Jacobian."""
+    delta = np.zeros(3)
+    h = 1e-5
+    lam = 1e-3
+    r = _vertical(calib, *_turned(R0, T0, delta), ul, ur)
+    cost = float(r @ r)
+    J = np.zeros((len(ul), 3))
+    for _ in range(30):
+        for k in range(3):
+            e = np.zeros(3)
+            e[k] = h
+            J[:, k] = (_vertical(calib, *_turned(R0, T0, delta + e), ul, ur)
+                       - _vertical(calib, *_turned(R0, T0, delta - e), ul, ur)) / (2 * h)
+        A = J.T @ J
+        g = J.T @ r
+        step = np.linalg.solve(A + lam * np.diag(np.diag(A) + 1e-12), -g)
+        cand = delta + step
+        rn = _vertical(calib, *_turned(R0, T0, cand), ul, ur)
+        cn = float(rn @ rn)
+        if cn < cost:
+            delta, r, cost, lam = cand, rn, cn, lam / 10
+            if np.abs(step).max() < 1e-8:
+                break
+        else:
+            lam *= 10
+            if lam > 1e6:
+                break
+    return delta, r, J
+
+
+def _turn_covariance(r: np.ndarray, J: np.ndarray
+                     ) -> tuple[np.ndarray | None, tuple[float, ...]]:
+    """The turn's covariance (rad^2; None where singular) over the matches that agree, and its
+    1-sigma spread per axis in degrees (inf where singular)."""
+    # the matches that still disagree (moving objects, mismatches) should not steer the result
+    inl = np.abs(r - np.median(r)) < max(3 * 1.4826 * np.median(np.abs(r - np.median(r))), 0.5)
+    sigma2 = float(r[inl] @ r[inl]) / max(int(inl.sum()) - 3, 1)
+    try:
+        cov = np.linalg.inv(J[inl].T @ J[inl]) * sigma2
+    except np.linalg.LinAlgError:
+        return None, (float("inf"),) * 3
+    return cov, tuple(float(math.degrees(math.sqrt(max(v, 0.0)))) for v in np.diag(cov))
 
 
 def _with_turn(u, turn_cov: np.ndarray | None):
@@ -261,8 +277,6 @@ def _with_turn(u, turn_cov: np.ndarray | None):
     rotation vector). Without the refinement's, the uncertainty is dropped: not known."""
     if u is None or turn_cov is None:
         return None
-    from stereo_gui.core.uncertainty import CalibrationUncertainty
-
     cov = np.array(u.covariance, np.float64)
     idx = [u.index(f"rvec.{a}") for a in "xyz"]
     if any(i is None for i in idx):

@@ -113,8 +113,19 @@ def _check_lenses(calib: StereoCalibration, where: str) -> None:
 
 
 def _check_plausible(calib: StereoCalibration, where: str) -> None:
+    _check_cameras(calib, where)
+    vertical = _check_rectified(calib, where)
+    _check_epipolar(calib, where)
+    _check_lenses(calib, where)
+    if calib.method == "hartley":
+        return
+    _check_metric_pose(calib, where, vertical)
+
+
+def _check_cameras(calib: StereoCalibration, where: str) -> None:
+    """Each camera's focal lengths and principal point are a lens's, and the two cameras' focal
+    lengths those of one rig."""
     w, h = calib.width, calib.height
-    hartley = calib.method == "hartley"
     least = MIN_FOV_FOCAL * (2.0 if calib.model == "fisheye" else 1.0)
     for name, M in (("M1", calib.M1), ("M2", calib.M2)):
         fx, fy = M[0, 0], M[1, 1]
@@ -129,6 +140,13 @@ def _check_plausible(calib: StereoCalibration, where: str) -> None:
     if max(f1, f2) > MAX_FOCAL_RATIO * min(f1, f2):
         _fail(where, f"matrices M1 and M2 have focal lengths {f1:g} and {f2:g} px: more than "
                      f"{MAX_FOCAL_RATIO:g} times apart, they are not the two cameras of one rig")
+
+
+def _check_rectified(calib: StereoCalibration, where: str) -> bool:
+    """P1, P2 and Q are one rectified pair's (of these cameras); whether its baseline is
+    vertical (the images' columns match, not their rows)."""
+    w, h = calib.width, calib.height
+    f1, f2 = calib.M1[0, 0], calib.M2[0, 0]
     P1, P2 = np.asarray(calib.P1, np.float64), np.asarray(calib.P2, np.float64)
     for name, P in (("P1", P1), ("P2", P2)):
         if not _near(P[2], (0.0, 0.0, 1.0, 0.0), 1e-6) or abs(P[0, 1]) > 1e-6 * P[0, 0] \
@@ -158,6 +176,12 @@ def _check_plausible(calib: StereoCalibration, where: str) -> None:
     if not _near(calib.Q, _q_of(P1, P2, vertical), 1e-6):
         _fail(where, "matrix Q does not follow from P1 and P2: it would turn disparities into "
                      "distances of another rig")
+    return vertical
+
+
+def _check_epipolar(calib: StereoCalibration, where: str) -> None:
+    """E follows from R and T (not for Hartley's, which has no metric pose), F from E, M1, M2."""
+    hartley = calib.method == "hartley"
     R, T = np.asarray(calib.R, np.float64), np.asarray(calib.T, np.float64).reshape(3)
     E, F = np.asarray(calib.E, np.float64), np.asarray(calib.F, np.float64)
     tx = np.array([[0, -T[2], T[1]], [T[2], 0, -T[0]], [-T[1], T[0], 0]])
@@ -166,9 +190,13 @@ def _check_plausible(calib: StereoCalibration, where: str) -> None:
     F_of_E = np.linalg.inv(calib.M2).T @ E @ np.linalg.inv(calib.M1)
     if not _same_up_to_scale(F, F_of_E):
         _fail(where, "matrix F does not follow from E, M1 and M2")
-    _check_lenses(calib, where)
-    if hartley:
-        return
+
+
+def _check_metric_pose(calib: StereoCalibration, where: str, vertical: bool) -> None:
+    """A rig's baseline, rotations R1, R2 consistent with R, the baseline along the rectified
+    rows (or columns, `vertical`) and P2's baseline T's."""
+    R, T = np.asarray(calib.R, np.float64), np.asarray(calib.T, np.float64).reshape(3)
+    P2 = np.asarray(calib.P2, np.float64)
     baseline = float(np.linalg.norm(T))
     if not MIN_BASELINE_MM <= baseline <= PLAUSIBLE_BASELINE_MM:
         _fail(where, f"T gives a baseline of {baseline:g} mm (a rig's cameras are "

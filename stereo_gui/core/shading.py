@@ -197,14 +197,7 @@ def fit_shading(samples: Sequence[BoardSamples]) -> LensShading | None:
     black squares are darker by the same share everywhere is what tells c from S). Alternating
     least squares: every S and c given V and rho, rho given those, then V; samples far off the
     fit (a reflection, a shadow) are left out and the fit made again."""
-    images = []
-    for s in samples:
-        w_ok, b_ok = s.white < CLIPPED, s.black < CLIPPED
-        if w_ok.sum() >= 4 and b_ok.sum() >= 4 and float(s.white[w_ok].mean()) > 8.0:
-            images.append((np.asarray(s.r2_white, np.float64)[w_ok],
-                           np.asarray(s.white, np.float64)[w_ok],
-                           np.asarray(s.r2_black, np.float64)[b_ok],
-                           np.asarray(s.black, np.float64)[b_ok]))
+    images = _usable_images(samples)
     if len(images) < MIN_IMAGES or sum(len(im[1]) for im in images) < MIN_SAMPLES:
         return None
     if math.sqrt(float(np.percentile(np.concatenate([im[0] for im in images]), 95))) < MIN_REACH:
@@ -217,30 +210,9 @@ def fit_shading(samples: Sequence[BoardSamples]) -> LensShading | None:
     n = len(images)
     keep = np.ones(len(b), bool)
     k = np.zeros(2)
-    black = 0.0
     rho = float(np.mean(b[is_black]) / np.mean(b[~is_black]))
-    scale = np.ones(n)
     for _ in range(4):  # trim outliers, then fit again
-        for _ in range(50):
-            v = 1.0 + k[0] * r2 + k[1] * r2 * r2
-            share = np.where(is_black, rho, 1.0)
-            # every image's S and the black level, given V and rho
-            design = np.zeros((int(keep.sum()), n + 1))
-            design[np.arange(design.shape[0]), image[keep]] = (share * v)[keep]
-            design[:, n] = 1.0
-            sol = np.linalg.lstsq(design, b[keep], rcond=None)[0]
-            scale, black = sol[:n], float(sol[n])
-            # rho, given those
-            sv = (scale[image] * v)[keep & is_black]
-            rho = float(np.sum((b - black)[keep & is_black] * sv) / max(np.sum(sv * sv), 1e-9))
-            # V, given those: b - c - S' = S' (k1 r^2 + k2 r^4), S' = S (white) or rho S (black)
-            a = scale[image] * np.where(is_black, rho, 1.0)
-            k_new = np.linalg.lstsq(np.stack([a * r2, a * r2 * r2], axis=1)[keep],
-                                    (b - black - a)[keep], rcond=None)[0]
-            done = np.max(np.abs(k_new - k)) < 1e-7
-            k = k_new
-            if done:
-                break
+        k, rho, scale, black = _alternating_fit(r2, b, image, is_black, n, keep, k, rho)
         fit = scale[image] * np.where(is_black, rho, 1.0) * (1.0 + k[0] * r2 + k[1] * r2 * r2)
         resid = b - (fit + black)
         spread = 1.4826 * float(np.median(np.abs(resid[keep]))) + 1e-3
@@ -250,6 +222,50 @@ def fit_shading(samples: Sequence[BoardSamples]) -> LensShading | None:
     except CalibrationValueError as exc:
         log.info("lens shading fit out of bounds (%s): not used", exc)
         return None
+
+
+def _usable_images(samples: Sequence[BoardSamples]
+                   ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """(r^2 of the white samples, their values, r^2 of the black ones, their values) of each
+    image with at least 4 unclipped samples of each and white samples not too dark."""
+    images = []
+    for s in samples:
+        w_ok, b_ok = s.white < CLIPPED, s.black < CLIPPED
+        if w_ok.sum() >= 4 and b_ok.sum() >= 4 and float(s.white[w_ok].mean()) > 8.0:
+            images.append((np.asarray(s.r2_white, np.float64)[w_ok],
+                           np.asarray(s.white, np.float64)[w_ok],
+                           np.asarray(s.r2_black, np.float64)[b_ok],
+                           np.asarray(s.black, np.float64)[b_ok]))
+    return images
+
+
+def _alternating_fit(r2: np.ndarray, b: np.ndarray, image: np.ndarray, is_black: np.ndarray,
+                     n: int, keep: np.ndarray, k: np.ndarray, rho: float
+                     ) -> tuple[np.ndarray, float, np.ndarray, float]:
+    """One alternating least-squares fit over the samples `keep`s (values `b` at `r2`, of image
+    `image`, black where `is_black`, of `n` images) from V's (k1, k2) `k` and `rho`: (k, rho,
+    every image's S, the black level c)."""
+    for _ in range(50):
+        v = 1.0 + k[0] * r2 + k[1] * r2 * r2
+        share = np.where(is_black, rho, 1.0)
+        # every image's S and the black level, given V and rho
+        design = np.zeros((int(keep.sum()), n + 1))
+        design[np.arange(design.shape[0]), image[keep]] = (share * v)[keep]
+        design[:, n] = 1.0
+        sol = np.linalg.lstsq(design, b[keep], rcond=None)[0]
+        scale, black = sol[:n], float(sol[n])
+        # rho, given those
+        sv = (scale[image] * v)[keep & is_black]
+        rho = float(np.sum((b - black)[keep & is_black] * sv) / max(np.sum(sv * sv), 1e-9))
+        # V, given those: b - c - S' = S' (k1 r^2 + k2 r^4), S' = S (white) or rho S (black)
+        a = scale[image] * np.where(is_black, rho, 1.0)
+        k_new = np.linalg.lstsq(np.stack([a * r2, a * r2 * r2], axis=1)[keep],
+                                (b - black - a)[keep], rcond=None)[0]
+        done = np.max(np.abs(k_new - k)) < 1e-7
+        k = k_new
+        if done:
+            break
+    return k, rho, scale, black
 
 
 def measure_pair_shading(pairs: Sequence[tuple[object, Callable[[], np.ndarray],
