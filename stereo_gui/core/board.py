@@ -23,6 +23,7 @@ import math
 import re
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from stereo_gui.core.errors import InputError
@@ -206,8 +207,6 @@ def _object_points(board: BoardSpec) -> np.ndarray:
 
 @functools.lru_cache(maxsize=16)
 def _charuco_board(cols: int, rows: int, square_mm: float, marker_mm: float, dictionary: str):
-    import cv2
-
     d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary))
     return cv2.aruco.CharucoBoard((cols, rows), square_mm, marker_mm, d)
 

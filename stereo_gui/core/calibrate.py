@@ -50,6 +50,7 @@ from stereo_gui.core.uncertainty import (
     join_names,
     uncertainty_from_bundle,
 )
+from stereo_gui.core.util import mutual_ratio_matches, to_gray
 
 log = logging.getLogger(__name__)
 
@@ -818,8 +819,6 @@ def calibrate_hartley(pairs: Sequence[PairDetection], board: BoardSpec | None,
 def match_features(left: np.ndarray, right: np.ndarray, max_features: int = 4000,
                    ratio: float = 0.75) -> tuple[np.ndarray, np.ndarray]:
     """Matched SIFT keypoints of a scene pair (Lowe's ratio test, mutual), (N, 2) px each."""
-    from stereo_gui.core.util import mutual_ratio_matches, to_gray
-
     sift = cv2.SIFT_create(nfeatures=max_features)
     kl, dl = sift.detectAndCompute(to_gray(left), None)
     kr, dr = sift.detectAndCompute(to_gray(right), None)

@@ -21,6 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stereo_gui.core.detect import pair_pose
+
 GRID = 5  # cells across and down each image
 MIN_POINTS_PER_CELL = 3
 MIN_PAIRS = 10  # fewest pairs for a stable solve, however well they cover the images
@@ -193,8 +195,6 @@ class Readiness:
 
 def readiness(pairs, board, image_size: tuple[int, int]) -> Readiness:
     """The Readiness of kept pairs (PairDetection objects in which both cameras saw the board)."""
-    from stereo_gui.core.detect import pair_pose
-
     usable = [p for p in pairs if p is not None and p.found]
     counts = {}
     for side in SIDES:

@@ -7,6 +7,7 @@ widgets. Validation runs when an object is built, never when it is used.
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import functools
 import math
@@ -112,8 +113,6 @@ class Param:
 
     def argparse_type(self) -> Callable[[str], object]:
         """An argparse type for the field: its words in the one line a bad value gives."""
-        import argparse
-
         tp = self.base
 
         def parse(text: str):

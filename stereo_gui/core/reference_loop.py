@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from stereo_gui.core.lens import rectify_map
 from stereo_gui.core.stereo_calibration import StereoCalibration
 
 # the reference loop's matcher and filter parameters
@@ -65,8 +66,6 @@ class ReferenceLoop:
         self.calibration = calibration
         size = calibration.image_size
         # initUndistortRectifyMap as the loop does it, for the calibration's own lens model
-        from stereo_gui.core.lens import rectify_map
-
         self._left_map = rectify_map(calibration.model, calibration.M1, calibration.D1,
                                      calibration.R1, calibration.P1, size, cv2.CV_16SC2)
         self._right_map = rectify_map(calibration.model, calibration.M2, calibration.D2,

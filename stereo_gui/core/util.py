@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 
 def to_gray(image: np.ndarray) -> np.ndarray:
     """A uint8 single-channel view of a BGR, BGRA or grayscale image."""
-    import cv2
-
     if image.ndim == 2:
         return image
     if image.shape[2] == 4:
@@ -26,8 +26,6 @@ def mutual_ratio_matches(dl: np.ndarray, dr: np.ndarray, ratio: float = 0.75
     by one matrix product on one BLAS thread: several times cheaper than BFMatcher's two passes
     for the same pairs, which matters because the live health check runs this every two seconds
     beside the frame lanes, and its CPU is theirs."""
-    from threadpoolctl import threadpool_limits
-
     a = np.asarray(dl, np.float32)
     b = np.asarray(dr, np.float32)
     with threadpool_limits(1, "blas"):  # a BLAS pool would spin on the lanes' cores
