@@ -35,12 +35,13 @@ from stereo_gui.core.calibrate import (
     RejectedPair,
     calibrate_hartley_features,
     calibrate_stereo,
+    with_measured_shading,
 )
 from stereo_gui.core.detect import METHODS as DETECTORS
 from stereo_gui.core.detect import PairInput, detect_pairs
 from stereo_gui.core.errors import InputError, StereoGuiError
 from stereo_gui.core.lens import LENS_MODELS, distortion_names
-from stereo_gui.core.shading import shading_words, with_measured_shading
+from stereo_gui.core.shading import shading_words
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.any_calibration import load_any_calibration
 from stereo_gui.files.calibration_file import export_ros, save_calibration

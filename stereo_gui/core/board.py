@@ -22,6 +22,7 @@ import functools
 import math
 import re
 from dataclasses import dataclass
+from typing import Any
 
 import cv2
 import numpy as np
@@ -160,16 +161,16 @@ class BoardSpec:
         return (f"{TARGET_NAMES[self.target]} {self.cols}x{self.rows}, {self.square_mm:g} mm "
                 f"spacing, {self.marker_mm:g} mm circles")
 
-    def aruco_board(self):
+    def aruco_board(self) -> cv2.aruco.CharucoBoard:
         """The cv2.aruco.CharucoBoard of a ChArUco target (cached)."""
         if self.target != "charuco":
             raise ValueError("only a ChArUco target has an ArUco board")
         return _charuco_board(self.cols, self.rows, float(self.square_mm), float(self.marker_mm),
                               self.dictionary)
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, object]:
         """The board as the session manifest and other JSON records keep it."""
-        out = {"cols": self.cols, "rows": self.rows, "square_mm": self.square_mm}
+        out: dict[str, object] = {"cols": self.cols, "rows": self.rows, "square_mm": self.square_mm}
         if self.target != "chessboard":
             out.update(target=self.target, marker_mm=self.marker_mm)
         if self.target == "charuco":
@@ -177,7 +178,7 @@ class BoardSpec:
         return out
 
     @staticmethod
-    def from_json(data: dict) -> BoardSpec:
+    def from_json(data: dict[str, Any]) -> BoardSpec:
         """Inverse of to_json (a record without `target` is a chessboard)."""
         return BoardSpec(int(data["cols"]), int(data["rows"]), float(data["square_mm"]),
                          str(data.get("target", "chessboard")), float(data.get("marker_mm", 0.0)),
@@ -206,7 +207,8 @@ def _object_points(board: BoardSpec) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=16)
-def _charuco_board(cols: int, rows: int, square_mm: float, marker_mm: float, dictionary: str):
+def _charuco_board(cols: int, rows: int, square_mm: float, marker_mm: float, dictionary: str
+                   ) -> cv2.aruco.CharucoBoard:
     d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary))
     return cv2.aruco.CharucoBoard((cols, rows), square_mm, marker_mm, d)
 

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from numpy.typing import ArrayLike
 
 from stereo_gui.core.errors import CalibrationError
 from stereo_gui.core.lens import distortion_names, project_points
@@ -82,7 +83,8 @@ RATIONAL_PRIOR = 1.0
 PRIOR_PX = 0.1
 
 
-def refine_stereo(views: Sequence[View], model: str, M1, D1, M2, D2, R, T,
+def refine_stereo(views: Sequence[View], model: str, M1: np.ndarray, D1: np.ndarray,
+                  M2: np.ndarray, D2: np.ndarray, R: np.ndarray, T: np.ndarray,
                   rvecs: Sequence[np.ndarray], tvecs: Sequence[np.ndarray],
                   fixed: Sequence[str] = (), max_iterations: int = 60,
                   tolerance: float = 1e-10) -> BundleResult:
@@ -93,12 +95,14 @@ def refine_stereo(views: Sequence[View], model: str, M1, D1, M2, D2, R, T,
     """
     D1 = np.asarray(D1, np.float64).reshape(-1)
     D2 = np.asarray(D2, np.float64).reshape(-1)
-    x0 = np.concatenate([
+    start: list[ArrayLike] = [
         [M1[0, 0], M1[1, 1], M1[0, 2], M1[1, 2]], D1,
         [M2[0, 0], M2[1, 1], M2[0, 2], M2[1, 2]], D2,
         cv2.Rodrigues(np.asarray(R, np.float64))[0].reshape(3), np.asarray(T, np.float64).reshape(3)]
-        + [np.concatenate([np.asarray(r, np.float64).reshape(3), np.asarray(t, np.float64).reshape(3)])
-           for r, t in zip(rvecs, tvecs)])
+    start += [np.concatenate([np.asarray(r, np.float64).reshape(3),
+                              np.asarray(t, np.float64).reshape(3)])
+              for r, t in zip(rvecs, tvecs)]
+    x0 = np.concatenate(start)
     problem = _Problem.of(list(views), model, D1.size, fixed)
     x, r, J, it = _levenberg_marquardt(problem, x0, max_iterations, tolerance)
     cov, names, sigma2 = _camera_covariance(problem, r, J)
@@ -162,14 +166,22 @@ class _Problem:
     def m(self) -> int:
         return self.m_obs + len(self.prior_cols)
 
-    def residuals(self, x: np.ndarray, want_j: bool):
-        """The residuals at `x` (px; then the prior rows) and, if `want_j`, their Jacobian."""
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        """The residuals at `x`: px, then the prior rows."""
+        return self._evaluate(x, False)[0]
+
+    def with_jacobian(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The residuals at `x` and their Jacobian."""
+        return self._evaluate(x, True)
+
+    def _evaluate(self, x: np.ndarray, want_j: bool) -> tuple[np.ndarray, np.ndarray]:
+        """The residuals and, if `want_j`, their Jacobian (else an empty array)."""
         nc, n_cam, model = self.nc, self.n_cam, self.model
         Ml, Dl = _unpack_camera(x[:nc])
         Mr, Dr = _unpack_camera(x[nc:2 * nc])
         rRL, tRL = x[2 * nc:2 * nc + 3], x[2 * nc + 3:2 * nc + 6]
         res = np.empty(self.m)
-        J = np.zeros((self.m, x.size)) if want_j else None
+        J = np.zeros((self.m, x.size) if want_j else (0, 0))
         row = 0
         for k, v in enumerate(self.views):
             o = n_cam + 6 * k
@@ -211,12 +223,12 @@ class _Problem:
 
 
 def _levenberg_marquardt(problem: _Problem, x0: np.ndarray, max_iterations: int,
-                         tolerance: float):
+                         tolerance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """Levenberg-Marquardt from `x0` over the free parameters: (x, residuals, Jacobian,
     iterations) at the solution."""
     free = problem.free
     x = x0.copy()
-    r, J = problem.residuals(x, True)
+    r, J = problem.with_jacobian(x)
     cost = float(r @ r)
     lam = 1e-3
     it = 0
@@ -235,7 +247,7 @@ def _levenberg_marquardt(problem: _Problem, x0: np.ndarray, max_iterations: int,
                 continue
             xn = x.copy()
             xn[free] += step
-            rn, _ = problem.residuals(xn, False)
+            rn = problem.residuals(xn)
             cn = float(rn @ rn)
             if np.isfinite(cn) and cn < cost:
                 improved = True
@@ -245,14 +257,15 @@ def _levenberg_marquardt(problem: _Problem, x0: np.ndarray, max_iterations: int,
             break
         rel = (cost - cn) / max(cost, 1e-300)
         x, cost = xn, cn
-        r, J = problem.residuals(x, True)
+        r, J = problem.with_jacobian(x)
         lam = max(lam / 10.0, 1e-12)
         if rel < tolerance:
             break
     return x, r, J, it
 
 
-def _camera_covariance(problem: _Problem, r: np.ndarray, J: np.ndarray):
+def _camera_covariance(problem: _Problem, r: np.ndarray, J: np.ndarray
+                       ) -> tuple[np.ndarray, tuple[str, ...], float]:
     """The camera parameters' covariance sigma^2 (J^T J)^-1 (the board poses marginalised out),
     the names of its rows, and sigma^2."""
     free = problem.free

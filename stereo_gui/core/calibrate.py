@@ -18,7 +18,7 @@ images but no metric scale: its results carry method="hartley", a unit baseline 
 from __future__ import annotations
 
 import logging
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -27,7 +27,7 @@ import numpy as np
 from stereo_gui.core.board import TARGET_NAMES, BoardSpec
 from stereo_gui.core.bundle import BundleResult, View, refine_stereo
 from stereo_gui.core.coverage import uncovered_regions
-from stereo_gui.core.detect import PairDetection
+from stereo_gui.core.detect import PairDetection, PairInput
 from stereo_gui.core.errors import CalibrationError
 from stereo_gui.core.jobs import Cancel, ProgressCallback, check_cancel
 from stereo_gui.core.lens import (
@@ -35,12 +35,14 @@ from stereo_gui.core.lens import (
     HIGHER_TERMS,
     LENS_MODELS,
     ROUND_TRIP_PX,
+    check_model,
     optimal_new_camera,
     project_points,
     round_trip_px,
     stereo_rectify,
     undistort_points,
 )
+from stereo_gui.core.shading import measure_pair_shading
 from stereo_gui.core.stereo_calibration import PairError, StereoCalibration, alpha_problem
 from stereo_gui.core.uncertainty import (
     Z95,
@@ -104,7 +106,9 @@ def _progress(progress: ProgressCallback | None, step: int, total: int, text: st
 
 
 def epipolar_error_px(left_pts: Sequence[np.ndarray], right_pts: Sequence[np.ndarray],
-                      M1, D1, R1, P1, M2, D2, R2, P2, model: str = "pinhole") -> float:
+                      M1: np.ndarray, D1: np.ndarray, R1: np.ndarray, P1: np.ndarray,
+                      M2: np.ndarray, D2: np.ndarray, R2: np.ndarray, P2: np.ndarray,
+                      model: str = "pinhole") -> float:
     """Mean |y_left - y_right| of corresponding points after rectification, px."""
     if not left_pts:
         return float("nan")
@@ -176,7 +180,14 @@ def _mono_flags(model: str, held: Sequence[str]) -> int:
     return flags
 
 
-def _calibrate_mono(objs, imgs, image_size, model: str, held: Sequence[str] = ()):
+# one camera's calibration: rms px, M, D (1xN), each view's board pose (rvec, tvec) and the
+# intrinsics' standard deviations (None where OpenCV gives none)
+_Mono = tuple[float, np.ndarray, np.ndarray, Sequence[np.ndarray], Sequence[np.ndarray],
+              np.ndarray | None]
+
+
+def _calibrate_mono(objs: list[np.ndarray], imgs: list[np.ndarray], image_size: tuple[int, int],
+                    model: str, held: Sequence[str] = ()) -> _Mono:
     """One camera: (rms, M, D (1xN), rvecs, tvecs, standard deviations of the intrinsics or None);
     the distortion terms `held` stay at zero.
 
@@ -192,12 +203,13 @@ def _calibrate_mono(objs, imgs, image_size, model: str, held: Sequence[str] = ()
     try:
         if model == "fisheye":
             # (cv2.fisheye wants each view as a 1xN row of points)
-            rms, M, D, rv, tv = cv2.fisheye.calibrate(
+            # (OpenCV's stubs want the output matrices passed in; None asks it to make them)
+            rms, M, D, rv, tv = cv2.fisheye.calibrate(  # type: ignore[call-overload]
                 [o.reshape(1, -1, 3).astype(np.float64) for o in objs],
                 [i.reshape(1, -1, 2).astype(np.float64) for i in imgs], image_size, None, None,
                 flags=flags, criteria=_CRITERIA)
             return float(rms), M, np.asarray(D).reshape(1, -1), rv, tv, None
-        rms, M, D, rv, tv, std, _, _ = cv2.calibrateCameraExtended(
+        rms, M, D, rv, tv, std, _, _ = cv2.calibrateCameraExtended(  # type: ignore[call-overload]
             [o.astype(np.float32) for o in objs], [i.reshape(-1, 1, 2).astype(np.float32) for i in imgs],
             image_size, None, None, flags=flags, criteria=_CRITERIA)
     except cv2.error as exc:
@@ -208,7 +220,9 @@ def _calibrate_mono(objs, imgs, image_size, model: str, held: Sequence[str] = ()
     return float(rms), M, D, rv, tv, np.asarray(std, np.float64).reshape(-1)
 
 
-def _relative_pose(rv_l, tv_l, rv_r, tv_r) -> tuple[np.ndarray, np.ndarray]:
+def _relative_pose(rv_l: Sequence[np.ndarray], tv_l: Sequence[np.ndarray],
+                   rv_r: Sequence[np.ndarray], tv_r: Sequence[np.ndarray]
+                   ) -> tuple[np.ndarray, np.ndarray]:
     """R_right_left, T_right_left from the board poses both cameras saw (the mean over views)."""
     rs, ts = [], []
     for a, b, c, d in zip(rv_l, tv_l, rv_r, tv_r):
@@ -294,14 +308,16 @@ class _PairPoints:
     def of(cls, pairs: list[PairDetection], board: BoardSpec) -> _PairPoints:
         obj_all = board.object_points_mm()
         common = [p.common() for p in pairs]
-        return cls([p.left.object_points(board) for p in pairs],  # type: ignore[union-attr]
-                   [p.left.corners for p in pairs],  # type: ignore[union-attr]
-                   [p.right.object_points(board) for p in pairs],  # type: ignore[union-attr]
-                   [p.right.corners for p in pairs],  # type: ignore[union-attr]
+        sides = [p.sides() for p in pairs]
+        return cls([left.object_points(board) for left, _ in sides],
+                   [left.corners for left, _ in sides],
+                   [right.object_points(board) for _, right in sides],
+                   [right.corners for _, right in sides],
                    common, [obj_all[c[0]] for c in common])
 
 
-def _pose_with_fixed_intrinsics(pts: _PairPoints, model: str, M1, D1, M2, D2,
+def _pose_with_fixed_intrinsics(pts: _PairPoints, model: str, M1: np.ndarray, D1: np.ndarray,
+                                M2: np.ndarray, D2: np.ndarray,
                                 image_size: tuple[int, int]
                                 ) -> tuple[float, np.ndarray, np.ndarray] | None:
     """OpenCV's stereo calibration with both cameras' intrinsics fixed, over the corners both
@@ -318,7 +334,8 @@ def _pose_with_fixed_intrinsics(pts: _PairPoints, model: str, M1, D1, M2, D2,
                 flags=cv2.CALIB_FIX_INTRINSIC, criteria=_CRITERIA)
             return float(out[0]), out[5], np.asarray(out[6]).reshape(3, 1)
         flags = cv2.CALIB_FIX_INTRINSIC | (cv2.CALIB_RATIONAL_MODEL if model == "rational" else 0)
-        out = cv2.stereoCalibrateExtended(
+        # (OpenCV's stubs want R and T passed in; None asks it to make them)
+        out = cv2.stereoCalibrateExtended(  # type: ignore[call-overload]
             [o.astype(np.float32) for o in oc],
             [c[1].reshape(-1, 1, 2).astype(np.float32) for c in common],
             [c[2].reshape(-1, 1, 2).astype(np.float32) for c in common],
@@ -330,7 +347,8 @@ def _pose_with_fixed_intrinsics(pts: _PairPoints, model: str, M1, D1, M2, D2,
         return None
 
 
-def _essential_and_fundamental(M1, M2, R, T) -> tuple[np.ndarray, np.ndarray]:
+def _essential_and_fundamental(M1: np.ndarray, M2: np.ndarray, R: np.ndarray, T: np.ndarray
+                               ) -> tuple[np.ndarray, np.ndarray]:
     """E = [T]x R and F = M2^-T E M1^-1 (normalised to F[2,2] = 1 where it is not ~0)."""
     tx = np.asarray(T, np.float64).reshape(3)
     Tx = np.array([[0, -tx[2], tx[1]], [tx[2], 0, -tx[0]], [-tx[1], tx[0], 0]], np.float64)
@@ -340,7 +358,8 @@ def _essential_and_fundamental(M1, M2, R, T) -> tuple[np.ndarray, np.ndarray]:
     return E, F
 
 
-def _pair_poses(rv_l, tv_l, rv_r, tv_r) -> np.ndarray:
+def _pair_poses(rv_l: Sequence[np.ndarray], tv_l: Sequence[np.ndarray],
+                rv_r: Sequence[np.ndarray], tv_r: Sequence[np.ndarray]) -> np.ndarray:
     """Each pair's own view of the rig's pose, (n, 6): the Rodrigues vector of R_right_left
     (rad) and T_right_left (mm) that its two board poses put the cameras at."""
     out = []
@@ -370,7 +389,7 @@ def _unsync_uncertainty(sol: _Solve, model: str) -> CalibrationUncertainty:
             if name in names:
                 i = names.index(name)
                 cov[i, i] += scatter[k]
-    return CalibrationUncertainty(tuple(bundle.names), cov, own, "jacobian", model)
+    return CalibrationUncertainty(tuple(bundle.names), cov, own, "jacobian", check_model(model))
 
 
 # cameras that do not take a pair's two pictures at the same moment, with a board held by hand:
@@ -395,13 +414,16 @@ def _unsynchronised(transfer: list[float], own: list[float]) -> bool:
     return t > max(UNSYNC_FACTOR * o, UNSYNC_FLOOR_PX)
 
 
-def _rms_px(model: str, obj, img, rvec, tvec, M, D) -> float:
+def _rms_px(model: str, obj: np.ndarray, img: np.ndarray, rvec: np.ndarray, tvec: np.ndarray,
+            M: np.ndarray, D: np.ndarray) -> float:
     """RMS px between corners `img` and the board's points `obj` seen from (rvec, tvec)."""
     d = project_points(model, obj, rvec, tvec, M, D) - np.asarray(img, np.float64).reshape(-1, 2)
     return float(np.sqrt(np.mean(np.sum(d * d, axis=1))))
 
 
-def _transfer_px(model: str, obj, img, rvec_left, tvec_left, R, T, M2, D2) -> float:
+def _transfer_px(model: str, obj: np.ndarray, img: np.ndarray, rvec_left: np.ndarray,
+                 tvec_left: np.ndarray, R: np.ndarray, T: np.ndarray, M2: np.ndarray,
+                 D2: np.ndarray) -> float:
     """RMS px between the right camera's corners `img` and the board as the left camera's pose
     (`rvec_left`, `tvec_left`) and the rig's (R, T) put it in the right image."""
     Rl = cv2.Rodrigues(np.asarray(rvec_left, np.float64).reshape(3, 1))[0]
@@ -700,9 +722,33 @@ def _rectified(sol: _Solve, usable: list[PairDetection], board: BoardSpec,
         E=sol.E, F=sol.F, R1=R1, R2=R2, P1=P1, P2=P2, Q=Q, board=board,
         rms_left=sol.rms_left, rms_right=sol.rms_right, rms_stereo=sol.rms_stereo,
         epipolar_error_px=epi, per_pair=per_pair, method="bouguet", alpha=float(alpha),
-        optimal_M1=opt1, optimal_M2=opt2, model=model, uncertainty=unc,
+        optimal_M1=opt1, optimal_M2=opt2, model=check_model(model), uncertainty=unc,
         origin=f"calibrated from {len(usable)} pairs{' in ' + origin if origin else ''} "
                f"({board.label()}, {model} model{_origin_held(model, held)})")
+
+
+# ---- lens shading ---------------------------------------------------------------------------
+def with_measured_shading(calibration: StereoCalibration, detections: Sequence[PairDetection],
+                          inputs: Sequence[PairInput], board: BoardSpec | None
+                          ) -> StereoCalibration:
+    """`calibration` with the lens shading measured on the pairs it was made from (`detections`
+    and the `inputs` (core.detect.PairInput) they came from, by name), when the board is a
+    chessboard; unchanged otherwise or when it cannot be measured."""
+    if board is None or board.target != "chessboard" or calibration.method != "bouguet":
+        return calibration
+    used = {p.name for p in calibration.per_pair}
+    by_name = {i.name: i for i in inputs}
+
+    def loader(x: np.ndarray | Callable[[], np.ndarray]) -> Callable[[], np.ndarray]:
+        return x if callable(x) else (lambda: x)
+
+    pairs = [(d, loader(by_name[d.name].left), loader(by_name[d.name].right))
+             for d in detections if d.found and d.name in used and d.name in by_name]
+    shading = measure_pair_shading(pairs, board.cols, board.rows)
+    if shading is None:
+        log.info("lens shading not measured (too few white squares far enough from the centre)")
+        return calibration
+    return calibration.with_updates(lens_shading=shading)
 
 
 def _unsync_warning(sol: _Solve) -> CalibrationWarning:
@@ -724,9 +770,28 @@ def _unsync_warning(sol: _Solve) -> CalibrationWarning:
 
 
 # ---- Hartley --------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class _Hartley:
+    """A Hartley rectification's calibration fields (T a unit direction: no metric scale), the
+    share of the matches that were inliers and those inliers, undistorted px (N, 2)."""
+
+    F: np.ndarray
+    E: np.ndarray
+    R: np.ndarray
+    T: np.ndarray
+    R1: np.ndarray
+    R2: np.ndarray
+    P1: np.ndarray
+    P2: np.ndarray
+    Q: np.ndarray
+    inliers: float
+    ul: np.ndarray
+    ur: np.ndarray
+
+
 def _hartley_from_points(pts_l: np.ndarray, pts_r: np.ndarray, image_size: tuple[int, int],
                          M1: np.ndarray, D1: np.ndarray, M2: np.ndarray, D2: np.ndarray,
-                         alpha: float) -> dict[str, np.ndarray | float]:
+                         alpha: float) -> _Hartley:
     """Rectifying homographies from matched raw pixel points (N, 2); the calibration fields."""
     # Work on undistorted pixel coordinates so the homographies act after undistortion.
     ul = cv2.undistortPoints(pts_l.reshape(-1, 1, 2).astype(np.float64), M1, D1, P=M1).reshape(-1, 2)
@@ -751,11 +816,12 @@ def _hartley_from_points(pts_l: np.ndarray, pts_r: np.ndarray, image_size: tuple
                  np.float64)
     E = M2.T @ F @ M1
     Rr, t = _recover_pose(E, ul[inl], ur[inl], M1, M2)
-    return dict(F=F, E=E, R=Rr, T=t.reshape(3, 1) * baseline, R1=R1, R2=R2, P1=P1, P2=P2, Q=Q,
-                inliers=float(inl.mean()), ul=ul[inl], ur=ur[inl])
+    return _Hartley(F=F, E=E, R=Rr, T=t.reshape(3, 1) * baseline, R1=R1, R2=R2, P1=P1, P2=P2,
+                    Q=Q, inliers=float(inl.mean()), ul=ul[inl], ur=ur[inl])
 
 
-def _recover_pose(E, ul, ur, M1, M2):
+def _recover_pose(E: np.ndarray, ul: np.ndarray, ur: np.ndarray, M1: np.ndarray, M2: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """Relative rotation and unit translation direction from E and undistorted pixel points."""
     nl = cv2.undistortPoints(ul.reshape(-1, 1, 2), M1, None).reshape(-1, 2)
     nr = cv2.undistortPoints(ur.reshape(-1, 1, 2), M2, None).reshape(-1, 2)
@@ -763,7 +829,7 @@ def _recover_pose(E, ul, ur, M1, M2):
     return R, t
 
 
-def calibrate_hartley(pairs: Sequence[PairDetection], board: BoardSpec | None,
+def calibrate_hartley(pairs: Sequence[PairDetection], board: BoardSpec,
                       image_size: tuple[int, int], alpha: float = 0.0, n_found: int | None = None,
                       rejected: Sequence[RejectedPair] = (), progress: ProgressCallback | None = None,
                       cancel: Cancel = None) -> CalibrationResult:
@@ -774,10 +840,11 @@ def calibrate_hartley(pairs: Sequence[PairDetection], board: BoardSpec | None,
     comes only from the point matches through the fundamental matrix.
     """
     pairs = [p for p in pairs if p.found]
-    ol = [p.left.object_points(board) for p in pairs]  # type: ignore[union-attr]
-    orr = [p.right.object_points(board) for p in pairs]  # type: ignore[union-attr]
-    L = [p.left.corners_cv for p in pairs]  # type: ignore[union-attr]
-    Rt = [p.right.corners_cv for p in pairs]  # type: ignore[union-attr]
+    sides = [p.sides() for p in pairs]
+    ol = [left.object_points(board) for left, _ in sides]
+    orr = [right.object_points(board) for _, right in sides]
+    L = [left.corners_cv for left, _ in sides]
+    Rt = [right.corners_cv for _, right in sides]
     _progress(progress, 0, 4, "calibrating the left camera")
     rms1, M1, D1, rv1, tv1 = cv2.calibrateCamera(ol, L, image_size, None, None)
     check_cancel(cancel)
@@ -790,8 +857,8 @@ def calibrate_hartley(pairs: Sequence[PairDetection], board: BoardSpec | None,
     pl = np.concatenate([c[1].reshape(-1, 2) for c in commons])
     pr = np.concatenate([c[2].reshape(-1, 2) for c in commons])
     h = _hartley_from_points(pl, pr, image_size, M1, D1, M2, D2, alpha)
-    epi = epipolar_error_px([c[1] for c in commons], [c[2] for c in commons], M1, D1, h["R1"],
-                            h["P1"], M2, D2, h["R2"], h["P2"])
+    epi = epipolar_error_px([c[1] for c in commons], [c[2] for c in commons], M1, D1, h.R1,
+                            h.P1, M2, D2, h.R2, h.P2)
     per_pair = []
     for i, p in enumerate(pairs):
         el = _rms_px("pinhole", ol[i], L[i], rv1[i], tv1[i], M1, D1)
@@ -800,8 +867,8 @@ def calibrate_hartley(pairs: Sequence[PairDetection], board: BoardSpec | None,
     opt1, _ = cv2.getOptimalNewCameraMatrix(M1, D1, image_size, 1, image_size)
     opt2, _ = cv2.getOptimalNewCameraMatrix(M2, D2, image_size, 1, image_size)
     calib = StereoCalibration(
-        image_size=image_size, M1=M1, D1=D1, M2=M2, D2=D2, R=h["R"], T=h["T"], E=h["E"],
-        F=h["F"], R1=h["R1"], R2=h["R2"], P1=h["P1"], P2=h["P2"], Q=h["Q"], board=board,
+        image_size=image_size, M1=M1, D1=D1, M2=M2, D2=D2, R=h.R, T=h.T, E=h.E,
+        F=h.F, R1=h.R1, R2=h.R2, P1=h.P1, P2=h.P2, Q=h.Q, board=board,
         rms_left=float(rms1), rms_right=float(rms2), rms_stereo=float("nan"),
         epipolar_error_px=epi, per_pair=tuple(per_pair), method="hartley", alpha=float(alpha),
         optimal_M1=opt1, optimal_M2=opt2, left_out=tuple((r.name, r.reason) for r in rejected))
@@ -819,7 +886,7 @@ def calibrate_hartley(pairs: Sequence[PairDetection], board: BoardSpec | None,
 def match_features(left: np.ndarray, right: np.ndarray, max_features: int = 4000,
                    ratio: float = 0.75) -> tuple[np.ndarray, np.ndarray]:
     """Matched SIFT keypoints of a scene pair (Lowe's ratio test, mutual), (N, 2) px each."""
-    sift = cv2.SIFT_create(nfeatures=max_features)
+    sift = cv2.SIFT.create(nfeatures=max_features)
     kl, dl = sift.detectAndCompute(to_gray(left), None)
     kr, dr = sift.detectAndCompute(to_gray(right), None)
     if dl is None or dr is None or len(kl) < 8 or len(kr) < 8:
@@ -828,8 +895,8 @@ def match_features(left: np.ndarray, right: np.ndarray, max_features: int = 4000
     if len(il) < 8:
         raise CalibrationError(f"only {len(il)} feature matches in the scene pair, at least 8 "
                                "are needed")
-    pl = np.float64([kl[i].pt for i in il])
-    pr = np.float64([kr[j].pt for j in ir])
+    pl = np.array([kl[i].pt for i in il], np.float64)
+    pr = np.array([kr[j].pt for j in ir], np.float64)
     return pl, pr
 
 
@@ -871,14 +938,14 @@ def calibrate_hartley_features(pairs: Sequence[tuple[str, np.ndarray, np.ndarray
     D = np.zeros((1, 5))
     pl, pr = np.concatenate(pl_all), np.concatenate(pr_all)
     res = _hartley_from_points(pl, pr, (w, h), M, D, M.copy(), D.copy(), 0.0)
-    epi = epipolar_error_px([res["ul"]], [res["ur"]], M, D, res["R1"], res["P1"], M, D,
-                            res["R2"], res["P2"])
+    epi = epipolar_error_px([res.ul], [res.ur], M, D, res.R1, res.P1, M, D,
+                            res.R2, res.P2)
     calib = StereoCalibration(
-        image_size=(w, h), M1=M, D1=D, M2=M.copy(), D2=D.copy(), R=res["R"], T=res["T"],
-        E=res["E"], F=res["F"], R1=res["R1"], R2=res["R2"], P1=res["P1"], P2=res["P2"],
-        Q=res["Q"], board=None, epipolar_error_px=epi, method="hartley")
+        image_size=(w, h), M1=M, D1=D, M2=M.copy(), D2=D.copy(), R=res.R, T=res.T,
+        E=res.E, F=res.F, R1=res.R1, R2=res.R2, P1=res.P1, P2=res.P2,
+        Q=res.Q, board=None, epipolar_error_px=epi, method="hartley")
     note2 = (f"No chessboard: a nominal camera (focal {f:g} px, no distortion) was assumed, so "
-             f"lens distortion is not corrected. {len(res['ul'])} of {len(pl)} feature matches "
+             f"lens distortion is not corrected. {len(res.ul)} of {len(pl)} feature matches "
              "were inliers; the epipolar error is measured on them.")
     _progress(progress, len(pairs) + 1, len(pairs) + 1, "done")
     report = CalibrationReport(

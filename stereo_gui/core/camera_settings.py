@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import Any
 
 # the controls, in the order they are shown and written (a switch before the value it frees)
 SWITCHES = ("focus_auto", "exposure_auto", "wb_auto")
@@ -45,24 +46,25 @@ class CameraSettings:
     wb_temperature: float | None = None
     brightness: float | None = None
 
-    def get(self, name: str):
+    def get(self, name: str) -> float | bool | None:
         if name not in CONTROL_NAMES:
             raise KeyError(name)
-        return getattr(self, name)
+        value: float | bool | None = getattr(self, name)
+        return value
 
-    def with_values(self, **changes) -> CameraSettings:
+    def with_values(self, **changes: Any) -> CameraSettings:
         return replace(self, **changes)
 
     @property
-    def known(self) -> dict:
+    def known(self) -> dict[str, float | bool]:
         """{control: value} of the controls that have a value."""
         return {n: getattr(self, n) for n in CONTROL_NAMES if getattr(self, n) is not None}
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, object]:
         return {"backend": self.backend, **self.known}
 
     @staticmethod
-    def from_json(data, where: str = "camera controls") -> CameraSettings:
+    def from_json(data: object, where: str = "camera controls") -> CameraSettings:
         """The settings `to_json` wrote; ValueError naming the field that is wrong. Unknown
         fields are ignored (a later version may know more controls)."""
         if not isinstance(data, dict):
@@ -70,7 +72,7 @@ class CameraSettings:
         backend = data.get("backend", "")
         if not isinstance(backend, str) or len(backend) > 64:
             raise ValueError(f"{where}: backend should be a short text")
-        out = {}
+        out: dict[str, Any] = {}  # (checked: a bool for a switch, a float for the rest)
         for name in CONTROL_NAMES:
             v = data.get(name)
             if v is None:
@@ -108,11 +110,11 @@ class PairSettings:
         """Left and right exchanged (for a calibration made with the images exchanged)."""
         return PairSettings(self.right, self.left)
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, object]:
         return {"left": self.left.to_json(), "right": self.right.to_json()}
 
     @staticmethod
-    def from_json(data, where: str = "camera controls") -> PairSettings:
+    def from_json(data: object, where: str = "camera controls") -> PairSettings:
         if not isinstance(data, dict):
             raise ValueError(f"{where} should be an object with left and right")
         return PairSettings(CameraSettings.from_json(data.get("left", {}), f"{where} left"),

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -145,7 +146,7 @@ class ClickScore:
 
     clicks: list[Click] = field(default_factory=list)
 
-    def add(self, clicks) -> ClickScore:
+    def add(self, clicks: Iterable[Click]) -> ClickScore:
         self.clicks.extend(clicks)
         return self
 
@@ -182,7 +183,7 @@ class ClickScore:
         return {str(r): {"refused": n, "map_right": right[r]}
                 for r, n in refused.most_common()}
 
-    def summary(self) -> dict:
+    def summary(self) -> dict[str, object]:
         def num(v: float) -> float | None:
             return float(v) if math.isfinite(v) else None
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from numpy.typing import ArrayLike
 
 from stereo_gui.core.preset import COLORMAPS, DisplayParams
 from stereo_gui.core.stereo_calibration import StereoCalibration
@@ -51,7 +52,7 @@ class ColorScale:
         if not self.mode:
             object.__setattr__(self, "mode", "fixed" if self.kind == "distance" else "minmax")
 
-    def level(self, disparity_px: np.ndarray) -> np.ndarray:
+    def level(self, disparity_px: ArrayLike) -> np.ndarray:
         """Colour level (float, not clipped; NaN where the disparity is NaN)."""
         d = np.asarray(disparity_px, np.float32)
         if self.kind == "distance":

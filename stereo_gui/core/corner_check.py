@@ -60,7 +60,11 @@ _FLAGS = (cv2.CALIB_USE_INTRINSIC_GUESS | cv2.CALIB_FIX_PRINCIPAL_POINT
           | cv2.CALIB_FIX_ASPECT_RATIO | cv2.CALIB_ZERO_TANGENT_DIST | cv2.CALIB_FIX_K3)
 
 
-def _fit(obj: np.ndarray, img: np.ndarray, size: tuple[int, int]):
+# one view fitted alone: camera matrix, distortion, rvec, tvec
+_ViewFit = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+def _fit(obj: np.ndarray, img: np.ndarray, size: tuple[int, int]) -> _ViewFit:
     """One view fitted alone: (camera matrix, distortion, rvec, tvec)."""
     w, h = size
     guess = np.array([[w, 0.0, w / 2.0], [0.0, w, h / 2.0], [0.0, 0.0, 1.0]])
@@ -70,10 +74,12 @@ def _fit(obj: np.ndarray, img: np.ndarray, size: tuple[int, int]):
     return m, d, rvecs[0], tvecs[0]
 
 
-def _misses(fit, obj: np.ndarray, img: np.ndarray) -> np.ndarray:
+def _misses(fit: _ViewFit, obj: np.ndarray, img: np.ndarray) -> np.ndarray:
     m, d, rvec, tvec = fit
     proj, _ = cv2.projectPoints(obj.reshape(-1, 1, 3), rvec, tvec, m, d)
-    return np.hypot(*(proj.reshape(-1, 2) - img.reshape(-1, 2)).T)
+    off: np.ndarray = proj.reshape(-1, 2) - img.reshape(-1, 2)
+    misses: np.ndarray = np.hypot(off[:, 0], off[:, 1])
+    return misses
 
 
 def check_points(det: Detection, board: BoardSpec) -> PointCheck | None:

@@ -21,7 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stereo_gui.core.detect import pair_pose
+from stereo_gui.core.board import BoardSpec
+from stereo_gui.core.detect import PairDetection, pair_pose
 
 GRID = 5  # cells across and down each image
 MIN_POINTS_PER_CELL = 3
@@ -79,10 +80,11 @@ def regions_filled(points_px: np.ndarray, counts: np.ndarray, image_size: tuple[
     return out
 
 
-def uncovered_regions(pairs, image_size: tuple[int, int]) -> dict[str, list[str]]:
+def uncovered_regions(pairs: Sequence[PairDetection], image_size: tuple[int, int]
+                      ) -> dict[str, list[str]]:
     """{"left": [...], "right": [...]}: regions of each image the pairs' points never covered
     (PairDetection objects; every point a camera saw counts)."""
-    out = {}
+    out: dict[str, list[str]] = {}
     for side in SIDES:
         dets = [getattr(p, side) for p in pairs if getattr(p, side) is not None]
         out[side] = empty_regions(cell_counts([d.corners for d in dets], image_size))
@@ -117,7 +119,7 @@ class Readiness:
     `counts` holds each camera's cell counts; tilt and size are the largest skew and the spread
     of sizes of the views' pose descriptors (0..1, ROS camera_calibration's measures)."""
 
-    counts: dict  # side -> (GRID, GRID) int array
+    counts: dict[str, np.ndarray]  # side -> (GRID, GRID) int array
     image_size: tuple[int, int]
     pairs: int
     tilt: float
@@ -193,14 +195,14 @@ class Readiness:
         return f"{text} {extra}" if extra else text
 
 
-def readiness(pairs, board, image_size: tuple[int, int]) -> Readiness:
+def readiness(pairs: Sequence[PairDetection | None], board: BoardSpec,
+              image_size: tuple[int, int]) -> Readiness:
     """The Readiness of kept pairs (PairDetection objects in which both cameras saw the board)."""
     usable = [p for p in pairs if p is not None and p.found]
-    counts = {}
+    counts: dict[str, np.ndarray] = {}
     for side in SIDES:
         counts[side] = cell_counts([getattr(p, side).corners for p in usable], image_size)
-    poses = [pair_pose(p, board) for p in usable]
-    poses = [q for q in poses if q is not None]
+    poses = [q for q in (pair_pose(p, board) for p in usable) if q is not None]
     tilt = max((q.skew for q in poses), default=0.0)
     sizes = [q.size for q in poses]
     spread = (max(sizes) - min(sizes)) if sizes else 0.0

@@ -63,7 +63,8 @@ class Detection:
 
     def object_points(self, board: BoardSpec) -> np.ndarray:
         """The board positions (mm, Z = 0) of the points found, (N, 3) float32."""
-        return board.object_points_mm()[self.point_ids]
+        points: np.ndarray = board.object_points_mm()[self.point_ids]
+        return points
 
     def reversed(self) -> Detection:
         """The same corners in the opposite order (the board turned by 180 degrees)."""
@@ -89,7 +90,7 @@ def _subpix_radius(corners: np.ndarray, board: BoardSpec) -> int:
 
 def _blob_detector(min_distance_px: float = 2.0) -> cv2.SimpleBlobDetector:
     """Dark round blobs from a few pixels (far boards) up to large ones (near boards)."""
-    params = cv2.SimpleBlobDetector_Params()
+    params = cv2.SimpleBlobDetector.Params()
     params.minArea = 8.0
     params.maxArea = 40000.0
     params.minDistBetweenBlobs = float(min_distance_px)
@@ -97,13 +98,14 @@ def _blob_detector(min_distance_px: float = 2.0) -> cv2.SimpleBlobDetector:
     params.minConvexity = 0.8
     params.filterByInertia = True
     params.minInertiaRatio = 0.05  # tilted boards make ellipses
-    return cv2.SimpleBlobDetector_create(params)
+    return cv2.SimpleBlobDetector.create(params)
 
 
 CIRCLE_GRID_ATTEMPTS = 3  # random starts of findCirclesGrid per blob setting
 
 
-def _detect_circles(gray: np.ndarray, board: BoardSpec, size) -> Detection | None:
+def _detect_circles(gray: np.ndarray, board: BoardSpec, size: tuple[int, int]
+                    ) -> Detection | None:
     """Small far circles need blobs close together; clutter (letters, noise) near large circles
     is merged away with a larger distance. findCirclesGrid's grid search starts from OpenCV's
     random number generator (k-means), so that one image is found or not by chance: its seed is
@@ -119,7 +121,8 @@ def _detect_circles(gray: np.ndarray, board: BoardSpec, size) -> Detection | Non
     return None
 
 
-def _detect_circles_with(gray: np.ndarray, board: BoardSpec, size, blobs,
+def _detect_circles_with(gray: np.ndarray, board: BoardSpec, size: tuple[int, int],
+                         blobs: cv2.SimpleBlobDetector,
                          seed: int) -> Detection | None:
     flags = cv2.CALIB_CB_ASYMMETRIC_GRID if board.target == "acircles" else cv2.CALIB_CB_SYMMETRIC_GRID
     cv2.setRNGSeed(seed)
@@ -183,7 +186,7 @@ def _circle_centroid(gray: np.ndarray, c: np.ndarray, half: float) -> np.ndarray
 CHARUCO_MIN_GAP_PX = 2.5
 
 
-def _charuco_detector(board: BoardSpec):
+def _charuco_detector(board: BoardSpec) -> cv2.aruco.CharucoDetector:
     det = cv2.aruco.CharucoDetector(board.aruco_board())
     params = det.getDetectorParameters()
     params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
@@ -194,7 +197,8 @@ def _charuco_detector(board: BoardSpec):
     return det
 
 
-def _detect_charuco(gray: np.ndarray, board: BoardSpec, size) -> Detection | None:
+def _detect_charuco(gray: np.ndarray, board: BoardSpec, size: tuple[int, int]
+                    ) -> Detection | None:
     corners, ids, _, _ = _charuco_detector(board).detectBoard(gray)
     if corners is None or ids is None or len(ids) < board.min_points:
         return None
@@ -280,6 +284,13 @@ class PairDetection:
             return False
         return self.min_common <= 0 or len(self.common_ids()) >= self.min_common
 
+    def sides(self) -> tuple[Detection, Detection]:
+        """Both cameras' detections of a pair in which both saw the target (ValueError when
+        one did not)."""
+        if self.left is None or self.right is None:
+            raise ValueError(f"{self.name}: the target was not found in both images")
+        return self.left, self.right
+
     def common_ids(self) -> np.ndarray:
         """Ids of the points both cameras found (sorted), (K,) int."""
         if self.left is None or self.right is None:
@@ -352,19 +363,23 @@ def make_pair(name: str, left: Detection | None, right: Detection | None,
                          board.min_points if board.partial else 0)
 
 
+# an image, or a zero-argument loader that returns it
+ImageSource = np.ndarray | Callable[[], np.ndarray]
+
+
 @dataclass(frozen=True)
 class PairInput:
     """One pair to detect: images as arrays, or zero-argument loaders returning arrays (so that
     file reading happens in the pool too)."""
 
     name: str
-    left: np.ndarray | Callable[[], np.ndarray]
-    right: np.ndarray | Callable[[], np.ndarray]
+    left: ImageSource
+    right: ImageSource
     left_file: str = ""
     right_file: str = ""
 
 
-def _load(x: np.ndarray | Callable[[], np.ndarray]) -> np.ndarray:
+def _load(x: ImageSource) -> np.ndarray:
     return x() if callable(x) else x
 
 
@@ -372,7 +387,8 @@ def default_workers() -> int:
     return max(1, min(os.cpu_count() or 1, 8))
 
 
-def detect_pairs(pairs: Sequence[PairInput | tuple], board: BoardSpec, method: str = "classic",
+def detect_pairs(pairs: Sequence[PairInput | tuple[str, ImageSource, ImageSource]],
+                 board: BoardSpec, method: str = "classic",
                  progress: ProgressCallback | None = None,
                  cancel: Cancel = None, workers: int | None = None) -> list[PairDetection]:
     """Detect the board in many pairs on a thread pool (OpenCV releases the GIL), in input order.

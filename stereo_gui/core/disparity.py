@@ -150,7 +150,8 @@ def local_contrast(gray: np.ndarray, window: int) -> np.ndarray:
     dev = cv2.subtract(f, mean)
     spread = cv2.sqrt(cv2.boxFilter(cv2.multiply(dev, dev), -1, k))
     out = cv2.divide(dev, cv2.add(spread, NORMALIZE_FLOOR), scale=NORMALIZED_SPREAD)
-    return np.clip(out + np.float32(128.0), 0, 255).astype(np.uint8)
+    normalized: np.ndarray = np.clip(out + np.float32(128.0), 0, 255).astype(np.uint8)
+    return normalized
 
 
 def agreement(d16: np.ndarray, d16_second: np.ndarray, min_disparity: int, agree_px: float,
@@ -220,18 +221,21 @@ def enlarge(disparity: np.ndarray, size: tuple[int, int], smooth_px: float) -> n
     filled = disparity.copy()
     cv2.copyTo(np.zeros_like(disparity), cv2.bitwise_not(valid), filled)  # NaN -> 0 to interpolate
     linear = cv2.resize(filled, size, interpolation=cv2.INTER_LINEAR)
-    support = cv2.resize(cv2.divide(valid, 255, dtype=cv2.CV_32F), size,
-                         interpolation=cv2.INTER_LINEAR)  # 1 where all four are valid
+    # (OpenCV's stubs take no number for the second operand of divide and compare; cv2 does)
+    support = cv2.resize(cv2.divide(valid, 255, dtype=cv2.CV_32F),  # type: ignore[call-overload]
+                         size, interpolation=cv2.INTER_LINEAR)  # 1 where all four are valid
     # (OpenCV's element-wise operations, not numpy's: half the time on a frame; a comparison
     # with NaN is false in both)
-    use = cv2.bitwise_and(
-        cv2.compare(support, float(np.float32(0.999)), cv2.CMP_GT),
-        cv2.compare(cv2.absdiff(linear, nearest), float(np.float32(smooth_px)), cv2.CMP_LE))
+    inside = cv2.compare(support, float(np.float32(0.999)),  # type: ignore[call-overload]
+                         cv2.CMP_GT)
+    smooth = cv2.compare(cv2.absdiff(linear, nearest),  # type: ignore[call-overload]
+                         float(np.float32(smooth_px)), cv2.CMP_LE)
+    use = cv2.bitwise_and(inside, smooth)
     cv2.copyTo(linear, use, nearest)
     return nearest
 
 
-def compute_padded(matcher, reference: np.ndarray, other: np.ndarray, pad: int, side: str
+def compute_padded(matcher: cv2.StereoMatcher, reference: np.ndarray, other: np.ndarray, pad: int, side: str
                    ) -> np.ndarray:
     """`matcher.compute(reference, other)` with both images widened by `pad` black columns on
     `side` ("left" for a left matcher, "right" for a right matcher) and the result cropped back
@@ -260,7 +264,7 @@ def nearest_value_after(disparity_px: np.ndarray) -> np.ndarray:
     h, w = d.shape
     nxt = next_valued_column(~np.isnan(d))
     flat = np.minimum(nxt, w - 1) + (np.arange(h, dtype=np.int32) * w)[:, None]
-    out = d.ravel()[flat.ravel()].reshape(h, w)
+    out: np.ndarray = d.ravel()[flat.ravel()].reshape(h, w)
     out[nxt == w] = np.nan
     return out
 
@@ -269,7 +273,8 @@ def nearest_source(size: int, source_size: int) -> np.ndarray:
     """For each of `size` pixels along an axis, the pixel of `source_size` that a nearest-
     neighbour resize (cv2.INTER_NEAREST) takes it from."""
     index = np.arange(source_size, dtype=np.float32)[None, :]
-    return cv2.resize(index, (size, 1), interpolation=cv2.INTER_NEAREST)[0].astype(np.intp)
+    source: np.ndarray = cv2.resize(index, (size, 1), interpolation=cv2.INTER_NEAREST)[0]
+    return source.astype(np.intp)
 
 
 def sunk(values: np.ndarray, disparity_px: np.ndarray, tolerance_px: float) -> np.ndarray:
@@ -287,7 +292,9 @@ def sunk(values: np.ndarray, disparity_px: np.ndarray, tolerance_px: float) -> n
         return out
 
     with np.errstate(invalid="ignore"):  # (NaN compares False: no value on a side)
-        return along_rows(values, disparity_px) | along_rows(values.T, disparity_px.T).T
+        farther: np.ndarray = (along_rows(values, disparity_px)
+                               | along_rows(values.T, disparity_px.T).T)
+        return farther
 
 
 def unseen_columns(largest_disparity_px: float, margin_px: float, width: int) -> int:
@@ -341,4 +348,5 @@ def unseen_mask(disparity_px: np.ndarray, margin_px: float = 0.0, cols: int | No
         return out
     cols_x = np.arange(w, dtype=np.float32)[None, :]
     with np.errstate(invalid="ignore"):
-        return (cols_x - disparity_px) < np.float32(margin_px - 0.5)
+        unseen: np.ndarray = (cols_x - disparity_px) < np.float32(margin_px - 0.5)
+        return unseen

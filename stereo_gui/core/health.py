@@ -43,8 +43,10 @@ def health_detect_scale(width_px: int) -> float:
     return min(1.0, HEALTH_DETECT_WIDTH / max(1, int(width_px)))
 
 
-_LK = dict(winSize=(15, 15), maxLevel=2,
-           criteria=(cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.005))
+# the optical flow that confirms a SIFT match: its window, pyramid levels and stopping rule
+_LK_WINDOW = (15, 15)
+_LK_LEVELS = 2
+_LK_CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.005)
 
 
 @dataclass(frozen=True)
@@ -99,7 +101,7 @@ def feature_matches(left: np.ndarray, right: np.ndarray, max_features: int = 150
         size = (max(1, round(gl.shape[1] * detect_scale)), max(1, round(gl.shape[0] * detect_scale)))
         sl = cv2.resize(gl, size, interpolation=cv2.INTER_AREA)
         sr = cv2.resize(gr, size, interpolation=cv2.INTER_AREA)
-    sift = cv2.SIFT_create(nfeatures=max_features)
+    sift = cv2.SIFT.create(nfeatures=max_features)
     kl, dl = sift.detectAndCompute(sl, None)
     kr, dr = sift.detectAndCompute(sr, None)
     if dl is None or dr is None or len(kl) < 2 or len(kr) < 2:
@@ -109,10 +111,11 @@ def feature_matches(left: np.ndarray, right: np.ndarray, max_features: int = 150
         return np.zeros((0, 2)), np.zeros((0, 2))
     up = np.float32(1.0 / detect_scale) if detect_scale < 1.0 else np.float32(1.0)
     # (a shrunk image's pixel centres: x_full + 0.5 = (x_small + 0.5) / scale)
-    pl = ((np.float32([kl[i].pt for i in il]) + 0.5) * up - 0.5).reshape(-1, 1, 2)
-    pr = ((np.float32([kr[j].pt for j in ir]) + 0.5) * up - 0.5).reshape(-1, 1, 2)
-    refined, st, _ = cv2.calcOpticalFlowPyrLK(gl, gr, pl, pr.copy(),
-                                              flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **_LK)
+    pl = ((np.array([kl[i].pt for i in il], np.float32) + 0.5) * up - 0.5).reshape(-1, 1, 2)
+    pr = ((np.array([kr[j].pt for j in ir], np.float32) + 0.5) * up - 0.5).reshape(-1, 1, 2)
+    refined, st, _ = cv2.calcOpticalFlowPyrLK(gl, gr, pl, pr.copy(), winSize=_LK_WINDOW,
+                                              maxLevel=_LK_LEVELS, criteria=_LK_CRITERIA,
+                                              flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
     ok = st.reshape(-1).astype(bool)
     moved = np.linalg.norm(refined.reshape(-1, 2) - pr.reshape(-1, 2), axis=1)
     ok &= moved < 1.5 * up  # LK must confirm the SIFT match, not wander off to another one
@@ -166,7 +169,8 @@ def _vertical(calib: StereoCalibration, R: np.ndarray, T: np.ndarray, ul: np.nda
                                        calib.image_size, R, T, calib.alpha)
     a = undistort_points(calib.model, ul, calib.M1, calib.D1, R=R1, P=P1)
     b = undistort_points(calib.model, ur, calib.M2, calib.D2, R=R2, P=P2)
-    return a[:, 1] - b[:, 1]
+    dy: np.ndarray = a[:, 1] - b[:, 1]
+    return dy
 
 
 def refine_rotation(calib: StereoCalibration, left: np.ndarray, right: np.ndarray,
@@ -200,7 +204,8 @@ def refine_rotation(calib: StereoCalibration, left: np.ndarray, right: np.ndarra
     F = np.linalg.inv(calib.M2).T @ E @ np.linalg.inv(calib.M1)
     F = F / F[2, 2] if abs(F[2, 2]) > 1e-12 else F
     after = float(np.median(np.abs(_vertical(calib, R, T, ul, ur))))
-    turn = tuple(float(math.degrees(v)) for v in delta)
+    turn = (math.degrees(float(delta[0])), math.degrees(float(delta[1])),
+            math.degrees(float(delta[2])))
     parent = calib.created or "unknown time"
     origin = (f"refined from the scene ({len(ul)} feature matches{', ' + source if source else ''})"
               f" from the calibration of {parent}"
@@ -257,7 +262,7 @@ def _solve_turn(calib: StereoCalibration, R0: np.ndarray, T0: np.ndarray, ul: np
 
 
 def _turn_covariance(r: np.ndarray, J: np.ndarray
-                     ) -> tuple[np.ndarray | None, tuple[float, ...]]:
+                     ) -> tuple[np.ndarray | None, tuple[float, float, float]]:
     """The turn's covariance (rad^2; None where singular) over the matches that agree, and its
     1-sigma spread per axis in degrees (inf where singular)."""
     # the matches that still disagree (moving objects, mismatches) should not steer the result
@@ -266,11 +271,13 @@ def _turn_covariance(r: np.ndarray, J: np.ndarray
     try:
         cov = np.linalg.inv(J[inl].T @ J[inl]) * sigma2
     except np.linalg.LinAlgError:
-        return None, (float("inf"),) * 3
-    return cov, tuple(float(math.degrees(math.sqrt(max(v, 0.0)))) for v in np.diag(cov))
+        return None, (float("inf"), float("inf"), float("inf"))
+    sx, sy, sz = (math.degrees(math.sqrt(max(float(v), 0.0))) for v in np.diag(cov))
+    return cov, (sx, sy, sz)
 
 
-def _with_turn(u, turn_cov: np.ndarray | None):
+def _with_turn(u: CalibrationUncertainty | None, turn_cov: np.ndarray | None
+               ) -> CalibrationUncertainty | None:
     """The calibration's uncertainty after a refinement: the intrinsics and the baseline as they
     were; the rotation's as it was plus the refinement's own (its rotation dR is applied on the
     left of R, which for the nearly parallel cameras of a rig is, to first order, added to R's
@@ -278,8 +285,8 @@ def _with_turn(u, turn_cov: np.ndarray | None):
     if u is None or turn_cov is None:
         return None
     cov = np.array(u.covariance, np.float64)
-    idx = [u.index(f"rvec.{a}") for a in "xyz"]
-    if any(i is None for i in idx):
+    rows = [i for i in (u.index(f"rvec.{a}") for a in "xyz") if i is not None]
+    if len(rows) < 3:
         return None
-    cov[np.ix_(idx, idx)] += turn_cov
+    cov[np.ix_(rows, rows)] += turn_cov
     return CalibrationUncertainty(u.names, cov, u.sigma_px, u.method + "+scene", u.model)

@@ -12,7 +12,7 @@ through here.
 
 from __future__ import annotations
 
-from typing import Literal, get_args
+from typing import Literal, get_args, overload
 
 import cv2
 import numpy as np
@@ -21,7 +21,7 @@ from stereo_gui.core.errors import InputError
 
 LensModel = Literal["pinhole", "rational", "fisheye"]  # written to files as these words
 LENS_MODELS: tuple[LensModel, ...] = get_args(LensModel)
-DIST_COUNT: dict[LensModel, int] = {"pinhole": 5, "rational": 8, "fisheye": 4}
+DIST_COUNT: dict[str, int] = {"pinhole": 5, "rational": 8, "fisheye": 4}
 _PINHOLE_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4", "tx", "ty")
 _FISHEYE_NAMES = ("k1", "k2", "k3", "k4")
 # the coefficients that "fix k3 and higher terms" holds at zero, per model
@@ -30,10 +30,12 @@ HIGHER_TERMS = {"pinhole": ("k3",), "rational": ("k3", "k4", "k5", "k6"),
 _UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-12)
 
 
-def check_model(model: str) -> str:
-    if model not in LENS_MODELS:
-        raise InputError(f"unknown lens model {model!r}: use one of {', '.join(LENS_MODELS)}")
-    return model
+def check_model(model: str) -> LensModel:
+    """`model` as a LensModel; InputError when it is none."""
+    for known in LENS_MODELS:
+        if model == known:
+            return known
+    raise InputError(f"unknown lens model {model!r}: use one of {', '.join(LENS_MODELS)}")
 
 
 def model_for(model: str, D: np.ndarray) -> str:
@@ -53,8 +55,22 @@ def _fisheye_d(D: np.ndarray) -> np.ndarray:
     return np.asarray(D, np.float64).reshape(4, 1)
 
 
-def project_points(model: str, obj: np.ndarray, rvec, tvec, M: np.ndarray, D: np.ndarray,
-                   jacobian: bool = False):
+@overload
+def project_points(model: str, obj: np.ndarray, rvec: np.ndarray, tvec: np.ndarray,
+                   M: np.ndarray, D: np.ndarray, jacobian: Literal[False] = False) -> np.ndarray:
+    ...
+
+
+@overload
+def project_points(model: str, obj: np.ndarray, rvec: np.ndarray, tvec: np.ndarray,
+                   M: np.ndarray, D: np.ndarray, jacobian: Literal[True]
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    ...
+
+
+def project_points(model: str, obj: np.ndarray, rvec: np.ndarray, tvec: np.ndarray,
+                   M: np.ndarray, D: np.ndarray, jacobian: bool = False
+                   ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Project (N, 3) points (mm) seen from pose (rvec, tvec) into pixels, (N, 2) float64.
 
     With `jacobian`, also returns d(pixels)/d(params) as (2N, 10 + len(D)) in OpenCV's pinhole
@@ -98,7 +114,9 @@ def undistort_points(model: str, pts: np.ndarray, M: np.ndarray, D: np.ndarray,
     return out.reshape(-1, 2)
 
 
-def rectify_map(model: str, M, D, R, P, size: tuple[int, int], m1type=cv2.CV_16SC2):
+def rectify_map(model: str, M: np.ndarray, D: np.ndarray, R: np.ndarray, P: np.ndarray,
+                size: tuple[int, int], m1type: int = cv2.CV_16SC2
+                ) -> tuple[np.ndarray, np.ndarray]:
     """cv2.remap maps of one camera into its rectified image (size = (w, h))."""
     size = (int(size[0]), int(size[1]))
     if model == "fisheye":
@@ -109,7 +127,9 @@ def rectify_map(model: str, M, D, R, P, size: tuple[int, int], m1type=cv2.CV_16S
                                        m1type)
 
 
-def stereo_rectify(model: str, M1, D1, M2, D2, size: tuple[int, int], R, T, alpha: float):
+def stereo_rectify(model: str, M1: np.ndarray, D1: np.ndarray, M2: np.ndarray, D2: np.ndarray,
+                   size: tuple[int, int], R: np.ndarray, T: np.ndarray, alpha: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Bouguet rectification (CALIB_ZERO_DISPARITY): R1, R2, P1, P2, Q.
 
     For the fisheye model `alpha` is the balance between the smallest and the largest focal
@@ -130,7 +150,8 @@ def stereo_rectify(model: str, M1, D1, M2, D2, size: tuple[int, int], R, T, alph
     return R1, R2, P1, P2, Q
 
 
-def optimal_new_camera(model: str, M, D, size: tuple[int, int]) -> np.ndarray:
+def optimal_new_camera(model: str, M: np.ndarray, D: np.ndarray, size: tuple[int, int]
+                       ) -> np.ndarray:
     """The reference program's getOptimalNewCameraMatrix(alpha=1) (for fisheye: balance 1)."""
     size = (int(size[0]), int(size[1]))
     if model == "fisheye":

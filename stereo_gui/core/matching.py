@@ -55,6 +55,9 @@ from stereo_gui.core.util import to_gray
 
 # per camera (left, right): the gain and offset maps that undo its lens shading (core.shading)
 ShadingMaps = tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+# one size the hole filling tries (StereoPipeline._fills): its scale, minDisparity,
+# numDisparities, largest disparity, and the first and second window's matchers
+Fill = tuple[float, int, int, int, cv2.StereoSGBM, cv2.StereoSGBM]
 
 
 @dataclass(frozen=True, eq=False)
@@ -165,7 +168,7 @@ class StereoPipeline:
     def __enter__(self) -> StereoPipeline:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     def _build(self) -> None:
@@ -175,7 +178,8 @@ class StereoPipeline:
         self._min_s, self._num_s = p.matcher_range(self.calibration, s,
                                                    self._scene_top_px if fitted else None)
         self._range_full = (self._min_s / s, (self._min_s + self._num_s - 1) / s)
-        def sgbm(lo=self._min_s, num=self._num_s, block=p.block_size, q=p):
+        def sgbm(lo: int = self._min_s, num: int = self._num_s, block: int = p.block_size,
+                 q: MatcherParams = p) -> cv2.StereoSGBM:
             area = (block / q.block_size) ** 2  # the penalties grow with the window's area
             return cv2.StereoSGBM_create(
                 minDisparity=lo, numDisparities=num, blockSize=block,
@@ -339,7 +343,7 @@ class StereoPipeline:
             d16_right = match_right(self._right, mr, ml, pad, "right")
         return d16, d16_second, d16_right
 
-    def _fill_holes(self, fill: tuple, agreed: np.ndarray, nl: np.ndarray, nr: np.ndarray,
+    def _fill_holes(self, fill: Fill, agreed: np.ndarray, nl: np.ndarray, nr: np.ndarray,
                     ml: np.ndarray) -> float:
         """Fill `agreed` (the matched images' size and px, NaN holes; in place) where it has no
         value within `fill_depth_px`: with the agreement of the same two windows (`fill`, one of
@@ -417,8 +421,8 @@ class StereoPipeline:
         take &= ~hidden
         return float(coarse[take].max()) / self._scale if take.any() else 0.0
 
-    def _match_right(self, matcher, mr: np.ndarray, ml: np.ndarray, pad: int, side: str
-                     ) -> np.ndarray:
+    def _match_right(self, matcher: cv2.StereoMatcher, mr: np.ndarray, ml: np.ndarray, pad: int,
+                     side: str) -> np.ndarray:
         """The right matcher's map for the left-right check, computed on images made smaller by
         `check_scale` and enlarged back to the matched size (values scaled; "no match" kept as
         the value a right matcher at the matched resolution gives it)."""

@@ -143,9 +143,9 @@ class Measurement:
     raw_disparity_px: float = float("nan")  # the matcher's estimate before refinement
     disparity_bound_px: float = float("nan")  # 95 % bound of the disparity error, px
 
-    def to_json_dict(self) -> dict:
+    def to_json_dict(self) -> dict[str, object]:
         """The fields of the `measure --json` contract (NaN -> None)."""
-        def num(v):
+        def num(v: float | None) -> float | None:
             return None if v is None or not math.isfinite(v) else float(v)
 
         return {
@@ -188,7 +188,7 @@ def rematch_strip(result: PipelineResult, y: int, half: int) -> np.ndarray | Non
 
     def match(block: int) -> np.ndarray:
         area = (block / p.block_size) ** 2
-        m = cv2.StereoSGBM_create(
+        m = cv2.StereoSGBM.create(
             minDisparity=lo_i, numDisparities=num, blockSize=block, P1=round(p.p1_value * area),
             P2=round(p.p2_value * area), disp12MaxDiff=p.disp12_max_diff,
             preFilterCap=p.pre_filter_cap, uniquenessRatio=p.uniqueness_ratio,
@@ -919,12 +919,13 @@ def _subpixel(gl: np.ndarray, gr: np.ndarray, disp: np.ndarray, click: _Click,
     xi, yi = click.xi, click.yi
     d = read.d
     ref = refine_point(gl, gr, xi, yi, d, click.half, surface=disp)
-    if read.empty is not None and (ref is None or not ref.converged):
-        return click.invalid(read.empty, read.valid_fraction)
-    if read.empty is not None and not _centre_agrees(gl, gr, xi, yi, ref):
-        # the click's own window does not show the surface the larger window aligned: an
-        # object in front of it that the matcher missed, not that surface
-        return click.invalid(read.empty, read.valid_fraction)
+    if read.empty is not None:
+        if ref is None or not ref.converged:
+            return click.invalid(read.empty, read.valid_fraction)
+        if not _centre_agrees(gl, gr, xi, yi, ref):
+            # the click's own window does not show the surface the larger window aligned: an
+            # object in front of it that the matcher missed, not that surface
+            return click.invalid(read.empty, read.valid_fraction)
     if (ref is not None and not ref.converged and read.empty is None
             and read.valid_fraction >= RICH_MIN_SHARE and read.spread_px <= EDGE_SPREAD_PX
             and window_correlation(gl, gr, xi, yi, d, REFINE_HALF_PX)[0] >= RICH_MIN_CORR):

@@ -9,16 +9,17 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import functools
 import math
 import types
 import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import Any, TypeVar
 
 from stereo_gui.core.errors import InputError
 
 _NONE = type(None)
+_T = TypeVar("_T")
 
 
 @dataclass(frozen=True)
@@ -37,7 +38,7 @@ class Param:
     choices: tuple[str, ...] = ()
     odd: bool = False
     zero_off: bool = False
-    check: Callable[[object], bool] | None = None
+    check: Callable[[Any], bool] | None = None  # (given a value of the field's type)
     check_text: str = ""
     label: str = ""
     panel: tuple[float, float, float] | None = None
@@ -84,7 +85,7 @@ class Param:
         return describe_type(tp)
 
     # ---- checks --------------------------------------------------------------------------
-    def problem(self, value) -> str | None:
+    def problem(self, value: object) -> str | None:
         """Why `value` (of the field's type already) is not a value of this field, or None."""
         if value is None:
             return None if self.optional else f"{self.name} must be {self.wants()}, not None"
@@ -115,9 +116,9 @@ class Param:
         """An argparse type for the field: its words in the one line a bad value gives."""
         tp = self.base
 
-        def parse(text: str):
+        def parse(text: str) -> object:
             try:
-                value = tp(text) if tp in (int, float, str) else None
+                value = _PARSERS[tp](text) if tp in _PARSERS else None
             except ValueError:
                 raise argparse.ArgumentTypeError(f"{self.wants()}, not {text[:40]!r}") from None
             why = self.problem(value)
@@ -125,28 +126,39 @@ class Param:
                 raise argparse.ArgumentTypeError(f"{self.wants()}, not {text[:40]}")
             return value
 
-        parse.__name__ = {int: "whole number", float: "number"}.get(tp, "value")
+        parse.__name__ = _PARSED_NAMES.get(tp, "value")
         return parse
 
 
-def param(default, **info) -> dataclasses.Field:
-    """A dataclass field declared with its `Param` (keywords as Param's)."""
+# what the command line's argument types convert a word with, and call it
+_PARSERS: dict[object, Callable[[str], object]] = {int: int, float: float, str: str}
+_PARSED_NAMES: dict[object, str] = {int: "whole number", float: "number"}
+
+
+def param(default: _T, **info: Any) -> _T:
+    """A dataclass field declared with its `Param` (keywords as Param's). Typed as its default
+    (as `dataclasses.field` is), so that the field's annotation is checked against it."""
     return field(default=default, metadata={"param": Param(**info)})
 
 
-@functools.cache
-def params_of(cls) -> Mapping[str, Param]:
+_PARAMS_OF: dict[type, Mapping[str, Param]] = {}  # params_of's answers, by class
+
+
+def params_of(cls: type) -> Mapping[str, Param]:
     """Each field of dataclass `cls` by name, with its Param completed (name, type, default)."""
+    known = _PARAMS_OF.get(cls)
+    if known is not None:
+        return known
     hints = typing.get_type_hints(cls)
-    out = {}
+    out: dict[str, Param] = {}
     for f in dataclasses.fields(cls):
         info = f.metadata.get("param", Param())
         out[f.name] = dataclasses.replace(info, name=f.name, type=hints[f.name],
                                           default=f.default)
-    return types.MappingProxyType(out)
+    return _PARAMS_OF.setdefault(cls, types.MappingProxyType(out))
 
 
-def check_all(obj, what: str = "") -> None:
+def check_all(obj: object, what: str = "") -> None:
     """Raise InputError listing every field of `obj` (a dataclass of Param fields) whose value
     is not one of its field's; `what` names the object in front of the message."""
     problems = [p for p in (spec.problem(getattr(obj, name))
@@ -155,11 +167,12 @@ def check_all(obj, what: str = "") -> None:
         raise InputError((f"{what}: " if what else "") + "; ".join(problems))
 
 
-def from_json(cls, data: Mapping, where: str, whole_floats: bool = True) -> dict:
+def from_json(cls: type, data: Mapping[str, object], where: str, whole_floats: bool = True
+              ) -> dict[str, Any]:
     """Keyword arguments for `cls` from parsed JSON values of its fields (keys not of `cls`
     are not looked at); InputError naming `where` for a value of the wrong type."""
     specs = params_of(cls)
-    kwargs = {}
+    kwargs: dict[str, Any] = {}  # (JSON's values, converted to the fields' types)
     for key, raw in data.items():
         spec = specs.get(key)
         if spec is None:
@@ -178,7 +191,7 @@ def from_json(cls, data: Mapping, where: str, whole_floats: bool = True) -> dict
     return kwargs
 
 
-def convert(value, tp, whole_floats: bool = False):
+def convert(value: object, tp: object, whole_floats: bool = False) -> object:
     """`value` (parsed JSON) converted to type `tp` (bool, int, float, str, tuples, X | None),
     or raise TypeError. A bool is never a number; with `whole_floats` a float with no fraction
     is an int."""
@@ -228,11 +241,11 @@ def convert(value, tp, whole_floats: bool = False):
     raise TypeError
 
 
-def _num(v: float, tp) -> str:
+def _num(v: float, tp: object) -> str:
     """A bound as said to a person: a whole number's in full, a number's short (1e+07)."""
     return str(int(v)) if tp is int else f"{v:g}"
 
 
-def describe_type(tp) -> str:
+def describe_type(tp: object) -> str:
     """A type as a person reads it ("int", "tuple[str, ...]", "str | None")."""
     return str(tp).replace("typing.", "").replace("<class '", "").replace("'>", "")

@@ -25,10 +25,10 @@ NUM_DISP = 64  # of the halved images: 128 px of the full-size ones
 SCALE = 0.5
 
 
-def plain_matcher():
+def plain_matcher() -> cv2.StereoSGBM:
     """The plain program's left matcher."""
     w = WINDOW_SIZE
-    return cv2.StereoSGBM_create(minDisparity=0, numDisparities=NUM_DISP, blockSize=w,
+    return cv2.StereoSGBM.create(minDisparity=0, numDisparities=NUM_DISP, blockSize=w,
                                  P1=8 * w * w, P2=32 * w * w, disp12MaxDiff=1,
                                  uniquenessRatio=10, speckleWindowSize=100, speckleRange=2,
                                  mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY)

@@ -14,6 +14,7 @@ from typing import NoReturn
 
 import cv2
 import numpy as np
+from numpy.typing import ArrayLike
 
 from stereo_gui.core.errors import CalibrationFileError
 from stereo_gui.core.lens import ROUND_TRIP_PX, pixel_grid, round_trip_px, undistort_points
@@ -38,7 +39,7 @@ MAX_FOCAL_RATIO = 3.0  # the two cameras, and the rectified ones, differ in foca
 RELATIVE_TOL = 1e-3
 
 
-def _near(a, b, tol: float = RELATIVE_TOL) -> bool:
+def _near(a: ArrayLike, b: ArrayLike, tol: float = RELATIVE_TOL) -> bool:
     """Each element of `a` within `tol` of its own size of `b`'s (zeros: of the largest's)."""
     a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
     scale = max(float(np.max(np.abs(a))), float(np.max(np.abs(b))), 1e-300)
@@ -55,7 +56,7 @@ def _same_up_to_scale(a: np.ndarray, b: np.ndarray) -> bool:
     if not (na > 0 and nb > 0):
         return False
     a, b = a / na, b / nb  # unit norm: compared against 1, whatever each element's size
-    return min(np.max(np.abs(a - b)), np.max(np.abs(a + b))) <= RELATIVE_TOL
+    return bool(min(np.max(np.abs(a - b)), np.max(np.abs(a + b))) <= RELATIVE_TOL)
 
 
 def _q_of(P1: np.ndarray, P2: np.ndarray, vertical: bool) -> np.ndarray:
@@ -158,7 +159,7 @@ def _check_rectified(calib: StereoCalibration, where: str) -> bool:
     if not (_near(P1[0, 0], P2[0, 0]) and _near(P1[1, 1], P2[1, 1])):
         _fail(where, f"matrices P1 and P2 have different focal lengths ({P1[0, 0]:g}, "
                      f"{P2[0, 0]:g} px): they are not one rectified pair")
-    vertical = P2[0, 3] == 0
+    vertical = bool(P2[0, 3] == 0)
     if not (_near(P1[0, 2], P2[0, 2]) if vertical else _near(P1[1, 2], P2[1, 2])):
         _fail(where, "matrices P1 and P2 put their principal points on different "
                      f"{'columns' if vertical else 'rows'}: rows of the two images would not "

@@ -15,6 +15,7 @@ import math
 import types
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import cv2
 
@@ -49,11 +50,11 @@ ALIASES = {"window_size": "block_size", "minDisparity": "min_disparity",
            "disp12MaxDiff": "disp12_max_diff", "P1": "p1", "P2": "p2", "lmbda": "wls_lambda"}
 
 
-def _multiple_of_16(v) -> bool:
+def _multiple_of_16(v: int) -> bool:
     return v % 16 == 0
 
 
-def _fill_scale(v) -> bool:
+def _fill_scale(v: float) -> bool:
     return v == 0 or 0.25 <= v <= 0.5
 
 
@@ -62,12 +63,12 @@ def fill_mode_names(fill_modes: str) -> list[str]:
     return [m.strip() for m in fill_modes.split(",")]
 
 
-def _fill_modes(v) -> bool:
+def _fill_modes(v: str) -> bool:
     modes = fill_mode_names(v)
     return 1 <= len(modes) <= 3 and all(m in MODES for m in modes)
 
 
-def _normalize_window(v) -> bool:
+def _normalize_window(v: int) -> bool:
     return v == 0 or (v >= 3 and v % 2 == 1)
 
 
@@ -255,7 +256,7 @@ class MatcherParams:
         """(min_disparity, num_disparities) in full-resolution px for this calibration."""
         return self.matcher_range(calibration, 1.0)
 
-    def replace(self, **changes) -> MatcherParams:
+    def replace(self, **changes: Any) -> MatcherParams:
         return dataclasses.replace(self, **changes)
 
 
@@ -303,7 +304,10 @@ class ThreadParams:
         check_all(self, "thread parameters")
 
 
-_PARTS = {"matcher": MatcherParams, "display": DisplayParams, "threads": ThreadParams}
+# what a preset's parameter holds: a number, a word, a switch, or None for "not set"
+ParamValue = bool | int | float | str | None
+
+_PARTS: dict[str, type[MatcherParams] | type[DisplayParams] | type[ThreadParams]] = {"matcher": MatcherParams, "display": DisplayParams, "threads": ThreadParams}
 # which part declares each flat key of a preset's parameters
 _PART_OF = {key: part for part, cls in _PARTS.items() for key in params_of(cls)}
 # every parameter of a preset by its flat name, with its declaration
@@ -323,7 +327,7 @@ class Preset:
     display: DisplayParams = field(default_factory=DisplayParams)
     threads: ThreadParams = field(default_factory=ThreadParams)
 
-    def replace(self, **changes) -> Preset:
+    def replace(self, **changes: Any) -> Preset:
         """This preset with `changes`: name, description, whole parts, or any part's field by
         its own name (routed to the part that declares it)."""
         top = {k: changes.pop(k) for k in list(changes) if k in _PARTS or k in ("name",
@@ -337,9 +341,10 @@ class Preset:
                 top[part] = dataclasses.replace(top.get(part, getattr(self, part)), **mine)
         return dataclasses.replace(self, **top)
 
-    def get(self, key: str):
+    def get(self, key: str) -> ParamValue:
         """The value of a part's field by its flat name (a key of PRESET_PARAMS)."""
-        return getattr(getattr(self, _PART_OF[key]), key)
+        value: ParamValue = getattr(getattr(self, _PART_OF[key]), key)
+        return value
 
     @classmethod
     def of(cls, params: Preset | MatcherParams | None) -> Preset:
@@ -349,28 +354,28 @@ class Preset:
         return params if isinstance(params, Preset) else cls(matcher=params)
 
     # ---- persistence ---------------------------------------------------------------------
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, object]:
         """The flat object files hold: name, description, then the matcher's, display's and
         threads' fields."""
-        out = {"name": self.name, "description": self.description}
+        out: dict[str, object] = {"name": self.name, "description": self.description}
         for part in _PARTS:
             out.update(dataclasses.asdict(getattr(self, part)))
         return out
 
     @classmethod
-    def from_dict(cls, data: dict, where: str = "preset") -> Preset:
+    def from_dict(cls, data: dict[str, object], where: str = "preset") -> Preset:
         """Build from a flat object (the reference loop's / OpenCV's names understood); unknown
         keys are logged and skipped, bad values raise InputError naming `where`."""
         if not isinstance(data, dict):
             raise InputError(f"{where}: expected a JSON object of matcher parameters")
-        flat = {}
+        flat: dict[str, object] = {}
         for key, value in data.items():
             key = ALIASES.get(key, key)
             if key not in _PART_OF and key not in ("name", "description"):
                 log.warning("%s: unknown matcher parameter %r ignored", where, key)
                 continue
             flat[key] = value
-        top = {}
+        top: dict[str, Any] = {}  # (the parts and words from JSON, checked by the classes)
         for key in ("name", "description"):
             if key in flat:
                 if not isinstance(flat[key], str):

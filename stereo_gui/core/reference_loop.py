@@ -29,11 +29,11 @@ LAMBDA = 80000
 SIGMA = 1.8
 
 
-def reference_matcher():
+def reference_matcher() -> cv2.StereoSGBM:
     """cv2.StereoSGBM exactly as the reference loop creates it (other parameters at OpenCV's
     defaults)."""
     w = WINDOW_SIZE
-    return cv2.StereoSGBM_create(minDisparity=MIN_DISP, numDisparities=NUM_DISP, blockSize=w,
+    return cv2.StereoSGBM.create(minDisparity=MIN_DISP, numDisparities=NUM_DISP, blockSize=w,
                                  uniquenessRatio=10, speckleWindowSize=100, speckleRange=32,
                                  disp12MaxDiff=5, P1=8 * 3 * w**2, P2=32 * 3 * w**2)
 
@@ -85,12 +85,12 @@ class ReferenceLoop:
         gray_r = cv2.cvtColor(right_nice, cv2.COLOR_BGR2GRAY)
         gray_l = cv2.cvtColor(left_nice, cv2.COLOR_BGR2GRAY)
         disp = self._stereo.compute(gray_l, gray_r)
-        disp_l = np.int16(disp)
-        disp_r = np.int16(self._stereo_r.compute(gray_r, gray_l))
+        disp_l = disp.astype(np.int16)
+        disp_r = self._stereo_r.compute(gray_r, gray_l).astype(np.int16)
         filtered16 = self._wls.filter(disp_l, gray_l, None, disp_r)
         filtered = cv2.normalize(src=filtered16, dst=None, beta=0, alpha=255,
                                  norm_type=cv2.NORM_MINMAX)
-        filtered = np.uint8(filtered)
+        filtered = filtered.astype(np.uint8)
         norm = ((disp.astype(np.float32) / 16) - MIN_DISP) / NUM_DISP
         closing = cv2.morphologyEx(norm, cv2.MORPH_CLOSE, self._kernel)
         dispc = (closing - closing.min()) * 255

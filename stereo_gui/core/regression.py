@@ -14,7 +14,9 @@ Samples are (disparity px, true distance mm). Two models:
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import Any, overload
 
 import numpy as np
 
@@ -25,6 +27,9 @@ REFERENCE_MIN_DISP = 2.0
 REFERENCE_NUM_DISP = 128.0
 MODELS = ("cubic", "inverse")
 
+
+# (disparity px, true distance mm) pairs, as numbers or what float() takes
+Samples = Iterable[tuple[float, float]]
 
 @dataclass(frozen=True)
 class FitResult:
@@ -40,7 +45,13 @@ class FitResult:
     norm_span_px: float = REFERENCE_NUM_DISP
     note: str = field(default="", compare=False)
 
-    def predict(self, disparity_px):
+    @overload
+    def predict(self, disparity_px: float) -> float: ...
+
+    @overload
+    def predict(self, disparity_px: np.ndarray) -> np.ndarray: ...
+
+    def predict(self, disparity_px: float | np.ndarray) -> float | np.ndarray:
         """Distance in mm for a disparity in px (float or ndarray); NaN where the model has none."""
         d = np.asarray(disparity_px, np.float64)
         if self.model == "cubic":
@@ -82,7 +93,8 @@ class FitResult:
         return float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
 
 
-def _samples(samples, need: int, model: str) -> tuple[np.ndarray, np.ndarray, tuple]:
+def _samples(samples: Samples, need: int, model: str
+             ) -> tuple[np.ndarray, np.ndarray, tuple[tuple[float, float], ...]]:
     try:
         arr = np.asarray([(float(d), float(z)) for d, z in samples], np.float64)
     except (TypeError, ValueError) as exc:
@@ -111,7 +123,7 @@ def _r2(z: np.ndarray, pred: np.ndarray) -> tuple[float, tuple[float, ...]]:
     return r2, tuple(float(r) for r in res)
 
 
-def fit_cubic(samples, norm_offset_px: float = REFERENCE_MIN_DISP,
+def fit_cubic(samples: Samples, norm_offset_px: float = REFERENCE_MIN_DISP,
               norm_span_px: float = REFERENCE_NUM_DISP) -> FitResult:
     """Least-squares cubic in the normalised disparity (as the reference program's, fitted in
     Excel)."""
@@ -123,7 +135,7 @@ def fit_cubic(samples, norm_offset_px: float = REFERENCE_MIN_DISP,
                                 float(norm_offset_px), float(norm_span_px)))
 
 
-def fit_inverse(samples, iterations: int = 50) -> FitResult:
+def fit_inverse(samples: Samples, iterations: int = 50) -> FitResult:
     """Z = a / (d - d0) minimising the distance residuals (mm).
 
     Start: 1/Z is linear in d (1/Z = d/a - d0/a); then Gauss-Newton on the mm residuals, because
@@ -162,7 +174,7 @@ def _plausible(f: FitResult) -> FitResult:
     return f
 
 
-def fit(model: str, samples) -> FitResult:
+def fit(model: str, samples: Samples) -> FitResult:
     if model == "cubic":
         return fit_cubic(samples)
     if model == "inverse":
@@ -234,8 +246,8 @@ def implausibility(f: FitResult) -> str | None:
 
 
 # ---- to and from JSON documents (files.fit_file reads and writes the files) ----------------------
-def fit_to_dict(f: FitResult) -> dict:
-    doc = {"format_version": FORMAT_VERSION, "model": f.model,
+def fit_to_dict(f: FitResult) -> dict[str, object]:
+    doc: dict[str, object] = {"format_version": FORMAT_VERSION, "model": f.model,
            "coefficients": list(f.coefficients), "r2": f.r2 if math.isfinite(f.r2) else None,
            "residuals_mm": list(f.residuals_mm), "samples": [list(s) for s in f.samples],
            "formula": f.formula()}
@@ -249,7 +261,7 @@ MAX_DISPARITY_PX = 1e5
 MAX_SAMPLES = 100_000
 
 
-def _finite(value, name: str, limit: float = MAX_COEFFICIENT) -> float:
+def _finite(value: object, name: str, limit: float = MAX_COEFFICIENT) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise ValueError(f"{name} should be a number, not {type(value).__name__}")
     try:
@@ -262,7 +274,7 @@ def _finite(value, name: str, limit: float = MAX_COEFFICIENT) -> float:
     return v
 
 
-def _list(value, name: str) -> list:
+def _list(value: object, name: str) -> list[Any]:
     if not isinstance(value, list):
         raise ValueError(f"{name} should be a list, not {type(value).__name__}")
     if len(value) > MAX_SAMPLES:
@@ -270,7 +282,7 @@ def _list(value, name: str) -> list:
     return value
 
 
-def fit_from_dict(doc, where: str) -> FitResult:
+def fit_from_dict(doc: object, where: str) -> FitResult:
     """The fit `doc` describes (as made by fit_to_dict); InputError naming `where` and the field
     if unusable (wrong types, values that are not finite or absurd, inconsistent lengths)."""
     try:

@@ -70,7 +70,7 @@ def look_at_scene(left_gray: np.ndarray, right_gray: np.ndarray, lo_px: float, h
     lo = int(math.floor(lo_px * s))
     num = max(16, int(math.ceil((hi_px * s - lo + 1) / 16.0)) * 16)
     blob = max(4, round(LOOK_MIN_BLOB_SHARE * size[0] * size[1]))
-    matcher = cv2.StereoSGBM_create(
+    matcher = cv2.StereoSGBM.create(
         minDisparity=lo, numDisparities=num, blockSize=LOOK_BLOCK, P1=8 * LOOK_BLOCK ** 2,
         P2=32 * LOOK_BLOCK ** 2, disp12MaxDiff=1, uniquenessRatio=10, speckleWindowSize=blob,
         speckleRange=2, mode=cv2.StereoSGBM_MODE_SGBM_3WAY)

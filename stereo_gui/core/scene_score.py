@@ -36,7 +36,7 @@ class DisparityScore:
         """Share of known pixels with a value within 2 px of the truth."""
         return self.density * (1.0 - self.bad2) if math.isfinite(self.bad2) else 0.0
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, object]:
         return {**asdict(self), "correct_density": self.correct_density}
 
 
@@ -81,7 +81,7 @@ def plain_sgbm(left_bgr: np.ndarray, right_bgr: np.ndarray, num_disparities: int
         right_bgr = cv2.resize(right_bgr, size, interpolation=cv2.INTER_AREA)
         num = max(16, int(math.ceil(num_disparities * scale / 16.0)) * 16)
     block = 5
-    matcher = cv2.StereoSGBM_create(
+    matcher = cv2.StereoSGBM.create(
         minDisparity=0, numDisparities=num, blockSize=block, P1=8 * 3 * block**2,
         P2=32 * 3 * block**2, disp12MaxDiff=1, uniquenessRatio=10, speckleWindowSize=100,
         speckleRange=2, mode=cv2.STEREO_SGBM_MODE_HH)

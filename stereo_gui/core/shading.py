@@ -27,6 +27,7 @@ import math
 import numbers
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import overload
 
 import cv2
 import numpy as np
@@ -65,8 +66,9 @@ class LensShading:
         if not MIN_BLACK <= self.black <= MAX_BLACK:
             raise CalibrationValueError(f"black should be from {MIN_BLACK:g} to {MAX_BLACK:g} "
                                         f"grey levels, found {self.black:g}")
-        v = self.brightness(np.linspace(0.0, 1.0, 21))
-        if not (np.all(np.isfinite(v)) and v.min() > 1.0 - MAX_LOSS and v.max() < 1.0 + MAX_LOSS):
+        ramp = self.brightness(np.linspace(0.0, 1.0, 21))
+        if not (np.all(np.isfinite(ramp)) and ramp.min() > 1.0 - MAX_LOSS
+                and ramp.max() < 1.0 + MAX_LOSS):
             raise CalibrationValueError(f"k1 {self.k1:g} and k2 {self.k2:g} darken or brighten "
                                         f"the image by more than {100 * MAX_LOSS:.0f} %")
 
@@ -74,6 +76,12 @@ class LensShading:
     def coefficients(self) -> tuple[float, float, float]:
         """(k1, k2, black)."""
         return (self.k1, self.k2, self.black)
+
+    @overload
+    def brightness(self, r2: float) -> float: ...
+
+    @overload
+    def brightness(self, r2: np.ndarray) -> np.ndarray: ...
 
     def brightness(self, r2: np.ndarray | float) -> np.ndarray | float:
         """V at squared normalised radius r2."""
@@ -274,7 +282,8 @@ def measure_pair_shading(pairs: Sequence[tuple[object, Callable[[], np.ndarray],
     """Both cameras' shading from (PairDetection, left image loader, right image loader) of pairs
     with a full chessboard of `cols` x `rows` inner corners in both images; None when either
     camera's cannot be measured (see `fit_shading`). Each image is read once."""
-    left, right = [], []
+    left: list[BoardSamples] = []
+    right: list[BoardSamples] = []
     for det, load_left, load_right in pairs:
         for side, load, out in (("left", load_left, left), ("right", load_right, right)):
             d = getattr(det, side)
@@ -289,27 +298,6 @@ def measure_pair_shading(pairs: Sequence[tuple[object, Callable[[], np.ndarray],
         return None
     return PairShading(fits[0], fits[1], samples=sum(len(x.white) + len(x.black) for x in left + right),
                        images=len(left) + len(right))
-
-
-def with_measured_shading(calibration, detections: Sequence, inputs: Sequence, board):
-    """`calibration` with the lens shading measured on the pairs it was made from (`detections`
-    and the `inputs` (core.detect.PairInput) they came from, by name), when the board is a
-    chessboard; unchanged otherwise or when it cannot be measured."""
-    if board is None or board.target != "chessboard" or calibration.method != "bouguet":
-        return calibration
-    used = {p.name for p in calibration.per_pair}
-    by_name = {i.name: i for i in inputs}
-
-    def loader(x):
-        return x if callable(x) else (lambda: x)
-
-    pairs = [(d, loader(by_name[d.name].left), loader(by_name[d.name].right))
-             for d in detections if d.found and d.name in used and d.name in by_name]
-    shading = measure_pair_shading(pairs, board.cols, board.rows)
-    if shading is None:
-        log.info("lens shading not measured (too few white squares far enough from the centre)")
-        return calibration
-    return calibration.with_updates(lens_shading=shading)
 
 
 def shading_text(shading: PairShading | None) -> str:

@@ -16,7 +16,7 @@ import math
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
-from typing import Literal, NoReturn, get_args
+from typing import Any, Literal, NoReturn, get_args
 
 import cv2
 import numpy as np
@@ -158,11 +158,11 @@ class StereoCalibration:
             _refuse(why)
         object.__setattr__(self, "alpha", alpha)
         self._check_figures()
-        for name, m in (("optimal_M1", self.optimal_M1), ("optimal_M2", self.optimal_M2)):
-            if m is not None:
-                if np.shape(m) != (3, 3) or not np.all(np.isfinite(m)):
+        for name, opt in (("optimal_M1", self.optimal_M1), ("optimal_M2", self.optimal_M2)):
+            if opt is not None:
+                if np.shape(opt) != (3, 3) or not np.all(np.isfinite(opt)):
                     _refuse(f"matrix {name} should be a finite 3x3")
-                object.__setattr__(self, name, _read_only(m))
+                object.__setattr__(self, name, _read_only(opt))
         if self.uncertainty is not None:
             if self.uncertainty.model != self.model:
                 _refuse(f"the uncertainty is of {self.uncertainty.model} lenses, the "
@@ -278,7 +278,7 @@ class StereoCalibration:
                       else (self.M2, self.D2, self.R2, self.P2))
         return undistort_points(self.model, pts, M, D, R=R, P=P)
 
-    def with_updates(self, **changes) -> StereoCalibration:
+    def with_updates(self, **changes: Any) -> StereoCalibration:
         return replace(self, **changes)
 
     def scaled_to(self, new_size: tuple[int, int]) -> StereoCalibration:
@@ -303,9 +303,7 @@ class StereoCalibration:
         s = nw / w
         o = 0.5 * (s - 1.0)  # c' = s c + o
 
-        def cam(M: np.ndarray | None) -> np.ndarray | None:
-            if M is None:
-                return None
+        def cam(M: np.ndarray) -> np.ndarray:
             M = np.array(M, np.float64)
             M[0, 0] *= s
             M[1, 1] *= s
@@ -331,7 +329,8 @@ class StereoCalibration:
         unc = self.uncertainty.scaled(s) if self.uncertainty is not None else None
         return replace(self, image_size=(nw, nh), M1=cam(self.M1), M2=cam(self.M2), uncertainty=unc,
                        P1=proj(self.P1), P2=proj(self.P2), Q=Q, F=F,
-                       optimal_M1=cam(self.optimal_M1), optimal_M2=cam(self.optimal_M2),
+                       optimal_M1=None if self.optimal_M1 is None else cam(self.optimal_M1),
+                       optimal_M2=None if self.optimal_M2 is None else cam(self.optimal_M2),
                        scaled_from=None if original == (nw, nh) else original)
 
     @property

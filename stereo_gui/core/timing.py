@@ -15,6 +15,7 @@ from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 WINDOW_S = 1.0  # the statistics shown cover the frames of the last second
 SKEW_LIMIT_OF_INTERVAL = 1.0 / 3.0  # a skew above this share of a frame interval is warned about
@@ -56,7 +57,7 @@ class SkewStats:
         return out
 
 
-def skew_stats(t_left, t_right) -> SkewStats:
+def skew_stats(t_left: ArrayLike, t_right: ArrayLike) -> SkewStats:
     """SkewStats of frames with capture times `t_left`, `t_right` (s, in order)."""
     tl = np.asarray(t_left, np.float64).reshape(-1)
     tr = np.asarray(t_right, np.float64).reshape(-1)

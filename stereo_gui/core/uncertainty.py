@@ -28,16 +28,19 @@ import threading
 import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import NotRequired, Protocol, TypedDict, overload
 
 import cv2
 import numpy as np
 
+from stereo_gui.core.bundle import BundleResult
 from stereo_gui.core.coverage import CORNERS, FAR_SIDE, regions_in_words
 from stereo_gui.core.errors import CalibrationValueError
 from stereo_gui.core.lens import (
     HIGHER_TERMS,
     LENS_MODELS,
     LensModel,
+    check_model,
     distortion_names,
     project_points,
     stereo_rectify,
@@ -56,6 +59,67 @@ BASELINE_SHARE = 0.01
 ROTATION_DEG = 0.1
 
 
+class CameraSigmas(TypedDict):
+    """1 sigma of one camera's intrinsics (px), of each distortion coefficient (None where not
+    identifiable) and, in `calibrate --json`, of where a ray lands at the image corners (px)."""
+
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    dist: list[float | None]
+    corner_px: NotRequired[float]
+
+
+class Lenses(Protocol):
+    """A rectified pair's matrices: a calibration's, or those of one perturbed."""
+
+    @property
+    def M1(self) -> np.ndarray: ...
+    @property
+    def D1(self) -> np.ndarray: ...
+    @property
+    def M2(self) -> np.ndarray: ...
+    @property
+    def D2(self) -> np.ndarray: ...
+    @property
+    def R1(self) -> np.ndarray: ...
+    @property
+    def R2(self) -> np.ndarray: ...
+    @property
+    def P1(self) -> np.ndarray: ...
+    @property
+    def P2(self) -> np.ndarray: ...
+    @property
+    def Q(self) -> np.ndarray: ...
+
+
+class Rig(Lenses, Protocol):
+    """What this module reads of a calibration (core.stereo_calibration.StereoCalibration, which
+    carries a CalibrationUncertainty and so imports this module)."""
+
+    @property
+    def R(self) -> np.ndarray: ...
+    @property
+    def T(self) -> np.ndarray: ...
+    @property
+    def model(self) -> str: ...
+    @property
+    def method(self) -> str: ...
+    @property
+    def image_size(self) -> tuple[int, int]: ...
+    @property
+    def alpha(self) -> float: ...
+    @property
+    def uncertainty(self) -> CalibrationUncertainty | None: ...
+    @property
+    def metric(self) -> bool: ...
+    @property
+    def baseline_mm(self) -> float: ...
+    @property
+    def relative_rotation_deg(self) -> float: ...
+
+
 @dataclass(frozen=True)
 class CalibrationWarning:
     """Something about a calibration a person should know: `code` is stable for scripts
@@ -66,7 +130,7 @@ class CalibrationWarning:
     message: str
     proposal: str = ""
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, str]:
         out = {"code": self.code, "message": self.message}
         if self.proposal:
             out["proposal"] = self.proposal
@@ -146,24 +210,25 @@ class CalibrationUncertainty:
         """1 sigma of a distortion coefficient, or None where it is not identifiable."""
         return self.sigma(f"{side}.{name}") if self.distortion_identifiable else None
 
-    def camera(self, side: str, n_dist: int) -> dict:
+    def camera(self, side: str, n_dist: int) -> CameraSigmas:
         """{fx, fy, cx, cy: sigma px, dist: [sigma of each coefficient, None where not
         identifiable]} of one camera."""
-        out = {k: self.sigma(f"{side}.{k}") for k in INTRINSICS}
-        out["dist"] = [self.distortion_sigma(side, k) for k in distortion_names(self.model, n_dist)]
-        return out
+        return CameraSigmas(
+            fx=self.sigma(f"{side}.fx"), fy=self.sigma(f"{side}.fy"),
+            cx=self.sigma(f"{side}.cx"), cy=self.sigma(f"{side}.cy"),
+            dist=[self.distortion_sigma(side, k) for k in distortion_names(self.model, n_dist)])
 
     def _sub(self, names: Sequence[str]) -> tuple[np.ndarray, list[int]]:
         idx = [self.index(n) for n in names]
         keep = [k for k, i in enumerate(idx) if i is not None]
-        ii = [idx[k] for k in keep]
+        ii = [i for i in idx if i is not None]
         return self.covariance[np.ix_(ii, ii)], keep
 
     def baseline_sigma_mm(self, T: np.ndarray) -> float:
         """1 sigma of |T|, mm."""
         t = np.asarray(T, np.float64).reshape(3)
         C, keep = self._sub(("T.x", "T.y", "T.z"))
-        g = (t / max(np.linalg.norm(t), 1e-12))[keep]
+        g = (t / max(float(np.linalg.norm(t)), 1e-12))[keep]
         return float(math.sqrt(max(g @ C @ g, 0.0)))
 
     def rotation_sigma_deg(self, R: np.ndarray) -> float:
@@ -186,7 +251,7 @@ class CalibrationUncertainty:
         return CalibrationUncertainty(self.names, self.covariance * np.outer(k, k),
                                       self.sigma_px * s, self.method, self.model)
 
-    def to_json(self, calib) -> dict:
+    def to_json(self, calib: Rig) -> dict[str, object]:
         """The `uncertainty` object of `calibrate --json` (all 1 sigma)."""
         nd = np.asarray(calib.D1).size
         left, right = self.camera("left", nd), self.camera("right", nd)
@@ -199,26 +264,29 @@ class CalibrationUncertainty:
                 "corner_error_px": self.sigma_px}
 
 
-def uncertainty_from_bundle(bundle, model: str, fix_k3: bool = False,
-                            mono=None) -> CalibrationUncertainty:
+def uncertainty_from_bundle(bundle: BundleResult, model: str, fix_k3: bool = False,
+                            mono: tuple[np.ndarray | None, np.ndarray | None] | None = None
+                            ) -> CalibrationUncertainty:
     """The CalibrationUncertainty of a core.bundle.BundleResult."""
     return CalibrationUncertainty(tuple(bundle.names), np.asarray(bundle.covariance),
-                                  float(bundle.sigma_px), "jacobian", model)
+                                  float(bundle.sigma_px), "jacobian", check_model(model))
 
 
 # ---- warnings -------------------------------------------------------------------------------
-def swapped(calib) -> bool:
+def swapped(calib: Rig) -> bool:
     """True when the 'right' camera sits to the left of the 'left' one (its centre, -R^T T, has
     a negative x in the left camera's frame): the cameras are exchanged."""
     C = -np.asarray(calib.R, np.float64).T @ np.asarray(calib.T, np.float64).reshape(3)
     return bool(C[0] < 0)
 
 
-def corner_sigma_px(calib, side: str) -> float:
+def corner_sigma_px(calib: Rig, side: str) -> float:
     """How uncertain the lens model of one camera is at the image corners: 1 sigma (px) of where
     the ray through a corner lands, from the covariance of all its distortion coefficients
     together (they are strongly correlated; one alone says little). The largest of the four."""
     u = calib.uncertainty
+    if u is None:
+        raise ValueError("the calibration has no uncertainty")
     M, D = (calib.M1, calib.D1) if side == "left" else (calib.M2, calib.D2)
     names = distortion_names(calib.model, np.asarray(D).size)
     keep = [k for k, n in enumerate(names) if u.index(f"{side}.{n}") is not None]
@@ -238,7 +306,7 @@ def corner_sigma_px(calib, side: str) -> float:
     return worst
 
 
-def poorly_determined(calib) -> list[tuple[str, float, float, str]]:
+def poorly_determined(calib: Rig) -> list[tuple[str, float, float, str]]:
     """[(parameter name, value, 1 sigma, why)] of the parameters the data did not determine:
     intrinsics with a sigma above FOCAL_SHARE / CENTRE_SHARE, the distortion coefficients that
     are not told apart from zero (sigma above half their value) in a camera whose lens model is
@@ -275,7 +343,7 @@ def poorly_determined(calib) -> list[tuple[str, float, float, str]]:
     return out
 
 
-def calibration_warnings(calib, uncovered: dict[str, list[str]] | None = None,
+def calibration_warnings(calib: Rig, uncovered: dict[str, list[str]] | None = None,
                          fix_k3: bool | None = None) -> tuple[CalibrationWarning, ...]:
     """What to warn about a new calibration: swapped cameras, poorly determined parameters,
     image regions the board never covered (`uncovered`: side -> region names)."""
@@ -342,7 +410,8 @@ class _Perturbed:
     Q: np.ndarray
 
 
-_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_CACHE: weakref.WeakKeyDictionary[Rig, list[tuple[_Perturbed, _Perturbed] | None]] = \
+    weakref.WeakKeyDictionary()
 _CACHE_LOCK = threading.Lock()
 
 
@@ -355,7 +424,7 @@ def parameter_names(model: str, n_dist: int) -> tuple[str, ...]:
             *(f"rvec.{a}" for a in "xyz"), *(f"T.{a}" for a in "xyz"))
 
 
-def _params(calib) -> dict[str, float]:
+def _params(calib: Rig) -> dict[str, float]:
     """The calibration's parameters by the covariance's names."""
     out: dict[str, float] = {}
     for side, M, D in (("left", calib.M1, calib.D1), ("right", calib.M2, calib.D2)):
@@ -365,20 +434,20 @@ def _params(calib) -> dict[str, float]:
         for n, v in zip(distortion_names(calib.model, d.size), d):
             out[f"{side}.{n}"] = float(v)
     rv = cv2.Rodrigues(np.asarray(calib.R, np.float64))[0].reshape(3)
-    for a, v in zip("xyz", rv):
-        out[f"rvec.{a}"] = float(v)
-    for a, v in zip("xyz", np.asarray(calib.T, np.float64).reshape(3)):
-        out[f"T.{a}"] = float(v)
+    for a, r in zip("xyz", rv):
+        out[f"rvec.{a}"] = float(r)
+    for a, t in zip("xyz", np.asarray(calib.T, np.float64).reshape(3)):
+        out[f"T.{a}"] = float(t)
     return out
 
 
-def _perturbed(calib, name: str, step: float) -> _Perturbed:
+def _perturbed(calib: Rig, name: str, step: float) -> _Perturbed:
     p = _params(calib)
     p[name] += step
     nd = np.asarray(calib.D1).size
     dn = distortion_names(calib.model, nd)
 
-    def cam(side):
+    def cam(side: str) -> tuple[np.ndarray, np.ndarray]:
         M = np.array([[p[f"{side}.fx"], 0.0, p[f"{side}.cx"]], [0.0, p[f"{side}.fy"], p[f"{side}.cy"]],
                       [0.0, 0.0, 1.0]])
         return M, np.array([[p[f"{side}.{n}"] for n in dn]])
@@ -392,14 +461,16 @@ def _perturbed(calib, name: str, step: float) -> _Perturbed:
     return _Perturbed(step, M1, D1, M2, D2, R1, R2, P1, P2, Q)
 
 
-def _perturbations(calib) -> list[tuple[_Perturbed, _Perturbed]]:
+def _perturbations(calib: Rig) -> list[tuple[_Perturbed, _Perturbed] | None]:
     """(+, -) perturbed calibrations for every parameter of the covariance (cached)."""
     with _CACHE_LOCK:
         hit = _CACHE.get(calib)
     if hit is not None:
         return hit
     u = calib.uncertainty
-    out = []
+    if u is None:
+        return []
+    out: list[tuple[_Perturbed, _Perturbed] | None] = []
     for name in u.names:
         s = u.sigma(name)
         if not s > 0:
@@ -411,17 +482,27 @@ def _perturbations(calib) -> list[tuple[_Perturbed, _Perturbed]]:
     return out
 
 
-def _read(calib_like, model: str, ul: np.ndarray, ur: np.ndarray) -> np.ndarray:
+def _read(calib_like: Lenses, model: str, ul: np.ndarray, ur: np.ndarray) -> np.ndarray:
     """Rectify raw pixels with a calibration and triangulate: (N, 3) points in its rectified
     frame, mm."""
     a = undistort_points(model, ul, calib_like.M1, calib_like.D1, R=calib_like.R1, P=calib_like.P1)
     b = undistort_points(model, ur, calib_like.M2, calib_like.D2, R=calib_like.R2, P=calib_like.P2)
     d = a[:, 0] - b[:, 0]
     h = np.stack([a[:, 0], a[:, 1], d, np.ones_like(d)], axis=1) @ np.asarray(calib_like.Q).T
-    return h[:, :3] / h[:, 3:4]
+    points: np.ndarray = h[:, :3] / h[:, 3:4]
+    return points
 
 
-def depth_sigma_mm(calib, x, y, d) -> np.ndarray | float:
+@overload
+def depth_sigma_mm(calib: Rig, x: float, y: float, d: float) -> float: ...
+
+
+@overload
+def depth_sigma_mm(calib: Rig, x: np.ndarray, y: np.ndarray, d: np.ndarray) -> np.ndarray: ...
+
+
+def depth_sigma_mm(calib: Rig, x: float | np.ndarray, y: float | np.ndarray,
+                   d: float | np.ndarray) -> np.ndarray | float:
     """The calibration's part of the error of a depth read at rectified pixel (x, y) with
     disparity d px: 1 sigma in mm (NaN without an uncertainty; scalars in, a float out).
 

@@ -15,12 +15,11 @@ import cv2
 import numpy as np
 
 from stereo_gui.core.board import BoardSpec
-from stereo_gui.core.calibrate import CalibrationResult, calibrate_stereo
+from stereo_gui.core.calibrate import CalibrationResult, calibrate_stereo, with_measured_shading
 from stereo_gui.core.detect import PairDetection, PairInput, detect_pairs
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.jobs import JobControl, Progress
 from stereo_gui.core.lens import distortion_names, project_points, undistort_points
-from stereo_gui.core.shading import with_measured_shading
 from stereo_gui.core.stereo_calibration import RectifyMaps, StereoCalibration
 from stereo_gui.core.util import how_many
 from stereo_gui.files.images import read_image_file

@@ -9,6 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from stereo_gui.core.calibrate import with_measured_shading
 from stereo_gui.core.detect import PairInput, detect_pairs
 from stereo_gui.core.matching import StereoPipeline
 from stereo_gui.core.shading import (
@@ -20,7 +21,6 @@ from stereo_gui.core.shading import (
     radius2_map,
     shading_words,
     undo_shading,
-    with_measured_shading,
 )
 from stereo_gui.core.stereo_calibration import PairError
 from stereo_gui.files.presets import load_preset
