@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from stereo_gui.commands.scenes import _pct
+from stereo_gui.core.click_map import reading_map
 from stereo_gui.core.click_score import (
     Click,
     ClickScore,
@@ -35,7 +36,7 @@ from stereo_gui.core.click_score import (
 )
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import PipelineResult
-from stereo_gui.core.measure import measure_point, reading_map
+from stereo_gui.core.measure import measure_point
 from stereo_gui.core.scene_score import disparity_search_range, plain_sgbm
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.any_calibration import load_any_calibration

@@ -15,40 +15,52 @@ import math
 from dataclasses import dataclass, field
 from enum import StrEnum
 
-import cv2
 import numpy as np
 
 from stereo_gui.core.align import (
-    MAD_TO_SIGMA,
     QUANTUM_PX,
     REFINE_GROWTH,
     REFINE_HALF_PX,
-    SURFACE_BAND_PX,
     Refinement,
-    fit_plane,
     one_surface,
     refine_point,
     robust_spread,
     window_correlation,
 )
-from stereo_gui.core.disparity import (
-    BLANK_HALF_PX,
-    BLANK_LAG_PX,
-    agreement,
-    blank_mask,
-    compute_padded,
-    fixed_to_px,
-    local_contrast,
-    unseen_mask,
+from stereo_gui.core.click_images import (
+    STDERR_SCALE,
+    TEXTURE_MIN_T,
+    best_match_disparity,
+    centre_agrees,
+    has_texture,
+    is_blank,
+    reads_nearer_edge,
+    shows_nearer,
+)
+from stereo_gui.core.click_map import (
+    EDGE_SPREAD_PX,
+    consistent_pixels,
+    estimate_from_right,
+    hidden_by_nearer,
+    histogram_mode,
+    reading_map,
+    rematch_strip,
+    surface_region,
+    surrounding_estimate,
 )
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import PipelineResult
+from stereo_gui.core.reading_bound import (
+    depth_bound_mm,
+    disparity_bound_px,
+    with_calibration_uncertainty,
+    z_of,
+)
 from stereo_gui.core.regression import FitResult
 from stereo_gui.core.stereo_calibration import StereoCalibration
-from stereo_gui.core.uncertainty import Z95, depth_sigma_mm
+from stereo_gui.core.uncertainty import Z95
 
 PATCH_PX = 9  # default side of the square patch a measurement looks at, px (odd)
-
 
 
 class Reason(StrEnum):
@@ -78,35 +90,11 @@ class Reason(StrEnum):
             return None
 
 AMBIGUOUS_SHARE = 0.25  # a reading whose 95 % bound exceeds this share of its distance
-# the parts of a reading's disparity uncertainty (1 sigma, px) that its refinement's own standard
-# error does not see, measured on the simulated rig on walls and chessboards the tests and the
-# benchmark do not use: a floor (interpolation in rectification and resampling), a share
-# of the refinement's own correction (the rest of SGBM's bias towards whole pixels), a share of
-# the disagreement between the 13 and 9 px windows (sharp, repeating or sparse texture), and,
-# unrefined, SGBM's bias towards whole pixels
-REFINED_FLOOR_PX = 0.02
-REFINEMENT_MOVE_SHARE = 0.1
-WINDOWS_SHARE = 3.0
-PIXEL_LOCKING_PX = 0.19
-# the alignment's standard error counts residuals as independent; neighbouring pixels' noise is
-# not (both images are resampled: rectification, the alignment's own cubic interpolation), and
-# on weak texture the error it leaves is this many times the standard error
-STDERR_SCALE = 2.5
-CORRELATED_STDERR_SCALE = STDERR_SCALE  # (see core.align.CORRELATION_LAG_PX)
 MIN_VALID_FRACTION = 0.1  # share of the patch whose match must pass the checks
-# a patch spread above this straddles surfaces (the rig's walls: at most 0.4 px; on a weak MJPG
-# wall the map scatters more, which `one_surface` allows for)
-EDGE_SPREAD_PX = 1.0
 SCAN_MARGIN = 0.1  # correlation (NCC) by which a peak beyond the range must beat the estimate
 # ... and the least correlation that peak needs to count at all: on a smooth wall whose texture
 # is near the sensor noise every window's best correlation is 0.2-0.5, wherever it lies
 SCAN_PEAK_MIN = 0.7
-TEXTURE_MIN_STD = 3.0  # grey levels: below this a window holds little more than sensor noise
-# (the check of presets without a second window; with one, a match is judged by the agreement)
-# with one, a reading needs its aligned windows to correlate beyond what noise gives: the
-# correlation's t statistic (correlation x sqrt(pixels), the pixels counted as STDERR_SCALE**2
-# times fewer: resampled noise is not independent) at least this
-TEXTURE_MIN_T = 3.0
 # an alignment that runs off leaves the patch's own reading where at least this share of the
 # patch matched on one surface and the click's window correlates at the map's estimate at least
 # RICH_MIN_CORR (`bench --clicks`, 13 public scenes: 12 more clicks read, 10 of them right within
@@ -121,7 +109,7 @@ class Measurement:
 
     `reason` says why `valid` is False. `spread_px` is the robust standard
     deviation of the disparities used; `expected_error_mm` is a 95 % bound of the error of Z:
-    the disparity moved by `disparity_bound_px` (`disparity_bound_px()`) towards the far side,
+    the disparity moved by `disparity_bound_px` (`core.reading_bound`) towards the far side,
     through triangulation or the fit in use. `method` is "triangulation" or the fitted model.
     """
 
@@ -166,142 +154,6 @@ def triangulate(calibration: StereoCalibration, x: float, y: float, d: float) ->
     return float(X / W), float(Y / W), float(Z / W)
 
 
-def rematch_strip(result: PipelineResult, y: int, half: int) -> np.ndarray | None:
-    """Full-resolution SGBM of a band of rows around y, checked as the preset checks its frame
-    (with a second window: the two windows' agreement); float px (NaN invalid), band-sized.
-
-    Returns the band's disparity (rows y-half .. y+half clipped), or None without a result.
-    """
-    p = result.params
-    gl, gr = result.matched_gray()
-    h = gl.shape[0]
-    # rows beyond the patch give SGBM's vertical paths and the block window something to work on
-    pad = half + 2 * max(p.block_size, p.check_block_size) + 8
-    y0, y1 = max(0, y - pad), min(h, y + pad + 1)
-    lo, hi = result.disparity_range_px
-    lo_i = int(math.floor(lo))
-    num = int(math.ceil((hi - lo_i + 1) / 16.0)) * 16
-    sl, sr = gl[y0:y1], gr[y0:y1]
-    if p.normalize_window:  # as the frame was matched, its window at full resolution
-        window = max(3, int(round(p.normalize_window / result.match_scale)) | 1)
-        sl, sr = local_contrast(sl, window), local_contrast(sr, window)
-
-    def match(block: int) -> np.ndarray:
-        area = (block / p.block_size) ** 2
-        m = cv2.StereoSGBM.create(
-            minDisparity=lo_i, numDisparities=num, blockSize=block, P1=round(p.p1_value * area),
-            P2=round(p.p2_value * area), disp12MaxDiff=p.disp12_max_diff,
-            preFilterCap=p.pre_filter_cap, uniquenessRatio=p.uniqueness_ratio,
-            speckleWindowSize=p.speckle_window_size, speckleRange=p.speckle_range,
-            mode=cv2.StereoSGBM_MODE_SGBM_3WAY)
-        return compute_padded(m, sl, sr, lo_i + num if p.full_frame else 0, "left")
-
-    d16 = match(p.block_size)
-    if p.check_block_size:
-        band = agreement(d16, match(p.check_block_size), lo_i, p.agree_px,
-                         (lo_i + p.range_end_px, lo_i + num - 1 - p.range_end_px))
-    else:
-        band = fixed_to_px(d16, lo_i)
-    if p.full_frame:
-        band[unseen_mask(band, max(p.block_size, p.check_block_size) // 2 + 1)] = np.nan
-    r0 = max(0, y - half) - y0
-    r1 = min(h, y + half + 1) - y0
-    return band[r0:r1]
-
-
-def hidden_by_nearer(view_px: np.ndarray, x: int, y0: int, y1: int, d: float, tol: float
-                     ) -> tuple[bool, float | None]:
-    """Whether a reading of disparity `d` at column x (rows y0..y1 of its patch) is of a point the
-    right camera cannot see: in most of the rows, a surface to its right nearer by more than
-    `tol` px matches at the right image's column x - d or left of it (so the right camera sees
-    that surface there, not the point). Second: where it is not, the disparity of the nearer
-    surface that would hide the point in most of the rows if it went on under the empty run
-    just left of it (None where none would).
-
-    An empty run just left of a nearer surface is either the shadow that surface casts on the
-    one behind (pixels of that surface the right camera cannot see: the point left of the shadow
-    is seen) or that surface itself, unmatched. Where the run reaches into the nearer surface's
-    own strip at the image's left edge (its match would fall left of the right image) it is
-    taken as that surface, as the not-seen strip takes it: a wrong far match there, where the
-    right camera sees nothing of the near surface, passes every check of its own, and even
-    narrows the not-seen strip the views paint. Elsewhere the images decide (`measure_point`)."""
-    h, w = view_px.shape
-    if not 0 <= x < w - 1:
-        return False, None
-    u = x - d
-    cols = np.arange(x + 1, w, dtype=np.float64)
-    rows = view_px[max(0, y0):min(h, y1), x + 1:]
-    hidden = 0
-    under = []
-    for row in rows:
-        valued = np.isfinite(row)
-        with np.errstate(invalid="ignore"):
-            nearer = valued & (row > d + tol)
-        if not nearer.any():
-            continue
-        j = int(np.argmax(nearer))
-        before = np.flatnonzero(valued[:j])
-        start = int(before[-1]) + 1 if before.size else 0  # the empty run before j begins here
-        if x + 1 + start - float(row[j]) < 0:
-            hidden += 1  # the run is the near surface's own unseen strip
-        elif float(np.min(cols[nearer] - row[nearer])) <= u + 0.5:
-            hidden += 1
-        elif x + 1 + start - float(row[j]) <= u + 0.5:
-            under.append(float(row[j]))
-    n = max(1, len(rows))
-    if 2 * hidden > n:
-        return True, None
-    return False, (float(np.median(under)) if 2 * (hidden + len(under)) > n else None)
-
-
-def best_match_disparity(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int,
-                         half: int) -> tuple[float, float, np.ndarray] | None:
-    """Scan every disparity the image allows (0 .. x) for the window at (x, y) by normalised
-    cross-correlation; return (best disparity px, its score, scores indexed by disparity).
-
-    This is independent of the matcher's range, so it tells whether the surface lies beyond it.
-    """
-    h, w = left_gray.shape[:2]
-    if not (0 <= x < w and 0 <= y < h):
-        return None
-    # the window clipped to the image: its disparities keep counting from the click's column
-    y0, y1 = max(0, y - half), min(h, y + half + 1)
-    x0, x1 = max(0, x - half), min(w, x + half + 1)
-    tpl = left_gray[y0:y1, x0:x1]
-    if tpl.size < 9 or float(tpl.std()) == 0.0:
-        return None
-    band = right_gray[y0:y1, 0:x1]
-    scores = cv2.matchTemplate(band, tpl, cv2.TM_CCOEFF_NORMED)[0]  # index = x0 - d
-    by_d = scores[::-1]  # index = disparity
-    k = int(np.nanargmax(by_d))
-    return float(k), float(by_d[k]), by_d
-
-
-def _shows_nearer(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, d: float,
-                  nearer: float) -> bool:
-    """Whether the REFINE_HALF_PX window at (x, y) matches the `nearer` surface's disparity at
-    least about as well (within UNDER_MARGIN of correlation) as the reading's `d`: then the
-    empty run between the point and that surface is that surface, unmatched, which hides the
-    point; a point of the surface behind, seen left of the nearer one's shadow, matches its own
-    disparity clearly better."""
-    at_d, _ = window_correlation(left_gray, right_gray, x, y, d, REFINE_HALF_PX)
-    # (the nearer surface's disparity is the map's where it begins: at the click it may lie up
-    # to a pixel off, and on a weak wall the correlation's peak is narrower than that)
-    best = max(window_correlation(left_gray, right_gray, x, y, nearer + s, REFINE_HALF_PX)
-               for s in UNDER_SEARCH_PX)
-    return best[1] > 0 and best[0] >= at_d - UNDER_MARGIN
-
-
-def _centre_agrees(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int,
-                   refinement: Refinement) -> bool:
-    """Whether the REFINE_HALF_PX window at (x, y) correlates at the refined disparity about as
-    well as the (larger) window the refinement aligned: at least SURROUND_CENTRE_MIN, and not
-    more than SURROUND_CENTRE_DROP below it."""
-    corr, _ = window_correlation(left_gray, right_gray, x, y, refinement.disparity_px,
-                                 REFINE_HALF_PX)
-    return corr >= max(SURROUND_CENTRE_MIN, refinement.correlation - SURROUND_CENTRE_DROP)
-
-
 def _beyond_range(left_gray: np.ndarray, right_gray: np.ndarray, disp: np.ndarray, x: int, y: int,
                   d: float | None, half: int, span: tuple[float, float]) -> Reason | None:
     """TOO_NEAR or TOO_FAR when an exhaustive correlation scan puts the surface at (x, y) clearly
@@ -332,71 +184,6 @@ def _beyond_range(left_gray: np.ndarray, right_gray: np.ndarray, disp: np.ndarra
     return verdict
 
 
-# ---- object mode ---------------------------------------------------------------------------
-def surface_region(view_px: np.ndarray, x: int, y: int, window: int) -> np.ndarray | None:
-    """Mask of the connected region around (x, y) that `view_px` (e.g. the WLS map) shows as one
-    surface: a flood fill whose neighbour-to-neighbour tolerance comes from the map's own local
-    smoothness (median step + 3 robust standard deviations of the steps near the click)."""
-    h, w = view_px.shape
-    if not np.isfinite(view_px[y, x]):
-        return None
-    y0, y1 = max(0, y - window), min(h, y + window + 1)
-    x0, x1 = max(0, x - window), min(w, x + window + 1)
-    local = view_px[y0:y1, x0:x1]
-    steps = np.concatenate([np.abs(np.diff(local, axis=1)).ravel(), np.abs(np.diff(local, axis=0)).ravel()])
-    steps = steps[np.isfinite(steps)]
-    if steps.size:
-        med = float(np.median(steps))
-        tol = med + 3.0 * MAD_TO_SIGMA * float(np.median(np.abs(steps - med)))
-    else:
-        tol = 0.0
-    tol = max(tol, QUANTUM_PX)
-    img = np.nan_to_num(view_px, nan=-1e6).astype(np.float32)
-    mask = np.zeros((h + 2, w + 2), np.uint8)
-    cv2.floodFill(img, mask, (int(x), int(y)), 0, loDiff=tol, upDiff=tol,
-                  flags=4 | cv2.FLOODFILL_MASK_ONLY | (1 << 8))
-    return mask[1:-1, 1:-1].astype(bool)
-
-
-def histogram_mode(values: np.ndarray) -> float:
-    """Most frequent value with subpixel refinement: a parabola through the peak bin and its
-    neighbours. Bin width by the Freedman-Diaconis rule, but not below the 1/16 px quantum."""
-    values = values[np.isfinite(values)]
-    if values.size == 0:
-        return float("nan")
-    q25, q75 = np.percentile(values, [25, 75])
-    width = max(2.0 * (q75 - q25) / values.size ** (1.0 / 3.0), QUANTUM_PX)
-    lo, hi = float(values.min()), float(values.max())
-    nbins = max(1, int(math.ceil((hi - lo) / width)) + 1)
-    counts, edges = np.histogram(values, bins=nbins, range=(lo - width / 2, lo - width / 2 + nbins * width))
-    k = int(np.argmax(counts))
-    centre = 0.5 * (edges[k] + edges[k + 1])
-    if 0 < k < nbins - 1:
-        c0, c1, c2 = counts[k - 1], counts[k], counts[k + 1]
-        den = c0 - 2 * c1 + c2
-        if den < 0:
-            centre += 0.5 * (c0 - c2) / den * width
-    return float(centre)
-
-
-def reading_map(result: PipelineResult) -> np.ndarray:
-    """The disparity map (px, NaN invalid) a reading takes its values from: the final map of a
-    preset with a second window (checked by the two windows' agreement, what the views show
-    and the exports write), else the matcher's raw map (checked by `consistent_pixels`)."""
-    return result.final_px if result.params.check_block_size else result.disparity_px
-
-
-def consistent_pixels(result: PipelineResult, y0: int, y1: int, x0: int, x1: int
-                      ) -> np.ndarray | None:
-    """Mask of the window's pixels of `reading_map` whose match passed the left-right check (the
-    WLS filter's confidence above zero), or None when the map is checked already (a second
-    window) or the preset has no right matcher to check with."""
-    conf = result.wls_confidence
-    if conf is None or result.params.check_block_size:
-        return None
-    return conf[y0:y1, x0:x1] > 0
-
-
 def _frame_values_fit_around(result: PipelineResult, x: int, y: int, values: np.ndarray) -> bool:
     """Whether a patch's own values (`values`, px) lie on the surface the checked matches
     around it show (`surrounding_estimate`), within the frame's resolution: a reduced preset's
@@ -409,206 +196,9 @@ def _frame_values_fit_around(result: PipelineResult, x: int, y: int, values: np.
     return around is not None and abs(float(np.median(values)) - around) <= 2.0 / result.match_scale
 
 
-SURROUND_GROWTH = (12, 24, 48)  # half-sizes of the region around a click whose patch is empty
-SURROUND_MIN_SHARE = 0.1  # share of that region that must hold checked matches
-SURROUND_INLIERS = 0.8  # share of those that must lie on one plane
-SURROUND_FILL_PX = 2.0  # the filled view nearer than the surface by more than this: refused
-# the click's own 13 px window must correlate at the reading at least this well, and not more
-# than SURROUND_CENTRE_DROP below the window that aligned it (an object the matcher missed in
-# front of the surface correlates about 0 there; measured: see the guide)
-SURROUND_CENTRE_MIN = 0.25
-UNDER_MARGIN = 0.1
-UNDER_SEARCH_PX = tuple(np.arange(-1.0, 1.01, 0.25))
-SURROUND_CENTRE_DROP = 0.35
-
-
 # refusals of an empty patch that the surface around it may still answer: no match there, or the
 # matches beside it put its match a few pixels inside the right image's edge (the images decide)
 SURROUND_READS = (Reason.NO_VALID_PIXELS, Reason.TOO_FEW, Reason.NOT_SEEN)
-
-
-def surrounding_estimate(result: PipelineResult, x: int, y: int) -> float | None:
-    """Disparity (px) at (x, y) of the plane the checked matches around it lie on, from the
-    smallest region (SURROUND_GROWTH) that holds enough of them on one plane; None when no region
-    does. For a click whose own patch the matcher left empty: a starting estimate only, which
-    the images must confirm (`refine_point`)."""
-    fill = result.wls_px  # the filled view: without it, no check for a missed object (below)
-    if fill is None:
-        return None
-    disp = reading_map(result)
-    h, w = disp.shape
-    for grown in SURROUND_GROWTH:
-        y0, y1 = max(0, y - grown), min(h, y + grown + 1)
-        x0, x1 = max(0, x - grown), min(w, x + grown + 1)
-        win = disp[y0:y1, x0:x1]
-        usable = np.isfinite(win)
-        checked = consistent_pixels(result, y0, y1, x0, x1)
-        if checked is not None:
-            usable &= checked
-        n = int(usable.sum())
-        if n < max(9, SURROUND_MIN_SHARE * win.size):
-            continue
-        plane = fit_plane(win, usable, x0, y0, x, y, 3)
-        resid, keep = plane.resid, plane.keep
-        vx = np.nonzero(usable)[1]
-        if not (keep.mean() >= SURROUND_INLIERS and robust_spread(resid[keep]) <= EDGE_SPREAD_PX):
-            continue
-        estimate = plane.at_point
-        # the surface must lie on both sides of the click where either camera sees on: beside a
-        # near object, the strip the object hides from the right camera has the object on one
-        # side only (left of the click, the right camera sees nothing within `estimate` of the
-        # image's edge)
-        cols = vx[keep] + x0
-        left_seen = x0 > 0 and x - grown > estimate
-        if (left_seen and not (cols < x).any()) or (x1 < w and not (cols > x).any()):
-            continue
-        # the filled view (WLS: guided by the left image's edges, it spreads what the matcher
-        # half-saw) shows nothing clearly nearer at the click: an object in front of the surface
-        # that the checks threw out entirely still pulls the fill towards itself
-        h6 = REFINE_HALF_PX
-        near = fill[max(0, y - h6):y + h6 + 1, max(0, x - h6):x + h6 + 1]
-        near = near[np.isfinite(near)]
-        if near.size and float(np.median(near)) > estimate + SURROUND_FILL_PX:
-            return None
-        return estimate
-    return None
-
-
-# ---- the click's own region beside a nearer edge ----------------------------------------------
-# A plain region (a painted wall, a white background) just beside a nearer object's edge: every
-# window around the click holds the edge, the matcher's window aggregation carries the object's
-# disparity a few pixels onto the plain side ("foreground fattening"), and the alignment follows
-# the edge, the only detail there is. Its correlation is high and its bound small: a confident
-# wrong reading (Shelves' wall above a paint can read at the can's 34 px against the wall's 28).
-SEGMENT_TOL_GREY = 20.0  # grey levels from the click's own (3x3 smoothed) that are its region
-SEGMENT_BORDER_PX = 2  # the blurred band at the region's border: the other side's structure
-SEGMENT_MIN_SHARE = 0.3  # of the click's 13 px window: below it the click lies on texture
-SEGMENT_REACH_PX = 48  # half the side of the area whose depth map tells the region's surface
-
-
-def click_region(gray: np.ndarray, x: int, y: int, half: int) -> tuple[np.ndarray, int, int]:
-    """The click's own region in the window of `half` around (x, y), clipped to the image: the
-    pixels connected to the click through pixels within SEGMENT_TOL_GREY of its grey level (3x3
-    smoothed), less a band of SEGMENT_BORDER_PX along the region's border. Returns the mask
-    and the window's top-left corner (x0, y0)."""
-    h, w = gray.shape[:2]
-    y0, y1 = max(0, y - half), min(h, y + half + 1)
-    x0, x1 = max(0, x - half), min(w, x + half + 1)
-    crop = cv2.GaussianBlur(gray[y0:y1, x0:x1], (3, 3), 0)
-    mask = np.zeros((y1 - y0 + 2, x1 - x0 + 2), np.uint8)
-    cv2.floodFill(crop, mask, (x - x0, y - y0), 0, SEGMENT_TOL_GREY, SEGMENT_TOL_GREY,
-                  4 | cv2.FLOODFILL_MASK_ONLY | cv2.FLOODFILL_FIXED_RANGE | (1 << 8))
-    side = 2 * SEGMENT_BORDER_PX + 1
-    region = cv2.erode(mask[1:-1, 1:-1], np.ones((side, side), np.uint8),
-                       borderType=cv2.BORDER_REPLICATE)
-    return region > 0, x0, y0
-
-
-def _region_plane_at(disparity_px: np.ndarray, region: np.ndarray, x0: int, y0: int, x: int,
-                     y: int) -> float | None:
-    """The disparity at (x, y) of the plane the map's values over `region` (a mask of the window
-    at x0, y0) lie on (least squares, three times with values off it by more than 3 robust sigma
-    left out); None with fewer than 9 values."""
-    win = disparity_px[y0:y0 + region.shape[0], x0:x0 + region.shape[1]]
-    ok = region & np.isfinite(win)
-    if int(ok.sum()) < 9:
-        return None
-    return fit_plane(win, ok, x0, y0, x, y, 3).at_point
-
-
-def reads_nearer_edge(left_gray: np.ndarray, right_gray: np.ndarray, disparity_px: np.ndarray,
-                      x: int, y: int, d: float, half: int) -> bool:
-    """Whether a reading `d` (px) of the window of `half` around (x, y) is a nearer object's
-    edge read beside a plain region of the click's own: the click lies in a region of one grey
-    (`click_region`, at least SEGMENT_MIN_SHARE of its 13 px window) that does not fill the
-    window and is plain (its pixels there spread less than TEXTURE_MIN_STD); the depth map over that region (SEGMENT_REACH_PX around) lies on a surface farther
-    than `d` by more than SURFACE_BAND_PX at the click; and the region's own pixels in the
-    window, aligned at `d`, share nothing with the right image that noise could not give
-    (the texture check's statistic). Then the window's evidence is the edge, not the click's
-    surface.
-
-    A region of one grey on a textured surface (a plain square of a printed board) reads
-    where its surroundings' texture puts it, on its own surface: the map over it agrees and the
-    reading stands. A slanted region is judged by its plane, not its values' median."""
-    reach = max(half, SEGMENT_REACH_PX)
-    region, x0, y0 = click_region(left_gray, x, y, reach)
-    c = REFINE_HALF_PX
-    centre = region[max(0, y - y0 - c):y - y0 + c + 1, max(0, x - x0 - c):x - x0 + c + 1]
-    if centre.size == 0 or float(centre.mean()) < SEGMENT_MIN_SHARE:
-        return False  # the click lies on texture: the window is its own surface's
-    # the window's part of the region
-    wy0, wx0 = max(0, y - half) - y0, max(0, x - half) - x0
-    own = region[wy0:y - y0 + half + 1, wx0:x - x0 + half + 1]
-    if own.all():
-        return False  # the window is all the click's region: the usual checks judge it
-    ay0, ax0 = y0 + wy0, x0 + wx0
-    left_own = left_gray[ay0:ay0 + own.shape[0], ax0:ax0 + own.shape[1]][own]
-    if left_own.size >= 9 and float(np.std(left_own)) >= TEXTURE_MIN_STD:
-        # a region of one grey on rich texture (a blob of it) holds texture of its own: not
-        # plain (on the rig's textured boxes the rule refused 31 right readings beside edges)
-        return False
-    plane = _region_plane_at(disparity_px, region, x0, y0, x, y)
-    if plane is None or plane >= d - SURFACE_BAND_PX:
-        return False  # the region's surface is where the reading is (or nearer)
-    w = left_gray.shape[1]
-    cols = np.arange(ax0, ax0 + own.shape[1], dtype=np.float32)
-    rows = np.arange(ay0, ay0 + own.shape[0], dtype=np.float32)
-    own = own & ((cols - d >= 2) & (cols - d <= w - 3))[None, :]
-    if int(own.sum()) < 9:
-        return True
-    map_x = np.tile(cols - np.float32(d), (rows.size, 1))
-    map_y = np.repeat(rows[:, None], cols.size, axis=1)
-    right = cv2.remap(right_gray, map_x, map_y, cv2.INTER_CUBIC,
-                      borderMode=cv2.BORDER_REPLICATE)[own].astype(np.float32)
-    left = left_gray[ay0:ay0 + own.shape[0], ax0:ax0 + own.shape[1]][own].astype(np.float32)
-    a, b = left - left.mean(), right - right.mean()
-    denom = math.sqrt(float((a * a).sum()) * float((b * b).sum()))
-    corr = float((a * b).sum()) / denom if denom > 0 else 0.0
-    return corr * math.sqrt(left.size) < TEXTURE_MIN_T * STDERR_SCALE
-
-
-def has_texture(gray: np.ndarray, x: int, y: int, half: int) -> bool:
-    """Whether the left window has anything to match: a spread of grey levels above what sensor
-    noise alone gives (TEXTURE_MIN_STD)."""
-    h, w = gray.shape[:2]
-    win = gray[max(0, y - half):min(h, y + half + 1), max(0, x - half):min(w, x + half + 1)]
-    return win.size > 0 and float(win.std()) >= TEXTURE_MIN_STD
-
-
-def _estimate_from_right(result: PipelineResult, x: int, y: int, half: int) -> float | None:
-    """The disparity of the nearest checked matches to the right of (x, y) in the window's rows
-    (where a surface the right camera cannot see continues into view), or None."""
-    disp = reading_map(result)
-    h, w = disp.shape
-    y0, y1 = max(0, y - half), min(h, y + half + 1)
-    reach = int(math.ceil(result.disparity_range_px[1])) + 2 * half + 1
-    x0, x1 = min(w, x + half + 1), min(w, x + half + 1 + reach)
-    if x1 <= x0:
-        return None
-    band = disp[y0:y1, x0:x1]
-    mask = np.isfinite(band)
-    conf = consistent_pixels(result, y0, y1, x0, x1)
-    if conf is not None:
-        mask &= conf
-    cols = np.flatnonzero(mask.any(axis=0))
-    if cols.size == 0:
-        return None
-    first = cols[0]
-    near = band[:, first:first + 2 * half + 1][mask[:, first:first + 2 * half + 1]]
-    return float(np.median(near))
-
-
-def is_blank(gray: np.ndarray, x: int, y: int) -> bool:
-    """Whether the window around (x, y) holds nothing but sensor noise (`core.disparity.
-    blank_mask`'s rule on the full-resolution image, for one window)."""
-    h, w = gray.shape[:2]
-    half = BLANK_HALF_PX
-    y0, x0 = max(0, y - half), max(0, x - half)
-    win = gray[y0:min(h, y + half + 1), x0:min(w, x + half + 1)]
-    if win.shape[0] <= BLANK_LAG_PX or win.shape[1] <= BLANK_LAG_PX:
-        return False
-    mask = blank_mask(win, half, BLANK_LAG_PX)
-    return bool(mask[y - y0, x - x0])
 
 
 def _why_nothing(result: PipelineResult | None, x: int, y: int, half: int) -> Reason:
@@ -620,7 +210,7 @@ def _why_nothing(result: PipelineResult | None, x: int, y: int, half: int) -> Re
     if not p.full_frame and x < result.disparity_range_px[1] + 1 + p.block_size // 2:
         return Reason.NOT_SEARCHED
     gl, gr = result.matched_gray()
-    d_est = _estimate_from_right(result, x, y, half)
+    d_est = estimate_from_right(result, x, y, half)
     if d_est is not None and x - d_est < half:
         return Reason.NOT_SEEN
     if p.check_block_size and is_blank(gl, x, y):
@@ -630,36 +220,6 @@ def _why_nothing(result: PipelineResult | None, x: int, y: int, half: int) -> Re
     beyond = _beyond_range(gl, gr, reading_map(result), x, y, None, half,
                            (d_lo - step, d_hi + step))
     return beyond or Reason.NO_VALID_PIXELS
-
-
-def disparity_bound_px(refinement: Refinement | None, spread_px: float) -> float:
-    """The 95 % bound of a reading's disparity error, px (see the guide, "How sure is a
-    reading"). Refined: the alignment's own standard error, a floor for what it cannot see
-    (interpolation in rectification and resampling) and a share of its own correction (the part
-    of SGBM's bias towards whole pixels it leaves). Unrefined: the patch spread, with a floor
-    for that bias. A patch whose disparities spread more than EDGE_SPREAD_PX straddles a depth
-    edge: its spread counts too."""
-    if refinement is not None:
-        se = (CORRELATED_STDERR_SCALE * refinement.stderr_correlated_px
-              if math.isfinite(refinement.stderr_correlated_px)
-              else STDERR_SCALE * refinement.stderr_px)
-        sigma = math.hypot(se, REFINED_FLOOR_PX,
-                           REFINEMENT_MOVE_SHARE * refinement.moved_px,
-                           WINDOWS_SHARE * refinement.windows_px)
-        if spread_px > EDGE_SPREAD_PX:
-            # the patch holds more than one surface (a depth edge): the reading may be either
-            sigma = math.hypot(sigma, spread_px)
-    else:
-        sigma = math.hypot(spread_px, PIXEL_LOCKING_PX)
-    return Z95 * sigma
-
-
-def _depth_bound_mm(fb: float, d: float, bound_px: float) -> float:
-    """The larger depth change of a disparity moved by +-bound (the far side is the larger)."""
-    if not fb > 0:
-        return float("nan")
-    near = d - bound_px
-    return fb / near - fb / d if near > 0 else float("inf")
 
 
 # ---- the measurement -----------------------------------------------------------------------
@@ -857,7 +417,7 @@ def _read_patch(result: PipelineResult, disp: np.ndarray, click: _Click, gl: np.
     if result.params.full_frame:
         hidden, under = hidden_by_nearer(result.final_px, click.xi, click.y0, click.y1, d,
                                          max(1.0, 2.0 / result.match_scale))
-        if hidden or (under is not None and _shows_nearer(
+        if hidden or (under is not None and shows_nearer(
                 gl, gr, click.xi, click.yi, d, under)):
             return click.invalid(Reason.NOT_SEEN, valid_fraction)
     return _MapReading(d, values, valid_fraction, empty)
@@ -922,7 +482,7 @@ def _subpixel(gl: np.ndarray, gr: np.ndarray, disp: np.ndarray, click: _Click,
     if read.empty is not None:
         if ref is None or not ref.converged:
             return click.invalid(read.empty, read.valid_fraction)
-        if not _centre_agrees(gl, gr, xi, yi, ref):
+        if not centre_agrees(gl, gr, xi, yi, ref):
             # the click's own window does not show the surface the larger window aligned: an
             # object in front of it that the matcher missed, not that surface
             return click.invalid(read.empty, read.valid_fraction)
@@ -1007,8 +567,8 @@ def _located(click: _Click, read: _MapReading, d: float, d_range: tuple[float, f
         # units; a regression fitted on true distances gives millimetres
         return read.refused(click, Reason.NO_METRIC_SCALE, d)
     else:
-        expected = _depth_bound_mm(calibration.focal_px * calibration.rectified_baseline_mm, d,
-                                   bound_px) * (Z / _z_of(calibration, d))
+        expected = depth_bound_mm(calibration.focal_px * calibration.rectified_baseline_mm, d,
+                                   bound_px) * (Z / z_of(calibration, d))
         expected = with_calibration_uncertainty(expected, calibration, click.x, click.y, d)
     if not (math.isfinite(expected) and expected <= AMBIGUOUS_SHARE * abs(Z)):
         # the match fits so loosely that its 95 % bound spans a large part of the distance
@@ -1023,25 +583,3 @@ def _located(click: _Click, read: _MapReading, d: float, d_range: tuple[float, f
                        disparity_bound_px=bound_px)
 
 
-def _z_of(calibration: StereoCalibration, d: float) -> float:
-    """f*B/d: the depth the Q matrix gives a disparity d on the optical axis (for scaling a
-    bound to a Q with a principal-point offset)."""
-    fb = calibration.focal_px * calibration.rectified_baseline_mm
-    return fb / d if d > 0 and fb > 0 else float("nan")
-
-
-def with_calibration_uncertainty(bound_mm: float, calibration: StereoCalibration, x: float,
-                                 y: float, d: float) -> float:
-    """A reading's 95 % bound with the calibration's own uncertainty at that pixel and disparity
-    added: bound + 1.96 sigma_calibration (core.uncertainty.depth_sigma_mm). A calibration
-    without an uncertainty (older files, rectified:F,B) keeps the bound as it is.
-
-    Added, not in quadrature: the calibration's error is the same for every reading made with
-    it (systematic), so a bound that must hold for the calibration at hand cannot let the
-    random matching part average it away: in quadrature the bound falls short for a calibration
-    whose focal lengths came out a little high, added it holds, for a bound only slightly
-    wider."""
-    if calibration.uncertainty is None or not math.isfinite(bound_mm):
-        return bound_mm
-    sigma = depth_sigma_mm(calibration, x, y, d)
-    return bound_mm + Z95 * sigma if math.isfinite(sigma) else bound_mm

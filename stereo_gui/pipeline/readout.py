@@ -13,8 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stereo_gui.core.click_map import reading_map
 from stereo_gui.core.matching import PipelineResult
-from stereo_gui.core.measure import Measurement, measure_point, reading_map
+from stereo_gui.core.measure import Measurement, measure_point
 from stereo_gui.core.regression import FitResult
 from stereo_gui.core.stereo_calibration import StereoCalibration
 

@@ -39,10 +39,10 @@ from foxglove import channels as ch
 from foxglove import messages as m
 from foxglove.websocket import ChannelView, Client, ServerListener, WebSocketServer
 
+from stereo_gui.core.click_map import reading_map
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.health import CalibrationHealth
 from stereo_gui.core.matching import PipelineResult
-from stereo_gui.core.measure import reading_map
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.depth_export import depth_mm, depth_to_png16
 from stereo_gui.files.mcap_file import McapRecording

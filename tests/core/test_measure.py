@@ -18,10 +18,8 @@ from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import StereoPipeline
 from stereo_gui.core.measure import (
     Reason,
-    histogram_mode,
     measure_map,
     measure_point,
-    reads_nearer_edge,
     triangulate,
 )
 from stereo_gui.core.preset import MatcherParams, Preset
@@ -213,12 +211,6 @@ def test_object_mode_reads_the_surface_around_the_click(rig):
     assert m.Z_mm == pytest.approx(2000.0, rel=0.02)
 
 
-def test_histogram_mode_finds_the_peak_between_bins():
-    rng = np.random.default_rng(0)
-    values = np.concatenate([rng.normal(40.3, 0.2, 2000), rng.uniform(10, 60, 300)])
-    assert histogram_mode(values) == pytest.approx(40.3, abs=0.1)
-
-
 def _shifted_pair(true_d: float):
     """A textured 300x60 pair with right(u) = left(u + true_d), sampled from one wide image."""
     import cv2
@@ -301,7 +293,7 @@ def test_bad_arguments():
 
 
 def test_reduced_resolution_preset_rematches_a_full_resolution_strip(rig, walls):
-    from stereo_gui.core.measure import rematch_strip
+    from stereo_gui.core.click_map import rematch_strip
 
     calib = rig.true_calibration()
     scene, (left, right) = walls[2000.0]
@@ -561,60 +553,6 @@ def test_on_an_mjpg_wall_the_plus_minus_still_covers_the_truth(preset):
     assert read > 60 and covered >= 0.95 * read, (covered, read)
 
 
-def test_a_far_match_left_of_a_nearer_surface_is_not_seen():
-    """A wall at disparity 27 px from column 40 on; at the image's left edge a cluster of wrong
-    matches at 4 px (a point 7 times farther) with nothing between: the right camera sees the
-    wall at that cluster's column, so the cluster's point is not seen. A background that is
-    matched all the way to a nearer object is seen; so is the wall itself."""
-    from stereo_gui.core.measure import hidden_by_nearer
-
-    m = np.full((9, 200), np.nan, np.float32)
-    m[:, 40:] = 27.0
-    m[:, 4:13] = 4.0
-    assert hidden_by_nearer(m, 8, 0, 9, 4.0, 1.0) == (True, None)
-    assert hidden_by_nearer(m, 60, 0, 9, 27.0, 1.0) == (False, None)
-    scene = np.full((9, 200), 10.0, np.float32)
-    scene[:, 100:] = 80.0  # a near object right of a far background, both matched
-    assert hidden_by_nearer(scene, 20, 0, 9, 10.0, 1.0) == (False, None)
-    assert hidden_by_nearer(scene, 95, 0, 9, 10.0, 1.0)[0]  # the object covers its match (u = 85)
-
-
-def test_the_shadow_a_nearer_surface_casts_hides_only_what_it_covers():
-    """Lampshade1 (Middlebury 2006): a wall at 15 px, matched for 6 px right of the click, then
-    the empty strip the lamp (28 px, from 23 px right of the click) hides from the right camera.
-    The strip is the wall's, not the lamp's: the right camera sees the click's point (its match
-    at x - 15 lies left of the lamp's leftmost match), and it was refused as not seen. The map
-    cannot tell the shadow from the lamp unmatched: the lamp's disparity goes to the images."""
-    from stereo_gui.core.measure import hidden_by_nearer
-
-    m = np.full((9, 300), np.nan, np.float32)
-    m[:, :144] = 15.0
-    m[:, 160:] = 28.0
-    assert hidden_by_nearer(m, 137, 0, 9, 15.0, 1.0) == (False, 28.0)
-    # a reading of the wall inside the shadow is hidden: its match, 150 - 15, the lamp covers
-    # from 160 - 28 on
-    assert hidden_by_nearer(m, 150, 0, 9, 15.0, 1.0) == (True, None)
-
-
-def test_the_images_say_whether_an_empty_run_is_a_shadow_or_the_nearer_surface():
-    """A click reading a far wall (15 px) left of an empty run and a nearer block (40 px): where
-    its window shows the wall, the point is seen; where it shows the block (the block goes on
-    under the run, unmatched, and the far reading is wrong), it is not."""
-    from stereo_gui.core.measure import _shows_nearer
-
-    rng = np.random.default_rng(4)
-    wall = cv2.GaussianBlur(rng.random((80, 400)).astype(np.float32) * 255, (0, 0), 1.5)
-    block = cv2.GaussianBlur(rng.random((80, 400)).astype(np.float32) * 255, (0, 0), 1.5)
-    xs = np.arange(300, dtype=np.float32)
-    ys = np.repeat(np.arange(80, dtype=np.float32)[:, None], 300, axis=1)
-    left = np.where(xs[None, :] < 150, wall[:, 50:350], block[:, 50:350])
-    right_wall = cv2.remap(wall, np.tile(xs + 50 + 15, (80, 1)), ys, cv2.INTER_CUBIC)
-    right_block = cv2.remap(block, np.tile(xs + 50 + 40, (80, 1)), ys, cv2.INTER_CUBIC)
-    right = np.where(xs[None, :] < 150 - 40, right_wall, right_block)
-    assert not _shows_nearer(left, right, 80, 40, 15.0, 40.0)  # the wall, seen
-    assert _shows_nearer(left, right, 200, 40, 15.0, 40.0)  # the block read as far: not seen
-
-
 @pytest.mark.slow
 def test_a_wrong_far_reading_at_the_left_edge_is_refused():
     """On the webcams' wall at 3 m a wrong match 8 px from the left edge read 21 m; now it says
@@ -791,92 +729,6 @@ def test_the_texture_evidence_is_judged_without_the_row_offsets_fit():
     r = refine_disparity(left, right, 150, 60, 20.0, 6)
     plain, _ = window_correlation(left, right, 150, 60, r.disparity_px, 6)
     assert r.converged and r.correlation == pytest.approx(plain, abs=0.01)
-
-
-def _edge_pair(wall_d: float, object_d: float, wall_contrast: float = 0.0, seed: int = 4,
-               size: tuple[int, int] = (300, 140), edge_row: int = 70, blur: float = 1.5):
-    """A 300x140 pair: a wall of one grey (170, `wall_contrast` grey levels of texture of its own)
-    at disparity `wall_d` over rows 0-69, a dark textured object at `object_d` from row 70
-    (`edge_row`) down (its top edge horizontal), each camera's own noise 1 grey level (float32
-    grey)."""
-    width, height = size
-    rng = np.random.default_rng(seed)
-    tex = cv2.GaussianBlur(rng.random((height, width + 200)).astype(np.float32), (0, 0), 1.5)
-    tex = (tex - tex.mean()) / tex.std()
-    own = cv2.GaussianBlur(rng.random((height, width + 200)).astype(np.float32), (0, 0), blur)
-    wall = 170.0 + wall_contrast * (own - own.mean()) / own.std()
-    obj = 60.0 + 30.0 * np.roll(tex, 17, axis=1)
-    xs = np.arange(width, dtype=np.float32)
-    ys = np.repeat(np.arange(height, dtype=np.float32)[:, None], width, axis=1)
-    out = []
-    for camera in ("left", "right"):  # right(u) = left(u + d)
-        shift_w = 100.0 + (wall_d if camera == "right" else 0.0)
-        shift_o = 100.0 + (object_d if camera == "right" else 0.0)
-        w_img = cv2.remap(wall, np.tile(xs + shift_w, (height, 1)), ys, cv2.INTER_CUBIC)
-        o_img = cv2.remap(obj, np.tile(xs + shift_o, (height, 1)), ys, cv2.INTER_CUBIC)
-        img = np.where(ys < edge_row, w_img, o_img) + rng.normal(0.0, 1.0, (height, width))
-        out.append(img.astype(np.float32))
-    return out
-
-
-def _fattened_map(wall_d: float, object_d: float, reach: int = 8,
-                  size: tuple[int, int] = (300, 140), edge_row: int = 70) -> np.ndarray:
-    """The matcher's map of `_edge_pair`: the object's disparity carried `reach` rows onto the
-    wall above its edge, the wall's own where the map has it (every other pixel: a plain wall is
-    matched in scattered blobs)."""
-    disp = np.full(size[::-1], np.nan, np.float32)
-    disp[::2, ::2] = wall_d
-    disp[edge_row - reach:, :] = object_d
-    return disp
-
-
-def test_a_plain_wall_beside_a_nearer_edge_is_not_read_at_the_edges_disparity():
-    """Shelves' wall above a paint can read at the can's 34 px against the wall's 28, with a
-    small +-: every window there holds the can's edge, and the map carries the can's disparity
-    a few rows onto the wall. The wall's own pixels show nothing at that disparity, and the map
-    over the wall puts it farther: refused (on the 13 public scenes: 7 such wrong readings
-    stopped for 2 right ones lost, bench --clicks)."""
-    left, right = _edge_pair(20.0, 30.0)
-    disp = _fattened_map(20.0, 30.0)
-    # 6 rows above the edge (inside the fattened band) with a 13 px window, 12 rows above with
-    # a grown 25 px one: each window holds the edge
-    assert reads_nearer_edge(left, right, disp, 150, 64, 30.0, 6)
-    assert reads_nearer_edge(left, right, disp, 150, 64, 30.0, 12)
-    assert reads_nearer_edge(left, right, disp, 150, 58, 30.0, 12)
-    # read at the wall's own disparity, the same window stands
-    assert not reads_nearer_edge(left, right, disp, 150, 64, 20.0, 6)
-
-
-def test_the_largest_grown_window_is_judged_too():
-    """A 193 px window of a plain region holds more pixels than OpenCV's remap takes in one
-    row (it raised)."""
-    size = (400, 300)
-    left, right = _edge_pair(20.0, 30.0, size=size, edge_row=250)
-    disp = _fattened_map(20.0, 30.0, size=size, edge_row=250)
-    assert reads_nearer_edge(left, right, disp, 200, 160, 30.0, 96)
-
-
-def test_a_plain_region_whose_own_surface_the_reading_is_stands():
-    """Where the map over the click's plain region puts it at the reading (a plain square on a
-    printed board, read by the texture around it), or its own texture confirms the reading
-    though the map says otherwise, or the window is all the click's region, the reading stands."""
-    left, right = _edge_pair(30.0, 30.0)
-    assert not reads_nearer_edge(left, right, np.full((140, 300), 30.0, np.float32), 150, 64,
-                                 30.0, 6)
-    # a faint texture of its own (weaker than the plain-region threshold) that the reading fits
-    left, right = _edge_pair(30.0, 30.0, wall_contrast=2.5)
-    assert not reads_nearer_edge(left, right, _fattened_map(20.0, 30.0), 150, 64, 30.0, 12)
-    # ... and the same region read at the wrong disparity: refused
-    left, right = _edge_pair(20.0, 30.0, wall_contrast=2.5)
-    assert reads_nearer_edge(left, right, _fattened_map(20.0, 30.0), 150, 64, 30.0, 12)
-    # a region of one grey that holds texture of its own (a blob of the rig's boxes' texture)
-    # is no plain wall: the usual checks judge it
-    left, right = _edge_pair(20.0, 30.0, wall_contrast=8.0, blur=6.0)
-    assert not reads_nearer_edge(left, right, _fattened_map(20.0, 30.0), 150, 64, 30.0, 6)
-    left, right = _edge_pair(20.0, 30.0)
-    assert not reads_nearer_edge(left, right, _fattened_map(20.0, 30.0), 150, 30, 30.0, 6)
-    # the click on the textured object itself: no plain region of its own
-    assert not reads_nearer_edge(left, right, _fattened_map(20.0, 30.0), 150, 100, 30.0, 6)
 
 
 def test_a_reading_of_a_nearer_edge_says_so(monkeypatch, rig, walls):

@@ -126,7 +126,7 @@ def test_readings_near_corners_the_board_never_reached_say_they_are_uncertain(ce
 def test_no_uncertainty_no_change():
     calib = StereoCalibration.identity((640, 480), 700.0, 110.0)
     assert math.isnan(depth_sigma_mm(calib, 320.0, 240.0, 30.0))
-    from stereo_gui.core.measure import with_calibration_uncertainty
+    from stereo_gui.core.reading_bound import with_calibration_uncertainty
 
     assert with_calibration_uncertainty(12.5, calib, 320.0, 240.0, 30.0) == 12.5
 

@@ -1,0 +1,80 @@
+"""The 95 % bound of a reading: its disparity's (from the alignment's standard error, or the
+patch's spread unrefined, with what neither sees; see the guide, "How sure is a reading"), that
+bound as millimetres of depth, and the calibration's own uncertainty added (core.uncertainty).
+`core.measure` gives a reading these."""
+
+from __future__ import annotations
+
+import math
+
+from stereo_gui.core.align import Refinement
+from stereo_gui.core.click_images import STDERR_SCALE
+from stereo_gui.core.click_map import EDGE_SPREAD_PX
+from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.core.uncertainty import Z95, depth_sigma_mm
+
+# the parts of a reading's disparity uncertainty (1 sigma, px) that its refinement's own standard
+# error does not see, measured on the simulated rig on walls and chessboards the tests and the
+# benchmark do not use: a floor (interpolation in rectification and resampling), a share
+# of the refinement's own correction (the rest of SGBM's bias towards whole pixels), a share of
+# the disagreement between the 13 and 9 px windows (sharp, repeating or sparse texture), and,
+# unrefined, SGBM's bias towards whole pixels
+REFINED_FLOOR_PX = 0.02
+REFINEMENT_MOVE_SHARE = 0.1
+WINDOWS_SHARE = 3.0
+PIXEL_LOCKING_PX = 0.19
+CORRELATED_STDERR_SCALE = STDERR_SCALE  # (see core.align.CORRELATION_LAG_PX)
+
+
+def disparity_bound_px(refinement: Refinement | None, spread_px: float) -> float:
+    """The 95 % bound of a reading's disparity error, px (see the guide, "How sure is a
+    reading"). Refined: the alignment's own standard error, a floor for what it cannot see
+    (interpolation in rectification and resampling) and a share of its own correction (the part
+    of SGBM's bias towards whole pixels it leaves). Unrefined: the patch spread, with a floor
+    for that bias. A patch whose disparities spread more than EDGE_SPREAD_PX straddles a depth
+    edge: its spread counts too."""
+    if refinement is not None:
+        se = (CORRELATED_STDERR_SCALE * refinement.stderr_correlated_px
+              if math.isfinite(refinement.stderr_correlated_px)
+              else STDERR_SCALE * refinement.stderr_px)
+        sigma = math.hypot(se, REFINED_FLOOR_PX,
+                           REFINEMENT_MOVE_SHARE * refinement.moved_px,
+                           WINDOWS_SHARE * refinement.windows_px)
+        if spread_px > EDGE_SPREAD_PX:
+            # the patch holds more than one surface (a depth edge): the reading may be either
+            sigma = math.hypot(sigma, spread_px)
+    else:
+        sigma = math.hypot(spread_px, PIXEL_LOCKING_PX)
+    return Z95 * sigma
+
+
+def depth_bound_mm(fb: float, d: float, bound_px: float) -> float:
+    """The larger depth change of a disparity moved by +-bound (the far side is the larger)."""
+    if not fb > 0:
+        return float("nan")
+    near = d - bound_px
+    return fb / near - fb / d if near > 0 else float("inf")
+
+
+def z_of(calibration: StereoCalibration, d: float) -> float:
+    """f*B/d: the depth the Q matrix gives a disparity d on the optical axis (for scaling a
+    bound to a Q with a principal-point offset)."""
+    fb = calibration.focal_px * calibration.rectified_baseline_mm
+    return fb / d if d > 0 and fb > 0 else float("nan")
+
+
+def with_calibration_uncertainty(bound_mm: float, calibration: StereoCalibration, x: float,
+                                 y: float, d: float) -> float:
+    """A reading's 95 % bound with the calibration's own uncertainty at that pixel and disparity
+    added: bound + 1.96 sigma_calibration (core.uncertainty.depth_sigma_mm). A calibration
+    without an uncertainty (older files, rectified:F,B) keeps the bound as it is.
+
+    Added, not in quadrature: the calibration's error is the same for every reading made with
+    it (systematic), so a bound that must hold for the calibration at hand cannot let the
+    random matching part average it away: in quadrature the bound falls short for a calibration
+    whose focal lengths came out a little high, added it holds, for a bound only slightly
+    wider."""
+    if calibration.uncertainty is None or not math.isfinite(bound_mm):
+        return bound_mm
+    sigma = depth_sigma_mm(calibration, x, y, d)
+    return bound_mm + Z95 * sigma if math.isfinite(sigma) else bound_mm
