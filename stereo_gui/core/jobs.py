@@ -29,7 +29,7 @@ from stereo_gui.core.states import Transitions
 
 __all__ = ["JOB_MOVES", "Cancel", "Cancelled", "Job", "JobControl", "JobEnd", "JobState",
            "JobTicket", "Progress", "ProgressCallback", "check_cancel", "is_cancelled",
-           "run_job"]
+           "report_progress", "run_job"]
 
 
 @dataclass(frozen=True)
@@ -50,6 +50,12 @@ class Progress:
 ProgressCallback = Callable[[int, int, str], None]
 # a threading.Event (set = cancel) or a callable returning True to cancel
 Cancel = threading.Event | Callable[[], bool] | None
+
+
+def report_progress(progress: ProgressCallback | None, done: int, total: int, text: str) -> None:
+    """`progress(done, total, text)`, when there is a `progress`."""
+    if progress:
+        progress(done, total, text)
 
 
 class Cancelled(StereoGuiError):

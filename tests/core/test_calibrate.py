@@ -248,9 +248,9 @@ def test_a_lens_model_that_folds_is_fitted_again_with_fewer_terms(model):
 
 @pytest.mark.slow
 def test_a_lens_model_that_folds_even_at_its_simplest_is_refused_with_the_remedy(monkeypatch):
-    import stereo_gui.core.calibrate as calibrate_module
+    import stereo_gui.core.stereo_solve as stereo_solve
 
-    monkeypatch.setattr(calibrate_module, "ROUND_TRIP_PX", -1.0)  # every fit "folds"
+    monkeypatch.setattr(stereo_solve, "ROUND_TRIP_PX", -1.0)  # every fit "folds"
     board, pairs, size = _central_pairs(0)
     with pytest.raises(CalibrationError, match=r"folds over .* even with k2 and k3 held at "
                                                r"zero: capture pairs with the board in the corners"):
