@@ -23,6 +23,7 @@ import math
 import threading
 import time
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -55,6 +56,18 @@ from stereo_gui.core.util import to_gray
 
 # per camera (left, right): the gain and offset maps that undo its lens shading (core.shading)
 ShadingMaps = tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
+class _Fill(NamedTuple):
+    """One size the hole fill tries: its scale against the matched images, its matchers' range
+    (min, num) and largest disparity, and its first and second window's matchers."""
+
+    scale: float
+    min_disparity: int
+    num_disparities: int
+    largest: int
+    first: cv2.StereoSGBM
+    second: cv2.StereoSGBM
 # one size the hole filling tries (StereoPipeline._fills): its scale, minDisparity,
 # numDisparities, largest disparity, and the first and second window's matchers
 Fill = tuple[float, int, int, int, cv2.StereoSGBM, cv2.StereoSGBM]
@@ -130,6 +143,10 @@ class StereoPipeline:
     use: a closed pipeline refuses to rectify or process.
     """
 
+    # the lens shading's (gain, offset) maps per camera at full size and at the matched size
+    _shading_full: ShadingMaps | None
+    _shading_gains: ShadingMaps | None
+
     def __init__(self, calibration: StereoCalibration,
                  params: Preset | MatcherParams | None = None):
         self.calibration = calibration
@@ -160,9 +177,11 @@ class StereoPipeline:
         """Release the rectification maps, matchers and shading maps (tens of MB at 1280x720)
         now rather than when the last reference goes, and refuse any later frame (the maps gone,
         a frame would otherwise pass unrectified). May be called more than once."""
+        if self._closed:
+            return
         self._closed = True
         self._maps = None
-        self._left = self._second = self._right = self._wls = None
+        del self._left, self._second, self._right, self._wls, self._fills
         self._shading_full = self._shading_gains = None
 
     def __enter__(self) -> StereoPipeline:
@@ -181,7 +200,7 @@ class StereoPipeline:
         def sgbm(lo: int = self._min_s, num: int = self._num_s, block: int = p.block_size,
                  q: MatcherParams = p) -> cv2.StereoSGBM:
             area = (block / q.block_size) ** 2  # the penalties grow with the window's area
-            return cv2.StereoSGBM_create(
+            return cv2.StereoSGBM.create(
                 minDisparity=lo, numDisparities=num, blockSize=block,
                 P1=round(q.p1_value * area), P2=round(q.p2_value * area),
                 disp12MaxDiff=q.disp12_max_diff,
@@ -189,8 +208,10 @@ class StereoPipeline:
                 speckleWindowSize=q.speckle_window_size, speckleRange=q.speckle_range,
                 mode=MODES[q.mode])
 
-        self._left = sgbm()
-        self._second = sgbm(block=p.check_block_size) if p.check_block_size else None
+        self._left: cv2.StereoSGBM = sgbm()
+        self._second: cv2.StereoSGBM | None = (sgbm(block=p.check_block_size)
+                                               if p.check_block_size else None)
+        self._right: cv2.StereoMatcher | None
         self._check: tuple[float, int, int] | None = None  # (scale, min, num) of a smaller check
         if p.wls and p.check_scale < 1.0:
             cs = p.check_scale
@@ -210,7 +231,7 @@ class StereoPipeline:
         self._reach = max(p.block_size, p.check_block_size) // 2 + 1
         # (scale, min, num, largest disparity, first and second window's matchers) of each size
         # the fill tries, finest first
-        self._fills: list[tuple] = []
+        self._fills: list[_Fill] = []
         if self._second is not None and p.fill_scale > 0:
             for level, mode in enumerate(fill_mode_names(p.fill_modes), start=1):
                 fill_p = dataclasses.replace(p, mode=mode)
@@ -220,18 +241,19 @@ class StereoPipeline:
                 # theirs, at this size, rounded down)
                 top = math.floor((self._min_s + self._num_s - 1) * fs)
                 num = max(16, int(math.ceil((top - lo + 1) / 16.0)) * 16)
-                self._fills.append((fs, lo, num, top, sgbm(lo, num, p.block_size, fill_p),
-                                    sgbm(lo, num, p.check_block_size, fill_p)))
-        self._wls = None
+                self._fills.append(_Fill(fs, lo, num, top, sgbm(lo, num, p.block_size, fill_p),
+                                         sgbm(lo, num, p.check_block_size, fill_p)))
+        self._wls: cv2.ximgproc.DisparityWLSFilter | None = None
         if p.wls:
             # createDisparityWLSFilter switches off the uniqueness, speckle and left-right checks
             # of the matcher it is given: unless the preset asks for that (the seed preset
             # reproduces the reference loop's map, made so), it gets a copy of the matcher to
             # configure itself from
-            self._wls = cv2.ximgproc.createDisparityWLSFilter(
+            wls = cv2.ximgproc.createDisparityWLSFilter(
                 self._left if p.wls_disables_checks else sgbm())
-            self._wls.setLambda(float(p.wls_lambda))
-            self._wls.setSigmaColor(float(p.wls_sigma))
+            wls.setLambda(float(p.wls_lambda))
+            wls.setSigmaColor(float(p.wls_sigma))
+            self._wls = wls
         self._kernel = (np.ones((p.closing_kernel, p.closing_kernel), np.uint8)
                         if p.closing_kernel > 1 else None)
         self._shading_full = self._shading_maps()
@@ -239,9 +261,13 @@ class StereoPipeline:
         if self._shading_full is not None and s < 1.0:
             w, h = self.calibration.image_size
             size_s = (max(1, round(w * s)), max(1, round(h * s)))
-            self._shading_gains = tuple(  # the full-size maps, shrunk as the images are
-                tuple(cv2.resize(m, size_s, interpolation=cv2.INTER_AREA) for m in maps)
-                for maps in self._shading_full)
+
+            def shrunk(maps: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+                gain, offset = maps  # the full-size maps, shrunk as the images are
+                return (cv2.resize(gain, size_s, interpolation=cv2.INTER_AREA),
+                        cv2.resize(offset, size_s, interpolation=cv2.INTER_AREA))
+
+            self._shading_gains = (shrunk(self._shading_full[0]), shrunk(self._shading_full[1]))
 
     def _shading_maps(self) -> ShadingMaps | None:
         """(gain, offset) per camera that undo its lens shading (core.shading) in the full-size
@@ -426,17 +452,19 @@ class StereoPipeline:
         """The right matcher's map for the left-right check, computed on images made smaller by
         `check_scale` and enlarged back to the matched size (values scaled; "no match" kept as
         the value a right matcher at the matched resolution gives it)."""
+        assert self._check is not None  # (called only where the preset has a smaller check)
         cs, lo, num = self._check
         h, w = mr.shape[:2]
         size = (max(1, round(w * cs)), max(1, round(h * cs)))
         small = [cv2.resize(img, size, interpolation=cv2.INTER_AREA) for img in (mr, ml)]
-        d = compute_padded(matcher, *small, lo + num if pad else 0, side)
+        d = compute_padded(matcher, small[0], small[1], lo + num if pad else 0, side)
         # values scaled at the small size, then enlarged: nearest-neighbour enlargement only
         # picks pixels, so this is the same as scaling after it, on a quarter of the pixels
         scaled = np.clip(np.rint(d.astype(np.float32) / cs), -32768, 32767).astype(np.int16)
         none = d == (-(lo + num - 1) - 1) * DISP_SCALE  # the right matcher's "no match"
         scaled[none] = (-(self._min_s + self._num_s - 1) - 1) * DISP_SCALE
-        return cv2.resize(scaled, (w, h), interpolation=cv2.INTER_NEAREST)
+        enlarged: np.ndarray = cv2.resize(scaled, (w, h), interpolation=cv2.INTER_NEAREST)
+        return enlarged
 
     def process(self, left_bgr: np.ndarray, right_bgr: np.ndarray, right_colour: bool = True,
                 wls: bool = True, previous_scale: ColorScale | None = None) -> PipelineResult:
@@ -544,14 +572,16 @@ class StereoPipeline:
         lap("convert")
         wls_px = confidence = None
         if run_wls:
+            wls_filter = self._wls
+            assert wls_filter is not None  # (run_wls: the preset has one)
             # the filter takes the unclosed left disparity (as the seed preset must, to be the
             # reference loop's); a low-resolution map is enlarged by the filter itself (values
             # scaled) against the full-resolution guide
             guide = gl if p.wls_full_resolution else ml
             if p.full_frame:
-                f16 = self._wls.filter(d16, guide, None, d16_right, (0, 0, mw, ml.shape[0]))
+                f16 = wls_filter.filter(d16, guide, None, d16_right, (0, 0, mw, ml.shape[0]))
             else:
-                f16 = self._wls.filter(d16, guide, None, d16_right)
+                f16 = wls_filter.filter(d16, guide, None, d16_right)
             if guide is gl:
                 wls_px = fixed_to_px(f16, self._min_s * factor)
             else:  # filtered at the matched resolution (4x fewer pixels), then enlarged
@@ -559,7 +589,7 @@ class StereoPipeline:
                                     interpolation=cv2.INTER_LINEAR)
             # outside the filter's region of interest (without full_frame: the band at the left
             # edge that the matcher cannot see, in matched-image px) the output is not a measurement
-            x, y, rw, rh = self._wls.getROI()
+            x, y, rw, rh = wls_filter.getROI()
             x0, x1 = int(x * factor), int((x + rw) * factor)
             y0, y1 = int(y * factor), int((y + rh) * factor)
             wls_px[:y0] = np.nan
@@ -570,9 +600,10 @@ class StereoPipeline:
                 # (WLS may exceed its input's range: with a small lambda its few confident
                 # neighbours can leave values up to int16's limit)
                 top = int(f16.max()) * (1.0 if guide is gl else factor) / DISP_SCALE
+                assert band is not None  # (set above for full_frame)
                 band = max(band, unseen_columns(top, edge, w))
                 blank(wls_px, unseen_mask(wls_px, edge, band), band)
-            confidence = self._wls.getConfidenceMap()
+            confidence = wls_filter.getConfidenceMap()
             if confidence.shape != wls_px.shape:
                 confidence = cv2.resize(confidence, (w, h), interpolation=cv2.INTER_NEAREST)
             lap("wls")
@@ -583,8 +614,10 @@ class StereoPipeline:
             final = closed
         elif p.wls_confident_only:
             final = wls_px.copy()
+            assert confidence is not None  # (given with wls_px)
             # (the confidence is never NaN: a map of 255 * min(...) >= 0)
-            blank(final, cv2.compare(confidence, 0.0, cv2.CMP_LE))
+            # (OpenCV's stubs refuse the number that cv2.compare takes as an operand)
+            blank(final, cv2.compare(confidence, 0.0, cv2.CMP_LE))  # type: ignore[call-overload]
         else:
             final = wls_px
         if p.full_frame:

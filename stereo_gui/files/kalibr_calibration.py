@@ -284,11 +284,10 @@ def _stereo(left: _Camera, right: _Camera, T_c1_c0: np.ndarray, where: str,
     E = _cross(T) @ R
     F = np.linalg.inv(right.M).T @ E @ np.linalg.inv(left.M)
     F = F / F[2, 2] if abs(F[2, 2]) > 1e-12 else F
-    values = {"M1": left.M, "D1": left.D, "M2": right.M, "D2": right.D, "R": R, "T": T, "E": E,
-              "F": F, "R1": R1, "R2": R2, "P1": P1, "P2": P2, "Q": Q}
     with from_file(where):
-        return StereoCalibration(image_size=left.size, **values, method="bouguet", alpha=0.0,
-                                 model=left.model, origin=origin)
+        return StereoCalibration(image_size=left.size, M1=left.M, D1=left.D, M2=right.M,
+                                 D2=right.D, R=R, T=T, E=E, F=F, R1=R1, R2=R2, P1=P1, P2=P2, Q=Q,
+                                 method="bouguet", alpha=0.0, model=left.model, origin=origin)
 
 
 def read_kalibr_camchain(path: str | Path) -> RoboticsCalibration:
