@@ -2,6 +2,7 @@
 mode, refinement, fits."""
 
 import math
+from types import SimpleNamespace
 
 import cv2
 import numpy as np
@@ -18,6 +19,7 @@ from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import StereoPipeline
 from stereo_gui.core.measure import (
     Reason,
+    departs_on_plain_window,
     measure_map,
     measure_point,
     triangulate,
@@ -28,6 +30,7 @@ from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.core.uncertainty import Z95
 from stereo_gui.files.presets import load_preset
 from stereo_gui.sources.sim import Scene, SimRig
+from stereo_gui.sources.sim.conditions import CONDITIONS
 
 DISTANCES_MM = (500.0, 1000.0, 1500.0, 2000.0, 3000.0)
 POINTS = ((320, 240), (200, 150), (450, 330), (560, 420))  # spread over the rectified image
@@ -558,8 +561,6 @@ def test_a_wrong_far_reading_at_the_left_edge_is_refused():
     """On the webcams' wall at 3 m a wrong match 8 px from the left edge read 21 m; now it says
     the right camera cannot see the point."""
     from stereo_gui.commands.accuracy import BENCH_SEED, evaluate_wall
-    from stereo_gui.sources.sim.conditions import CONDITIONS
-
     condition = CONDITIONS["webcams"]
     rig = SimRig(condition.rig_config(SimRig(seed=BENCH_SEED).config), seed=BENCH_SEED)
     report = evaluate_wall(rig, rig.true_calibration(), "live", 3000.0, BENCH_SEED,
@@ -631,8 +632,6 @@ def test_a_chance_peak_of_a_small_window_is_not_called_too_near(wall):
     lies well inside it. Where the map shows one surface, a larger window settles it: no grid
     point is called too near (before, 2-4 per wall were)."""
     from stereo_gui.commands.accuracy import evaluate_wall
-    from stereo_gui.sources.sim.conditions import CONDITIONS
-
     condition = CONDITIONS["webcams"]
     rig = SimRig(condition.rig_config(SimRig(seed=11).config), seed=11)
     calib = rig.true_calibration()
@@ -665,8 +664,6 @@ def test_on_the_webcams_wall_far_off_the_window_grows_until_it_is_sure():
     where a smaller window settled, and a wider window that settles elsewhere refuses the reading:
     every reading within 2 %, at 90 % of the points or more, the +- covering 95 %."""
     from stereo_gui.commands.accuracy import evaluate_wall
-    from stereo_gui.sources.sim.conditions import CONDITIONS
-
     condition = CONDITIONS["webcams"]
     rig = SimRig(condition.rig_config(SimRig(seed=5).config), seed=5)
     calib = rig.true_calibration()
@@ -741,3 +738,56 @@ def test_a_reading_of_a_nearer_edge_says_so(monkeypatch, rig, walls):
     monkeypatch.setattr(measure, "reads_nearer_edge", lambda *a: True)
     m = measure_point(result, 320, 240)
     assert not m.valid and m.reason == Reason.NEARER_EDGE
+
+
+def _webcams_wall(seed: int, wall_mm: float):
+    """The rig's webcams wall as `bench --accuracy --condition webcams` renders it, processed by
+    the quality preset with the true calibration."""
+    condition = CONDITIONS["webcams"]
+    rig = SimRig(condition.rig_config(SimRig(seed=seed).config), seed=seed)
+    calib = rig.true_calibration()
+    scene = Scene.wall(wall_mm, seed=seed + int(wall_mm), contrast=condition.contrast)
+    left, right = rig.render_scene(scene, np.random.default_rng(seed * 7 + int(wall_mm)))
+    with StereoPipeline(calib, load_preset("quality")) as pipe:
+        return calib, pipe.process(left, right)
+
+
+def test_a_plain_dark_corner_does_not_read_a_match_its_surroundings_contradict():
+    """Seed 105's 3 m webcams wall: in the top right corner (dark, MJPG, no texture beyond the
+    noise) a streak of the map and the images' blocks agree on 59 px where the wall is at 28 px:
+    it read 1.39 m +- 32 mm. The surface around says otherwise, and the reading is refused."""
+    calib, result = _webcams_wall(105, 3000.0)
+    m = measure_point(result, 631, 8)
+    assert not m.valid and m.reason == Reason.AMBIGUOUS
+    assert m.disparity_px > 50.0  # (the wrong match it did not read out)
+
+
+def test_a_plain_corner_reading_on_its_surface_is_kept():
+    """Seed 101's 0.5 m webcams wall, bottom right corner: as plain, read right (within 0.1 %),
+    and 2 px from the plane the matches around it extrapolate to in the corner: kept."""
+    calib, result = _webcams_wall(101, 500.0)
+    m = measure_point(result, 631, 471)
+    assert m.valid
+    assert abs(m.Z_mm - 500.0) / 500.0 < 0.01
+
+
+def test_departs_on_plain_window_needs_a_plain_window_and_a_surface_far_off(monkeypatch):
+    """The rule's three conditions: a window without texture, a surface around, and a reading
+    more than a tenth of that surface's disparity (and two matched pixels) from it."""
+    import stereo_gui.core.measure as measure
+
+    rng = np.random.default_rng(5)
+    plain = (120 + rng.normal(0, 1.0, (60, 60))).clip(0, 255).astype(np.uint8)
+    textured = (120 + rng.normal(0, 20.0, (60, 60))).clip(0, 255).astype(np.uint8)
+    result = SimpleNamespace(match_scale=1.0)
+    monkeypatch.setattr(measure, "surrounding_estimate", lambda r, x, y: 28.0)
+    assert departs_on_plain_window(result, plain, 30, 30, 59.0)  # twice as near: refused
+    assert departs_on_plain_window(result, plain, 30, 30, 20.0)  # farther, as far off
+    assert not departs_on_plain_window(result, plain, 30, 30, 30.5)  # within a tenth
+    assert not departs_on_plain_window(result, textured, 30, 30, 59.0)  # texture decides
+    half = SimpleNamespace(match_scale=0.5)  # two matched pixels are 4 px here
+    monkeypatch.setattr(measure, "surrounding_estimate", lambda r, x, y: 10.0)
+    assert not departs_on_plain_window(half, plain, 30, 30, 13.5)
+    assert departs_on_plain_window(half, plain, 30, 30, 14.5)
+    monkeypatch.setattr(measure, "surrounding_estimate", lambda r, x, y: None)
+    assert not departs_on_plain_window(result, plain, 30, 30, 59.0)  # nothing around to say
