@@ -138,7 +138,7 @@ class LiveProcessor:
         self._stream: FramePublisher | None = None  # every frame is published on it
         self._stream_said: set[str] = set()  # why publishing failed, said once each
         # the colour scale of the newest frame processed: a "view" colour range follows the
-        # scene from it (core.matching.color_scale), so its colours do not flicker
+        # scene from it (core.colouring.color_scale), so its colours do not flicker
         self._color_scale: ColorScale | None = None
         self.health = HealthMonitor()  # every two seconds, in a thread of its own
 

@@ -80,7 +80,7 @@ REGION_VIEW = "depth"  # the view that carries the region box
 
 def legend_text(caption: str = "") -> str:
     """The line under the views: the colours of pixels without depth, and what the depth
-    colours are (`caption`: core.matching.color_scale_caption of the frame shown)."""
+    colours are (`caption`: core.colouring.color_scale_caption of the frame shown)."""
     return f"{LEGEND} &nbsp;·&nbsp; {caption}" if caption else LEGEND
 
 

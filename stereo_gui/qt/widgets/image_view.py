@@ -260,7 +260,7 @@ def colormap_lut(colormap_id: int) -> np.ndarray:
 def distance_ticks(scale: ColorScale, max_ticks: int = 7) -> list[tuple[float, str]]:
     """Tick positions (0..255 colour level) labelled with distance for a colour bar.
 
-    The levels come from `scale` (core.matching.ColorScale), the same mapping that made the
+    The levels come from `scale` (core.colouring.ColorScale), the same mapping that made the
     colour view. Labels are round distances in m (below 1 m too: one unit rule everywhere).
     """
     fb = scale.fb_mm_px
@@ -341,7 +341,7 @@ class DistanceColorBar(pg.PlotItem):  # type: ignore[misc]  # pyqtgraph ships no
     @property
     def caption(self) -> str:
         """What the bar's scale is, in words, e.g. "colours follow the view: 6–50 m"
-        (core.matching.color_scale_caption); empty before the first range."""
+        (core.colouring.color_scale_caption); empty before the first range."""
         return self._caption
 
     @property

@@ -1,6 +1,6 @@
 """The matcher parameter panel: SGBM, closing and WLS settings, presets, save-as-preset.
 
-Each parameter's editor is made from its declaration (`core.matching.PRESET_PARAMS`: type, the
+Each parameter's editor is made from its declaration (`core.preset.PRESET_PARAMS`: type, the
 range the panel offers, unit, label and help), so ranges and labels live in one place. Labels
 carry the reference loop's own names (window_size, min_disp, num_disp, lmbda, sigma, ...) so a
 reader of its code finds them. Every edit emits `paramsChanged(Preset)`; the Live tab hands it to
@@ -188,7 +188,7 @@ SGBM_KEYS = ("block_size", "min_disparity", "num_disparities", "z_min_mm", "z_ma
              "range_from_scene", "uniqueness_ratio", "speckle_window_size", "speckle_range", "disp12_max_diff",
              "pre_filter_cap", "p1", "p2", "mode", "parallel")
 CLOSING_KEYS = ("closing_kernel",)
-# the colour ranges the panel offers (core.matching.COLOR_RANGES), as it names them
+# the colour ranges the panel offers (core.preset.COLOR_RANGES), as it names them
 COLOR_RANGE_CHOICES = (("view", "follows the view"), ("fixed", "fixed (near to far)"),
                        ("minmax", "each frame's min-max"))
 WLS_KEYS = ("wls", "wls_lambda", "wls_sigma", "colormap", "color_z_near_mm", "color_z_far_mm")
