@@ -58,6 +58,24 @@ from stereo_gui.core.util import to_gray
 ShadingMaps = tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
 
 
+class _Laps:
+    """A frame's stage times: each call notes the time (ms) since the call before."""
+
+    def __init__(self) -> None:
+        self.ms: dict[str, float] = {}
+        self._start = self._t0 = time.perf_counter()
+
+    def __call__(self, name: str) -> None:
+        now = time.perf_counter()
+        self.ms[name] = (now - self._t0) * 1000.0
+        self._t0 = now
+
+    def with_total(self) -> dict[str, float]:
+        """The stages' times and the frame's total (ms)."""
+        self.ms["total"] = (time.perf_counter() - self._start) * 1000.0
+        return self.ms
+
+
 class _Fill(NamedTuple):
     """One size the hole fill tries: its scale against the matched images, its matchers' range
     (min, num) and largest disparity, and its first and second window's matchers."""
@@ -68,11 +86,6 @@ class _Fill(NamedTuple):
     largest: int
     first: cv2.StereoSGBM
     second: cv2.StereoSGBM
-# one size the hole filling tries (StereoPipeline._fills): its scale, minDisparity,
-# numDisparities, largest disparity, and the first and second window's matchers
-Fill = tuple[float, int, int, int, cv2.StereoSGBM, cv2.StereoSGBM]
-
-
 @dataclass(frozen=True, eq=False)
 class PipelineResult:
     """One processed frame. Images are full-resolution rectified (H x W); disparities float32 px.
@@ -197,63 +210,17 @@ class StereoPipeline:
         self._min_s, self._num_s = p.matcher_range(self.calibration, s,
                                                    self._scene_top_px if fitted else None)
         self._range_full = (self._min_s / s, (self._min_s + self._num_s - 1) / s)
-        def sgbm(lo: int = self._min_s, num: int = self._num_s, block: int = p.block_size,
-                 q: MatcherParams = p) -> cv2.StereoSGBM:
-            area = (block / q.block_size) ** 2  # the penalties grow with the window's area
-            return cv2.StereoSGBM.create(
-                minDisparity=lo, numDisparities=num, blockSize=block,
-                P1=round(q.p1_value * area), P2=round(q.p2_value * area),
-                disp12MaxDiff=q.disp12_max_diff,
-                preFilterCap=q.pre_filter_cap, uniquenessRatio=q.uniqueness_ratio,
-                speckleWindowSize=q.speckle_window_size, speckleRange=q.speckle_range,
-                mode=MODES[q.mode])
-
-        self._left: cv2.StereoSGBM = sgbm()
-        self._second: cv2.StereoSGBM | None = (sgbm(block=p.check_block_size)
-                                               if p.check_block_size else None)
-        self._right: cv2.StereoMatcher | None
-        self._check: tuple[float, int, int] | None = None  # (scale, min, num) of a smaller check
-        if p.wls and p.check_scale < 1.0:
-            cs = p.check_scale
-            lo = int(math.floor(self._min_s * cs))
-            top = (self._min_s + self._num_s - 1) * cs
-            num = max(16, int(math.ceil((top - lo + 1) / 16.0)) * 16)
-            self._check = (cs, lo, num)
-            # its window shrinks with the images (at least 3 px, odd), so that it covers about
-            # as much of the scene and reaches nearer the right edge: points near the edge keep
-            # their reading
-            block = max(3, math.ceil(p.block_size * cs) | 1)
-            self._right = cv2.ximgproc.createRightMatcher(sgbm(lo, num, block))
-        else:
-            self._right = cv2.ximgproc.createRightMatcher(self._left) if p.wls else None
+        self._left: cv2.StereoSGBM = self._sgbm(self._min_s, self._num_s, p.block_size, p)
+        self._second: cv2.StereoSGBM | None = (
+            self._sgbm(self._min_s, self._num_s, p.check_block_size, p)
+            if p.check_block_size else None)
+        # (scale, min, num) of a smaller check, and the right matcher
+        self._check, self._right = self._right_matcher()
         # how far right of an empty pixel the occlusion test looks for a nearer surface: the
         # larger window's half
         self._reach = max(p.block_size, p.check_block_size) // 2 + 1
-        # (scale, min, num, largest disparity, first and second window's matchers) of each size
-        # the fill tries, finest first
-        self._fills: list[_Fill] = []
-        if self._second is not None and p.fill_scale > 0:
-            for level, mode in enumerate(fill_mode_names(p.fill_modes), start=1):
-                fill_p = dataclasses.replace(p, mode=mode)
-                fs = p.fill_scale ** level
-                lo = int(math.floor(self._min_s * fs))
-                # (searched no nearer than the matched images are: the largest disparity of
-                # theirs, at this size, rounded down)
-                top = math.floor((self._min_s + self._num_s - 1) * fs)
-                num = max(16, int(math.ceil((top - lo + 1) / 16.0)) * 16)
-                self._fills.append(_Fill(fs, lo, num, top, sgbm(lo, num, p.block_size, fill_p),
-                                         sgbm(lo, num, p.check_block_size, fill_p)))
-        self._wls: cv2.ximgproc.DisparityWLSFilter | None = None
-        if p.wls:
-            # createDisparityWLSFilter switches off the uniqueness, speckle and left-right checks
-            # of the matcher it is given: unless the preset asks for that (the seed preset
-            # reproduces the reference loop's map, made so), it gets a copy of the matcher to
-            # configure itself from
-            wls = cv2.ximgproc.createDisparityWLSFilter(
-                self._left if p.wls_disables_checks else sgbm())
-            wls.setLambda(float(p.wls_lambda))
-            wls.setSigmaColor(float(p.wls_sigma))
-            self._wls = wls
+        self._fills = self._fill_matchers()
+        self._wls = self._wls_filter()
         self._kernel = (np.ones((p.closing_kernel, p.closing_kernel), np.uint8)
                         if p.closing_kernel > 1 else None)
         self._shading_full = self._shading_maps()
@@ -268,6 +235,71 @@ class StereoPipeline:
                         cv2.resize(offset, size_s, interpolation=cv2.INTER_AREA))
 
             self._shading_gains = (shrunk(self._shading_full[0]), shrunk(self._shading_full[1]))
+
+    def _sgbm(self, lo: int, num: int, block: int, q: MatcherParams) -> cv2.StereoSGBM:
+        """An SGBM matcher of disparities lo..lo+num-1 with a `block` px window, configured by
+        `q` (its penalties grown with the window's area against q's own block size)."""
+        area = (block / q.block_size) ** 2
+        return cv2.StereoSGBM.create(
+            minDisparity=lo, numDisparities=num, blockSize=block,
+            P1=round(q.p1_value * area), P2=round(q.p2_value * area),
+            disp12MaxDiff=q.disp12_max_diff,
+            preFilterCap=q.pre_filter_cap, uniquenessRatio=q.uniqueness_ratio,
+            speckleWindowSize=q.speckle_window_size, speckleRange=q.speckle_range,
+            mode=MODES[q.mode])
+
+    def _right_matcher(self) -> tuple[tuple[float, int, int] | None, cv2.StereoMatcher | None]:
+        """The right matcher WLS needs (None without WLS), and with a `check_scale` below 1 the
+        (scale, min, num) of the smaller images it matches."""
+        p = self._params
+        if not p.wls:
+            return None, None
+        if p.check_scale >= 1.0:
+            return None, cv2.ximgproc.createRightMatcher(self._left)
+        cs = p.check_scale
+        lo = int(math.floor(self._min_s * cs))
+        top = (self._min_s + self._num_s - 1) * cs
+        num = max(16, int(math.ceil((top - lo + 1) / 16.0)) * 16)
+        # its window shrinks with the images (at least 3 px, odd), so that it covers about as
+        # much of the scene and reaches nearer the right edge: points near the edge keep their
+        # reading
+        block = max(3, math.ceil(p.block_size * cs) | 1)
+        return (cs, lo, num), cv2.ximgproc.createRightMatcher(self._sgbm(lo, num, block, p))
+
+    def _fill_matchers(self) -> list[_Fill]:
+        """Each size the hole fill tries, finest first (none without a second window or a
+        `fill_scale`)."""
+        p = self._params
+        fills: list[_Fill] = []
+        if self._second is None or p.fill_scale <= 0:
+            return fills
+        for level, mode in enumerate(fill_mode_names(p.fill_modes), start=1):
+            fill_p = dataclasses.replace(p, mode=mode)
+            fs = p.fill_scale ** level
+            lo = int(math.floor(self._min_s * fs))
+            # (searched no nearer than the matched images are: the largest disparity of theirs,
+            # at this size, rounded down)
+            top = math.floor((self._min_s + self._num_s - 1) * fs)
+            num = max(16, int(math.ceil((top - lo + 1) / 16.0)) * 16)
+            fills.append(_Fill(fs, lo, num, top, self._sgbm(lo, num, p.block_size, fill_p),
+                               self._sgbm(lo, num, p.check_block_size, fill_p)))
+        return fills
+
+    def _wls_filter(self) -> cv2.ximgproc.DisparityWLSFilter | None:
+        """The preset's WLS filter (None without one)."""
+        p = self._params
+        if not p.wls:
+            return None
+        # createDisparityWLSFilter switches off the uniqueness, speckle and left-right checks of
+        # the matcher it is given: unless the preset asks for that (the seed preset reproduces
+        # the reference loop's map, made so), it gets a copy of the matcher to configure itself
+        # from
+        wls = cv2.ximgproc.createDisparityWLSFilter(
+            self._left if p.wls_disables_checks
+            else self._sgbm(self._min_s, self._num_s, p.block_size, p))
+        wls.setLambda(float(p.wls_lambda))
+        wls.setSigmaColor(float(p.wls_sigma))
+        return wls
 
     def _shading_maps(self) -> ShadingMaps | None:
         """(gain, offset) per camera that undo its lens shading (core.shading) in the full-size
@@ -369,7 +401,7 @@ class StereoPipeline:
             d16_right = match_right(self._right, mr, ml, pad, "right")
         return d16, d16_second, d16_right
 
-    def _fill_holes(self, fill: Fill, agreed: np.ndarray, nl: np.ndarray, nr: np.ndarray,
+    def _fill_holes(self, fill: _Fill, agreed: np.ndarray, nl: np.ndarray, nr: np.ndarray,
                     ml: np.ndarray) -> float:
         """Fill `agreed` (the matched images' size and px, NaN holes; in place) where it has no
         value within `fill_depth_px`: with the agreement of the same two windows (`fill`, one of
@@ -382,7 +414,7 @@ class StereoPipeline:
         Only the inside of a hole is filled: at its rim a hole is mostly a depth edge, where a
         larger window takes the nearer surface's disparity past the edge, and the small windows
         already read what they can there."""
-        fs, lo, num, largest, first, second = fill
+        fs = fill.scale
         p = self._params
         h, w = agreed.shape
         holes = cv2.compare(agreed, agreed, cv2.CMP_NE)  # 255 where NaN
@@ -397,6 +429,41 @@ class StereoPipeline:
         row_top = mapped.max(axis=1)  # each row's largest disparity of the map
         if not (inside & (cols >= (row_top + margin)[:, None])).any():
             return 0.0
+        coarse = self._fill_agreement(fill, nl, nr, ml)
+        small = coarse * np.float32(1.0 / fs)  # the map's px, at the fill's size
+        coarse = enlarge(coarse, (w, h), p.agree_px * fs) * np.float32(1.0 / fs)
+        take = inside & ~np.isnan(coarse)
+        # nothing in the columns of a row that the right camera may not see: left of the row's
+        # largest disparity (either map's) and the windows' margin. Weak texture in the strip
+        # at the left edge matches far surfaces at random, and a row of a weak wall rarely has
+        # values enough right of the strip to show that a nearer surface hides them
+        top = np.maximum(np.where(take, coarse, -np.inf).max(axis=1), row_top)
+        take &= cols >= (top + margin)[:, None]
+        # nor a value farther than the map on both sides of the hole, along its row or its
+        # column: a smooth object in front of a wall (a pole, a bar) is such a hole, and the
+        # larger windows carry the wall's disparity in from around it
+        take[take] = ~self._sunk_in_hole(take, small, mapped, fs)
+        if not take.any():
+            return 0.0
+        agreed[take] = coarse[take]
+        # a value filled in where the right camera sees a nearer surface of the map instead (in
+        # the strip at the left edge that it cannot see, weak texture matches at random)
+        hidden = np.zeros_like(take)
+        rows = np.flatnonzero(take.any(axis=1))  # (the test is along rows: those filled in)
+        hidden[rows] = take[rows] & occluded(agreed[rows], p.agree_px, self._reach)
+        agreed[hidden] = np.nan
+        take &= ~hidden
+        return float(coarse[take].max()) / self._scale if take.any() else 0.0
+
+    def _fill_agreement(self, fill: _Fill, nl: np.ndarray, nr: np.ndarray, ml: np.ndarray
+                        ) -> np.ndarray:
+        """The two windows' agreement (px of the fill's images) on the matched images made
+        smaller by the fill's scale, under the frame's checks: the range's ends, occlusion,
+        blank surfaces, matches whose window reached into the padding."""
+        fs, lo, num, largest, first, second = fill
+        p = self._params
+        h, w = nl.shape[:2]
+        total = self._scale * fs  # the fill's images against the full-resolution ones
         size = (max(1, round(w * fs)), max(1, round(h * fs)))
         sl, sr = (cv2.resize(m, size, interpolation=cv2.INTER_AREA) for m in (nl, nr))
         sm = sl if ml is nl else cv2.resize(ml, size, interpolation=cv2.INTER_AREA)
@@ -410,42 +477,27 @@ class StereoPipeline:
                                  max(1, round(BLANK_LAG_PX * total))))
         if p.full_frame:  # matches whose window reached into the padding
             blank(coarse, unseen_mask(coarse, p.check_block_size // 2 + 1))
-        small = coarse * np.float32(1.0 / fs)  # the map's px, at the fill's size
-        coarse = enlarge(coarse, (w, h), tol) * np.float32(1.0 / fs)
-        take = inside & ~np.isnan(coarse)
-        # nothing in the columns of a row that the right camera may not see: left of the row's
-        # largest disparity (either map's) and the windows' margin. Weak texture in the strip
-        # at the left edge matches far surfaces at random, and a row of a weak wall rarely has
-        # values enough right of the strip to show that a nearer surface hides them
-        top = np.maximum(np.where(take, coarse, -np.inf).max(axis=1), row_top)
-        take &= cols >= (top + margin)[:, None]
-        # nor a value farther than the map on both sides of the hole, along its row or its
-        # column: a smooth object in front of a wall (a pole, a bar) is such a hole, and the
-        # larger windows carry the wall's disparity in from around it
-        # (tested at the fill's size, fewer pixels: the map there holds the nearest value of
-        # each pixel's block, so that no edge of an object is lost)
+        return coarse
+
+    def _sunk_in_hole(self, take: np.ndarray, small: np.ndarray, mapped: np.ndarray, fs: float
+                      ) -> np.ndarray:
+        """For each pixel of `take` (the matched size), whether the fill's value it takes
+        (`small`, px at the fill's size) lies farther than the map (`mapped`, -inf in holes) on
+        both sides of its hole. Tested at the fill's size, fewer pixels: the map there holds the
+        nearest value of each pixel's block, so that no edge of an object is lost; and only at
+        the fill-size pixels that a pixel still to be filled takes its value from, as `enlarge`
+        picks them."""
+        h, w = take.shape
         nearest = cv2.dilate(mapped, np.ones((math.ceil(1 / fs),) * 2, np.uint8), anchor=(0, 0))
         nearest = cv2.resize(nearest, small.shape[::-1], interpolation=cv2.INTER_NEAREST)
         nearest[np.isneginf(nearest)] = np.nan
-        # (only the fill-size pixels that a pixel still to be filled takes its value from, as
-        # `enlarge` picks them, are tested)
         ys, xs = np.nonzero(take)
         ys = _nearest_source(h, small.shape[0])[ys]
         xs = _nearest_source(w, small.shape[1])[xs]
         asked = np.full_like(small, np.nan)
         asked[ys, xs] = small[ys, xs]
-        take[take] = ~_sunk(asked, nearest, p.agree_px)[ys, xs]
-        if not take.any():
-            return 0.0
-        agreed[take] = coarse[take]
-        # a value filled in where the right camera sees a nearer surface of the map instead (in
-        # the strip at the left edge that it cannot see, weak texture matches at random)
-        hidden = np.zeros_like(take)
-        rows = np.flatnonzero(take.any(axis=1))  # (the test is along rows: those filled in)
-        hidden[rows] = take[rows] & occluded(agreed[rows], p.agree_px, self._reach)
-        agreed[hidden] = np.nan
-        take &= ~hidden
-        return float(coarse[take].max()) / self._scale if take.any() else 0.0
+        sunk: np.ndarray = _sunk(asked, nearest, self._params.agree_px)[ys, xs]
+        return sunk
 
     def _match_right(self, matcher: cv2.StereoMatcher, mr: np.ndarray, ml: np.ndarray, pad: int,
                      side: str) -> np.ndarray:
@@ -477,166 +529,214 @@ class StereoPipeline:
         if self._closed:
             raise RuntimeError("the stereo pipeline is closed")
         self._apply_pending()
+        laps = _Laps()
+        rl, rr, gl, gr, ml, mr = self._prepare(left_bgr, right_bgr, right_colour, laps)
         p = self._params
-        t = {}
-        t0 = time.perf_counter()
+        h, w = gl.shape[:2]
+        run_wls = self._wls is not None and (wls or self._second is None)
+        if p.normalize_window:
+            nl, nr = (local_contrast(m, p.normalize_window) for m in (ml, mr))
+            laps("normalize")
+        else:
+            nl, nr = ml, mr
+        d16, d16_second, d16_right = self._match(nl, nr, right=run_wls)
+        laps("match")
+        raw, closed = self._raw_and_closed(d16, (w, h), laps)
+        agreed, fill_top = (self._agreed(d16, d16_second, nl, nr, ml, (w, h), laps)
+                            if d16_second is not None else (None, 0.0))
+        band = into_padding = None
+        if p.full_frame:
+            top16 = int(d16.max()) if d16_second is None else max(int(d16.max()),
+                                                                   int(d16_second.max()))
+            band, into_padding = self._blank_padding(top16, fill_top, raw, closed, agreed, w)
+        laps("convert")
+        wls_px = confidence = None
+        if run_wls:
+            wls_px, confidence, band = self._filtered(d16, d16_right, gl, ml, (w, h), band)
+            laps("wls")
+        final = self._final_map(agreed, closed, wls_px, confidence)
+        not_seen = None
+        if p.full_frame:
+            assert band is not None and into_padding is not None  # (both set for full_frame)
+            not_seen = self._blank_not_seen(band, into_padding, raw, closed, wls_px, final)
+        display = self._preset.display
+        colours = color_scale(final, display, self.calibration, previous_scale)
+        color = colorize(final, colours, display.colormap, not_seen, band)
+        laps("colormap")
+        return PipelineResult(
+            rectified_left=rl, rectified_right=rr, disparity_px=raw, closed_px=closed,
+            wls_px=wls_px, final_px=final, color_bgr=color, valid=np.isfinite(final),
+            timings_ms=laps.with_total(), size=(w, h), preset=self._preset,
+            disparity_range_px=self._range_full, calibration=self.calibration,
+            color_scale=colours, wls_confidence=confidence, not_seen=not_seen,
+            not_seen_cols=band, match_scale=self._scale, shading_gains=self._shading_full)
 
-        def lap(name: str) -> None:
-            nonlocal t0
-            now = time.perf_counter()
-            t[name] = (now - t0) * 1000.0
-            t0 = now
-
-        start = t0
+    def _prepare(self, left_bgr: np.ndarray, right_bgr: np.ndarray, right_colour: bool,
+                 laps: _Laps) -> tuple[np.ndarray, ...]:
+        """The rectified pair (colour; the right one grey without `right_colour`), its grey
+        images (bilateral-filtered if the preset asks) and the grey images the matchers take
+        (resized to the matched size, lens shading undone); the range fitted to the scene."""
+        p = self._params
         rl, rr = self.rectify(left_bgr, right_bgr, right_colour)
         gl, gr = to_gray(rl), to_gray(rr)
-        lap("rectify")
+        laps("rectify")
         if p.bilateral:
             gl = cv2.bilateralFilter(gl, p.bilateral_d, p.bilateral_sigma_color, p.bilateral_sigma_space)
             gr = cv2.bilateralFilter(gr, p.bilateral_d, p.bilateral_sigma_color, p.bilateral_sigma_space)
-            lap("bilateral")
+            laps("bilateral")
         h, w = gl.shape[:2]
         scale = self._scale
         if scale < 1.0:
             size_s = (max(1, round(w * scale)), max(1, round(h * scale)))
             ml = cv2.resize(gl, size_s, interpolation=cv2.INTER_AREA)
             mr = cv2.resize(gr, size_s, interpolation=cv2.INTER_AREA)
-            lap("resize")
+            laps("resize")
         else:
             ml, mr = gl, gr
         if self._shading_gains is not None:
             ml = undo_shading(ml, *self._shading_gains[0])
             mr = undo_shading(mr, *self._shading_gains[1])
-            lap("shading")
+            laps("shading")
         if p.range_from_scene and p.z_min_mm is not None:
             self._fit_range(ml, mr)
             p = self._params
-            lap("look")
+            laps("look")
         mw = ml.shape[1]
         if not p.full_frame and mw - (self._min_s + self._num_s) <= p.block_size // 2:
             raise InputError(
                 f"the images ({w}x{h}, matched at {mw} px wide) are too narrow for disparities up to "
                 f"{self._range_full[1]:.0f} px; narrow the disparity range or the working distances")
-        run_wls = self._wls is not None and (wls or self._second is None)
-        if p.normalize_window:
-            nl, nr = (local_contrast(m, p.normalize_window) for m in (ml, mr))
-            lap("normalize")
-        else:
-            nl, nr = ml, mr
-        d16, d16_second, d16_right = self._match(nl, nr, right=run_wls)
-        lap("match")
+        return rl, rr, gl, gr, ml, mr
+
+    def _raw_and_closed(self, d16: np.ndarray, size: tuple[int, int], laps: _Laps
+                        ) -> tuple[np.ndarray, np.ndarray]:
+        """The left matcher's map and its closing, in px at full size (the same array when the
+        preset has no closing)."""
         closed16 = (cv2.morphologyEx(d16, cv2.MORPH_CLOSE, self._kernel)
                     if self._kernel is not None else d16)
-        lap("closing")
-        factor = 1.0 / scale
+        laps("closing")
+        factor = 1.0 / self._scale
         raw = fixed_to_px(d16, self._min_s, factor)
         closed = fixed_to_px(closed16, self._min_s, factor) if closed16 is not d16 else raw
-        if scale < 1.0:
-            raw = cv2.resize(raw, (w, h), interpolation=cv2.INTER_NEAREST)
-            closed = (cv2.resize(closed, (w, h), interpolation=cv2.INTER_NEAREST)
+        if self._scale < 1.0:
+            raw = cv2.resize(raw, size, interpolation=cv2.INTER_NEAREST)
+            closed = (cv2.resize(closed, size, interpolation=cv2.INTER_NEAREST)
                       if closed16 is not d16 else raw)
-        agreed = None
+        return raw, closed
+
+    def _agreed(self, d16: np.ndarray, d16_second: np.ndarray, nl: np.ndarray, nr: np.ndarray,
+                ml: np.ndarray, size: tuple[int, int], laps: _Laps) -> tuple[np.ndarray, float]:
+        """The two windows' agreement in px at full size, checked (occlusion, blank surfaces),
+        its holes filled at the fill's sizes; and the largest disparity filled in (full-size
+        px, 0 for none)."""
+        p, scale = self._params, self._scale
+        agreed = agreement(d16, d16_second, self._min_s, p.agree_px,
+                           (self._min_s + p.range_end_px,
+                            self._min_s + self._num_s - 1 - p.range_end_px))
+        blank(agreed, occluded(agreed, p.agree_px, self._reach))
+        # what matched on a blank surface matched noise, however well the windows agree
+        blank(agreed, blank_mask(ml, max(4, round(BLANK_HALF_PX * scale)),
+                                 max(1, round(BLANK_LAG_PX * scale))))
+        laps("agreement")
         fill_top = 0.0
-        if d16_second is not None:
-            agreed = agreement(d16, d16_second, self._min_s, p.agree_px,
-                               (self._min_s + p.range_end_px,
-                                self._min_s + self._num_s - 1 - p.range_end_px))
-            blank(agreed, occluded(agreed, p.agree_px, self._reach))
-            # what matched on a blank surface matched noise, however well the windows agree
-            blank(agreed, blank_mask(ml, max(4, round(BLANK_HALF_PX * scale)),
-                                     max(1, round(BLANK_LAG_PX * scale))))
-            lap("agreement")
-            if self._fills:
-                for fill in self._fills:  # each size fills what the ones before left
-                    fill_top = max(fill_top, self._fill_holes(fill, agreed, nl, nr, ml))
-                lap("fill")
-            if scale < 1.0:
-                agreed = enlarge(agreed, (w, h), p.agree_px) * np.float32(factor)
-                lap("enlarge")
+        if self._fills:
+            for fill in self._fills:  # each size fills what the ones before left
+                fill_top = max(fill_top, self._fill_holes(fill, agreed, nl, nr, ml))
+            laps("fill")
+        if scale < 1.0:
+            agreed = enlarge(agreed, size, p.agree_px) * np.float32(1.0 / scale)
+            laps("enlarge")
+        return agreed, fill_top
+
+    def _blank_padding(self, top16: int, fill_top: float, raw: np.ndarray, closed: np.ndarray,
+                       agreed: np.ndarray | None, w: int) -> tuple[int, np.ndarray]:
+        """Blank the maps' matches that reach into the padding (full_frame), in place; the
+        columns the right camera cannot see lie in the leftmost `band` (returned, with the
+        padding's mask), found from the largest disparity of the maps (`top16` of the matched
+        images, x16, and `fill_top`). At the matched resolution: the enlargements take or
+        average their values; a closing never exceeds its input's largest value, being an
+        erosion of a dilation. The masks are made and applied in the band only."""
         edge = self.edge_margin_px
-        # what the right camera cannot see lies in the leftmost `band` columns, found from the
-        # largest disparity of the maps (at the matched resolution: the enlargements take or
-        # average their values; a closing never exceeds its input's largest value, being an
-        # erosion of a dilation); the masks are made and applied there only
-        band = None
-        if p.full_frame:
-            top16 = int(d16.max()) if d16_second is None else max(int(d16.max()),
-                                                                   int(d16_second.max()))
-            band = unseen_columns(max(top16 * factor / DISP_SCALE, fill_top), edge, w)
-            into_padding = unseen_mask(raw, edge, band)
-            blank(raw, into_padding, band)
-            if closed is not raw:
-                blank(closed, unseen_mask(closed, edge, band), band)
-            if agreed is not None:
-                blank(agreed, unseen_mask(agreed, edge, band), band)
-        lap("convert")
-        wls_px = confidence = None
-        if run_wls:
-            wls_filter = self._wls
-            assert wls_filter is not None  # (run_wls: the preset has one)
-            # the filter takes the unclosed left disparity (as the seed preset must, to be the
-            # reference loop's); a low-resolution map is enlarged by the filter itself (values
-            # scaled) against the full-resolution guide
-            guide = gl if p.wls_full_resolution else ml
-            if p.full_frame:
-                f16 = wls_filter.filter(d16, guide, None, d16_right, (0, 0, mw, ml.shape[0]))
-            else:
-                f16 = wls_filter.filter(d16, guide, None, d16_right)
-            if guide is gl:
-                wls_px = fixed_to_px(f16, self._min_s * factor)
-            else:  # filtered at the matched resolution (4x fewer pixels), then enlarged
-                wls_px = cv2.resize(fixed_to_px(f16, self._min_s, factor), (w, h),
-                                    interpolation=cv2.INTER_LINEAR)
-            # outside the filter's region of interest (without full_frame: the band at the left
-            # edge that the matcher cannot see, in matched-image px) the output is not a measurement
-            x, y, rw, rh = wls_filter.getROI()
-            x0, x1 = int(x * factor), int((x + rw) * factor)
-            y0, y1 = int(y * factor), int((y + rh) * factor)
-            wls_px[:y0] = np.nan
-            wls_px[y1:] = np.nan
-            wls_px[:, :x0] = np.nan
-            wls_px[:, x1:] = np.nan
-            if p.full_frame:
-                # (WLS may exceed its input's range: with a small lambda its few confident
-                # neighbours can leave values up to int16's limit)
-                top = int(f16.max()) * (1.0 if guide is gl else factor) / DISP_SCALE
-                assert band is not None  # (set above for full_frame)
-                band = max(band, unseen_columns(top, edge, w))
-                blank(wls_px, unseen_mask(wls_px, edge, band), band)
-            confidence = wls_filter.getConfidenceMap()
-            if confidence.shape != wls_px.shape:
-                confidence = cv2.resize(confidence, (w, h), interpolation=cv2.INTER_NEAREST)
-            lap("wls")
-        not_seen = None
+        band = unseen_columns(max(top16 * (1.0 / self._scale) / DISP_SCALE, fill_top), edge, w)
+        into_padding = unseen_mask(raw, edge, band)
+        blank(raw, into_padding, band)
+        if closed is not raw:
+            blank(closed, unseen_mask(closed, edge, band), band)
         if agreed is not None:
-            final = agreed
-        elif wls_px is None:
-            final = closed
-        elif p.wls_confident_only:
-            final = wls_px.copy()
-            assert confidence is not None  # (given with wls_px)
-            # (the confidence is never NaN: a map of 255 * min(...) >= 0)
-            # (OpenCV's stubs refuse the number that cv2.compare takes as an operand)
-            blank(final, cv2.compare(confidence, 0.0, cv2.CMP_LE))  # type: ignore[call-overload]
-        else:
-            final = wls_px
+            blank(agreed, unseen_mask(agreed, edge, band), band)
+        return band, into_padding
+
+    def _filtered(self, d16: np.ndarray, d16_right: np.ndarray | None, gl: np.ndarray,
+                  ml: np.ndarray, size: tuple[int, int], band: int | None
+                  ) -> tuple[np.ndarray, np.ndarray, int | None]:
+        """The WLS filter's map in px at full size (NaN outside its region of interest and where
+        it reaches into the padding), its confidence at that size, and the not-seen band widened
+        to its values."""
+        p, factor = self._params, 1.0 / self._scale
+        wls_filter = self._wls
+        assert wls_filter is not None  # (run only where the preset has one)
+        w, h = size
+        # the filter takes the unclosed left disparity (as the seed preset must, to be the
+        # reference loop's); a low-resolution map is enlarged by the filter itself (values
+        # scaled) against the full-resolution guide
+        guide = gl if p.wls_full_resolution else ml
         if p.full_frame:
-            # the strip is known only once the final map has found where the surface at the edge
-            # is; whatever the matcher put there is a match the right camera cannot have made
-            not_seen = unseen_strip(final, edge, band)
-            np.logical_or(not_seen[:, :band], into_padding[:, :band], out=not_seen[:, :band])
-            for m in {id(a): a for a in (raw, closed, wls_px, final) if a is not None}.values():
-                blank(m, not_seen, band)
-        valid = np.isfinite(final)
-        display = self._preset.display
-        colours = color_scale(final, display, self.calibration, previous_scale)
-        color = colorize(final, colours, display.colormap, not_seen, band)
-        lap("colormap")
-        t["total"] = (time.perf_counter() - start) * 1000.0
-        return PipelineResult(
-            rectified_left=rl, rectified_right=rr, disparity_px=raw, closed_px=closed,
-            wls_px=wls_px, final_px=final, color_bgr=color, valid=valid, timings_ms=t,
-            size=(w, h), preset=self._preset, disparity_range_px=self._range_full,
-            calibration=self.calibration, color_scale=colours, wls_confidence=confidence,
-            not_seen=not_seen, not_seen_cols=band, match_scale=scale,
-            shading_gains=self._shading_full)
+            f16 = wls_filter.filter(d16, guide, None, d16_right, (0, 0, ml.shape[1], ml.shape[0]))
+        else:
+            f16 = wls_filter.filter(d16, guide, None, d16_right)
+        if guide is gl:
+            wls_px = fixed_to_px(f16, self._min_s * factor)
+        else:  # filtered at the matched resolution (4x fewer pixels), then enlarged
+            wls_px = cv2.resize(fixed_to_px(f16, self._min_s, factor), size,
+                                interpolation=cv2.INTER_LINEAR)
+        # outside the filter's region of interest (without full_frame: the band at the left
+        # edge that the matcher cannot see, in matched-image px) the output is not a measurement
+        x, y, rw, rh = wls_filter.getROI()
+        x0, x1 = int(x * factor), int((x + rw) * factor)
+        y0, y1 = int(y * factor), int((y + rh) * factor)
+        wls_px[:y0] = np.nan
+        wls_px[y1:] = np.nan
+        wls_px[:, :x0] = np.nan
+        wls_px[:, x1:] = np.nan
+        if p.full_frame:
+            # (WLS may exceed its input's range: with a small lambda its few confident
+            # neighbours can leave values up to int16's limit)
+            top = int(f16.max()) * (1.0 if guide is gl else factor) / DISP_SCALE
+            assert band is not None  # (set before for full_frame)
+            edge = self.edge_margin_px
+            band = max(band, unseen_columns(top, edge, w))
+            blank(wls_px, unseen_mask(wls_px, edge, band), band)
+        confidence = wls_filter.getConfidenceMap()
+        if confidence.shape != wls_px.shape:
+            confidence = cv2.resize(confidence, size, interpolation=cv2.INTER_NEAREST)
+        return wls_px, confidence, band
+
+    def _final_map(self, agreed: np.ndarray | None, closed: np.ndarray,
+                   wls_px: np.ndarray | None, confidence: np.ndarray | None) -> np.ndarray:
+        """The map the readings, views and exports take: the two windows' agreement, else the
+        WLS map (only where it is confident, if the preset asks), else the closed map."""
+        if agreed is not None:
+            return agreed
+        if wls_px is None:
+            return closed
+        if not self._params.wls_confident_only:
+            return wls_px
+        final = wls_px.copy()
+        assert confidence is not None  # (given with wls_px)
+        # (the confidence is never NaN: a map of 255 * min(...) >= 0)
+        # (OpenCV's stubs refuse the number that cv2.compare takes as an operand)
+        blank(final, cv2.compare(confidence, 0.0, cv2.CMP_LE))  # type: ignore[call-overload]
+        return final
+
+    def _blank_not_seen(self, band: int, into_padding: np.ndarray, raw: np.ndarray,
+                        closed: np.ndarray, wls_px: np.ndarray | None, final: np.ndarray
+                        ) -> np.ndarray:
+        """The mask of what the right camera cannot see (in the leftmost `band` columns),
+        blanked in every map, in place. The strip is known only once the final map has found
+        where the surface at the edge is; whatever the matcher put there is a match the right
+        camera cannot have made."""
+        not_seen = unseen_strip(final, self.edge_margin_px, band)
+        np.logical_or(not_seen[:, :band], into_padding[:, :band], out=not_seen[:, :band])
+        for m in {id(a): a for a in (raw, closed, wls_px, final) if a is not None}.values():
+            blank(m, not_seen, band)
+        return not_seen
