@@ -64,14 +64,8 @@ def write_workbook(path: str | os.PathLike[str], records: Iterable[MeasurementRe
                    fits: Sequence[FitResult] = (), calibration: StereoCalibration | None = None,
                    calibration_file: str | os.PathLike[str] | None = None, cancel: Cancel = None,
                    progress: ProgressCallback | None = None) -> Path:
-    """Write a new workbook (replacing `path` atomically) with the three sheets and the chart.
-
-    `fits` are `stereo_gui.core.regression.FitResult`s; `calibration_file` names the file the
-    calibration was loaded from (shown in the Calibration sheet). `cancel` (an Event or a
-    callable, see core.jobs.Cancel) stops the export between rows with Cancelled: nothing is
-    written, no temporary file is left, `path` stays as it was. `progress(done, total, text)`
-    is told the rows written.
-    """
+    """Write a new workbook (replacing `path` atomically) with the three sheets and the chart:
+    `files.workbook.write_workbook`, which says what each argument does."""
     from stereo_gui.files import workbook  # openpyxl: loaded on first use (see above)
 
     return workbook.write_workbook(path, records, fits, calibration, calibration_file, cancel,
