@@ -41,15 +41,16 @@ from stereo_gui.core.disparity import (
     fill_depth_px,
     fixed_to_px,
     local_contrast,
+    nearest_source,
     occluded,
+    sunk,
     unseen_columns,
     unseen_mask,
     unseen_strip,
 )
-from stereo_gui.core.disparity import nearest_source as _nearest_source  # (`_fill_holes`'s
-from stereo_gui.core.disparity import sunk as _sunk  # names for them)
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.preset import INTERPOLATIONS, MODES, MatcherParams, Preset, fill_mode_names
+from stereo_gui.core.scene_range import look_at_scene
 from stereo_gui.core.shading import undo_shading
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.core.util import to_gray
@@ -335,8 +336,6 @@ class StereoPipeline:
         """Search up to the nearest surface in view (`core.scene_range`), matched images `ml`,
         `mr`: a nearer surface widens the range at once, a range wider than needed narrows after
         SCENE_SHRINK_FRAMES frames in a row have asked for it (the first frame sets it)."""
-        from stereo_gui.core.scene_range import look_at_scene
-
         p, s = self._params, self._scale
         d_min, d_max = p.disparity_limits(self.calibration)
         look = look_at_scene(ml, mr, d_min * s, d_max * s)
@@ -492,12 +491,12 @@ class StereoPipeline:
         nearest = cv2.resize(nearest, small.shape[::-1], interpolation=cv2.INTER_NEAREST)
         nearest[np.isneginf(nearest)] = np.nan
         ys, xs = np.nonzero(take)
-        ys = _nearest_source(h, small.shape[0])[ys]
-        xs = _nearest_source(w, small.shape[1])[xs]
+        ys = nearest_source(h, small.shape[0])[ys]
+        xs = nearest_source(w, small.shape[1])[xs]
         asked = np.full_like(small, np.nan)
         asked[ys, xs] = small[ys, xs]
-        sunk: np.ndarray = _sunk(asked, nearest, self._params.agree_px)[ys, xs]
-        return sunk
+        farther: np.ndarray = sunk(asked, nearest, self._params.agree_px)[ys, xs]
+        return farther
 
     def _match_right(self, matcher: cv2.StereoMatcher, mr: np.ndarray, ml: np.ndarray, pad: int,
                      side: str) -> np.ndarray:
