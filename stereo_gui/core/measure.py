@@ -362,9 +362,10 @@ def measure_point(result: PipelineResult, x: float, y: float, patch: int = PATCH
 # matches around it show: a reading more than this share of that surface's disparity away (and
 # more than two matched pixels) matched what the images do not hold. The rig's webcams walls
 # (quality, 10 seeds kept aside): a 3 m wall read 1.39 m +- 32 mm in a dark MJPG corner, where
-# the window's blocks correlate at 0.61 at the wrong disparity and 0.25 at the right one; the
-# rule stops it and 3 more such readings (50-260 % off) on the rig's click scenes, and refuses
-# none of the right readings there, on the 13 public scenes or on the weak and quarter walls
+# the window's blocks correlate at 0.61 at the wrong disparity and 0.25 at the right one. The
+# rule stops it and 3 more such readings (54-320 % off in distance) on the rig's click scenes,
+# and refuses none of the right readings there, on the 13 public scenes or on the weak and
+# quarter walls. (It needs the filled view, as `surrounding_estimate` does.)
 PLAIN_DEPART_SHARE = 0.1
 
 
