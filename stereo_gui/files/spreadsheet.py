@@ -83,13 +83,8 @@ def append_measurements(path: str | os.PathLike[str], records: Iterable[Measurem
                         fits: Sequence[FitResult] | None = None,
                         calibration: StereoCalibration | None = None,
                         calibration_file: str | os.PathLike[str] | None = None) -> int:
-    """Append `records` to the workbook at `path`, keeping every earlier row; return the count.
-
-    The workbook is created if missing. `fits` / `calibration`, when given, replace the
-    Regression / Calibration sheets; otherwise those sheets stay as they are (a new workbook gets
-    samples from the records' true distances). A file that is not a workbook of ours raises
-    InputError and is not touched.
-    """
+    """Append `records` to the workbook at `path`, keeping every earlier row; return the count:
+    `files.workbook.append_measurements`, which says what each argument does."""
     from stereo_gui.files import workbook  # openpyxl: loaded on first use (see above)
 
     return workbook.append_measurements(path, records, fits, calibration, calibration_file)
