@@ -47,6 +47,7 @@ from stereo_gui.core.stereo_solve import (
     folding,
     held_ladder,
     moved_pairs,
+    no_distortion,
     outlier_pairs,
     rms_px,
     solve,
@@ -127,6 +128,8 @@ def _origin_held(model: str, held: Sequence[str]) -> str:
     k3 and the higher terms, else the terms."""
     if not held:
         return ""
+    if no_distortion(model, held):
+        return ", no distortion"
     return ", k3 fixed" if tuple(held) == HIGHER_TERMS[model] else f", {join_names(list(held))} fixed"
 
 
@@ -146,8 +149,8 @@ def calibrate_stereo(detections: Sequence[PairDetection], board: BoardSpec,
     pinhole, rational, fisheye); `fix_k3` holds k3 and the higher terms at zero. Pairs with an
     error above max(outlier_factor x median, outlier_floor_px) are dropped once and the solve
     is repeated. A lens model that folds over inside the image is fitted again at once with
-    fewer terms (`held_ladder`), said in a "refit" warning; CalibrationError names the remedy
-    when even the simplest folds. The result carries the parameters' uncertainty and warnings
+    fewer terms (`held_ladder`, down to no distortion at all), said in a "refit" warning with
+    its remedy. The result carries the parameters' uncertainty and warnings
     (core.uncertainty).
     `origin` names where the pairs came from (recorded in the calibration's origin).
     Raises CalibrationError when no target was found or too few pairs are usable.
@@ -301,8 +304,8 @@ def _unfolded(sol: Solve, usable: list[PairDetection], solve: _Solver,
               ) -> tuple[Solve, tuple[str, ...], list[CalibrationWarning]]:
     """`sol` (solved with `ladder[0]` held), or where a lens model folds over inside its image,
     the solve again with each simpler step of the ladder until none does: the solve, the terms
-    it held, and a "refit" warning per step taken. CalibrationError when even the simplest
-    folds."""
+    it held, and a "refit" warning per step taken. The ladder's last step, a lens without
+    distortion, cannot fold: the work of a calibration is never refused for its lens model."""
     model, image_size = solve.model, solve.image_size
     held = ladder[0]
     refits: list[CalibrationWarning] = []
@@ -313,22 +316,36 @@ def _unfolded(sol: Solve, usable: list[PairDetection], solve: _Solver,
         text = (f"The {fold.side} camera's lens model, with "
                 f"{_held_words(held) if held else 'every distortion term free'}, folded over "
                 f"inside its image ({fold.where()})")
-        log.info("%s: calibrating again with %s", text, _held_words(simpler))
+        words = "no lens distortion" if no_distortion(model, simpler) else _held_words(simpler)
+        log.info("%s: calibrating again with %s", text, words)
         report_progress(solve.progress, 5, solve.total, f"the {fold.side} lens model folds over: "
-                                                  f"calibrating again with {_held_words(simpler)}")
+                                                        f"calibrating again with {words}")
+        folded_rms = max(sol.rms_left, sol.rms_right)
         held = simpler
         sol = solve(usable, 5, held)
-        refits.append(CalibrationWarning(
+        refits.append(_refit_warning(text, model, held, folded_rms, sol))
+        fold = folding(sol, model, image_size)
+    return sol, held, refits
+
+
+def _refit_warning(text: str, model: str, held: tuple[str, ...], folded_rms: float,
+                   sol: Solve) -> CalibrationWarning:
+    """The "refit" warning of one step down the ladder: what folded, what was fitted instead,
+    and the remedy (pairs that hold the lens at the image's edges)."""
+    if not no_distortion(model, held):
+        return CalibrationWarning(
             "refit", f"{text}: the pairs do not hold the lens at the image's edges. It was "
                      f"calibrated again with {_held_words(held)}. To fit the full model, capture "
-                     "pairs with the board in the image's corners.", "capture"))
-        fold = folding(sol, model, image_size)
-    if fold is not None:
-        raise CalibrationError(
-            f"{fold.text()}, even with {_held_words(held)}: capture pairs with the board in the "
-            f"corners and along the edges of the {fold.side} camera's image, or choose another "
-            "lens model")
-    return sol, held, refits
+                     "pairs with the board in the image's corners.", "capture")
+    rms = max(sol.rms_left, sol.rms_right)
+    return CalibrationWarning(
+        "refit", f"{text}: even its simplest model folds, so the pairs do not hold the lens at "
+                 "the image's edges at all. It was calibrated again with no lens distortion: "
+                 f"that cannot fold, but it does not follow the lens either (reprojection error "
+                 f"{rms:.2f} px, the folded fit's {folded_rms:.2f} px), and distances away from "
+                 "the image's centre are less accurate. To model the lens, capture pairs with "
+                 "the board in the image's corners and along its edges, then calibrate again.",
+        "capture")
 
 
 def _rectified(sol: Solve, usable: list[PairDetection], board: BoardSpec,

@@ -27,6 +27,7 @@ from stereo_gui.core.lens import (
     HIGHER_TERMS,
     ROUND_TRIP_PX,
     check_model,
+    distortion_names,
     project_points,
     round_trip_px,
 )
@@ -76,16 +77,23 @@ class Solve:
 
 # OpenCV's flags that hold a distortion coefficient (OpenCV 5 gives cv2.fisheye the same values)
 _HOLD_FLAGS = {"k1": cv2.CALIB_FIX_K1, "k2": cv2.CALIB_FIX_K2, "k3": cv2.CALIB_FIX_K3,
-               "k4": cv2.CALIB_FIX_K4, "k5": cv2.CALIB_FIX_K5, "k6": cv2.CALIB_FIX_K6}
+               "k4": cv2.CALIB_FIX_K4, "k5": cv2.CALIB_FIX_K5, "k6": cv2.CALIB_FIX_K6,
+               "p1": cv2.CALIB_ZERO_TANGENT_DIST, "p2": cv2.CALIB_ZERO_TANGENT_DIST}
 
 
 def held_ladder(model: str, fix_k3: bool = False) -> list[tuple[str, ...]]:
     """The distortion terms held at zero, from the full model down to the simplest tried when
-    the lens model folds over inside the image: none, k3 and the higher terms, then k2 too
-    (starting at the second with `fix_k3`)."""
+    the lens model folds over inside the image: none, k3 and the higher terms, then k2 too,
+    then every term (`no_distortion`: a lens without distortion cannot fold); starting at the
+    second with `fix_k3`."""
     higher = HIGHER_TERMS[model]
-    ladder = [(), higher, ("k2", *higher)]
+    ladder = [(), higher, ("k2", *higher), distortion_names(model)]
     return ladder[1:] if fix_k3 else ladder
+
+
+def no_distortion(model: str, held: Sequence[str]) -> bool:
+    """Whether `held` holds every distortion term of `model` (the pinhole of the lens alone)."""
+    return set(distortion_names(model)) <= set(held)
 
 
 def _mono_flags(model: str, held: Sequence[str]) -> int:
@@ -115,7 +123,7 @@ def _calibrate_mono(objs: list[np.ndarray], imgs: list[np.ndarray], image_size: 
     for the same lens, different from run to run), and the joint refinement takes it from
     there (core.bundle)."""
     if model == "rational":
-        pinhole = tuple(n for n in held if n in ("k1", "k2", "k3"))
+        pinhole = tuple(n for n in held if n in distortion_names("pinhole"))
         rms, M, D, rv, tv, _ = _calibrate_mono(objs, imgs, image_size, "pinhole", pinhole)
         return rms, M, np.concatenate([D.reshape(1, -1), np.zeros((1, 3))], axis=1), rv, tv, None
     flags = _mono_flags(model, held)
@@ -418,6 +426,8 @@ class Fold:
 def folding(sol: Solve, model: str, image_size: tuple[int, int]) -> Fold | None:
     """The first camera whose fitted lens model does not map its own image's pixels to rays
     and back (the pairs did not hold it at the image's edges), or None."""
+    if not (np.any(sol.D1) or np.any(sol.D2)):
+        return None  # no distortion: the pinhole maps every pixel to one ray and back
     for side, M, D in (("left", sol.M1, sol.D1), ("right", sol.M2, sol.D2)):
         off, pixel = round_trip_px(model, M, D, image_size)
         if not off <= ROUND_TRIP_PX:

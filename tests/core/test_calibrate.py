@@ -246,15 +246,38 @@ def test_a_lens_model_that_folds_is_fitted_again_with_fewer_terms(model):
             pairs, board, size, model=model).calibration.warnings)
 
 
+@pytest.mark.parametrize("model", ["pinhole", "rational", "fisheye"])
 @pytest.mark.slow
-def test_a_lens_model_that_folds_even_at_its_simplest_is_refused_with_the_remedy(monkeypatch):
+def test_a_lens_model_that_folds_even_at_its_simplest_ends_without_distortion(monkeypatch,
+                                                                             model):
+    """Where even k1 alone folds, the work is not thrown away: the last step fits no distortion
+    at all (which cannot fold), says so with the cost in reprojection error and the remedy, and
+    the result is a calibration that saves."""
     import stereo_gui.core.stereo_solve as stereo_solve
+    from stereo_gui.core.plausibility import check_plausible
 
-    monkeypatch.setattr(stereo_solve, "ROUND_TRIP_PX", -1.0)  # every fit "folds"
+    monkeypatch.setattr(stereo_solve, "ROUND_TRIP_PX", -1.0)  # every fit with distortion "folds"
     board, pairs, size = _central_pairs(0)
-    with pytest.raises(CalibrationError, match=r"folds over .* even with k2 and k3 held at "
-                                               r"zero: capture pairs with the board in the corners"):
-        calibrate_stereo(pairs, board, size)
+    result = calibrate_stereo(pairs, board, size, model=model)
+    c = result.calibration
+    assert not np.any(c.D1) and not np.any(c.D2)
+    assert c.D1.size == {"pinhole": 5, "rational": 8, "fisheye": 4}[model]
+    refits = [w for w in c.warnings if w.code == "refit"]
+    assert len(refits) == 3  # every term free, k3 held, k2 and k3 held, then none
+    last = refits[-1]
+    assert "calibrated again with no lens distortion" in last.message
+    assert "capture pairs with the board in the image's corners" in last.message
+    assert last.proposal == "capture" and c.origin.endswith("no distortion)")
+    # the lens's strong barrel distortion shows in the price said
+    rms = float(last.message.split("reprojection error ")[1].split(" px")[0])
+    assert rms == pytest.approx(max(result.report.rms_left, result.report.rms_right), abs=0.01)
+    # (the fisheye's equidistant projection bends like a barrel lens by itself: above the
+    # corners' 0.3 px noise, less far)
+    assert rms > (0.4 if model == "fisheye" else 1.0)
+    check_plausible(c, "the distortion-free calibration")  # what saving checks
+    # with k3 held from the start the ladder is one step shorter
+    held = calibrate_stereo(pairs, board, size, model=model, fix_k3=True).calibration
+    assert len([w for w in held.warnings if w.code == "refit"]) == 2 and not np.any(held.D1)
 
 
 # ---- cameras that are not synchronised --------------------------------------------------------
