@@ -186,7 +186,9 @@ def result_json(result: CalibrationResult, output: Path | None = None) -> dict[s
     return out
 
 
-def summary_text(result: CalibrationResult, output: Path, seconds: float) -> str:
+def summary_text(result: CalibrationResult, output: Path | None, seconds: float) -> str:
+    """What the command prints: the pairs, the cameras with their ±, the rig, the worst pairs,
+    notes and warnings, and the file written (`output` None: nothing was written)."""
     c, r = result.calibration, result.report
     lines = [f"calibrated from {r.pairs_used} of {r.pairs_found} pairs in {seconds:.1f} s "
              f"({c.width}x{c.height}, board {c.board.label() if c.board else '-'}, {c.method}, "
@@ -237,7 +239,7 @@ def summary_text(result: CalibrationResult, output: Path, seconds: float) -> str
         lines.append(f"NOTE: {note}")
     for w in r.warnings:
         lines.append(f"WARNING ({w.code}): {w.message}")
-    lines.append(f"wrote {output}")
+    lines.append(f"wrote {output}" if output is not None else "NOT WRITTEN (see the error below)")
     return "\n".join(lines)
 
 
@@ -287,18 +289,40 @@ def run(args: argparse.Namespace) -> int:
         r = result.report
         result = replace(result, report=replace(r, pairs_found=r.pairs_found + len(skipped),
                                                 rejected=r.rejected + tuple(skipped)))
-    save_calibration(result.calibration, output)
-    if ros_dir is not None:
-        export_ros(result.calibration, ros_dir)
-    seconds = time.perf_counter() - t0
+    try:
+        save_calibration(result.calibration, output)
+        if ros_dir is not None:
+            export_ros(result.calibration, ros_dir)
+    except (StereoGuiError, OSError) as exc:
+        # the work is not lost for want of a file: what was computed is printed (the worst
+        # pairs, the warnings) before the refusal, so the person can leave pairs out or write
+        # elsewhere without guessing
+        _write_result(args, result, None, time.perf_counter() - t0)
+        raise InputError(f"{exc}; the calibration printed above was computed but not written: "
+                         f"{_save_remedy(exc)}") from None
+    _write_result(args, result, output, time.perf_counter() - t0)
+    if ros_dir is not None and not args.json:
+        sys.stdout.write(f"wrote {ros_dir / 'left.yaml'} and {ros_dir / 'right.yaml'} "
+                         "(ROS camera_info, baseline in metres)\n")
+    return 0
+
+
+def _write_result(args: argparse.Namespace, result: CalibrationResult, output: Path | None,
+                  seconds: float) -> None:
+    """The result on stdout, as JSON or as the summary; `output` None when it was not written."""
     if args.json:
         sys.stdout.write(json.dumps(result_json(result, output), indent=2) + "\n")
     else:
         sys.stdout.write(summary_text(result, output, seconds) + "\n")
-        if ros_dir is not None:
-            sys.stdout.write(f"wrote {ros_dir / 'left.yaml'} and {ros_dir / 'right.yaml'} "
-                             "(ROS camera_info, baseline in metres)\n")
-    return 0
+    sys.stdout.flush()
+
+
+def _save_remedy(exc: Exception) -> str:
+    """What to do when the calibration could not be written."""
+    if isinstance(exc, OSError):
+        return "free space on the disk or give another file with -o, and calibrate again"
+    return ("leave out the worst pairs named above (or capture more pairs, with the board in "
+            "the image's corners), and calibrate again")
 
 
 def _output_paths(args: argparse.Namespace) -> tuple[Path, Path | None]:

@@ -298,3 +298,37 @@ def test_a_rig_without_dark_corners_says_so(rig_dir, tmp_path, capsys):
     code, out, err = _run([rig_dir, "--board", "9x6", "--square-mm", "25", "-o",
                            tmp_path / "c.yaml"], capsys)
     assert code == 0 and "lens shading: none worth undoing" in out
+
+
+@pytest.mark.parametrize("json_out", [False, True])
+def test_a_calibration_that_cannot_be_written_is_printed_with_the_remedy(rig_dir, tmp_path,
+                                                                         capsys, monkeypatch,
+                                                                         json_out):
+    """The minute of work is not lost when the file is refused (a check at save, or the disk):
+    the result is printed all the same, nothing is written, and the error names the remedy."""
+    import stereo_gui.files.calibration_file as calibration_file
+    from stereo_gui.core.errors import CalibrationFileError
+
+    def refuse(calib, where):
+        raise CalibrationFileError(f"{where}: distortion D2 does not describe camera 2's lens")
+
+    monkeypatch.setattr(calibration_file, "check_plausible", refuse)
+    out_file = tmp_path / "calib.yaml"
+    args = [rig_dir, "--board", "9x6", "--square-mm", "25", "-o", out_file]
+    code, out, err = _run(args + (["--json"] if json_out else []), capsys)
+    assert code == 2 and not out_file.exists()
+    assert "does not describe camera 2's lens" in err and "computed but not written" in err
+    assert "leave out the worst pairs" in err
+    if json_out:
+        data = json.loads(out)
+        assert "output" not in data and data["baseline_mm"] == pytest.approx(110.0, rel=0.01)
+    else:
+        assert "baseline 1" in out and "worst pairs:" in out and "NOT WRITTEN" in out
+
+    def full_disk(calib, where):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(calibration_file, "check_plausible", full_disk)
+    code, out, err = _run(args, capsys)
+    assert code == 2 and "No space left" in err and "free space on the disk" in err
+    assert "NOT WRITTEN" in out and not out_file.exists()
