@@ -190,3 +190,24 @@ def test_a_lens_shading_no_lens_has_is_refused_when_it_is_built():
         PairShading(lens, lens, -1, 40)
     with pytest.raises(CalibrationValueError, match="images should be a whole number >= 0"):
         PairShading(lens, lens, 800, 2.5)
+
+
+def test_the_images_scales_and_black_level_are_the_least_squares_ones():
+    """The per-image brightness S and the black level c of b = S[image] a + c, solved by the
+    normal equations' structure, are the dense least-squares solution (an image without samples
+    gets S = 0, as the dense solver's minimum-norm answer gives it)."""
+    from stereo_gui.core.shading import _scales_and_black
+
+    rng = np.random.default_rng(4)
+    n = 9
+    image = rng.integers(0, n - 1, 400)  # image n - 1 has no samples
+    a = rng.uniform(0.1, 1.0, 400)
+    b = rng.uniform(50, 200, n)[image] * a + 7.0 + rng.normal(0, 1, 400)
+    design = np.zeros((400, n + 1))
+    design[np.arange(400), image] = a
+    design[:, n] = 1.0
+    dense = np.linalg.lstsq(design, b, rcond=None)[0]
+    scale, black = _scales_and_black(a, b, image, n)
+    assert black == pytest.approx(dense[n], abs=1e-9)
+    np.testing.assert_allclose(scale, dense[:n], atol=1e-9)
+    assert scale[n - 1] == 0.0
