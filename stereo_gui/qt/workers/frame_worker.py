@@ -3,7 +3,8 @@
 Threads (`threads.WorkerThread`), as `stereo_gui.pipeline.concurrency` describes them:
 - the reader calls `source.read()` as fast as the source delivers, so a camera never backs up,
   and puts each frame into a slot of size one (newest frame wins: a frame not yet taken is
-  replaced, nothing queues up);
+  replaced, nothing queues up), with the moment the read returned it (`ProcessedFrame.read_at`,
+  where the latency to the screen is counted from);
 - LANES processing lanes take the frame in the slot and run the processor on it (all heavy
   OpenCV work happens here). The processor is set with the number of lanes it may use
   (`set_processor(fn, lanes)`): lane 0 always takes frames, the others only while fewer than
@@ -47,6 +48,7 @@ one; `stop()` waits at most its timeout and leaves a blocked thread to end on it
 from __future__ import annotations
 
 import logging
+import math
 import threading
 import time
 from collections.abc import Callable
@@ -89,7 +91,9 @@ class ProcessedFrame:
     """One processed frame: the raw stereo frame, the processor's output (None without one).
 
     `camera_fps` is the rate the source delivers frames, `processing_fps` the rate results are
-    produced, `processing_ms` the processor's time for this frame (milliseconds).
+    produced, `processing_ms` the processor's time for this frame (milliseconds). `read_at` is
+    when the reader got the frame from the source (`time.monotonic()`, seconds; NaN unknown):
+    where the latency to the screen starts.
     """
 
     frame: StereoFrame
@@ -97,6 +101,7 @@ class ProcessedFrame:
     camera_fps: float
     processing_fps: float
     processing_ms: float = 0.0
+    read_at: float = math.nan
 
 
 @dataclass(eq=False)
@@ -141,6 +146,7 @@ class FrameWorker(QObject):
         # the frame slot, the processor and the newest result: reader -> lanes -> UI thread
         self._lanes_cv = threading.Condition()
         self._frame: StereoFrame | None = None  # the newest frame not yet taken by a lane
+        self._frame_read_at = math.nan  # when the reader got it (time.monotonic())
         self._frame_seq = 0  # its number (frames are numbered as they are read)
         self._frame_gen = 0  # the source generation frames are taken of (older: dropped)
         self._processor: Processor | None = None
@@ -426,6 +432,7 @@ class FrameWorker(QObject):
             except Exception as exc:  # noqa: BLE001 - any failure of a device becomes a message
                 frame, error = None, exc
             clock.stop()
+            read_at = time.monotonic()  # where the latency to the screen starts
             with self._reader_cv:
                 left_behind = gen != self._reader_gen
             if left_behind:  # the source is no longer used: close it now its read is over, end
@@ -437,7 +444,7 @@ class FrameWorker(QObject):
                 self._source_failed(source, error)
             else:
                 assert frame is not None  # (read() gives a frame or raises)
-                self._frame_read(source, source_gen, frame)
+                self._frame_read(source, source_gen, frame, read_at)
 
     def _source_unavailable(self, source: FrameSource, exc: SourceUnavailable) -> None:
         """Reader: a camera of `source` is being opened again: keep the source, ask again."""
@@ -464,8 +471,10 @@ class FrameWorker(QObject):
             self.sourceChanged.emit("")
             self._enter(StreamState.FAILED, text, source)
 
-    def _frame_read(self, source: FrameSource, source_gen: int, frame: StereoFrame) -> None:
-        """Reader: put the frame into the slot (replacing one not yet taken), then the tap."""
+    def _frame_read(self, source: FrameSource, source_gen: int, frame: StereoFrame,
+                    read_at: float) -> None:
+        """Reader: put the frame into the slot (replacing one not yet taken), then the tap.
+        `read_at` (time.monotonic()) is when the read returned it; it goes with the frame."""
         with self._reader_cv:
             if self._source is not source or self._source_changing:
                 return  # a frame of the previous source: drop it
@@ -477,6 +486,7 @@ class FrameWorker(QObject):
         with self._lanes_cv:
             if source_gen == self._frame_gen:  # (else set_source() is replacing the source)
                 self._frame = frame
+                self._frame_read_at = read_at
                 self._frame_seq += 1
                 self._lanes_cv.notify_all()
         status = self._stream.frames_again(source)
@@ -536,6 +546,7 @@ class FrameWorker(QObject):
                 frame, self._frame = self._frame, None
                 assert frame is not None  # (the wait above ends with one, or returns)
                 seq, fn, gen = self._frame_seq, self._processor, self._frame_gen
+                read_at = self._frame_read_at
                 self._in_work += 1
             output, failure = None, None
             t0 = time.perf_counter()
@@ -554,10 +565,10 @@ class FrameWorker(QObject):
                 if current:  # (a replaced processor may be closed: that is no news)
                     self._report(f"processing failed: {failure}")
                 continue
-            self._keep(frame, seq, gen, fn, output, ms)
+            self._keep(frame, seq, gen, fn, output, ms, read_at)
 
     def _keep(self, frame: StereoFrame, seq: int, gen: int, fn: Processor | None,
-              output: object, ms: float) -> None:
+              output: object, ms: float, read_at: float) -> None:
         """A lane's result becomes the newest unless it is stale; the UI thread is told once."""
         with self._lanes_cv:
             if self._processor is not fn or self._frame_gen != gen:
@@ -566,7 +577,8 @@ class FrameWorker(QObject):
                 return  # another lane has already kept a newer frame: newest wins
             camera_fps, processing_fps = self._meters.processed()
             self._latest_seq = seq
-            self._latest = ProcessedFrame(frame, output, camera_fps, processing_fps, ms)
+            self._latest = ProcessedFrame(frame, output, camera_fps, processing_fps, ms,
+                                          read_at)
             self._latest_of = fn
             notify = not self._notified
             self._notified = True

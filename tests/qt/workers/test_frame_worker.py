@@ -32,6 +32,37 @@ def test_delivers_processed_frames_off_the_ui_thread(qtbot, worker, array_source
     qtbot.waitUntil(lambda: worker.status().camera_fps > 0 and worker.status().processing_fps > 0, timeout=30000)
 
 
+def test_each_result_carries_when_the_reader_got_its_frame(qtbot, worker, array_source):
+    """`read_at` is taken in the reader when the source's read returned: after the source gave
+    the frame, before a lane began to process it (the start of the latency to the screen)."""
+    import time
+
+    returned: dict[int, float] = {}
+    started: dict[int, float] = {}
+    src = array_source(fps=60)
+    plain_read = src.read
+
+    def read():
+        frame = plain_read()
+        returned[frame.index] = time.monotonic()
+        return frame
+
+    src.read = read
+
+    def proc(frame):
+        started[frame.index] = time.monotonic()
+        return frame.index
+
+    worker.set_processor(proc)
+    with qtbot.waitSignal(worker.frameReady, timeout=30000):
+        worker.set_source(src)
+    qtbot.waitUntil(lambda: (pf := worker.latest()) is not None and pf.frame.index >= 3,
+                    timeout=30000)
+    pf = worker.latest()
+    i = pf.frame.index
+    assert returned[i] <= pf.read_at <= started[i]
+
+
 def test_frame_ready_is_coalesced_while_the_ui_thread_is_busy(qtbot, worker, array_source):
     """However many results are made while the UI thread handles no events, one notification
     waits for it, not a backlog; and one that nobody answered with latest() (the tab shown draws
