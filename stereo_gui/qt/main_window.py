@@ -8,6 +8,7 @@ the user sees (a red bar above the tabs, also written to the status bar).
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -29,6 +30,7 @@ from PySide6.QtWidgets import (
 )
 
 from stereo_gui.core.states import Transitions
+from stereo_gui.core.timing import CPU_WINDOW_S, SHOWN_WINDOW_S, CpuMeter, ShownStats
 from stereo_gui.files.recording import is_recording
 from stereo_gui.files.session import MANIFEST
 from stereo_gui.files.settings import Settings
@@ -109,6 +111,19 @@ def recent_entry(path: str) -> tuple[str, str, str]:
     if p.suffix.lower() in VIDEO_EXTENSIONS:
         return "video", path, f"Video: {p.name}   ({p.parent})"
     return "calibration", path, f"Calibration: {p.name}   ({p.parent})"
+
+
+def shown_tooltip(stats: ShownStats | None, cores: int) -> str:
+    """What the status bar's 'Shown' figures mean, with the 95th percentile of the latency
+    (`stats`: the Live tab's, None when it shows nothing)."""
+    p95 = stats.latency.p95_ms if stats is not None and stats.showing else math.nan
+    spread = (f" (95th percentile {p95:.0f} ms)" if math.isfinite(p95) else "")
+    return (f"Frames drawn in the Live tab per second, over the last {SHOWN_WINDOW_S:g} s.\n"
+            f"Latency, median{spread}: from the source's delivery of a frame to the Live "
+            "tab's views getting its image.\n"
+            f"CPU: this program's CPU time (all its threads) as a share of all {cores} "
+            f"core{'s' if cores != 1 else ''} it may use (100 % = all of them busy), over the "
+            f"last {CPU_WINDOW_S:g} s.")
 
 
 def _quietly(fn: Callable[[], bool], default: bool = False) -> bool:
@@ -418,11 +433,13 @@ class MainWindow(QMainWindow):
         self.source_label = QLabel("Source: none")
         self.camera_fps_label = QLabel("Camera: – fps")
         self.processing_fps_label = QLabel("Processing: – fps")
+        self.shown_label = QLabel("Shown: –")
+        self._cpu = CpuMeter()  # the process's CPU share, read by the status bar's timer
         self.calibration_label = QLabel("No calibration")
         self.recording_label = QLabel()
         self.recording_label.setStyleSheet("color: #ff5252; font-weight: bold;")
         for w in (self.recording_label, self.source_label, self.camera_fps_label,
-                  self.processing_fps_label, self.calibration_label):
+                  self.processing_fps_label, self.shown_label, self.calibration_label):
             w.setContentsMargins(6, 0, 6, 0)
             sb.addPermanentWidget(w)
         self.recording_label.hide()
@@ -557,6 +574,7 @@ class MainWindow(QMainWindow):
     def _update_fps(self) -> None:
         self._update_recording_label()
         s = self.ctx.frames.status()
+        self._update_shown(s.paused)
         if s.paused:
             self.camera_fps_label.setText("Camera: paused")
             self.processing_fps_label.setText("Processing: paused")
@@ -573,6 +591,26 @@ class MainWindow(QMainWindow):
         self.camera_fps_label.setToolTip("Frames that could not be decoded are left out"
                                          if skipped else "")
         self.processing_fps_label.setText(f"Processing: {s.processing_fps:.1f} fps")
+
+    def _update_shown(self, paused: bool) -> None:
+        """'Shown: 29.8 fps, 41 ms, CPU 47 %': the Live tab's frames drawn per second, their
+        median latency from the source's delivery, and the process's CPU share of all cores;
+        'Shown: –' (with the CPU) while the Live tab is hidden or draws nothing."""
+        cpu = self._cpu.sample()
+        cpu_text = f"CPU {cpu:.0f} %" if math.isfinite(cpu) else "CPU –"
+        stats = self.live_tab.shown_stats() if self.current_tab_name() == "live" else None
+        if paused:
+            text = f"Shown: paused, {cpu_text}"
+        elif stats is not None and stats.showing:
+            ms = stats.latency.median_ms
+            latency = f"{ms:.0f} ms" if math.isfinite(ms) else "– ms"
+            text = f"Shown: {stats.fps:.1f} fps, {latency}, {cpu_text}"
+        else:
+            text = f"Shown: –, {cpu_text}"
+        self.shown_label.setText(text)
+        tip = shown_tooltip(stats if not paused else None, self._cpu.cores)
+        if tip != self.shown_label.toolTip():
+            self.shown_label.setToolTip(tip)
 
     # ---- calibration files -------------------------------------------------------------------
     def _update_calibration_label(self, *_args: object) -> None:

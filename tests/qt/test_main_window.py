@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import gc
+import re
 
 import numpy as np
 import pytest
@@ -56,6 +57,36 @@ def test_status_bar_shows_frame_rates(qtbot, ctx, window, sim_rig):
                     and "–" not in window.processing_fps_label.text(), timeout=30000)
     assert window.camera_fps_label.text().endswith("fps")
     assert "TRUE calibration" in window.calibration_label.text()
+
+
+SHOWN = re.compile(r"^Shown: (\d+\.\d) fps, (\d+) ms, CPU (\d+) %$")
+
+
+def test_status_bar_shows_the_frames_shown_their_latency_and_the_cpu(qtbot, ctx, window,
+                                                                      sim_rig):
+    """The third rate: frames drawn in the Live tab per second, their median latency from the
+    source's delivery, the process's CPU share; '–' for the rate on another tab, the CPU still."""
+    ctx.calibration_model.set(sim_rig.true_calibration(), None,
+                              note="simulated rig's TRUE calibration")
+    window.show_tab("live")
+    window.use_source(_sim_source(sim_rig), SourceChoice("sim"))
+    qtbot.waitUntil(lambda: SHOWN.match(window.shown_label.text()) is not None
+                    and float(SHOWN.match(window.shown_label.text()).group(1)) > 0,
+                    timeout=60000)
+    fps, ms, cpu = SHOWN.match(window.shown_label.text()).groups()
+    assert int(ms) > 0 and int(cpu) >= 0
+    stats = window.live_tab.shown_stats()
+    assert stats.latency.count > 0 and stats.latency.p95_ms >= stats.latency.median_ms > 0
+    tip = window.shown_label.toolTip()
+    assert "95th percentile" in tip and "delivery" in tip and "core" in tip
+    window.show_tab("measurements")  # the Live tab draws nothing there
+    qtbot.waitUntil(lambda: re.fullmatch(r"Shown: –, CPU \d+ %", window.shown_label.text())
+                    is not None, timeout=10000)
+    window.show_tab("live")
+    window.live_tab.set_paused(True)
+    qtbot.waitUntil(lambda: re.fullmatch(r"Shown: paused, CPU \d+ %",
+                                         window.shown_label.text()) is not None, timeout=10000)
+    window.live_tab.set_paused(False)
 
 
 def test_open_source_runs_off_the_ui_thread(qtbot, ctx, window):

@@ -17,6 +17,8 @@ Snapshot and depth exports are `live_exports.LiveExports`; recording is the
 from __future__ import annotations
 
 import logging
+import math
+import time
 from collections.abc import Collection, Iterable
 from pathlib import Path
 
@@ -38,6 +40,7 @@ from stereo_gui.core.matching import PipelineResult
 from stereo_gui.core.measure import Measurement
 from stereo_gui.core.preset import COLORMAPS, Preset
 from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.core.timing import ShownMeter, ShownStats
 from stereo_gui.pipeline.cloud import CloudPoints
 from stereo_gui.pipeline.live import NO_MATCH_RGB, NOT_SEEN_RGB, LiveOutput, LiveProcessor
 from stereo_gui.pipeline.readout import PointerReading
@@ -116,6 +119,10 @@ class LiveTab(QWidget):
         self._scale_note = ""
         self.shown_frame: StereoFrame | None = None  # the raw frame of the result shown
         self.frames_shown = 0
+        # frames drawn over the last seconds, and how late (see shown_stats)
+        self._shown = ShownMeter()
+        self._read_at = math.nan  # when the reader got the frame of the output being drawn
+        self.last_latency_ms = math.nan  # of the frame drawn last (NaN: unknown)
         self._to_draw: list[str] = []  # views still to get the image of the frame shown
         self._draw_scheduled = False
         scroll = self._build_params()
@@ -325,6 +332,7 @@ class LiveTab(QWidget):
     def set_active(self, active: bool) -> None:
         """Called by the main window: the shown tab owns the frame worker's processor."""
         self._active = active
+        self._shown.reset()  # (frames drawn before it was hidden are no rate now)
         if active:
             self._install_processor()
             if self.pause_button.isChecked():  # paused before another tab was shown: still is
@@ -372,6 +380,7 @@ class LiveTab(QWidget):
         """A new source: the markers (and a ruler's first point) were of the old one's frames;
         during playback the playback bar's Play/Pause is the one pause button."""
         self.clear_markers()
+        self._shown.reset()
         self._update_no_calib_page()
         if (self._sim_rig() is not None and self.ctx.settings.sim_true_calibration
                 and self.ctx.calibration_note != TRUE_CALIBRATION_NOTE):
@@ -414,14 +423,17 @@ class LiveTab(QWidget):
         if pf is None or not isinstance(pf.output, LiveOutput):
             return
         self.shown_frame = pf.frame
-        self.show_output(pf.output)
+        self.show_output(pf.output, pf.read_at)
 
-    def show_output(self, out: LiveOutput) -> None:
+    def show_output(self, out: LiveOutput, read_at: float = math.nan) -> None:
         """Draw one processed frame (UI thread: array hand-over only). The views get their
         images one event-loop turn apart, so that each is painted on its own and the window
         answers in between (four views painted in one go would hold it up for a visible
-        moment on a busy machine); frameShown follows the last one."""
+        moment on a busy machine); frameShown follows the last one. `read_at` is when the
+        frame worker's reader got the frame (`time.monotonic()`; NaN: unknown), the start of
+        its latency (shown_stats)."""
         self._output = out
+        self._read_at = read_at
         # (a view ticked after this frame was made is left out: the next frame has it)
         self._to_draw = [k for k in self.visible_views() if k in out.images]
         self._update_color_bars(out)
@@ -456,8 +468,22 @@ class LiveTab(QWidget):
             self._frame_drawn()
 
     def _frame_drawn(self) -> None:
+        """The last view shown got its image: the frame counts as shown, and its latency ends
+        here (its paint follows in the same event-loop turn)."""
+        now = time.monotonic()
+        self._shown.add(now, self._read_at)
+        self.last_latency_ms = ((now - self._read_at) * 1000.0 if math.isfinite(self._read_at)
+                                else math.nan)
         self.frames_shown += 1
         self.frameShown.emit(self._output)
+
+    def shown_stats(self, now: float | None = None) -> ShownStats:
+        """The frames drawn over the last two seconds: their rate, and their latency from the
+        moment the frame worker's reader got each frame from the source to the moment the last
+        view shown was handed its image (ms; its paint follows in the same event-loop turn, so
+        the paint of the other views is counted, that one's not). Nothing when the tab is hidden
+        or drew nothing for a second. UI thread; cheap (the status bar asks twice a second)."""
+        return self._shown.stats(now)
 
     def _update_color_bars(self, out: LiveOutput) -> None:
         scale = out.result.color_scale
@@ -521,6 +547,7 @@ class LiveTab(QWidget):
             self.pause_button.setChecked(paused)  # re-enters through toggled
             return
         self.pause_button.setText("Resume" if paused else "Pause")
+        self._shown.reset()
         if not self._active:
             return  # the frames belong to the tab shown; set_active applies the pause
         if paused:
