@@ -179,12 +179,32 @@ def _terminated_as_interrupted() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
+def _window_bench(args: argparse.Namespace) -> int:
+    """`bench --window`: the options checked without Qt, then the window (Qt, so it is run
+    from here, the one layer above both), offscreen when there is no display."""
+    from stereo_gui.commands.bench_window import window_request, write_result
+
+    request = window_request(args)
+    from stereo_gui.qt.preflight import check_gui_can_start, offscreen_without_display
+
+    offscreen_without_display()
+    check_gui_can_start()
+    from stereo_gui.qt.window_bench import run_window_bench  # Qt: only on this path
+
+    write_result(run_window_bench(request), args.json)
+    return 0
+
+
 def _main(argv: list[str]) -> int:
     try:
         if argv and argv[0] in SUBCOMMANDS:
             parser, module = _sub_parser(argv[0])
             args = parser.parse_args(argv[1:])
             setup_logging(args.verbose)
+            if argv[0] == "bench" and args.window is not None:
+                code = _window_bench(args)
+                sys.stdout.flush()
+                return code
             with _terminated_as_interrupted():
                 code = int(module.run(args) or 0)
             sys.stdout.flush()  # (a full or closed output is said here, not at exit)

@@ -77,9 +77,10 @@ def rss_mb() -> float:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--calib", metavar="C", help="calibration (with LEFT RIGHT): a file "
-                        "of ours, OpenCV's, ROS's or Middlebury's, or rectified:F,B[,DOFFS] for "
-                        "an already rectified pair (focal px, baseline mm, cx_right - cx_left px)")
+    parser.add_argument("--calib", metavar="C", help="calibration (with LEFT RIGHT, or the "
+                        "window's with --window): a file of ours, OpenCV's, ROS's or "
+                        "Middlebury's, or rectified:F,B[,DOFFS] for an already rectified pair "
+                        "(focal px, baseline mm, cx_right - cx_left px)")
     parser.add_argument("left", nargs="?", metavar="LEFT",
                         help="left raw image (without LEFT RIGHT: the simulated rig)")
     parser.add_argument("right", nargs="?", metavar="RIGHT", help="right raw image")
@@ -130,10 +131,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "its images): read, right within 1 and 2 %%, worst error, how often the "
                         "+- covers the truth, and why clicks were refused (default presets live "
                         "and quality)")
+    parser.add_argument("--window", type=options.number(0.5, 3600.0, "s"), default=None,
+                        metavar="SECONDS",
+                        help="instead of the pipeline alone: the application's window (offscreen "
+                        "without a display) on the simulated rig with its true calibration, the "
+                        "Live tab showing the Depth and Left views; after a 2 s warm-up, SECONDS "
+                        "counted: frames shown, processed and read per second, the process's "
+                        "CPU share of all cores, the latency from the source's delivery to the "
+                        "views (median, 95th percentile, in frame intervals). With --preset "
+                        "(one), --size, --source, --calib; settings go to a temporary folder")
+    parser.add_argument("--source", metavar="SPEC",
+                        help="with --window: the source as the window's --source takes it "
+                        "(default sim): e.g. a recording's folder, with --calib FILE")
     parser.add_argument("--json", action="store_true", help="print the results as JSON")
 
 
-def _size(text: str | None) -> tuple[int, int]:
+def rig_size(text: str | None) -> tuple[int, int]:
+    """The simulated rig's frame size from --size's WxH (640x480 when not given)."""
     if text is None:
         return 640, 480
     try:
@@ -155,7 +169,7 @@ def _input(args: argparse.Namespace) -> tuple[str, StereoCalibration, np.ndarray
         calib = load_calibration(args.calib, args.left)
         left, right = read_pair(args.left, args.right, calib)
         return "files", calib, left, right
-    rig = SimRig(RigConfig.for_size(_size(args.size)), seed=0)
+    rig = SimRig(RigConfig.for_size(rig_size(args.size)), seed=0)
     calib = rig.true_calibration(alpha=0.0)
     left, right = rig.render_scene(Scene.demo())
     return "simulated rig, demo scene", calib, left, right
@@ -360,6 +374,13 @@ def _merged(runs: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def run(args: argparse.Namespace) -> int:
+    if getattr(args, "window", None) is not None:
+        # (cli.py runs it: the window is Qt, which no command module imports)
+        raise InputError("--window runs the application's window: start it as "
+                         "stereo-gui bench --window SECONDS")
+    if getattr(args, "source", None):
+        raise InputError("--source goes with --window (the pipeline alone runs on LEFT RIGHT "
+                         "or the simulated rig)")
     if getattr(args, "clicks", None):
         if args.scenes or args.accuracy or args.calib or args.left or args.right or args.size:
             raise InputError("--clicks takes its images from the scene list: no --scenes, "

@@ -16,7 +16,7 @@ import re
 import shutil
 import subprocess
 import sys
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, MutableMapping
 from pathlib import Path
 
 from stereo_gui.core.errors import StereoGuiError
@@ -163,6 +163,16 @@ def libraries_message(libs: list[str]) -> str:
         text += (f"; find the package that provides {', '.join(unknown)} with your system's "
                  "package search (apt-file search)")
     return text
+
+
+def offscreen_without_display(env: MutableMapping[str, str] | None = None) -> bool:
+    """For a window nobody needs to see (`bench --window`): Qt's offscreen platform when neither
+    DISPLAY nor WAYLAND_DISPLAY is set and no platform was chosen; True when it was set."""
+    env = os.environ if env is None else env
+    if env.get("QT_QPA_PLATFORM", "").strip() or env.get("DISPLAY") or env.get("WAYLAND_DISPLAY"):
+        return False
+    env["QT_QPA_PLATFORM"] = "offscreen"
+    return True
 
 
 def check_gui_can_start(env: Mapping[str, str] | None = None, platform: str | None = None,
