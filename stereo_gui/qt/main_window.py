@@ -598,7 +598,8 @@ class MainWindow(QMainWindow):
         'Shown: –' (with the CPU) while the Live tab is hidden or draws nothing."""
         cpu = self._cpu.sample()
         cpu_text = f"CPU {cpu:.0f} %" if math.isfinite(cpu) else "CPU –"
-        stats = self.live_tab.shown_stats() if self.current_tab_name() == "live" else None
+        live = self.current_tab_name() == "live" and not paused
+        stats = self.live_tab.shown_stats() if live else None
         if paused:
             text = f"Shown: paused, {cpu_text}"
         elif stats is not None and stats.showing:
@@ -608,7 +609,7 @@ class MainWindow(QMainWindow):
         else:
             text = f"Shown: –, {cpu_text}"
         self.shown_label.setText(text)
-        tip = shown_tooltip(stats if not paused else None, self._cpu.cores)
+        tip = shown_tooltip(stats, self._cpu.cores)
         if tip != self.shown_label.toolTip():
             self.shown_label.setToolTip(tip)
 

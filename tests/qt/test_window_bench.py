@@ -122,3 +122,27 @@ def test_the_line_and_the_json_say_the_same():
                    latency_intervals=math.nan, latency_p95_intervals=math.nan)
     assert "latency - / - ms" in none.line()
     assert none.to_dict()["latency_median_ms"] is None  # JSON has no NaN
+
+
+def test_the_preset_asked_for_reaches_the_temporary_settings(monkeypatch, tmp_path):
+    """A built-in by name, a file by its full path, the user's own preset copied over (the
+    window reads presets from the temporary folder, not the user's)."""
+    from stereo_gui.commands.bench_window import WindowBench
+    from stereo_gui.files.presets import load_preset, save_user_preset, user_preset_dir
+    from stereo_gui.qt.window_bench import _preset_setting
+
+    monkeypatch.setenv("STEREO_GUI_CONFIG_DIR", str(tmp_path / "mine"))
+    mine = load_preset("quality").replace(name="mine")
+    save_user_preset(mine, "mine")
+    file = tmp_path / "p.json"
+    file.write_bytes((user_preset_dir() / "mine.json").read_bytes())
+
+    def asked(name):
+        return WindowBench(1.0, "sim", name, load_preset(name), (640, 480), None)
+
+    request = asked("mine")  # (the options are checked before the folders change)
+    with temporary_settings_dirs():
+        assert _preset_setting(asked("live")) == "live"
+        assert _preset_setting(asked(str(file))) == str(file.resolve())
+        assert _preset_setting(request) == "mine"
+        assert load_preset("mine") == mine  # read from the temporary folder
