@@ -100,25 +100,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "(default 1: the reference loop on N frames before and after)")
     parser.add_argument("--size", metavar="WxH",
                         help="simulated rig's frame size (default 640x480; without LEFT RIGHT)")
-    parser.add_argument("--accuracy", action="store_true",
-                        help="instead of speed: accuracy of the presets over a 9x7 grid of the "
-                        "whole frame on simulated walls at 0.5, 1, 2 and 3 m")
-    parser.add_argument("--calibration", choices=("true", "computed", "both"), default="both",
-                        help="with --accuracy: the rig's true calibration, one computed from 20 "
-                        "rendered board pairs, or both (default)")
-    parser.add_argument("--seed", type=options.seed, default=None, metavar="S",
-                        help="with --accuracy: the simulated rig's seed (default: the benchmark's)")
-    parser.add_argument("--seeds", type=options.whole(1, 1000), default=None, metavar="N",
-                        help="with --accuracy: N rigs, seeds S, S+1, ... S+N-1 (S from --seed): "
-                        "each seed's whole-grid row, then the mean and the worst seed of each "
-                        "condition and preset")
-    parser.add_argument("--condition", action="append", metavar="C",
-                        help="with --accuracy: how the walls are rendered (repeatable): rig (the "
-                        "rig's usual texture), weak (a smooth painted wall), half, quarter (its "
-                        "contrast halved, quartered), webcams (half contrast with the right "
-                        "camera's own gain and black level, MJPG, darker corners), exposure, "
-                        "vignetting, mjpg (each of those alone at half contrast), or all "
-                        "(default rig)")
+    _add_accuracy_arguments(parser)
     parser.add_argument("--scenes", metavar="FILE",
                         help="instead of speed: the presets' final maps beside plain OpenCV SGBM "
                         "on every scene of FILE (tab-separated: name, left, right, ground truth, "
@@ -144,6 +126,29 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="with --window: the source as the window's --source takes it "
                         "(default sim): e.g. a recording's folder, with --calib FILE")
     parser.add_argument("--json", action="store_true", help="print the results as JSON")
+
+
+def _add_accuracy_arguments(parser: argparse.ArgumentParser) -> None:
+    """--accuracy and its options."""
+    parser.add_argument("--accuracy", action="store_true",
+                        help="instead of speed: accuracy of the presets over a 9x7 grid of the "
+                        "whole frame on simulated walls at 0.5, 1, 2 and 3 m")
+    parser.add_argument("--calibration", choices=("true", "computed", "both"), default="both",
+                        help="with --accuracy: the rig's true calibration, one computed from 20 "
+                        "rendered board pairs, or both (default)")
+    parser.add_argument("--seed", type=options.seed, default=None, metavar="S",
+                        help="with --accuracy: the simulated rig's seed (default: the benchmark's)")
+    parser.add_argument("--seeds", type=options.whole(1, 1000), default=None, metavar="N",
+                        help="with --accuracy: N rigs, seeds S, S+1, ... S+N-1 (S from --seed): "
+                        "each seed's whole-grid row, then the mean and the worst seed of each "
+                        "condition and preset")
+    parser.add_argument("--condition", action="append", metavar="C",
+                        help="with --accuracy: how the walls are rendered (repeatable): rig (the "
+                        "rig's usual texture), weak (a smooth painted wall), half, quarter (its "
+                        "contrast halved, quartered), webcams (half contrast with the right "
+                        "camera's own gain and black level, MJPG, darker corners), exposure, "
+                        "vignetting, mjpg (each of those alone at half contrast), or all "
+                        "(default rig)")
 
 
 def rig_size(text: str | None) -> tuple[int, int]:
