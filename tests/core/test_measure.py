@@ -346,6 +346,19 @@ def test_where_the_full_resolution_strip_finds_nothing_the_frames_own_values_sta
                         lambda r, y, half: np.full((2 * half + 1, 640), 5.0, np.float32))
     assert measure_point(result, 320, 240).valid_fraction == 0.0
 
+    # ... but a few scattered strip values that agree with nothing (under a quarter of the patch:
+    # the webcams' wall at 0.5 m, seed 109, where the strip found 9 values at 6 px on a wall at
+    # 165 px) are a strip that found nothing: the frame's own values stand
+    def scattered(r, y, half):
+        band = np.full((2 * half + 1, 640), np.nan, np.float32)
+        band[::4, ::4] = 5.0
+        return band
+
+    monkeypatch.setattr(measure, "rematch_strip", scattered)
+    m = measure_point(result, 320, 240)
+    assert m.valid and m.Z_mm == pytest.approx(true_z, rel=0.01)
+    assert m.valid_fraction > 0.5  # the patch's own values, not the surface around it
+
 
 def test_left_edge_strip_says_not_seen_and_the_seeds_band_not_searched(rig, walls):
     calib = rig.true_calibration()
