@@ -706,6 +706,15 @@ def _textured_pair(contrast: float, noise: float, shift: float = 24.0, seed: int
     return out
 
 
+def _textured_result(contrast: float, noise: float):
+    """The quality preset's processing of `_textured_pair` (a plane 24 px apart)."""
+    calib = StereoCalibration.identity((400, 240), 800.0, 100.0)
+    params = load_preset("quality").replace(z_min_mm=None, z_max_mm=None, min_disparity=0,
+                                            num_disparities=64)
+    with StereoPipeline(calib, params) as pipe:
+        return pipe.process(*_textured_pair(contrast, noise))
+
+
 @pytest.mark.parametrize("contrast, noise, read", [(40.0, 1.0, True), (8.0, 3.0, True),
                                                     (5.0, 3.0, False), (3.0, 2.0, False)])
 def test_an_alignment_that_runs_off_leaves_the_map_only_on_rich_texture(monkeypatch, contrast,
@@ -716,11 +725,7 @@ def test_an_alignment_that_runs_off_leaves_the_map_only_on_rich_texture(monkeypa
     wrong) it stays refused."""
     import stereo_gui.core.measure as measure
 
-    calib = StereoCalibration.identity((400, 240), 800.0, 100.0)
-    params = load_preset("quality").replace(z_min_mm=None, z_max_mm=None, min_disparity=0,
-                                            num_disparities=64)
-    with StereoPipeline(calib, params) as pipe:
-        result = pipe.process(*_textured_pair(contrast, noise))
+    result = _textured_result(contrast, noise)
     monkeypatch.setattr(measure, "refine_point", lambda *a, **k: measure.Refinement(
         a[4], float("inf"), False, ran_off=True))
     m = measure_point(result, 200, 120)
@@ -736,16 +741,12 @@ def test_a_loose_alignment_leaves_the_map_only_on_rich_texture(monkeypatch, cont
                                                                read):
     """An alignment that settles 1.5 px from the map's estimate with a bound over a quarter of
     the distance: on a patch whose matches agree and whose window matches there as only rich
-    texture does, the map's patch is read (on the 13 public scenes 17 more clicks right within
+    texture does, the map's patch is read (on the 13 public scenes 16 more clicks right within
     2 %, teddy's and Lampshade's among them), its bound widened by the alignment's disagreement;
     on weak texture the refusal stands."""
     import stereo_gui.core.measure as measure
 
-    calib = StereoCalibration.identity((400, 240), 800.0, 100.0)
-    params = load_preset("quality").replace(z_min_mm=None, z_max_mm=None, min_disparity=0,
-                                            num_disparities=64)
-    with StereoPipeline(calib, params) as pipe:
-        result = pipe.process(*_textured_pair(contrast, noise))
+    result = _textured_result(contrast, noise)
     monkeypatch.setattr(measure, "refine_point", lambda *a, **k: measure.Refinement(
         a[4] + 1.5, 4.0, True, moved_px=1.5, correlation=0.95, pixels=625, half_px=12))
     m = measure_point(result, 200, 120)
