@@ -15,7 +15,7 @@ from collections.abc import Callable
 from types import FrameType, TracebackType
 
 import pyqtgraph as pg
-from PySide6.QtCore import QTimer
+from PySide6.QtCore import QObject, QTimer
 from PySide6.QtWidgets import QApplication
 
 from stereo_gui.core.errors import InputError, StereoGuiError
@@ -141,17 +141,16 @@ def build_window(source: str | None = None, calib: str | None = None
 SIGNAL_POLL_MS = 200  # how often Python gets to run a signal's handler while Qt waits
 
 
-def close_on_signals(window: MainWindow) -> Callable[[], None]:
-    """Ctrl+C in the terminal (SIGINT) and SIGTERM close the window as Ctrl+Q does: the log
-    saved, a recording closed, the workers stopped. (Python runs a signal's handler only between
-    its own instructions, so a timer gives it a moment now and then while Qt's loop waits.)
-    Returns what puts the handlers before back."""
-    def close(signum: int, _frame: FrameType | None) -> None:
-        log.info("signal %d: closing the window", signum)
-        QTimer.singleShot(0, window.close)
+def on_signals(owner: QObject, fn: Callable[[], object]) -> Callable[[], None]:
+    """Ctrl+C in the terminal (SIGINT) and SIGTERM call `fn` in Qt's event loop. (Python runs a
+    signal's handler only between its own instructions, so a timer of `owner`'s gives it a
+    moment now and then while Qt's loop waits.) Returns what puts the handlers before back."""
+    def handle(signum: int, _frame: FrameType | None) -> None:
+        log.info("signal %d", signum)
+        QTimer.singleShot(0, owner, fn)
 
-    before = {s: signal.signal(s, close) for s in (signal.SIGINT, signal.SIGTERM)}
-    poll = QTimer(window)
+    before = {s: signal.signal(s, handle) for s in (signal.SIGINT, signal.SIGTERM)}
+    poll = QTimer(owner)
     poll.setInterval(SIGNAL_POLL_MS)
     poll.timeout.connect(lambda: None)
     poll.start()
@@ -162,6 +161,12 @@ def close_on_signals(window: MainWindow) -> Callable[[], None]:
             signal.signal(s, handler)
 
     return restore
+
+
+def close_on_signals(window: MainWindow) -> Callable[[], None]:
+    """Ctrl+C and SIGTERM close the window as Ctrl+Q does: the log saved, a recording closed,
+    the workers stopped (`on_signals`). Returns what puts the handlers before back."""
+    return on_signals(window, window.close)
 
 
 def run_app(source: str | None = None, calib: str | None = None) -> int:

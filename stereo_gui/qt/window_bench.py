@@ -19,14 +19,13 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
-import signal
 import sys
 import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator
+from enum import Enum
 from pathlib import Path
-from types import FrameType
 
 from PySide6.QtCore import (
     QEventLoop,
@@ -42,12 +41,13 @@ from PySide6.QtWidgets import QApplication
 
 from stereo_gui.commands.bench_window import WindowBench, WindowBenchResult
 from stereo_gui.core.errors import StereoGuiError
+from stereo_gui.core.states import Transitions
 from stereo_gui.core.timing import cpu_percent, intervals, latency_stats, usable_cores
 from stereo_gui.files.presets import BUILTIN, save_user_preset
 from stereo_gui.files.settings import Settings, save_settings
 from stereo_gui.pipeline.concurrency import use_opencv_threads_beside_lanes
 from stereo_gui.pipeline.live import LiveOutput
-from stereo_gui.qt.app import build_window, freeze_startup_objects
+from stereo_gui.qt.app import build_window, freeze_startup_objects, on_signals
 from stereo_gui.qt.context import AppContext
 from stereo_gui.qt.main_window import MainWindow
 from stereo_gui.qt.source_capabilities import simulated_rig
@@ -57,7 +57,6 @@ log = logging.getLogger(__name__)
 START_TIMEOUT_S = 120.0  # the source open and a first frame drawn within this (the rig: ~10 s)
 WINDOW_PX = (1366, 736)  # the window on a 1366x768 laptop screen, less its title bar
 CLOSE_TIMEOUT_MS = 2000
-_SIGNAL_POLL_MS = 200  # how often Python gets to run a signal's handler while Qt waits
 SETTINGS_DIRS = (("STEREO_GUI_CONFIG_DIR", "config"), ("STEREO_GUI_DATA_DIR", "data"))
 
 
@@ -129,6 +128,24 @@ def _qt_message(kind: QtMsgType, _context: QMessageLogContext, text: str) -> Non
     log.log(level, "Qt: %s", text)
 
 
+class BenchPhase(Enum):
+    """Where a window bench stands."""
+
+    STARTING = "starting"  # the source opening, no frame drawn yet
+    WARMING = "warming"  # the first frame drawn, WARMUP_S passing
+    COUNTING = "counting"  # the frames drawn, with their latency, counted
+    DONE = "done"  # counted, failed or interrupted: the event loop ends
+
+
+# any phase may end (a failure, Ctrl+C); counting follows warming follows the first frame
+BENCH_MOVES: Transitions[BenchPhase] = Transitions("window bench", {
+    BenchPhase.STARTING: {BenchPhase.WARMING, BenchPhase.DONE},
+    BenchPhase.WARMING: {BenchPhase.COUNTING, BenchPhase.DONE},
+    BenchPhase.COUNTING: {BenchPhase.DONE},
+    BenchPhase.DONE: {BenchPhase.DONE},  # (a late failure or signal after the end: no news)
+})
+
+
 class _Timing(QObject):
     """Waits for the first frame drawn, warms up, counts; the event loop runs meanwhile."""
 
@@ -137,7 +154,7 @@ class _Timing(QObject):
         self.ctx, self.window, self.request = ctx, window, request
         self.live = window.live_tab
         self.loop = QEventLoop(self)
-        self.phase = "starting"  # -> warming -> counting -> done
+        self.phase = BenchPhase.STARTING
         self.failure: StereoGuiError | None = None
         self.interrupted = False  # Ctrl+C or SIGTERM (the window is closed all the same)
         self.latencies_ms: list[float] = []
@@ -158,6 +175,9 @@ class _Timing(QObject):
         return self._result()
 
     # ---- the phases ------------------------------------------------------------------------
+    def _move(self, to: BenchPhase) -> None:
+        self.phase = BENCH_MOVES.check(self.phase, to)
+
     def _source_opened(self, _spec: str) -> None:
         """The source is in use: the Live tab shown, its views, the calibration it needs."""
         self.window.show_tab("live")
@@ -169,25 +189,25 @@ class _Timing(QObject):
             self.live.use_true_calibration()  # as the Live tab's button does
 
     def _frame_shown(self, _out: LiveOutput) -> None:
-        if self.phase == "starting":
-            self.phase = "warming"
+        if self.phase is BenchPhase.STARTING:
+            self._move(BenchPhase.WARMING)
             log.info("first frame drawn; warming up for %.1f s", self.request.warmup_s)
             _precisely_after(self.request.warmup_s, self, self._start_counting)
-        elif self.phase == "counting":
+        elif self.phase is BenchPhase.COUNTING:
             self.latencies_ms.append(self.live.last_latency_ms)
 
     def _start_counting(self) -> None:
-        if self.phase != "warming":
+        if self.phase is not BenchPhase.WARMING:
             return
-        self.phase = "counting"
+        self._move(BenchPhase.COUNTING)
         self._start = self._readings()
         _precisely_after(self.request.seconds, self, self._stop_counting)
 
     def _stop_counting(self) -> None:
-        if self.phase != "counting":
+        if self.phase is not BenchPhase.COUNTING:
             return
         self._end = self._readings()
-        self.phase = "done"
+        self._move(BenchPhase.DONE)
         self.loop.quit()
 
     def _readings(self) -> tuple[float, float, int, int, int]:
@@ -199,23 +219,23 @@ class _Timing(QObject):
     # ---- what stops it ---------------------------------------------------------------------
     def _error(self, text: str) -> None:
         log.warning("the window said: %s", text)
-        if self.phase == "starting" and self.ctx.frames.source() is None:
+        if self.phase is BenchPhase.STARTING and self.ctx.frames.source() is None:
             self._fail(text)  # the source could not be opened: no frame will come
 
     def _start_timed_out(self) -> None:
-        if self.phase == "starting":
+        if self.phase is BenchPhase.STARTING:
             said = "; ".join(self.window.error_bar.messages())
             self._fail(f"the window drew no frame within {START_TIMEOUT_S:.0f} s"
                        + (f" ({said})" if said else ""))
 
     def _fail(self, text: str) -> None:
         self.failure = StereoGuiError(f"bench --window: {text}")
-        self.phase = "done"
+        self._move(BenchPhase.DONE)
         self.loop.quit()
 
     def interrupt(self) -> None:
         self.interrupted = True
-        self.phase = "done"
+        self._move(BenchPhase.DONE)
         self.loop.quit()
 
     # ---- the result ------------------------------------------------------------------------
@@ -266,24 +286,13 @@ def _precisely_after(seconds: float, owner: QObject, fn: Callable[[], None]) -> 
 
 @contextlib.contextmanager
 def _signals_stop(timing: _Timing) -> Iterator[None]:
-    """Ctrl+C and SIGTERM end the bench (the window is closed as usual); a timer lets Python run
-    the handler now and then while Qt's loop waits. Only in the main thread, where Python
-    allows handlers."""
+    """Ctrl+C and SIGTERM end the bench (the window is closed as usual: `app.on_signals`).
+    Only in the main thread, where Python allows handlers."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-
-    def stop(_signum: int, _frame: FrameType | None) -> None:
-        QTimer.singleShot(0, timing, timing.interrupt)
-
-    before = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
-    poll = QTimer(timing)
-    poll.setInterval(_SIGNAL_POLL_MS)
-    poll.timeout.connect(lambda: None)
-    poll.start()
+    restore = on_signals(timing, timing.interrupt)
     try:
         yield
     finally:
-        poll.stop()
-        for s, handler in before.items():
-            signal.signal(s, handler)
+        restore()

@@ -146,3 +146,21 @@ def test_the_preset_asked_for_reaches_the_temporary_settings(monkeypatch, tmp_pa
         assert _preset_setting(asked(str(file))) == str(file.resolve())
         assert _preset_setting(request) == "mine"
         assert load_preset("mine") == mine  # read from the temporary folder
+
+
+def test_the_bench_moves_through_its_phases_in_order_only():
+    """Counting follows warming follows the first frame; any phase may end; nothing follows the
+    end but the end (a late failure or signal)."""
+    from stereo_gui.core.states import TransitionError
+    from stereo_gui.qt.window_bench import BENCH_MOVES, BenchPhase
+
+    order = [BenchPhase.STARTING, BenchPhase.WARMING, BenchPhase.COUNTING, BenchPhase.DONE]
+    for a, b in zip(order, order[1:]):
+        assert BENCH_MOVES.check(a, b) is b
+    for a in order:
+        assert BENCH_MOVES.allows(a, BenchPhase.DONE)
+    for a, b in ((BenchPhase.STARTING, BenchPhase.COUNTING), (BenchPhase.COUNTING,
+                                                            BenchPhase.WARMING),
+                 (BenchPhase.DONE, BenchPhase.STARTING)):
+        with pytest.raises(TransitionError):
+            BENCH_MOVES.check(a, b)
