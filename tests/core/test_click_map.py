@@ -1,9 +1,16 @@
 """What the map says around a click: the histogram's mode, a nearer surface that hides a point."""
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
-from stereo_gui.core.click_map import hidden_by_nearer, histogram_mode
+from stereo_gui.core.click_map import (
+    SURROUND_FILL_RATIO,
+    hidden_by_nearer,
+    histogram_mode,
+    surrounding_estimate,
+)
 
 
 def test_histogram_mode_finds_the_peak_between_bins():
@@ -41,3 +48,32 @@ def test_the_shadow_a_nearer_surface_casts_hides_only_what_it_covers():
     # a reading of the wall inside the shadow is hidden: its match, 150 - 15, the lamp covers
     # from 160 - 28 on
     assert hidden_by_nearer(m, 150, 0, 9, 15.0, 1.0) == (True, None)
+
+
+def _empty_patch_on_a_wall(fill_px: np.ndarray, match_scale: float = 0.5) -> SimpleNamespace:
+    """A frame of a second-window preset matched at `match_scale` whose map shows a wall at 30 px
+    everywhere but in the clicked patch (17x17 around (100, 100)), with `fill_px` as its filled
+    (WLS) view."""
+    final = np.full((200, 200), 30.0, np.float32)
+    final[92:109, 92:109] = np.nan
+    return SimpleNamespace(final_px=final, wls_px=fill_px, wls_confidence=None,
+                           match_scale=match_scale, params=SimpleNamespace(check_block_size=5))
+
+
+def test_the_surface_around_an_empty_patch_unless_the_fill_shows_something_nearer():
+    """The wall around the click is its estimate where the fill agrees, and where a reduced
+    preset's fill lies a little off the matches all over the region (its smoothing beside an
+    edge: 10 % here). A fill nearer at the click than over the wall is an object in front the
+    checks threw out; a fill far nearer than the wall everywhere (twice its disparity) says the
+    matches around are the wrong ones: no estimate for either. At full resolution a fill off
+    the matches is not forgiven."""
+    flat = np.full((200, 200), 30.0, np.float32)
+    assert surrounding_estimate(_empty_patch_on_a_wall(flat), 100, 100) == pytest.approx(30.0)
+    off = flat + 3.3
+    assert surrounding_estimate(_empty_patch_on_a_wall(off), 100, 100) == pytest.approx(30.0)
+    assert surrounding_estimate(_empty_patch_on_a_wall(off, match_scale=1.0), 100, 100) is None
+    bump = flat.copy()
+    bump[90:111, 90:111] = 33.3  # the same fill at the click, the wall's own beside it
+    assert surrounding_estimate(_empty_patch_on_a_wall(bump), 100, 100) is None
+    far_off = np.full((200, 200), 30.0 * (SURROUND_FILL_RATIO + 0.5), np.float32)
+    assert surrounding_estimate(_empty_patch_on_a_wall(far_off), 100, 100) is None
