@@ -341,10 +341,31 @@ def test_where_the_full_resolution_strip_finds_nothing_the_frames_own_values_sta
     monkeypatch.undo()
     monkeypatch.setattr(measure, "rematch_strip",
                         lambda r, y, half: np.full((2 * half + 1, 640), np.nan, np.float32))
-    # a strip that disagrees with the frame everywhere leaves the patch empty
+    # a strip that disagrees with the frame everywhere leaves the patch empty (the surface around
+    # it may still be read); where nothing is read, the reason says that the map has values
+    # there that the full-resolution images do not bear out
     monkeypatch.setattr(measure, "rematch_strip",
                         lambda r, y, half: np.full((2 * half + 1, 640), 5.0, np.float32))
     assert measure_point(result, 320, 240).valid_fraction == 0.0
+    with monkeypatch.context() as m_none:
+        m_none.setattr(measure, "surrounding_estimate", lambda r, x, y: None)
+        m = measure_point(result, 320, 240)
+        assert not m.valid and m.reason == Reason.NOT_CONFIRMED
+
+    # ... but a strip that found a few values, all on the frame's surface, confirms it as far as
+    # it found anything: the frame's own values stand (the rig's quarter-contrast walls at 0.5 m,
+    # where such strips found 2-3 values and the patch was refused as too few)
+    frame_d = float(np.nanmedian(result.final_px[236:245, 316:325]))
+
+    def few_agreeing(r, y, half):
+        band = np.full((2 * half + 1, 640), np.nan, np.float32)
+        band[half, 318:321] = frame_d
+        return band
+
+    monkeypatch.setattr(measure, "rematch_strip", few_agreeing)
+    m = measure_point(result, 320, 240)
+    assert m.valid and m.Z_mm == pytest.approx(true_z, rel=0.01)
+    assert m.valid_fraction > 0.5
 
     # ... but a few scattered strip values that agree with nothing (under a quarter of the patch:
     # the webcams' wall at 0.5 m, seed 109, where the strip found 9 values at 6 px on a wall at

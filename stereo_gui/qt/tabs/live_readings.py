@@ -56,7 +56,7 @@ SHORT_REASONS: dict[Reason, str] = {
     Reason.NO_TEXTURE: "no texture", Reason.TOO_NEAR: "too near", Reason.TOO_FAR: "too far",
     Reason.OUTSIDE: "outside", Reason.OUT_OF_FIT_RANGE: "out of fit range",
     Reason.NO_METRIC_SCALE: "no scale", Reason.AMBIGUOUS: "ambiguous match",
-    Reason.NEARER_EDGE: "beside an edge",
+    Reason.NEARER_EDGE: "beside an edge", Reason.NOT_CONFIRMED: "not confirmed",
 }
 
 
