@@ -246,12 +246,13 @@ def _fill_off_all_over(result: PipelineResult, fill_on_matches: np.ndarray, fill
     the click, and no more than SURROUND_FILL_RATIO times the surface's disparity `estimate`:
     then the fill shows no object at the click. The filter runs on the reduced images with a
     right matcher at a smaller size still, and beside an edge its fill can lie 9-40 % off
-    matches that are right all over a region (Adirondack's bottom right; the rig's demo scenes). There
-    a click the matcher left empty reads the surface: `bench --clicks`, 13 public scenes, 2 more
-    read, both within 0.5 %; the rig's click scenes (6 seeds, 6,696 clicks), 46 more, 41 within
-    2 %, 5 within 3 %, none beyond. Where the fill lies 68-246 % off, the matches are a wrong
-    blob on a near wall (the rig's 0.5 m webcams wall, read 130-380 % off without the ratio).
-    At full resolution no right reading came of it, and one 5 % off: not there."""
+    matches that are right all over a region (Adirondack's bottom right; the rig's demo
+    scenes). There a click the matcher left empty reads the surface: `bench --clicks`, 13
+    public scenes, 2 more read, both within 0.5 %; the rig's click scenes (6 seeds, 6,696
+    clicks), 46 more, 41 within 2 %, 5 within 3 %, none beyond. Where the fill lies 68-246 %
+    off, the matches are a wrong blob on a near wall (the rig's 0.5 m webcams wall, read
+    130-380 % off without the ratio). At full resolution no right reading came of it, and one
+    5 % off: not there."""
     values = fill_on_matches[np.isfinite(fill_on_matches)]
     return (result.match_scale < 1.0 and values.size > 0
             and filled <= float(np.median(values)) + SURROUND_FILL_PX
