@@ -320,7 +320,9 @@ def refine_point(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, 
     growth, since on MJPG blocks the next may gather enough. A larger window that does not
     settle from `d0` starts again where the smaller one settled. A grown window's `windows_px`
     is the part of its disagreement with the surest smaller window that that one's own noise
-    does not explain.
+    does not explain. Where a second surface stops the growth while the reading is still
+    imprecise, `beyond_px` says how far the next window over the reading's own surface puts it
+    (`_beyond_two_surfaces`).
 
     None when no window converges; an unconverged Refinement with `ran_off` when none converges
     and one was pulled further than REFINE_MAX_SHIFT_PX from `d0` (the images contradict it), or
