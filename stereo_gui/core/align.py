@@ -420,7 +420,7 @@ def _beyond_two_surfaces(left_gray: np.ndarray, right_gray: np.ndarray, x: int, 
         h = max(half, larger)
         if not one_surface(surface, x, y, h):
             continue
-        if abs(float(np.median(_window_values(surface, x, y, h)))
+        if abs(float(np.median(window_values(surface, x, y, h)))
                - best.disparity_px) > SURFACE_BAND_PX:
             return best
         wider = refine_disparity(left_gray, right_gray, x, y, best.disparity_px, h,
@@ -480,18 +480,18 @@ def one_surface(disparity_px: np.ndarray, x: int, y: int, half: int) -> bool:
     median. (Not their spread: on a weak MJPG wall the map is one surface whose values scatter
     by a robust 1-1.2 px in blobs of wrong matches; a second surface more than SURFACE_BAND_PX
     away that fills more than a fifth of the window breaks the share wherever it lies.)"""
-    values = _window_values(disparity_px, x, y, half)
+    values = window_values(disparity_px, x, y, half)
     if values.size < 9:
         return False
     near = np.abs(values - np.median(values)) <= SURFACE_BAND_PX
     return float(near.mean()) >= SURFACE_SHARE
 
 
-def _window_values(disparity_px: np.ndarray, x: int, y: int, half: int) -> np.ndarray:
-    """The map's valid disparities in the window of `half` around (x, y), clipped to the map."""
-    values: np.ndarray = disparity_px[max(0, y - half):y + half + 1, max(0, x - half):x + half + 1]
-    valid: np.ndarray = values[np.isfinite(values)]
-    return valid
+def window_values(disparity_px: np.ndarray, x: int, y: int, half: int) -> np.ndarray:
+    """The map's valid (finite) disparities in the window of `half` around (x, y), clipped to
+    the map, as a flat array."""
+    window = disparity_px[max(0, y - half):y + half + 1, max(0, x - half):x + half + 1]
+    return np.asarray(window[np.isfinite(window)])
 
 
 def window_correlation(left_gray: np.ndarray, right_gray: np.ndarray, x: int, y: int, d: float,

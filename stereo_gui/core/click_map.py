@@ -13,7 +13,14 @@ import math
 import cv2
 import numpy as np
 
-from stereo_gui.core.align import MAD_TO_SIGMA, QUANTUM_PX, REFINE_HALF_PX, fit_plane, robust_spread
+from stereo_gui.core.align import (
+    MAD_TO_SIGMA,
+    QUANTUM_PX,
+    REFINE_HALF_PX,
+    fit_plane,
+    robust_spread,
+    window_values,
+)
 from stereo_gui.core.disparity import (
     agreement,
     compute_padded,
@@ -228,9 +235,7 @@ def surrounding_estimate(result: PipelineResult, x: int, y: int) -> float | None
         # the filled view (WLS: guided by the left image's edges, it spreads what the matcher
         # half-saw) shows nothing clearly nearer at the click: an object in front of the surface
         # that the checks threw out entirely still pulls the fill towards itself
-        h6 = REFINE_HALF_PX
-        near = fill[max(0, y - h6):y + h6 + 1, max(0, x - h6):x + h6 + 1]
-        near = near[np.isfinite(near)]
+        near = window_values(fill, x, y, REFINE_HALF_PX)
         filled = float(np.median(near)) if near.size else -math.inf
         if filled > estimate + SURROUND_FILL_PX and not _fill_off_all_over(
                 result, fill[y0:y1, x0:x1][usable][keep], filled, estimate):
