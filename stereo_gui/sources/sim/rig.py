@@ -30,6 +30,14 @@ from stereo_gui.sources.sim.textures import _board_texture, _texture
 MIN_POINT_SPACING_PX = 9.0
 _BOARD_BACKGROUND = 118.0  # plain grey behind the board when no scene is shown
 _NOISE_PAD = 64  # the noise bank is this much larger than an image (random crops)
+# the board's outline in the image is a polygon of this many sides an edge, and the rays within
+# half this many supersamples of it are worked out one by one: the polygon lies within half a
+# supersample of the curved outline, fillPoly's edge within 1.8 of the polygon (measured on
+# polygons reaching far beyond the canvas; 1.1 inside it)
+_OUTLINE_STEPS = 32
+_EDGE_PX = 7
+_OPEN = 128  # a ray that _board_rays leaves to be worked out on its own
+_FLT_EPS = float(np.finfo(np.float32).eps)  # perspectiveTransform's least denominator
 
 
 class BoardOutOfView(InputError):
@@ -84,6 +92,45 @@ def _board_hit(pose: BoardPose, board: BoardSpec, ray: np.ndarray) -> float | No
     a, b = R[:, :2].T @ (s * ray - t)
     a0, b0, a1, b1 = board.outline_mm()
     return s if a0 <= a <= a1 and b0 <= b <= b1 else None
+
+
+def _square_ring(steps: int) -> np.ndarray:
+    """The unit square's outline from (0, 0) through (1, 0), (1, 1) and (0, 1), (8 steps, 2):
+    the vertices of a polygon of `steps` sides a side (even rows) and the midpoints between
+    them (odd rows)."""
+    k = np.arange(2 * steps) / (2 * steps)
+    zero, one = np.zeros_like(k), np.ones_like(k)
+    return np.concatenate([np.stack([k, zero], 1), np.stack([one, k], 1),
+                           np.stack([1 - k, one], 1), np.stack([zero, 1 - k], 1)])
+
+
+_SQUARE_RING = _square_ring(_OUTLINE_STEPS)
+
+
+def _sample(tex: np.ndarray, tmap: np.ndarray) -> np.ndarray:
+    """The texture `tex` at texel coordinates `tmap` (bilinear, 0 outside it)."""
+    sampled: np.ndarray = cv2.remap(tex, tmap, None, cv2.INTER_LINEAR,
+                                    borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0, 0))
+    return sampled
+
+
+def _depth(xy: np.ndarray, Hz: np.ndarray) -> np.ndarray:
+    """The depth (mm) at which rays (x, y, 1) meet a plane (Hz of SimRig._plane_maps); 0 for
+    rays along it."""
+    z: np.ndarray = cv2.perspectiveTransform(xy, Hz)[..., 0]
+    return z
+
+
+def _seen(alpha: np.ndarray, z: np.ndarray, zb: np.ndarray | None) -> np.ndarray:
+    """Which rays show a textured plane (uint8 mask): those in its texture (remapped `alpha`
+    over 127), in front of the camera (depth `z`) and, given a depth buffer `zb`, nearer."""
+    # (OpenCV's stubs take no number for src2; cv2.compare does)
+    mask: np.ndarray = cv2.compare(alpha, 127, cv2.CMP_GT)  # type: ignore[call-overload]
+    cv2.bitwise_and(mask, cv2.compare(z, 0.0, cv2.CMP_GT),  # type: ignore[call-overload]
+                    dst=mask)
+    if zb is not None:
+        cv2.bitwise_and(mask, cv2.compare(z, zb, cv2.CMP_LT), dst=mask)
+    return mask
 
 
 @dataclass(frozen=True, eq=False)
@@ -292,7 +339,8 @@ class SimRig:
             return False
         # a corner is found only next to whole markers: keep a square's width inside the images
         m = margin_px + 1.1 * self._square_px(pose)
-        common = np.intersect1d(self.visible_point_ids(pose, 0, m), self.visible_point_ids(pose, 1, m))
+        common = np.intersect1d(self.visible_point_ids(pose, 0, m),
+                                self.visible_point_ids(pose, 1, m))
         r, c = b.grid_shape
         rows, cols = np.unique(common // c), np.unique(common % c)
         return common.size >= max(b.min_points + 4, 0.3 * b.point_count) and rows.size >= 2 \
@@ -514,52 +562,138 @@ class SimRig:
             return None
         return (x0, y0, x1, y1)
 
-    def _draw_plane(self, cam: int, plane_left: _Plane, tex: np.ndarray, texel: float,
-                    img: np.ndarray, zbuf: np.ndarray | None, box0: tuple[int, int] = (0, 0)
-                    ) -> None:
-        """Draw a textured rectangle into the supersampled `img` (which starts at supersample
-        (x, y) = box0 of the full grid), with a depth test against `zbuf` when given.
-
-        The texture spans the rectangle (texel centres at (i + 0.5) * texel mm); it must have an
-        alpha channel (remap's zero border marks rays that miss the rectangle).
-        """
-        box = self._bbox(cam, plane_left)
-        if box is None:
-            return
-        ox, oy = box0
-        hh, ww = img.shape[:2]
-        x0, y0 = max(box[0], ox), max(box[1], oy)
-        x1, y1 = min(box[2], ox + ww), min(box[3], oy + hh)
-        if x1 <= x0 or y1 <= y0:
-            return
+    def _plane_maps(self, cam: int, plane_left: _Plane, texel: float
+                    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """Homographies of camera `cam`'s rays (x, y, 1) to where they meet the plane: H to the
+        texel coordinates of its texture (texel centres at whole numbers), Hz to the depth (as
+        (depth, 0)); None when the plane passes through the camera centre (seen edge-on)."""
         pl = self._plane_in_camera(cam, plane_left.origin, plane_left.u, plane_left.v,
                                    plane_left.width, plane_left.height)
         n = np.cross(pl.u, pl.v)
         npo = float(n @ pl.origin)
         if abs(npo) < 1e-9:
-            return  # the plane passes through the camera centre: seen edge-on
+            return None
         # a ray t*(x, y, 1) meets the plane at depth t = n.o / n.r, where (a, b) =
         # (u.(t r - o), v.(t r - o)): a homography of (x, y, 1); fold in mm -> texel centres
         Ha = npo * pl.u - float(pl.u @ pl.origin) * n
         Hb = npo * pl.v - float(pl.v @ pl.origin) * n
         H = np.stack([Ha / texel - 0.5 * n, Hb / texel - 0.5 * n, n])
-        xy = self._rays[cam].xy[y0:y1, x0:x1]  # (a view: OpenCV takes its row stride)
-        tmap = cv2.perspectiveTransform(xy, H)
-        sampled = cv2.remap(tex, tmap, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                            borderValue=(0, 0, 0, 0))
-        # (OpenCV's stubs take no number for src2; cv2.compare does)
-        mask = cv2.compare(sampled[..., 3], 127, cv2.CMP_GT)  # type: ignore[call-overload]
         Hz = np.array([[0.0, 0.0, npo], [0.0, 0.0, 0.0], n])  # (x, y, 1) -> (depth, 0)
-        z = cv2.perspectiveTransform(xy, Hz)[..., 0]
-        cv2.bitwise_and(mask, cv2.compare(z, 0.0, cv2.CMP_GT),  # type: ignore[call-overload]
-                        dst=mask)
-        if zbuf is not None:
-            zb = zbuf[y0 - oy:y1 - oy, x0 - ox:x1 - ox]
-            cv2.bitwise_and(mask, cv2.compare(z, zb, cv2.CMP_LT), dst=mask)
-            cv2.copyTo(z, mask, zb)
+        return H, Hz
+
+    def _draw_plane(self, cam: int, plane_left: _Plane, tex: np.ndarray, texel: float,
+                    img: np.ndarray, zbuf: np.ndarray) -> None:
+        """Draw a textured rectangle (a scene's object) into camera `cam`'s supersampled `img`,
+        with a depth test against `zbuf`, which takes its depth where it is drawn.
+
+        The texture (BGRA) spans the rectangle (texel centres at (i + 0.5) * texel mm); its
+        alpha is 255 (remap's zero border marks rays that miss the rectangle).
+        """
+        box = self._bbox(cam, plane_left)
+        maps = self._plane_maps(cam, plane_left, texel)
+        if box is None or maps is None:
+            return
+        H, Hz = maps
+        x0, y0, x1, y1 = box
+        xy = self._rays[cam].xy[y0:y1, x0:x1]  # (a view: OpenCV takes its row stride)
+        sampled = _sample(tex, cv2.perspectiveTransform(xy, H))
+        z = _depth(xy, Hz)
+        zb = zbuf[y0:y1, x0:x1]
+        mask = _seen(sampled[..., 3], z, zb)
+        cv2.copyTo(z, mask, zb)
         # (cvtColor drops the alpha channel much faster than numpy's copy of a channel slice)
-        cv2.copyTo(cv2.cvtColor(sampled, cv2.COLOR_BGRA2BGR), mask,
+        cv2.copyTo(cv2.cvtColor(sampled, cv2.COLOR_BGRA2BGR), mask, img[y0:y1, x0:x1])
+
+    def _draw_board(self, cam: int, plane_left: _Plane, box: tuple[int, int, int, int],
+                    img: np.ndarray, origin: tuple[int, int], zbuf: np.ndarray | None) -> None:
+        """Draw the board (its plane `plane_left`, its box `box` from _bbox) into `img`, a crop
+        of camera `cam`'s supersampled image from supersample (x, y) = `origin` that holds the
+        box, behind what is nearer in the scene's depth buffer `zbuf` (None: no scene).
+
+        The very pixels _draw_plane would draw, for less: the grey texture is remapped on one
+        channel, and which rays show the board is worked out ray by ray (as _draw_plane does)
+        only where the board's outline in the image leaves it open (_board_rays).
+        """
+        grey, alpha, texel = _board_texture(self.config.board)
+        maps = self._plane_maps(cam, plane_left, texel)
+        if maps is None:
+            return
+        H, Hz = maps
+        x0, y0, x1, y1 = box
+        rays = self._rays[cam].xy
+        xy = rays[y0:y1, x0:x1]  # (a view: OpenCV takes its row stride)
+        tmap = cv2.perspectiveTransform(xy, H)
+        zb = None if zbuf is None else zbuf[y0:y1, x0:x1]
+        mask = self._board_rays(cam, plane_left, texel, grey.shape, box, Hz, zb)
+        if mask is None:
+            mask = _seen(_sample(alpha, tmap), _depth(xy, Hz), zb)
+        else:
+            found = cv2.findNonZero(cv2.compare(mask, _OPEN,  # type: ignore[call-overload]
+                                                cv2.CMP_EQ))  # (x, y) in the box
+            if found is not None:
+                # the open rays in rows of 1024 (remap takes fewer than 32767 columns), the first
+                # ones again to fill the last row: remap and perspectiveTransform take each ray
+                # on its own; `full` indexes the same rays on the whole supersample grid
+                at = np.asarray(found, np.int32).reshape(-1, 2)
+                x, y = np.resize(at, (-(-len(at) // 1024) * 1024, 2)).T
+                i = y * (x1 - x0) + x
+                full = (y + y0) * rays.shape[1] + x + x0
+                rows = (-1, 1024)
+                np.put(mask, i, _seen(
+                    _sample(alpha, np.take(tmap.reshape(-1, 2), i, axis=0).reshape(*rows, 2)),
+                    _depth(np.take(rays.reshape(-1, 2), full, axis=0).reshape(*rows, 2), Hz),
+                    None if zbuf is None else np.take(zbuf, full).reshape(rows)))
+        ox, oy = origin
+        cv2.copyTo(cv2.cvtColor(_sample(grey, tmap), cv2.COLOR_GRAY2BGR), mask,
                    img[y0 - oy:y1 - oy, x0 - ox:x1 - ox])
+
+    def _board_rays(self, cam: int, plane_left: _Plane, texel: float, tex_shape: tuple[int, ...],
+                    box: tuple[int, int, int, int], Hz: np.ndarray, zb: np.ndarray | None
+                    ) -> np.ndarray | None:
+        """Which rays of camera `cam` in `box` show the board as far as its outline in the image
+        tells (uint8: 255 they do, 0 they do not, _OPEN: to be worked out ray by ray), behind the
+        scene's depth `zb` over the box (None: no scene); None when the outline cannot be
+        trusted (part of the board behind the camera or far off-axis)."""
+        th, tw = tex_shape[:2]
+        # remap's alpha is 255 for a ray that meets the texture within its outer texel centres
+        # (the inner ring) and 0 beyond a texel outside them (the outer ring): bilinear weights;
+        # between, its rounding decides
+        lo = np.array([[[0.0, 0.0]], [[-1.0, -1.0]]])
+        hi = np.array([[[tw - 1.0, th - 1.0]], [[tw, th]]])
+        ab = ((lo + _SQUARE_RING * (hi - lo)).reshape(-1, 2) + 0.5) * texel
+        pts = plane_left.origin + ab[:, :1] * plane_left.u + ab[:, 1:] * plane_left.v
+        pc = self._to_camera(cam, pts)
+        if np.any(pc[:, 2] <= 1.0) or np.any(np.hypot(pc[:, 0], pc[:, 1])
+                                             > self._max_tan * pc[:, 2]):
+            return None
+        # a ray meets the board at depth n.o / n.r, no farther than zmax: perspectiveTransform,
+        # which gives depth 0 (and texel (0, 0)) where |n.r| <= FLT_EPSILON, computes it
+        zmax = float(pc[:, 2].max())
+        if abs(Hz[0, 2]) <= 2 * _FLT_EPS * zmax:
+            return None
+        # on the supersample grid of the box; a ring is the polygon through its vertices, as far
+        # from the curved image of the outline as the midpoints between them
+        s = self.config.supersample
+        q = (s * (self.project(pts, cam) + 0.5) - 0.5 - np.array(box[:2])).reshape(2, -1, 2)
+        vertices = q[:, 0::2]
+        if np.max(np.abs(q[:, 1::2] - 0.5 * (vertices + np.roll(vertices, -1, 1)))) > 0.35:
+            return None
+        # what lies within the outer ring or within _EDGE_PX / 2 of either ring is open, what
+        # lies within the inner ring and farther from both shows the board; drawn with a margin
+        # (fillPoly marks a canvas's outermost pixels for parts of a polygon beyond them)
+        m = _EDGE_PX
+        canvas = np.zeros((box[3] - box[1] + 2 * m, box[2] - box[0] + 2 * m), np.uint8)
+        inner, outer = np.round((vertices + m) * 16).astype(np.int32)  # (1/16: shift=4)
+        cv2.fillPoly(canvas, [outer], _OPEN, shift=4)
+        cv2.fillPoly(canvas, [inner], 255, shift=4)
+        cv2.polylines(canvas, [inner, outer], True, _OPEN, _EDGE_PX, shift=4)
+        mask = canvas[m:-m, m:-m]
+        if zb is not None:
+            # the scene may hide the board only where it is nearer than zmax (with room for the
+            # rounding of the depth to float)
+            near = cv2.compare(zb, zmax * (1.0 + 1e-5), cv2.CMP_LE)  # type: ignore[call-overload]
+            cv2.bitwise_and(mask, _OPEN, dst=mask, mask=near)  # type: ignore[call-overload]
+        return mask
 
     def _object_plane(self, obj: SceneObject) -> _Plane:
         return _Plane(obj.corner_origin, obj.u, obj.v, obj.width_mm, obj.height_mm)
@@ -601,7 +735,8 @@ class SimRig:
         if bank is None:
             w, h = self.config.image_size
             rng = np.random.default_rng(self.seed * 31 + cam + 99)
-            noise = rng.standard_normal((h + _NOISE_PAD, w + _NOISE_PAD, 3)) * self.config.noise_sigma
+            noise = (rng.standard_normal((h + _NOISE_PAD, w + _NOISE_PAD, 3))
+                     * self.config.noise_sigma)
             bank = np.clip(np.rint(noise + 128.0), 0, 255).astype(np.uint8)
             self._noise[cam] = bank
         return bank
@@ -622,9 +757,8 @@ class SimRig:
                 x0, y0 = box[0] // s * s, box[1] // s * s
                 x1, y1 = min(w * s, -(-box[2] // s) * s), min(h * s, -(-box[3] // s) * s)
                 crop = bg[y0:y1, x0:x1].copy()
-                zcrop = zb[y0:y1, x0:x1].copy() if scene is not None else None
-                tex, texel = _board_texture(self.config.board)
-                self._draw_plane(cam, plane, tex, texel, crop, zcrop, box0=(x0, y0))
+                # (the board is drawn last: the scene's depth is only read)
+                self._draw_board(cam, plane, box, crop, (x0, y0), zb if scene is not None else None)
                 part = crop if s == 1 else cv2.resize(crop, ((x1 - x0) // s, (y1 - y0) // s),
                                                       interpolation=cv2.INTER_AREA)
                 out[y0 // s:y1 // s, x0 // s:x1 // s] = part

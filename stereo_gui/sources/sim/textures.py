@@ -51,9 +51,11 @@ def _texture(seed: int, width_mm: float, height_mm: float, contrast: float = 1.0
 
 
 @functools.lru_cache(maxsize=8)
-def _board_texture(board: BoardSpec) -> tuple[np.ndarray, float]:
-    """The printed target (BGRA uint8) over its outline (BoardSpec.outline_mm), and its texel
-    size in mm: texel (i, j) has its centre at outline origin + (j + 0.5, i + 0.5) * texel.
+def _board_texture(board: BoardSpec) -> tuple[np.ndarray, np.ndarray, float]:
+    """The printed target over its outline (BoardSpec.outline_mm): its grey levels (uint8, one
+    channel: it is grey), an alpha channel of the same size (255: remap's zero border around it
+    marks rays that miss the board), and its texel size in mm: texel (i, j) has its centre at
+    outline origin + (j + 0.5, i + 0.5) * texel.
 
     Chessboard and ChArUco squares are exact in texels (TEXELS_PER_SQUARE each); circles are
     drawn with an anti-aliased edge (the texel's covered share).
@@ -81,10 +83,7 @@ def _board_texture(board: BoardSpec) -> tuple[np.ndarray, float]:
         dist = _circle_distance(board, a, b)
         cover = np.clip(0.5 * board.marker_mm - dist + 0.5 * texel, 0.0, texel) / texel
         grey = np.round(_WHITE + (_BLACK - _WHITE) * cover).astype(np.uint8)
-    tex = np.empty((th, tw, 4), np.uint8)
-    tex[..., :3] = grey[..., None]
-    tex[..., 3] = 255
-    return tex, texel
+    return grey, np.full((th, tw), 255, np.uint8), texel
 
 
 def _circle_distance(board: BoardSpec, a: np.ndarray, b: np.ndarray) -> np.ndarray:
