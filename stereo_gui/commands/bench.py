@@ -50,7 +50,11 @@ from stereo_gui.core.errors import InputError
 from stereo_gui.core.preset import Preset
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files.presets import load_presets
-from stereo_gui.pipeline.concurrency import opencv_threads_beside_lanes, opencv_threads_for_lanes
+from stereo_gui.pipeline.concurrency import (
+    opencv_threads_beside_lanes,
+    opencv_threads_for_lanes,
+    use_preset_threads,
+)
 from stereo_gui.pipeline.live import DEFAULT_VIEWS, LiveProcessor
 from stereo_gui.sources.base import StereoFrame
 from stereo_gui.sources.sim import RigConfig, Scene, SimRig
@@ -235,6 +239,9 @@ def bench_preset(calib: StereoCalibration, params: Preset, left: np.ndarray, rig
     frame = StereoFrame(left, right, 0.0, 0.0, 0)
     proc = processor if processor is not None else live_processor(calib, params)
     with opencv_threads_for_lanes():
+        # (a kept processor sets a preset's own count only on its first frame: every run
+        # starts from the lanes' count, so it is set here for each run)
+        use_preset_threads(params)
         try:
             def step() -> tuple[dict[str, float], float]:
                 t0 = time.perf_counter()
@@ -244,7 +251,9 @@ def bench_preset(calib: StereoCalibration, params: Preset, left: np.ndarray, rig
                 stages["total"] += stages["display"]
                 return stages, float(out.result.valid.mean())
 
-            return _time(step, frames, warmup, proc.lanes)
+            timed = _time(step, frames, warmup, proc.lanes)
+            timed["cv_threads"] = cv2.getNumThreads()  # (what the run had)
+            return timed
         finally:
             if processor is None:
                 proc.close()
@@ -375,6 +384,7 @@ def _merged(runs: list[dict[str, Any]]) -> dict[str, Any]:
                         for k in runs[0]["stages_ms"]}
     out["rss_start_mb"] = runs[0]["rss_start_mb"]
     out["fps_runs"] = [r["fps"] for r in runs]
+    out["cv_threads_runs"] = [r["cv_threads"] for r in runs]
     return out
 
 
@@ -425,7 +435,9 @@ def run(args: argparse.Namespace) -> int:
         stages = ", ".join(f"{k} {v:.1f}" for k, v in r["stages_ms"].items() if k != "total")
         beside = "; ".join(f"{res[f'over_{ref}'][name]:.2f}x the {_SHORT[ref]}"
                            for ref in res["references"])
-        print(f"{name:>10}: {r['fps']:6.1f} fps ({r['lanes']} at once: a frame every "
+        own = ("" if r["cv_threads"] == res["cv_threads_presets"] else
+               f", OpenCV threads {r['cv_threads']}")  # (the preset's own count)
+        print(f"{name:>10}: {r['fps']:6.1f} fps ({r['lanes']} at once{own}: a frame every "
               f"{r['ms_per_frame']:.1f} ms, each {r['stages_ms']['total']:.1f} ms; CPU "
               f"{r['cpu_ms_per_frame']:.1f} ms/frame; {stages} ms); "
               f"RSS {r['rss_start_mb']:.0f} -> {r['rss_end_mb']:.0f} MiB; {beside}")

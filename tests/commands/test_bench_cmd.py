@@ -209,3 +209,28 @@ def test_bench_in_rounds_gives_each_rounds_ratio_and_the_median(files, capsys):
                  str(files / "r.png"), "--frames", "2", "--rounds", "2"]) == 0
     out = capsys.readouterr().out
     assert "in 2 rounds" in out and "median" in out
+
+
+def test_a_preset_with_its_own_opencv_threads_has_them_in_every_round(files, tmp_path, capsys):
+    """A preset's `cv_threads` holds for each of its runs, not only its first (the runs start
+    from the lanes' count); the line says so."""
+    from stereo_gui.files.presets import load_preset
+    from stereo_gui.pipeline.concurrency import opencv_threads_beside_lanes
+
+    own = opencv_threads_beside_lanes() + 1
+    preset = load_preset("live").replace(name="own-threads", parallel=False, cv_threads=own)
+    path = tmp_path / "own-threads.json"
+    d = preset.to_dict()
+    path.write_text(json.dumps({"format_version": 1, "name": d.pop("name"),
+                                "description": d.pop("description"), "params": d}))
+    args = ["bench", "--calib", str(files / "c.yaml"), str(files / "l.png"), str(files / "r.png"),
+            "--frames", "2", "--rounds", "3", "--reference", "plain", "--preset", "live",
+            "--preset", str(path)]
+    assert main([*args, "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["presets"]["own-threads"]["cv_threads_runs"] == [own] * 3
+    assert doc["presets"]["live"]["cv_threads_runs"] == [opencv_threads_beside_lanes()] * 3
+    assert main(args) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert any("own-threads: " in ln and f"OpenCV threads {own}:" in ln for ln in lines)
+    assert not any(ln.strip().startswith("live:") and "OpenCV threads" in ln for ln in lines)
