@@ -211,18 +211,17 @@ def test_bench_in_rounds_gives_each_rounds_ratio_and_the_median(files, capsys):
     assert "in 2 rounds" in out and "median" in out
 
 
-def test_a_preset_with_its_own_opencv_threads_has_them_in_every_round(files, tmp_path, capsys):
+def test_a_preset_with_its_own_opencv_threads_has_them_in_every_round(files, tmp_path, capsys,
+                                                                     monkeypatch):
     """A preset's `cv_threads` holds for each of its runs, not only its first (the runs start
     from the lanes' count); the line says so."""
-    from stereo_gui.files.presets import load_preset
+    from stereo_gui.files.presets import load_preset, save_user_preset
     from stereo_gui.pipeline.concurrency import opencv_threads_beside_lanes
 
+    monkeypatch.setenv("STEREO_GUI_CONFIG_DIR", str(tmp_path / "config"))
     own = opencv_threads_beside_lanes() + 1
-    preset = load_preset("live").replace(name="own-threads", parallel=False, cv_threads=own)
-    path = tmp_path / "own-threads.json"
-    d = preset.to_dict()
-    path.write_text(json.dumps({"format_version": 1, "name": d.pop("name"),
-                                "description": d.pop("description"), "params": d}))
+    path = save_user_preset(load_preset("live").replace(parallel=False, cv_threads=own),
+                            "own-threads")
     args = ["bench", "--calib", str(files / "c.yaml"), str(files / "l.png"), str(files / "r.png"),
             "--frames", "2", "--rounds", "3", "--reference", "plain", "--preset", "live",
             "--preset", str(path)]
