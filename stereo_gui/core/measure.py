@@ -55,7 +55,6 @@ from stereo_gui.core.reading_bound import (
     depth_bound_mm,
     disparity_bound_px,
     with_calibration_uncertainty,
-    z_of,
 )
 from stereo_gui.core.regression import FitResult
 from stereo_gui.core.stereo_calibration import StereoCalibration
@@ -664,8 +663,8 @@ def _located(click: _Click, read: _MapReading, d: float, d_range: tuple[float, f
         # units; a regression fitted on true distances gives millimetres
         return read.refused(click, Reason.NO_METRIC_SCALE, d)
     else:
-        expected = depth_bound_mm(calibration.focal_px * calibration.rectified_baseline_mm, d,
-                                   bound_px) * (Z / z_of(calibration, d))
+        expected = depth_bound_mm(np.asarray(calibration.Q, np.float64), click.x, click.y, d,
+                                  bound_px)
         expected = with_calibration_uncertainty(expected, calibration, click.x, click.y, d)
     if not (math.isfinite(expected) and expected <= AMBIGUOUS_SHARE * abs(Z)):
         # the match fits so loosely that its 95 % bound spans a large part of the distance

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from stereo_gui.core.align import Refinement
 from stereo_gui.core.click_images import STDERR_SCALE
 from stereo_gui.core.click_map import EDGE_SPREAD_PX
@@ -48,19 +50,21 @@ def disparity_bound_px(refinement: Refinement | None, spread_px: float) -> float
     return Z95 * sigma
 
 
-def depth_bound_mm(fb: float, d: float, bound_px: float) -> float:
-    """The larger depth change of a disparity moved by +-bound (the far side is the larger)."""
-    if not fb > 0:
+def depth_bound_mm(Q: np.ndarray, x: float, y: float, d: float, bound_px: float) -> float:
+    """The larger change of Z, through the rectified Q, of the disparity at (x, y) moved by
+    +-bound (the far side is the larger; infinite where it passes infinity). Through Q, not
+    f*B/d: a rig whose rectified principal points differ (Middlebury's doffs, 53 px on
+    Adirondack at quarter size) reads Z = f*B/(d + doffs), and f*B/d scaled to it made the bound
+    (d + doffs)/d times too wide, 4.5x there."""
+    def z_at(disp: float) -> float:
+        w = float(Q[3, 0] * x + Q[3, 1] * y + Q[3, 2] * disp + Q[3, 3])
+        z = float(Q[2, 0] * x + Q[2, 1] * y + Q[2, 2] * disp + Q[2, 3])
+        return z / w if w > 0 else float("inf")
+
+    z = z_at(d)
+    if not (math.isfinite(z) and math.isfinite(bound_px)):
         return float("nan")
-    near = d - bound_px
-    return fb / near - fb / d if near > 0 else float("inf")
-
-
-def z_of(calibration: StereoCalibration, d: float) -> float:
-    """f*B/d: the depth the Q matrix gives a disparity d on the optical axis (for scaling a
-    bound to a Q with a principal-point offset)."""
-    fb = calibration.focal_px * calibration.rectified_baseline_mm
-    return fb / d if d > 0 and fb > 0 else float("nan")
+    return max(abs(z_at(d + s * bound_px) - z) for s in (-1.0, 1.0))
 
 
 def with_calibration_uncertainty(bound_mm: float, calibration: StereoCalibration, x: float,

@@ -168,6 +168,20 @@ def test_bare_map_triangulates_through_q_with_median_and_spread():
     assert m.expected_error_mm == pytest.approx(f * b / (25.0 - bound) - f * b / 25.0)
 
 
+def test_the_bound_follows_q_on_a_rig_whose_principal_points_differ():
+    """Middlebury's rigs read Z = f B / (d + doffs). The bound is the change of that Z for the
+    disparity moved by its bound, not f B / d's change scaled to Z: that was (d + doffs) / d
+    times too wide, 4.5x on Adirondack at quarter size."""
+    f, b, doffs = 1038.0, 176.3, 53.3
+    c = StereoCalibration.identity((64, 48), f, b, doffs_px=doffs)
+    m = measure_map(np.full((48, 64), 15.0, np.float32), 30, 20, calibration=c, patch=5)
+    bound = Z95 / 16.0
+    assert m.valid and m.Z_mm == pytest.approx(f * b / (15.0 + doffs))
+    far_side = f * b / (15.0 + doffs - bound) - f * b / (15.0 + doffs)
+    assert m.expected_error_mm == pytest.approx(far_side, rel=1e-6)
+    assert m.expected_error_mm < 0.3 * (f * b / (15.0 - bound) - f * b / 15.0)
+
+
 def test_a_fit_replaces_triangulation_inside_its_span_only():
     f, b = 500.0, 100.0
     c = StereoCalibration.identity((64, 48), f, b)
