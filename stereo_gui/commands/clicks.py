@@ -33,6 +33,8 @@ from stereo_gui.core.click_score import (
     plain_patch_disparity,
     seen_by_both,
     true_z_mm,
+    true_z_span_mm,
+    truth_step_px,
 )
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import PipelineResult
@@ -47,7 +49,8 @@ from stereo_gui.pipeline.concurrency import opencv_threads_for_lanes, preset_pip
 PLAIN = "plain"
 ASSUMED_CALIB = "rectified:1000,100"
 
-TruePoint = tuple[int, int, float, float]  # a click's (x, y, true disparity px, true Z mm)
+# a click's (x, y, true disparity px, true Z mm, the true Z's span for a truth stored in steps)
+TruePoint = tuple[int, int, float, float, tuple[float, float] | None]
 
 
 def run_clicks(list_path: str | os.PathLike[str], presets: Sequence[str] = ("live", "quality")
@@ -74,12 +77,15 @@ def run_clicks(list_path: str | os.PathLike[str], presets: Sequence[str] = ("liv
                 seen = seen_by_both(scene.truth_px)
             points = click_points(scene.truth_px, seen)
             true_d = [(x, y, float(scene.truth_px[y, x])) for x, y in points]
-            truth = [(x, y, d, true_z_mm(calib, x, y, d)) for x, y, d in true_d]
+            step = truth_step_px(scene.truth_px)
+            truth = [(x, y, d, true_z_mm(calib, x, y, d),
+                      true_z_span_mm(calib, x, y, d, step) if step else None)
+                     for x, y, d in true_d]
             num = disparity_search_range(scene.truth_px)
             entry: dict[str, Any] = {
                 "name": spec.name, "size": list(scene.size),
                 "calibration": spec.calib if own else f"assumed {ASSUMED_CALIB}",
-                "points": len(points), "methods": {}}
+                "points": len(points), "truth_step_px": step, "methods": {}}
             for name, preset in params.items():
                 if not own:
                     preset = preset.replace(z_min_mm=None, z_max_mm=None, min_disparity=0,
@@ -112,11 +118,11 @@ def click_scene(result: PipelineResult, calib: StereoCalibration, truth: list[Tr
     double-click in the window reads them."""
     shown = reading_map(result)
     out = []
-    for x, y, d, z in truth:
+    for x, y, d, z, span in truth:
         m = measure_point(result, x, y, calibration=calib)
         right = map_right(calib, x, y, float(shown[y, x]), d, z)
         if m.valid:
-            out.append(Click(x, y, z, m.Z_mm, m.expected_error_mm, None, right))
+            out.append(Click(x, y, z, m.Z_mm, m.expected_error_mm, None, right, span))
         else:
             out.append(Click(x, y, z, reason=str(m.reason), map_right=right))
     return out
@@ -126,7 +132,7 @@ def click_plain(disparity_px: np.ndarray, calib: StereoCalibration, truth: list[
                 ) -> list[Click]:
     """Plain OpenCV's clicks: the patch median, triangulated through the same calibration."""
     out = []
-    for x, y, d, z in truth:
+    for x, y, d, z, _span in truth:
         read = plain_patch_disparity(disparity_px, x, y)
         right = map_right(calib, x, y, float(disparity_px[y, x]), d, z)
         z_read = true_z_mm(calib, x, y, read) if math.isfinite(read) else float("nan")
@@ -175,4 +181,15 @@ def format_clicks(res: dict[str, Any]) -> str:
     if assumed:
         lines.append(f"assumed calibration ({ASSUMED_CALIB}; the presets search the truth's "
                      f"disparities): {', '.join(assumed)}")
+    stepped = [f"{e['name']} {_step_text(e['truth_step_px'])}" for e in res["scenes"]
+               if e.get("truth_step_px")]
+    if stepped:
+        lines.append("truths stored in steps (the +- covers where it reaches the span of the "
+                     f"truth's step): {', '.join(stepped)}")
     return "\n".join(lines)
+
+
+def _step_text(step: float) -> str:
+    """A truth's step as a person reads it: 1 px, 1/3 px."""
+    n = round(1.0 / step)
+    return "1 px" if n <= 1 else (f"1/{n} px" if abs(step * n - 1.0) < 1e-3 else f"{step:g} px")

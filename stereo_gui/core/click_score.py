@@ -8,9 +8,12 @@ the truth's disparity at the pixel taken through the scene's own calibration (Mi
 Z = baseline * f / (d + doffs)), so the comparison holds for any rig.
 
 A reading is right within 1 % or 2 % when its Z is that close to the true Z; its bound covers
-when |Z - true Z| <= its printed +-. For each refusal, whether the map under the click was right
-there (within 2 % of Z or 0.5 px of disparity) is counted too: a refusal of a right map is an
-answer thrown away, of a wrong one a wrong answer stopped.
+when |Z - true Z| <= its printed +-. A truth stored in whole steps of a pixel (`truth_step_px`:
+the older Middlebury scenes hold whole pixels of their full-size images, so tsukuba's truth is
+known to 1 px, a third-size scene's to 1/3 px, teddy's to 1/4 px) knows the true Z only to the
+span its step leaves: there the +- covers when it reaches that span. For each refusal, whether
+the map under the click was right there (within 2 % of Z or 0.5 px of disparity) is counted
+too: a refusal of a right map is an answer thrown away, of a wrong one a wrong answer stopped.
 
 Plain OpenCV's reading is the median of the valid disparities of the same patch, with at least
 PLAIN_MIN_VALUES of them.
@@ -36,6 +39,7 @@ MAP_RIGHT_PX = 0.5  # ... or this close in disparity
 RIGHT_SHARES = (0.01, 0.02)
 SPARSE_TRUTH = 0.5  # a truth known at fewer of the pixels is a sparse one (a laser scanner's)
 SPARSE_PATCH_SHARE = 1.0 / 3.0
+TRUTH_STEP_MIN_PX = 1.0 / 64.0  # a finer grid is a truth stored as numbers (KITTI's 1/256 px)
 
 
 def seen_by_both(truth_px: np.ndarray) -> np.ndarray:
@@ -83,6 +87,30 @@ def click_points(truth_px: np.ndarray, seen: np.ndarray, grid: tuple[int, int] =
     return out
 
 
+def truth_step_px(truth_px: np.ndarray) -> float:
+    """The step a truth's disparities are stored in (px), 0 for a truth stored as numbers: the
+    smallest difference of its known values where that is at least TRUTH_STEP_MIN_PX and every
+    value is a whole multiple of it."""
+    t = np.asarray(truth_px, np.float64)
+    values = np.unique(t[np.isfinite(t) & (t > 0)])
+    if values.size < 2:
+        return 0.0
+    step = float(np.min(np.diff(values)))
+    if step < TRUTH_STEP_MIN_PX:
+        return 0.0
+    k = values / step
+    return step if bool(np.all(np.abs(k - np.round(k)) < 0.01)) else 0.0
+
+
+def true_z_span_mm(calibration: StereoCalibration, x: float, y: float, truth_d: float,
+                   step_px: float) -> tuple[float, float]:
+    """The true Z's span (near, far; mm) for a truth known to `step_px`: the Z of its disparity
+    half a step either way (infinite far where that passes infinity)."""
+    near = true_z_mm(calibration, x, y, truth_d + step_px / 2.0)
+    far = true_z_mm(calibration, x, y, truth_d - step_px / 2.0) if step_px > 0 else near
+    return near, far if math.isfinite(far) and far > 0 else math.inf
+
+
 def true_z_mm(calibration: StereoCalibration, x: float, y: float, truth_d: float) -> float:
     """The true Z (mm) of rectified pixel (x, y) of true disparity `truth_d` px."""
     xyz = triangulate(calibration, x, y, truth_d)
@@ -102,7 +130,8 @@ def plain_patch_disparity(disparity_px: np.ndarray, x: int, y: int, patch: int =
 @dataclass(frozen=True)
 class Click:
     """One clicked point: its true Z (mm), the reading (Z NaN when refused), the reading's 95 %
-    bound (mm), the refusal's reason, and whether the map under the click was right there."""
+    bound (mm), the refusal's reason, whether the map under the click was right there, and the
+    span the true Z lies in where the truth is stored in steps (`true_z_span_mm`; None: exact)."""
 
     x: int
     y: int
@@ -111,6 +140,7 @@ class Click:
     bound_mm: float = float("nan")
     reason: str | None = None
     map_right: bool | None = None
+    true_z_span: tuple[float, float] | None = None
 
     @property
     def read(self) -> bool:
@@ -123,7 +153,10 @@ class Click:
 
     @property
     def covered(self) -> bool:
-        return self.read and abs(self.z_mm - self.true_z_mm) <= self.bound_mm
+        """Whether the reading's +- reaches the true Z (its span, for a truth stored in steps)."""
+        near, far = self.true_z_span or (self.true_z_mm, self.true_z_mm)
+        return (self.read and self.z_mm - self.bound_mm <= far
+                and self.z_mm + self.bound_mm >= near)
 
 
 def map_right(calibration: StereoCalibration, x: int, y: int, map_d: float, truth_d: float,

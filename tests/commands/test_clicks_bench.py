@@ -48,6 +48,7 @@ def test_click_bench_reads_a_plain_scene_right_beside_plain_opencv(tmp_path, cap
     assert doc["scenes"][0]["calibration"] == "rectified:800,120"
     assert doc["scenes"][1]["calibration"].startswith("assumed")
     for scene in doc["scenes"]:
+        assert scene["truth_step_px"] == 0.0  # one value throughout: no step to be seen
         assert scene["points"] > 60  # most of the 11x8 grid: all but the columns unseen
         for method in ("quality", "plain"):
             s = scene["methods"][method]

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from stereo_gui.core.click_score import (
-    Click, ClickScore, click_points, map_right, plain_patch_disparity, seen_by_both, true_z_mm)
+    Click, ClickScore, click_points, map_right, plain_patch_disparity, seen_by_both, true_z_mm,
+    true_z_span_mm, truth_step_px)
 from stereo_gui.core.stereo_calibration import StereoCalibration
 
 
@@ -92,3 +93,35 @@ def test_the_sums_count_shares_of_the_clicks_and_of_the_readings():
                             "no texture": {"refused": 1, "map_right": 0}}
     empty = ClickScore().summary()
     assert empty["points"] == 0 and empty["read"] is None and empty["worst"] is None
+
+
+def test_a_truth_stored_in_steps_is_told_from_one_stored_as_numbers():
+    rng = np.random.default_rng(3)
+    thirds = np.round(rng.uniform(5, 60, (40, 50)) * 3) / 3  # a third-size scene's whole pixels
+    thirds[:5] = 0  # unknown
+    assert truth_step_px(thirds.astype(np.float32)) == pytest.approx(1 / 3, rel=1e-4)
+    assert truth_step_px(np.round(rng.uniform(1, 15, (40, 50)))) == pytest.approx(1.0)
+    assert truth_step_px(rng.uniform(5, 60, (40, 50)).astype(np.float32)) == 0.0  # numbers
+    kitti = np.round(rng.uniform(5, 60, (40, 50)) * 256) / 256  # 1/256 px: as good as numbers
+    assert truth_step_px(kitti) == 0.0
+    assert truth_step_px(np.full((4, 4), 16.0, np.float32)) == 0.0  # one value: no step seen
+    assert truth_step_px(np.zeros((4, 4), np.float32)) == 0.0
+
+
+def test_the_bound_covers_a_stepped_truth_where_it_reaches_the_steps_span():
+    """tsukuba's truth is whole pixels: a true 5 px is anywhere in 4.5..5.5 px. A reading of
+    5.3 px +- 0.1 px misses 5.0 but reaches the span; one of 5.7 px +- 0.1 px reaches neither."""
+    calib = StereoCalibration.identity((200, 100), 1000.0, 100.0)
+    fb = 1000.0 * 100.0
+    near, far = true_z_span_mm(calib, 100, 50, 5.0, 1.0)
+    assert (near, far) == pytest.approx((fb / 5.5, fb / 4.5))
+    assert true_z_span_mm(calib, 100, 50, 0.4, 1.0)[1] == math.inf  # past infinity
+
+    def click(d_read, span):
+        z = fb / d_read
+        bound = fb / (d_read - 0.1) - z
+        return Click(100, 50, fb / 5.0, z, bound, true_z_span=span)
+
+    assert not click(5.3, None).covered
+    assert click(5.3, (near, far)).covered and click(4.7, (near, far)).covered
+    assert not click(5.7, (near, far)).covered and not click(4.3, (near, far)).covered
