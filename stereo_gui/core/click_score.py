@@ -40,6 +40,7 @@ RIGHT_SHARES = (0.01, 0.02)
 SPARSE_TRUTH = 0.5  # a truth known at fewer of the pixels is a sparse one (a laser scanner's)
 SPARSE_PATCH_SHARE = 1.0 / 3.0
 TRUTH_STEP_MIN_PX = 1.0 / 64.0  # a finer grid is a truth stored as numbers (KITTI's 1/256 px)
+TRUTH_STEP_MIN_VALUES = 5  # (tsukuba's truth holds 7)
 
 
 def seen_by_both(truth_px: np.ndarray) -> np.ndarray:
@@ -89,14 +90,15 @@ def click_points(truth_px: np.ndarray, seen: np.ndarray, grid: tuple[int, int] =
 
 def truth_step_px(truth_px: np.ndarray) -> float:
     """The step a truth's disparities are stored in (px), 0 for a truth stored as numbers: the
-    smallest difference of its known values where that is at least TRUTH_STEP_MIN_PX and every
-    value is a whole multiple of it."""
+    smallest difference of its known values where that lies between TRUTH_STEP_MIN_PX and 1 px
+    and every value is a whole multiple of it. A truth of fewer than TRUTH_STEP_MIN_VALUES
+    values (a made-up scene of a few planes) shows no grid: its values are taken as exact."""
     t = np.asarray(truth_px, np.float64)
     values = np.unique(t[np.isfinite(t) & (t > 0)])
-    if values.size < 2:
+    if values.size < TRUTH_STEP_MIN_VALUES:
         return 0.0
     step = float(np.min(np.diff(values)))
-    if step < TRUTH_STEP_MIN_PX:
+    if not TRUTH_STEP_MIN_PX <= step <= 1.0:
         return 0.0
     k = values / step
     return step if bool(np.all(np.abs(k - np.round(k)) < 0.01)) else 0.0

@@ -105,6 +105,10 @@ def test_a_truth_stored_in_steps_is_told_from_one_stored_as_numbers():
     kitti = np.round(rng.uniform(5, 60, (40, 50)) * 256) / 256  # 1/256 px: as good as numbers
     assert truth_step_px(kitti) == 0.0
     assert truth_step_px(np.full((4, 4), 16.0, np.float32)) == 0.0  # one value: no step seen
+    planes = np.repeat(np.array([16.0, 24.0, 32.0, 40.0, 48.0], np.float32), 4)
+    assert truth_step_px(planes[None, :]) == 0.0  # a grid coarser than a pixel: exact planes
+    assert truth_step_px(planes[None, :4]) == 0.0  # (and four values show no grid at all)
+    assert truth_step_px(np.array([[16.0, 17.0, 18.0, 20.0]])) == 0.0
     assert truth_step_px(np.zeros((4, 4), np.float32)) == 0.0
 
 
