@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import math
 import os
+import re
+import statistics
 import time
 from collections.abc import Sequence
 from typing import Any
@@ -50,6 +52,12 @@ PLAIN = "plain"
 ASSUMED_CALIB = "rectified:1000,100"
 
 # a click's (x, y, true disparity px, true Z mm, the true Z's span for a truth stored in steps)
+# the simulated rig's click scenes (`simulate --click-scenes`) are named s<seed>-<condition>-...:
+# a list of several seeds is summed per seed too, with the mean and the worst seed
+SEED_NAME = re.compile(r"^s(\d+)-")
+# what a method's row over the seeds gives: (key of ClickScore.summary, "worst" of the seeds)
+_OVER_SEEDS = (("read", min), ("within_2pct", min), ("covers", min), ("worst", max))
+
 TruePoint = tuple[int, int, float, float, tuple[float, float] | None]
 
 
@@ -61,6 +69,7 @@ def run_clicks(list_path: str | os.PathLike[str], presets: Sequence[str] = ("liv
     methods = [*params, PLAIN]
     totals = {m: ClickScore() for m in methods}
     metric = {m: ClickScore() for m in methods}  # the scenes with a calibration of their own
+    seeds: dict[int, dict[str, ClickScore]] = {}  # the rig's click scenes, per seed
     scenes: list[dict[str, Any]] = []
     with opencv_threads_for_lanes():
         for spec in specs:
@@ -86,6 +95,10 @@ def run_clicks(list_path: str | os.PathLike[str], presets: Sequence[str] = ("liv
                 "name": spec.name, "size": list(scene.size),
                 "calibration": spec.calib if own else f"assumed {ASSUMED_CALIB}",
                 "points": len(points), "truth_step_px": step, "methods": {}}
+            seed = SEED_NAME.match(spec.name)
+            sums = [totals] + ([metric] if own else []) + (
+                [seeds.setdefault(int(seed.group(1)), {m: ClickScore() for m in methods})]
+                if seed else [])
             for name, preset in params.items():
                 if not own:
                     preset = preset.replace(z_min_mm=None, z_max_mm=None, min_disparity=0,
@@ -96,20 +109,44 @@ def run_clicks(list_path: str | os.PathLike[str], presets: Sequence[str] = ("liv
                 clicks = click_scene(result, calib, truth)
                 entry["methods"][name] = _scored(clicks, time.perf_counter() - t0,
                                                  result.disparity_range_px)
-                totals[name].add(clicks)
-                if own:
-                    metric[name].add(clicks)
+                for scores in sums:
+                    scores[name].add(clicks)
             t0 = time.perf_counter()
             plain = plain_sgbm(scene.left, scene.right, num)
             clicks = click_plain(plain, calib, truth)
             entry["methods"][PLAIN] = _scored(clicks, time.perf_counter() - t0, (0, num - 1))
-            totals[PLAIN].add(clicks)
-            if own:
-                metric[PLAIN].add(clicks)
+            for scores in sums:
+                scores[PLAIN].add(clicks)
             scenes.append(entry)
-    return {"list": str(list_path), "presets": list(params), "scenes": scenes,
-            "total": {m: t.summary() for m, t in totals.items()},
-            "own_calibration": {m: t.summary() for m, t in metric.items()}}
+    out: dict[str, Any] = {
+        "list": str(list_path), "presets": list(params), "scenes": scenes,
+        "total": {m: t.summary() for m, t in totals.items()},
+        "own_calibration": {m: t.summary() for m, t in metric.items()}}
+    if len(seeds) >= 2:
+        out["over_seeds"] = over_seeds({s: {m: c.summary() for m, c in per.items()}
+                                        for s, per in sorted(seeds.items())})
+    return out
+
+
+def over_seeds(per_seed: dict[int, dict[str, dict[str, Any]]]) -> dict[str, Any]:
+    """Per method: the mean over the seeds of each seed's read share, share right within 2 %,
+    coverage of the +- and worst error, and the worst seed's value (the lowest shares, the
+    highest error) with which seed that was; `per_seed` is {seed: {method: summary}}."""
+    methods = dict.fromkeys(m for per in per_seed.values() for m in per)
+    out: dict[str, Any] = {"seeds": list(per_seed), "methods": {}}
+    for m in methods:
+        row: dict[str, Any] = {}
+        for key, worst in _OVER_SEEDS:
+            values = {s: per[m][key] for s, per in per_seed.items()
+                      if m in per and per[m].get(key) is not None}
+            if not values:
+                row[key] = {"mean": None, "worst": None, "worst_seed": None}
+                continue
+            seed = worst(values, key=values.__getitem__)
+            row[key] = {"mean": float(statistics.fmean(values.values())),
+                        "worst": values[seed], "worst_seed": seed}
+        out["methods"][m] = row
+    return out
 
 
 def click_scene(result: PipelineResult, calib: StereoCalibration, truth: list[TruePoint]
@@ -177,6 +214,8 @@ def format_clicks(res: dict[str, Any]) -> str:
             for reason, n in t["reasons"].items():
                 lines.append(f"{'':>12}{reason}: {n['refused']} refused, the map right at "
                              f"{n['map_right']}")
+    if "over_seeds" in res:
+        lines += ["", _over_seeds_text(res["over_seeds"])]
     assumed = [e["name"] for e in res["scenes"] if e["calibration"].startswith("assumed")]
     if assumed:
         lines.append(f"assumed calibration ({ASSUMED_CALIB}; the presets search the truth's "
@@ -186,6 +225,23 @@ def format_clicks(res: dict[str, Any]) -> str:
     if stepped:
         lines.append("truths stored in steps (the +- covers where it reaches the span of the "
                      f"truth's step): {', '.join(stepped)}")
+    return "\n".join(lines)
+
+
+def _over_seeds_text(over: dict[str, Any]) -> str:
+    """The rows over the seeds: each method's mean / worst seed (which) of each figure."""
+    seeds = over["seeds"]
+    lines = [f"over {len(seeds)} seeds ({seeds[0]}-{seeds[-1]}): mean / worst seed (which)"]
+    for m, row in over["methods"].items():
+        parts = []
+        for key, words in (("read", "read"), ("within_2pct", "within 2 %"),
+                           ("covers", "+- covers"), ("worst", "worst")):
+            v = row[key]
+            if v["mean"] is None:
+                continue
+            parts.append(f"{words} {_pct(v['mean'])} % / {_pct(v['worst'])} % "
+                         f"({v['worst_seed']})")
+        lines.append(f"{m:>10}: " + ", ".join(parts))
     return "\n".join(lines)
 
 

@@ -90,3 +90,47 @@ def test_a_middlebury_scene_is_clicked_through_its_own_calibration_and_mask(tmp_
     scene = doc["scenes"][0]
     assert scene["calibration"].endswith("calib.txt") and 50 <= scene["points"] <= 88
     assert scene["methods"]["plain"]["within_2pct"] > 0.8
+
+
+def test_the_rigs_click_scenes_are_summed_per_seed_with_the_worst_seed(tmp_path, capsys):
+    """Scenes named as `simulate --click-scenes` names them (s<seed>-...) are summed per seed:
+    the mean over the seeds and the worst seed, which a threshold is judged by."""
+    _scene(tmp_path, "a", 16)
+    _scene(tmp_path, "b", 24, seed=1)
+    (tmp_path / "c.tsv").write_text(
+        "# name\tleft\tright\ttruth\tdiv\tcalib\n"
+        "s7-rig-wall1m\ta-l.png\ta-r.png\ta.pfm\t1\trectified:800,120\n"
+        "s9-rig-wall1m\tb-l.png\tb-r.png\tb.pfm\t1\trectified:800,120\n")
+    assert main(["bench", "--clicks", str(tmp_path / "c.tsv"), "--preset", "quality",
+                 "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    over = doc["over_seeds"]
+    assert over["seeds"] == [7, 9] and set(over["methods"]) == {"quality", "plain"}
+    per = {s["name"]: s["methods"]["quality"] for s in doc["scenes"]}
+    read = over["methods"]["quality"]["read"]
+    assert read["mean"] == pytest.approx((per["s7-rig-wall1m"]["read"]
+                                          + per["s9-rig-wall1m"]["read"]) / 2)
+    worst_seed = 7 if per["s7-rig-wall1m"]["read"] <= per["s9-rig-wall1m"]["read"] else 9
+    assert read["worst_seed"] == worst_seed
+    assert over["methods"]["plain"]["covers"]["mean"] is None  # plain prints no +-
+    assert main(["bench", "--clicks", str(tmp_path / "c.tsv"), "--preset", "quality"]) == 0
+    text = capsys.readouterr().out
+    assert "over 2 seeds (7-9): mean / worst seed (which)" in text
+    # a list of other scenes has no such rows
+    (tmp_path / "d.tsv").write_text("a\ta-l.png\ta-r.png\ta.pfm\t1\trectified:800,120\n")
+    assert main(["bench", "--clicks", str(tmp_path / "d.tsv"), "--preset", "quality",
+                 "--json"]) == 0
+    assert "over_seeds" not in json.loads(capsys.readouterr().out)
+
+
+def test_over_seeds_takes_the_lowest_shares_and_the_highest_error_as_the_worst_seed():
+    from stereo_gui.commands.clicks import over_seeds
+    per_seed = {
+        1: {"live": {"read": 0.9, "within_2pct": 0.8, "covers": 0.97, "worst": 0.02}},
+        2: {"live": {"read": 0.8, "within_2pct": 0.85, "covers": 0.99, "worst": 0.50}},
+        3: {"live": {"read": 0.95, "within_2pct": 0.9, "covers": 0.91, "worst": 0.01}}}
+    row = over_seeds(per_seed)["methods"]["live"]
+    assert row["read"] == {"mean": pytest.approx(2.65 / 3), "worst": 0.8, "worst_seed": 2}
+    assert row["within_2pct"]["worst_seed"] == 1
+    assert row["covers"] == {"mean": pytest.approx(0.9566667), "worst": 0.91, "worst_seed": 3}
+    assert row["worst"] == {"mean": pytest.approx(0.53 / 3), "worst": 0.50, "worst_seed": 2}
