@@ -51,13 +51,13 @@ from stereo_gui.pipeline.concurrency import opencv_threads_for_lanes, preset_pip
 PLAIN = "plain"
 ASSUMED_CALIB = "rectified:1000,100"
 
-# a click's (x, y, true disparity px, true Z mm, the true Z's span for a truth stored in steps)
 # the simulated rig's click scenes (`simulate --click-scenes`) are named s<seed>-<condition>-...:
 # a list of several seeds is summed per seed too, with the mean and the worst seed
 SEED_NAME = re.compile(r"^s(\d+)-")
 # what a method's row over the seeds gives: (key of ClickScore.summary, "worst" of the seeds)
 _OVER_SEEDS = (("read", min), ("within_2pct", min), ("covers", min), ("worst", max))
 
+# a click's (x, y, true disparity px, true Z mm, the true Z's span for a truth stored in steps)
 TruePoint = tuple[int, int, float, float, tuple[float, float] | None]
 
 

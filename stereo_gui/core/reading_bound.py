@@ -53,9 +53,8 @@ def disparity_bound_px(refinement: Refinement | None, spread_px: float) -> float
 def depth_bound_mm(Q: np.ndarray, x: float, y: float, d: float, bound_px: float) -> float:
     """The larger change of Z, through the rectified Q, of the disparity at (x, y) moved by
     +-bound (the far side is the larger; infinite where it passes infinity). Through Q, not
-    f*B/d: a rig whose rectified principal points differ (Middlebury's doffs, 53 px on
-    Adirondack at quarter size) reads Z = f*B/(d + doffs), and f*B/d scaled to it made the bound
-    (d + doffs)/d times too wide, 4.5x there."""
+    f*B/d: a rig whose rectified principal points differ (Middlebury's doffs) reads
+    Z = f*B/(d + doffs), whose change is (d + doffs)/d times smaller."""
     def z_at(disp: float) -> float:
         w = float(Q[3, 0] * x + Q[3, 1] * y + Q[3, 2] * disp + Q[3, 3])
         z = float(Q[2, 0] * x + Q[2, 1] * y + Q[2, 2] * disp + Q[2, 3])

@@ -34,16 +34,21 @@ def _scene(folder, name, shift, w=320, h=160, seed=0):
     return truth
 
 
-def test_click_bench_reads_a_plain_scene_right_beside_plain_opencv(tmp_path, capsys):
+def _two_scenes_clicked(tmp_path, capsys, a_line, b_line):
+    """Two textured planes (16 and 24 px) listed with these lines, clicked with quality: the
+    JSON."""
     _scene(tmp_path, "a", 16)
     _scene(tmp_path, "b", 24, seed=1)
     (tmp_path / "c.tsv").write_text(
-        "# name\tleft\tright\ttruth\tdiv\tcalib\n"
-        "a\ta-l.png\ta-r.png\ta.pfm\t1\trectified:800,120\n"
-        "b\tb-l.png\tb-r.png\tb.pfm\t1\n")
+        f"# name\tleft\tright\ttruth\tdiv\tcalib\n{a_line}\n{b_line}\n")
     assert main(["bench", "--clicks", str(tmp_path / "c.tsv"), "--preset", "quality",
                  "--json"]) == 0
-    doc = json.loads(capsys.readouterr().out)
+    return json.loads(capsys.readouterr().out)
+
+
+def test_click_bench_reads_a_plain_scene_right_beside_plain_opencv(tmp_path, capsys):
+    doc = _two_scenes_clicked(tmp_path, capsys, "a\ta-l.png\ta-r.png\ta.pfm\t1\trectified:800,120",
+                              "b\tb-l.png\tb-r.png\tb.pfm\t1")
     assert [s["name"] for s in doc["scenes"]] == ["a", "b"]
     assert doc["scenes"][0]["calibration"] == "rectified:800,120"
     assert doc["scenes"][1]["calibration"].startswith("assumed")
@@ -95,15 +100,9 @@ def test_a_middlebury_scene_is_clicked_through_its_own_calibration_and_mask(tmp_
 def test_the_rigs_click_scenes_are_summed_per_seed_with_the_worst_seed(tmp_path, capsys):
     """Scenes named as `simulate --click-scenes` names them (s<seed>-...) are summed per seed:
     the mean over the seeds and the worst seed, which a threshold is judged by."""
-    _scene(tmp_path, "a", 16)
-    _scene(tmp_path, "b", 24, seed=1)
-    (tmp_path / "c.tsv").write_text(
-        "# name\tleft\tright\ttruth\tdiv\tcalib\n"
-        "s7-rig-wall1m\ta-l.png\ta-r.png\ta.pfm\t1\trectified:800,120\n"
-        "s9-rig-wall1m\tb-l.png\tb-r.png\tb.pfm\t1\trectified:800,120\n")
-    assert main(["bench", "--clicks", str(tmp_path / "c.tsv"), "--preset", "quality",
-                 "--json"]) == 0
-    doc = json.loads(capsys.readouterr().out)
+    doc = _two_scenes_clicked(
+        tmp_path, capsys, "s7-rig-wall1m\ta-l.png\ta-r.png\ta.pfm\t1\trectified:800,120",
+        "s9-rig-wall1m\tb-l.png\tb-r.png\tb.pfm\t1\trectified:800,120")
     over = doc["over_seeds"]
     assert over["seeds"] == [7, 9] and set(over["methods"]) == {"quality", "plain"}
     per = {s["name"]: s["methods"]["quality"] for s in doc["scenes"]}
