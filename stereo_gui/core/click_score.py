@@ -28,8 +28,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from stereo_gui.core.measure import PATCH_PX, triangulate
-from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.core.measure import PATCH_PX
+from stereo_gui.core.stereo_calibration import StereoCalibration, triangulate
 
 CLICK_GRID = (11, 8)  # columns, rows
 PLAIN_MIN_VALUES = 5  # plain OpenCV's patch median needs this many valid disparities

@@ -57,7 +57,7 @@ from stereo_gui.core.reading_bound import (
     with_calibration_uncertainty,
 )
 from stereo_gui.core.regression import FitResult
-from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.core.stereo_calibration import StereoCalibration, triangulate
 from stereo_gui.core.uncertainty import Z95
 
 PATCH_PX = 9  # default side of the square patch a measurement looks at, px (odd)
@@ -161,14 +161,6 @@ class Measurement:
             "valid_fraction": float(self.valid_fraction),
             "expected_error_mm": num(self.expected_error_mm),
         }
-
-
-def triangulate(calibration: StereoCalibration, x: float, y: float, d: float) -> tuple[float, float, float] | None:
-    """(X, Y, Z) mm through Q for rectified pixel (x, y) with disparity d px; None at/behind infinity."""
-    X, Y, Z, W = np.asarray(calibration.Q, np.float64) @ np.array([x, y, d, 1.0])
-    if W <= 0 or not np.isfinite(W):
-        return None
-    return float(X / W), float(Y / W), float(Z / W)
 
 
 def _beyond_range(left_gray: np.ndarray, right_gray: np.ndarray, disp: np.ndarray, x: int, y: int,
@@ -663,8 +655,7 @@ def _located(click: _Click, read: _MapReading, d: float, d_range: tuple[float, f
         # units; a regression fitted on true distances gives millimetres
         return read.refused(click, Reason.NO_METRIC_SCALE, d)
     else:
-        expected = depth_bound_mm(np.asarray(calibration.Q, np.float64), click.x, click.y, d,
-                                  bound_px)
+        expected = depth_bound_mm(calibration, click.x, click.y, d, bound_px)
         expected = with_calibration_uncertainty(expected, calibration, click.x, click.y, d)
     if not (math.isfinite(expected) and expected <= AMBIGUOUS_SHARE * abs(Z)):
         # the match fits so loosely that its 95 % bound spans a large part of the distance

@@ -7,12 +7,10 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from stereo_gui.core.align import Refinement
 from stereo_gui.core.click_images import STDERR_SCALE
 from stereo_gui.core.click_map import EDGE_SPREAD_PX
-from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.core.stereo_calibration import StereoCalibration, triangulate
 from stereo_gui.core.uncertainty import Z95, depth_sigma_mm
 
 # the parts of a reading's disparity uncertainty (1 sigma, px) that its refinement's own standard
@@ -50,15 +48,15 @@ def disparity_bound_px(refinement: Refinement | None, spread_px: float) -> float
     return Z95 * sigma
 
 
-def depth_bound_mm(Q: np.ndarray, x: float, y: float, d: float, bound_px: float) -> float:
-    """The larger change of Z, through the rectified Q, of the disparity at (x, y) moved by
-    +-bound (the far side is the larger; infinite where it passes infinity). Through Q, not
-    f*B/d: a rig whose rectified principal points differ (Middlebury's doffs) reads
-    Z = f*B/(d + doffs), whose change is (d + doffs)/d times smaller."""
+def depth_bound_mm(calibration: StereoCalibration, x: float, y: float, d: float,
+                   bound_px: float) -> float:
+    """The larger change of Z, through the calibration's triangulation, of the disparity at
+    (x, y) moved by +-bound (the far side is the larger; infinite where it passes infinity).
+    Through Q, not f*B/d: a rig whose rectified principal points differ (Middlebury's doffs)
+    reads Z = f*B/(d + doffs), whose change is (d + doffs)/d times smaller."""
     def z_at(disp: float) -> float:
-        w = float(Q[3, 0] * x + Q[3, 1] * y + Q[3, 2] * disp + Q[3, 3])
-        z = float(Q[2, 0] * x + Q[2, 1] * y + Q[2, 2] * disp + Q[2, 3])
-        return z / w if w > 0 else float("inf")
+        xyz = triangulate(calibration, x, y, disp)
+        return float("inf") if xyz is None else xyz[2]
 
     z = z_at(d)
     if not (math.isfinite(z) and math.isfinite(bound_px)):

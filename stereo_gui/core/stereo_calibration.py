@@ -396,6 +396,16 @@ ALPHA: Param = params_of(StereoCalibration)["alpha"]
 OPENCV_DEFAULT_ALPHA = -1.0  # stereoRectify's own choice: files of OpenCV's samples hold it
 
 
+def triangulate(calibration: StereoCalibration, x: float, y: float, d: float
+                ) -> tuple[float, float, float] | None:
+    """(X, Y, Z) mm through Q for rectified pixel (x, y) with disparity d px; None at or behind
+    infinity."""
+    X, Y, Z, W = np.asarray(calibration.Q, np.float64) @ np.array([x, y, d, 1.0])
+    if W <= 0 or not np.isfinite(W):
+        return None
+    return float(X / W), float(Y / W), float(Z / W)
+
+
 def alpha_problem(alpha: float) -> str | None:
     """Why `alpha` is no rectification's free scaling, or None: the declaration's range, or
     OpenCV's default (-1), which calibrations made elsewhere keep."""

@@ -22,11 +22,10 @@ from stereo_gui.core.measure import (
     departs_on_plain_window,
     measure_map,
     measure_point,
-    triangulate,
 )
 from stereo_gui.core.preset import MatcherParams, Preset
 from stereo_gui.core.regression import fit_inverse
-from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.core.stereo_calibration import StereoCalibration, triangulate
 from stereo_gui.core.uncertainty import Z95
 from stereo_gui.files.presets import load_preset
 from stereo_gui.sources.sim import Scene, SimRig

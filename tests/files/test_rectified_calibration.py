@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from stereo_gui.core.errors import CalibrationFileError, InputError
-from stereo_gui.core.measure import triangulate
+from stereo_gui.core.stereo_calibration import triangulate
 from stereo_gui.files.any_calibration import load_any_calibration
 from stereo_gui.files.rectified_calibration import parse_rectified_spec, read_middlebury
 

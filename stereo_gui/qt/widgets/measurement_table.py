@@ -13,8 +13,7 @@ from typing import TYPE_CHECKING
 from PySide6.QtCore import QAbstractTableModel, QModelIndex, QObject, QPersistentModelIndex, Qt
 from PySide6.QtGui import QBrush, QColor
 
-from stereo_gui.core.measure import triangulate
-from stereo_gui.core.stereo_calibration import StereoCalibration
+from stereo_gui.core.stereo_calibration import StereoCalibration, triangulate
 from stereo_gui.files.measurement_record import RULER_METHOD, MeasurementRecord, record_error
 
 if TYPE_CHECKING:
