@@ -44,7 +44,7 @@ from stereo_gui.commands.accuracy import (
 )
 from stereo_gui.commands.clicks import format_clicks, run_clicks
 from stereo_gui.commands.disparity import load_calibration, read_pair
-from stereo_gui.commands.scenes import format_scenes, run_scenes
+from stereo_gui.commands.scenes import format_scenes, over_seeds_figure, run_scenes
 from stereo_gui.core import plain_loop, reference_loop
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.preset import Preset
@@ -498,14 +498,8 @@ def accuracy_over_seeds(totals: dict[int, dict[tuple[str, str], dict[str, float]
     for key in keys:
         row: dict[str, dict[str, Any]] = {}
         for name, worst in _OVER_SEEDS:
-            values = {s: t[key][name] for s, t in totals.items()
-                      if key in t and math.isfinite(t[key][name])}
-            if not values:
-                row[name] = {"mean": float("nan"), "worst": float("nan"), "worst_seed": None}
-                continue
-            seed = worst(values, key=values.__getitem__)
-            row[name] = {"mean": float(statistics.fmean(values.values())),
-                         "worst": values[seed], "worst_seed": seed}
+            row[name] = over_seeds_figure({s: t[key][name] for s, t in totals.items()
+                                           if key in t and math.isfinite(t[key][name])}, worst)
         out[key] = row
     return out
 

@@ -18,14 +18,13 @@ from __future__ import annotations
 import math
 import os
 import re
-import statistics
 import time
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
-from stereo_gui.commands.scenes import _pct
+from stereo_gui.commands.scenes import _pct, over_seeds_figure
 from stereo_gui.core.click_map import reading_map
 from stereo_gui.core.click_score import (
     Click,
@@ -137,14 +136,8 @@ def over_seeds(per_seed: dict[int, dict[str, dict[str, Any]]]) -> dict[str, Any]
     for m in methods:
         row: dict[str, Any] = {}
         for key, worst in _OVER_SEEDS:
-            values = {s: per[m][key] for s, per in per_seed.items()
-                      if m in per and per[m].get(key) is not None}
-            if not values:
-                row[key] = {"mean": None, "worst": None, "worst_seed": None}
-                continue
-            seed = worst(values, key=values.__getitem__)
-            row[key] = {"mean": float(statistics.fmean(values.values())),
-                        "worst": values[seed], "worst_seed": seed}
+            row[key] = over_seeds_figure({s: per[m][key] for s, per in per_seed.items()
+                                          if m in per and per[m].get(key) is not None}, worst)
         out["methods"][m] = row
     return out
 

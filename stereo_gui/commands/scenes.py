@@ -208,5 +208,16 @@ def _mean(values: Iterable[float | None]) -> float:
     return statistics.fmean(finite) if finite else float("nan")
 
 
+def over_seeds_figure(values: dict[int, float], worst: Callable[..., int]
+                      ) -> dict[str, Any]:
+    """One figure over several seeds: its mean, its worst seed's value (`worst` is min or max:
+    the lowest share, the highest error) and which seed that was (None each without values)."""
+    if not values:
+        return {"mean": None, "worst": None, "worst_seed": None}
+    seed = worst(values, key=values.__getitem__)
+    return {"mean": float(statistics.fmean(values.values())), "worst": values[seed],
+            "worst_seed": seed}
+
+
 def _finite(d: dict[str, Any]) -> dict[str, Any]:
     return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in d.items()}
