@@ -15,6 +15,7 @@ from collections.abc import Callable
 from types import FrameType, TracebackType
 
 import pyqtgraph as pg
+from pyqtgraph.util.garbage_collector import GarbageCollector
 from PySide6.QtCore import QObject, QTimer
 from PySide6.QtWidgets import QApplication
 
@@ -30,6 +31,9 @@ from stereo_gui.qt.main_window import MainWindow
 from stereo_gui.sources.open import expected_frame_size, parse_source_spec
 
 log = logging.getLogger(__name__)
+
+GC_INTERVAL_S = 1.0  # how often the UI thread looks whether a collection is due
+_ui_collector: list[GarbageCollector] = []  # (one a process, kept alive)
 
 QUIT_AFTER_ENV = "STEREO_GUI_QUIT_AFTER"
 QUIT_AFTER_MAX_S = 86_400  # a day: the switch is for smoke tests of a build
@@ -58,6 +62,18 @@ def freeze_startup_objects() -> int:
     gc.collect()
     gc.freeze()
     return gc.get_freeze_count()
+
+
+def collect_garbage_on_ui_thread() -> None:
+    """Let Python's cyclic garbage collector run only on the UI thread, on a timer, never in a
+    worker (pyqtgraph's GarbageCollector: automatic collection off, the same thresholds checked
+    every GC_INTERVAL_S). A collection runs in whichever thread allocates, and a Qt object it
+    frees there is destroyed there: its destructor takes Qt's connection lock and then waits for
+    the GIL, which the UI thread holds while it waits for that lock to connect a signal. Both
+    then wait for ever: seen when a calibration-health worker collected a closed window's
+    widgets while the next window was built. Once a process; the UI thread must call it."""
+    if not _ui_collector:
+        _ui_collector.append(GarbageCollector(interval=GC_INTERVAL_S))
 
 
 def check_source_spec(spec: str) -> None:
@@ -98,6 +114,7 @@ def build_window(source: str | None = None, calib: str | None = None
     Returns (ctx, window). A QApplication must exist.
     """
     configure_pyqtgraph()
+    collect_garbage_on_ui_thread()
     settings, warnings = load_settings()
     ctx = AppContext(settings)
     w, h = settings.resolution

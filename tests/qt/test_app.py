@@ -415,3 +415,35 @@ def test_start_up_objects_are_frozen_and_later_ones_still_collected():
         assert alive() is None
     finally:
         gc.unfreeze()  # the rest of the test session collects as before
+
+
+def test_garbage_is_collected_on_the_ui_thread_never_in_a_worker(qtbot):
+    """A Qt object freed by a collection in a worker thread can deadlock with the UI thread
+    (its destructor waits for the GIL while holding Qt's connection lock): the collector runs
+    only on the UI thread's timer. Cycles made in a worker are freed there, not in the worker."""
+    import gc
+    import threading
+
+    from stereo_gui.qt.app import collect_garbage_on_ui_thread
+
+    collect_garbage_on_ui_thread()
+    assert not gc.isenabled()
+    freed_in: list[str] = []
+
+    class Cycle:
+        def __init__(self) -> None:
+            self.me = self
+
+        def __del__(self) -> None:
+            freed_in.append(threading.current_thread().name)
+
+    def make() -> None:
+        for _ in range(5 * gc.get_threshold()[0]):  # well past a collection's threshold
+            Cycle()
+
+    worker = threading.Thread(target=make, name="worker")
+    worker.start()
+    worker.join()
+    assert not freed_in
+    qtbot.waitUntil(lambda: bool(freed_in), timeout=5000)
+    assert set(freed_in) == {threading.current_thread().name}
