@@ -162,12 +162,12 @@ def click_plain(disparity_px: np.ndarray, calib: StereoCalibration, truth: list[
                 ) -> list[Click]:
     """Plain OpenCV's clicks: the patch median, triangulated through the same calibration."""
     out = []
-    for x, y, d, z, _span in truth:
+    for x, y, d, z, span in truth:
         read = plain_patch_disparity(disparity_px, x, y)
         right = map_right(calib, x, y, float(disparity_px[y, x]), d, z)
         z_read = true_z_mm(calib, x, y, read) if math.isfinite(read) else float("nan")
         if math.isfinite(z_read):
-            out.append(Click(x, y, z, z_read, map_right=right))
+            out.append(Click(x, y, z, z_read, map_right=right, true_z_span=span))
         else:
             out.append(Click(x, y, z, reason="too few valid pixels", map_right=right))
     return out
@@ -216,8 +216,8 @@ def format_clicks(res: dict[str, Any]) -> str:
     stepped = [f"{e['name']} {_step_text(e['truth_step_px'])}" for e in res["scenes"]
                if e.get("truth_step_px")]
     if stepped:
-        lines.append("truths stored in steps (the +- covers where it reaches the span of the "
-                     f"truth's step): {', '.join(stepped)}")
+        lines.append("truths stored in steps (errors are counted from the span of the truth's "
+                     f"step, and the +- covers where it reaches it): {', '.join(stepped)}")
     return "\n".join(lines)
 
 

@@ -11,7 +11,9 @@ A reading is right within 1 % or 2 % when its Z is that close to the true Z; its
 when |Z - true Z| <= its printed +-. A truth stored in whole steps of a pixel (`truth_step_px`:
 the older Middlebury scenes hold whole pixels of their full-size images, so tsukuba's truth is
 known to 1 px, a third-size scene's to 1/3 px, teddy's to 1/4 px) knows the true Z only to the
-span its step leaves: there the +- covers when it reaches that span. For each refusal, whether
+span its step leaves: there a reading's error is its distance from that span (a reading inside
+it is not known to be wrong; plain OpenCV's is judged the same way), and the +- covers when it
+reaches the span. For each refusal, whether
 the map under the click was right there (within 2 % of Z or 0.5 px of disparity) is counted
 too: a refusal of a right map is an answer thrown away, of a wrong one a wrong answer stopped.
 
@@ -150,8 +152,12 @@ class Click:
 
     @property
     def error_share(self) -> float:
-        """|Z - true Z| / true Z; NaN when refused."""
-        return abs(self.z_mm - self.true_z_mm) / self.true_z_mm if self.read else float("nan")
+        """|Z - true Z| / true Z, for a truth stored in steps the distance from Z to the span
+        the true Z lies in (0 inside it); NaN when refused."""
+        if not self.read:
+            return float("nan")
+        near, far = self.true_z_span or (self.true_z_mm, self.true_z_mm)
+        return max(near - self.z_mm, self.z_mm - far, 0.0) / self.true_z_mm
 
     @property
     def covered(self) -> bool:

@@ -133,3 +133,19 @@ def test_over_seeds_takes_the_lowest_shares_and_the_highest_error_as_the_worst_s
     assert row["within_2pct"]["worst_seed"] == 1
     assert row["covers"] == {"mean": pytest.approx(0.9566667), "worst": 0.91, "worst_seed": 3}
     assert row["worst"] == {"mean": pytest.approx(0.53 / 3), "worst": 0.50, "worst_seed": 2}
+
+
+def test_plain_opencv_is_judged_by_a_stepped_truths_span_as_the_presets_are():
+    """A truth stored in whole pixels: plain's patch median of 4.7 px where the truth says 5 px
+    lies inside the step's span (4.5..5.5 px), no error, as a preset's reading there is."""
+    from stereo_gui.commands.clicks import click_plain
+    from stereo_gui.core.click_score import true_z_mm, true_z_span_mm
+    from stereo_gui.core.stereo_calibration import StereoCalibration
+
+    calib = StereoCalibration.identity((40, 20), 1000.0, 100.0)
+    z = true_z_mm(calib, 20, 10, 5.0)
+    stepped = [(20, 10, 5.0, z, true_z_span_mm(calib, 20, 10, 5.0, 1.0))]
+    exact = [(20, 10, 5.0, z, None)]
+    disparity = np.full((20, 40), 4.7, np.float32)
+    assert click_plain(disparity, calib, stepped)[0].error_share == 0.0
+    assert click_plain(disparity, calib, exact)[0].error_share == pytest.approx(5.0 / 4.7 - 1.0)

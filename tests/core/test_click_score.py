@@ -129,3 +129,22 @@ def test_the_bound_covers_a_stepped_truth_where_it_reaches_the_steps_span():
     assert not click(5.3, None).covered
     assert click(5.3, (near, far)).covered and click(4.7, (near, far)).covered
     assert not click(5.7, (near, far)).covered and not click(4.3, (near, far)).covered
+
+
+def test_a_reading_inside_a_stepped_truths_span_is_not_counted_wrong():
+    """tsukuba's true 5 px is anywhere in 4.5..5.5 px: a reading of 4.7 px (6 % from 5.0 in Z)
+    is inside that span, error 0; one of 4.3 px is judged by its distance from the span's far
+    end (4.5 px), not from 5.0; plain's readings are judged alike. An exact truth keeps
+    |Z - true Z|."""
+    calib = StereoCalibration.identity((200, 100), 1000.0, 100.0)
+    fb = 1000.0 * 100.0
+    span = true_z_span_mm(calib, 100, 50, 5.0, 1.0)
+    inside = Click(100, 50, fb / 5.0, fb / 4.7, 1.0, true_z_span=span)
+    outside = Click(100, 50, fb / 5.0, fb / 4.3, 1.0, true_z_span=span)
+    assert inside.error_share == 0.0
+    assert outside.error_share == pytest.approx((fb / 4.3 - fb / 4.5) / (fb / 5.0))
+    assert Click(100, 50, fb / 5.0, fb / 4.7, 1.0).error_share == pytest.approx(5.0 / 4.7 - 1.0)
+    assert math.isnan(Click(100, 50, fb / 5.0, true_z_span=span).error_share)
+    s = ClickScore().add([inside, outside]).summary()
+    assert s["within_2pct"] == pytest.approx(0.5)
+    assert s["worst"] == pytest.approx(outside.error_share)
