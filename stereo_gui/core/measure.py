@@ -358,7 +358,8 @@ def _settled(result: PipelineResult, click: _Click, read: _MapReading, d: float,
     """The reading at disparity `d` located with its bound (`_located`). A refined reading whose
     bound spans too much of the distance falls back on the map's patch where that is rich
     (`_rich`); a refined one on a plain window that departs from the surface around it
-    (`departs_on_plain_window`) is refused."""
+    (`departs_on_plain_window`) is refused; one a rich patch overrules (`_patch_overrules`)
+    reads the patch's median, with the alignment's wider bound."""
     gl, gr, disp = images
     located = _located(click, read, d, d_range, step, disparity_bound_px(ref, read.spread_px),
                        calibration, fit, refined=ref is not None)
@@ -381,7 +382,28 @@ def _settled(result: PipelineResult, click: _Click, read: _MapReading, d: float,
                         refined=False)
     if located.valid and departs_on_plain_window(result, gl, click.xi, click.yi, d):
         return read.refused(click, Reason.AMBIGUOUS, d)
+    if located.valid and read.empty is None and _patch_overrules(read, d, located, gl, gr,
+                                                                  click):
+        unrefined = _checked_in_images(gl, gr, disp, click, read, None)
+        if not isinstance(unrefined, Measurement):
+            return _located(click, read, read.d, d_range, step, located.disparity_bound_px,
+                            calibration, fit, refined=False)
     return located
+
+
+def _patch_overrules(read: _MapReading, d: float, located: Measurement, gl: np.ndarray,
+                     gr: np.ndarray, click: _Click) -> bool:
+    """Whether a rich patch (`_rich`) is surer than the alignment that refined it to `d` and
+    contradicts it: the refined reading's bound is wider than an unrefined one's, and the two
+    lie further apart than that narrower bound. The alignment fits loosely there (a slanted or
+    curved surface its windows disagree on) and the map's patch lies nearer the truth: on the 13
+    public scenes (`bench --clicks`) 35 of live's and 46 of quality's readings, 19 and 22 more
+    of them within 2 %. Where the two agree within the patch's bound the alignment stands (it
+    undoes SGBM's bias towards whole pixels: a rig wall's corner read 0.01 % off refined, 0.4 %
+    unrefined); on a weak wall no patch is rich."""
+    patch_bound = disparity_bound_px(None, read.spread_px)
+    return (located.disparity_bound_px > patch_bound and abs(d - read.d) > patch_bound
+            and _rich(read, gl, gr, click.xi, click.yi))
 
 
 # a window with no texture beyond the noise (TEXTURE_MIN_STD) reads only the surface the checked

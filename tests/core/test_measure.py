@@ -819,6 +819,35 @@ def test_a_loose_alignment_leaves_the_map_only_on_rich_texture(monkeypatch, cont
         assert m.reason == Reason.AMBIGUOUS
 
 
+@pytest.mark.parametrize("offset, windows_px, refined", [(0.6, 0.3, False), (0.6, 0.02, True),
+                                                         (0.2, 0.3, True)])
+def test_a_rich_patch_surer_than_its_alignment_overrules_it(monkeypatch, offset, windows_px,
+                                                            refined):
+    """An alignment that settles 0.6 px from a rich patch's median, its windows disagreeing by
+    0.3 px (a bound of about 1.8 px, wider than the patch's own of 0.4 px): the patch's median
+    is read, with the alignment's wider bound kept (on the 13 public scenes such readings lay a
+    median 0.65-0.77 px from the truth refined and 0.24-0.33 px unrefined). An alignment tighter
+    than the patch keeps its refined reading, and so does a loose one that settles within the
+    patch's bound (0.2 px): there it undoes SGBM's bias towards whole pixels."""
+    import stereo_gui.core.measure as measure
+
+    result = _textured_result(40.0, 1.0)
+    monkeypatch.setattr(measure, "refine_point", lambda *a, **k: measure.Refinement(
+        a[4] + offset, 0.05, True, moved_px=offset, correlation=0.95, pixels=625, half_px=12,
+        windows_px=windows_px))
+    m = measure_point(result, 200, 120)
+    assert m.valid and m.refined == refined
+    patch = measure_point(result, 200, 120, refine=False)
+    assert patch.disparity_bound_px == pytest.approx(1.96 * math.hypot(patch.spread_px, 0.19),
+                                                     rel=1e-3)
+    if refined:
+        assert m.disparity_px == pytest.approx(patch.disparity_px + offset, abs=1e-6)
+    else:
+        assert m.disparity_px == pytest.approx(patch.disparity_px, abs=1e-6)
+        # the alignment's wider bound stays
+        assert m.disparity_bound_px >= 1.96 * 3.0 * windows_px > patch.disparity_bound_px
+
+
 def test_a_window_past_a_second_surface_that_settles_elsewhere_marks_the_reading():
     """Where a blob of wrong matches 3 px off fills a quarter of the 49x49 window (two surfaces
     to the map) but little of the 97x97 one, the larger window is aligned from the reading: a
