@@ -13,9 +13,9 @@ the older Middlebury scenes hold whole pixels of their full-size images, so tsuk
 known to 1 px, a third-size scene's to 1/3 px, teddy's to 1/4 px) knows the true Z only to the
 span its step leaves: there a reading's error is its distance from that span (a reading inside
 it is not known to be wrong; plain OpenCV's is judged the same way), and the +- covers when it
-reaches the span. For each refusal, whether
-the map under the click was right there (within 2 % of Z or 0.5 px of disparity) is counted
-too: a refusal of a right map is an answer thrown away, of a wrong one a wrong answer stopped.
+reaches the span. For each refusal, whether the map under the click was right there (within 2 %
+of Z or 0.5 px of disparity) is counted too: a refusal of a right map is an answer thrown away,
+of a wrong one a wrong answer stopped.
 
 Plain OpenCV's reading is the median of the valid disparities of the same patch, with at least
 PLAIN_MIN_VALUES of them.

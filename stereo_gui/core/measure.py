@@ -374,21 +374,30 @@ def _settled(result: PipelineResult, click: _Click, read: _MapReading, d: float,
         # 30 clicks read that were refused, 16 right within 2 %, 6 within 5 %, 8 beyond (where
         # the map itself is wrong: tsukuba's far wall, Plastic, Vintage's glare); the rig's
         # click scenes (6 seeds, 6,696 clicks a preset): 2 more read, both right
-        unrefined = _checked_in_images(gl, gr, disp, click, read, None)
-        if isinstance(unrefined, Measurement):
-            return unrefined
         bound_px = math.hypot(disparity_bound_px(None, read.spread_px), Z95 * abs(d - read.d))
-        return _located(click, read, read.d, d_range, step, bound_px, calibration, fit,
-                        refined=False)
+        return _unrefined(click, read, images, d_range, step, bound_px, calibration, fit)
     if located.valid and departs_on_plain_window(result, gl, click.xi, click.yi, d):
         return read.refused(click, Reason.AMBIGUOUS, d)
     if located.valid and read.empty is None and _patch_overrules(read, d, located, gl, gr,
                                                                   click):
-        unrefined = _checked_in_images(gl, gr, disp, click, read, None)
-        if not isinstance(unrefined, Measurement):
-            return _located(click, read, read.d, d_range, step, located.disparity_bound_px,
-                            calibration, fit, refined=False)
+        patch = _unrefined(click, read, images, d_range, step, located.disparity_bound_px,
+                           calibration, fit)
+        return patch if patch.valid else located
     return located
+
+
+def _unrefined(click: _Click, read: _MapReading,
+               images: tuple[np.ndarray, np.ndarray, np.ndarray], d_range: tuple[float, float],
+               step: float, bound_px: float, calibration: StereoCalibration,
+               fit: FitResult | None) -> Measurement:
+    """The patch's median read unrefined with `bound_px`, where the images bear it out
+    (`_checked_in_images`)."""
+    gl, gr, disp = images
+    checked = _checked_in_images(gl, gr, disp, click, read, None)
+    if isinstance(checked, Measurement):
+        return checked
+    return _located(click, read, read.d, d_range, step, bound_px, calibration, fit,
+                    refined=False)
 
 
 def _patch_overrules(read: _MapReading, d: float, located: Measurement, gl: np.ndarray,
