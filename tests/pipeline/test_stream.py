@@ -292,17 +292,27 @@ async def _malformed_then_depth(address: str, publish) -> tuple[list[str], int]:
         await ws.send(json.dumps({"op": "subscribe", "subscriptions": [
             {"id": 1, "channelId": channels[TOPICS["depth"]]["id"]}]}))
         said, depth = [], 0
+        # (the replies and the depth come on different threads, in no fixed order: read until
+        # both are in, not until the first depth message)
         for _ in range(400):
-            publish()
+            if depth and _all_refusals_heard(said):
+                break
+            if not depth:
+                publish()
             try:
                 data = await asyncio.wait_for(ws.recv(), 0.05)
             except TimeoutError:
                 continue
             if isinstance(data, bytes):
                 depth += 1
-                break
-            said.append(json.loads(data).get("message", ""))
+            else:
+                said.append(json.loads(data).get("message", ""))
         return said, depth
+
+
+def _all_refusals_heard(said: list[str]) -> bool:
+    return (any("parameters" in s.lower() for s in said)
+            and sum("Invalid message" in s for s in said) >= 3)
 
 
 def test_malformed_client_messages_are_refused_and_the_client_still_served(wall_frames):
@@ -311,6 +321,6 @@ def test_malformed_client_messages_are_refused_and_the_client_still_served(wall_
         address = stream.serve(port=0)
         said, depth = asyncio.run(_malformed_then_depth(
             address, lambda: stream.publish(frame.result, 5.0)))
-    assert depth == 1
+    assert depth >= 1
     assert any("parameters" in s.lower() for s in said)  # no parameters to read or change
     assert sum("Invalid message" in s for s in said) >= 3
