@@ -918,6 +918,24 @@ def test_a_reading_of_a_nearer_edge_says_so(monkeypatch, rig, walls):
     assert not m.valid and m.reason == Reason.NEARER_EDGE
 
 
+def test_a_reading_a_nearer_surface_beside_it_would_hide_says_so_not_that_it_is_unseen(
+        monkeypatch, rig, walls):
+    """Where the map's nearer surface beside the click would hide the patch's farther reading,
+    one of the two is wrong or the point is hidden: the reason says that, not "not seen" (on
+    the 13 public scenes both cameras saw the point at all 21 such refusals)."""
+    import stereo_gui.core.measure as measure
+
+    calib = rig.true_calibration()
+    with StereoPipeline(calib, load_preset("quality")) as pipe:
+        result = pipe.process(*walls[1000.0][1])
+    assert measure_point(result, 320, 240).valid
+    monkeypatch.setattr(measure, "hidden_by_nearer", lambda *a: (True, None))
+    m = measure_point(result, 320, 240)
+    assert not m.valid and m.reason == Reason.NEARER_HIDES
+    # the reason the views paint the unseen strip with stays its own
+    assert measure_point(result, 3, 240).reason == Reason.NOT_SEEN
+
+
 def _webcams_wall(seed: int, wall_mm: float):
     """The rig's webcams wall as `bench --accuracy --condition webcams` renders it, processed by
     the quality preset with the true calibration."""

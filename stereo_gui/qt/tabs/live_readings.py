@@ -57,6 +57,7 @@ SHORT_REASONS: dict[Reason, str] = {
     Reason.OUTSIDE: "outside", Reason.OUT_OF_FIT_RANGE: "out of fit range",
     Reason.NO_METRIC_SCALE: "no scale", Reason.AMBIGUOUS: "ambiguous match",
     Reason.NEARER_EDGE: "beside an edge", Reason.NOT_CONFIRMED: "not confirmed",
+    Reason.NEARER_HIDES: "nearer beside",
 }
 
 
