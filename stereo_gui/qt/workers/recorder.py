@@ -110,6 +110,11 @@ class Recorder(QObject):
         return w.frames_written if w is not None else 0
 
     @property
+    def last_frame_taken(self) -> tuple[int, float] | None:
+        """(index, t_left) of the newest frame handed to the recording; None before the first."""
+        return self._last
+
+    @property
     def elapsed_s(self) -> float:
         return time.monotonic() - self._t0 if self._writer is not None else 0.0
 
