@@ -111,7 +111,10 @@ def readout_line(r: PointerReading) -> str:
     truth = ("" if r.true_z_mm is None else
              f"   |  {TRUTH_LABEL}: Z {format_distance(r.true_z_mm)}")
     if not m.valid:
-        return where + f"no distance: {m.reason or 'invalid'}{truth}"
+        # the depth view may show a colour here: say that the click does not take it
+        shown = (f"   (the map says {r.map_px:.2f} px at this pixel: the click does not take it)"
+                 if math.isfinite(r.map_px) else "")
+        return where + f"no distance: {m.reason or 'invalid'}{shown}{truth}"
     how = "" if m.method == "triangulation" else f" ({m.method} fit)"
     return (where + f"Z {format_distance(m.Z_mm)} {format_error(m.expected_error_mm)}{how}   "
                     f"disparity {m.disparity_px:.2f} px   as a double-click reads it"

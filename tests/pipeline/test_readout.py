@@ -6,11 +6,16 @@ import numpy as np
 import pytest
 
 from stereo_gui.core.matching import StereoPipeline
-from stereo_gui.core.measure import measure_point
+from stereo_gui.core.measure import Reason, measure_point
 from stereo_gui.core.preset import MatcherParams
 from stereo_gui.core.stereo_calibration import StereoCalibration
-from stereo_gui.pipeline.readout import (disparity_of_view, format_distance, format_error,
-                                         read_pointer, readout_line)
+from stereo_gui.pipeline.readout import (
+    disparity_of_view,
+    format_distance,
+    format_error,
+    read_pointer,
+    readout_line,
+)
 
 
 def test_one_unit_rule_distances_in_metres_errors_in_millimetres():
@@ -83,3 +88,9 @@ def test_the_line_says_why_the_reading_and_the_map_under_it_differ():
     assert f"the map says {apart.map_px:.2f} px at this pixel" in readout_line(apart)
     hole = replace(reading, map_px=float("nan"))
     assert "the map has no value at this pixel" in readout_line(hole)
+    # a refusal where the depth view shows a value says so: the two differ, and why is shown
+    refused = replace(reading, measurement=replace(m, valid=False, reason=Reason.AMBIGUOUS))
+    line = readout_line(refused)
+    assert "no distance: ambiguous match" in line
+    assert f"the map says {refused.map_px:.2f} px at this pixel: the click does not take" in line
+    assert "the map" not in readout_line(replace(refused, map_px=float("nan")))
