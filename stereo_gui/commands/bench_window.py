@@ -52,7 +52,11 @@ class WindowBenchResult:
     drawn by the Live tab, `processing_fps` processed, `camera_fps` read from the source), the
     process's CPU as a percent of its `cores` (100: all busy), the latency from the reader's
     delivery to the views (ms; NaN when no frame was drawn) and in frame intervals of the
-    source (`latency_intervals`: the median's), and what ran."""
+    source (`latency_intervals`: the median's), and what ran. `source_cpu_percent`: the part of
+    the CPU that the reader thread spent inside the source's reads (the simulated rig's
+    rendering, a recording's or a camera's decoding), of the same cores. On 2 CPUs OpenCV runs
+    every call in the thread that makes it (`pipeline.concurrency`), so that is all of it; with
+    more, OpenCV's own pool may help a read and is not counted."""
 
     shown_fps: float
     processing_fps: float
@@ -76,6 +80,7 @@ class WindowBenchResult:
     platform: str
     load_average: float
     errors: tuple[str, ...] = ()
+    source_cpu_percent: float = math.nan
 
     def to_dict(self) -> dict[str, Any]:
         """The result as JSON takes it (NaN as null)."""
@@ -93,7 +98,8 @@ class WindowBenchResult:
         ww, wh = self.window_px
         return (f"window bench: shown {self.shown_fps:.1f} fps, processing "
                 f"{self.processing_fps:.1f} fps, camera {self.camera_fps:.1f} fps, CPU "
-                f"{_num(self.cpu_percent, '.0f')} % of {self.cores} cores, latency "
+                f"{_num(self.cpu_percent, '.0f')} % of {self.cores} cores (the source's "
+                f"reads {_num(self.source_cpu_percent, '.0f')} %), latency "
                 f"{_num(self.latency_median_ms, '.0f')} / {_num(self.latency_p95_ms, '.0f')} ms "
                 f"(median / p95) = {_num(self.latency_intervals, '.2f')} / "
                 f"{_num(self.latency_p95_intervals, '.2f')} frame intervals; {self.source} "

@@ -158,8 +158,8 @@ class _Timing(QObject):
         self.failure: StereoGuiError | None = None
         self.interrupted = False  # Ctrl+C or SIGTERM (the window is closed all the same)
         self.latencies_ms: list[float] = []
-        self._start: tuple[float, float, int, int, int] | None = None
-        self._end: tuple[float, float, int, int, int] | None = None
+        self._start: tuple[float, float, int, int, int, float] | None = None
+        self._end: tuple[float, float, int, int, int, float] | None = None
         window.sourceOpened.connect(self._source_opened)
         ctx.errorOccurred.connect(self._error)
         self.live.frameShown.connect(self._frame_shown)
@@ -210,11 +210,11 @@ class _Timing(QObject):
         self._move(BenchPhase.DONE)
         self.loop.quit()
 
-    def _readings(self) -> tuple[float, float, int, int, int]:
-        """(wall s, process CPU s, frames shown, processed, read) now."""
+    def _readings(self) -> tuple[float, float, int, int, int, float]:
+        """(wall s, process CPU s, frames shown, processed, read, the source's CPU s) now."""
         status = self.ctx.frames.status()
         return (time.monotonic(), time.process_time(), self.live.frames_shown,
-                status.frames_processed, status.frames_read)
+                status.frames_processed, status.frames_read, status.source_cpu_s)
 
     # ---- what stops it ---------------------------------------------------------------------
     def _error(self, text: str) -> None:
@@ -241,8 +241,8 @@ class _Timing(QObject):
     # ---- the result ------------------------------------------------------------------------
     def _result(self) -> WindowBenchResult:
         assert self._start is not None and self._end is not None  # (the loop ends counted)
-        t0, cpu0, shown0, processed0, read0 = self._start
-        t1, cpu1, shown1, processed1, read1 = self._end
+        t0, cpu0, shown0, processed0, read0, source0 = self._start
+        t1, cpu1, shown1, processed1, read1, source1 = self._end
         wall = max(t1 - t0, 1e-9)
         camera_fps = (read1 - read0) / wall
         latency = latency_stats(self.latencies_ms)
@@ -272,6 +272,7 @@ class _Timing(QObject):
             platform=QGuiApplication.platformName(),
             load_average=load,
             errors=tuple(self.window.error_bar.messages()),
+            source_cpu_percent=cpu_percent(source1 - source0, wall, cores),
         )
 
 

@@ -104,7 +104,7 @@ def _result(**changes):
                   latency_p95_intervals=1.74, frames_shown=149, frames_processed=150,
                   frames_read=150, seconds=5.0, warmup_s=2.0, source="sim", size=(640, 480),
                   preset="live", views=("depth", "left"), window_px=(1366, 736),
-                  platform="offscreen", load_average=0.5)
+                  platform="offscreen", load_average=0.5, source_cpu_percent=21.4)
     values.update(changes)
     return WindowBenchResult(**values)
 
@@ -113,11 +113,13 @@ def test_the_line_and_the_json_say_the_same():
     r = _result()
     line = r.line()
     assert line.startswith("window bench: shown 29.8 fps, processing 30.0 fps, camera 30.0 fps, "
-                           "CPU 47 % of 2 cores, latency 41 / 58 ms (median / p95) = 1.24 / "
+                           "CPU 47 % of 2 cores (the source's reads 21 %), latency 41 / 58 "
+                           "ms (median / p95) = 1.24 / "
                            "1.74 frame intervals; sim 640x480, preset live, views depth+left")
     assert "\n" not in line
     doc = json.loads(json.dumps(r.to_dict()))
     assert doc["shown_fps"] == 29.84 and doc["size"] == [640, 480] and doc["errors"] == []
+    assert doc["source_cpu_percent"] == 21.4
     none = _result(latency_median_ms=math.nan, latency_p95_ms=math.nan,
                    latency_intervals=math.nan, latency_p95_intervals=math.nan)
     assert "latency - / - ms" in none.line()

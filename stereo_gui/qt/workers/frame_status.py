@@ -69,6 +69,9 @@ class WorkerStatus:
     frames_processed: int
     pending_frames: int
     skipped_frames: int
+    # CPU seconds the reader thread spent inside the source's reads (rendering the simulated
+    # rig, decoding a recording's or a camera's images; a wait for the device is not CPU)
+    source_cpu_s: float = 0.0
 
 
 class RateMeter:
@@ -112,6 +115,7 @@ class Meters:
         self._skew = SkewMeter()
         self.frames_read = 0
         self.frames_processed = 0
+        self.source_cpu_s = 0.0
 
     def reset(self, skew: bool = True) -> None:
         with self._lock:
@@ -126,6 +130,11 @@ class Meters:
             self._camera.tick(time.monotonic())
             self._skew.add(frame.t_left, frame.t_right)
 
+    def read_cpu(self, seconds: float) -> None:
+        """Count the reader thread's CPU time of one read."""
+        with self._lock:
+            self.source_cpu_s += max(0.0, seconds)
+
     def processed(self) -> tuple[float, float]:
         """Count a result kept; (camera, processing) frames per second now."""
         with self._lock:
@@ -138,6 +147,11 @@ class Meters:
         with self._lock:
             return (self._camera.fps, self._processing.fps, self.frames_read,
                     self.frames_processed)
+
+    def cpu(self) -> float:
+        """The reader thread's CPU seconds inside the source's reads, all told."""
+        with self._lock:
+            return self.source_cpu_s
 
     def skew(self) -> SkewStats:
         with self._lock:

@@ -293,7 +293,8 @@ class FrameWorker(QObject):
             frames_read=read,
             frames_processed=processed,
             pending_frames=pending,
-            skipped_frames=int(source.skipped_frames) if source is not None else 0)
+            skipped_frames=int(source.skipped_frames) if source is not None else 0,
+            source_cpu_s=self._meters.cpu())
 
     def is_running(self) -> bool:
         """True while one of its threads runs (a blocked one left behind included)."""
@@ -427,10 +428,12 @@ class FrameWorker(QObject):
             if source is None or paused:
                 continue
             clock.start()
+            cpu0 = time.thread_time()
             try:
                 frame, error = source.read(), None
             except Exception as exc:  # noqa: BLE001 - any failure of a device becomes a message
                 frame, error = None, exc
+            self._meters.read_cpu(time.thread_time() - cpu0)
             clock.stop()
             read_at = time.monotonic()  # where the latency to the screen starts
             with self._reader_cv:

@@ -525,3 +525,35 @@ def test_a_processor_without_lanes_is_never_called_twice_at_once(qtbot, worker, 
     worker.set_source(array_source(fps=500))
     qtbot.waitUntil(lambda: worker.status().frames_processed >= 30, timeout=30000)
     assert most[0] == 1
+
+
+def test_the_status_counts_the_cpu_the_source_spends_in_its_reads(qtbot, worker, array_source):
+    """The reader's CPU inside the source's reads is counted (the window bench tells the
+    simulated rig's rendering from the pipeline's work with it); a read that waits for its
+    camera (sleeps) costs none."""
+    import time
+
+    src = array_source(fps=20)  # paced: most of each read is a sleep
+    plain_read = src.read
+    burnt = []
+
+    def read():
+        frame = plain_read()
+        if frame.index % 2:  # every other read renders, as it were, for 20 ms of CPU
+            t0 = time.thread_time()
+            while time.thread_time() - t0 < 0.02:
+                pass
+            burnt.append(0.02)
+        return frame
+
+    src.read = read
+    worker.set_processor(lambda f: None)
+    assert worker.status().source_cpu_s == 0.0
+    worker.set_source(src)
+    qtbot.waitUntil(lambda: len(burnt) >= 6, timeout=30000)
+    worker.pause()
+    s = worker.status()
+    # at least what was burnt in the reads counted so far, and not the sleeps (20 fps: 50 ms a
+    # read, 25 ms of CPU on average at most beside the pacing's own small cost)
+    most = 0.02 * (len(burnt) + 1) + 0.01 * s.frames_read
+    assert 0.02 * (len(burnt) - 1) <= s.source_cpu_s <= most
