@@ -112,7 +112,7 @@ def readout_line(r: PointerReading) -> str:
              f"   |  {TRUTH_LABEL}: Z {format_distance(r.true_z_mm)}")
     if not m.valid:
         # the depth view may show a colour here: say that the click does not take it
-        shown = (f"   (the map says {r.map_px:.2f} px at this pixel: the click does not take it)"
+        shown = (_map_says(r.map_px, "the click does not take it")
                  if math.isfinite(r.map_px) else "")
         return where + f"no distance: {m.reason or 'invalid'}{shown}{truth}"
     how = "" if m.method == "triangulation" else f" ({m.method} fit)"
@@ -132,5 +132,10 @@ def _beside_map(r: PointerReading) -> str:
     bound = m.disparity_bound_px if math.isfinite(m.disparity_bound_px) else 0.0
     if abs(m.disparity_px - r.map_px) <= max(bound, 1.0 / 16.0):
         return ""
-    return (f"   (the map says {r.map_px:.2f} px at this pixel: the reading is of its "
-            f"{'patch, aligned with the right image' if m.refined else 'patch'})")
+    return _map_says(r.map_px, "the reading is of its "
+                     + ("patch, aligned with the right image" if m.refined else "patch"))
+
+
+def _map_says(map_px: float, why: str) -> str:
+    """The readout's note of the depth map's own value at the pixel, and why the line's differs."""
+    return f"   (the map says {map_px:.2f} px at this pixel: {why})"

@@ -148,7 +148,7 @@ class Meters:
             return (self._camera.fps, self._processing.fps, self.frames_read,
                     self.frames_processed)
 
-    def cpu(self) -> float:
+    def source_cpu(self) -> float:
         """The reader thread's CPU seconds inside the source's reads, all told."""
         with self._lock:
             return self.source_cpu_s

@@ -294,7 +294,7 @@ class FrameWorker(QObject):
             frames_processed=processed,
             pending_frames=pending,
             skipped_frames=int(source.skipped_frames) if source is not None else 0,
-            source_cpu_s=self._meters.cpu())
+            source_cpu_s=self._meters.source_cpu())
 
     def is_running(self) -> bool:
         """True while one of its threads runs (a blocked one left behind included)."""
