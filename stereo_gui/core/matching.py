@@ -145,6 +145,11 @@ class PipelineResult:
 # for it (a nearer surface widens it at once); the range is never narrower than this (matched px)
 SCENE_SHRINK_FRAMES = 15
 SCENE_MIN_RANGE_PX = 16
+# while a frame searches the preset's whole range, a look can only ask to narrow it, which waits
+# for SCENE_SHRINK_FRAMES frames anyway: the look is then taken on every this-many-th frame, each
+# look speaking for the frames since the one before (a narrowed range is looked at every frame,
+# so that a nearer surface widens it at once)
+LOOK_EVERY_AT_TOP = 5  # (SCENE_SHRINK_FRAMES a multiple of it: a still scene narrows as soon)
 
 
 class StereoPipeline:
@@ -173,6 +178,8 @@ class StereoPipeline:
         # None: the preset's), and how many frames in a row have asked for less
         self._scene_top_px: float | None = None
         self._shrink_votes = 0
+        # frames matched since the last look (the first frame is always looked at)
+        self._unlooked = LOOK_EVERY_AT_TOP - 1
         self._closed = False
         self._build()
 
@@ -210,6 +217,7 @@ class StereoPipeline:
         fitted = p.range_from_scene and p.z_min_mm is not None
         self._min_s, self._num_s = p.matcher_range(self.calibration, s,
                                                    self._scene_top_px if fitted else None)
+        self._at_top = (self._min_s, self._num_s) == p.matcher_range(self.calibration, s)
         self._range_full = (self._min_s / s, (self._min_s + self._num_s - 1) / s)
         self._left: cv2.StereoSGBM = self._sgbm(self._min_s, self._num_s, p.block_size, p)
         self._second: cv2.StereoSGBM | None = (
@@ -332,26 +340,36 @@ class StereoPipeline:
             self._preset, self._params = pending, pending.matcher
             self._build()
 
-    def _fit_range(self, ml: np.ndarray, mr: np.ndarray) -> None:
+    def _fit_range(self, ml: np.ndarray, mr: np.ndarray) -> bool:
         """Search up to the nearest surface in view (`core.scene_range`), matched images `ml`,
         `mr`: a nearer surface widens the range at once, a range wider than needed narrows after
-        SCENE_SHRINK_FRAMES frames in a row have asked for it (the first frame sets it)."""
+        SCENE_SHRINK_FRAMES frames in a row have asked for it (the first frame sets it). At the
+        preset's whole range only every LOOK_EVERY_AT_TOP-th frame is looked at. Whether this
+        frame was."""
+        frames = self._unlooked + 1  # the frames this look speaks for
+        if self._at_top and frames < LOOK_EVERY_AT_TOP:
+            self._unlooked = frames
+            return False
+        self._unlooked = 0
         p, s = self._params, self._scale
         d_min, d_max = p.disparity_limits(self.calibration)
         look = look_at_scene(ml, mr, d_min * s, d_max * s)
         top = look.top_px(d_max * s, d_min * s + SCENE_MIN_RANGE_PX) / s
         lo, num = p.matcher_range(self.calibration, s, top)
+        first = self._scene_top_px is None
+        if first:  # (the range a later look would narrow is the one the first frame set)
+            self._scene_top_px = top
         if (lo, num) == (self._min_s, self._num_s):
             self._shrink_votes = 0
-            return
-        first = self._scene_top_px is None
+            return True
         if num < self._num_s and not first:
-            self._shrink_votes += 1
+            self._shrink_votes += frames
             if self._shrink_votes < SCENE_SHRINK_FRAMES:
-                return
+                return True
         self._shrink_votes = 0
         self._scene_top_px = top
         self._build()
+        return True
 
     # ---- processing ----------------------------------------------------------------------
     def rectify(self, left_bgr: np.ndarray, right_bgr: np.ndarray, right_colour: bool = True
@@ -597,9 +615,10 @@ class StereoPipeline:
             mr = undo_shading(mr, *self._shading_gains[1])
             laps("shading")
         if p.range_from_scene and p.z_min_mm is not None:
-            self._fit_range(ml, mr)
+            looked = self._fit_range(ml, mr)
             p = self._params
-            laps("look")
+            if looked:
+                laps("look")
         mw = ml.shape[1]
         if not p.full_frame and mw - (self._min_s + self._num_s) <= p.block_size // 2:
             raise InputError(

@@ -69,3 +69,32 @@ def test_the_pipeline_searches_what_the_scene_holds_and_widens_at_once_for_a_nea
     # gone again: the wider range stays a while, then narrows
     tops = [pipe.process(*far).disparity_range_px[1] for _ in range(SCENE_SHRINK_FRAMES)]
     assert all(t >= 110.0 for t in tops[:-1]) and tops[-1] < 80.0
+
+
+def test_at_the_whole_range_the_look_is_taken_every_few_frames_and_narrowing_waits_as_long(
+        monkeypatch):
+    import stereo_gui.core.matching as matching
+
+    looks = []
+    real_look = matching.look_at_scene
+
+    def counted(*args):
+        looks.append(len(looks))
+        return real_look(*args)
+
+    monkeypatch.setattr(matching, "look_at_scene", counted)
+    pipe = _pipeline(True)
+    top = pipe.process(*_pair(20, near=(200, 320, 200))).disparity_range_px[1]
+    assert top > 200.0 and len(looks) == 1  # a surface at the near end: the whole range
+    # far frames from then on: the look is taken on every LOOK_EVERY_AT_TOP-th, each counts
+    # for the frames since the one before, and the range narrows on the same frame as when
+    # every frame was looked at (the SCENE_SHRINK_FRAMES-th; the first frame's range stands
+    # until then, though it was the whole range)
+    far = _pair(20)
+    tops = [pipe.process(*far).disparity_range_px[1] for _ in range(SCENE_SHRINK_FRAMES)]
+    assert all(t == top for t in tops[:-1]) and tops[-1] < 80.0
+    assert len(looks) == 1 + SCENE_SHRINK_FRAMES // matching.LOOK_EVERY_AT_TOP
+    # narrowed: every frame is looked at, and a nearer surface widens the range at once
+    before = len(looks)
+    near = pipe.process(*_pair(20, near=(200, 320, 110)))
+    assert len(looks) == before + 1 and near.disparity_range_px[1] >= 110.0
