@@ -80,7 +80,7 @@ def run_scenes(list_path: str | os.PathLike[str], presets: Sequence[str] = ("liv
             for name, p in params.items():
                 p = p.replace(z_min_mm=None, z_max_mm=None, min_disparity=0,
                               num_disparities=num, parallel=False, cv_threads=None)
-                scale = p.matcher.effective_scale(w)
+                scale = p.matcher.effective_scale(w, h)
                 base = baseline_of(name, scale)
                 row.baselines[name] = base
                 if base not in methods:

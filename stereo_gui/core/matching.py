@@ -213,7 +213,7 @@ class StereoPipeline:
 
     def _build(self) -> None:
         p = self._params
-        s = self._scale = p.effective_scale(self.calibration.width)
+        s = self._scale = p.effective_scale(*self.calibration.image_size)
         fitted = p.range_from_scene and p.z_min_mm is not None
         self._min_s, self._num_s = p.matcher_range(self.calibration, s,
                                                    self._scene_top_px if fitted else None)

@@ -207,6 +207,12 @@ class MatcherParams:
         None, lo=64, hi=100_000, unit="px",
         help="match on images at most this wide: a larger camera frame lowers the scale further "
              "(None: scale alone)")
+    # so that a full-resolution preset keeps a few frames a second at 1280x720: a frame's work
+    # grows with its pixels times its disparity range, which grows with its width
+    max_match_pixels: int | None = param(
+        None, lo=10_000, hi=100_000_000, unit="px",
+        help="match on images of at most this many pixels: a larger camera frame is matched at "
+             "half the scale (a quarter, ... until it fits; None: no limit)")
 
     def __post_init__(self) -> None:
         check_all(self, "matcher parameters")
@@ -223,12 +229,17 @@ class MatcherParams:
     def p2_value(self) -> int:
         return int(self.p2) if self.p2 is not None else 32 * 3 * self.block_size**2
 
-    def effective_scale(self, width_px: int) -> float:
-        """The scale frames `width_px` wide are matched at (`scale`, lowered to keep the matched
-        image at most `max_match_width` px wide)."""
-        if self.max_match_width is None or width_px <= 0:
-            return self.scale
-        return min(self.scale, max(0.1, self.max_match_width / float(width_px)))
+    def effective_scale(self, width_px: int, height_px: int = 0) -> float:
+        """The scale frames `width_px` x `height_px` are matched at: `scale`, lowered to keep the
+        matched image at most `max_match_width` px wide, then halved while it holds more than
+        `max_match_pixels` pixels (a height of 0: the width alone decides)."""
+        s = self.scale
+        if self.max_match_width is not None and width_px > 0:
+            s = min(s, max(0.1, self.max_match_width / float(width_px)))
+        if self.max_match_pixels is not None and width_px > 0 and height_px > 0:
+            while width_px * height_px * s * s > self.max_match_pixels and s > 1.0 / 64:
+                s *= 0.5
+        return s
 
     def disparity_limits(self, calibration: StereoCalibration) -> tuple[float, float]:
         """(smallest, largest) disparity the preset must find, full-resolution px."""

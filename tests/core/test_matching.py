@@ -236,6 +236,28 @@ def test_a_wide_frame_is_matched_at_most_max_match_width_wide():
         MatcherParams(max_match_width=10)
 
 
+def test_a_frame_of_more_pixels_than_max_match_pixels_is_matched_at_half_and_so_on():
+    """The quality preset keeps a few frames a second on a 1280x720 camera: it matches frames of
+    more than 600,000 pixels at half; a 1241x376 road scene (466,616) stays at full."""
+    p = MatcherParams(min_disparity=0, num_disparities=64, block_size=5,
+                      max_match_pixels=600_000)
+    assert p.effective_scale(1241, 376) == 1.0 and p.effective_scale(640, 480) == 1.0
+    assert p.effective_scale(1280, 720) == 0.5 and p.effective_scale(1920, 1080) == 0.5
+    assert p.effective_scale(3840, 2160) == 0.25
+    assert p.effective_scale(1280) == 1.0  # (the width alone: no height, no pixel count)
+    # with a width limit too: the pixels are counted at the scale the width leaves
+    both = p.replace(scale=0.5, max_match_width=800)
+    assert both.effective_scale(1280, 720) == 0.5 and both.effective_scale(3200, 1800) == 0.25
+    assert both.replace(max_match_pixels=300_000).effective_scale(3200, 1800) == 0.125
+    left, right = textured_pair(shift=24, w=1000, h=640, seed=4)
+    left, right = cv2.GaussianBlur(left, (0, 0), 2.0), cv2.GaussianBlur(right, (0, 0), 2.0)
+    r = StereoPipeline(calib(w=1000, h=640), p).process(left, right)
+    assert r.match_scale == 0.5 and r.final_px.shape == (640, 1000)
+    assert np.nanmedian(r.disparity_px[20:-20, 80:-20]) == pytest.approx(24, abs=0.5)
+    with pytest.raises(InputError, match="max_match_pixels"):
+        MatcherParams(max_match_pixels=10)
+
+
 def test_a_smaller_left_right_check_keeps_the_final_map():
     """check_scale 0.5 runs the right matcher (which serves only the left-right check behind the
     WLS confidence) on images halved again: the final map keeps nearly all of its pixels and the

@@ -163,5 +163,7 @@ def test_a_preset_saved_before_the_split_loads_and_saves_as_it_was(_isolated_con
         if key == "normalize_window":
             params["fill_scale"] = 0.0
             params["fill_modes"] = "3way"
+        if key == "max_match_width":
+            params["max_match_pixels"] = None
     assert again == {**OLD_USER_PRESET, "params": params}
     assert list(again["params"]) == list(params)  # the same order too

@@ -31,7 +31,7 @@ from PySide6.QtWidgets import (
 
 from stereo_gui.core.errors import StereoGuiError
 from stereo_gui.core.params import Param
-from stereo_gui.core.preset import PRESET_PARAMS, Preset
+from stereo_gui.core.preset import PRESET_PARAMS, MatcherParams, Preset
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.files import presets
 
@@ -116,6 +116,17 @@ class SliderSpin(QWidget):
 WholeEditor = SliderSpin | QSpinBox
 Editor = QCheckBox | QComboBox | WholeEditor | QDoubleSpinBox
 EditorValue = bool | str | int | float
+
+
+def _runs_at_text(p: MatcherParams, width: int, height: int) -> str:
+    """Why frames of the calibration's size are matched at another scale than the preset's."""
+    why = []
+    if p.max_match_width is not None and width > p.max_match_width * p.scale:
+        why.append(f"at most {p.max_match_width} px wide")
+    if p.max_match_pixels is not None:
+        why.append(f"on at most {p.max_match_pixels:,} pixels")
+    return (f"runs at {p.effective_scale(width, height):g}: {width}x{height} px frames are "
+            f"matched {' and '.join(why)}")
 
 
 def make_editor(spec: Param) -> Editor:
@@ -407,10 +418,10 @@ class ParamsPanel(QWidget):
                 tip = ""
             for key in ("min_disparity", "num_disparities"):
                 ed[key].setToolTip(tip or PRESET_PARAMS[key].help)
-            width = self._calibration.width if self._calibration is not None else 0
-            runs = p.effective_scale(width)
-            self.scale_note.setText(f"runs at {runs:g}: {width} px frames are matched at most "
-                                    f"{p.max_match_width} px wide" if runs != p.scale else "")
+            width, height = (self._calibration.image_size if self._calibration is not None
+                             else (0, 0))
+            runs = p.effective_scale(width, height)
+            self.scale_note.setText(_runs_at_text(p, width, height) if runs != p.scale else "")
             self.scale_note.setVisible(runs != p.scale)
             self._show_preset_name(preset.name)
         finally:

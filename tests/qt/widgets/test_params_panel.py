@@ -110,3 +110,14 @@ def test_searching_only_what_the_scene_needs_is_a_choice_of_the_working_distance
     assert not box.isEnabled()
     panel.range_from_z.setChecked(True)
     assert box.isEnabled()
+
+
+def test_a_large_camera_frame_says_the_scale_it_runs_at_and_why(panel):
+    panel.set_calibration(StereoCalibration.identity((1280, 720), 1000.0, 60.0))
+    assert panel.scale_note.text() == ("runs at 0.25: 1280x720 px frames are matched at most "
+                                       "320 px wide")
+    assert panel.apply_preset("quality")
+    assert panel.scale_note.text() == ("runs at 0.5: 1280x720 px frames are matched on at most "
+                                       "600,000 pixels")
+    panel.set_calibration(StereoCalibration.identity((640, 480), 700.0, 110.0))
+    assert panel.scale_note.text() == "" and not panel.scale_note.isVisibleTo(panel)
