@@ -444,6 +444,9 @@ class LiveTab(QWidget):
             self._scale_note = out.scale_note
             self.scale_label.setText(out.scale_note)
             self.scale_label.setVisible(bool(out.scale_note))
+            # the panel shows the range and scale of the calibration that runs: scaled to the
+            # source's frames
+            self.params_panel.set_calibration(out.result.calibration)
             if out.scale_note:
                 self.ctx.show_status(out.scale_note)
         self.health.show_output(out, self.shown_frame)

@@ -280,6 +280,7 @@ class ParamsPanel(QWidget):
             "preset's): colours drift from frame to frame")
         self.scale_note = QLabel("")  # the scale that runs when a large frame lowers it
         self.scale_note.setStyleSheet("color: gray")
+        self.scale_note.setWordWrap(True)  # (unwrapped, its width would widen the whole panel)
         self.scale_note.hide()
 
     def _add_rows(self, form: QFormLayout, keys: tuple[str, ...]) -> None:

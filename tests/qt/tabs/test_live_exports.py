@@ -137,6 +137,12 @@ def test_a_calibration_of_another_resolution_is_scaled_and_says_so(
     assert live.scale_label.isVisibleTo(live)
     assert "1280x960" in live.scale_label.text() and "640x480" in live.scale_label.text()
     assert any("scaled" in s for s in status)
+    # the parameter panel shows what runs on the source's frames: the range of the scaled
+    # calibration, and no note of a lower scale (it would be 0.25 for 1280x960 frames)
+    shown = live.params_panel.editors["num_disparities"].value()
+    assert shown == live.params_panel.params().matcher.disparity_range(result.calibration)[1]
+    assert shown < made_at_1280.focal_px * made_at_1280.baseline_mm / 450.0
+    assert not live.params_panel.scale_note.isVisibleTo(live.params_panel)
     with qtbot.waitSignal(live.measured, timeout=30000) as sig:
         live.measure_at(300.0, 250.0)
     m = sig.args[0]

@@ -114,6 +114,9 @@ def test_searching_only_what_the_scene_needs_is_a_choice_of_the_working_distance
 
 def test_a_large_camera_frame_says_the_scale_it_runs_at_and_why(panel):
     panel.set_calibration(StereoCalibration.identity((1280, 720), 1000.0, 60.0))
+    # the note wraps: it does not ask the panel for the width of its whole line
+    note = panel.scale_note
+    assert note.minimumSizeHint().width() < note.fontMetrics().horizontalAdvance(note.text()) / 2
     assert panel.scale_note.text() == ("runs at 0.25: 1280x720 px frames are matched at most "
                                        "320 px wide")
     assert panel.apply_preset("quality")
