@@ -121,9 +121,10 @@ EditorValue = bool | str | int | float
 def _runs_at_text(p: MatcherParams, width: int, height: int) -> str:
     """Why frames of the calibration's size are matched at another scale than the preset's."""
     why = []
-    if p.max_match_width is not None and width > p.max_match_width * p.scale:
+    by_width = p.replace(max_match_pixels=None).effective_scale(width, height)
+    if by_width != p.scale:
         why.append(f"at most {p.max_match_width} px wide")
-    if p.max_match_pixels is not None:
+    if p.effective_scale(width, height) != by_width:
         why.append(f"on at most {p.max_match_pixels:,} pixels")
     return (f"runs at {p.effective_scale(width, height):g}: {width}x{height} px frames are "
             f"matched {' and '.join(why)}")

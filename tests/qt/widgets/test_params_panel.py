@@ -122,5 +122,14 @@ def test_a_large_camera_frame_says_the_scale_it_runs_at_and_why(panel):
     assert panel.apply_preset("quality")
     assert panel.scale_note.text() == ("runs at 0.5: 1280x720 px frames are matched on at most "
                                        "600,000 pixels")
+    # both limits: each named where it lowers the scale
+    panel.set_params(panel.params().replace(max_match_width=2000))
+    panel.set_calibration(StereoCalibration.identity((3200, 1800), 1000.0, 60.0))
+    assert panel.scale_note.text() == ("runs at 0.3125: 3200x1800 px frames are matched at most "
+                                       "2000 px wide and on at most 600,000 pixels")
+    panel.set_params(panel.params().replace(max_match_width=400))
+    assert panel.scale_note.text() == ("runs at 0.125: 3200x1800 px frames are matched at most "
+                                       "400 px wide")
+    assert panel.apply_preset("quality")
     panel.set_calibration(StereoCalibration.identity((640, 480), 700.0, 110.0))
     assert panel.scale_note.text() == "" and not panel.scale_note.isVisibleTo(panel)
