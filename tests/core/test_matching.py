@@ -221,17 +221,23 @@ def test_a_principal_point_offset_shifts_the_disparity_range_and_the_colours():
         assert any((g == lut[np.clip(lv + k, 0, 255)]).all() for k in (-1, 0, 1))
 
 
+def _matched_at(p: MatcherParams, size: tuple[int, int], scale: float) -> None:
+    """A textured plane 24 px apart, `size` (w, h), runs at `scale` and still reads 24 px."""
+    w, h = size
+    left, right = textured_pair(shift=24, w=w, h=h, seed=4)
+    left, right = cv2.GaussianBlur(left, (0, 0), 2.0), cv2.GaussianBlur(right, (0, 0), 2.0)
+    r = StereoPipeline(calib(w=w, h=h), p).process(left, right)
+    assert r.match_scale == scale and r.final_px.shape == (h, w)
+    assert np.nanmedian(r.disparity_px[20:-20, 80:-20]) == pytest.approx(24, abs=0.5)
+
+
 def test_a_wide_frame_is_matched_at_most_max_match_width_wide():
     """The live preset keeps its speed on a 1280x720 camera: it matches at most 320 px wide."""
     p = MatcherParams(min_disparity=0, num_disparities=64, block_size=5, scale=0.5,
                       max_match_width=320)
     assert p.effective_scale(640) == 0.5 and p.effective_scale(1280) == 0.25
     assert MatcherParams(scale=0.5).effective_scale(1280) == 0.5
-    left, right = textured_pair(shift=24, w=1280, h=160, seed=4)
-    left, right = cv2.GaussianBlur(left, (0, 0), 2.0), cv2.GaussianBlur(right, (0, 0), 2.0)
-    r = StereoPipeline(calib(w=1280, h=160), p).process(left, right)
-    assert r.match_scale == 0.25 and r.final_px.shape == (160, 1280)
-    assert np.nanmedian(r.disparity_px[20:-20, 80:-20]) == pytest.approx(24, abs=0.5)
+    _matched_at(p, (1280, 160), 0.25)
     with pytest.raises(InputError, match="max_match_width"):
         MatcherParams(max_match_width=10)
 
@@ -249,11 +255,7 @@ def test_a_frame_of_more_pixels_than_max_match_pixels_is_matched_at_half_and_so_
     both = p.replace(scale=0.5, max_match_width=800)
     assert both.effective_scale(1280, 720) == 0.5 and both.effective_scale(3200, 1800) == 0.25
     assert both.replace(max_match_pixels=300_000).effective_scale(3200, 1800) == 0.125
-    left, right = textured_pair(shift=24, w=1000, h=640, seed=4)
-    left, right = cv2.GaussianBlur(left, (0, 0), 2.0), cv2.GaussianBlur(right, (0, 0), 2.0)
-    r = StereoPipeline(calib(w=1000, h=640), p).process(left, right)
-    assert r.match_scale == 0.5 and r.final_px.shape == (640, 1000)
-    assert np.nanmedian(r.disparity_px[20:-20, 80:-20]) == pytest.approx(24, abs=0.5)
+    _matched_at(p, (1000, 640), 0.5)
     with pytest.raises(InputError, match="max_match_pixels"):
         MatcherParams(max_match_pixels=10)
 
