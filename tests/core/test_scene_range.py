@@ -75,11 +75,11 @@ def test_at_the_whole_range_the_look_is_taken_every_few_frames_and_narrowing_wai
         monkeypatch):
     import stereo_gui.core.matching as matching
 
-    looks = []
+    looks = []  # the arguments of each look taken
     real_look = matching.look_at_scene
 
     def counted(*args):
-        looks.append(len(looks))
+        looks.append(args)
         return real_look(*args)
 
     monkeypatch.setattr(matching, "look_at_scene", counted)

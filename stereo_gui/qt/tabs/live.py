@@ -117,7 +117,6 @@ class LiveTab(QWidget):
         self._processor: LiveProcessor | None = None
         self._output: LiveOutput | None = None
         self._scale_note = ""
-        self._panel_calibration: StereoCalibration | None = None  # what the panel was given
         self.shown_frame: StereoFrame | None = None  # the raw frame of the result shown
         self.frames_shown = 0
         # frames drawn over the last seconds, and how late (see shown_stats)
@@ -357,7 +356,6 @@ class LiveTab(QWidget):
             processor.close(wait=False)
 
     def _calibration_changed(self, calib: StereoCalibration | None) -> None:
-        self._panel_calibration = calib
         self.params_panel.set_calibration(calib)
         replaced = self._processor
         self._processor = (LiveProcessor(calib, self.params_panel.params())
@@ -448,10 +446,9 @@ class LiveTab(QWidget):
             self.scale_label.setVisible(bool(out.scale_note))
             if out.scale_note:
                 self.ctx.show_status(out.scale_note)
-        if out.result.calibration is not self._panel_calibration:
+        if out.result.calibration is not self.params_panel.calibration:
             # the panel shows the range and scale of the calibration that runs: scaled to the
             # source's frames
-            self._panel_calibration = out.result.calibration
             self.params_panel.set_calibration(out.result.calibration)
         self.health.show_output(out, self.shown_frame)
         if not self._draw_scheduled:  # (else the turn already scheduled goes on with this frame)

@@ -390,6 +390,11 @@ class ParamsPanel(QWidget):
         self._params = params
         self._show(params)
 
+    @property
+    def calibration(self) -> StereoCalibration | None:
+        """The calibration the parameters are shown for (`set_calibration`)."""
+        return self._calibration
+
     def set_calibration(self, calibration: StereoCalibration | None) -> None:
         """The calibration the parameters apply to: a range from working distances is shown
         as the min_disp / num_disp it gives (d = f·B/Z) with it."""
