@@ -27,12 +27,16 @@ pair per thread (pairs, like frames, share no work).
 Beside the frame path run threads that wait most of the time: the calibration health check
 (`pipeline.health`, one check every few seconds), the job runner and generator jobs
 (`qt.workers`), a recording's writer (`files.recording`). Worker threads run at a lower priority
-than the UI thread (`qt.workers.threads`). No Qt here.
+than the UI thread (`qt.workers.threads`), and the health check lower still: it takes only the
+CPU the lanes leave (`lower_thread_priority`). No Qt here.
 """
 
 from __future__ import annotations
 
+import logging
 import os
+import sys
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -42,7 +46,25 @@ from stereo_gui.core.matching import StereoPipeline
 from stereo_gui.core.preset import MatcherParams, Preset
 from stereo_gui.core.stereo_calibration import StereoCalibration
 
+log = logging.getLogger(__name__)
+
 MAX_LANES = 2  # frames processed at once at most (the frame worker has as many lanes)
+
+
+def lower_thread_priority(nice: int) -> None:
+    """Lower the calling thread's scheduling priority to niceness `nice` (never raise it).
+
+    On Linux niceness is per thread (and inherited by the threads it starts, e.g. OpenCV's pool),
+    while thread priorities do nothing under the default scheduler. Elsewhere the thread keeps
+    its priority."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        tid = threading.get_native_id()
+        current = os.getpriority(os.PRIO_PROCESS, tid)
+        os.setpriority(os.PRIO_PROCESS, tid, max(current, int(nice)))
+    except OSError as exc:  # (a sandbox may refuse it: the thread runs on at its priority)
+        log.debug("could not lower the thread's priority to niceness %d: %s", nice, exc)
 
 
 def lanes_for(parallel: bool, cpus: int | None = None) -> int:

@@ -17,6 +17,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 import numpy as np
 
 from stereo_gui.core.health import CalibrationHealth, calibration_health, health_detect_scale
+from stereo_gui.pipeline.concurrency import lower_thread_priority
 
 log = logging.getLogger(__name__)
 
@@ -24,6 +25,10 @@ log = logging.getLogger(__name__)
 # every two seconds halves what checking every second takes from the live views, and a camera's
 # turn is no faster news than that
 INTERVAL_S = 2.0
+# the check's thread runs at this niceness (Linux), below the frame lanes' (qt.workers.threads'
+# 10): it takes only the CPU they leave, so that a check never slows the frames beside it (on 2
+# CPUs, for the fifth of a second it takes, one lane would otherwise share its core with it)
+CHECK_NICE = 19
 
 
 class HealthMonitor:
@@ -31,7 +36,9 @@ class HealthMonitor:
 
     def __init__(self, interval_s: float = INTERVAL_S) -> None:
         self.interval_s = float(interval_s)
-        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="health")
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="health",
+                                        initializer=lower_thread_priority,
+                                        initargs=(CHECK_NICE,))
         self._lock = threading.Lock()
         self._pending: Future[CalibrationHealth] | None = None
         self._last_start = -1e18

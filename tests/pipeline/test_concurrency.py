@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import ast
+import os
+import sys
+import threading
 from pathlib import Path
 
 import cv2
@@ -14,6 +17,7 @@ from stereo_gui.core.matching import StereoPipeline
 from stereo_gui.core.preset import MatcherParams, Preset
 from stereo_gui.core.stereo_calibration import StereoCalibration
 from stereo_gui.pipeline.concurrency import (
+    lower_thread_priority,
     opencv_threads_beside_lanes,
     opencv_threads_for_lanes,
     preset_pipeline,
@@ -91,3 +95,25 @@ def test_the_benches_give_opencv_the_applications_threads_and_set_the_count_back
     with opencv_threads_for_lanes():
         assert cv2.getNumThreads() == opencv_threads_beside_lanes()
     assert cv2.getNumThreads() == other
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="a thread's own niceness is Linux's")
+def test_a_threads_priority_is_lowered_never_raised_and_only_its_own():
+    """lower_thread_priority sets the calling thread's niceness to at least the one asked for:
+    a thread already lower keeps its priority, and other threads keep theirs."""
+    mine = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
+    seen: list[int] = []
+
+    def run() -> None:
+        tid = threading.get_native_id()
+        lower_thread_priority(mine + 5)
+        seen.append(os.getpriority(os.PRIO_PROCESS, tid))
+        lower_thread_priority(mine + 2)  # higher than its own now: no change
+        seen.append(os.getpriority(os.PRIO_PROCESS, tid))
+
+    t = threading.Thread(target=run)
+    t.start()
+    t.join()
+    expected = min(mine + 5, 19)
+    assert seen == [expected, expected]
+    assert os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) == mine

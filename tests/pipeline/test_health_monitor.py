@@ -3,9 +3,12 @@
 
 from __future__ import annotations
 
+import os
+import sys
 import threading
 
 import numpy as np
+import pytest
 
 from stereo_gui.core.preset import MatcherParams
 from stereo_gui.pipeline.health import HealthMonitor
@@ -62,3 +65,31 @@ def test_a_check_cancelled_by_closing_is_no_failure(caplog):
         assert monitor.latest() is None
     assert "failed" not in caplog.text
     monitor.close()
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="a thread's own niceness is Linux's")
+def test_a_check_runs_below_the_frame_lanes_priority(monkeypatch, sim_rig_pair):
+    """The check's thread takes only the CPU the lanes (niceness 10) leave: it runs at
+    CHECK_NICE, and the thread that offered the pair keeps its own priority."""
+    import stereo_gui.pipeline.health as health_module
+
+    seen: list[int] = []
+
+    def check(left, right, scale):
+        seen.append(os.getpriority(os.PRIO_PROCESS, threading.get_native_id()))
+        return real(left, right, scale)
+
+    real = health_module.calibration_health
+    monkeypatch.setattr(health_module, "calibration_health", check)
+    mine = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
+    mon = HealthMonitor()
+    try:
+        assert mon.offer(*sim_rig_pair, now=0.0)
+        assert mon.wait(60) is not None
+    finally:
+        mon.close()
+    assert seen == [max(health_module.CHECK_NICE, mine)]
+    from stereo_gui.qt.workers.threads import WORKER_NICE
+
+    assert health_module.CHECK_NICE > WORKER_NICE  # below the lanes' priority
+    assert os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) == mine

@@ -27,13 +27,13 @@ from __future__ import annotations
 
 import atexit
 import logging
-import os
-import sys
 import threading
 import time
 from collections.abc import Callable
 
 from PySide6.QtCore import QObject, QThread, Slot
+
+from stereo_gui.pipeline.concurrency import lower_thread_priority
 
 log = logging.getLogger(__name__)
 
@@ -42,22 +42,6 @@ EXIT_WAIT_MS = 1000  # at interpreter exit, how long live threads get to end
 
 _lock = threading.Lock()
 _live: set[WorkerThread] = set()  # started and not yet seen finished: never deleted meanwhile
-
-
-def _lower_thread_priority() -> None:
-    """Make the calling thread yield to the UI thread when CPUs are busy.
-
-    On Linux niceness is per thread (and inherited by threads it starts, e.g. OpenCV's pool),
-    while thread priorities do nothing under the default scheduler. Elsewhere the threads run
-    at normal priority.
-    """
-    if sys.platform.startswith("linux"):
-        try:
-            tid = threading.get_native_id()
-            current = os.getpriority(os.PRIO_PROCESS, tid)
-            os.setpriority(os.PRIO_PROCESS, tid, max(current, WORKER_NICE))
-        except OSError as exc:
-            log.debug("could not lower the worker thread's priority: %s", exc)
 
 
 class WorkerThread(QThread):
@@ -84,7 +68,7 @@ class WorkerThread(QThread):
 
     def run(self) -> None:  # runs in the new thread
         if self._low_priority:
-            _lower_thread_priority()
+            lower_thread_priority(WORKER_NICE)
         try:
             self._loop()
         except Exception:  # noqa: BLE001 - a loop's bug is logged, the process goes on
