@@ -284,7 +284,10 @@ def test_a_blocked_read_is_reported_and_a_new_source_does_not_wait_for_it(
         assert (states[0].state, states[0].source_name) == (StreamState.STALLED, "stuck camera")
         assert w.status().stream is StreamState.STALLED
         w.set_source(array_source())
-        qtbot.waitUntil(lambda: w.status().frames_read >= 3, timeout=30000)  # read by a new reader
+        # read by a new reader; its "frames again" reaches this thread as a queued signal, after
+        # the reader has counted the frame
+        qtbot.waitUntil(lambda: w.status().frames_read >= 3 and states[-1].state is StreamState.OK,
+                        timeout=30000)
         assert w.status().stream is StreamState.OK and states[-1].message == ""  # another source
         assert not stuck.closed  # never closed under its own blocked read
         release.set()
