@@ -27,6 +27,7 @@ import numpy as np
 from stereo_gui.commands.scenes import _pct, over_seeds_figure
 from stereo_gui.core.click_map import reading_map
 from stereo_gui.core.click_score import (
+    NEAR_SHARE,
     Click,
     ClickScore,
     click_points,
@@ -54,7 +55,8 @@ ASSUMED_CALIB = "rectified:1000,100"
 # a list of several seeds is summed per seed too, with the mean and the worst seed
 SEED_NAME = re.compile(r"^s(\d+)-")
 # what a method's row over the seeds gives: (key of ClickScore.summary, "worst" of the seeds)
-_OVER_SEEDS = (("read", min), ("within_2pct", min), ("covers", min), ("worst", max))
+_OVER_SEEDS = (("read", min), ("within_2pct", min), ("covers", min), ("covers_within_5pct", min),
+               ("worst", max))
 
 # a click's (x, y, true disparity px, true Z mm, the true Z's span for a truth stored in steps)
 TruePoint = tuple[int, int, float, float, tuple[float, float] | None]
@@ -129,8 +131,9 @@ def run_clicks(list_path: str | os.PathLike[str], presets: Sequence[str] = ("liv
 
 def over_seeds(per_seed: dict[int, dict[str, dict[str, Any]]]) -> dict[str, Any]:
     """Per method: the mean over the seeds of each seed's read share, share right within 2 %,
-    coverage of the +- and worst error, and the worst seed's value (the lowest shares, the
-    highest error) with which seed that was; `per_seed` is {seed: {method: summary}}."""
+    coverage of the +- (of all readings and of those within NEAR_SHARE) and worst error, and the
+    worst seed's value (the lowest shares, the highest error) with which seed that was;
+    `per_seed` is {seed: {method: summary}}."""
     methods = dict.fromkeys(m for per in per_seed.values() for m in per)
     out: dict[str, Any] = {"seeds": list(per_seed), "methods": {}}
     for m in methods:
@@ -203,7 +206,9 @@ def format_clicks(res: dict[str, Any]) -> str:
             lines.append(f"{m:>10}: {t['points']} clicks, read {_pct(t['read'])} %, within 1 % "
                          f"{_pct(t['within_1pct'])} %, within 2 % {_pct(t['within_2pct'])} %, "
                          f"worst {_pct(t['worst'])} %"
-                         + ("" if m == PLAIN else f", +- covers {_pct(t['covers'])} %"))
+                         + ("" if m == PLAIN else f", +- covers {_pct(t['covers'])} % "
+                            f"({_pct(t['covers_within_5pct'])} % of the readings within "
+                            f"{100 * NEAR_SHARE:g} %)"))
             for reason, n in t["reasons"].items():
                 lines.append(f"{'':>12}{reason}: {n['refused']} refused, the map right at "
                              f"{n['map_right']}")
@@ -228,7 +233,9 @@ def _over_seeds_text(over: dict[str, Any]) -> str:
     for m, row in over["methods"].items():
         parts = []
         for key, words in (("read", "read"), ("within_2pct", "within 2 %"),
-                           ("covers", "+- covers"), ("worst", "worst")):
+                           ("covers", "+- covers"),
+                           ("covers_within_5pct", f"+- covers within {100 * NEAR_SHARE:g} %"),
+                           ("worst", "worst")):
             v = row[key]
             if v["mean"] is None:
                 continue

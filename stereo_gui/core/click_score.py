@@ -39,6 +39,11 @@ OCCLUSION_TOLERANCE_PX = 1.0  # a nearer surface must cover the point's right-im
 MAP_RIGHT_SHARE = 0.02  # the map under a refused click was right: within 2 % of Z ...
 MAP_RIGHT_PX = 0.5  # ... or this close in disparity
 RIGHT_SHARES = (0.01, 0.02)
+# a reading within this share of the true Z read the clicked surface (its error is the match's
+# sub-pixel error, which the +- is there to bound); one further off read another surface, which
+# no +- foresees. The +- is also judged on the first alone (`covers_near`): on the 13 public
+# scenes it covers 95.0 % of those (live) where it covers 90.6 % of all readings
+NEAR_SHARE = 0.05
 SPARSE_TRUTH = 0.5  # a truth known at fewer of the pixels is a sparse one (a laser scanner's)
 SPARSE_PATCH_SHARE = 1.0 / 3.0
 TRUTH_STEP_MIN_PX = 1.0 / 64.0  # a finer grid is a truth stored as numbers (KITTI's 1/256 px)
@@ -183,7 +188,8 @@ def map_right(calibration: StereoCalibration, x: int, y: int, map_d: float, trut
 class ClickScore:
     """Clicks summed: how many were asked, read, right within 1 % and 2 % (shares of the
     clicks asked), the worst error of a reading (share of Z), how often the +- covered the truth
-    (share of the readings), and each refusal's count with how many of those had a right map."""
+    (share of the readings, and of those within NEAR_SHARE), and each refusal's count with how
+    many of those had a right map."""
 
     clicks: list[Click] = field(default_factory=list)
 
@@ -216,6 +222,14 @@ class ClickScore:
         readings = [c for c in self.clicks if c.read and math.isfinite(c.bound_mm)]
         return self._share(sum(c.covered for c in readings), len(readings))
 
+    @property
+    def covers_near(self) -> float:
+        """How often the +- covered the truth where the reading is within NEAR_SHARE of it (of
+        the clicked surface): the +-'s width judged apart from readings of another surface."""
+        readings = [c for c in self.clicks if c.read and math.isfinite(c.bound_mm)
+                    and c.error_share <= NEAR_SHARE]
+        return self._share(sum(c.covered for c in readings), len(readings))
+
     def reasons(self) -> dict[str, dict[str, int]]:
         """Each refusal's reason: how many clicks it refused and how many of those the map under
         the click had right."""
@@ -231,4 +245,5 @@ class ClickScore:
         return {"points": self.points, "read": num(self.read),
                 "within_1pct": num(self.within(RIGHT_SHARES[0])),
                 "within_2pct": num(self.within(RIGHT_SHARES[1])), "worst": num(self.worst),
-                "covers": num(self.covers), "reasons": self.reasons()}
+                "covers": num(self.covers), "covers_within_5pct": num(self.covers_near),
+                "reasons": self.reasons()}

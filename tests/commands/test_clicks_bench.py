@@ -60,6 +60,7 @@ def test_click_bench_reads_a_plain_scene_right_beside_plain_opencv(tmp_path, cap
             assert s["points"] == scene["points"]
             assert s["read"] > 0.9 and s["within_2pct"] > 0.9 and s["worst"] < 0.02
     assert doc["total"]["quality"]["covers"] > 0.9
+    assert doc["total"]["quality"]["covers_within_5pct"] >= doc["total"]["quality"]["covers"]
     # the sums over the scenes whose errors are of a real Z: those with a calibration of their own
     own = doc["own_calibration"]
     assert own["plain"]["points"] == doc["scenes"][0]["points"]
@@ -67,6 +68,7 @@ def test_click_bench_reads_a_plain_scene_right_beside_plain_opencv(tmp_path, cap
     assert main(["bench", "--clicks", str(tmp_path / "c.tsv"), "--preset", "quality"]) == 0
     text = capsys.readouterr().out
     assert "quality:" in text and "plain:" in text and "+- covers" in text
+    assert "% of the readings within 5 %)" in text
     assert "assumed calibration" in text and "b" in text.splitlines()[-1]
     assert "the scenes with a calibration of their own:" in text
 
@@ -125,13 +127,18 @@ def test_the_rigs_click_scenes_are_summed_per_seed_with_the_worst_seed(tmp_path,
 def test_over_seeds_takes_the_lowest_shares_and_the_highest_error_as_the_worst_seed():
     from stereo_gui.commands.clicks import over_seeds
     per_seed = {
-        1: {"live": {"read": 0.9, "within_2pct": 0.8, "covers": 0.97, "worst": 0.02}},
-        2: {"live": {"read": 0.8, "within_2pct": 0.85, "covers": 0.99, "worst": 0.50}},
-        3: {"live": {"read": 0.95, "within_2pct": 0.9, "covers": 0.91, "worst": 0.01}}}
+        1: {"live": {"read": 0.9, "within_2pct": 0.8, "covers": 0.97, "worst": 0.02,
+                     "covers_within_5pct": 0.98}},
+        2: {"live": {"read": 0.8, "within_2pct": 0.85, "covers": 0.99, "worst": 0.50,
+                     "covers_within_5pct": 0.94}},
+        3: {"live": {"read": 0.95, "within_2pct": 0.9, "covers": 0.91, "worst": 0.01,
+                     "covers_within_5pct": 0.96}}}
     row = over_seeds(per_seed)["methods"]["live"]
     assert row["read"] == {"mean": pytest.approx(2.65 / 3), "worst": 0.8, "worst_seed": 2}
     assert row["within_2pct"]["worst_seed"] == 1
     assert row["covers"] == {"mean": pytest.approx(0.9566667), "worst": 0.91, "worst_seed": 3}
+    assert row["covers_within_5pct"] == {"mean": pytest.approx(0.96), "worst": 0.94,
+                                         "worst_seed": 2}
     assert row["worst"] == {"mean": pytest.approx(0.53 / 3), "worst": 0.50, "worst_seed": 2}
 
 

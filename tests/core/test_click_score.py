@@ -89,10 +89,14 @@ def test_the_sums_count_shares_of_the_clicks_and_of_the_readings():
     assert s["points"] == 6 and s["read"] == pytest.approx(0.5)
     assert s["within_1pct"] == pytest.approx(1 / 6) and s["within_2pct"] == pytest.approx(2 / 6)
     assert s["worst"] == pytest.approx(0.1) and s["covers"] == pytest.approx(2 / 3)
+    # the +- judged on the readings of the clicked surface (within 5 %) alone: the 10 % one,
+    # covered by a wide +-, is not among them
+    assert s["covers_within_5pct"] == pytest.approx(1 / 2)
     assert s["reasons"] == {"ambiguous match": {"refused": 2, "map_right": 1},
                             "no texture": {"refused": 1, "map_right": 0}}
     empty = ClickScore().summary()
     assert empty["points"] == 0 and empty["read"] is None and empty["worst"] is None
+    assert empty["covers_within_5pct"] is None
 
 
 def test_a_truth_stored_in_steps_is_told_from_one_stored_as_numbers():
