@@ -40,8 +40,8 @@ MAP_RIGHT_SHARE = 0.02  # the map under a refused click was right: within 2 % of
 MAP_RIGHT_PX = 0.5  # ... or this close in disparity
 RIGHT_SHARES = (0.01, 0.02)
 # a reading within this share of the true Z read the clicked surface (its error is the match's
-# sub-pixel error, which the +- is there to bound); one further off read another surface, which
-# no +- foresees. The +- is also judged on the first alone (`covers_near`): on the 13 public
+# sub-pixel error, which the +- is there to bound); one further off mostly read another surface,
+# which no +- foresees. The +- is also judged on the first alone (`covers_near`): on the 13 public
 # scenes it covers 95.0 % of those (live) where it covers 90.6 % of all readings
 NEAR_SHARE = 0.05
 SPARSE_TRUTH = 0.5  # a truth known at fewer of the pixels is a sparse one (a laser scanner's)
