@@ -217,18 +217,21 @@ class ClickScore:
         errors = [c.error_share for c in self.clicks if c.read]
         return max(errors) if errors else float("nan")
 
+    def _coverage(self, within: float = math.inf) -> float:
+        """How often the +- covered the truth, of the readings with a +- at most `within` off."""
+        readings = [c for c in self.clicks
+                    if c.read and math.isfinite(c.bound_mm) and c.error_share <= within]
+        return self._share(sum(c.covered for c in readings), len(readings))
+
     @property
     def covers(self) -> float:
-        readings = [c for c in self.clicks if c.read and math.isfinite(c.bound_mm)]
-        return self._share(sum(c.covered for c in readings), len(readings))
+        return self._coverage()
 
     @property
     def covers_near(self) -> float:
         """How often the +- covered the truth where the reading is within NEAR_SHARE of it (of
         the clicked surface): the +-'s width judged apart from readings of another surface."""
-        readings = [c for c in self.clicks if c.read and math.isfinite(c.bound_mm)
-                    and c.error_share <= NEAR_SHARE]
-        return self._share(sum(c.covered for c in readings), len(readings))
+        return self._coverage(NEAR_SHARE)
 
     def reasons(self) -> dict[str, dict[str, int]]:
         """Each refusal's reason: how many clicks it refused and how many of those the map under

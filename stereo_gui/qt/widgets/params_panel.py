@@ -119,15 +119,18 @@ EditorValue = bool | str | int | float
 
 
 def _runs_at_text(p: MatcherParams, width: int, height: int) -> str:
-    """Why frames of the calibration's size are matched at another scale than the preset's."""
-    why = []
+    """Why frames of the calibration's size are matched at another scale than the preset's
+    ("" when they are matched at the preset's)."""
+    runs = p.effective_scale(width, height)
+    if runs == p.scale:
+        return ""
     by_width = p.replace(max_match_pixels=None).effective_scale(width, height)
+    why = []
     if by_width != p.scale:
         why.append(f"at most {p.max_match_width} px wide")
-    if p.effective_scale(width, height) != by_width:
+    if runs != by_width:
         why.append(f"on at most {p.max_match_pixels:,} pixels")
-    return (f"runs at {p.effective_scale(width, height):g}: {width}x{height} px frames are "
-            f"matched {' and '.join(why)}")
+    return f"runs at {runs:g}: {width}x{height} px frames are matched {' and '.join(why)}"
 
 
 def make_editor(spec: Param) -> Editor:
@@ -427,9 +430,9 @@ class ParamsPanel(QWidget):
                 ed[key].setToolTip(tip or PRESET_PARAMS[key].help)
             width, height = (self._calibration.image_size if self._calibration is not None
                              else (0, 0))
-            runs = p.effective_scale(width, height)
-            self.scale_note.setText(_runs_at_text(p, width, height) if runs != p.scale else "")
-            self.scale_note.setVisible(runs != p.scale)
+            note = _runs_at_text(p, width, height)
+            self.scale_note.setText(note)
+            self.scale_note.setVisible(bool(note))
             self._show_preset_name(preset.name)
         finally:
             self._updating = False
