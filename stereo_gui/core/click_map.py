@@ -124,6 +124,21 @@ def hidden_by_nearer(view_px: np.ndarray, x: int, y0: int, y1: int, d: float, to
 
 
 # ---- object mode ---------------------------------------------------------------------------
+# a patch with fewer checked values than this shows no plane to scatter about
+PLANE_MIN_VALUES = 6
+
+
+def plane_scatter_px(window: np.ndarray, usable: np.ndarray, x0: int, y0: int, x: int, y: int
+                     ) -> float:
+    """How far a patch's checked values (`window[usable]`, its top-left pixel at (x0, y0))
+    scatter about the plane of disparity through them, px: the robust spread of the residuals
+    of a least squares plane about (x, y), so that a floor's or a wall's slant is not counted.
+    0 where fewer than PLANE_MIN_VALUES values show no plane."""
+    if int(usable.sum()) < PLANE_MIN_VALUES:
+        return 0.0
+    return robust_spread(fit_plane(window, usable, x0, y0, x, y, 1).resid)
+
+
 def surface_region(view_px: np.ndarray, x: int, y: int, window: int) -> np.ndarray | None:
     """Mask of the connected region around (x, y) that `view_px` (e.g. the WLS map) shows as one
     surface: a flood fill whose neighbour-to-neighbour tolerance comes from the map's own local

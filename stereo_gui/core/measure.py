@@ -12,7 +12,7 @@ estimate is first replaced by a full-resolution re-match of a strip around the c
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import StrEnum
 
 import numpy as np
@@ -44,6 +44,7 @@ from stereo_gui.core.click_map import (
     estimate_from_right,
     hidden_by_nearer,
     histogram_mode,
+    plane_scatter_px,
     reading_map,
     rematch_strip,
     surface_region,
@@ -52,9 +53,11 @@ from stereo_gui.core.click_map import (
 from stereo_gui.core.errors import InputError
 from stereo_gui.core.matching import PipelineResult
 from stereo_gui.core.reading_bound import (
+    MAP_SCATTER_FLOOR_PX,
     depth_bound_mm,
     disparity_bound_px,
     with_calibration_uncertainty,
+    with_map_scatter,
 )
 from stereo_gui.core.regression import FitResult
 from stereo_gui.core.stereo_calibration import StereoCalibration, triangulate
@@ -270,6 +273,9 @@ class _MapReading:
     values: np.ndarray
     valid_fraction: float
     empty: Reason | None = None
+    # the values' robust spread about their plane of disparity, px (`plane_scatter_px`; 0 where
+    # the patch held too few of its own)
+    plane_scatter_px: float = 0.0
     spread_px: float = field(init=False)  # the values' robust standard deviation, px
 
     def __post_init__(self) -> None:
@@ -348,8 +354,23 @@ def measure_point(result: PipelineResult, x: float, y: float, patch: int = PATCH
         beyond = _beyond_range(gl, gr, disp, xi, yi, d, click.half, (d_lo - step, d_hi + step))
         if beyond is not None:
             return read.refused(click, beyond, d)
-    return _settled(result, click, read, d, ref, (gl, gr, disp), (d_lo, d_hi), step,
-                    calibration, fit)
+    return _with_map_scatter(_settled(result, click, read, d, ref, (gl, gr, disp),
+                                      (d_lo, d_hi), step, calibration, fit),
+                             read, click, calibration, fit)
+
+
+def _with_map_scatter(m: Measurement, read: _MapReading, click: _Click,
+                      calibration: StereoCalibration, fit: FitResult | None) -> Measurement:
+    """A refined reading with the scatter of the map's patch about its plane added to its
+    bound (`with_map_scatter`). Added here, after every decision: the refusals and the patch's
+    overruling judge the alignment's own bound. An unrefined reading's bound is the patch's
+    spread already."""
+    if not (m.valid and m.refined and read.plane_scatter_px > MAP_SCATTER_FLOOR_PX):
+        return m
+    bound_px = with_map_scatter(m.disparity_bound_px, read.plane_scatter_px)
+    return replace(m, disparity_bound_px=bound_px,
+                   expected_error_mm=_z_bound_mm(click, m.disparity_px, bound_px, calibration,
+                                                 fit))
 
 
 def _settled(result: PipelineResult, click: _Click, read: _MapReading, d: float,
@@ -523,7 +544,9 @@ def _read_patch(result: PipelineResult, disp: np.ndarray, click: _Click, gl: np.
             # within 2 % at 6 of them and was off at 15 (the refusal stays: it stops more wrong
             # readings than right)
             return click.invalid(Reason.NEARER_HIDES, valid_fraction)
-    return _MapReading(d, values, valid_fraction, empty)
+    scatter = (plane_scatter_px(window, usable, click.x0, click.y0, click.xi, click.yi)
+               if empty is None else 0.0)
+    return _MapReading(d, values, valid_fraction, empty, scatter)
 
 
 def _rematched(result: PipelineResult, click: _Click, window: np.ndarray, usable: np.ndarray
@@ -664,6 +687,17 @@ def _checked_in_images(gl: np.ndarray, gr: np.ndarray, disp: np.ndarray, click: 
     return d
 
 
+def _z_bound_mm(click: _Click, d: float, bound_px: float, calibration: StereoCalibration,
+                fit: FitResult | None) -> float:
+    """A disparity bound at the click turned into millimetres of Z: through the fit's own slope,
+    or the calibration's triangulation with its own uncertainty added."""
+    if fit is not None:
+        z_fit = float(fit.predict(d))
+        return max(abs(float(fit.predict(d + s * bound_px)) - z_fit) for s in (-1.0, 1.0))
+    expected = depth_bound_mm(calibration, click.x, click.y, d, bound_px)
+    return with_calibration_uncertainty(expected, calibration, click.x, click.y, d)
+
+
 def _located(click: _Click, read: _MapReading, d: float, d_range: tuple[float, float],
              step: float, bound_px: float, calibration: StereoCalibration,
              fit: FitResult | None, refined: bool) -> Measurement:
@@ -691,15 +725,11 @@ def _located(click: _Click, read: _MapReading, d: float, d_range: tuple[float, f
         k = z_fit / Z
         X, Y, Z = X * k, Y * k, z_fit
         method = fit.model
-        # the fit's own slope turns the disparity's uncertainty into millimetres
-        expected = max(abs(float(fit.predict(d + s * bound_px)) - z_fit) for s in (-1.0, 1.0))
     elif not calibration.metric:
         # Hartley's rectification has no scale: triangulation would give a number in unknown
         # units; a regression fitted on true distances gives millimetres
         return read.refused(click, Reason.NO_METRIC_SCALE, d)
-    else:
-        expected = depth_bound_mm(calibration, click.x, click.y, d, bound_px)
-        expected = with_calibration_uncertainty(expected, calibration, click.x, click.y, d)
+    expected = _z_bound_mm(click, d, bound_px, calibration, fit)
     if not (math.isfinite(expected) and expected <= AMBIGUOUS_SHARE * abs(Z)):
         # the match fits so loosely that its 95 % bound spans a large part of the distance
         # (texture near the sensor noise, shading both cameras share, a match into the strip

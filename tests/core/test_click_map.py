@@ -1,4 +1,5 @@
-"""What the map says around a click: the histogram's mode, a nearer surface that hides a point."""
+"""What the map says around a click: the histogram's mode, a nearer surface that hides a point,
+the scatter of a patch about its plane."""
 
 from types import SimpleNamespace
 
@@ -9,6 +10,7 @@ from stereo_gui.core.click_map import (
     SURROUND_FILL_RATIO,
     hidden_by_nearer,
     histogram_mode,
+    plane_scatter_px,
     surrounding_estimate,
 )
 
@@ -77,3 +79,19 @@ def test_the_surface_around_an_empty_patch_unless_the_fill_shows_something_neare
     assert surrounding_estimate(_empty_patch_on_a_wall(bump), 100, 100) is None
     far_off = np.full((200, 200), 30.0 * (SURROUND_FILL_RATIO + 0.5), np.float32)
     assert surrounding_estimate(_empty_patch_on_a_wall(far_off), 100, 100) is None
+
+
+def test_a_patch_scatters_about_its_plane_not_along_its_slant():
+    """A floor's slant (1.5 px of disparity per row) is no scatter; noise of 0.3 px about it
+    is, and so is the same noise on a wall facing the rig; five values show no plane."""
+    rng = np.random.default_rng(3)
+    yy, xx = np.mgrid[0:9, 0:9].astype(np.float32)
+    slant = 30.0 + 1.5 * (yy - 4) + 0.2 * (xx - 4)
+    every = np.ones((9, 9), bool)
+    assert plane_scatter_px(slant, every, 100, 50, 104, 54) == pytest.approx(0.0, abs=1e-4)
+    noise = rng.normal(0.0, 0.3, (9, 9)).astype(np.float32)
+    assert plane_scatter_px(slant + noise, every, 100, 50, 104, 54) == pytest.approx(0.3, rel=0.3)
+    assert plane_scatter_px(30.0 + noise, every, 100, 50, 104, 54) == pytest.approx(0.3, rel=0.3)
+    few = np.zeros((9, 9), bool)
+    few[4, :5] = True
+    assert plane_scatter_px(slant + noise, few, 100, 50, 104, 54) == 0.0

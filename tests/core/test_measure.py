@@ -24,6 +24,7 @@ from stereo_gui.core.measure import (
     measure_point,
 )
 from stereo_gui.core.preset import MatcherParams, Preset
+from stereo_gui.core.reading_bound import MAP_SCATTER_FLOOR_PX
 from stereo_gui.core.regression import fit_inverse
 from stereo_gui.core.stereo_calibration import StereoCalibration, triangulate
 from stereo_gui.core.uncertainty import Z95
@@ -1010,3 +1011,28 @@ def test_a_window_the_images_do_not_bear_out_is_called_no_texture_only_where_it_
     # where the right view does show the window, it is borne out
     shifted = np.roll(textured, -10, axis=1)
     assert measure._checked_in_images(textured, shifted, disp, click, read, None) == 10.0
+
+
+@pytest.mark.parametrize("scatter", [0.0, 0.04, 0.5])
+def test_the_maps_scatter_about_its_plane_widens_a_refined_readings_bound_only(monkeypatch,
+                                                                               scatter):
+    """A refined reading's bound has the patch's scatter about its plane beyond the floor a
+    right match shows (MAP_SCATTER_FLOOR_PX, 0.05 px) added in quadrature (1.96 sigma): the
+    alignment's fit does not see how the map's matches around the click scatter. The reading
+    itself stays; so does an unrefined one's bound, the patch's spread already."""
+    import stereo_gui.core.measure as measure
+
+    result = _textured_result(40.0, 1.0)
+    monkeypatch.setattr(measure, "plane_scatter_px", lambda *a: 0.0)
+    alone = measure_point(result, 200, 120)
+    patch = measure_point(result, 200, 120, refine=False)
+    monkeypatch.setattr(measure, "plane_scatter_px", lambda *a: scatter)
+    m = measure_point(result, 200, 120)
+    assert alone.valid and alone.refined and m.valid and m.refined
+    assert m.disparity_px == alone.disparity_px and m.Z_mm == alone.Z_mm
+    excess = math.sqrt(max(0.0, scatter ** 2 - MAP_SCATTER_FLOOR_PX ** 2))
+    assert m.disparity_bound_px == pytest.approx(math.hypot(alone.disparity_bound_px,
+                                                            Z95 * excess))
+    assert (m.expected_error_mm > alone.expected_error_mm) == (scatter > MAP_SCATTER_FLOOR_PX)
+    unrefined = measure_point(result, 200, 120, refine=False)
+    assert unrefined.disparity_bound_px == patch.disparity_bound_px
