@@ -1,8 +1,9 @@
 """What the frame's disparity map says around a click: the map a reading reads
 (`reading_map`), its checked pixels, the surface around an empty patch, a nearer surface that
-hides a point from the right camera, the surface region of object mode, and a full-resolution
-re-match of the rows around a click for a reduced-resolution preset. Disparities are float32 px
-of the full-resolution rectified left image, NaN invalid. `core.measure` reads a click from
+hides a point from the right camera, how far a patch scatters about its plane, the surface
+region of object mode, and a full-resolution re-match of the rows around a click for a
+reduced-resolution preset. Disparities are float32 px of the full-resolution rectified left
+image, NaN invalid. `core.measure` reads a click from
 these; nothing here decides a reading.
 """
 
@@ -123,7 +124,6 @@ def hidden_by_nearer(view_px: np.ndarray, x: int, y0: int, y1: int, d: float, to
     return False, (float(np.median(under)) if 2 * (hidden + len(under)) > n else None)
 
 
-# ---- object mode ---------------------------------------------------------------------------
 # a patch with fewer checked values than this shows no plane to scatter about
 PLANE_MIN_VALUES = 6
 
@@ -139,6 +139,7 @@ def plane_scatter_px(window: np.ndarray, usable: np.ndarray, x0: int, y0: int, x
     return robust_spread(fit_plane(window, usable, x0, y0, x, y, 1).resid)
 
 
+# ---- object mode ---------------------------------------------------------------------------
 def surface_region(view_px: np.ndarray, x: int, y: int, window: int) -> np.ndarray | None:
     """Mask of the connected region around (x, y) that `view_px` (e.g. the WLS map) shows as one
     surface: a flood fill whose neighbour-to-neighbour tolerance comes from the map's own local
