@@ -72,6 +72,16 @@ def short_reason(reason: Reason | str | None) -> str:
     return reason if len(reason) <= 16 else reason[:15] + "…"
 
 
+def status_text(m: Measurement) -> str:
+    """The status bar's line for a logged reading: its ± right after Z, which it bounds (a
+    1280 px wide window cuts the line's end off)."""
+    if not m.valid:
+        return f"({m.x:.0f}, {m.y:.0f}): no distance: {m.reason}"
+    return (f"({m.x:.0f}, {m.y:.0f}): Z {format_distance(m.Z_mm)} "
+            f"{format_error(m.expected_error_mm)}, range {format_distance(m.range_mm)}, "
+            f"disparity {m.disparity_px:.2f} px, {m.valid_fraction:.0%} valid ({m.method})")
+
+
 @dataclass(frozen=True)
 class ReadingScreen:
     """What the readings read from and draw on, and nothing more of the tab that shows them."""
@@ -202,7 +212,7 @@ class LiveReadings(QObject):
         _key, ruler = self._pending.pop(job_id)
         color = marker_color(m.valid)
         label = format_distance(m.Z_mm) if m.valid else f"✕ {short_reason(m.reason)}"
-        line_to, line_text, ruler_record, status = None, "", None, self._status_text(m)
+        line_to, line_text, ruler_record, status = None, "", None, status_text(m)
         if ruler:
             a = self._ruler_a
             if a is None:
@@ -247,13 +257,6 @@ class LiveReadings(QObject):
             return
         if self._pending.pop(job_id, None) is not None:
             self.ctx.report_error(f"Measurement failed: {message}")
-
-    def _status_text(self, m: Measurement) -> str:
-        if not m.valid:
-            return f"({m.x:.0f}, {m.y:.0f}): no distance: {m.reason}"
-        return (f"({m.x:.0f}, {m.y:.0f}): Z {format_distance(m.Z_mm)}, range "
-                f"{format_distance(m.range_mm)} {format_error(m.expected_error_mm)}, "
-                f"disparity {m.disparity_px:.2f} px, {m.valid_fraction:.0%} valid ({m.method})")
 
     def _record(self, m: Measurement) -> MeasurementRecord:
         calib = self.ctx.calibration

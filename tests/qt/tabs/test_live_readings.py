@@ -6,8 +6,14 @@ import math
 
 import pytest
 
-from stereo_gui.core.measure import Reason
-from stereo_gui.qt.tabs.live_readings import HOVER_HINT, LiveReadings, ReadingScreen, short_reason
+from stereo_gui.core.measure import Measurement, Reason
+from stereo_gui.qt.tabs.live_readings import (
+    HOVER_HINT,
+    LiveReadings,
+    ReadingScreen,
+    short_reason,
+    status_text,
+)
 
 
 def test_every_reason_has_a_short_label():
@@ -27,6 +33,17 @@ def test_no_reason_and_unknown_texts():
     assert short_reason(None) == short_reason("") == "invalid"
     assert short_reason("lens cap on") == "lens cap on"
     assert short_reason("a reason of a newer version") == "a reason of a n…"
+
+
+def test_the_status_line_puts_the_plus_minus_beside_the_z_it_bounds():
+    """The ± bounds Z and stands right after it, early in the line, where a 1280 px window
+    still shows it; a refusal says why."""
+    m = Measurement(509, 295, True, disparity_px=27.43, Z_mm=3002.0, range_mm=3106.0,
+                    valid_fraction=0.9, expected_error_mm=5.8)
+    text = status_text(m)
+    assert text.startswith("(509, 295): Z 3.002 m ± 5.8 mm, range 3.106 m")
+    assert status_text(Measurement(3, 4, False, Reason.AMBIGUOUS)) == (
+        "(3, 4): no distance: ambiguous match")
 
 
 # ---- the readings on a screen of their own: what they read and draw is named, nothing more ----
